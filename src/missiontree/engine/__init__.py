@@ -1,0 +1,1 @@
+"""The mission engine: YAML → checked spec → py_trees tree; registry; runner; tick log."""

@@ -1,0 +1,69 @@
+"""What a running mission gives its leaves: the robot, the models, the event sink, the run directory.
+
+Leaves receive it in ``setup(context=...)`` (py_trees passes setup keyword arguments to every
+node), never in their constructor: trees build, validate and render with no robot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+from missiontree.robot.interface import Robot
+from missiontree.types import Marker
+
+
+class EventSink(Protocol):
+    """Where leaves send typed events (goal sent, model call, alarm, ...) for the tick log."""
+
+    def emit(self, event: str, **fields: Any) -> None:
+        """Record one event of kind ``event``; fields must be JSON-serialisable."""
+        ...
+
+
+class NullEvents:
+    """An event sink that drops everything (for trees ticked outside the runner)."""
+
+    def emit(self, event: str, **fields: Any) -> None:
+        """Drop the event."""
+
+
+@dataclass
+class MissionContext:
+    """Everything a leaf may use at run time.
+
+    Attributes:
+        robot: The robot (simulated or ROS 2).
+        models: Model providers by role (``detector``, ``vlm``, ``llm``, ``embedder``, ...).
+        events: Sink for typed tick-log events.
+        run_dir: The run's output directory (alarm frames, pictures), None when not writing.
+        markers: Things to draw on the run's top-down picture.
+        config: Free-form run configuration (from ``--config``).
+        seed: The run's random seed.
+    """
+
+    robot: Robot
+    models: dict[str, Any] = field(default_factory=dict)
+    events: EventSink = field(default_factory=NullEvents)
+    run_dir: Path | None = None
+    markers: list[Marker] = field(default_factory=list)
+    config: dict[str, Any] = field(default_factory=dict)
+    seed: int = 0
+
+    def mark(self, kind: str, x: float, y: float, label: str = "") -> None:
+        """Add a marker for the run's picture at the current time."""
+        self.markers.append(Marker(kind, x, y, self.robot.now(), label))
+
+    def model(self, role: str) -> Any:
+        """The provider configured for ``role``; raises ConfigError naming the known roles."""
+        from missiontree.errors import ConfigError
+
+        try:
+            return self.models[role]
+        except KeyError:
+            known = ", ".join(sorted(self.models)) or "none"
+            raise ConfigError(
+                f"no model configured for role {role!r} (configured: {known}); "
+                f"add it to the models config (config/models/*.yaml)"
+            ) from None

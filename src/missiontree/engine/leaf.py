@@ -1,0 +1,144 @@
+"""The base class of missiontree leaves: py_trees' lifecycle plus context, ports and safe failure.
+
+Lifecycle, as in py_trees (STYLE §1):
+
+- ``__init__(name, params)`` only stores the validated parameters; no robot is needed.
+- ``setup(context=...)`` receives the :class:`~missiontree.engine.context.MissionContext`
+  (kept as ``self.ctx``) and calls :meth:`Leaf.on_setup` to connect and check.
+- ``initialise()`` starts the work (sends a goal, submits a model call).
+- ``update()`` polls and returns at once; it ends with ``return self.fail("reason")`` for an
+  expected failure, which sets the feedback message the tick log records.
+- ``terminate(new_status)`` cancels what ``initialise()`` started when halted.
+
+An exception raised in any of them becomes FAILURE of this leaf with the error as the reason,
+and an ``error`` event; the run goes on.
+"""
+
+from __future__ import annotations
+
+import traceback
+from collections.abc import Iterator
+from typing import Any, ClassVar
+
+import py_trees
+from pydantic import BaseModel, TypeAdapter
+
+from missiontree.engine.context import MissionContext
+from missiontree.engine.ports import BlackboardRef, ports_of
+
+Status = py_trees.common.Status
+
+
+class Leaf(py_trees.behaviour.Behaviour):
+    """Base for every leaf node type.
+
+    Subclasses set ``Params`` (a pydantic model: parameters and ports in one place) and a class
+    docstring whose first line is the summary ``missiontree nodes`` prints.
+    """
+
+    Params: ClassVar[type[BaseModel]] = BaseModel
+
+    def __init__(self, name: str, params: BaseModel | None = None) -> None:
+        super().__init__(name=name)
+        self.params = params if params is not None else self.Params()
+        self.ctx: MissionContext | None = None
+        self.failure_reason = ""
+        self._ports = ports_of(type(self.params))
+        self.bb = self.attach_blackboard_client(name=name)
+        access = py_trees.common.Access
+        for field_name, port in self._ports.items():
+            key = getattr(self.params, field_name)
+            self.bb.register_key(key=key, access=access.WRITE if port.direction == "out" else access.READ)
+        for field_name in type(self.params).model_fields:
+            raw = getattr(self.params, field_name, None)
+            if isinstance(raw, BlackboardRef):
+                self.bb.register_key(key=raw.key, access=access.READ)
+
+    # -- lifecycle ---------------------------------------------------------------------------
+
+    def setup(self, **kwargs: Any) -> None:
+        """Keep the mission context and let the subclass connect and check (``on_setup``)."""
+        context = kwargs.get("context")
+        if context is not None:
+            self.ctx = context
+        self.on_setup()
+
+    def on_setup(self) -> None:
+        """Connect and check; override. ``self.ctx`` is set when a context was given."""
+
+    def tick(self) -> Iterator[py_trees.behaviour.Behaviour]:
+        """Tick as py_trees does, turning an exception into FAILURE of this leaf."""
+        try:
+            yield from super().tick()
+        except Exception as error:  # noqa: BLE001 - a leaf's bug must not kill the mission
+            self._fail_on_exception(error)
+            yield self
+
+    def _fail_on_exception(self, error: Exception) -> None:
+        reason = f"{type(error).__name__}: {error}"
+        self.failure_reason = reason
+        self.feedback_message = reason
+        if self.ctx is not None:
+            self.ctx.events.emit(
+                "error", node=self.name, error=reason,
+                where=traceback.extract_tb(error.__traceback__)[-1].name if error.__traceback__ else "",
+            )
+        try:
+            if self.status == Status.RUNNING:
+                self.terminate(Status.FAILURE)
+        except Exception:  # noqa: BLE001 - already failing; the first error is the one to report
+            pass
+        self.status = Status.FAILURE
+        self.iterator = self.tick()
+
+    # -- helpers for subclasses ------------------------------------------------------------------
+
+    @property
+    def context(self) -> MissionContext:
+        """The mission context; raises a clear error when the tree was not set up with one."""
+        if self.ctx is None:
+            raise RuntimeError(f"{self.name}: no mission context; call tree.setup(context=...) first")
+        return self.ctx
+
+    def fail(self, reason: str) -> Status:
+        """Record ``reason`` as this leaf's failure reason and return FAILURE."""
+        self.failure_reason = reason
+        self.feedback_message = reason
+        return Status.FAILURE
+
+    def running(self, message: str = "") -> Status:
+        """Set the feedback message and return RUNNING."""
+        self.feedback_message = message
+        return Status.RUNNING
+
+    def succeed(self, message: str = "") -> Status:
+        """Set the feedback message and return SUCCESS."""
+        self.failure_reason = ""
+        self.feedback_message = message
+        return Status.SUCCESS
+
+    def value(self, field_name: str) -> Any:
+        """A parameter's value, read from the blackboard now if the mission gave ``{bb: key}``."""
+        raw = getattr(self.params, field_name)
+        if not isinstance(raw, BlackboardRef):
+            return raw
+        value = self.bb.get(raw.key)
+        annotation = type(self.params).model_fields[field_name].annotation
+        return TypeAdapter(annotation).validate_python(value)
+
+    def read(self, port: str, default: Any = None) -> Any:
+        """Read the blackboard key bound to input port ``port`` (``default`` when unset)."""
+        key = getattr(self.params, port)
+        try:
+            return self.bb.get(key)
+        except KeyError:
+            return default
+
+    def write(self, port: str, value: Any) -> None:
+        """Write ``value`` to the blackboard key bound to output port ``port``."""
+        self.bb.set(getattr(self.params, port), value, overwrite=True)
+
+    def emit(self, event: str, **fields: Any) -> None:
+        """Send a typed event to the tick log, tagged with this node's name."""
+        if self.ctx is not None:
+            self.ctx.events.emit(event, node=self.name, **fields)
