@@ -1,0 +1,10 @@
+"""Reasoning: the model protocols, non-blocking calls, answer schemas and checks, and providers.
+
+- :mod:`~missiontree.reasoning.protocols` — VisionLanguageModel, LanguageModel, Embedder.
+- :mod:`~missiontree.reasoning.calls` — ModelCaller / ModelCall: submit, poll, time out, cancel.
+- :mod:`~missiontree.reasoning.schemas` — pydantic answer schemas missions use.
+- :mod:`~missiontree.reasoning.checks` — validation, retry-once, grounding of object ids.
+- :mod:`~missiontree.reasoning.prompts` — the prompts missions send.
+- providers: :mod:`~missiontree.reasoning.openai_provider`, :mod:`~missiontree.reasoning.offline`,
+  :mod:`~missiontree.reasoning.embedder`; :mod:`~missiontree.reasoning.hub` builds them from config.
+"""

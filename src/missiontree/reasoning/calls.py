@@ -1,0 +1,429 @@
+"""Non-blocking model calls: submit on a worker pool, poll a handle every tick, time out, cancel.
+
+A leaf never waits for a model on the tick thread (ARCHITECTURE §3). It submits the call in
+``initialise()``, polls the returned :class:`ModelCall` in ``update()`` and cancels it in
+``terminate()``::
+
+    def initialise(self) -> None:
+        caller = model_caller(self.context)
+        self.call = caller.call("vlm", "ask", [frame.color], prompt, schema=SurveillanceVerdict,
+                                node=self.name)
+
+    def update(self) -> Status:
+        status = self.call.status()
+        if not status.done:
+            return self.running(f"waiting for the vlm ({status.value})")
+        if status is not CallStatus.SUCCEEDED:
+            return self.fail(self.call.error())
+        ...
+
+    def terminate(self, new_status: Status) -> None:
+        if self.call is not None:
+            self.call.cancel()
+
+Every call ends in one ``model_call`` tick-log event (role, provider, node, latency, outcome,
+error), emitted on the thread that polls it, so events keep their order in the log.
+
+**Time.** On a real robot a result is visible as soon as the worker finishes, and a timeout is
+measured on the robot clock. In the simulator (``simulated=True``) a role may carry a
+:class:`LatencyModel` — fixed, or uniform between two bounds drawn from a generator seeded by
+the run seed and the role — and the result becomes visible exactly at ``submit time + latency``
+on the simulated clock, waiting for the worker if it has not finished by then. A call whose drawn
+latency exceeds its timeout times out exactly at ``submit time + timeout``. Runs therefore stay
+deterministic byte for byte whatever the machine's speed. A role without a latency model in the
+simulator answers at the first poll (the simulated clock stands still while the worker runs).
+"""
+
+from __future__ import annotations
+
+import enum
+import random
+import threading
+from collections.abc import Callable, Mapping
+from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from missiontree.errors import ConfigError, MissionTreeError, ModelConfigError
+from missiontree.reasoning.protocols import provider_name
+
+if TYPE_CHECKING:
+    from missiontree.engine.context import EventSink, MissionContext
+
+#: Key under which a mission's ModelCaller is kept in ``MissionContext.models``.
+CALLER_KEY = "_caller"
+
+#: Wall-clock seconds the simulator waits for a worker that has not finished at its due time.
+DEFAULT_WALL_TIMEOUT = 300.0
+
+
+class CallStatus(enum.Enum):
+    """Lifecycle of a model call."""
+
+    PENDING = "pending"        # submitted, waiting for a free worker
+    RUNNING = "running"        # the provider is working (or simulated latency has not elapsed)
+    SUCCEEDED = "succeeded"
+    FAILED = "failed"          # the provider raised; ``error()`` says why
+    TIMED_OUT = "timed_out"
+    CANCELLED = "cancelled"
+
+    @property
+    def done(self) -> bool:
+        """True once the call has ended, whatever the outcome."""
+        return self in _DONE
+
+
+_DONE = {CallStatus.SUCCEEDED, CallStatus.FAILED, CallStatus.TIMED_OUT, CallStatus.CANCELLED}
+
+
+@dataclass(frozen=True)
+class LatencyModel:
+    """Simulated latency of a provider, in seconds of simulated time.
+
+    Attributes:
+        low: Smallest latency (the latency when fixed).
+        high: Largest latency; equal to ``low`` for a fixed latency.
+    """
+
+    low: float
+    high: float
+
+    def draw(self, rng: random.Random) -> float:
+        """One latency drawn uniformly from [low, high] (always consumes one number from ``rng``)."""
+        value = rng.random()
+        return self.low + (self.high - self.low) * value
+
+    @classmethod
+    def parse(cls, value: Any, where: str = "latency") -> LatencyModel | None:
+        """Read a ``latency:`` config value.
+
+        Accepted: ``null`` (none), a number (fixed seconds), ``{fixed: 1.0}``,
+        ``{uniform: [0.5, 3.0]}``.
+
+        Raises:
+            ModelConfigError: Anything else, with the accepted forms.
+        """
+        forms = "a number of seconds, {fixed: 1.0} or {uniform: [0.5, 3.0]}"
+        if value is None:
+            return None
+        if isinstance(value, bool):
+            raise ModelConfigError(f"{where}: expected {forms}, found {value!r}")
+        if isinstance(value, int | float):
+            return cls._checked(float(value), float(value), where)
+        if isinstance(value, Mapping) and len(value) == 1:
+            (kind, arg), = value.items()
+            if kind == "fixed" and isinstance(arg, int | float) and not isinstance(arg, bool):
+                return cls._checked(float(arg), float(arg), where)
+            if (kind == "uniform" and isinstance(arg, list | tuple) and len(arg) == 2
+                    and all(isinstance(a, int | float) and not isinstance(a, bool) for a in arg)):
+                return cls._checked(float(arg[0]), float(arg[1]), where)
+        raise ModelConfigError(f"{where}: expected {forms}, found {value!r}")
+
+    @classmethod
+    def _checked(cls, low: float, high: float, where: str) -> LatencyModel:
+        if not 0.0 <= low <= high:
+            raise ModelConfigError(
+                f"{where}: expected 0 <= low <= high seconds, found low={low}, high={high}; "
+                "swap the bounds or use non-negative numbers")
+        return cls(low, high)
+
+
+class ModelCall:
+    """Handle of one submitted model call. Poll ``status()``; every method returns at once.
+
+    Only the thread that ticks the tree should poll and cancel it.
+    """
+
+    def __init__(
+        self,
+        caller: ModelCaller,
+        role: str,
+        provider: str,
+        node: str,
+        future: Future[Any],
+        submitted_at: float,
+        timeout: float | None,
+        simulated_latency: float | None,
+    ) -> None:
+        self.role = role
+        self.provider = provider
+        self.node = node
+        self.submitted_at = submitted_at
+        self.timeout = timeout
+        self._caller = caller
+        self._future = future
+        self._simulated_latency = simulated_latency
+        self._status = CallStatus.PENDING
+        self._result: Any = None
+        self._exception: BaseException | None = None
+        self._error = ""
+        self._latency: float | None = None
+        self.finished_at: float | None = None  # robot-clock time the worker finished (real robots)
+
+    # -- polling ---------------------------------------------------------------------------------
+
+    def status(self) -> CallStatus:
+        """The call's status now; the first time it is final, the ``model_call`` event is emitted."""
+        if self._status.done:
+            return self._status
+        now = self._caller.clock()
+        if self._simulated_latency is not None:
+            return self._poll_simulated(now)
+        return self._poll_real(now)
+
+    def _poll_simulated(self, now: float) -> CallStatus:
+        latency = self._simulated_latency or 0.0
+        if self.timeout is not None and latency > self.timeout:
+            if now >= self.submitted_at + self.timeout:
+                self._future.cancel()
+                return self._finish(CallStatus.TIMED_OUT, self.timeout, error=self._timeout_reason())
+            return self._set_running()
+        if now < self.submitted_at + latency:
+            return self._set_running()
+        try:
+            self._future.result(timeout=self._caller.wall_timeout)
+        except FutureTimeout:
+            self._future.cancel()
+            return self._finish(CallStatus.TIMED_OUT, latency, error=(
+                f"{self.provider}: the provider did not finish within "
+                f"{self._caller.wall_timeout:g} s of wall time (simulated latency {latency:g} s); "
+                "check that the model server answers"))
+        except BaseException:  # noqa: BLE001 - the provider's exception is read from the future below
+            pass
+        return self._finish_from_future(latency)
+
+    def _poll_real(self, now: float) -> CallStatus:
+        if self._future.done():
+            finished = self.finished_at if self.finished_at is not None else now
+            return self._finish_from_future(max(0.0, finished - self.submitted_at))
+        if self.timeout is not None and now - self.submitted_at >= self.timeout:
+            self._future.cancel()
+            return self._finish(CallStatus.TIMED_OUT, self.timeout, error=self._timeout_reason())
+        if self._future.running():
+            return self._set_running()
+        return self._status
+
+    def _set_running(self) -> CallStatus:
+        self._status = CallStatus.RUNNING
+        return self._status
+
+    def _timeout_reason(self) -> str:
+        return (f"{self.provider}: no answer for role {self.role!r} within {self.timeout:g} s; "
+                "raise the timeout or use a faster model")
+
+    def _finish_from_future(self, latency: float) -> CallStatus:
+        try:
+            value = self._future.result(timeout=0)
+        except CancelledError:
+            return self._finish(CallStatus.CANCELLED, latency, error="cancelled")
+        except BaseException as exc:  # noqa: BLE001 - any provider failure is this call's outcome
+            self._exception = exc
+            return self._finish(CallStatus.FAILED, latency, error=_describe(exc, self.provider))
+        self._result = value
+        return self._finish(CallStatus.SUCCEEDED, latency)
+
+    def _finish(self, status: CallStatus, latency: float, error: str = "") -> CallStatus:
+        self._status = status
+        self._latency = latency
+        self._error = error
+        fields: dict[str, Any] = {
+            "role": self.role, "provider": self.provider, "latency": round(latency, 6),
+            "outcome": status.value,
+        }
+        if self.node:
+            fields["node"] = self.node
+        if error:
+            fields["error"] = error
+        for source in (self._result, self._exception):
+            attempts = getattr(source, "attempts", None)
+            if isinstance(attempts, int):
+                fields["attempts"] = attempts
+            rejected = getattr(source, "rejected", None)
+            if rejected:
+                fields["rejected"] = list(rejected)
+        self._caller.events.emit("model_call", **fields)
+        return status
+
+    # -- results ---------------------------------------------------------------------------------
+
+    @property
+    def done(self) -> bool:
+        """True once the call has ended (polls)."""
+        return self.status().done
+
+    @property
+    def latency(self) -> float | None:
+        """Seconds from submit to the outcome (simulated seconds in the simulator), None until done."""
+        return self._latency
+
+    def result(self) -> Any:
+        """The provider's return value once SUCCEEDED, else None."""
+        return self._result if self.status() is CallStatus.SUCCEEDED else None
+
+    def error(self) -> str:
+        """Why the call did not succeed (names the provider), empty while running or on success."""
+        self.status()
+        return self._error
+
+    def exception(self) -> BaseException | None:
+        """The exception the provider raised, when FAILED."""
+        self.status()
+        return self._exception
+
+    def cancel(self) -> None:
+        """Stop caring about the call: it ends CANCELLED unless already done. Idempotent.
+
+        A provider already running on a worker finishes in the background; its result is dropped.
+        """
+        if self._status.done:
+            return
+        self._future.cancel()
+        now = self._caller.clock()
+        self._finish(CallStatus.CANCELLED, max(0.0, now - self.submitted_at), error="cancelled")
+
+
+class ModelCaller:
+    """Runs model calls on a worker pool and hands out :class:`ModelCall` handles.
+
+    Args:
+        clock: The robot clock (``robot.now``).
+        events: Tick-log sink for ``model_call`` events.
+        simulated: True in the simulator: latency is modelled on ``clock`` (see module docstring).
+        latency: Latency model per role (used only when ``simulated``).
+        timeouts: Default timeout per role in seconds (``None``: no timeout).
+        models: Providers by role, used by :meth:`call`.
+        seed: Run seed; latency draws use ``Random(f"{seed}:{role}")``.
+        workers: Worker threads.
+        default_timeout: Timeout for roles without their own.
+        wall_timeout: Wall-clock seconds the simulator waits for a worker past its due time.
+    """
+
+    def __init__(
+        self,
+        clock: Callable[[], float],
+        events: EventSink | None = None,
+        *,
+        simulated: bool = False,
+        latency: Mapping[str, LatencyModel | None] | None = None,
+        timeouts: Mapping[str, float | None] | None = None,
+        models: Mapping[str, Any] | None = None,
+        seed: int = 0,
+        workers: int = 2,
+        default_timeout: float | None = 30.0,
+        wall_timeout: float = DEFAULT_WALL_TIMEOUT,
+    ) -> None:
+        from missiontree.engine.context import NullEvents
+
+        self.clock = clock
+        self.events: EventSink = events if events is not None else NullEvents()
+        self.simulated = simulated
+        self.latency = dict(latency or {})
+        self.timeouts = dict(timeouts or {})
+        self.models = models if models is not None else {}
+        self.seed = seed
+        self.default_timeout = default_timeout
+        self.wall_timeout = wall_timeout
+        self._workers = workers
+        self._pool: ThreadPoolExecutor | None = None
+        self._rngs: dict[str, random.Random] = {}
+        self._lock = threading.Lock()
+
+    @classmethod
+    def for_context(cls, context: MissionContext, **kwargs: Any) -> ModelCaller:
+        """A caller on the context's robot clock, events, models and seed."""
+        robot = context.robot
+        return cls(robot.now, context.events, simulated=bool(getattr(robot, "simulated", False)),
+                   models=context.models, seed=context.seed, **kwargs)
+
+    def submit(
+        self,
+        role: str,
+        fn: Callable[..., Any],
+        *args: Any,
+        timeout: float | None | str = "default",
+        provider: str | None = None,
+        node: str = "",
+        **kwargs: Any,
+    ) -> ModelCall:
+        """Run ``fn(*args, **kwargs)`` on a worker and return its handle at once.
+
+        Args:
+            role: The model role (``vlm``, ``llm``, ``detector``, ...): picks latency and timeout.
+            fn: The blocking function (usually a provider method or a checked-answer helper).
+            *args: Its positional arguments.
+            timeout: Seconds until TIMED_OUT; ``None`` for none; default: the role's or the caller's.
+            provider: Name shown in events; default: the name of the provider configured for ``role``.
+            node: The submitting node's name, for the event.
+            **kwargs: Its keyword arguments.
+        """
+        limit = self.timeouts.get(role, self.default_timeout) if timeout == "default" else timeout
+        if limit is not None and not isinstance(limit, int | float):
+            raise ConfigError(f"timeout for role {role!r}: expected seconds or None, found {limit!r}")
+        name = provider or (provider_name(self.models[role]) if role in self.models else role)
+        submitted = self.clock()
+        simulated_latency: float | None = None
+        if self.simulated:
+            model = self.latency.get(role)
+            simulated_latency = model.draw(self._rng(role)) if model is not None else 0.0
+        holder: list[ModelCall] = []
+
+        def run() -> Any:
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                if not self.simulated and holder:
+                    holder[0].finished_at = self.clock()
+
+        future = self._executor().submit(run)
+        call = ModelCall(self, role, name, node, future, submitted, limit, simulated_latency)
+        holder.append(call)
+        return call
+
+    def call(self, role: str, method: str, *args: Any, timeout: float | None | str = "default",
+             node: str = "", **kwargs: Any) -> ModelCall:
+        """Submit ``models[role].<method>(*args, **kwargs)``.
+
+        Raises:
+            ConfigError: No provider configured for ``role`` (names the configured roles).
+        """
+        if role not in self.models:
+            known = ", ".join(sorted(r for r in self.models if not r.startswith("_"))) or "none"
+            raise ConfigError(
+                f"no model configured for role {role!r} (configured: {known}); "
+                "add it to the models config (config/models/*.yaml)")
+        provider = self.models[role]
+        return self.submit(role, getattr(provider, method), *args, timeout=timeout,
+                           provider=provider_name(provider), node=node, **kwargs)
+
+    def close(self) -> None:
+        """Stop accepting calls; queued calls are dropped, running ones finish in the background."""
+        with self._lock:
+            if self._pool is not None:
+                self._pool.shutdown(wait=False, cancel_futures=True)
+                self._pool = None
+
+    def _executor(self) -> ThreadPoolExecutor:
+        with self._lock:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(max_workers=self._workers, thread_name_prefix="model-call")
+            return self._pool
+
+    def _rng(self, role: str) -> random.Random:
+        if role not in self._rngs:
+            self._rngs[role] = random.Random(f"{self.seed}:{role}")
+        return self._rngs[role]
+
+
+def model_caller(context: MissionContext) -> ModelCaller:
+    """The mission's ModelCaller (built by the models hub, or made on first use and kept)."""
+    caller = context.models.get(CALLER_KEY)
+    if not isinstance(caller, ModelCaller):
+        caller = ModelCaller.for_context(context)
+        context.models[CALLER_KEY] = caller
+    return caller
+
+
+def _describe(exc: BaseException, provider: str) -> str:
+    text = str(exc) if isinstance(exc, MissionTreeError) else f"{type(exc).__name__}: {exc}"
+    return text if provider in text else f"{provider}: {text}"
