@@ -1,0 +1,379 @@
+"""Object detectors: the ``Detector`` protocol and a YOLO-layout ONNX detector on onnxruntime.
+
+Every detector answers ``detect(image) -> list[Detection]`` for an HxWx3 uint8 RGB image, with
+boxes in that image's pixels. :class:`YoloOnnxDetector` runs any model exported in the standard
+YOLOv8/YOLO11 layout (``yolo export format=onnx``): one input ``[1, 3, H, W]`` of RGB scaled to
+[0, 1], one output ``[1, 4 + classes, N]`` holding, per candidate, the box centre, width and
+height in input pixels followed by one score per class. Around the model it does what the
+Ultralytics runtime does: letterbox (resize keeping aspect ratio, pad with grey 114), a score
+threshold, class-wise non-maximum suppression and the mapping of boxes back to the image.
+
+Class names come from the model's metadata (``names``, which Ultralytics writes as the text of a
+Python dict ``{0: 'person', ...}``) or from a labels file (one name a line, or a YAML/JSON
+``names`` list or mapping, as in an Ultralytics dataset file).
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import cv2
+import numpy as np
+import yaml
+
+from missiontree.errors import ModelConfigError
+from missiontree.types import Detection
+
+#: Grey used for letterbox padding, as in Ultralytics' LetterBox.
+PAD_VALUE = 114
+
+
+@runtime_checkable
+class Detector(Protocol):
+    """Finds labelled boxes in a colour image."""
+
+    #: Provider name, used in errors and tick-log events.
+    name: str
+
+    @property
+    def labels(self) -> list[str]:
+        """Every class name this detector can report."""
+        ...
+
+    def detect(self, image: np.ndarray) -> list[Detection]:
+        """Detections in ``image`` (HxWx3 uint8 RGB), boxes in its pixels, best score first."""
+        ...
+
+
+def check_image(image: Any, provider: str) -> np.ndarray:
+    """Return ``image`` if it is a non-empty HxWx3 uint8 array, else raise a clear error.
+
+    Args:
+        image: What the caller passed as an image.
+        provider: Name of the detector, for the message.
+
+    Raises:
+        ModelConfigError: Not an array, wrong rank, channel count or dtype, or empty.
+    """
+    fix = "pass the colour image of an RGBDFrame (frame.color), HxWx3 uint8 RGB"
+    if not isinstance(image, np.ndarray):
+        raise ModelConfigError(
+            f"detector {provider!r}: expected an image as a numpy array, found {type(image).__name__}; {fix}"
+        )
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise ModelConfigError(
+            f"detector {provider!r}: expected an image of shape HxWx3, found shape {image.shape}; {fix}"
+        )
+    if image.shape[0] == 0 or image.shape[1] == 0:
+        raise ModelConfigError(f"detector {provider!r}: the image is empty (shape {image.shape}); {fix}")
+    if image.dtype != np.uint8:
+        raise ModelConfigError(
+            f"detector {provider!r}: expected a uint8 image, found dtype {image.dtype}; {fix}"
+        )
+    return image
+
+
+@dataclass(frozen=True, slots=True)
+class Letterbox:
+    """How an image was fitted into the model's input: ``input = image * scale + (pad_x, pad_y)``."""
+
+    scale: float
+    pad_x: float
+    pad_y: float
+
+    def to_image(self, boxes: np.ndarray, width: int, height: int) -> np.ndarray:
+        """Map Nx4 xyxy boxes from input pixels back to image pixels, clipped to the image."""
+        out = boxes.astype(np.float32, copy=True)
+        out[:, [0, 2]] = (out[:, [0, 2]] - self.pad_x) / self.scale
+        out[:, [1, 3]] = (out[:, [1, 3]] - self.pad_y) / self.scale
+        out[:, [0, 2]] = out[:, [0, 2]].clip(0, width)
+        out[:, [1, 3]] = out[:, [1, 3]].clip(0, height)
+        return out
+
+
+def letterbox(image: np.ndarray, height: int, width: int) -> tuple[np.ndarray, Letterbox]:
+    """Resize ``image`` to fit ``height`` x ``width`` keeping its aspect ratio; pad the rest with grey.
+
+    The image is centred, as Ultralytics does for inference (half the padding on each side).
+
+    Returns:
+        The padded ``height`` x ``width`` x 3 image and the :class:`Letterbox` that undoes it.
+    """
+    h, w = image.shape[:2]
+    scale = min(height / h, width / w)
+    new_w, new_h = round(w * scale), round(h * scale)
+    if (new_w, new_h) != (w, h):
+        interpolation = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
+        image = cv2.resize(image, (new_w, new_h), interpolation=interpolation)
+    pad_x, pad_y = (width - new_w) / 2.0, (height - new_h) / 2.0
+    left, top = round(pad_x - 0.1), round(pad_y - 0.1)
+    out = np.full((height, width, 3), PAD_VALUE, dtype=np.uint8)
+    out[top : top + new_h, left : left + new_w] = image
+    return out, Letterbox(scale=scale, pad_x=float(left), pad_y=float(top))
+
+
+def iou_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Intersection over union of every xyxy box in ``a`` (Nx4) with every box in ``b`` (Mx4)."""
+    x1 = np.maximum(a[:, None, 0], b[None, :, 0])
+    y1 = np.maximum(a[:, None, 1], b[None, :, 1])
+    x2 = np.minimum(a[:, None, 2], b[None, :, 2])
+    y2 = np.minimum(a[:, None, 3], b[None, :, 3])
+    inter = (x2 - x1).clip(0) * (y2 - y1).clip(0)
+    area_a = (a[:, 2] - a[:, 0]).clip(0) * (a[:, 3] - a[:, 1]).clip(0)
+    area_b = (b[:, 2] - b[:, 0]).clip(0) * (b[:, 3] - b[:, 1]).clip(0)
+    union = area_a[:, None] + area_b[None, :] - inter
+    return np.where(union > 0, inter / np.maximum(union, 1e-9), 0.0)
+
+
+def nms(boxes: np.ndarray, scores: np.ndarray, class_ids: np.ndarray, iou_threshold: float) -> np.ndarray:
+    """Class-wise non-maximum suppression.
+
+    A box is dropped when a higher-scoring box *of the same class* overlaps it by more than
+    ``iou_threshold``; boxes of different classes never suppress each other.
+
+    Args:
+        boxes: Nx4 xyxy boxes.
+        scores: N scores.
+        class_ids: N integer class ids.
+        iou_threshold: Overlap above which the weaker box goes.
+
+    Returns:
+        Indices of the kept boxes, best score first.
+    """
+    order = np.argsort(-scores, kind="stable")
+    if len(order) == 0:
+        return order
+    # Shift each class into its own region of the plane, so one pass never mixes classes.
+    offset = class_ids.astype(np.float32)[:, None] * (float(np.abs(boxes).max()) + 1.0) * 2.0
+    shifted = boxes.astype(np.float32) + offset
+    keep: list[int] = []
+    while len(order):
+        best = order[0]
+        keep.append(int(best))
+        if len(order) == 1:
+            break
+        overlaps = iou_matrix(shifted[best : best + 1], shifted[order[1:]])[0]
+        order = order[1:][overlaps <= iou_threshold]
+    return np.asarray(keep, dtype=np.int64)
+
+
+def decode_yolo(
+    output: np.ndarray,
+    num_classes: int,
+    score_threshold: float,
+    iou_threshold: float,
+    max_detections: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Turn a raw ``[1, 4 + classes, N]`` output into kept boxes, scores and class ids.
+
+    Returns:
+        (boxes Kx4 xyxy in input pixels, scores K, class ids K), best score first.
+    """
+    preds = output[0].T  # N x (4 + C)
+    class_scores = preds[:, 4 : 4 + num_classes]
+    class_ids = class_scores.argmax(axis=1)
+    scores = class_scores[np.arange(len(preds)), class_ids]
+    chosen = scores > score_threshold
+    preds, class_ids, scores = preds[chosen], class_ids[chosen], scores[chosen]
+    cx, cy, w, h = preds[:, 0], preds[:, 1], preds[:, 2], preds[:, 3]
+    boxes = np.stack([cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2], axis=1)
+    keep = nms(boxes, scores, class_ids, iou_threshold)[:max_detections]
+    return boxes[keep], scores[keep].astype(np.float32), class_ids[keep]
+
+
+def parse_names(text: str) -> list[str]:
+    """Class names from a model's ``names`` metadata: a dict ``{0: 'person'}`` or list, as text.
+
+    Raises:
+        ValueError: The text is neither.
+    """
+    value = ast.literal_eval(text)
+    if isinstance(value, dict):
+        return [str(value[k]) for k in sorted(value, key=int)]
+    if isinstance(value, list | tuple):
+        return [str(v) for v in value]
+    raise ValueError(f"expected a dict or list of class names, found {type(value).__name__}")
+
+
+def read_labels_file(path: Path, provider: str) -> list[str]:
+    """Class names from a labels file: one a line (.txt), or ``names`` in a YAML/JSON file.
+
+    Raises:
+        ModelConfigError: The file is missing or holds no names.
+    """
+    if not path.is_file():
+        raise ModelConfigError(
+            f"detector {provider!r}: labels file {str(path)!r} does not exist; "
+            f"give a text file with one class name a line, in the model's class order"
+        )
+    text = path.read_text(encoding="utf-8")
+    if path.suffix.lower() in {".yaml", ".yml", ".json"}:
+        data = json.loads(text) if path.suffix.lower() == ".json" else yaml.safe_load(text)
+        names = data.get("names") if isinstance(data, dict) else data
+        if isinstance(names, dict):
+            labels = [str(names[k]) for k in sorted(names, key=int)]
+        elif isinstance(names, list):
+            labels = [str(n) for n in names]
+        else:
+            labels = []
+    else:
+        labels = [line.strip() for line in text.splitlines() if line.strip() and not line.startswith("#")]
+    if not labels:
+        raise ModelConfigError(
+            f"detector {provider!r}: labels file {str(path)!r} holds no class names; "
+            f"expected one name a line, or a 'names' list or mapping"
+        )
+    return labels
+
+
+class YoloOnnxDetector:
+    """A detector for any ONNX model in the YOLOv8/YOLO11 export layout, run by onnxruntime.
+
+    Args:
+        model: Path of the ``.onnx`` file.
+        labels_file: Optional class names file; else the model's ``names`` metadata is used.
+        score_threshold: Candidates scoring at or below this are dropped before NMS.
+        iou_threshold: Class-wise NMS overlap threshold.
+        max_detections: At most this many detections a frame.
+        threads: onnxruntime intra-op threads (the robot's CPU is shared: default 2).
+        input_size: (height, width) for a model whose input size is dynamic; ignored otherwise.
+        name: Provider name used in errors and events.
+    """
+
+    def __init__(
+        self,
+        model: str | Path,
+        labels_file: str | Path | None = None,
+        score_threshold: float = 0.25,
+        iou_threshold: float = 0.45,
+        max_detections: int = 100,
+        threads: int = 2,
+        input_size: tuple[int, int] = (640, 640),
+        name: str = "yolo_onnx",
+    ) -> None:
+        self.name = name
+        self.model_path = Path(model)
+        self.score_threshold = float(score_threshold)
+        self.iou_threshold = float(iou_threshold)
+        self.max_detections = int(max_detections)
+        self._session = self._open_session(int(threads))
+        self._input = self._session.get_inputs()[0]
+        self.input_height, self.input_width = self._input_size(input_size)
+        self._input_dtype = np.float16 if self._input.type == "tensor(float16)" else np.float32
+        if labels_file is not None:
+            self._labels = read_labels_file(Path(labels_file), name)
+        else:
+            self._labels = self._labels_from_metadata()
+        self._check_output_layout()
+
+    # -- loading -------------------------------------------------------------------------------
+
+    def _open_session(self, threads: int) -> Any:
+        import onnxruntime as ort  # vendor SDK stays inside the provider (ARCHITECTURE §1)
+
+        if not self.model_path.is_file():
+            raise ModelConfigError(
+                f"detector {self.name!r}: model file {str(self.model_path)!r} does not exist; "
+                f"set 'model:' in the models config (config/models/*.yaml) to a YOLOv8/YOLO11 ONNX "
+                f"export (yolo export model=yolov8n.pt format=onnx)"
+            )
+        options = ort.SessionOptions()
+        options.intra_op_num_threads = max(1, threads)
+        options.inter_op_num_threads = 1
+        options.log_severity_level = 3
+        try:
+            return ort.InferenceSession(str(self.model_path), options, providers=["CPUExecutionProvider"])
+        except Exception as exc:  # onnxruntime raises its own untyped errors for unreadable models
+            raise ModelConfigError(
+                f"detector {self.name!r}: {str(self.model_path)!r} is not a loadable ONNX model "
+                f"({type(exc).__name__}: {str(exc).splitlines()[0][:200]}); re-export it with "
+                f"'yolo export format=onnx'"
+            ) from None
+
+    def _input_size(self, fallback: tuple[int, int]) -> tuple[int, int]:
+        shape = self._input.shape
+        if len(shape) != 4 or (isinstance(shape[1], int) and shape[1] != 3):
+            raise ModelConfigError(
+                f"detector {self.name!r}: {str(self.model_path)!r} takes input {shape}; expected one "
+                f"image tensor [1, 3, H, W] as a YOLOv8/YOLO11 ONNX export has"
+            )
+        h, w = shape[2], shape[3]
+        return (h if isinstance(h, int) else int(fallback[0]), w if isinstance(w, int) else int(fallback[1]))
+
+    def _labels_from_metadata(self) -> list[str]:
+        meta = self._session.get_modelmeta().custom_metadata_map
+        if "names" not in meta:
+            raise ModelConfigError(
+                f"detector {self.name!r}: {str(self.model_path)!r} carries no class names in its "
+                f"metadata ('names'); give 'labels_file:' with one class name a line"
+            )
+        try:
+            return parse_names(meta["names"])
+        except (ValueError, SyntaxError) as exc:
+            raise ModelConfigError(
+                f"detector {self.name!r}: the 'names' metadata of {str(self.model_path)!r} is not a "
+                f"dict or list of class names ({exc}); give 'labels_file:' instead"
+            ) from None
+
+    def _check_output_layout(self, found: tuple[int, ...] | None = None) -> None:
+        outputs = self._session.get_outputs()
+        shape = tuple(found) if found is not None else tuple(outputs[0].shape)
+        expected_rows = 4 + len(self._labels)
+        rows = shape[1] if len(shape) == 3 else None
+        if len(outputs) == 1 and len(shape) == 3 and (not isinstance(rows, int) or rows == expected_rows):
+            return
+        shown = [list(o.shape) for o in outputs] if found is None else [list(shape)]
+        raise ModelConfigError(
+            f"detector {self.name!r}: {str(self.model_path)!r} has output(s) {shown}; expected one "
+            f"output [1, 4 + classes, N] = [1, {expected_rows}, N] for its {len(self._labels)} class "
+            f"names (the standard YOLOv8/YOLO11 layout); re-export without NMS or end-to-end heads "
+            f"(yolo export format=onnx nms=False), or fix the labels file"
+        )
+
+    # -- the Detector protocol -----------------------------------------------------------------
+
+    @property
+    def labels(self) -> list[str]:
+        """Class names in the model's order."""
+        return list(self._labels)
+
+    def preprocess(self, image: np.ndarray) -> tuple[np.ndarray, Letterbox]:
+        """Letterbox ``image`` into the model's input tensor ``[1, 3, H, W]`` scaled to [0, 1]."""
+        padded, box = letterbox(image, self.input_height, self.input_width)
+        tensor = padded.transpose(2, 0, 1)[None].astype(self._input_dtype) / self._input_dtype(255.0)
+        return np.ascontiguousarray(tensor), box
+
+    def detect(self, image: np.ndarray) -> list[Detection]:
+        """Detections in ``image`` (HxWx3 uint8 RGB), boxes in its pixels, best score first."""
+        image = check_image(image, self.name)
+        tensor, box = self.preprocess(image)
+        output = np.asarray(self._session.run(None, {self._input.name: tensor})[0], dtype=np.float32)
+        if output.ndim != 3 or output.shape[0] != 1 or output.shape[1] != 4 + len(self._labels):
+            self._check_output_layout(found=tuple(output.shape))
+        boxes, scores, class_ids = decode_yolo(
+            output, len(self._labels), self.score_threshold, self.iou_threshold, self.max_detections
+        )
+        boxes = box.to_image(boxes, image.shape[1], image.shape[0])
+        return [
+            Detection(
+                label=self._labels[int(c)],
+                score=float(s),
+                box=(float(b[0]), float(b[1]), float(b[2]), float(b[3])),
+                attributes={"class_id": int(c)},
+            )
+            for b, s, c in zip(boxes, scores, class_ids, strict=True)
+        ]
+
+    def describe(self) -> dict[str, Any]:
+        """What this detector is, for ``missiontree models`` and run summaries."""
+        return {
+            "provider": self.name,
+            "model": str(self.model_path),
+            "input": [self.input_height, self.input_width],
+            "classes": len(self._labels),
+            "score_threshold": self.score_threshold,
+        }

@@ -1,0 +1,186 @@
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from perception_onnx import constant_yolo_model, yolo_output
+
+from missiontree.errors import ModelConfigError
+from missiontree.perception.detectors import (
+    Detector,
+    YoloOnnxDetector,
+    check_image,
+    decode_yolo,
+    iou_matrix,
+    letterbox,
+    nms,
+    parse_names,
+)
+
+NAMES = "{0: 'person', 1: 'cup'}"
+
+
+def _image(h: int = 48, w: int = 64) -> np.ndarray:
+    return np.zeros((h, w, 3), dtype=np.uint8)
+
+
+def test_letterbox_fits_wide_image_and_pads_top_and_bottom() -> None:
+    """A 2:1 image in a square input is scaled to the width and centred vertically."""
+    padded, box = letterbox(np.full((50, 100, 3), 7, np.uint8), 64, 64)
+    assert padded.shape == (64, 64, 3)
+    assert box.scale == pytest.approx(0.64)
+    assert (box.pad_x, box.pad_y) == (0.0, 16.0)
+    assert (padded[:16] == 114).all() and (padded[48:] == 114).all()
+    assert (padded[16:48] == 7).all()
+
+
+def test_letterbox_box_maps_back_to_image_pixels() -> None:
+    """A box drawn in input pixels maps back to the same place in the original image."""
+    _, box = letterbox(_image(240, 320), 256, 320)
+    back = box.to_image(np.array([[10.0, 8.0 + 20.0, 110.0, 8.0 + 120.0]]), 320, 240)
+    np.testing.assert_allclose(back, [[10.0, 20.0, 110.0, 120.0]])
+
+
+def test_letterbox_to_image_clips_to_the_image() -> None:
+    """Boxes reaching into the padding are clipped at the image border."""
+    _, box = letterbox(_image(32, 64), 64, 64)
+    back = box.to_image(np.array([[-5.0, 0.0, 70.0, 64.0]]), 64, 32)
+    np.testing.assert_allclose(back, [[0.0, 0.0, 64.0, 32.0]])
+
+
+def test_iou_matrix_of_identical_disjoint_and_half_overlapping_boxes() -> None:
+    """IoU is 1 for equal boxes, 0 for disjoint ones and 1/3 for boxes sharing half their area."""
+    a = np.array([[0.0, 0.0, 10.0, 10.0]])
+    b = np.array([[0.0, 0.0, 10.0, 10.0], [20.0, 20.0, 30.0, 30.0], [5.0, 0.0, 15.0, 10.0]])
+    np.testing.assert_allclose(iou_matrix(a, b), [[1.0, 0.0, 1.0 / 3.0]])
+
+
+def test_nms_drops_weaker_overlapping_box_of_the_same_class() -> None:
+    """Of two heavily overlapping boxes of one class only the stronger one is kept."""
+    boxes = np.array([[0, 0, 10, 10], [1, 1, 11, 11], [50, 50, 60, 60]], dtype=np.float32)
+    keep = nms(boxes, np.array([0.6, 0.9, 0.5]), np.array([0, 0, 0]), 0.45)
+    assert keep.tolist() == [1, 2]
+
+
+def test_nms_keeps_overlapping_boxes_of_different_classes() -> None:
+    """Class-wise NMS never lets a box suppress a box of another class."""
+    boxes = np.array([[0, 0, 10, 10], [1, 1, 11, 11]], dtype=np.float32)
+    keep = nms(boxes, np.array([0.9, 0.6]), np.array([0, 1]), 0.45)
+    assert keep.tolist() == [0, 1]
+
+
+def test_nms_of_nothing_is_nothing() -> None:
+    """No candidates give no kept indices."""
+    assert nms(np.zeros((0, 4)), np.zeros(0), np.zeros(0, int), 0.5).tolist() == []
+
+
+def test_decode_yolo_thresholds_and_converts_centre_boxes() -> None:
+    """Candidates under the threshold go; kept ones come back as xyxy with their best class."""
+    out = yolo_output([(20, 20, 10, 4, [0.1, 0.8]), (40, 40, 8, 8, [0.2, 0.1])], 2)
+    boxes, scores, classes = decode_yolo(out, 2, 0.25, 0.45, 100)
+    np.testing.assert_allclose(boxes, [[15, 18, 25, 22]])
+    np.testing.assert_allclose(scores, [0.8])
+    assert classes.tolist() == [1]
+
+
+def test_parse_names_reads_ultralytics_dict_text() -> None:
+    """The names metadata Ultralytics writes (a dict as text) gives names in id order."""
+    assert parse_names("{1: 'cup', 0: 'person'}") == ["person", "cup"]
+
+
+def test_onnx_detector_finds_boxes_in_image_pixels(tmp_path: Path) -> None:
+    """A real ONNX model's output is decoded, NMS-filtered and mapped back to the image."""
+    out = yolo_output(
+        [
+            (32, 32, 20, 10, [0.9, 0.0]),  # person in the middle
+            (33, 32, 20, 10, [0.7, 0.0]),  # duplicate of it, suppressed
+            (10, 30, 6, 6, [0.0, 0.6]),  # a cup on the left
+            (50, 50, 6, 6, [0.1, 0.2]),  # too weak
+        ],
+        2,
+    )
+    model = constant_yolo_model(tmp_path / "m.onnx", out, names=NAMES)
+    detector = YoloOnnxDetector(model)
+    found = detector.detect(_image(32, 64))  # letterboxed into 64x64 at scale 1, pad_y 16
+    assert [(d.label, round(d.score, 2)) for d in found] == [("person", 0.9), ("cup", 0.6)]
+    np.testing.assert_allclose(found[0].box, (22, 11, 42, 21))
+    np.testing.assert_allclose(found[1].box, (7, 11, 13, 17))
+    assert isinstance(detector, Detector)
+    assert detector.labels == ["person", "cup"]
+
+
+def test_onnx_detector_takes_names_from_a_labels_file(tmp_path: Path) -> None:
+    """Without names in the metadata, a labels file with one name a line names the classes."""
+    model = constant_yolo_model(tmp_path / "m.onnx", yolo_output([(5, 5, 2, 2, [0.0, 0.9])], 2))
+    labels = tmp_path / "labels.txt"
+    labels.write_text("dog\ncat\n")
+    found = YoloOnnxDetector(model, labels_file=labels).detect(_image(64, 64))
+    assert [d.label for d in found] == ["cat"]
+
+
+def test_onnx_detector_with_dynamic_input_uses_the_configured_size(tmp_path: Path) -> None:
+    """A model with symbolic height and width runs at the input size the config gives."""
+    model = constant_yolo_model(
+        tmp_path / "m.onnx", yolo_output([(5, 5, 2, 2, [0.9])], 1), input_hw=("h", "w"), names="['a']"
+    )
+    detector = YoloOnnxDetector(model, input_size=(32, 48))
+    assert (detector.input_height, detector.input_width) == (32, 48)
+
+
+def test_missing_model_file_is_a_clear_error(tmp_path: Path) -> None:
+    """A model path that does not exist names the provider, the path and the fix."""
+    with pytest.raises(ModelConfigError, match=r"'yolo_onnx'.*does not exist.*models config"):
+        YoloOnnxDetector(tmp_path / "nope.onnx")
+
+
+def test_file_that_is_not_onnx_is_a_clear_error(tmp_path: Path) -> None:
+    """A file onnxruntime cannot read is reported as not a loadable ONNX model."""
+    bad = tmp_path / "bad.onnx"
+    bad.write_bytes(b"not a model")
+    with pytest.raises(ModelConfigError, match="not a loadable ONNX model"):
+        YoloOnnxDetector(bad)
+
+
+def test_wrong_output_shape_is_a_clear_error(tmp_path: Path) -> None:
+    """An end-to-end export ([1, N, 6]) is refused with the expected layout and the fix."""
+    model = constant_yolo_model(tmp_path / "m.onnx", np.zeros((1, 300, 6), np.float32), names=NAMES)
+    with pytest.raises(ModelConfigError, match=r"\[1, 300, 6\].*expected one output \[1, 4 \+ classes, N\]"):
+        YoloOnnxDetector(model)
+
+
+def test_class_count_that_disagrees_with_labels_is_a_clear_error(tmp_path: Path) -> None:
+    """Three class rows against two names is refused, pointing at the labels."""
+    model = constant_yolo_model(tmp_path / "m.onnx", np.zeros((1, 7, 10), np.float32), names=NAMES)
+    with pytest.raises(ModelConfigError, match=r"\[1, 6, N\] for its 2 class names"):
+        YoloOnnxDetector(model)
+
+
+def test_model_without_names_or_labels_file_is_a_clear_error(tmp_path: Path) -> None:
+    """A model with no names metadata and no labels file asks for a labels file."""
+    model = constant_yolo_model(tmp_path / "m.onnx", np.zeros((1, 6, 10), np.float32))
+    with pytest.raises(ModelConfigError, match="labels_file"):
+        YoloOnnxDetector(model)
+
+
+@pytest.mark.parametrize(
+    ("image", "found"),
+    [
+        (np.zeros((0, 10, 3), np.uint8), "empty"),
+        (np.zeros((10, 10), np.uint8), "shape HxWx3"),
+        (np.zeros((10, 10, 4), np.uint8), "shape HxWx3"),
+        (np.zeros((10, 10, 3), np.float32), "dtype float32"),
+        ([[1, 2, 3]], "list"),
+    ],
+)
+def test_bad_images_are_clear_errors(image: object, found: str) -> None:
+    """Empty, grey, RGBA, float or non-array images are refused with what was found."""
+    with pytest.raises(ModelConfigError, match=found):
+        check_image(image, "yolo_onnx")
+
+
+def test_detect_refuses_a_bad_image_naming_the_provider(tmp_path: Path) -> None:
+    """detect() checks the image before running the model and names the provider."""
+    model = constant_yolo_model(tmp_path / "m.onnx", np.zeros((1, 6, 10), np.float32), names=NAMES)
+    with pytest.raises(ModelConfigError, match="detector 'mine'.*empty"):
+        YoloOnnxDetector(model, name="mine").detect(np.zeros((0, 0, 3), np.uint8))
