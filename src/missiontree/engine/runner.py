@@ -1,0 +1,349 @@
+"""The runner: ticks a mission's tree at a set rate on the robot's clock until it ends.
+
+::
+
+    runner = Runner(root, context, tick_hz=10, max_duration=600, run_dir=Path("runs/patrol"))
+    result = runner.run()       # RunResult: status, stopped_by, ticks, duration, summary
+
+Between ticks it calls ``robot.spin_until(next_tick_time)``: the simulator steps as fast as the
+machine allows, the ROS 2 backend waits in wall time. It stops on a final root status, the
+duration limit, or SIGINT/SIGTERM; on every exit path it halts the tree (``root.stop(INVALID)``,
+so each running leaf's ``terminate()`` cancels its work) and then calls ``robot.stop()``.
+
+Ticking walks only the nodes the tick reaches (the root's tick generator, as ``tick_once()``
+does), never the whole tree as ``BehaviourTree.tick()`` does after every tick (ARCHITECTURE §9).
+An exception escaping a behaviour that is not a :class:`~missiontree.engine.leaf.Leaf` (those
+handle their own) becomes FAILURE of that node with an ``error`` event; the run goes on.
+
+The run directory gets ``ticks.jsonl`` (:mod:`missiontree.engine.tick_log`), ``summary.json``
+and whatever pictures the backend draws (:class:`~missiontree.robot.interface.Drawable`).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import signal
+import threading
+import traceback
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import FrameType
+from typing import Any, TextIO
+
+import py_trees
+
+from missiontree.engine.context import MissionContext
+from missiontree.engine.leaf import Leaf
+from missiontree.engine.tick_log import TickLog, TickRecorder, node_paths, plain
+from missiontree.errors import ConfigError, MissionTreeError, PluginError
+from missiontree.robot.interface import Drawable
+
+Status = py_trees.common.Status
+Behaviour = py_trees.behaviour.Behaviour
+
+#: Why a run ended.
+STOPPED_BY_STATUS = "status"
+STOPPED_BY_LIMIT = "limit"
+STOPPED_BY_SIGNAL = "signal"
+STOPPED_BY_ERROR = "error"
+
+_FINAL = (Status.SUCCESS, Status.FAILURE)
+
+
+@dataclass
+class RunResult:
+    """How a run ended.
+
+    Attributes:
+        status: The root's status when the run stopped (RUNNING when stopped by limit or signal).
+        stopped_by: ``status``, ``limit``, ``signal`` or ``error``.
+        ticks: Ticks done.
+        duration: Backend time from the first tick to the end, in seconds.
+        run_dir: Where the log, summary and pictures went (None when not writing).
+        summary: The summary (as written to ``summary.json``).
+        signal: The signal number that stopped the run, 0 otherwise.
+    """
+
+    status: Status
+    stopped_by: str
+    ticks: int
+    duration: float
+    run_dir: Path | None = None
+    summary: dict[str, Any] = field(default_factory=dict)
+    signal: int = 0
+
+    @property
+    def exit_code(self) -> int:
+        """The CLI's exit code: 0 on SUCCESS, 1 on FAILURE or limit, 128+signal when interrupted."""
+        if self.signal:
+            return 128 + self.signal
+        return 0 if self.status is Status.SUCCESS else 1
+
+
+def guard_exceptions(root: Behaviour, on_error: Callable[[Behaviour, Exception], None]) -> None:
+    """Make an exception escaping any non-Leaf behaviour under ``root`` FAILURE of that behaviour.
+
+    Each such node's ``tick`` is wrapped on the instance (composites call ``child.tick()``, so the
+    wrapper sits exactly where py_trees calls it). Leaves already fail safely on their own.
+    """
+    for node in root.iterate():
+        if isinstance(node, Leaf) or getattr(node, "_missiontree_guarded", False):
+            continue
+        node.tick = _guarded_tick(node, node.tick, on_error)  # type: ignore[method-assign]
+        node._missiontree_guarded = True  # type: ignore[attr-defined]
+
+
+def _guarded_tick(
+    node: Behaviour, original: Callable[[], Iterator[Behaviour]],
+    on_error: Callable[[Behaviour, Exception], None],
+) -> Callable[[], Iterator[Behaviour]]:
+    def tick() -> Iterator[Behaviour]:
+        try:
+            yield from original()
+        except Exception as error:  # noqa: BLE001 - a node's bug must not kill the mission
+            reason = f"{type(error).__name__}: {error}"
+            try:
+                node.stop(Status.INVALID)  # halt its children so their work is cancelled
+            except Exception:  # noqa: BLE001 - already failing; the first error is the one to report
+                pass
+            node.feedback_message = reason
+            node.status = Status.FAILURE
+            node.iterator = node.tick()
+            on_error(node, error)
+            yield node
+
+    return tick
+
+
+class Runner:
+    """Ticks one tree on one robot.
+
+    Args:
+        root: The tree's root behaviour (built, not yet set up).
+        context: What the leaves get in ``setup(context=...)``; its ``events`` is replaced by the
+            tick log and its ``run_dir`` by ``run_dir``.
+        tick_hz: Ticks per second of backend time.
+        max_duration: Stop after this many seconds of backend time (None: no limit).
+        run_dir: Directory for ``ticks.jsonl``, ``summary.json`` and pictures; None writes nothing
+            to disk unless ``log_stream`` is given.
+        mission: The mission id written on every log line.
+        hook: A plugin hook relay (``Plugins.hook``) for mission started/finished, or None.
+        spec: The checked mission spec handed to ``missiontree_mission_started``.
+        log_stream: Write the tick log here instead of ``run_dir/ticks.jsonl``.
+        handle_signals: Install SIGINT/SIGTERM handlers while running (main thread only).
+    """
+
+    def __init__(
+        self, root: Behaviour, context: MissionContext, *, tick_hz: float = 10.0,
+        max_duration: float | None = None, run_dir: Path | None = None, mission: str = "mission",
+        hook: Any = None, spec: Any = None, log_stream: TextIO | None = None, handle_signals: bool = True,
+    ) -> None:
+        if not (tick_hz > 0 and math.isfinite(tick_hz)):
+            raise ConfigError(f"tick rate must be a positive number of ticks per second, found {tick_hz!r}")
+        if max_duration is not None and not max_duration > 0:
+            raise ConfigError(f"max duration must be positive seconds, found {max_duration!r}")
+        self.root = root
+        self.context = context
+        self.robot = context.robot
+        self.period = 1.0 / tick_hz
+        self.tick_hz = tick_hz
+        self.max_duration = max_duration
+        self.run_dir = Path(run_dir) if run_dir is not None else None
+        self.mission = mission
+        self.hook = hook
+        self.spec = spec
+        self.handle_signals = handle_signals
+        self._own_stream = log_stream is None and self.run_dir is not None
+        self._stream: TextIO = log_stream if log_stream is not None else io.StringIO()
+        self._signal = 0
+        self.log: TickLog | None = None
+        self.recorder: TickRecorder | None = None
+        self._set_up = False
+
+    # -- pieces --------------------------------------------------------------------------------
+
+    def setup(self) -> None:
+        """Open the log, guard non-Leaf nodes and set up every node with the mission context.
+
+        Raises:
+            ConfigError: A node failed to set up (names the node and the error).
+        """
+        if self._set_up:
+            return
+        if self.run_dir is not None:
+            self.run_dir.mkdir(parents=True, exist_ok=True)
+            self.context.run_dir = self.run_dir
+            if self._own_stream:
+                self._stream = (self.run_dir / "ticks.jsonl").open("w", encoding="utf-8", newline="\n")
+        self.log = TickLog(self._stream, self.mission, self.robot.now, bool(self.robot.simulated))
+        self.context.events = self.log
+        self.log.bind()
+        guard_exceptions(self.root, self._on_node_error)
+        paths = node_paths(self.root)
+        for node in self.root.iterate():
+            try:
+                node.setup(context=self.context)
+            except MissionTreeError:
+                raise
+            except Exception as error:
+                raise ConfigError(f"node {paths.get(node, node.name)} failed to set up: "
+                                  f"{type(error).__name__}: {error}") from error
+        self.recorder = TickRecorder(self.root, self.log)
+        self._set_up = True
+
+    def tick(self) -> Status:
+        """Tick the tree once, write its log line and return the root's status."""
+        if not self._set_up:
+            self.setup()
+        assert self.recorder is not None and self.log is not None
+        self.log.set_tick(self.recorder.ticks + 1)
+        visited = list(self.root.tick())
+        self.recorder.record(self.robot.now(), visited)
+        return self.root.status
+
+    def halt(self) -> None:
+        """Halt the tree (running leaves' ``terminate()`` cancels their work) and log what stopped."""
+        try:
+            self.root.stop(Status.INVALID)
+        except Exception as error:  # noqa: BLE001 - halting must go on to stop the robot
+            self._on_node_error(self.root, error)
+        if self.recorder is not None:
+            self.recorder.record(self.robot.now(), (), event="halted")
+
+    def _on_node_error(self, node: Behaviour, error: Exception) -> None:
+        if self.log is None:
+            return
+        frames = traceback.extract_tb(error.__traceback__) if error.__traceback__ else []
+        path = self.recorder.path(node) if self.recorder is not None else node.name
+        self.log.emit("error", node=path, error=f"{type(error).__name__}: {error}",
+                      where=frames[-1].name if frames else "")
+
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        self._signal = signum
+
+    # -- the loop ------------------------------------------------------------------------------
+
+    def run(self) -> RunResult:
+        """Tick until the tree ends, the limit passes or a signal arrives; always halt and stop.
+
+        Raises:
+            ConfigError: A node failed to set up.
+            PluginError: A mission started/finished hook failed.
+        """
+        self._install_signal_handlers()
+        status = Status.INVALID
+        stopped_by = STOPPED_BY_ERROR
+        start = self.robot.now()
+        try:
+            self.setup()
+            assert self.log is not None
+            self.log.line("mission_started", tick_hz=self.tick_hz, max_duration=self.max_duration,
+                          robot=self.robot.name, seed=self.context.seed, nodes=len(self.recorder.paths)
+                          if self.recorder else 0)
+            self._call_hook("missiontree_mission_started", context=self.context, mission=self.spec)
+            start = self.robot.now()
+            status, stopped_by = self._loop(start)
+        finally:
+            duration = self.robot.now() - start
+            try:
+                if self._set_up:
+                    self.halt()
+            finally:
+                self.robot.stop()
+            result = self._finish(status, stopped_by, duration)
+        self._call_hook("missiontree_mission_finished", context=self.context, summary=result.summary)
+        return result
+
+    def _loop(self, start: float) -> tuple[Status, str]:
+        index = 0
+        while True:
+            if self._signal:
+                return self.root.status, STOPPED_BY_SIGNAL
+            if self.max_duration is not None and self.robot.now() - start >= self.max_duration - 1e-9:
+                return self.root.status, STOPPED_BY_LIMIT
+            status = self.tick()
+            if status in _FINAL:
+                return status, STOPPED_BY_STATUS
+            index += 1
+            next_time = start + index * self.period
+            now = self.robot.now()
+            if now > next_time + self.period:  # a slow tick on a real clock: skip the missed slots
+                index = math.floor((now - start) / self.period) + 1
+                next_time = start + index * self.period
+            if self.max_duration is not None:
+                next_time = min(next_time, start + self.max_duration)
+            self.robot.spin_until(next_time)
+
+    def _finish(self, status: Status, stopped_by: str, duration: float) -> RunResult:
+        """Restore handlers, draw pictures, write the summary and close the log."""
+        self._restore_signal_handlers()
+        pictures: list[str] = []
+        if self.run_dir is not None and isinstance(self.robot, Drawable):
+            try:
+                pictures = [p.name for p in self.robot.draw(self.run_dir, self.context.markers)]
+            except Exception as error:  # noqa: BLE001 - a failed picture must not lose the summary
+                if self.log is not None:
+                    self.log.emit("error", node="", error=f"drawing failed: {type(error).__name__}: {error}",
+                                  where="draw")
+        summary: dict[str, Any] = {
+            "mission": self.mission,
+            "status": status.name,
+            "stopped_by": stopped_by,
+            "signal": signal.Signals(self._signal).name if self._signal else "",
+            "ticks": self.recorder.ticks if self.recorder else 0,
+            "duration": duration,
+            "tick_hz": self.tick_hz,
+            "seed": self.context.seed,
+            "robot": self.robot.name,
+            "events": dict(sorted(self.log.event_counts.items())) if self.log else {},
+            "pictures": pictures,
+        }
+        if self.recorder is not None:
+            summary.update(self.recorder.summary())
+        summary = plain(summary)
+        if self.log is not None:
+            self.log.line("mission_finished", status=status.name, stopped_by=stopped_by,
+                          ticks=summary["ticks"], duration=duration)
+            self.log.unbind()
+        if self.run_dir is not None:
+            self.run_dir.mkdir(parents=True, exist_ok=True)
+            (self.run_dir / "summary.json").write_text(
+                json.dumps(summary, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+        if self._own_stream:
+            self._stream.close()
+        else:
+            self._stream.flush()
+        return RunResult(status=status, stopped_by=stopped_by, ticks=summary["ticks"], duration=duration,
+                         run_dir=self.run_dir, summary=summary, signal=self._signal)
+
+    def _call_hook(self, name: str, **kwargs: Any) -> None:
+        if self.hook is None:
+            return
+        try:
+            getattr(self.hook, name)(**kwargs)
+        except Exception as error:
+            raise PluginError(f"a plugin's {name} hook failed: {type(error).__name__}: {error}; fix the "
+                              f"plugin or run with --no-plugins") from error
+
+    # -- signals -------------------------------------------------------------------------------
+
+    def _install_signal_handlers(self) -> dict[int, Any]:
+        self._previous: dict[int, Any] = {}
+        if not self.handle_signals or threading.current_thread() is not threading.main_thread():
+            return self._previous
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            self._previous[signum] = signal.signal(signum, self._on_signal)
+        return self._previous
+
+    def _restore_signal_handlers(self) -> None:
+        for signum, handler in getattr(self, "_previous", {}).items():
+            signal.signal(signum, handler)
+        self._previous = {}
+
+
+def run_tree(root: Behaviour, context: MissionContext, **options: Any) -> RunResult:
+    """Shorthand: ``Runner(root, context, **options).run()``."""
+    return Runner(root, context, **options).run()

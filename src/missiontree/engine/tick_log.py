@@ -1,0 +1,369 @@
+"""The tick log: one JSON line per tick, plus the typed events leaves emit.
+
+Written through structlog (a ``JSONRenderer`` with sorted keys over a file); the mission and the
+tick number are bound with :mod:`structlog.contextvars`, so anything logged through structlog
+during a tick carries them. Lines look like::
+
+    {"event":"tick","mission":"patrol","status":"RUNNING","t":12.3,"tick":124,
+     "changed":[{"node":"Patrol/GoTo","status":"FAILURE","was":"RUNNING","reason":"no path"}],
+     "bb":{"waypoint_index":3}}
+    {"event":"goal_sent","mission":"patrol","node":"GoTo","t":12.3,"tick":124,"x":1.0,"y":2.0}
+
+Two pieces:
+
+- :class:`TickLog` writes lines (and is the :class:`~missiontree.engine.context.EventSink` that
+  leaves emit to). When the robot's time is simulated no wall-clock value is written, floats
+  are rounded to 6 decimals and keys sorted, so the same seed gives the same file byte for byte.
+- :class:`TickRecorder` is the post-tick handler: given the nodes ticked this tick, it finds the
+  nodes whose status changed (visited ones plus those halted since the last tick) and the
+  blackboard keys written, and keeps per-node SUCCESS/FAILURE counts for the run summary.
+  Its cost follows the active part of the tree, never the whole tree (ARCHITECTURE §9).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import json
+import math
+import time
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any, TextIO
+
+import py_trees
+import structlog
+from pydantic import BaseModel
+
+Status = py_trees.common.Status
+Behaviour = py_trees.behaviour.Behaviour
+
+FLOAT_DIGITS = 6
+#: Arrays up to this many elements are logged whole; larger ones by shape and dtype.
+MAX_ARRAY_ITEMS = 16
+#: Distinct failure reasons kept per node in the summary.
+MAX_REASONS = 10
+
+
+def plain(value: Any) -> Any:
+    """A JSON-ready copy of ``value`` with floats rounded, stable across runs.
+
+    Dataclasses, pydantic models, enums, numpy values and paths are converted; anything else
+    becomes ``"<TypeName>"`` (never ``repr``, which may hold a memory address).
+    """
+    if value is None or isinstance(value, bool | int | str):
+        return value
+    if isinstance(value, float):
+        if math.isfinite(value):
+            return round(value, FLOAT_DIGITS)
+        return str(value)
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple | set | frozenset):
+        items = sorted(value, key=repr) if isinstance(value, set | frozenset) else value
+        return [plain(v) for v in items]
+    if isinstance(value, enum.Enum):
+        return value.name
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, BaseModel):
+        return plain(value.model_dump())
+    if isinstance(value, Path):
+        return str(value)
+    item = getattr(value, "item", None)
+    shape = getattr(value, "shape", None)
+    if shape is not None and hasattr(value, "tolist"):
+        if shape == () and item is not None:
+            return plain(item())
+        if getattr(value, "size", MAX_ARRAY_ITEMS + 1) <= MAX_ARRAY_ITEMS:
+            return plain(value.tolist())
+        return {"array": list(shape), "dtype": str(getattr(value, "dtype", ""))}
+    return f"<{type(value).__name__}>"
+
+
+def _plain_event(logger: Any, method: str, event_dict: dict[str, Any]) -> dict[str, Any]:
+    """Structlog processor: make every field JSON-ready and stable."""
+    return {k: plain(v) for k, v in event_dict.items()}
+
+
+def _add_wall_time(logger: Any, method: str, event_dict: dict[str, Any]) -> dict[str, Any]:
+    """Structlog processor for real robots: the wall-clock time, to the millisecond."""
+    event_dict["wall"] = round(time.time(), 3)
+    return event_dict
+
+
+def _dumps(obj: Any, **kwargs: Any) -> str:
+    return json.dumps(obj, separators=(",", ":"), ensure_ascii=False, **kwargs)
+
+
+class _LineWriter:
+    """structlog's final logger: writes rendered lines, flushing only when asked to.
+
+    structlog's ``WriteLogger`` flushes every line, a system call per tick; a simulated run
+    needs the file only at the end, a real robot's run flushes each line (``flush_each_line``).
+    """
+
+    def __init__(self, stream: TextIO, flush_each_line: bool) -> None:
+        self._write = stream.write
+        self._flush = stream.flush if flush_each_line else None
+
+    def msg(self, message: str) -> None:
+        """Write one line."""
+        self._write(message + "\n")
+        if self._flush is not None:
+            self._flush()
+
+    info = msg  # structlog's native bound logger calls the level name
+
+
+class TickLog:
+    """Writes the run's JSON lines; the event sink leaves emit to.
+
+    Args:
+        stream: Where lines go (``ticks.jsonl``, or a StringIO in tests).
+        mission: The mission id bound to every line.
+        clock: The backend's clock (``robot.now``), for event times.
+        simulated: True to keep wall-clock values out of the log.
+    """
+
+    def __init__(self, stream: TextIO, mission: str, clock: Callable[[], float], simulated: bool) -> None:
+        self.stream = stream
+        self.mission = mission
+        self.clock = clock
+        self.simulated = simulated
+        self.event_counts: dict[str, int] = {}
+        processors: list[Any] = [structlog.contextvars.merge_contextvars]
+        if not simulated:
+            processors.append(_add_wall_time)
+        processors += [_plain_event, structlog.processors.JSONRenderer(serializer=_dumps, sort_keys=True)]
+        self._log = structlog.wrap_logger(
+            _LineWriter(stream, flush_each_line=not simulated), processors=processors, context_class=dict,
+        )
+
+    # -- binding -------------------------------------------------------------------------------
+
+    def bind(self) -> None:
+        """Bind the mission id for everything logged through structlog from now on."""
+        structlog.contextvars.bind_contextvars(mission=self.mission, tick=0)
+
+    def set_tick(self, tick: int) -> None:
+        """Bind the current tick number."""
+        structlog.contextvars.bind_contextvars(tick=tick)
+
+    def unbind(self) -> None:
+        """Remove the mission and tick ids from structlog's context."""
+        structlog.contextvars.unbind_contextvars("mission", "tick")
+
+    # -- lines ---------------------------------------------------------------------------------
+
+    def emit(self, event: str, **fields: Any) -> None:
+        """Record a typed event (EventSink): its kind, the backend time and the leaf's fields."""
+        self.event_counts[event] = self.event_counts.get(event, 0) + 1
+        self.line(event, **fields)
+
+    def line(self, event: str, **fields: Any) -> None:
+        """Write a line of the runner's own (not counted as a leaf event); empty fields left out."""
+        fields = {k: v for k, v in fields.items() if v is not None and v != [] and v != {}}
+        fields.setdefault("t", self.clock())
+        self._log.msg(event, **fields)
+
+    def tick(self, t: float, status: Status, changed: list[dict[str, Any]], bb: dict[str, Any],
+             bb_unset: list[str]) -> None:
+        """Write the line of one tick (empty change lists are left out)."""
+        fields: dict[str, Any] = {"t": t, "status": status.name}
+        if changed:
+            fields["changed"] = changed
+        if bb:
+            fields["bb"] = bb
+        if bb_unset:
+            fields["bb_unset"] = bb_unset
+        self._log.msg("tick", **fields)
+
+    def flush(self) -> None:
+        """Flush the underlying stream."""
+        self.stream.flush()
+
+
+class _RecordingStorage(dict[str, Any]):
+    """py_trees' blackboard storage that remembers which keys were written or removed.
+
+    Installed in place of ``Blackboard.storage`` (a plain class-level dict every client writes
+    through), so recording a write costs one set insertion and reads cost nothing.
+    """
+
+    def __init__(self, *args: Any) -> None:
+        super().__init__(*args)
+        self.written: set[str] = set()
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        self.written.add(key)
+        super().__setitem__(key, value)
+
+    def __delitem__(self, key: str) -> None:
+        self.written.add(key)
+        super().__delitem__(key)
+
+    def pop(self, key: str, *default: Any) -> Any:
+        self.written.add(key)
+        return super().pop(key, *default)
+
+
+def node_paths(root: Behaviour) -> dict[Behaviour, str]:
+    """Readable, unique paths of every node: ``Root/Patrol/GoTo``, ``[i]`` added to repeated names."""
+    paths: dict[Behaviour, str] = {root: root.name}
+    stack = [root]
+    while stack:
+        node = stack.pop()
+        names = [child.name for child in node.children]
+        for index, child in enumerate(node.children):
+            suffix = f"[{index}]" if names.count(child.name) > 1 else ""
+            paths[child] = f"{paths[node]}/{child.name}{suffix}"
+            stack.append(child)
+    return paths
+
+
+def failure_reason(node: Behaviour) -> str:
+    """Why ``node`` failed: a Leaf's ``failure_reason``, else its feedback message."""
+    return getattr(node, "failure_reason", "") or node.feedback_message
+
+
+class TickRecorder:
+    """Finds what changed in a tick and keeps the counts for the summary.
+
+    Args:
+        root: The tree's root.
+        log: Where tick lines go.
+    """
+
+    def __init__(self, root: Behaviour, log: TickLog) -> None:
+        self.root = root
+        self.log = log
+        self.paths = node_paths(root)
+        self.ticks = 0
+        self.counts: dict[str, dict[str, int]] = {}
+        self.reasons: dict[str, list[str]] = {}
+        #: Status of every node that is not INVALID, as of the end of the last tick.
+        self._active: dict[Behaviour, Status] = {}
+        self._bb_logged: dict[str, Any] = {}
+        storage = py_trees.blackboard.Blackboard.storage
+        if not isinstance(storage, _RecordingStorage):
+            storage = _RecordingStorage(storage)
+            py_trees.blackboard.Blackboard.storage = storage
+        self._storage = storage
+        storage.written.clear()
+
+    def path(self, node: Behaviour) -> str:
+        """The node's path (computed and kept for nodes added after the start)."""
+        found = self.paths.get(node)
+        if found is None:
+            parent = self.path(node.parent) if node.parent is not None else ""
+            found = self.paths[node] = f"{parent}/{node.name}" if parent else node.name
+        return found
+
+    def record(self, t: float, visited: Iterable[Behaviour], event: str = "tick") -> None:
+        """Write the line for a tick in which ``visited`` were ticked (or a halt when ``event`` says so)."""
+        changed: list[dict[str, Any]] = []
+        active = self._active
+        seen: set[Behaviour] = set()
+        for node in visited:
+            if node in seen:
+                continue
+            seen.add(node)
+            status = node.status
+            if status is Status.SUCCESS or status is Status.FAILURE:
+                self._count(node, status)
+            self._compare(node, status, active, changed)
+        for node in [n for n in active if n not in seen]:
+            self._compare(node, node.status, active, changed)
+        bb, unset = self._blackboard_changes()
+        if event == "tick":
+            self.ticks += 1
+            self.log.tick(t, self.root.status, changed, bb, unset)
+        else:
+            self.log.line(event, t=t, changed=changed, bb=bb, bb_unset=unset)
+
+    def _compare(self, node: Behaviour, status: Status, active: dict[Behaviour, Status],
+                 changed: list[dict[str, Any]]) -> None:
+        was = active.get(node, Status.INVALID)
+        if status is was:
+            return
+        entry: dict[str, Any] = {"node": self.path(node), "status": status.name, "was": was.name}
+        if node.feedback_message:
+            entry["feedback"] = node.feedback_message
+        if status is Status.FAILURE:
+            reason = failure_reason(node)
+            if reason:
+                entry["reason"] = reason
+        changed.append(entry)
+        if status is Status.INVALID:
+            active.pop(node, None)
+        else:
+            active[node] = status
+
+    def _count(self, node: Behaviour, status: Status) -> None:
+        path = self.path(node)
+        counts = self.counts.get(path)
+        if counts is None:
+            counts = self.counts[path] = {"SUCCESS": 0, "FAILURE": 0}
+        counts[status.name] += 1
+        if status is Status.FAILURE:
+            reason = failure_reason(node)
+            reasons = self.reasons.setdefault(path, [])
+            if reason and reason not in reasons and len(reasons) < MAX_REASONS:
+                reasons.append(reason)
+
+    def _blackboard_changes(self) -> tuple[dict[str, Any], list[str]]:
+        storage = self._storage
+        if py_trees.blackboard.Blackboard.storage is not storage:  # someone replaced it: take it back
+            storage = self._storage = _RecordingStorage(py_trees.blackboard.Blackboard.storage)
+            py_trees.blackboard.Blackboard.storage = storage
+        if not storage.written:
+            return {}, []
+        written = sorted(storage.written)
+        storage.written.clear()
+        changes: dict[str, Any] = {}
+        unset: list[str] = []
+        for key in written:
+            if key in storage:
+                value = plain(storage[key])
+                if key not in self._bb_logged or self._bb_logged[key] != value:
+                    self._bb_logged[key] = value
+                    changes[key] = value
+            else:
+                self._bb_logged.pop(key, None)
+                unset.append(key)
+        return changes, unset
+
+    def summary(self) -> dict[str, Any]:
+        """Per-node SUCCESS/FAILURE counts and failure reasons, sorted by node path."""
+        return {
+            "nodes": {path: self.counts[path] for path in sorted(self.counts)},
+            "failure_reasons": {p: self.reasons[p] for p in sorted(self.reasons) if self.reasons[p]},
+        }
+
+
+def read_log(path: Path) -> list[dict[str, Any]]:
+    """Read a ``ticks.jsonl`` back, one dict a line.
+
+    Raises:
+        ConfigError: The file is missing or a line is not JSON (names the line).
+    """
+    from missiontree.errors import ConfigError
+
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as error:
+        raise ConfigError(f"cannot read tick log {str(path)!r}: {error.strerror}") from error
+    lines: list[dict[str, Any]] = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        if not line.strip():
+            continue
+        try:
+            record = json.loads(line)
+        except json.JSONDecodeError as error:
+            raise ConfigError(f"{path}:{number}: not a tick log line (expected one JSON object): "
+                              f"{error.msg}") from error
+        if not isinstance(record, dict):
+            raise ConfigError(f"{path}:{number}: expected a JSON object, found {type(record).__name__}")
+        lines.append(record)
+    return lines

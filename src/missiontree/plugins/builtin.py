@@ -1,0 +1,108 @@
+"""missiontree's own plugin: built-in node types, model providers and robot backends.
+
+It registers through the same hooks as any plugin (STYLE §8), but the plugin manager adds it
+directly rather than through an entry point, so switching autoloading off keeps the built-ins.
+
+Everything it pulls in is listed here, in one place:
+
+- :data:`NODE_MODULES`: modules exposing ``register_nodes(registry)``.
+- :data:`PROVIDER_MODULES`: modules exposing ``register_providers(providers)``.
+- :data:`BACKENDS`: backend name → ``"module:function"``, resolved only when a run asks for that
+  backend (so listing backends never imports rclpy), see :func:`resolve_factory`.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
+from missiontree.errors import BackendUnavailableError, PluginError
+from missiontree.plugins.hookspecs import hookimpl
+
+if TYPE_CHECKING:
+    from missiontree.engine.registry import NodeRegistry
+
+#: Modules whose ``register_nodes(registry)`` adds built-in node types.
+NODE_MODULES: list[str] = [
+]
+
+#: Modules whose ``register_providers(providers)`` adds built-in model providers.
+PROVIDER_MODULES: list[str] = [
+]
+
+#: Backend name → ``"module:function"`` of its ``factory(options) -> Robot``.
+BACKENDS: dict[str, str] = {
+    "sim": "missiontree.backends.sim:create_robot",
+    "ros2": "missiontree.backends.ros2:create_robot",
+}
+
+#: What to install when a backend's module cannot be imported.
+BACKEND_HINTS: dict[str, str] = {
+    "ros2": "install the ROS 2 extra: `make setup-ros2` (pip install 'missiontree[ros2]' plus the "
+    "locally built nav2_msgs/tf2_msgs)",
+}
+
+
+def _import_listed(module_name: str, list_name: str) -> ModuleType:
+    try:
+        return importlib.import_module(module_name)
+    except ImportError as error:
+        raise PluginError(
+            f"built-in module {module_name!r} (listed in missiontree.plugins.builtin.{list_name}) "
+            f"failed to import: {error}; fix the module or remove it from the list"
+        ) from error
+
+
+@hookimpl
+def missiontree_register_nodes(registry: NodeRegistry) -> None:
+    """Add the node types of every module in :data:`NODE_MODULES`."""
+    for module_name in NODE_MODULES:
+        _import_listed(module_name, "NODE_MODULES").register_nodes(registry)
+
+
+@hookimpl
+def missiontree_register_model_providers(providers: dict[str, Any]) -> None:
+    """Add the model providers of every module in :data:`PROVIDER_MODULES`."""
+    for module_name in PROVIDER_MODULES:
+        _import_listed(module_name, "PROVIDER_MODULES").register_providers(providers)
+
+
+@hookimpl
+def missiontree_register_backends(backends: dict[str, Any]) -> None:
+    """Add the built-in backends as lazy ``"module:function"`` references."""
+    backends.update(BACKENDS)
+
+
+def resolve_factory(kind: str, name: str, factory: Any) -> Callable[..., Any]:
+    """Turn a registered factory into a callable, importing ``"module:function"`` strings now.
+
+    Args:
+        kind: ``backend`` or ``provider`` (for messages).
+        name: The registered name (for messages).
+        factory: A callable, or a ``"module:function"`` string.
+
+    Raises:
+        BackendUnavailableError: The module cannot be imported (the message names what to install).
+        PluginError: The string is malformed or the module lacks the function.
+    """
+    if callable(factory):
+        return factory
+    if not isinstance(factory, str) or ":" not in factory:
+        raise PluginError(
+            f"{kind} {name!r} was registered as {factory!r}; expected a callable or a "
+            f"'module:function' string"
+        )
+    module_name, _, attr = factory.partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as error:
+        hint = BACKEND_HINTS.get(name, f"check that the package providing {module_name!r} is installed")
+        raise BackendUnavailableError(
+            f"{kind} {name!r} is not available: importing {module_name!r} failed ({error}); {hint}"
+        ) from error
+    function = getattr(module, attr, None)
+    if not callable(function):
+        raise PluginError(f"{kind} {name!r}: module {module_name!r} has no function {attr!r}")
+    return function
