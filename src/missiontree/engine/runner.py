@@ -133,6 +133,7 @@ class Runner:
         hook: A plugin hook relay (``Plugins.hook``) for mission started/finished, or None.
         spec: The checked mission spec handed to ``missiontree_mission_started``.
         log_stream: Write the tick log here instead of ``run_dir/ticks.jsonl``.
+        blackboard: Keys written to the blackboard before the first tick (logged with tick 1).
         handle_signals: Install SIGINT/SIGTERM handlers while running (main thread only).
     """
 
@@ -140,6 +141,7 @@ class Runner:
         self, root: Behaviour, context: MissionContext, *, tick_hz: float = 10.0,
         max_duration: float | None = None, run_dir: Path | None = None, mission: str = "mission",
         hook: Any = None, spec: Any = None, log_stream: TextIO | None = None, handle_signals: bool = True,
+        blackboard: dict[str, Any] | None = None,
     ) -> None:
         if not (tick_hz > 0 and math.isfinite(tick_hz)):
             raise ConfigError(f"tick rate must be a positive number of ticks per second, found {tick_hz!r}")
@@ -156,6 +158,7 @@ class Runner:
         self.hook = hook
         self.spec = spec
         self.handle_signals = handle_signals
+        self.blackboard = dict(blackboard or {})
         self._own_stream = log_stream is None and self.run_dir is not None
         self._stream: TextIO = log_stream if log_stream is not None else io.StringIO()
         self._signal = 0
@@ -192,6 +195,8 @@ class Runner:
                 raise ConfigError(f"node {paths.get(node, node.name)} failed to set up: "
                                   f"{type(error).__name__}: {error}") from error
         self.recorder = TickRecorder(self.root, self.log)
+        for key, value in self.blackboard.items():
+            py_trees.blackboard.Blackboard.set(key if key.startswith("/") else f"/{key}", value)
         self._set_up = True
 
     def tick(self) -> Status:

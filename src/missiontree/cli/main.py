@@ -1,0 +1,67 @@
+"""Entry point of the ``missiontree`` command: parses arguments and runs one subcommand.
+
+Subcommands are the modules in :data:`SUBCOMMANDS` (append yours there); each exposes
+``register(subparsers)`` and ``run(args) -> int``. Bad input (``ConfigError`` and its
+``ProblemsError`` reports), a broken plugin or a missing extra print their message on stderr and
+exit with code 2, without a traceback; Ctrl-C exits with 130.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from missiontree import __version__
+from missiontree.errors import BackendUnavailableError, ConfigError, PluginError, ProblemsError
+
+#: Subcommand modules, in the order ``missiontree --help`` lists them.
+SUBCOMMANDS: list[str] = [
+    "missiontree.cli.run",
+    "missiontree.cli.nodes",
+    "missiontree.cli.plugins",
+    "missiontree.cli.log",
+]
+
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every subcommand registered."""
+    parser = argparse.ArgumentParser(
+        prog="missiontree",
+        description="Behaviour-tree missions for mobile robots: run, check and inspect YAML missions.",
+    )
+    parser.add_argument("--version", action="version", version=f"missiontree {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for module_name in SUBCOMMANDS:
+        importlib.import_module(module_name).register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; return the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except ProblemsError as error:
+        print(str(error), file=sys.stderr)
+        count = len(error.problems)
+        print(f"{count} problem{'s' if count != 1 else ''} found", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except (ConfigError, PluginError, BackendUnavailableError) as error:
+        print(f"missiontree {args.command}: error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"missiontree {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # output piped into `head` and the like
+        sys.stderr.close()
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
