@@ -1,0 +1,25 @@
+"""The leaves that do the robot's work, grouped by mission.
+
+- :mod:`~missiontree.behaviours.motion`: NavigateTo, Rotate.
+- :mod:`~missiontree.behaviours.patrol`: Patrol (waypoint loops, skip-on-failure, resume).
+- :mod:`~missiontree.behaviours.surveillance`: Surveillance (people, alarms with positions).
+- :mod:`~missiontree.behaviours.servo`: ServoToTarget (visual servoing on an alarm).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from missiontree.engine.registry import NodeRegistry
+
+
+def register_nodes(registry: NodeRegistry) -> None:
+    """Add the behaviour leaves to ``registry`` (listed in missiontree.plugins.builtin.NODE_MODULES)."""
+    from missiontree.behaviours.motion import NavigateTo, Rotate
+    from missiontree.behaviours.patrol import Patrol
+    from missiontree.behaviours.servo import ServoToTarget
+    from missiontree.behaviours.surveillance import Surveillance
+
+    for leaf in (NavigateTo, Rotate, Patrol, Surveillance, ServoToTarget):
+        registry.add(leaf)

@@ -1,0 +1,114 @@
+"""Where is the person in this frame? Bearing, distance and map position by a chosen method.
+
+The three methods of issue 5, all fed with the sensor data *of the instant the frame was taken*
+(``robot.pose_at(frame.stamp)``, ``robot.scan_at(frame.stamp)``) unless told to use the latest
+data, which is what seed 001 did and why its distances drifted by Δd = v·T:
+
+- ``seed``: seed 001's ±15° front cone (:func:`~missiontree.perception.lidar.seed_front_distance`);
+  it assumes the person is straight ahead.
+- ``cone``: a lidar cone on the bearing and width of the person's box
+  (:func:`~missiontree.perception.lidar.cone_distance`).
+- ``depth``: the robust median depth inside the box, projected through the frame's intrinsics
+  and camera pose (:func:`~missiontree.perception.depth.detection_position`); when the box holds
+  no depth (a person beyond the depth range), the cone is used instead.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from missiontree.perception.depth import detection_position
+from missiontree.perception.lidar import box_bearings, cone_distance, position_from_range, seed_front_distance
+from missiontree.robot.interface import Robot
+from missiontree.types import Detection, LaserScan, Pose2D, RGBDFrame
+
+Method = Literal["seed", "cone", "depth"]
+FuseAt = Literal["frame", "answer"]
+
+#: Narrowest cone used around a box, rad (a person far away is a few beams wide).
+MIN_CONE_HALF_WIDTH = math.radians(1.5)
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """A person located from one frame.
+
+    Attributes:
+        stamp: Time of the sensor data used.
+        robot_pose: Robot pose at that time.
+        bearing: Bearing of the person, robot frame (rad, positive left).
+        distance: Distance from the robot (m), ``inf`` when nothing was measured.
+        position: Map position, None when the distance is unknown.
+        method: The method that produced the distance (``depth`` may fall back to ``cone``).
+    """
+
+    stamp: float
+    robot_pose: Pose2D
+    bearing: float
+    distance: float
+    position: tuple[float, float] | None
+    method: str
+
+
+def measure(
+    robot: Robot,
+    frame: RGBDFrame,
+    detection: Detection | None,
+    method: Method,
+    *,
+    fuse_at: FuseAt = "frame",
+    surface_offset: float = 0.0,
+) -> Measurement | None:
+    """Locate the person of ``detection`` (or, with no box, straight ahead) in ``frame``.
+
+    Args:
+        robot: Source of the pose and scan (history lookups by the frame's stamp).
+        frame: The frame the person was seen in.
+        detection: The person's box; None means "somewhere in the image" (the seed's case).
+        method: ``seed``, ``cone`` or ``depth``.
+        fuse_at: ``frame`` uses the data of the frame's instant; ``answer`` the latest (the seed's).
+        surface_offset: Added to lidar and depth ranges: sensors see the near surface of the
+            person, the position wanted is their centre (ignored by ``seed``, reproduced as is).
+
+    Returns:
+        The measurement, or None when the pose or scan it needs is not available.
+    """
+    if fuse_at == "frame":
+        stamp = frame.stamp
+        pose = robot.pose_at(stamp)
+        scan: LaserScan | None = robot.scan_at(stamp) if method != "depth" else None
+    else:
+        stamped = robot.pose()
+        pose = stamped.pose if stamped is not None else None
+        stamp = robot.now()
+        scan = robot.scan() if method != "depth" else None
+    if pose is None:
+        return None
+    k = frame.intrinsics
+    if detection is not None:
+        bearing, half = box_bearings(frame.camera_pose, pose, detection.box[0], detection.box[2], k.fx, k.cx)
+    else:
+        bearing, half = 0.0, math.radians(15.0)
+    if method == "seed":
+        if scan is None:
+            return None
+        distance = seed_front_distance(scan)
+        position = position_from_range(pose, 0.0, distance) if math.isfinite(distance) else None
+        return Measurement(stamp, pose, 0.0, distance, position, "seed")
+    if method == "depth" and detection is not None:
+        located = detection_position(frame, detection, surface_offset=surface_offset)
+        if located is not None:
+            x, y, _ = located
+            distance = math.hypot(x - pose.x, y - pose.y)
+            return Measurement(stamp, pose, pose.bearing_to(x, y), distance, (x, y), "depth")
+        scan = robot.scan_at(stamp) if fuse_at == "frame" else robot.scan()
+    if scan is None:
+        return None
+    reading = cone_distance(scan, bearing, max(half, MIN_CONE_HALF_WIDTH))
+    if not reading.found:
+        return Measurement(stamp, pose, bearing, math.inf, None, "cone")
+    distance = reading.distance + surface_offset
+    return Measurement(stamp, pose, reading.bearing, distance,
+                       position_from_range(pose, reading.bearing, distance), "cone")

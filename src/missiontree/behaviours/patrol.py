@@ -1,0 +1,171 @@
+"""The patrol: loop a waypoint route through the navigation stack, skipping what cannot be reached.
+
+Seed 001 §4.5.8: a waypoint that Nav2 aborts (inside an obstacle's inscribed zone, a blocked
+corridor) is logged and skipped, and the patrol goes on to the next one. Here the route comes
+from the tree, a config file or a Nav2-style waypoint YAML (:mod:`missiontree.behaviours.waypoints`);
+it runs a number of laps (0 = forever).
+
+Preemption: when a higher-priority branch (visual servoing on an alarm) halts the patrol, its
+goal is cancelled but its place is kept, so the next time it starts it drives to the waypoint
+it was interrupted on, on the same lap. Only finishing (all laps done) or failing resets it.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from pydantic import BaseModel, Field, model_validator
+
+from missiontree.behaviours.motion import ANY_HEADING
+from missiontree.behaviours.waypoints import Waypoint, load_waypoints, parse_waypoints
+from missiontree.engine.leaf import Leaf, Status
+from missiontree.engine.ports import Output
+from missiontree.robot.actions import ActionHandle, ActionStatus
+from missiontree.types import Tolerance
+
+
+class Patrol(Leaf):
+    """Loop a waypoint route for some laps (0 = forever), skipping unreachable waypoints with a reason.
+
+    Emits ``goal_sent`` per goal, ``waypoint_reached`` and ``waypoint_skipped`` (with the
+    planner's reason), ``patrol_preempted`` when halted mid-goal and ``lap_done``. Writes the
+    waypoint it is heading for to its ``waypoint`` port.
+    """
+
+    class Params(BaseModel):
+        waypoints: list[Any] | None = Field(
+            None, description="The route: [[x, y, yaw], ...] or [{x, y, yaw, name}, ...].")
+        waypoints_file: str | None = Field(
+            None, description="A waypoint file: a path or a name under config/waypoints/ (Nav2 format too).")
+        route: str | None = Field(None, description="Route name when the file holds several under `routes:`.")
+        laps: int = Field(1, ge=0, description="Laps to drive; 0 patrols forever.")
+        xy_tolerance: float = Field(0.3, gt=0, description="Distance that counts as reached (m).")
+        yaw_tolerance: float = Field(
+            ANY_HEADING, gt=0, le=ANY_HEADING,
+            description="Heading error accepted (rad); 6.28 accepts any heading (seed 001 §3.6.3).")
+        waypoint_timeout: float | None = Field(
+            None, gt=0, description="Skip a waypoint not reached within this many seconds.")
+        max_consecutive_skips: int = Field(
+            0, ge=0, description="Fail after this many skips in a row (0: never; a whole lap skipped fails).")
+        waypoint: Annotated[str, Output("the waypoint being driven to", type="dict")] = "patrol_waypoint"
+
+        @model_validator(mode="after")
+        def _one_source(self) -> Patrol.Params:
+            if (self.waypoints is None) == (self.waypoints_file is None):
+                raise ValueError("give exactly one of `waypoints` (inline) or `waypoints_file`")
+            if self.waypoints is not None:
+                parse_waypoints(self.waypoints, "waypoints")
+            return self
+
+    params: Params
+
+    def __init__(self, name: str, params: BaseModel | None = None) -> None:
+        super().__init__(name, params)
+        self.route: list[Waypoint] = []
+        self.index = 0
+        self.lap = 0
+        self.reached = 0
+        self.skipped = 0
+        self.consecutive_skips = 0
+        self.handle: ActionHandle | None = None
+        self.goal_started = 0.0
+
+    def on_setup(self) -> None:
+        """Load the route (a missing or malformed file fails here, before the first tick)."""
+        p = self.params
+        if p.waypoints is not None:
+            self.route = parse_waypoints(p.waypoints, f"{self.name}.waypoints")
+        else:
+            assert p.waypoints_file is not None
+            self.route = load_waypoints(p.waypoints_file, p.route)
+
+    # -- lifecycle -------------------------------------------------------------------------------
+
+    def initialise(self) -> None:
+        """Head for the current waypoint: the first one, or the one the patrol was interrupted on."""
+        if not self.route:
+            self.on_setup()
+        self._send()
+
+    def update(self) -> Status:
+        """Poll the goal; on its end move on, and finish after the last lap."""
+        assert self.handle is not None
+        status = self.handle.status()
+        waypoint = self.route[self.index]
+        if not status.done:
+            timeout = self.params.waypoint_timeout
+            if timeout is not None and self.context.robot.now() - self.goal_started > timeout:
+                self.handle.cancel()
+                outcome = self._skip(waypoint, f"not reached within {timeout:g} s")
+            else:
+                return self.running(self._progress(waypoint))
+        elif status is ActionStatus.SUCCEEDED:
+            self.reached += 1
+            self.consecutive_skips = 0
+            self.emit("waypoint_reached", waypoint=waypoint.name, index=self.index, lap=self.lap,
+                      x=waypoint.pose.x, y=waypoint.pose.y)
+            outcome = None
+        else:
+            result = self.handle.result()
+            reason = (result.reason if result is not None and result.reason else status.value)
+            outcome = self._skip(waypoint, f"{status.value}: {reason}")
+        self.handle = None
+        if outcome is not None:
+            return outcome
+        return self._advance()
+
+    def terminate(self, new_status: Status) -> None:
+        """Halted mid-goal: cancel it and keep the place. Finished or failed: start over next time."""
+        if self.handle is not None:
+            self.handle.cancel()
+            self.handle = None
+            waypoint = self.route[self.index]
+            self.emit("patrol_preempted", waypoint=waypoint.name, index=self.index, lap=self.lap)
+        if new_status in (Status.SUCCESS, Status.FAILURE):
+            self.index = 0
+            self.lap = 0
+            self.consecutive_skips = 0
+
+    # -- helpers ---------------------------------------------------------------------------------
+
+    def _send(self) -> None:
+        waypoint = self.route[self.index]
+        robot = self.context.robot
+        tolerance = Tolerance(self.params.xy_tolerance, self.params.yaw_tolerance)
+        self.goal_started = robot.now()
+        self.handle = robot.navigate_to(waypoint.pose, tolerance)
+        self.write("waypoint", {"name": waypoint.name, "index": self.index, "lap": self.lap,
+                                "x": waypoint.pose.x, "y": waypoint.pose.y})
+        self.emit("goal_sent", waypoint=waypoint.name, index=self.index, lap=self.lap,
+                  x=waypoint.pose.x, y=waypoint.pose.y, yaw=waypoint.pose.yaw,
+                  xy_tolerance=tolerance.xy, yaw_tolerance=tolerance.yaw)
+        if self.ctx is not None:
+            self.ctx.mark("goal", waypoint.pose.x, waypoint.pose.y, waypoint.name)
+
+    def _skip(self, waypoint: Waypoint, reason: str) -> Status | None:
+        self.skipped += 1
+        self.consecutive_skips += 1
+        self.emit("waypoint_skipped", waypoint=waypoint.name, index=self.index, lap=self.lap,
+                  x=waypoint.pose.x, y=waypoint.pose.y, reason=reason)
+        limit = self.params.max_consecutive_skips or len(self.route)
+        if self.consecutive_skips >= limit:
+            self.handle = None
+            return self.fail(f"{self.consecutive_skips} waypoints in a row unreachable, last "
+                             f"{waypoint.name}: {reason}")
+        return None
+
+    def _advance(self) -> Status:
+        self.index += 1
+        if self.index >= len(self.route):
+            self.index = 0
+            self.lap += 1
+            self.emit("lap_done", lap=self.lap, reached=self.reached, skipped=self.skipped)
+            if self.params.laps and self.lap >= self.params.laps:
+                return self.succeed(f"{self.lap} lap(s): {self.reached} waypoints reached, "
+                                    f"{self.skipped} skipped")
+        self._send()
+        return self.running(self._progress(self.route[self.index]))
+
+    def _progress(self, waypoint: Waypoint) -> str:
+        laps = f"{self.lap + 1}/{self.params.laps}" if self.params.laps else f"{self.lap + 1}"
+        return f"lap {laps}, to {waypoint.name} ({waypoint.pose.x:.2f}, {waypoint.pose.y:.2f})"

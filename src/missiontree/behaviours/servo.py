@@ -1,0 +1,180 @@
+"""Visual servoing on an alarm (seed 001 §5.3.1): turn to face the person, measure, record.
+
+Seed 001 found that a person seen at the edge of the 70° camera lies outside its ±15° lidar cone
+and proposed a reflex: preempt the patrol goal and rotate the chassis to centre the target.
+:class:`ServoToTarget` does that with a proportional controller on the bearing error, where the
+bearing comes from the detector run on each new frame (the person nearest the expected bearing)
+or, while the person is not in view, from the alarm's estimated map position. Once the person is
+centred it stops, measures (by the chosen method, now straight ahead), records a ``servoed`` alarm
+and succeeds; a target not seen for ``lost_timeout`` seconds ends it with FAILURE ("target lost").
+
+In a tree it sits in front of the patrol in a reactive Selector, wrapped so that its end always
+hands control back to the patrol::
+
+    Selector (memory: false)
+      ├── ForceFailure ─ ServoToTarget     RUNNING only while a new alarm is being served
+      └── Parallel ─ Patrol, Surveillance  halted (goal cancelled, place kept) while servoing
+
+With no new alarm on the blackboard it fails at once, so the Selector ticks the patrol.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated
+
+from pydantic import BaseModel, Field
+
+from missiontree.behaviours.alarms import SERVOED, Alarm, record_alarm
+from missiontree.behaviours.measure import Method, measure
+from missiontree.behaviours.surveillance import alarm_from
+from missiontree.engine.leaf import Leaf, Status
+from missiontree.engine.ports import Input, Output
+from missiontree.perception.lidar import box_bearings
+from missiontree.types import Detection, Pose2D, RGBDFrame, wrap_angle
+
+
+class ServoToTarget(Leaf):
+    """On a new alarm, turn to centre the person (P control on bearing), measure and record; else fail.
+
+    Fails at once when the ``alarm`` port holds no alarm newer than the last one served, so it can
+    guard a patrol in a Selector. Emits ``servo_started``, ``servo_done`` or ``servo_lost``.
+    """
+
+    class Params(BaseModel):
+        gain: float = Field(1.5, gt=0, description="Angular speed per radian of bearing error (1/s).")
+        max_speed: float = Field(1.2, gt=0, description="Largest angular speed (rad/s).")
+        centred: float = Field(
+            math.radians(4.0), gt=0, description="Bearing error that counts as centred (rad).")
+        lost_timeout: float = Field(3.0, gt=0, description="Seconds unseen before giving up the target.")
+        timeout: float = Field(15.0, gt=0, description="Longest servo, seconds.")
+        method: Method = Field("cone", description="Distance method once centred: seed, cone or depth.")
+        surface_offset: float = Field(0.1, ge=0, description="Added to measured ranges (m).")
+        min_score: float = Field(0.4, ge=0, le=1, description="Detector score needed to track the person.")
+        max_jump: float = Field(
+            math.radians(25.0), gt=0, description="Largest bearing jump accepted between frames (rad).")
+        alarm: Annotated[str, Input("the alarm to serve", type="dict")] = "alarm"
+        result: Annotated[str, Output("the servoed alarm record", type="dict")] = "servo_result"
+
+    params: Params
+
+    def __init__(self, name: str, params: BaseModel | None = None) -> None:
+        super().__init__(name, params)
+        self.served_id = 0
+        self.alarm: Alarm | None = None
+        self.target: tuple[float, float] | None = None
+        self.bearing_hint = 0.0
+        self.started = 0.0
+        self.last_seen = 0.0
+        self.last_frame = float("-inf")
+        self.seen_once = False
+        self.active = False
+
+    def initialise(self) -> None:
+        """Take a new alarm, if there is one, and start turning towards it."""
+        raw = self.read("alarm")
+        self.active = False
+        if not isinstance(raw, dict) or int(raw.get("id", 0)) <= self.served_id:
+            return
+        self.alarm = Alarm.from_dict(raw)
+        self.served_id = self.alarm.id
+        self.active = True
+        self.seen_once = False
+        robot = self.context.robot
+        self.started = self.last_seen = robot.now()
+        self.target = self.alarm.position
+        pose = self._pose()
+        # Without a position, keep the bearing in the map frame: turning changes the robot's.
+        self.bearing_hint = wrap_angle(self.alarm.robot_pose[2] + self.alarm.bearing)
+        self.emit("servo_started", alarm=self.alarm.id, bearing=round(self._expected_bearing(pose), 4))
+
+    def update(self) -> Status:
+        """One control step: find the person, turn towards them, finish when centred."""
+        if not self.active or self.alarm is None:
+            return self.fail("no new alarm")
+        robot = self.context.robot
+        now = robot.now()
+        pose = self._pose()
+        frame = robot.rgbd()
+        seen: tuple[RGBDFrame, Detection, float] | None = None
+        if frame is not None and frame.stamp > self.last_frame:
+            self.last_frame = frame.stamp
+            seen = self._find(frame, pose)
+        if seen is not None:
+            frame, person, bearing_then = seen
+            self.last_seen = now
+            self.seen_once = True
+            frame_pose = robot.pose_at(frame.stamp) or pose
+            self.bearing_hint = wrap_angle(frame_pose.yaw + bearing_then)
+            error = wrap_angle(self.bearing_hint - pose.yaw)
+            if abs(bearing_then) <= self.params.centred:
+                return self._finish(frame, person)
+        else:
+            if now - self.last_seen > self.params.lost_timeout:
+                return self._give_up(f"target lost: not seen for {self.params.lost_timeout:g} s")
+            error = self._expected_bearing(pose)
+        if now - self.started > self.params.timeout:
+            return self._give_up(f"not centred within {self.params.timeout:g} s")
+        speed = max(-self.params.max_speed, min(self.params.max_speed, self.params.gain * error))
+        robot.drive(0.0, speed)
+        return self.running(f"turning to alarm {self.alarm.id}: {math.degrees(error):.1f}° off")
+
+    def terminate(self, new_status: Status) -> None:
+        """Stop turning (also when halted)."""
+        if self.active and self.ctx is not None:
+            self.ctx.robot.drive(0.0, 0.0)
+        self.active = False
+
+    # -- helpers ---------------------------------------------------------------------------------
+
+    def _pose(self) -> Pose2D:
+        stamped = self.context.robot.pose()
+        if stamped is None:
+            raise RuntimeError(f"{self.name}: the robot has no pose; wait for localisation")
+        return stamped.pose
+
+    def _expected_bearing(self, pose: Pose2D) -> float:
+        if self.target is not None:
+            return pose.bearing_to(*self.target)
+        return wrap_angle(self.bearing_hint - pose.yaw)
+
+    def _find(self, frame: RGBDFrame, pose: Pose2D) -> tuple[RGBDFrame, Detection, float] | None:
+        """The person in ``frame`` nearest the expected bearing, with their bearing at the frame's time."""
+        frame_pose = self.context.robot.pose_at(frame.stamp) or pose
+        expected = wrap_angle(self.bearing_hint - frame_pose.yaw)
+        if self.target is not None and not self.seen_once:
+            expected = frame_pose.bearing_to(*self.target)
+        k = frame.intrinsics
+        best: tuple[float, Detection, float] | None = None
+        for det in self.context.model("detector").detect(frame.color):
+            if det.label != "person" or det.score < self.params.min_score:
+                continue
+            bearing, _ = box_bearings(frame.camera_pose, frame_pose, det.box[0], det.box[2], k.fx, k.cx)
+            jump = abs(wrap_angle(bearing - expected))
+            if jump <= self.params.max_jump and (best is None or jump < best[0]):
+                best = (jump, det, bearing)
+        return None if best is None else (frame, best[1], best[2])
+
+    def _finish(self, frame: RGBDFrame, person: Detection) -> Status:
+        robot = self.context.robot
+        robot.drive(0.0, 0.0)
+        assert self.alarm is not None
+        measurement = measure(robot, frame, person, self.params.method, fuse_at="frame",
+                              surface_offset=self.params.surface_offset)
+        record = alarm_from(self.alarm.id, frame, person, measurement, self.params.method, robot.now(),
+                            self.alarm.verdict, phase=SERVOED,
+                            detected_distance=None if not math.isfinite(self.alarm.distance)
+                            else round(self.alarm.distance, 4))
+        record = record_alarm(self.context, record, self.name, frame.color)
+        self.write("result", record.to_dict())
+        self.emit("servo_done", alarm=self.alarm.id, distance=record.to_dict()["distance"],
+                  seconds=round(robot.now() - self.started, 3))
+        self.active = False
+        return self.succeed(f"alarm {self.alarm.id}: person at {record.distance:.2f} m, centred")
+
+    def _give_up(self, reason: str) -> Status:
+        self.context.robot.drive(0.0, 0.0)
+        assert self.alarm is not None
+        self.emit("servo_lost", alarm=self.alarm.id, reason=reason)
+        self.active = False
+        return self.fail(reason)

@@ -1,0 +1,222 @@
+"""Surveillance while moving: look for people in the camera frames and raise alarms with positions.
+
+Runs beside the patrol (a Parallel) and never finishes by itself. Two modes:
+
+- ``poll`` — seed 001: every ``period`` seconds (0.5 s, or 0.2 s in scenario D) the latest frame
+  goes to the vision-language model with the ALARM/SAFE prompt. People who cross the view between
+  two checks, or while answers are slow, are missed.
+- ``detect`` — a cheap detector looks at *every* frame; only frames that show a person are sent to
+  the VLM, which confirms, at most one call every ``period`` seconds and ``max_in_flight`` at once.
+
+Model calls never block the tick: they are submitted through the mission's
+:class:`~missiontree.reasoning.calls.ModelCaller` and polled. The answer is read through the
+:class:`~missiontree.reasoning.schemas.SurveillanceVerdict` schema (checked, retried once), never
+by searching its text. The person's bearing, distance and map position come from the sensor data
+of the instant the frame was taken (``fuse_at: frame``), by the chosen ``method`` (seed | cone |
+depth, :mod:`missiontree.behaviours.measure`); ``fuse_at: answer`` reproduces the seed, which read
+the latest scan once the answer came back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, Field
+
+from missiontree.behaviours.alarms import Alarm, record_alarm
+from missiontree.behaviours.measure import FuseAt, Measurement, Method, measure
+from missiontree.engine.leaf import Leaf, Status
+from missiontree.engine.ports import Output
+from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
+from missiontree.reasoning.checks import ask_checked
+from missiontree.reasoning.prompts import surveillance_prompt
+from missiontree.reasoning.schemas import SurveillanceVerdict
+from missiontree.types import Detection, RGBDFrame
+
+
+@dataclass
+class _Pending:
+    """A frame sent to the VLM, with what was measured at the frame's instant."""
+
+    call: ModelCall
+    frame: RGBDFrame
+    detection: Detection | None
+    measurement: Measurement | None
+
+
+class Surveillance(Leaf):
+    """Watch the camera for people (poll a VLM, or detect on every frame and confirm); raise alarms.
+
+    Writes each alarm (a dict, see :class:`~missiontree.behaviours.alarms.Alarm`) to its ``alarm``
+    port and records it (tick-log ``alarm`` event, ``alarms.jsonl``, the frame under ``alarms/``).
+    Always RUNNING; halting it cancels the calls in flight.
+    """
+
+    class Params(BaseModel):
+        mode: Literal["poll", "detect"] = Field(
+            "detect", description="poll: send a frame every period (seed 001); detect: detector on every "
+            "frame, VLM confirms.")
+        period: float = Field(
+            0.5, gt=0, description="Seconds between VLM calls (poll) or least gap between confirmations.")
+        max_in_flight: int = Field(1, ge=1, description="Most VLM calls waiting for an answer at once.")
+        confirm: bool = Field(True, description="detect mode: the VLM confirms (false: detector decides).")
+        method: Method = Field("depth", description="Distance method: seed, cone or depth.")
+        fuse_at: FuseAt = Field(
+            "frame", description="Sensor data of the frame's instant (frame) or the answer's (seed 001).")
+        min_score: float = Field(0.5, ge=0, le=1, description="Detector score needed to count a person.")
+        label: str = Field("person", description="Detector label that counts as a person.")
+        surface_offset: float = Field(
+            0.1, ge=0, description="Added to measured ranges: sensors see a person's near surface (m).")
+        alarm_cooldown: float = Field(
+            0.0, ge=0, description="Seconds after an alarm with no new alarm (0: every sighting).")
+        timeout: float = Field(10.0, gt=0, description="Seconds to wait for a VLM answer.")
+        prompt: str | None = Field(None, description="Question for the VLM; default: seed 001's prompt.")
+        alarm: Annotated[str, Output("the last alarm raised", type="dict")] = "alarm"
+
+    params: Params
+
+    def __init__(self, name: str, params: BaseModel | None = None) -> None:
+        super().__init__(name, params)
+        self.pending: list[_Pending] = []
+        self.last_frame_stamp = float("-inf")
+        self.last_submit = float("-inf")
+        self.last_alarm_time = float("-inf")
+        self.alarm_count = 0
+        self.checks = 0
+        self.sightings = 0
+
+    def on_setup(self) -> None:
+        """Check that the models this mode needs are configured."""
+        if self.ctx is None:
+            return
+        if self.params.mode == "detect":
+            self.ctx.model("detector")
+        if self.params.mode == "poll" or self.params.confirm:
+            self.ctx.model("vlm")
+
+    # -- lifecycle -------------------------------------------------------------------------------
+
+    def update(self) -> Status:
+        """Collect answers that arrived, then look at the newest frame."""
+        for pending in list(self.pending):
+            if self._settle(pending):
+                self.pending.remove(pending)
+        frame = self.context.robot.rgbd()
+        if frame is not None and frame.stamp > self.last_frame_stamp:
+            self.last_frame_stamp = frame.stamp
+            if self.params.mode == "detect":
+                self._detect(frame)
+            else:
+                self._poll(frame)
+        return self.running(f"{self.checks} frames checked, {len(self.pending)} waiting, "
+                            f"{self.alarm_count} alarms")
+
+    def terminate(self, new_status: Status) -> None:
+        """Cancel the calls in flight (a halted surveillance does not act on late answers)."""
+        for pending in self.pending:
+            pending.call.cancel()
+        self.pending.clear()
+
+    # -- frames ----------------------------------------------------------------------------------
+
+    def _poll(self, frame: RGBDFrame) -> None:
+        now = self.context.robot.now()
+        if not self._may_submit(now):
+            return
+        measurement = None
+        if self.params.fuse_at == "frame":
+            measurement = measure(self.context.robot, frame, None, self.params.method, fuse_at="frame",
+                                  surface_offset=self.params.surface_offset)
+        self._submit(frame, None, measurement)
+
+    def _detect(self, frame: RGBDFrame) -> None:
+        detector = self.context.model("detector")
+        people = [d for d in detector.detect(frame.color)
+                  if d.label == self.params.label and d.score >= self.params.min_score]
+        self.checks += 1
+        if not people:
+            return
+        person = max(people, key=lambda d: (d.box[2] - d.box[0]) * (d.box[3] - d.box[1]))
+        self.sightings += 1
+        now = self.context.robot.now()
+        if not self.params.confirm:
+            self._raise(frame, person, self._measure(frame, person), "detector: person")
+            return
+        if not self._may_submit(now):
+            return
+        self._submit(frame, person, self._measure(frame, person))
+
+    def _may_submit(self, now: float) -> bool:
+        waited = now - self.last_submit >= self.params.period - 1e-9
+        return waited and len(self.pending) < self.params.max_in_flight
+
+    def _measure(self, frame: RGBDFrame, person: Detection | None) -> Measurement | None:
+        if self.params.fuse_at != "frame":
+            return None
+        return measure(self.context.robot, frame, person, self.params.method, fuse_at="frame",
+                       surface_offset=self.params.surface_offset)
+
+    def _submit(self, frame: RGBDFrame, detection: Detection | None, measurement: Measurement | None) -> None:
+        caller = model_caller(self.context)
+        vlm = self.context.model("vlm")
+        prompt = self.params.prompt or surveillance_prompt()
+        call = caller.submit("vlm", ask_checked, vlm, [frame.color], prompt, SurveillanceVerdict,
+                             timeout=self.params.timeout, node=self.name)
+        self.last_submit = self.context.robot.now()
+        if self.params.mode == "poll":
+            self.checks += 1
+        self.pending.append(_Pending(call, frame, detection, measurement))
+
+    # -- answers ---------------------------------------------------------------------------------
+
+    def _settle(self, pending: _Pending) -> bool:
+        """Act on a finished call; return True when it is finished."""
+        status = pending.call.status()
+        if not status.done:
+            return False
+        if status is not CallStatus.SUCCEEDED:
+            self.emit("surveillance_check_failed", frame_stamp=pending.frame.stamp,
+                      error=pending.call.error())
+            return True
+        verdict: SurveillanceVerdict = pending.call.result().value
+        self.emit("surveillance_verdict", frame_stamp=pending.frame.stamp, verdict=verdict.verdict,
+                  latency=pending.call.latency)
+        if not verdict.alarm:
+            return True
+        detection = pending.detection
+        if detection is None and verdict.people:
+            best = max(verdict.people, key=lambda p: p.score)
+            detection = Detection("person", best.score, best.box)
+        measurement = pending.measurement
+        if measurement is None or (pending.detection is None and detection is not None
+                                   and self.params.fuse_at == "frame"):
+            measurement = measure(self.context.robot, pending.frame, detection, self.params.method,
+                                  fuse_at=self.params.fuse_at, surface_offset=self.params.surface_offset)
+        self._raise(pending.frame, detection, measurement, verdict.as_text())
+        return True
+
+    def _raise(self, frame: RGBDFrame, detection: Detection | None, measurement: Measurement | None,
+               text: str) -> None:
+        robot = self.context.robot
+        now = robot.now()
+        if now - self.last_alarm_time < self.params.alarm_cooldown:
+            return
+        self.last_alarm_time = now
+        self.alarm_count += 1
+        alarm = alarm_from(self.alarm_count, frame, detection, measurement, self.params.method, now, text)
+        alarm = record_alarm(self.context, alarm, self.name, frame.color)
+        self.write("alarm", alarm.to_dict())
+
+
+def alarm_from(number: int, frame: RGBDFrame, detection: Detection | None, measurement: Measurement | None,
+               method: str, now: float, text: str, phase: str = "detected", **extra: Any) -> Alarm:
+    """Build an :class:`Alarm` from a measurement (unknown distance when there is none)."""
+    if measurement is None:
+        pose = frame.camera_pose
+        return Alarm(number, frame.stamp, now, (pose.x, pose.y, pose.yaw), 0.0, float("inf"), method, None,
+                     phase, detection.box if detection else None, text, extra=dict(extra))
+    p = measurement.robot_pose
+    return Alarm(number, measurement.stamp if phase != "detected" else frame.stamp, now, (p.x, p.y, p.yaw),
+                 measurement.bearing, measurement.distance, measurement.method, measurement.position, phase,
+                 detection.box if detection else None, text, extra=dict(extra))

@@ -1,0 +1,145 @@
+"""Patrol routes: waypoint lists written in a mission, a config file, or a Nav2-style waypoint YAML.
+
+Accepted shapes, for a list given inline in a tree or read from a file:
+
+- a list of ``[x, y]`` or ``[x, y, yaw]`` (seed 001's Listing 4.8);
+- a list of mappings ``{x, y, yaw?, name?}``;
+- a list of geometry_msgs-like poses ``{pose: {position: {x, y}, orientation: {z, w}}}``
+  (a PoseStamped dump; yaw from the quaternion);
+- the Nav2 RViz panel's saved file: ``waypoints: {waypoint0: {pose: [x, y, z],
+  orientation: [x, y, z, w]}, ...}``.
+
+A file holds one of these at its top, under ``waypoints:``, or under ``routes: {name: ...}``
+(several named routes, picked with ``route``). Files are found by path or by name under
+``config/waypoints/`` (:func:`missiontree.paths.find_config`). Bad input raises a ConfigError
+saying where, what was expected and what was found.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from missiontree.errors import ConfigError
+from missiontree.paths import find_config
+from missiontree.types import Pose2D
+from missiontree.yamlio import load_yaml
+
+
+@dataclass(frozen=True)
+class Waypoint:
+    """A named patrol pose in the map frame."""
+
+    name: str
+    pose: Pose2D
+
+
+_FORMS = ("[x, y, yaw], {x, y, yaw}, {pose: {position: {x, y}, orientation: {z, w}}} "
+          "or the Nav2 panel's {pose: [x, y, z], orientation: [x, y, z, w]}")
+
+
+def parse_waypoints(raw: Any, where: str = "waypoints") -> list[Waypoint]:
+    """Read waypoints in any accepted shape.
+
+    Args:
+        raw: The list (or Nav2 panel mapping) as loaded from YAML.
+        where: Where it came from, for messages (a file name or a node path).
+
+    Raises:
+        ConfigError: The value is empty or an entry has another shape.
+    """
+    if isinstance(raw, Mapping) and "waypoints" in raw:
+        raw = raw["waypoints"]
+    if isinstance(raw, Mapping):  # Nav2 panel: {waypoint0: {...}, waypoint1: {...}}
+        items = [(str(k), v) for k, v in sorted(raw.items(), key=lambda kv: _natural_key(str(kv[0])))]
+    elif isinstance(raw, Sequence) and not isinstance(raw, str):
+        items = [(f"P{i + 1}", v) for i, v in enumerate(raw)]
+    else:
+        raise ConfigError(f"{where}: expected a list of waypoints ({_FORMS}), found {type(raw).__name__}")
+    if not items:
+        raise ConfigError(f"{where}: expected at least one waypoint, found an empty list")
+    return [_one(name, value, f"{where}[{i}]") for i, (name, value) in enumerate(items)]
+
+
+def load_waypoints(name_or_path: str, route: str | None = None) -> list[Waypoint]:
+    """Read a waypoint file (a path, or a name under ``config/waypoints/``).
+
+    Args:
+        name_or_path: ``combined`` or ``config/waypoints/combined.yaml``.
+        route: The route to use when the file holds several under ``routes:``.
+
+    Raises:
+        ConfigError: Missing file, unknown route, or malformed waypoints.
+    """
+    path = find_config("waypoints", name_or_path)
+    data = load_yaml(path).data
+    where = str(path)
+    if isinstance(data, Mapping) and "routes" in data:
+        routes = data["routes"]
+        if not isinstance(routes, Mapping) or not routes:
+            raise ConfigError(f"{where}: expected `routes:` to map route names to waypoint lists")
+        if route is None:
+            if len(routes) > 1:
+                raise ConfigError(
+                    f"{where}: holds several routes ({', '.join(map(str, routes))}); "
+                    "name one with the patrol's `route` parameter")
+            route = str(next(iter(routes)))
+        if route not in routes:
+            raise ConfigError(
+                f"{where}: no route {route!r}; known: {', '.join(map(str, routes))}")
+        return parse_waypoints(routes[route], f"{where}: routes.{route}")
+    if route is not None:
+        raise ConfigError(f"{where}: has no `routes:` section, so route {route!r} cannot be picked")
+    return parse_waypoints(data, where)
+
+
+def _natural_key(text: str) -> tuple[str, int]:
+    digits = "".join(ch for ch in text if ch.isdigit())
+    return text.rstrip("0123456789"), int(digits) if digits else -1
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise ConfigError(f"{where}: expected a finite number, found {value!r}")
+    return float(value)
+
+
+def _yaw_of_quaternion(q: Sequence[float] | Mapping[str, Any], where: str) -> float:
+    if isinstance(q, Mapping):
+        x, y, z, w = (_number(q.get(k, 0.0 if k != "w" else 1.0), f"{where}.{k}") for k in "xyzw")
+    else:
+        if len(q) != 4:
+            raise ConfigError(f"{where}: expected a quaternion [x, y, z, w], found {list(q)!r}")
+        x, y, z, w = (_number(v, where) for v in q)
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def _one(name: str, value: Any, where: str) -> Waypoint:
+    if isinstance(value, Sequence) and not isinstance(value, str):
+        if len(value) not in (2, 3):
+            raise ConfigError(f"{where}: expected [x, y] or [x, y, yaw], found {list(value)!r}")
+        nums = [_number(v, where) for v in value]
+        return Waypoint(name, Pose2D(nums[0], nums[1], nums[2] if len(nums) == 3 else 0.0))
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"{where}: expected a waypoint ({_FORMS}), found {value!r}")
+    name = str(value.get("name", name))
+    if "x" in value and "y" in value:
+        return Waypoint(name, Pose2D(_number(value["x"], f"{where}.x"), _number(value["y"], f"{where}.y"),
+                                     _number(value.get("yaw", 0.0), f"{where}.yaw")))
+    pose = value.get("pose")
+    if isinstance(pose, Sequence) and not isinstance(pose, str) and len(pose) >= 2:  # Nav2 panel
+        yaw = _yaw_of_quaternion(value["orientation"], f"{where}.orientation") \
+            if "orientation" in value else 0.0
+        x, y = _number(pose[0], f"{where}.pose[0]"), _number(pose[1], f"{where}.pose[1]")
+        return Waypoint(name, Pose2D(x, y, yaw))
+    if isinstance(pose, Mapping) and "pose" in pose:  # a PoseStamped dump: {header, pose: {...}}
+        pose = pose["pose"]
+    if isinstance(pose, Mapping) and isinstance(pose.get("position"), Mapping):
+        position = pose["position"]
+        yaw = _yaw_of_quaternion(pose["orientation"], f"{where}.pose.orientation") \
+            if "orientation" in pose else 0.0
+        return Waypoint(name, Pose2D(_number(position.get("x"), f"{where}.pose.position.x"),
+                                     _number(position.get("y"), f"{where}.pose.position.y"), yaw))
+    raise ConfigError(f"{where}: expected a waypoint ({_FORMS}), found keys {sorted(map(str, value))}")
