@@ -29,6 +29,10 @@ from missiontree.engine.ports import BlackboardRef, ports_of
 Status = py_trees.common.Status
 
 
+class NoParams(BaseModel):
+    """The parameters of a leaf that takes none (pydantic's BaseModel itself cannot be instantiated)."""
+
+
 class Leaf(py_trees.behaviour.Behaviour):
     """Base for every leaf node type.
 
@@ -36,7 +40,7 @@ class Leaf(py_trees.behaviour.Behaviour):
     docstring whose first line is the summary ``missiontree nodes`` prints.
     """
 
-    Params: ClassVar[type[BaseModel]] = BaseModel
+    Params: ClassVar[type[BaseModel]] = NoParams
 
     def __init__(self, name: str, params: BaseModel | None = None) -> None:
         super().__init__(name=name)

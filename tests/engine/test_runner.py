@@ -1,0 +1,276 @@
+"""Tests of the runner: rate on the backend clock, stop conditions, halting, errors, run directory."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+from pathlib import Path
+
+import py_trees
+import pytest
+
+from missiontree.engine.context import MissionContext
+from missiontree.engine.leaf import Leaf, Status
+from missiontree.engine.runner import Runner
+from missiontree.errors import ConfigError, PluginError
+from missiontree.plugins.hookspecs import hookimpl
+from missiontree.testing import ClockRobot, ScriptedLeaf, capture_tick_log, clean_state, fresh_plugins
+from missiontree.types import Marker
+
+
+@pytest.fixture(autouse=True)
+def _clean() -> None:
+    clean_state()
+
+
+def _runner(root: py_trees.behaviour.Behaviour, robot: ClockRobot | None = None, **options: object) -> Runner:
+    context = MissionContext(robot=robot or ClockRobot())
+    options.setdefault("handle_signals", False)
+    return Runner(root, context, **options)  # type: ignore[arg-type]
+
+
+def test_ticks_at_the_set_rate_on_the_backend_clock() -> None:
+    """Between ticks the runner asks the robot to run until the next tick time (5 Hz: 0.2 s apart)."""
+    robot = ClockRobot(start=3.0)
+    result = _runner(ScriptedLeaf("a", script="RRRS"), robot, tick_hz=5).run()
+    assert result.ticks == 4
+    assert robot.spins == pytest.approx([3.2, 3.4, 3.6])
+    assert result.duration == pytest.approx(0.6)
+
+
+def test_stops_on_success_with_exit_code_zero() -> None:
+    """A root that succeeds ends the run with status SUCCESS and exit code 0."""
+    result = _runner(ScriptedLeaf("a", script="RS")).run()
+    assert (result.status, result.stopped_by, result.exit_code) == (Status.SUCCESS, "status", 0)
+
+
+def test_stops_on_failure_with_exit_code_one() -> None:
+    """A root that fails ends the run with exit code 1."""
+    result = _runner(ScriptedLeaf("a", script="F")).run()
+    assert (result.status, result.exit_code) == (Status.FAILURE, 1)
+
+
+def test_duration_limit_stops_halts_the_tree_and_stops_the_robot() -> None:
+    """At the limit the running leaf is halted (terminate INVALID) and robot.stop() is called once."""
+    robot = ClockRobot()
+    leaf = ScriptedLeaf("forever", script="R")
+    result = _runner(leaf, robot, tick_hz=10, max_duration=1.0).run()
+    assert (result.stopped_by, result.status, result.exit_code) == ("limit", Status.RUNNING, 1)
+    assert result.ticks == 10  # t = 0.0 ... 0.9
+    assert robot.now() == pytest.approx(1.0)
+    assert leaf.calls[-1] == "terminate:INVALID"
+    assert robot.stop_calls == 1
+
+
+class _RaiseSignal(Leaf):
+    """Sends a signal to this process on its third tick."""
+
+    signum = signal.SIGINT
+
+    def initialise(self) -> None:
+        self.n = 0
+
+    def update(self) -> Status:
+        self.n += 1
+        if self.n == 3:
+            os.kill(os.getpid(), self.signum)
+        return Status.RUNNING
+
+    def terminate(self, new_status: Status) -> None:
+        self.halted_with = new_status
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_signal_stops_after_the_tick_and_halts(signum: int) -> None:
+    """SIGINT or SIGTERM stops the run after the current tick, halts the tree and restores handlers."""
+    before = signal.getsignal(signum)
+    leaf = _RaiseSignal("sig")
+    leaf.signum = signum
+    robot = ClockRobot()
+    result = Runner(leaf, MissionContext(robot=robot), handle_signals=True).run()
+    assert result.stopped_by == "signal"
+    assert result.exit_code == 128 + signum
+    assert result.ticks == 3
+    assert leaf.halted_with == Status.INVALID
+    assert robot.stop_calls == 1
+    assert signal.getsignal(signum) is before
+
+
+def test_leaf_exception_becomes_failure_and_the_run_goes_on() -> None:
+    """A raising leaf fails with an error event; the selector then tries its next child and succeeds."""
+    root = py_trees.composites.Selector("root", memory=False, children=[
+        ScriptedLeaf("broken", script="X"), ScriptedLeaf("fallback", script="S"),
+    ])
+    result, lines = capture_tick_log(root)
+    assert result.status == Status.SUCCESS
+    errors = [line for line in lines if line["event"] == "error"]
+    assert errors and errors[0]["node"] == "broken" and "scripted error" in errors[0]["error"]
+
+
+class _BrokenBehaviour(py_trees.behaviour.Behaviour):
+    """A plain py_trees behaviour (not a Leaf) whose update raises."""
+
+    def update(self) -> Status:
+        raise ZeroDivisionError("division by zero in a plain behaviour")
+
+
+def test_plain_behaviour_exception_becomes_failure_of_that_node() -> None:
+    """An exception escaping a non-Leaf behaviour fails that node, logs an error and the run continues."""
+    broken = _BrokenBehaviour("plain")
+    fallback = ScriptedLeaf("ok", script="S")
+    root = py_trees.composites.Selector("root", memory=False, children=[broken, fallback])
+    result, lines = capture_tick_log(root)
+    assert result.status == Status.SUCCESS
+    errors = [line for line in lines if line["event"] == "error"]
+    assert errors[0]["node"] == "root/plain"
+    assert errors[0]["error"].startswith("ZeroDivisionError")
+    first_tick = next(line for line in lines if line["event"] == "tick")
+    failed = {c["node"]: c for c in first_tick["changed"] if c["status"] == "FAILURE"}
+    assert "ZeroDivisionError" in failed["root/plain"]["reason"]
+
+
+class _BrokenDecorator(py_trees.decorators.Decorator):
+    """A decorator whose update raises once its child is running."""
+
+    def update(self) -> Status:
+        raise KeyError("decorator bug")
+
+
+def test_decorator_exception_halts_its_running_child() -> None:
+    """When a decorator raises, its running child is halted (terminate INVALID) before it fails."""
+    child = ScriptedLeaf("child", script="R")
+    root = _BrokenDecorator(name="broken", child=child)
+    result, _ = capture_tick_log(root)
+    assert result.status == Status.FAILURE
+    assert "terminate:INVALID" in child.calls
+
+
+class _FailsSetup(Leaf):
+    """A leaf whose setup fails (a missing device, say)."""
+
+    def on_setup(self) -> None:
+        raise OSError("camera not found")
+
+    def update(self) -> Status:
+        return Status.SUCCESS
+
+
+def test_setup_failure_is_a_config_error_and_still_stops_the_robot() -> None:
+    """A node failing setup raises ConfigError naming the node; the robot is stopped anyway."""
+    robot = ClockRobot()
+    root = py_trees.composites.Sequence("root", memory=True, children=[_FailsSetup("cam")])
+    with pytest.raises(ConfigError, match="root/cam failed to set up: OSError: camera not found"):
+        _runner(root, robot).run()
+    assert robot.stop_calls == 1
+
+
+class _DrawingRobot(ClockRobot):
+    """A clock robot that draws a picture listing the markers."""
+
+    def draw(self, out_dir: Path, markers: list[Marker]) -> list[Path]:
+        path = out_dir / "map.txt"
+        path.write_text("\n".join(m.kind for m in markers))
+        return [path]
+
+
+class _Marks(Leaf):
+    """Adds a goal marker and succeeds."""
+
+    def update(self) -> Status:
+        self.context.mark("goal", 1.0, 2.0, "g1")
+        return Status.SUCCESS
+
+
+def test_run_directory_holds_log_summary_and_pictures(tmp_path: Path) -> None:
+    """The run directory gets ticks.jsonl, summary.json and the pictures a Drawable robot draws."""
+    root = py_trees.composites.Sequence("root", memory=True, children=[
+        _Marks("mark"), ScriptedLeaf("nav", script="RF", reason="no path"),
+    ])
+    result = _runner(root, _DrawingRobot(), run_dir=tmp_path / "run", mission="demo").run()
+    run_dir = tmp_path / "run"
+    assert (run_dir / "map.txt").read_text() == "goal"
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["status"] == "FAILURE" and summary["ticks"] == result.ticks == 2
+    assert summary["nodes"]["root/nav"] == {"SUCCESS": 0, "FAILURE": 1}
+    assert summary["failure_reasons"] == {"root/nav": ["no path"]}
+    assert summary["pictures"] == ["map.txt"]
+    lines = (run_dir / "ticks.jsonl").read_text().splitlines()
+    assert json.loads(lines[0])["event"] == "mission_started"
+    assert json.loads(lines[-1])["event"] == "mission_finished"
+
+
+def test_blackboard_defaults_are_written_before_the_first_tick() -> None:
+    """Blackboard defaults exist when the first tick runs and appear in its log line."""
+    result, lines = capture_tick_log(ScriptedLeaf("a", script="S"), blackboard={"speed": 0.25})
+    first_tick = next(line for line in lines if line["event"] == "tick")
+    assert first_tick["bb"] == {"/speed": 0.25}
+    assert py_trees.blackboard.Blackboard.get("/speed") == 0.25
+
+
+class _Recorder:
+    """A plugin that records the mission hooks it receives."""
+
+    def __init__(self) -> None:
+        self.calls: list[str] = []
+
+    @hookimpl
+    def missiontree_mission_started(self, context: MissionContext, mission: object) -> None:
+        self.calls.append(f"started:{mission}")
+
+    @hookimpl
+    def missiontree_mission_finished(self, context: MissionContext, summary: dict) -> None:
+        self.calls.append(f"finished:{summary['status']}:{context.robot.stop_calls}")
+
+
+def test_mission_hooks_are_called_around_the_run() -> None:
+    """mission_started comes before the first tick; mission_finished after the robot was stopped."""
+    plugins = fresh_plugins()
+    recorder = _Recorder()
+    plugins.pm.register(recorder)
+    _runner(ScriptedLeaf("a", script="S"), hook=plugins.hook, spec="the-spec").run()
+    assert recorder.calls == ["started:the-spec", "finished:SUCCESS:1"]
+
+
+def test_failing_hook_is_a_plugin_error_after_cleanup() -> None:
+    """A plugin hook that raises becomes a PluginError, and the robot is still stopped."""
+
+    class Broken:
+        @hookimpl
+        def missiontree_mission_started(self, context: MissionContext, mission: object) -> None:
+            raise RuntimeError("observer crashed")
+
+    plugins = fresh_plugins()
+    plugins.pm.register(Broken())
+    robot = ClockRobot()
+    with pytest.raises(PluginError, match="observer crashed"):
+        _runner(ScriptedLeaf("a", script="S"), robot, hook=plugins.hook).run()
+    assert robot.stop_calls == 1
+
+
+@pytest.mark.parametrize("options", [{"tick_hz": 0}, {"tick_hz": float("nan")}, {"max_duration": -1.0}])
+def test_bad_rate_or_limit_is_a_config_error(options: dict) -> None:
+    """A non-positive tick rate or duration limit is refused with a ConfigError."""
+    with pytest.raises(ConfigError):
+        _runner(ScriptedLeaf("a"), **options)
+
+
+def test_same_run_twice_gives_identical_log_bytes(tmp_path: Path) -> None:
+    """On a simulated clock two identical runs write byte-identical tick logs with no wall time."""
+    texts = []
+    for name in ("one", "two"):
+        clean_state()
+        root = py_trees.composites.Sequence("root", memory=True, children=[
+            ScriptedLeaf("a", script="RRS"), ScriptedLeaf("b", script="RX"),
+        ])
+        _runner(root, run_dir=tmp_path / name, mission="same").run()
+        texts.append((tmp_path / name / "ticks.jsonl").read_bytes())
+    assert texts[0] == texts[1]
+    assert b"wall" not in texts[0]
+
+
+def test_real_clock_robot_logs_wall_time() -> None:
+    """On a robot whose clock is not simulated each line carries the wall-clock time."""
+    context = MissionContext(robot=ClockRobot(simulated=False))
+    _, lines = capture_tick_log(ScriptedLeaf("a", script="S"), context)
+    assert all("wall" in line for line in lines)
