@@ -136,6 +136,11 @@ class Located:
         return Located(data, self.file, self._values, self._keys, self._prefix + path)
 
 
+    def view(self, path: Iterable[str | int], data: Any) -> Located:
+        """Like :meth:`child`, but with ``data`` given (e.g. after substitution changed the value)."""
+        return Located(data, self.file, self._values, self._keys, self._prefix + tuple(path))
+
+
 def format_path(path: Iterable[str | int]) -> str:
     """Render a key path as ``root.children[2].Wait``."""
     text = ""
