@@ -1,0 +1,163 @@
+"""Tests of the Patrol leaf and the waypoint formats, on a scripted robot."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import py_trees
+import pytest
+from patrol_doubles import Events, FakeRobot
+
+from missiontree.behaviours.patrol import Patrol
+from missiontree.behaviours.waypoints import load_waypoints, parse_waypoints
+from missiontree.engine.context import MissionContext
+from missiontree.engine.leaf import Status
+from missiontree.errors import ConfigError
+from missiontree.testing import tick_until
+
+ROUTE = [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 1.0, 1.57]]
+
+
+def make(robot: FakeRobot, **params: object) -> tuple[Patrol, Events]:
+    events = Events()
+    leaf = Patrol("patrol", Patrol.Params(**params))
+    leaf.setup(context=MissionContext(robot=robot, events=events))
+    return leaf, events
+
+
+def test_patrol_drives_the_route_for_the_laps_asked() -> None:
+    """Two laps of three waypoints send six goals in order and end in SUCCESS."""
+    robot = FakeRobot()
+    leaf, events = make(robot, waypoints=ROUTE, laps=2)
+    tick_until(leaf, max_ticks=50)
+    assert leaf.status == Status.SUCCESS
+    assert [(g.goal.x, g.goal.y) for g in robot.goals] == [(1, 0), (2, 0), (2, 1)] * 2
+    assert len(events.of("waypoint_reached")) == 6
+    assert [e["lap"] for e in events.of("lap_done")] == [1, 2]
+
+
+def test_unreachable_waypoint_is_skipped_with_reason_and_patrol_goes_on() -> None:
+    """An aborted goal is logged as skipped with the planner's reason and the next waypoint follows."""
+    robot = FakeRobot()
+    robot.unreachable.add((2.0, 0.0))
+    leaf, events = make(robot, waypoints=ROUTE, laps=1)
+    tick_until(leaf, max_ticks=50)
+    assert leaf.status == Status.SUCCESS
+    skipped = events.of("waypoint_skipped")
+    assert [s["waypoint"] for s in skipped] == ["P2"]
+    assert "goal inside an obstacle" in skipped[0]["reason"]
+    assert [e["waypoint"] for e in events.of("waypoint_reached")] == ["P1", "P3"]
+
+
+def test_patrol_fails_when_a_whole_lap_is_unreachable() -> None:
+    """A route whose every waypoint aborts fails instead of spinning forever."""
+    robot = FakeRobot()
+    robot.unreachable.update({(1.0, 0.0), (2.0, 0.0), (2.0, 1.0)})
+    leaf, _ = make(robot, waypoints=ROUTE, laps=0)
+    tick_until(leaf, max_ticks=50)
+    assert leaf.status == Status.FAILURE
+    assert "3 waypoints in a row unreachable" in leaf.feedback_message
+
+
+def test_preempted_patrol_resumes_at_interrupted_waypoint() -> None:
+    """Halted while driving to P2, the patrol cancels that goal and drives to P2 again when restarted."""
+    robot = FakeRobot()
+    leaf, events = make(robot, waypoints=ROUTE, laps=1)
+    for _ in range(4):  # P1 reached after 3 polls, P2 sent
+        leaf.tick_once()
+    assert robot.goals[-1].goal.x == 2.0 and robot.goals[-1].goal.y == 0.0
+    leaf.stop(Status.INVALID)  # a higher-priority branch takes over
+    assert robot.goals[-1].cancelled
+    assert events.of("patrol_preempted")[0]["waypoint"] == "P2"
+    leaf.tick_once()
+    assert (robot.goals[-1].goal.x, robot.goals[-1].goal.y) == (2.0, 0.0)
+    tick_until(leaf, max_ticks=50)
+    assert [e["waypoint"] for e in events.of("waypoint_reached")] == ["P1", "P2", "P3"]
+
+
+def test_yaw_tolerance_is_passed_to_navigation() -> None:
+    """The configured yaw tolerance (2π accepts any heading, seed 001 §3.6) reaches the goal."""
+    robot = FakeRobot()
+    leaf, _ = make(robot, waypoints=ROUTE, yaw_tolerance=6.28, xy_tolerance=0.2)
+    leaf.tick_once()
+    assert robot.goals[0].tolerance.yaw == pytest.approx(6.28)
+    assert robot.goals[0].tolerance.xy == pytest.approx(0.2)
+
+
+def test_waypoint_timeout_skips_a_slow_goal() -> None:
+    """A goal not reached within waypoint_timeout is cancelled and skipped."""
+    robot = FakeRobot()
+    robot.polls_per_goal = 1000
+    leaf, events = make(robot, waypoints=ROUTE[:2], waypoint_timeout=5.0)
+    leaf.tick_once()
+    robot.advance(6.0)
+    leaf.tick_once()
+    assert robot.goals[0].cancelled
+    assert "not reached within 5 s" in events.of("waypoint_skipped")[0]["reason"]
+
+
+def test_patrol_params_need_exactly_one_route_source() -> None:
+    """Giving neither inline waypoints nor a file is a validation error naming both."""
+    with pytest.raises(ValueError, match="exactly one of `waypoints`"):
+        Patrol.Params()
+
+
+def test_parse_accepts_seed_lists_and_mappings() -> None:
+    """[x, y, yaw] lists and {x, y, yaw, name} mappings both parse."""
+    route = parse_waypoints([[4.2, 3.8, 0.0], {"name": "door", "x": 1, "y": 2, "yaw": 0.5}])
+    assert [w.name for w in route] == ["P1", "door"]
+    assert route[1].pose.yaw == 0.5
+
+
+def test_parse_reads_nav2_panel_file(tmp_path: Path) -> None:
+    """The Nav2 RViz panel's waypoint file (pose list + quaternion) loads with its headings."""
+    path = tmp_path / "wps.yaml"
+    path.write_text(
+        "waypoints:\n"
+        "  waypoint1:\n    pose: [2.0, 1.0, 0.0]\n    orientation: [0.0, 0.0, 0.7071068, 0.7071068]\n"
+        "  waypoint0:\n    pose: [1.0, 0.5, 0.0]\n    orientation: [0.0, 0.0, 0.0, 1.0]\n")
+    route = load_waypoints(str(path))
+    assert [w.name for w in route] == ["waypoint0", "waypoint1"]
+    assert route[1].pose.yaw == pytest.approx(math.pi / 2)
+
+
+def test_parse_reads_pose_stamped_dumps() -> None:
+    """geometry_msgs PoseStamped-like mappings parse, yaw from the quaternion."""
+    route = parse_waypoints([{"header": {"frame_id": "map"}, "pose": {
+        "position": {"x": 1.0, "y": -2.0, "z": 0.0}, "orientation": {"z": 1.0, "w": 0.0}}}])
+    assert route[0].pose.x == 1.0 and route[0].pose.yaw == pytest.approx(math.pi)
+
+
+def test_load_picks_named_route(tmp_path: Path) -> None:
+    """A file with several routes needs the route named; an unknown name lists the known ones."""
+    path = tmp_path / "routes.yaml"
+    path.write_text("routes:\n  A: [[5.9, -0.07, 0.0], [10.0, -1.35, 0.0]]\n  B: [[10.0, -3.07]]\n")
+    assert len(load_waypoints(str(path), "A")) == 2
+    with pytest.raises(ConfigError, match="holds several routes"):
+        load_waypoints(str(path))
+    with pytest.raises(ConfigError, match="known: A, B"):
+        load_waypoints(str(path), "C")
+
+
+@pytest.mark.parametrize("bad, message", [
+    ([], "at least one waypoint"),
+    ([[1.0]], "expected \\[x, y\\] or \\[x, y, yaw\\]"),
+    ([["a", 2.0]], "expected a finite number, found 'a'"),
+    ("corridor", "expected a list of waypoints"),
+    ([{"z": 1}], "found keys \\['z'\\]"),
+])
+def test_bad_waypoints_say_what_was_expected(bad: object, message: str) -> None:
+    """Malformed routes raise ConfigError saying what was expected and what was found."""
+    with pytest.raises(ConfigError, match=message):
+        parse_waypoints(bad, "trees/patrol.yaml: Patrol.waypoints")
+
+
+def test_patrol_in_a_tree_restarts_after_success() -> None:
+    """Under a Repeat-like restart the patrol starts from the first waypoint again after finishing."""
+    robot = FakeRobot()
+    leaf, _ = make(robot, waypoints=ROUTE[:1], laps=1)
+    root = py_trees.composites.Sequence("root", memory=True, children=[leaf])
+    tick_until(root, max_ticks=10)
+    tick_until(root, max_ticks=10)
+    assert [(g.goal.x, g.goal.y) for g in robot.goals] == [(1.0, 0.0), (1.0, 0.0)]
