@@ -103,12 +103,11 @@ class Surveillance(Leaf):
             if self._settle(pending):
                 self.pending.remove(pending)
         frame = self.context.robot.rgbd()
-        if frame is not None and frame.stamp > self.last_frame_stamp:
+        if frame is not None and self.params.mode == "poll":
+            self._poll(frame)  # the seed sends the latest frame when the period is up, new or not
+        elif frame is not None and frame.stamp > self.last_frame_stamp:
             self.last_frame_stamp = frame.stamp
-            if self.params.mode == "detect":
-                self._detect(frame)
-            else:
-                self._poll(frame)
+            self._detect(frame)
         return self.running(f"{self.checks} frames checked, {len(self.pending)} waiting, "
                             f"{self.alarm_count} alarms")
 
