@@ -1,0 +1,160 @@
+"""The ROS 2 backend's profile: topic names, frames, QoS depth, navigation interface, mounts.
+
+Profiles live in ``config/backends/<name>.yaml`` (``turtlebot4`` by default, ``realsense`` for a
+NAIS-like RealSense rig). Every key has a TurtleBot 4 default, so a profile only names what
+differs; options given to ``create_robot`` override the file key by key. Pure: no rclpy.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from missiontree.errors import ConfigError
+from missiontree.paths import find_config
+
+DEFAULT_PROFILE = "turtlebot4"
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class Topics(_Section):
+    """Topic names; relative names are resolved in the robot's namespace."""
+
+    scan: str = "/scan"
+    odom: str = "/odom"
+    color: str = "/oakd/rgb/preview/image_raw"
+    color_info: str = "/oakd/rgb/preview/camera_info"
+    depth: str = "/oakd/stereo/image_raw"
+    map: str = "/map"
+    amcl_pose: str = "/amcl_pose"
+    tf: str = "/tf"
+    tf_static: str = "/tf_static"
+    cmd_vel: str = "/cmd_vel"
+    goal_pose: str = "/goal_pose"
+    markers: str = "/missiontree/detections"
+    scene_graph: str = "/scene_graph"
+    alarms: str = "/missiontree/alarms"
+
+
+class Frames(_Section):
+    """Frame names of the TF tree ``map → odom → base``."""
+
+    map: str = "map"
+    odom: str = "odom"
+    base: str = "base_link"
+
+
+class Navigation(_Section):
+    """How goals reach Nav2.
+
+    Attributes:
+        action: Name of the NavigateToPose action server.
+        interface: ``action`` (needs nav2_msgs), ``topic`` (/goal_pose + the action's status topic +
+            its cancel service) or ``auto`` (the action when nav2_msgs imports).
+        server_timeout: Seconds to wait for the server (or for a status of a topic goal) before the
+            goal is aborted with a reason.
+        behavior_tree: Behaviour tree XML Nav2 should use; empty for its default.
+    """
+
+    action: str = "/navigate_to_pose"
+    interface: Literal["auto", "action", "topic"] = "auto"
+    server_timeout: float = 5.0
+    behavior_tree: str = ""
+
+
+class Camera(_Section):
+    """Camera mount, used when TF has no transform from the base to ``frame``."""
+
+    frame: str = "oakd_rgb_camera_frame"
+    height: float = 0.40
+    mount_x: float = 0.06
+    mount_y: float = 0.0
+    mount_yaw_deg: float = 0.0
+    max_depth_lag: float = 0.2  # s between a colour image and the depth image paired with it
+
+
+class Lidar(_Section):
+    """Lidar mount yaw, used when TF has no transform from the base to the scan's frame."""
+
+    mount_yaw_deg: float = 90.0
+
+
+class Ros2Profile(_Section):
+    """A ROS 2 robot as missiontree sees it.
+
+    Attributes:
+        name: Robot name shown in logs.
+        namespace: Prefix for relative topic names (``/robot1`` for a namespaced TurtleBot 4).
+        pose_source: ``tf`` (map → base from /tf and /tf_static) or ``amcl`` (/amcl_pose advanced
+            by /odom between updates).
+        cmd_vel_stamped: Publish ``TwistStamped`` (TurtleBot 4 on Jazzy) instead of ``Twist``.
+        sensor_qos_depth: Queue depth of the best-effort sensor subscriptions.
+        history_horizon: Seconds of pose and scan history kept for ``pose_at``/``scan_at``.
+        domain_id: ROS_DOMAIN_ID for this robot's context; None takes the environment's.
+    """
+
+    name: str = "turtlebot4"
+    namespace: str = ""
+    pose_source: Literal["tf", "amcl"] = "tf"
+    cmd_vel_stamped: bool = True
+    sensor_qos_depth: int = 5
+    history_horizon: float = 10.0
+    domain_id: int | None = None
+    topics: Topics = Topics()
+    frames: Frames = Frames()
+    navigation: Navigation = Navigation()
+    camera: Camera = Camera()
+    lidar: Lidar = Lidar()
+
+    @property
+    def nav_status_topic(self) -> str:
+        """The NavigateToPose action's status topic."""
+        return f"{self.navigation.action}/_action/status"
+
+    @property
+    def nav_cancel_service(self) -> str:
+        """The NavigateToPose action's cancel service."""
+        return f"{self.navigation.action}/_action/cancel_goal"
+
+
+def _merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+    """``base`` with ``override`` merged in, nested mappings key by key."""
+    out = dict(base)
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def load_profile(name: str | Path = DEFAULT_PROFILE, overrides: dict[str, Any] | None = None) -> Ros2Profile:
+    """Read a profile by shipped name or path, with ``overrides`` merged over it.
+
+    Raises:
+        ConfigError: The file is missing, not YAML, or has an unknown key or a value of the wrong type;
+            the message names the file and the key.
+    """
+    path = find_config("backends", name)
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping of profile keys, found {type(data).__name__}")
+    data = _merge(data, overrides or {})
+    try:
+        return Ros2Profile.model_validate(data)
+    except ValidationError as exc:
+        problems = "; ".join(
+            f"{'.'.join(str(p) for p in err['loc'])}: {err['msg']} (found {err.get('input')!r})"
+            for err in exc.errors()
+        )
+        raise ConfigError(f"{path}: ROS 2 profile is invalid: {problems} "
+                          "(see config/backends/turtlebot4.yaml for every key)") from None

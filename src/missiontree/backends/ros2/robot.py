@@ -1,0 +1,463 @@
+"""Ros2Robot: the Robot protocol over rclpy (Jazzy) and Nav2, for a TurtleBot 4 or any ROS 2 robot.
+
+One node in its own rclpy context, spun by an executor on a background thread: callbacks store
+the latest message of every topic (sensor data best effort, the map transient local) and keep a
+short history of poses and scans; getters convert on demand and return at once. Time is ROS
+time; ``spin_until`` waits in wall time while the executor spins. Navigation goes through the
+NavigateToPose action (or /goal_pose when nav2_msgs is absent, see :mod:`.navigation`). ``stop``
+always publishes zero velocity, also at ``close``, at interpreter exit and on SIGINT.
+"""
+
+from __future__ import annotations
+
+import atexit
+import math
+import signal
+import threading
+import time
+import weakref
+from collections import deque
+from types import FrameType
+from typing import Any
+
+import cv2
+import numpy as np
+import rclpy
+from action_msgs.msg import GoalStatusArray
+from action_msgs.srv import CancelGoal
+from geometry_msgs.msg import PoseStamped as PoseStampedMsg
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
+from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
+from nav_msgs.msg import Odometry
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import LaserScan as LaserScanMsg
+
+from missiontree.backends.ros2 import conversions as conv
+from missiontree.backends.ros2.navigation import ActionGoal, NavGoal, TopicGoal
+from missiontree.backends.ros2.profile import Ros2Profile
+from missiontree.backends.ros2.publish import WorldPublisher
+from missiontree.backends.ros2.tf_buffer import TransformBuffer, compose, history_at, invert
+from missiontree.robot.actions import ActionHandle
+from missiontree.robot.history import StampedHistory
+from missiontree.types import LaserScan, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
+
+try:  # built locally by scripts/setup-ros2.sh, or from /opt/ros on a robot
+    from nav2_msgs.action import NavigateToPose
+except ImportError:  # pragma: no cover - exercised by the topic-interface tests instead
+    NavigateToPose = None
+try:
+    from tf2_msgs.msg import TFMessage
+except ImportError:  # pragma: no cover
+    TFMessage = None
+
+#: Largest gap (s) between a requested stamp and the scan ``scan_at`` returns.
+SCAN_MATCH_GAP = 0.5
+
+
+def sensor_qos(depth: int) -> QoSProfile:
+    """Best effort, volatile: matches both best-effort and reliable sensor publishers."""
+    return QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE,
+                      history=HistoryPolicy.KEEP_LAST, depth=depth)
+
+
+def latched_qos(depth: int = 1) -> QoSProfile:
+    """Reliable, transient local: /map, /tf_static, /amcl_pose and action status topics."""
+    return QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                      history=HistoryPolicy.KEEP_LAST, depth=depth)
+
+
+def reliable_qos(depth: int = 10) -> QoSProfile:
+    """Reliable, volatile: commands and /tf."""
+    return QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+                      history=HistoryPolicy.KEEP_LAST, depth=depth)
+
+
+class Ros2Robot:
+    """A ROS 2 robot behind the :class:`~missiontree.robot.interface.Robot` protocol.
+
+    Args:
+        profile: Topic names, frames and navigation settings (config/backends/*.yaml).
+        node_name: Name of this process's node.
+        install_signal_stop: On SIGINT, publish zero velocity before the previous handler runs.
+    """
+
+    simulated = False
+
+    def __init__(self, profile: Ros2Profile, node_name: str = "missiontree",
+                 install_signal_stop: bool = True) -> None:
+        self.profile = profile
+        self.name = profile.name
+        self._lock = threading.RLock()
+        self._closed = False
+        self._context = rclpy.Context()
+        rclpy.init(context=self._context, domain_id=profile.domain_id,
+                   signal_handler_options=SignalHandlerOptions.NO)
+        self.node = Node(node_name, context=self._context, namespace=profile.namespace or None)
+        self._tf = TransformBuffer(horizon=profile.history_horizon)
+        self._poses: StampedHistory[Pose2D] = StampedHistory(horizon=profile.history_horizon)
+        self._odom: StampedHistory[Pose2D] = StampedHistory(horizon=profile.history_horizon)
+        self._scans: StampedHistory[LaserScan] = StampedHistory(horizon=profile.history_horizon)
+        self._scan: LaserScan | None = None
+        self._amcl: PoseStamped | None = None
+        self._map_msg: OccupancyGridMsg | None = None
+        self._map: OccupancyGrid | None = None
+        self._color: Image | None = None
+        self._color_info: CameraInfo | None = None
+        self._depths: deque[Image] = deque(maxlen=8)
+        self._rgbd: RGBDFrame | None = None
+        self._mount_yaws: dict[str, float] = {}
+        self._goal: NavGoal | None = None
+        self._subscribe()
+        self._advertise()
+        self.world = WorldPublisher(self.node, profile.topics)
+        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor.add_node(self.node)
+        self._spinner = threading.Thread(target=self._spin, name=f"ros2-{node_name}", daemon=True)
+        self._spinner.start()
+        self._previous_sigint: Any = None
+        if install_signal_stop:
+            self._install_sigint()
+        atexit.register(_close_at_exit, weakref.ref(self))
+
+    # ------------------------------------------------------------------------------ wiring
+
+    def _subscribe(self) -> None:
+        p, t, node = self.profile, self.profile.topics, self.node
+        sensor = sensor_qos(p.sensor_qos_depth)
+        node.create_subscription(LaserScanMsg, t.scan, self._on_scan, sensor)
+        node.create_subscription(Odometry, t.odom, self._on_odom, sensor)
+        node.create_subscription(Image, t.color, self._on_color, sensor)
+        node.create_subscription(CameraInfo, t.color_info, self._on_color_info, sensor)
+        node.create_subscription(Image, t.depth, self._on_depth, sensor)
+        node.create_subscription(OccupancyGridMsg, t.map, self._on_map, latched_qos())
+        if TFMessage is not None:
+            node.create_subscription(TFMessage, t.tf, lambda m: self._on_tf(m, False), reliable_qos(100))
+            node.create_subscription(TFMessage, t.tf_static, lambda m: self._on_tf(m, True), latched_qos(100))
+        if p.pose_source == "amcl" or TFMessage is None:
+            node.create_subscription(PoseWithCovarianceStamped, t.amcl_pose, self._on_amcl, latched_qos())
+
+    def _advertise(self) -> None:
+        p, t, node = self.profile, self.profile.topics, self.node
+        self._cmd_vel = node.create_publisher(TwistStamped if p.cmd_vel_stamped else Twist, t.cmd_vel,
+                                              reliable_qos())
+        self.nav_interface = p.navigation.interface
+        if self.nav_interface == "auto":
+            self.nav_interface = "action" if NavigateToPose is not None else "topic"
+        if self.nav_interface == "action":
+            if NavigateToPose is None:
+                from missiontree.errors import BackendUnavailableError
+
+                raise BackendUnavailableError(
+                    "navigation.interface is 'action' but nav2_msgs does not import; run "
+                    "scripts/setup-ros2.sh (or source /opt/ros/jazzy/setup.bash on a robot), "
+                    "or set navigation.interface: topic")
+            from rclpy.action import ActionClient
+
+            self._nav_client = ActionClient(node, NavigateToPose, p.navigation.action)
+        else:
+            self._goal_pub = node.create_publisher(PoseStampedMsg, t.goal_pose, reliable_qos())
+            self._cancel_client = node.create_client(CancelGoal, p.nav_cancel_service)
+            node.create_subscription(GoalStatusArray, p.nav_status_topic, self._on_nav_status, latched_qos())
+        node.create_timer(0.1, self._advance_goal)
+
+    def _spin(self) -> None:
+        try:
+            while self._context.ok():
+                self._executor.spin_once(timeout_sec=0.1)
+        except (ExternalShutdownException, rclpy.executors.ShutdownException):
+            pass
+        except Exception:  # noqa: BLE001 - the context was shut down under the executor during close
+            if self._context.ok():
+                raise
+
+    # ------------------------------------------------------------------------------ callbacks
+
+    def _on_scan(self, msg: LaserScanMsg) -> None:
+        scan = conv.scan_from_msg(msg, self._mount_yaw(msg.header.frame_id))
+        with self._lock:
+            self._scan = scan
+            latest = self._scans.latest()
+            if latest is None or scan.stamp >= latest[0]:
+                self._scans.push(scan.stamp, scan)
+
+    def _mount_yaw(self, frame: str) -> float:
+        """Yaw of a sensor frame on the base, from TF once known, else the profile's lidar mount."""
+        yaw = self._mount_yaws.get(frame)
+        if yaw is None:
+            found = self._tf.lookup(self.profile.frames.base, frame)
+            if found is None:
+                return math.radians(self.profile.lidar.mount_yaw_deg)
+            yaw = self._mount_yaws[frame] = found[1].yaw
+        return yaw
+
+    def _on_tf(self, msg: Any, static: bool) -> None:
+        for transform in msg.transforms:
+            parent, child, stamp, pose = conv.transform_from_msg(transform)
+            self._tf.set_transform(parent, child, stamp, pose, static=static)
+        if self.profile.pose_source == "tf":
+            found = self._tf.lookup(self.profile.frames.map, self.profile.frames.base)
+            if found is not None:
+                self._push_pose(*found)
+
+    def _on_odom(self, msg: Odometry) -> None:
+        odom = conv.odometry_to_pose(msg)
+        with self._lock:
+            latest = self._odom.latest()
+            if latest is None or odom.stamp >= latest[0]:
+                self._odom.push(odom.stamp, odom.pose)
+        if self.profile.pose_source == "amcl" or TFMessage is None:
+            pose = self._amcl_pose()
+            if pose is not None:
+                self._push_pose(pose.stamp, pose.pose)
+
+    def _on_amcl(self, msg: PoseWithCovarianceStamped) -> None:
+        self._amcl = conv.pose_stamped_from_msg(msg)
+
+    def _push_pose(self, stamp: float, pose: Pose2D) -> None:
+        with self._lock:
+            latest = self._poses.latest()
+            if latest is None or stamp > latest[0]:
+                self._poses.push(stamp, pose)
+
+    def _on_map(self, msg: OccupancyGridMsg) -> None:
+        with self._lock:
+            self._map_msg, self._map = msg, None
+
+    def _on_color(self, msg: Image) -> None:
+        self._color = msg
+
+    def _on_color_info(self, msg: CameraInfo) -> None:
+        self._color_info = msg
+
+    def _on_depth(self, msg: Image) -> None:
+        self._depths.append(msg)
+
+    def _on_nav_status(self, msg: GoalStatusArray) -> None:
+        goal = self._goal
+        if isinstance(goal, TopicGoal):
+            goal.on_status(msg)
+
+    def _advance_goal(self) -> None:
+        goal = self._goal
+        if goal is not None:
+            goal.advance()
+            self._check_tolerance(goal)
+
+    # ------------------------------------------------------------------------------ Robot: state
+
+    def now(self) -> float:
+        """ROS time in seconds."""
+        return self.node.get_clock().now().nanoseconds * 1e-9
+
+    def spin_until(self, t: float) -> None:
+        """Wait in wall time until ROS time reaches ``t``; the executor thread keeps spinning."""
+        while not self._closed:
+            remaining = t - self.now()
+            if remaining <= 0.0:
+                return
+            time.sleep(min(remaining, 0.05))
+
+    def pose(self) -> PoseStamped | None:
+        """Latest map pose: map → base from TF, or /amcl_pose advanced by odometry."""
+        if self.profile.pose_source == "tf" and TFMessage is not None:
+            found = self._tf.lookup(self.profile.frames.map, self.profile.frames.base)
+            return None if found is None else PoseStamped(found[0], found[1])
+        return self._amcl_pose()
+
+    def _amcl_pose(self) -> PoseStamped | None:
+        amcl = self._amcl
+        if amcl is None:
+            return None
+        with self._lock:
+            latest = self._odom.latest()
+            then = history_at(self._odom, amcl.stamp)
+        if latest is None or then is None or latest[0] <= amcl.stamp:
+            return amcl
+        moved = compose(invert(then), latest[1])  # odometry since AMCL's estimate, in the body frame
+        return PoseStamped(latest[0], compose(amcl.pose, moved))
+
+    def scan(self) -> LaserScan | None:
+        """Latest scan (its stamp shows when the lidar went quiet)."""
+        return self._scan
+
+    def rgbd(self) -> RGBDFrame | None:
+        """Latest colour image with the depth image nearest in time and the camera's map pose."""
+        color, info = self._color, self._color_info
+        if color is None or info is None or not self._depths:
+            return None
+        stamp = conv.time_to_sec(color.header.stamp)
+        cached = self._rgbd
+        if cached is not None and cached.stamp == stamp:
+            return cached
+        depth_msg = min(self._depths, key=lambda m: abs(conv.time_to_sec(m.header.stamp) - stamp))
+        if abs(conv.time_to_sec(depth_msg.header.stamp) - stamp) > self.profile.camera.max_depth_lag:
+            return None
+        rgb = conv.color_from_msg(color)
+        depth = conv.depth_from_msg(depth_msg)
+        if depth.shape != rgb.shape[:2]:  # OAK-D stereo depth is not registered to the preview image
+            depth = cv2.resize(depth, (rgb.shape[1], rgb.shape[0]), interpolation=cv2.INTER_NEAREST)
+        base = self.pose_at(stamp)
+        if base is None:
+            current = self.pose()
+            base = current.pose if current is not None else Pose2D(math.nan, math.nan, math.nan)
+        frame = RGBDFrame(stamp=stamp, color=rgb, depth=depth.astype(np.float32, copy=False),
+                          intrinsics=conv.intrinsics_from_msg(info),
+                          camera_pose=compose(base, self._camera_mount()),
+                          camera_height=self.profile.camera.height)
+        self._rgbd = frame
+        return frame
+
+    def _camera_mount(self) -> Pose2D:
+        cam = self.profile.camera
+        found = self._tf.lookup(self.profile.frames.base, cam.frame)
+        if found is not None:
+            return found[1]
+        return Pose2D(cam.mount_x, cam.mount_y, math.radians(cam.mount_yaw_deg))
+
+    def occupancy(self) -> OccupancyGrid | None:
+        """The latest map received on the map topic."""
+        with self._lock:
+            if self._map is None and self._map_msg is not None:
+                self._map = conv.occupancy_from_msg(self._map_msg)
+            return self._map
+
+    def pose_at(self, stamp: float) -> Pose2D | None:
+        """Map pose at ``stamp``, interpolated in the recent history."""
+        with self._lock:
+            return history_at(self._poses, stamp)
+
+    def scan_at(self, stamp: float) -> LaserScan | None:
+        """The scan nearest to ``stamp`` (within half a second) from the recent history."""
+        with self._lock:
+            return self._scans.nearest(stamp, max_gap=SCAN_MATCH_GAP)
+
+    # ------------------------------------------------------------------------------ Robot: motion
+
+    def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> ActionHandle:
+        """Send a NavigateToPose goal; the previous goal is cancelled (preempted)."""
+        nav = self.profile.navigation
+        previous = self._goal
+        if previous is not None and not previous.done:
+            if isinstance(previous, TopicGoal):
+                previous.preempted()  # Nav2 preempts it when the new /goal_pose arrives
+            else:
+                previous.cancel()
+        stamp = self.now()
+        pose_now = self._pose_only
+        if self.nav_interface == "action":
+            msg = NavigateToPose.Goal()
+            msg.pose = conv.pose_stamped_to_msg(goal, stamp, self.profile.frames.map)
+            msg.behavior_tree = nav.behavior_tree
+            handle: NavGoal = ActionGoal(self._nav_client, msg, goal, nav.server_timeout, pose_now,
+                                         nav.action)
+        else:
+            goal_msg = conv.pose_stamped_to_msg(goal, stamp, self.profile.frames.map)
+            handle = TopicGoal(lambda: self._goal_pub.publish(goal_msg),
+                               lambda: self._goal_pub.get_subscription_count() > 0,
+                               self._cancel_client, goal, nav.server_timeout, pose_now, self.now,
+                               self._goal_pub.topic_name)
+        handle.tolerance = tolerance
+        self._goal = handle
+        handle.advance()
+        return handle
+
+    def _pose_only(self) -> Pose2D | None:
+        current = self.pose()
+        return None if current is None else current.pose
+
+    def _check_tolerance(self, goal: NavGoal) -> None:
+        """Succeed a goal once within an explicitly looser tolerance than Nav2's goal checker."""
+        tol = getattr(goal, "tolerance", None)
+        if tol is None or goal.done or goal.status().value not in ("accepted", "running"):
+            return
+        pose = self._pose_only()
+        if pose is None:
+            return
+        dyaw = abs(math.atan2(math.sin(pose.yaw - goal.goal.yaw), math.cos(pose.yaw - goal.goal.yaw)))
+        if pose.distance_to(goal.goal) <= tol.xy and (tol.yaw >= math.pi or dyaw <= tol.yaw):
+            goal.cancel()
+            goal.within_tolerance()
+
+    def drive(self, v: float, w: float) -> None:
+        """Publish a velocity command on cmd_vel (a running goal is cancelled: this overrides it)."""
+        goal = self._goal
+        if goal is not None and not goal.done and (v != 0.0 or w != 0.0):
+            goal.cancel()
+        self._publish_velocity(v, w)
+
+    def _publish_velocity(self, v: float, w: float) -> None:
+        if not self._context.ok():
+            return
+        if self.profile.cmd_vel_stamped:
+            self._cmd_vel.publish(conv.twist_stamped_to_msg(v, w, self.now(), self.profile.frames.base))
+        else:
+            self._cmd_vel.publish(conv.twist_to_msg(v, w))
+
+    def stop(self) -> None:
+        """Cancel navigation and publish zero velocity; always safe, idempotent."""
+        goal = self._goal
+        if goal is not None and not goal.done:
+            goal.cancel()
+        self._publish_velocity(0.0, 0.0)
+
+    def close(self) -> None:
+        """Stop, wait briefly for the cancel and the zero velocity to go out, then leave the ROS graph."""
+        if self._closed:
+            return
+        try:
+            self.stop()
+            self._flush()
+        finally:
+            self._closed = True
+            self._restore_sigint()
+            self._executor.shutdown(timeout_sec=1.0)
+            self.node.destroy_node()
+            if self._context.ok():
+                self._context.try_shutdown()
+            self._spinner.join(timeout=2.0)
+
+    def _flush(self, timeout: float = 1.0) -> None:
+        deadline = time.monotonic() + timeout
+        goal = self._goal
+        future = getattr(goal, "cancel_future", None)
+        while future is not None and not future.done() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        from rclpy.duration import Duration
+
+        remaining = max(0.0, deadline - time.monotonic())
+        self._cmd_vel.wait_for_all_acked(Duration(nanoseconds=int(remaining * 1e9)))
+
+    # ------------------------------------------------------------------------------ signals
+
+    def _install_sigint(self) -> None:
+        if threading.current_thread() is not threading.main_thread():
+            return
+        self._previous_sigint = signal.getsignal(signal.SIGINT)
+        signal.signal(signal.SIGINT, self._on_sigint)
+
+    def _on_sigint(self, signum: int, frame: FrameType | None) -> None:
+        try:
+            self.stop()
+        finally:
+            previous = self._previous_sigint
+            if callable(previous):
+                previous(signum, frame)
+            elif previous != signal.SIG_IGN:
+                raise KeyboardInterrupt
+
+    def _restore_sigint(self) -> None:
+        if self._previous_sigint is None or threading.current_thread() is not threading.main_thread():
+            return
+        if signal.getsignal(signal.SIGINT) == self._on_sigint:
+            signal.signal(signal.SIGINT, self._previous_sigint)
+        self._previous_sigint = None
+
+
+def _close_at_exit(ref: weakref.ref[Ros2Robot]) -> None:
+    robot = ref()
+    if robot is not None:
+        robot.close()
