@@ -1,0 +1,230 @@
+"""The offline language-model stand-in for intent: needs through affordances, references through parsing.
+
+It answers the NAIS interpretation conversation (:func:`missiontree.reasoning.prompts.intent_messages`)
+with an :class:`~missiontree.reasoning.schemas.IntentResolution` naming scene object ids, with no
+network and no GPU:
+
+- A **need** ("I am thirsty") is matched to the scene's object classes through one-line affordance
+  descriptions (what an object is for), ranked by text-embedding similarity to the request
+  (ARCHITECTURE §8: bare labels rank badly — "thirsty" puts sink first; descriptions put bottle and
+  cup first). Every class scoring within ``margin`` of the best (and at least ``min_score``) is a
+  candidate; its objects are the answer, best class first.
+- A **reference** ("the grey backpack in front of the sofa") is parsed into label + attributes +
+  spatial relation (:mod:`missiontree.reasoning.phrases`) and the objects are filtered by label,
+  by colour/size attribute and by the relation to an anchor object or room.
+
+Which object is nearest, and so the goal, is the caller's choice (NAIS node 5).
+
+Provider name ``offline_llm``; options: ``embedder`` (role of the embedder, default ``embedder``),
+``affordances`` (label → description, added to the defaults), ``margin`` (0.05),
+``min_score`` (0.2).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from pydantic import BaseModel
+
+from missiontree.errors import ModelError
+from missiontree.perception.colour import canonical_colour
+from missiontree.reasoning.embedder import similarity
+from missiontree.reasoning.phrases import fold_label, parse_reference
+from missiontree.reasoning.prompts import parse_intent_messages
+from missiontree.reasoning.protocols import Embedder, Message
+from missiontree.reasoning.schemas import IntentResolution, ReferenceParse
+
+#: What each object class is for, in one line (what an embedding of a need should land near).
+AFFORDANCES: dict[str, str] = {
+    "bottle": "a bottle of water or juice to drink from",
+    "cup": "a cup for drinking coffee, tea or water",
+    "sink": "a sink with a tap for washing hands and dishes",
+    "refrigerator": "a refrigerator full of food to eat and cold drinks",
+    "sofa": "a sofa to relax and rest on",
+    "chair": "a chair to sit down on",
+    "bed": "a bed to lie down and sleep in",
+    "tv": "a television to watch films and shows for entertainment",
+    "book": "a book to read for entertainment",
+    "laptop": "a laptop computer to work on, browse the internet or play games",
+    "backpack": "a backpack for carrying your things",
+    "umbrella": "an umbrella that keeps you dry in the rain",
+    "potted plant": "a potted plant that decorates the room",
+    "table": "a table to put things on, eat or work at",
+    "toilet": "a toilet in the bathroom",
+    "person": "a person to talk to",
+}
+
+#: Metres within which "near" / "next to" / "on" hold.
+RELATION_DISTANCE = {"near": 2.0, "next_to": 1.2, "on": 0.6, "in": 1.0}
+
+
+class OfflineLanguageModel:
+    """A :class:`LanguageModel` stand-in answering intent questions about a scene (see module docstring).
+
+    Args:
+        embedder: The text embedder ranking affordances.
+        affordances: Extra or replacement label → description entries.
+        margin: Classes scoring within this of the best class are candidates too.
+        min_score: Below this cosine similarity nothing in the scene serves the need.
+        name: Provider name for events and errors.
+    """
+
+    def __init__(
+        self,
+        embedder: Embedder,
+        affordances: Mapping[str, str] | None = None,
+        margin: float = 0.05,
+        min_score: float = 0.2,
+        name: str = "offline_llm",
+    ) -> None:
+        self.name = name
+        self.embedder = embedder
+        self.affordances = {**AFFORDANCES, **{fold_label(k): v for k, v in (affordances or {}).items()}}
+        self.margin = float(margin)
+        self.min_score = float(min_score)
+
+    def check(self) -> str:
+        """Check the embedder; return a one-line description."""
+        return f"offline intent stand-in over {self.embedder.check()}"
+
+    def chat(self, messages: Sequence[Message], schema: type[BaseModel] | None = None) -> str:
+        """Answer an intent conversation with IntentResolution (or ReferenceParse) JSON."""
+        try:
+            request, objects = parse_intent_messages(messages)
+        except ValueError as exc:
+            raise ModelError(
+                f"{self.name}: cannot read the conversation ({exc}); the offline stand-in answers only "
+                "prompts built by missiontree.reasoning.prompts.intent_messages — configure an LLM "
+                "provider (openai) for other questions") from None
+        if schema is ReferenceParse:
+            labels = sorted({str(o.get("label", "")) for o in objects} | set(self.affordances))
+            parsed = parse_reference(request, labels, _rooms(objects))
+            if parsed is None:
+                raise ModelError(f"{self.name}: {request!r} names no known object class")
+            return parsed.model_dump_json()
+        if schema is not None and schema is not IntentResolution:
+            raise ModelError(
+                f"{self.name}: cannot answer with the {schema.__name__} schema (only IntentResolution "
+                "and ReferenceParse); configure an LLM provider (openai) for this question")
+        return self.resolve(request, objects).model_dump_json()
+
+    # -- resolution ------------------------------------------------------------------------------
+
+    def resolve(self, request: str, objects: Sequence[Mapping[str, Any]]) -> IntentResolution:
+        """The objects satisfying ``request``: a reference if it names a class, else a need."""
+        objects = [o for o in objects if "id" in o and "label" in o]
+        labels = sorted({str(o["label"]) for o in objects})
+        reference = parse_reference(request, labels, _rooms(objects)) if labels else None
+        if reference is not None:
+            return self._resolve_reference(reference, objects)
+        return self._resolve_need(request, objects, labels)
+
+    def _resolve_need(self, request: str, objects: Sequence[Mapping[str, Any]],
+                      labels: list[str]) -> IntentResolution:
+        if not labels:
+            return IntentResolution(candidates=[], reason="the scene holds no objects")
+        texts = [self.affordances.get(fold_label(label), f"a {label}") for label in labels]
+        scores = similarity(self.embedder, request, texts)
+        order = sorted(range(len(labels)), key=lambda i: (-float(scores[i]), labels[i]))
+        best = float(scores[order[0]])
+        if best < self.min_score:
+            return IntentResolution(candidates=[], reason=(
+                f"no object in the scene serves {request!r} (best: {labels[order[0]]}, "
+                f"similarity {best:.2f} < {self.min_score:.2f})"))
+        chosen = [labels[i] for i in order if float(scores[i]) >= max(self.min_score, best - self.margin)]
+        ids = [str(o["id"]) for label in chosen for o in objects if o["label"] == label]
+        ranked = ", ".join(f"{labels[i]} {float(scores[i]):.2f}" for i in order[:4])
+        serve = "serves" if len(chosen) == 1 else "serve"
+        reason = f"{'/'.join(chosen)} {serve} the need (ranked: {ranked})"
+        return IntentResolution(candidates=ids, reason=reason)
+
+    def _resolve_reference(
+        self, ref: ReferenceParse, objects: Sequence[Mapping[str, Any]]
+    ) -> IntentResolution:
+        matching = [o for o in objects if fold_label(str(o["label"])) == fold_label(ref.label)]
+        described = [o for o in matching if all(_has_attribute(o, a) for a in ref.attributes)]
+        what = " ".join([*ref.attributes, ref.label])
+        if not described:
+            seen = sorted({a for o in matching for a in _attributes(o)})
+            return IntentResolution(candidates=[], reference=ref, reason=(
+                f"no {what} in the scene ({len(matching)} {ref.label} with attributes {seen})"))
+        if ref.relation is None or ref.anchor is None:
+            return IntentResolution(candidates=[str(o["id"]) for o in described], reference=ref,
+                                    reason=f"{len(described)} {what} in the scene")
+        anchors = [o for o in objects if fold_label(str(o["label"])) == fold_label(ref.anchor)]
+        in_room = [o for o in described if str(o.get("room", "")).lower() == ref.anchor.lower()]
+        if not anchors and ref.relation == "in":
+            return IntentResolution(candidates=[str(o["id"]) for o in in_room], reference=ref,
+                                    reason=f"{len(in_room)} {what} in the {ref.anchor}")
+        distances = [(_relation_distance(o, anchors, ref.relation), o) for o in described]
+        scored = [(d, o) for d, o in distances if d is not None]
+        scored.sort(key=lambda pair: (pair[0], str(pair[1]["id"])))
+        relation = ref.relation.replace("_", " ")
+        return IntentResolution(candidates=[str(o["id"]) for _, o in scored], reference=ref, reason=(
+            f"{len(scored)} {what} {relation} a {ref.anchor}" if scored
+            else f"no {what} {relation} a {ref.anchor} ({len(anchors)} {ref.anchor} in the scene)"))
+
+
+def _rooms(objects: Sequence[Mapping[str, Any]]) -> list[str]:
+    return sorted({str(o["room"]) for o in objects if o.get("room")})
+
+
+def _attributes(obj: Mapping[str, Any]) -> list[str]:
+    """Attribute words of a scene object: ``attributes`` (list or text), ``colour``/``color``, ``size``."""
+    words: list[str] = []
+    raw = obj.get("attributes", [])
+    if isinstance(raw, str):
+        raw = raw.replace(",", " ").split()
+    if isinstance(raw, Mapping):
+        raw = list(raw.values())
+    for key in ("colour", "color", "size", "description"):
+        if obj.get(key):
+            raw = [*raw, *str(obj[key]).replace(",", " ").split()]
+    for word in raw:
+        words.append(canonical_colour(str(word)))
+    return words
+
+
+def _has_attribute(obj: Mapping[str, Any], attribute: str) -> bool:
+    return canonical_colour(attribute) in _attributes(obj)
+
+
+def _xy(obj: Mapping[str, Any]) -> tuple[float, float] | None:
+    try:
+        return float(obj["x"]), float(obj["y"])
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def _relation_distance(obj: Mapping[str, Any], anchors: Sequence[Mapping[str, Any]],
+                       relation: str) -> float | None:
+    """Distance to the nearest anchor the relation holds for, None when it holds for none.
+
+    Directional relations use the anchor's ``yaw`` (the way it faces) when the scene gives one; without
+    it they fall back to nearness, which is what a listener can check from positions alone.
+    """
+    where = _xy(obj)
+    if where is None:
+        return None
+    best: float | None = None
+    for anchor in anchors:
+        at = _xy(anchor)
+        if at is None or anchor is obj:
+            continue
+        dx, dy = where[0] - at[0], where[1] - at[1]
+        distance = math.hypot(dx, dy)
+        if distance > RELATION_DISTANCE.get(relation, RELATION_DISTANCE["near"]):
+            continue
+        yaw = anchor.get("yaw")
+        if relation in {"in_front_of", "behind", "left_of", "right_of"} and isinstance(yaw, int | float):
+            ahead = dx * math.cos(yaw) + dy * math.sin(yaw)
+            left = -dx * math.sin(yaw) + dy * math.cos(yaw)
+            holds = {"in_front_of": ahead > 0, "behind": ahead < 0, "left_of": left > 0,
+                     "right_of": left < 0}[relation]
+            if not holds:
+                continue
+        if best is None or distance < best:
+            best = distance
+    return best

@@ -1,0 +1,140 @@
+"""Referential phrases read without a language model: label + attributes + spatial relation.
+
+"the grey backpack in front of the sofa" → ``ReferenceParse(label="backpack", attributes=["grey"],
+relation="in_front_of", anchor="sofa")``. The label and the anchor must be among the labels the
+caller knows (the scene's object classes, or room types for ``in the kitchen``); synonyms and
+plurals are folded (couch → sofa, mugs → cup). Attributes are colour names (canonical, as
+:mod:`missiontree.perception.colour` names them) and size words.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable
+
+from missiontree.perception.colour import ALIASES, COLOUR_NAMES, canonical_colour
+from missiontree.reasoning.schemas import ReferenceParse
+
+#: Words people use for a class, folded to the name detectors and worlds use.
+SYNONYMS: dict[str, str] = {
+    "couch": "sofa", "settee": "sofa", "mug": "cup", "glass": "cup", "television": "tv",
+    "telly": "tv", "fridge": "refrigerator", "rucksack": "backpack", "bag": "backpack",
+    "notebook": "laptop", "computer": "laptop", "plant": "potted plant", "desk": "table",
+    "water bottle": "bottle", "flask": "bottle", "armchair": "chair", "seat": "chair",
+    "human": "person", "man": "person", "woman": "person", "people": "person",
+}
+
+#: Relation phrases, longest first so "to the left of" wins over "left of".
+RELATION_PHRASES: tuple[tuple[str, str], ...] = (
+    ("to the left of", "left_of"), ("to the right of", "right_of"), ("in front of", "in_front_of"),
+    ("on top of", "on"), ("next to", "next_to"), ("close to", "near"), ("left of", "left_of"),
+    ("right of", "right_of"), ("behind", "behind"), ("beside", "next_to"), ("near", "near"),
+    ("by", "near"), ("inside", "in"), ("on", "on"), ("in", "in"),
+)
+
+SIZE_WORDS: dict[str, str] = {"small": "small", "little": "small", "tiny": "small", "big": "large",
+                              "large": "large", "huge": "large", "tall": "tall", "medium": "medium"}
+
+_WORD = re.compile(r"[a-z]+")
+
+
+def normalise(text: str) -> str:
+    """Lower-case ``text`` and keep only words separated by single spaces."""
+    return " ".join(_WORD.findall(text.lower()))
+
+
+def fold_label(label: str) -> str:
+    """The canonical name of a class word: synonyms folded, a plural 's' dropped when that helps."""
+    word = normalise(label).replace("_", " ")
+    if word in SYNONYMS:
+        return SYNONYMS[word]
+    if word.endswith("s") and word[:-1] in SYNONYMS:
+        return SYNONYMS[word[:-1]]
+    return word
+
+
+def find_label(text: str, labels: Iterable[str]) -> tuple[str, int] | None:
+    """The known label mentioned in ``text`` (longest match wins) and where it starts, or None."""
+    words = normalise(text)
+    padded = f" {words} "
+    candidates: list[tuple[int, int, str]] = []
+    forms: dict[str, str] = {}
+    for label in labels:
+        canonical = fold_label(label)
+        forms[canonical] = label
+        forms[canonical + "s"] = label
+        forms[canonical + "es"] = label
+    for synonym, canonical in SYNONYMS.items():
+        for label in labels:
+            if fold_label(label) == canonical:
+                forms.setdefault(synonym, label)
+                forms.setdefault(synonym + "s", label)
+    for form, label in forms.items():
+        at = padded.find(f" {form} ")
+        if at >= 0 and form:
+            candidates.append((-len(form), at, label))
+    if not candidates:
+        return None
+    _, at, label = min(candidates)
+    return label, at
+
+
+def colour_words(text: str) -> list[str]:
+    """Canonical colour names mentioned in ``text``, in order."""
+    known = set(COLOUR_NAMES) | set(ALIASES)
+    seen: list[str] = []
+    for word in normalise(text).split():
+        if word in known:
+            name = canonical_colour(word)
+            if name not in seen:
+                seen.append(name)
+    return seen
+
+
+def size_words(text: str) -> list[str]:
+    """Size words mentioned in ``text`` (small, large, tall, medium), in order."""
+    return [SIZE_WORDS[w] for w in normalise(text).split() if w in SIZE_WORDS]
+
+
+def split_relation(text: str) -> tuple[str, str | None, str]:
+    """Split "the X <relation> the Y" into (X part, relation, Y part); (text, None, "") without one."""
+    words = f" {normalise(text)} "
+    best: tuple[int, str, str] | None = None
+    for phrase, relation in RELATION_PHRASES:
+        at = words.find(f" {phrase} ")
+        if at > 0 and (best is None or at < best[0] or (at == best[0] and len(phrase) > len(best[1]))):
+            best = (at, phrase, relation)
+    if best is None:
+        return words.strip(), None, ""
+    at, phrase, relation = best
+    return words[:at].strip(), relation, words[at + len(phrase) + 2:].strip()
+
+
+def parse_reference(text: str, labels: Iterable[str], places: Iterable[str] = ()) -> ReferenceParse | None:
+    """Parse a referential phrase; None when it names none of ``labels``.
+
+    Args:
+        text: The phrase ("I want the grey backpack", "find the laptop in front of the sofa").
+        labels: Object classes the caller knows.
+        places: Other anchors a relation may name (room names such as ``kitchen``).
+    """
+    labels = list(labels)
+    places = list(places)
+    target_part, relation, anchor_part = split_relation(text)
+    found = find_label(target_part, labels)
+    if found is None:
+        # "in the kitchen, the cup": try the whole phrase before giving up.
+        found = find_label(text, labels)
+        if found is None:
+            return None
+        relation, anchor_part, target_part = None, "", normalise(text)
+    label, _ = found
+    anchor: str | None = None
+    if relation is not None:
+        anchor_found = find_label(anchor_part, labels) or find_label(anchor_part, places)
+        if anchor_found is None:
+            relation = None
+        else:
+            anchor = anchor_found[0]
+    attributes = colour_words(target_part) + size_words(target_part)
+    return ReferenceParse(label=label, attributes=attributes, relation=relation, anchor=anchor)

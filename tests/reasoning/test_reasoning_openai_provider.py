@@ -1,0 +1,202 @@
+"""Tests of the OpenAI-compatible provider against the scripted loopback server."""
+
+from __future__ import annotations
+
+import base64
+import logging
+import socket
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from fake_openai_server import FakeOpenAIServer as Fake
+from fake_openai_server import Reply
+
+from missiontree.errors import ModelConfigError, ModelError, ModelTimeoutError
+from missiontree.reasoning.checks import RejectedAnswerError, ask_checked, chat_checked
+from missiontree.reasoning.openai_provider import OpenAIChatModel
+from missiontree.reasoning.prompts import intent_messages, surveillance_prompt
+from missiontree.reasoning.schemas import IntentResolution, SurveillanceVerdict
+
+KEY = "sk-test-0123456789abcdefSECRET"
+
+
+@pytest.fixture
+def server(monkeypatch: pytest.MonkeyPatch) -> Iterator[Fake]:
+    monkeypatch.setenv("MT_TEST_KEY", KEY)
+    with Fake(api_key=KEY) as fake:
+        yield fake
+
+
+def provider(server: Fake, **options: object) -> OpenAIChatModel:
+    model = OpenAIChatModel.from_options({
+        "model": "test-model", "base_url": server.url, "api_key_env": "MT_TEST_KEY", "timeout": 2.0,
+        "backoff": 0.01, **options})
+    model.sleeps = []  # type: ignore[attr-defined]
+    model.sleep = model.sleeps.append  # type: ignore[attr-defined, method-assign]
+    return model
+
+
+def image() -> np.ndarray:
+    picture = np.zeros((24, 32, 3), dtype=np.uint8)
+    picture[:, :16] = (200, 30, 30)
+    return picture
+
+
+def test_image_sent_as_base64_data_url_with_json_schema(server: Fake) -> None:
+    """ask() sends the image as a base64 JPEG data URL and asks for the schema as response_format."""
+    server.script(Reply.text('{"verdict": "SAFE", "description": "An empty corridor."}'))
+    vlm = provider(server)
+    answer = vlm.ask([image()], surveillance_prompt(), SurveillanceVerdict)
+    assert SurveillanceVerdict.model_validate_json(answer).verdict == "SAFE"
+    request = server.chat_requests()[0]
+    parts = request["messages"][0]["content"]
+    url = parts[1]["image_url"]["url"]
+    assert url.startswith("data:image/jpeg;base64,")
+    assert base64.b64decode(url.split(",", 1)[1])[:2] == b"\xff\xd8"  # JPEG magic
+    assert request["response_format"]["type"] == "json_schema"
+    assert request["response_format"]["json_schema"]["name"] == "SurveillanceVerdict"
+    assert server.requests[0]["headers"]["authorization"] == f"Bearer {KEY}"
+
+
+def test_png_images_when_configured(server: Fake) -> None:
+    """image_format: png sends PNG data URLs."""
+    vlm = provider(server, image_format="png")
+    vlm.ask([image()], "what is this?")
+    url = server.chat_requests()[0]["messages"][0]["content"][1]["image_url"]["url"]
+    assert base64.b64decode(url.split(",", 1)[1])[:4] == b"\x89PNG"
+
+
+def test_429_and_500_are_retried_with_backoff(server: Fake) -> None:
+    """A 429 then a 500 are retried with doubling backoff (Retry-After honoured), then the answer arrives."""
+    server.script(Reply.error(429, "slow down", **{"Retry-After": "0.05"}), Reply.error(500),
+                  Reply.text("ok"))
+    vlm = provider(server)
+    assert vlm.ask([image()], "hi") == "ok"
+    assert len(server.chat_requests()) == 3
+    assert vlm.sleeps == [0.05, 0.02]  # type: ignore[attr-defined]
+
+
+def test_retries_give_up_with_the_status_and_fix(server: Fake) -> None:
+    """After max_retries the error names the provider, the HTTP status and the attempts."""
+    server.script(*[Reply.error(503, "overloaded")] * 3)
+    vlm = provider(server, max_retries=2)
+    with pytest.raises(ModelError, match=r"openai: chat at .* failed with HTTP 503 after 3 attempts"):
+        vlm.ask([image()], "hi")
+
+
+def test_slow_server_times_out(server: Fake) -> None:
+    """A server slower than the timeout raises ModelTimeoutError naming the provider and the fix."""
+    server.script(Reply.text("late", delay=1.0))
+    vlm = provider(server, timeout=0.2)
+    with pytest.raises(ModelTimeoutError, match="took longer than 0.2 s; raise timeout"):
+        vlm.ask([image()], "hi")
+
+
+def test_rejected_key_error_and_logs_never_hold_the_key(
+        server: Fake, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
+    """A 401 says the key was rejected and which variable to fix; neither error nor logs contain the key."""
+    monkeypatch.setenv("MT_TEST_KEY", "sk-wrong-key-ABCDEFGH12345678")
+    vlm = OpenAIChatModel.from_options({"model": "test-model", "base_url": server.url,
+                                        "api_key_env": "MT_TEST_KEY"})
+    caplog.set_level(logging.DEBUG)
+    with pytest.raises(ModelError) as failure:
+        vlm.ask([image()], "hi")
+    text = str(failure.value)
+    assert "rejected the API key (HTTP 401)" in text and "set MT_TEST_KEY" in text
+    assert "ABCDEFGH" not in text and "5678" not in text and "sk-" not in text
+    assert "ABCDEFGH12345678" not in caplog.text
+    assert "ABCDEFGH" not in repr(vlm)
+
+
+def test_key_absent_from_logs_on_success(server: Fake, caplog: pytest.LogCaptureFixture) -> None:
+    """With debug logging of the client and httpx switched on, a successful call logs no key."""
+    caplog.set_level(logging.DEBUG)
+    vlm = provider(server)
+    vlm.ask([image()], "hi")
+    assert caplog.records  # the client did log something
+    assert KEY not in caplog.text and "SECRET" not in caplog.text
+
+
+def test_missing_key_variable_is_a_config_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An unset key variable is a ModelConfigError naming the variable and the fix."""
+    monkeypatch.delenv("MT_NO_SUCH_KEY", raising=False)
+    with pytest.raises(ModelConfigError, match="MT_NO_SUCH_KEY .* is not set; export MT_NO_SUCH_KEY"):
+        OpenAIChatModel.from_options({"model": "m", "api_key_env": "MT_NO_SUCH_KEY"})
+
+
+def test_unknown_option_is_a_config_error() -> None:
+    """A misspelt option is refused with the known options listed."""
+    with pytest.raises(ModelConfigError, match="timout.*known options: model, base_url"):
+        OpenAIChatModel.from_options({"model": "m", "api_key_env": None, "timout": 3})
+
+
+def test_unreachable_server_names_the_url_and_fix() -> None:
+    """A server nobody listens on gives an error naming the URL and how to fix it."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    url = f"http://127.0.0.1:{port}/v1"
+    vlm = OpenAIChatModel.from_options({"model": "m", "api_key_env": None, "base_url": url, "timeout": 2.0})
+    with pytest.raises(ModelError, match=rf"cannot reach the server at {url} .*start the server"):
+        vlm.ask([image()], "hi")
+
+
+def test_body_that_is_not_json_fails_clearly(server: Fake) -> None:
+    """A 200 answer whose body is not JSON fails with a ModelError, not a bare traceback."""
+    server.script(Reply.not_json())
+    vlm = provider(server)
+    with pytest.raises(ModelError, match="openai"):
+        vlm.ask([image()], "hi")
+
+
+def test_malformed_answer_retried_once_with_error_fed_back(server: Fake) -> None:
+    """Malformed JSON is rejected, the reason is fed back, and the second (valid) answer is used."""
+    server.script(Reply.text('{"verdict": "ALARM", '),
+                  Reply.text('{"verdict": "ALARM", "description": "a man"}'))
+    vlm = provider(server)
+    answer = ask_checked(vlm, [image()], surveillance_prompt(), SurveillanceVerdict)
+    assert answer.value.alarm and answer.attempts == 2
+    second_prompt = server.chat_requests()[1]["messages"][0]["content"][0]["text"]
+    assert "Your previous answer was rejected: expected a JSON object" in second_prompt
+
+
+def test_wrong_schema_twice_fails_with_reason(server: Fake) -> None:
+    """An answer of the wrong shape twice raises RejectedAnswerError with the validation reason."""
+    server.script(Reply.text('{"status": "fine"}'), Reply.text('{"verdict": "MAYBE"}'))
+    vlm = provider(server)
+    with pytest.raises(RejectedAnswerError, match="rejected 2 times.*verdict") as failure:
+        ask_checked(vlm, [image()], surveillance_prompt(), SurveillanceVerdict)
+    assert failure.value.attempts == 2 and len(failure.value.rejected) == 2
+    assert len(server.chat_requests()) == 2
+
+
+def test_hallucinated_ids_rejected_then_corrected(server: Fake) -> None:
+    """An answer naming an object id not in the scene is rejected; the retry sees the valid ids."""
+    objects = [{"id": "cup_1", "label": "cup"}, {"id": "sofa_2", "label": "sofa"}]
+    server.script(Reply.text('{"candidates": ["fridge_9"]}'), Reply.text('{"candidates": ["cup_1"]}'))
+    llm = provider(server)
+    answer = chat_checked(llm, intent_messages("I am thirsty", objects), IntentResolution,
+                          valid_ids={"cup_1", "sofa_2"})
+    assert answer.value.candidates == ["cup_1"]
+    assert "fridge_9" in answer.rejected[0]
+    retry = server.chat_requests()[1]["messages"]
+    assert retry[-2] == {"role": "assistant", "content": '{"candidates": ["fridge_9"]}'}
+    assert "do not exist: ['fridge_9']" in retry[-1]["content"] and "cup_1" in retry[-1]["content"]
+
+
+def test_check_pings_the_server(server: Fake) -> None:
+    """check() lists the served models."""
+    vlm = provider(server)
+    assert "test-model at http://127.0.0.1" in vlm.check()
+    assert server.requests[-1]["path"].endswith("/models")
+
+
+def test_empty_image_names_provider_and_fix(server: Fake) -> None:
+    """An empty image is refused before any request, naming the provider and the fix."""
+    vlm = provider(server)
+    with pytest.raises(ValueError, match="openai: expected a non-empty HxWx3 image"):
+        vlm.ask([np.zeros((0, 10, 3), dtype=np.uint8)], "hi")
+    with pytest.raises(ValueError, match="openai: expected an HxWx3 RGB image, found shape"):
+        vlm.ask([np.zeros((4, 4, 2), dtype=np.uint8)], "hi")
+    assert server.chat_requests() == []
