@@ -22,6 +22,9 @@ SUBCOMMANDS: list[str] = [
     "missiontree.cli.nodes",
     "missiontree.cli.plugins",
     "missiontree.cli.log",
+    "missiontree.cli.validate",
+    "missiontree.cli.render",
+    "missiontree.cli.schema",
 ]
 
 EXIT_BAD_INPUT = 2

@@ -83,7 +83,8 @@ def load_mission(path: str | Path, registry: NodeRegistry, *, allow_outside: boo
     if spec is not None:
         problems += check_tree(spec, registry)
     if problems:
-        raise MissionFileError(_dedupe(problems))
+        ordered = sorted(_dedupe(problems), key=lambda p: (p.file != str(path), p.file, p.line, p.col))
+        raise MissionFileError(ordered)
     assert spec is not None  # no problems implies the root parsed
     return spec
 
@@ -429,7 +430,7 @@ class _Loader:
             self.problems.append(file.doc.problem_at(
                 key_path, f"expected a subtree inside the mission's folder {_display(self.mission_dir)}, "
                 f"found {target!r} which resolves to {_display(found)}",
-                "move the subtree next to the mission, or allow it (--allow-outside-includes)", where=path))
+                "move the subtree next to the mission, or allow it (--allow-outside)", where=path))
             return None
         return found
 

@@ -114,9 +114,13 @@ def _issue(model: type[BaseModel], err: Any) -> ParamIssue:
     name = str(loc[0]) if loc else ""
     info = model.model_fields.get(name)
     doc = info.description if info is not None and info.description else ""
+    if err["type"] == "missing" and name == "memory" and info is not None and info.annotation is bool:
+        return ParamIssue(loc[:-1], "expected `memory: true` or `memory: false` (stated), found none",
+                          "true resumes the RUNNING child next tick (a plan of steps); false restarts from "
+                          "the first child every tick (earlier children are re-checked)")
     if err["type"] == "missing":
         kind = type_label(info.annotation) if info is not None else "a value"
-        hint = doc if name == "memory" else f"add `{name}: ...`" + (f" ({doc})" if doc else "")
+        hint = f"add `{name}: ...`" + (f" ({doc})" if doc else "")
         return ParamIssue(loc[:-1], f"expected parameter {name!r} ({kind}), found none", hint)
     if err["type"] == "extra_forbidden":
         return ParamIssue(loc, f"expected no parameter {'.'.join(map(str, loc))!r}, found one", "remove it",

@@ -26,6 +26,7 @@ if TYPE_CHECKING:
 
 #: Modules whose ``register_nodes(registry)`` adds built-in node types.
 NODE_MODULES: list[str] = [
+    "missiontree.engine.nodes",
     "missiontree.behaviours",
 ]
 
