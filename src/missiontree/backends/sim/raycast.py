@@ -1,0 +1,316 @@
+"""Exact 2D ray casting against vertical prisms: the one geometry kernel the lidar and camera share.
+
+The world is a set of *primitives*, each an upright prism standing between heights ``z0`` and
+``z1``: a wall segment (kind 0), an oriented box (kind 1) or an upright cylinder (kind 2). A
+ray ``o + t * d`` (``d`` need not be unit length, so ``t`` is in units of ``|d|``) enters a
+primitive at ``t_in`` and leaves it at ``t_out`` (equal for a segment). The lidar takes the
+nearest entry per beam; the camera takes the ``k`` nearest per image column and decides per
+pixel which face the ray meets (see :mod:`missiontree.backends.sim.camera`).
+
+Two implementations with the same results: vectorised numpy, always available, and numba
+loops, used when numba is installed (the ``accel`` extra) and not switched off. Intersections
+are analytic, so ranges are exact up to float rounding.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SEGMENT, BOX, CYLINDER = 0, 1, 2
+_EPS = 1e-9
+
+try:  # numba is an optional accelerator (extra `accel`); numpy is the fallback.
+    import numba
+
+    HAVE_NUMBA = True
+except ImportError:  # pragma: no cover - exercised only without numba
+    numba = None
+    HAVE_NUMBA = False
+
+
+@dataclass(frozen=True)
+class Primitives:
+    """A table of prisms, one row each.
+
+    Attributes:
+        kind: (P,) int64 SEGMENT, BOX or CYLINDER.
+        geom: (P, 6) float64; segment: x1, y1, x2, y2; box: cx, cy, cos(yaw), sin(yaw), half x,
+            half y; cylinder: cx, cy, radius.
+        z: (P, 2) float64 bottom and top height.
+        rgb: (P, 3) float64 colour 0-255.
+        inst: (P,) int64 instance id (ground truth).
+    """
+
+    kind: np.ndarray
+    geom: np.ndarray
+    z: np.ndarray
+    rgb: np.ndarray
+    inst: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.kind)
+
+    @staticmethod
+    def empty() -> Primitives:
+        """A table with no rows."""
+        return Primitives(np.zeros(0, np.int64), np.zeros((0, 6)), np.zeros((0, 2)), np.zeros((0, 3)),
+                          np.zeros(0, np.int64))
+
+    @staticmethod
+    def build(rows: list[tuple[int, tuple[float, ...], float, float, tuple[int, int, int], int]]) -> Primitives:
+        """Make a table from rows ``(kind, geom, z0, z1, rgb, inst)``."""
+        if not rows:
+            return Primitives.empty()
+        geom = np.zeros((len(rows), 6))
+        for i, row in enumerate(rows):
+            geom[i, : len(row[1])] = row[1]
+        return Primitives(
+            np.array([r[0] for r in rows], np.int64), geom,
+            np.array([(r[2], r[3]) for r in rows], np.float64),
+            np.array([r[4] for r in rows], np.float64),
+            np.array([r[5] for r in rows], np.int64),
+        )
+
+    def concat(self, other: Primitives) -> Primitives:
+        """Rows of both tables."""
+        if len(other) == 0:
+            return self
+        if len(self) == 0:
+            return other
+        return Primitives(*(np.concatenate([a, b]) for a, b in zip(
+            (self.kind, self.geom, self.z, self.rgb, self.inst),
+            (other.kind, other.geom, other.z, other.rgb, other.inst), strict=True)))
+
+    def select(self, mask: np.ndarray) -> Primitives:
+        """The rows where ``mask`` is true."""
+        return Primitives(self.kind[mask], self.geom[mask], self.z[mask], self.rgb[mask], self.inst[mask])
+
+    def crossing(self, height: float) -> Primitives:
+        """The rows whose height range contains ``height`` (what a planar sensor there sees)."""
+        return self.select((self.z[:, 0] <= height) & (self.z[:, 1] >= height))
+
+
+# -- numpy ---------------------------------------------------------------------------------------
+
+
+def _hits_numpy(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray,
+                prims: Primitives) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Entry, exit and |cos incidence| of every ray against every primitive: three (R, P) arrays."""
+    n_rays, n_prims = len(dx), len(prims)
+    t_in = np.full((n_rays, n_prims), np.inf)
+    t_out = np.full((n_rays, n_prims), np.inf)
+    shade = np.ones((n_rays, n_prims))
+    dlen = np.hypot(dx, dy)[:, None]
+    dxc, dyc = dx[:, None], dy[:, None]
+    g = prims.geom
+
+    idx = np.flatnonzero(prims.kind == SEGMENT)
+    if len(idx):
+        x1, y1, x2, y2 = (g[idx, j][None, :] for j in range(4))
+        ex, ey = x2 - x1, y2 - y1
+        wx, wy = x1 - ox, y1 - oy
+        denom = dxc * ey - dyc * ex
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (wx * ey - wy * ex) / denom
+            s = (wx * dyc - wy * dxc) / denom
+            ok = (np.abs(denom) > _EPS) & (t > _EPS) & (s >= 0.0) & (s <= 1.0)
+            t = np.where(ok, t, np.inf)
+            cos = np.abs(denom) / (dlen * np.hypot(ex, ey))
+        t_in[:, idx] = t
+        t_out[:, idx] = t
+        shade[:, idx] = cos
+
+    idx = np.flatnonzero(prims.kind == BOX)
+    if len(idx):
+        cx, cy, c, s_, hx, hy = (g[idx, j][None, :] for j in range(6))
+        qx = c * (ox - cx) + s_ * (oy - cy)
+        qy = -s_ * (ox - cx) + c * (oy - cy)
+        lx = c * dxc + s_ * dyc
+        ly = -s_ * dxc + c * dyc
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ax1, ax2 = (-hx - qx) / lx, (hx - qx) / lx
+            ay1, ay2 = (-hy - qy) / ly, (hy - qy) / ly
+        ax1 = np.where(np.abs(lx) < _EPS, np.where(np.abs(qx) <= hx, -np.inf, np.inf), ax1)
+        ax2 = np.where(np.abs(lx) < _EPS, np.where(np.abs(qx) <= hx, np.inf, -np.inf), ax2)
+        ay1 = np.where(np.abs(ly) < _EPS, np.where(np.abs(qy) <= hy, -np.inf, np.inf), ay1)
+        ay2 = np.where(np.abs(ly) < _EPS, np.where(np.abs(qy) <= hy, np.inf, -np.inf), ay2)
+        xmin, xmax = np.minimum(ax1, ax2), np.maximum(ax1, ax2)
+        ymin, ymax = np.minimum(ay1, ay2), np.maximum(ay1, ay2)
+        tmin, tmax = np.maximum(xmin, ymin), np.minimum(xmax, ymax)
+        ok = (tmax >= tmin) & (tmin > _EPS)
+        t_in[:, idx] = np.where(ok, tmin, np.inf)
+        t_out[:, idx] = np.where(ok, tmax, np.inf)
+        shade[:, idx] = np.where(xmin >= ymin, np.abs(lx), np.abs(ly)) / dlen
+
+    idx = np.flatnonzero(prims.kind == CYLINDER)
+    if len(idx):
+        cx, cy, r = (g[idx, j][None, :] for j in range(3))
+        fx, fy = ox - cx, oy - cy
+        a = dxc * dxc + dyc * dyc
+        b = 2.0 * (dxc * fx + dyc * fy)
+        cc = fx * fx + fy * fy - r * r
+        disc = b * b - 4.0 * a * cc
+        root = np.sqrt(np.maximum(disc, 0.0))
+        t1 = (-b - root) / (2.0 * a)
+        t2 = (-b + root) / (2.0 * a)
+        ok = (disc >= 0.0) & (t1 > _EPS)
+        t_in[:, idx] = np.where(ok, t1, np.inf)
+        t_out[:, idx] = np.where(ok, t2, np.inf)
+        hx_ = fx + t1 * dxc
+        hy_ = fy + t1 * dyc
+        shade[:, idx] = np.abs(hx_ * dxc + hy_ * dyc) / (np.maximum(r, _EPS) * dlen)
+    return t_in, t_out, shade
+
+
+def first_hit_numpy(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray, prims: Primitives) -> np.ndarray:
+    """Ray parameter of the nearest entry per ray (inf when nothing is hit)."""
+    if len(prims) == 0:
+        return np.full(len(dx), np.inf)
+    t_in, _, _ = _hits_numpy(ox, oy, dx, dy, prims)
+    return t_in.min(axis=1)
+
+
+def k_hits_numpy(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray, prims: Primitives,
+                 k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The ``k`` nearest entries per ray, nearest first: t_in, t_out, primitive index, shade (R, k)."""
+    n = len(dx)
+    if len(prims) == 0:
+        return (np.full((n, k), np.inf), np.full((n, k), np.inf), np.full((n, k), -1, np.int64),
+                np.ones((n, k)))
+    t_in, t_out, shade = _hits_numpy(ox, oy, dx, dy, prims)
+    if t_in.shape[1] < k:
+        pad = k - t_in.shape[1]
+        t_in = np.pad(t_in, ((0, 0), (0, pad)), constant_values=np.inf)
+        t_out = np.pad(t_out, ((0, 0), (0, pad)), constant_values=np.inf)
+        shade = np.pad(shade, ((0, 0), (0, pad)), constant_values=1.0)
+    part = np.argpartition(t_in, k - 1, axis=1)[:, :k] if t_in.shape[1] > k else np.tile(
+        np.arange(k), (n, 1))
+    order = np.take_along_axis(t_in, part, axis=1).argsort(axis=1, kind="stable")
+    idx = np.take_along_axis(part, order, axis=1)
+    tin = np.take_along_axis(t_in, idx, axis=1)
+    hit = np.isfinite(tin)
+    tout = np.where(hit, np.take_along_axis(t_out, idx, axis=1), np.inf)
+    shd = np.where(hit, np.take_along_axis(shade, idx, axis=1), 1.0)
+    return tin, tout, np.where(hit, idx, -1), shd
+
+
+# -- numba ---------------------------------------------------------------------------------------
+
+
+def _hit_one(ox, oy, dx, dy, kind, g):  # noqa: ANN001, ANN202 - numba kernel, typed by numba
+    """(t_in, t_out, shade) of one ray against one primitive; t_in = inf when missed."""
+    dlen = np.sqrt(dx * dx + dy * dy)
+    if kind == 0:
+        ex, ey = g[2] - g[0], g[3] - g[1]
+        wx, wy = g[0] - ox, g[1] - oy
+        denom = dx * ey - dy * ex
+        if abs(denom) <= _EPS:
+            return np.inf, np.inf, 1.0
+        t = (wx * ey - wy * ex) / denom
+        s = (wx * dy - wy * dx) / denom
+        if t > _EPS and 0.0 <= s <= 1.0:
+            return t, t, abs(denom) / (dlen * np.sqrt(ex * ex + ey * ey))
+        return np.inf, np.inf, 1.0
+    if kind == 1:
+        c, s_ = g[2], g[3]
+        qx = c * (ox - g[0]) + s_ * (oy - g[1])
+        qy = -s_ * (ox - g[0]) + c * (oy - g[1])
+        lx = c * dx + s_ * dy
+        ly = -s_ * dx + c * dy
+        hx, hy = g[4], g[5]
+        if abs(lx) < _EPS:
+            if abs(qx) > hx:
+                return np.inf, np.inf, 1.0
+            xmin, xmax = -np.inf, np.inf
+        else:
+            a1, a2 = (-hx - qx) / lx, (hx - qx) / lx
+            xmin, xmax = min(a1, a2), max(a1, a2)
+        if abs(ly) < _EPS:
+            if abs(qy) > hy:
+                return np.inf, np.inf, 1.0
+            ymin, ymax = -np.inf, np.inf
+        else:
+            b1, b2 = (-hy - qy) / ly, (hy - qy) / ly
+            ymin, ymax = min(b1, b2), max(b1, b2)
+        tmin, tmax = max(xmin, ymin), min(xmax, ymax)
+        if tmax >= tmin and tmin > _EPS:
+            shade = abs(lx) / dlen if xmin >= ymin else abs(ly) / dlen
+            return tmin, tmax, shade
+        return np.inf, np.inf, 1.0
+    fx, fy, r = ox - g[0], oy - g[1], g[2]
+    a = dx * dx + dy * dy
+    b = 2.0 * (dx * fx + dy * fy)
+    cc = fx * fx + fy * fy - r * r
+    disc = b * b - 4.0 * a * cc
+    if disc < 0.0:
+        return np.inf, np.inf, 1.0
+    root = np.sqrt(disc)
+    t1 = (-b - root) / (2.0 * a)
+    if t1 <= _EPS:
+        return np.inf, np.inf, 1.0
+    t2 = (-b + root) / (2.0 * a)
+    hx_, hy_ = fx + t1 * dx, fy + t1 * dy
+    return t1, t2, abs(hx_ * dx + hy_ * dy) / (max(r, _EPS) * dlen)
+
+
+def _first_hit_loops(ox, oy, dx, dy, kind, geom):  # noqa: ANN001, ANN202
+    out = np.full(len(dx), np.inf)
+    for i in range(len(dx)):
+        best = np.inf
+        for p in range(len(kind)):
+            t, _, _ = _hit_one(ox, oy, dx[i], dy[i], kind[p], geom[p])
+            if t < best:
+                best = t
+        out[i] = best
+    return out
+
+
+def _k_hits_loops(ox, oy, dx, dy, kind, geom, k):  # noqa: ANN001, ANN202
+    n = len(dx)
+    tin = np.full((n, k), np.inf)
+    tout = np.full((n, k), np.inf)
+    idx = np.full((n, k), -1, np.int64)
+    shade = np.ones((n, k))
+    for i in range(n):
+        for p in range(len(kind)):
+            t1, t2, sh = _hit_one(ox, oy, dx[i], dy[i], kind[p], geom[p])
+            if t1 >= tin[i, k - 1]:
+                continue
+            j = k - 1
+            while j > 0 and tin[i, j - 1] > t1:
+                tin[i, j] = tin[i, j - 1]
+                tout[i, j] = tout[i, j - 1]
+                idx[i, j] = idx[i, j - 1]
+                shade[i, j] = shade[i, j - 1]
+                j -= 1
+            tin[i, j], tout[i, j], idx[i, j], shade[i, j] = t1, t2, p, sh
+    return tin, tout, idx, shade
+
+
+if HAVE_NUMBA:
+    # Rebinding the module global first makes the loop kernels call the compiled _hit_one.
+    _hit_one = numba.njit(cache=True)(_hit_one)
+    _first_hit_jit = numba.njit(cache=True)(_first_hit_loops)
+    _k_hits_jit = numba.njit(cache=True)(_k_hits_loops)
+
+
+def first_hit(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray, prims: Primitives,
+              accelerate: bool = True) -> np.ndarray:
+    """Nearest entry parameter per ray; numba when available and ``accelerate``, else numpy."""
+    if accelerate and HAVE_NUMBA:
+        if len(prims) == 0:
+            return np.full(len(dx), np.inf)
+        return _first_hit_jit(float(ox), float(oy), np.ascontiguousarray(dx, np.float64),
+                              np.ascontiguousarray(dy, np.float64), prims.kind, prims.geom)
+    return first_hit_numpy(ox, oy, dx, dy, prims)
+
+
+def k_hits(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray, prims: Primitives, k: int,
+           accelerate: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The ``k`` nearest entries per ray (t_in, t_out, index, shade); numba or numpy."""
+    if accelerate and HAVE_NUMBA:
+        return _k_hits_jit(float(ox), float(oy), np.ascontiguousarray(dx, np.float64),
+                           np.ascontiguousarray(dy, np.float64), prims.kind, prims.geom, k)
+    return k_hits_numpy(ox, oy, dx, dy, prims, k)

@@ -1,0 +1,257 @@
+"""SimRobot: the simulated TurtleBot behind the Robot protocol, stepped, deterministic, headless.
+
+``spin_until(t)`` steps the physics at a fixed ``physics_dt`` (control, motion with collision
+checks, odometry) and produces the sensors at their own rates (lidar 10 Hz, RGB-D 5 Hz by
+default). Everything random comes from generators seeded by the run seed, so the same seed
+gives the same scans, images and trajectory. ``pose()`` is the robot's *estimate* (odometry,
+noisy when configured), never the truth; ground truth lives in ``truth`` for evaluation only.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from missiontree.backends.sim.camera import Camera, Floor
+from missiontree.backends.sim.kinematics import DiffDrive, Odometry
+from missiontree.backends.sim.lidar import Lidar
+from missiontree.backends.sim.navigation import Navigator, SimNavHandle
+from missiontree.backends.sim.people import BODY_RADIUS
+from missiontree.backends.sim.raycast import HAVE_NUMBA, Primitives
+from missiontree.backends.sim.schema import RobotProfile
+from missiontree.backends.sim.truth import GroundTruth
+from missiontree.backends.sim.world import World
+from missiontree.robot.history import StampedHistory
+from missiontree.types import LaserScan, Marker, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
+
+_TIME_EPS = 1e-9
+_TRAJECTORY_PERIOD = 0.25
+
+
+class SimRobot:
+    """A simulated robot in a :class:`World`; implements Robot and Drawable.
+
+    Attributes:
+        truth: Ground truth for scoring and declared oracles — not part of the Robot protocol;
+            behaviours must not use it.
+        timings: Per-call wall-clock milliseconds of lidar, camera and planner (for benchmarks).
+    """
+
+    simulated = True
+
+    def __init__(self, world: World, profile: RobotProfile, seed: int = 0, name: str = "sim") -> None:
+        self.name = name
+        self.world = world
+        self.profile = profile
+        self.seed = seed
+        streams = np.random.SeedSequence(seed).spawn(3)
+        accel = profile.accelerate and HAVE_NUMBA
+        self.lidar = Lidar(profile.lidar, np.random.default_rng(streams[0]), accel)
+        self.camera = Camera(profile.camera, np.random.default_rng(streams[1]), accel)
+        self._base = DiffDrive(world.start, profile.limits)
+        self._odom = Odometry(world.start, profile.odometry, np.random.default_rng(streams[2]))
+        self._nav = Navigator(self, profile.navigation)
+        self._floor = Floor(world.floor_rgb, world.grid.origin.x, world.grid.origin.y,
+                            world.grid.resolution, world.ceiling)
+        self._steps = 0
+        self._t = 0.0
+        self._drive: tuple[float, float] | None = None
+        self._scan: LaserScan | None = None
+        self._frame: RGBDFrame | None = None
+        self._poses: StampedHistory[Pose2D] = StampedHistory(profile.history_horizon, maxlen=100_000)
+        self._scans: StampedHistory[LaserScan] = StampedHistory(profile.history_horizon)
+        self._next_scan = 0.0
+        self._next_frame = 0.0
+        self._quiet: set[str] = set()
+        self.bumps = 0
+        self.truth = GroundTruth(world, lambda: self._base.pose, profile.history_horizon)
+        self.trajectory: list[tuple[float, float, float]] = []
+        self.timings: dict[str, list[float]] = {"lidar": [], "camera": [], "planner": self._nav.plan_ms}
+        self._closed = False
+        self._record_pose()
+        self._sense()
+
+    # -- Robot protocol ----------------------------------------------------------------------------
+
+    def now(self) -> float:
+        """Simulated time in seconds."""
+        return self._t
+
+    def spin_until(self, t: float) -> None:
+        """Step the physics until the clock reaches ``t`` (at most one step past it)."""
+        while self._t < t - _TIME_EPS and not self._closed:
+            self._step()
+
+    def pose(self) -> PoseStamped | None:
+        """The pose estimate now (odometry; noisy when configured)."""
+        return PoseStamped(self._t, self._odom.pose)
+
+    def scan(self) -> LaserScan | None:
+        """The latest scan (stale when the lidar went quiet)."""
+        return self._scan
+
+    def rgbd(self) -> RGBDFrame | None:
+        """The latest colour + depth frame."""
+        return self._frame
+
+    def occupancy(self) -> OccupancyGrid | None:
+        """The static map (what map_server would serve), stamped now."""
+        g = self.world.grid
+        return OccupancyGrid(self._t, g.resolution, g.origin, g.data)
+
+    def pose_at(self, stamp: float) -> Pose2D | None:
+        """The pose estimate at ``stamp``, interpolated within the recent history."""
+        pair = self._poses.bracket(stamp)
+        if pair is None:
+            return None
+        (t0, p0), (t1, p1) = pair
+        if t1 <= t0:
+            return p0
+        a = (stamp - t0) / (t1 - t0)
+        dyaw = math.remainder(p1.yaw - p0.yaw, 2 * math.pi)
+        return Pose2D(p0.x + a * (p1.x - p0.x), p0.y + a * (p1.y - p0.y),
+                      math.remainder(p0.yaw + a * dyaw, 2 * math.pi))
+
+    def scan_at(self, stamp: float) -> LaserScan | None:
+        """The scan taken closest to ``stamp`` within the recent history."""
+        if not len(self._scans):
+            return None
+        first, last = self._scans._stamps[0], self._scans._stamps[-1]
+        period = 1.0 / self.profile.lidar.rate
+        if stamp < first - period or stamp > last + period:
+            return None
+        return self._scans.nearest(stamp)
+
+    def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> SimNavHandle:
+        """Send a NavigateToPose goal; planning happens at the next step. Ends a drive() override."""
+        self._drive = None
+        return self._nav.send(goal, tolerance, self._t)
+
+    def drive(self, v: float, w: float) -> None:
+        """Command body velocity until stop(), another drive() or navigate_to(); overrides navigation."""
+        self._drive = (float(v), float(w))
+
+    def stop(self) -> None:
+        """Cancel navigation and command zero velocity."""
+        self._nav.cancel()
+        self._drive = None
+        self._base.command(0.0, 0.0)
+
+    def close(self) -> None:
+        """Stop; further spinning does nothing."""
+        self.stop()
+        self._closed = True
+
+    # -- Drawable ----------------------------------------------------------------------------------
+
+    def draw(self, out_dir: Path, markers: list[Marker]) -> list[Path]:
+        """Write the top-down picture of the run so far (``<out_dir>/topdown.png``)."""
+        from missiontree.backends.sim.render import draw_topdown
+
+        out_dir = Path(out_dir)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        path = out_dir / "topdown.png"
+        draw_topdown(self, markers, path)
+        return [path]
+
+    # -- simulator controls (not part of the Robot protocol) ---------------------------------------
+
+    def silence(self, sensor: str, quiet: bool = True) -> None:
+        """Make ``lidar`` or ``camera`` stop (or resume) publishing, to test stale-stamp handling."""
+        if sensor not in ("lidar", "camera"):
+            raise ValueError(f"unknown sensor {sensor!r}; expected 'lidar' or 'camera'")
+        (self._quiet.add if quiet else self._quiet.discard)(sensor)
+
+    @property
+    def true_pose(self) -> Pose2D:
+        """The true pose (for evaluation; behaviours use pose())."""
+        return self._base.pose
+
+    def dynamic_primitives(self, t: float) -> Primitives:
+        """Prisms of what moves at time ``t`` (people)."""
+        return self.world.crowd.primitives(t)
+
+    # -- stepping ----------------------------------------------------------------------------------
+
+    def _step(self) -> None:
+        dt = self.profile.physics_dt
+        # drive() overrides navigation while commanded; the goal waits (its timers paused)
+        command = self._drive if self._drive is not None else self._nav.step(self._t, self._odom.pose, self._scan)
+        if command is not None:
+            self._base.command(*command)
+        proposed, v, w = self._base.propose(dt)
+        if self._collides(proposed):
+            self._base.halt()
+            self.bumps += 1
+            v = w = 0.0
+        else:
+            self._base.accept(proposed, v, w)
+        self._odom.update(v, w, dt)
+        self._steps += 1
+        self._t = self._steps * dt
+        self._record_pose()
+        self._sense()
+
+    def _collides(self, pose: Pose2D) -> bool:
+        radius = self.profile.body.radius
+        here = self._base.pose
+        clear_now = self.world.clearance(here.x, here.y)
+        clear_next = self.world.clearance(pose.x, pose.y)
+        if clear_next < radius and clear_next < clear_now:  # allow moving out of contact
+            return True
+        for _, px, py in self.world.crowd.positions(self._t):
+            d_next = math.hypot(pose.x - px, pose.y - py)
+            if d_next < radius + BODY_RADIUS * 0.6 and d_next < math.hypot(here.x - px, here.y - py):
+                return True
+        return False
+
+    def _record_pose(self) -> None:
+        self._poses.push(self._t, self._odom.pose)
+        self.truth.record_pose(self._t, self._base.pose)
+        if not self.trajectory or self._t - self.trajectory[-1][0] >= _TRAJECTORY_PERIOD - _TIME_EPS:
+            p = self._base.pose
+            self.trajectory.append((self._t, p.x, p.y))
+
+    def _sense(self) -> None:
+        t = self._t
+        dynamic: Primitives | None = None
+        if t >= self._next_scan - _TIME_EPS:
+            self._next_scan = self._tick_after(self._next_scan, self.profile.lidar.rate)
+            if "lidar" not in self._quiet:
+                dynamic = self.dynamic_primitives(t)
+                t0 = time.perf_counter()
+                self._scan = self.lidar.scan(self._base.pose, t, self.world.static, dynamic)
+                self.timings["lidar"].append((time.perf_counter() - t0) * 1000.0)
+                self._scans.push(t, self._scan)
+        if t >= self._next_frame - _TIME_EPS:
+            self._next_frame = self._tick_after(self._next_frame, self.profile.camera.rate)
+            if "camera" not in self._quiet:
+                if dynamic is None:
+                    dynamic = self.dynamic_primitives(t)
+                t0 = time.perf_counter()
+                self._frame = self._render(t, dynamic)
+                self.timings["camera"].append((time.perf_counter() - t0) * 1000.0)
+
+    def _tick_after(self, previous: float, rate: float) -> float:
+        period = 1.0 / rate
+        nxt = previous + period
+        while nxt <= self._t + _TIME_EPS:
+            nxt += period
+        return nxt
+
+    def _render(self, t: float, dynamic: Primitives) -> RGBDFrame:
+        spec = self.profile.camera
+        mount_yaw = math.radians(spec.mount.yaw_deg)
+        true_cam = self._camera_pose(self._base.pose, mount_yaw)
+        image = self.camera.render(true_cam, spec.mount.z, self.world.static.concat(dynamic), self._floor)
+        self.truth.record_frame(t, image.instances)
+        return RGBDFrame(t, image.color, image.depth, self.camera.intrinsics,
+                         self._camera_pose(self._odom.pose, mount_yaw), spec.mount.z)
+
+    def _camera_pose(self, base: Pose2D, mount_yaw: float) -> Pose2D:
+        m = self.profile.camera.mount
+        x, y = base.transform(m.x, m.y)
+        return Pose2D(x, y, math.remainder(base.yaw + mount_yaw, 2 * math.pi))

@@ -1,0 +1,536 @@
+"""The simulated world: loading and checking world files and robot profiles, and the runtime model.
+
+:func:`load_world` reads a world file (a shipped name such as ``office`` or a path), checks it
+whole and raises :class:`~missiontree.errors.WorldFileError` with every problem as
+``file:line:col`` — unknown keys, missing fields, an object inside a wall, a robot starting
+inside a wall, an unknown robot profile, a map image that does not exist. The result is a
+:class:`World`: walls and objects as prisms for the sensors, a static occupancy grid for the
+planner, rooms, people and the instance table ground truth uses.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pydantic
+
+from missiontree.backends.sim.people import Crowd, Person
+from missiontree.backends.sim.raycast import BOX, CYLINDER, SEGMENT, Primitives
+from missiontree.backends.sim.schema import (
+    NavMapYaml,
+    ObjectSpec,
+    RobotProfile,
+    WorldSpec,
+)
+from missiontree.errors import ConfigError, Problem, WorldFileError
+from missiontree.paths import find_config
+from missiontree.types import OccupancyGrid, Pose2D
+from missiontree.yamlio import Located, load_yaml
+
+#: Instance ids: 0 is floor and ceiling, 1 every wall; objects and people follow.
+FLOOR_INSTANCE, WALL_INSTANCE = 0, 1
+#: Objects reaching below this height block the robot unless the file says otherwise.
+OBSTACLE_BELOW = 0.3
+_CONTACT_SLACK = 0.02
+
+
+@dataclass(frozen=True)
+class InstanceInfo:
+    """What an instance id in a mask stands for."""
+
+    inst: int
+    kind: str  # "wall", "object" or "person"
+    name: str
+    label: str
+
+
+@dataclass(frozen=True)
+class WorldObject:
+    """An object as placed in the world."""
+
+    id: str
+    label: str
+    color: str
+    rgb: tuple[int, int, int]
+    attributes: tuple[str, ...]
+    description: str
+    shape: str
+    size: tuple[float, float, float]
+    pose: Pose2D
+    elevation: float
+    movable: bool
+    obstacle: bool
+    inst: int
+
+    @property
+    def top(self) -> float:
+        """Height of the object's top above the floor."""
+        return self.elevation + self.size[2]
+
+    def footprint(self) -> np.ndarray:
+        """Corners (box) or a 24-gon (cylinder) of the object's outline, shape (N, 2)."""
+        if self.shape == "cylinder":
+            a = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+            r = self.size[0] / 2
+            return np.stack([self.pose.x + r * np.cos(a), self.pose.y + r * np.sin(a)], axis=1)
+        hx, hy = self.size[0] / 2, self.size[1] / 2
+        return np.array([self.pose.transform(px, py) for px, py in ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy))])
+
+
+@dataclass(frozen=True)
+class Room:
+    """A named room polygon."""
+
+    name: str
+    type: str
+    polygon: np.ndarray
+    floor_rgb: tuple[int, int, int] | None = None
+
+    def contains(self, x: float, y: float) -> bool:
+        """Whether the point lies inside the polygon."""
+        return cv2.pointPolygonTest(self.polygon.astype(np.float32), (float(x), float(y)), False) >= 0
+
+
+@dataclass
+class World:
+    """A loaded world: geometry for the sensors, a grid for the planner, rooms, objects, people."""
+
+    name: str
+    source: str
+    spec: WorldSpec
+    start: Pose2D
+    profile_name: str
+    wall_segments: np.ndarray            # (S, 4) x1, y1, x2, y2
+    static: Primitives                   # walls and objects
+    grid: OccupancyGrid                  # static obstacles (walls and obstacle objects), 0 / 100
+    walls_grid: np.ndarray               # bool, walls only
+    rooms: list[Room]
+    objects: list[WorldObject]
+    crowd: Crowd
+    instances: dict[int, InstanceInfo]
+    ceiling: float
+    floor_rgb: np.ndarray                # (rows, cols, 3) floor colour per grid cell
+    _clearance: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
+
+    def clearance(self, x: float, y: float) -> float:
+        """Distance (m) from (x, y) to the nearest static obstacle cell; 0 outside the grid."""
+        row, col = self.grid.world_to_cell(x, y)
+        h, w = self._clearance.shape
+        if not (0 <= row < h and 0 <= col < w):
+            return 0.0
+        return float(self._clearance[row, col])
+
+    def room_at(self, x: float, y: float) -> Room | None:
+        """The first room whose polygon holds (x, y)."""
+        for room in self.rooms:
+            if room.contains(x, y):
+                return room
+        return None
+
+    def object(self, object_id: str) -> WorldObject:
+        """The object with this id (KeyError naming the known ones otherwise)."""
+        for obj in self.objects:
+            if obj.id == object_id:
+                return obj
+        raise KeyError(f"no object {object_id!r}; known: {', '.join(o.id for o in self.objects)}")
+
+    def bounds(self) -> tuple[float, float, float, float]:
+        """(xmin, ymin, xmax, ymax) of the grid."""
+        h, w = self.grid.data.shape
+        r = self.grid.resolution
+        return self.grid.origin.x, self.grid.origin.y, self.grid.origin.x + w * r, self.grid.origin.y + h * r
+
+
+# -- loading -----------------------------------------------------------------------------------
+
+
+def load_world(name_or_path: str | Path) -> World:
+    """Load and check a world file; a shipped name (``office``) or a path.
+
+    Raises:
+        WorldFileError: Every problem found, each with file:line:col.
+    """
+    try:
+        path = find_config("worlds", name_or_path)
+    except ConfigError as exc:
+        raise WorldFileError([Problem(str(name_or_path), 0, 0, "", str(exc))]) from None
+    doc = load_yaml(path, error=WorldFileError)
+    spec = _validate(doc, WorldSpec)
+    problems: list[Problem] = []
+    try:
+        find_config("robots", spec.robot.profile)
+    except ConfigError as exc:
+        problems.append(doc.problem_at(("robot", "profile"), str(exc), "create config/robots/<name>.yaml"))
+    world = _build(spec, doc, path, problems)
+    if problems:
+        raise WorldFileError(problems)
+    assert world is not None
+    return world
+
+
+def load_robot_profile(name: str | Path, overrides: dict[str, Any] | None = None) -> RobotProfile:
+    """Load a robot profile by name or path, with ``overrides`` merged over it.
+
+    Raises:
+        WorldFileError: The profile is missing or broken; or an override is.
+    """
+    try:
+        path = find_config("robots", name)
+    except ConfigError as exc:
+        raise WorldFileError([Problem(str(name), 0, 0, "", str(exc))]) from None
+    doc = load_yaml(path, error=WorldFileError)
+    if overrides:
+        merged = _deep_merge(copy.deepcopy(doc.data), overrides)
+        try:
+            return RobotProfile.model_validate(merged)
+        except pydantic.ValidationError as exc:
+            raise WorldFileError([
+                Problem("<config overrides>", 0, 0, _loc(e["loc"]), _message(e, RobotProfile), _hint(e))
+                for e in exc.errors()
+            ]) from None
+    return _validate(doc, RobotProfile)
+
+
+def _deep_merge(base: Any, over: dict[str, Any]) -> Any:
+    if not isinstance(base, dict):
+        return over
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(base.get(key), dict):
+            _deep_merge(base[key], value)
+        else:
+            base[key] = value
+    return base
+
+
+def _validate(doc: Located, model: type[pydantic.BaseModel]) -> Any:
+    if not isinstance(doc.data, dict):
+        raise WorldFileError([doc.problem_at((), f"expected a mapping, found {type(doc.data).__name__}")])
+    try:
+        return model.model_validate(doc.data)
+    except pydantic.ValidationError as exc:
+        problems = []
+        for err in exc.errors():
+            loc = tuple(p for p in err["loc"] if isinstance(p, str | int))
+            problems.append(doc.problem_at(loc, _message(err, model), _hint(err),
+                                           key=err["type"] == "extra_forbidden"))
+        raise WorldFileError(problems) from None
+
+
+def _loc(loc: tuple[Any, ...]) -> str:
+    return ".".join(str(p) for p in loc)
+
+
+def _message(err: Any, model: type[pydantic.BaseModel]) -> str:
+    loc = tuple(err["loc"])
+    if err["type"] == "extra_forbidden":
+        allowed = _allowed_keys(model, loc[:-1])
+        known = f"; expected one of: {', '.join(allowed)}" if allowed else ""
+        return f"unknown key {loc[-1]!r}{known}"
+    if err["type"] == "missing":
+        return f"missing required key {loc[-1]!r}"
+    found = err.get("input")
+    shown = repr(found) if not isinstance(found, dict | list) or len(repr(found)) < 60 else type(found).__name__
+    return f"{err['msg']}, found {shown}"
+
+
+def _hint(err: Any) -> str:
+    if err["type"] == "extra_forbidden":
+        return "check the spelling (docs/worlds.md lists every key)"
+    if err["type"] == "missing":
+        return "add the key (docs/worlds.md describes it)"
+    return ""
+
+
+def _allowed_keys(model: Any, loc: tuple[Any, ...]) -> list[str]:
+    """Field names of the model reached by following ``loc`` through nested models and lists."""
+    import types
+    import typing
+
+    current: Any = model
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        fields = getattr(current, "model_fields", None)
+        if not fields or part not in fields:
+            return []
+        current = fields[part].annotation
+        # unwrap Optional[...] / list[...] down to a model
+        for _ in range(3):
+            origin = typing.get_origin(current)
+            if origin in (list, typing.Union, types.UnionType):
+                args = [a for a in typing.get_args(current) if a is not type(None)]
+                current = args[0] if args else current
+    fields = getattr(current, "model_fields", None)
+    return list(fields) if fields else []
+
+
+# -- building ----------------------------------------------------------------------------------
+
+
+def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]) -> World | None:
+    segments: list[tuple[float, float, float, float]] = []
+    rows: list[tuple[int, tuple[float, ...], float, float, tuple[int, int, int], int]] = []
+    ceiling = 2.5
+    map_grid: tuple[np.ndarray, float, Pose2D] | None = None
+    if spec.walls is not None:
+        walls = spec.walls
+        segments += [(a[0], a[1], b[0], b[1]) for a, b in walls.segments]
+        for line in walls.polylines:
+            segments += [(a[0], a[1], b[0], b[1]) for a, b in zip(line[:-1], line[1:], strict=True)]
+        for poly in walls.polygons:
+            closed = [*poly, poly[0]]
+            segments += [(a[0], a[1], b[0], b[1]) for a, b in zip(closed[:-1], closed[1:], strict=True)]
+        rows += [(SEGMENT, s, 0.0, walls.height, walls.rgb, WALL_INSTANCE) for s in segments]
+        ceiling = walls.height
+    if spec.map is not None:
+        map_grid = _read_nav2_map(spec, doc, path, problems)
+        if map_grid is not None:
+            occupied, res, origin = map_grid
+            map_segments = _contour_segments(occupied, res, origin)
+            segments += map_segments
+            rows += [(SEGMENT, s, 0.0, spec.map.height, spec.map.rgb, WALL_INSTANCE) for s in map_segments]
+            ceiling = max(ceiling if spec.walls else 0.0, spec.map.height)
+    seg_array = np.array(segments, dtype=float).reshape(-1, 4)
+
+    instances = {FLOOR_INSTANCE: InstanceInfo(0, "floor", "floor", "floor"),
+                 WALL_INSTANCE: InstanceInfo(1, "wall", "wall", "wall")}
+    objects: list[WorldObject] = []
+    counts: dict[str, int] = {}
+    for i, ospec in enumerate(spec.objects):
+        inst = 2 + i
+        counts[ospec.label] = counts.get(ospec.label, 0) + 1
+        oid = ospec.id or f"{ospec.label.replace(' ', '_')}_{counts[ospec.label]}"
+        obj = _make_object(ospec, oid, inst)
+        objects.append(obj)
+        instances[inst] = InstanceInfo(inst, "object", oid, obj.label)
+        if obj.shape == "cylinder":
+            rows.append((CYLINDER, (obj.pose.x, obj.pose.y, obj.size[0] / 2), obj.elevation, obj.top, obj.rgb, inst))
+        else:
+            rows.append((BOX, (obj.pose.x, obj.pose.y, math.cos(obj.pose.yaw), math.sin(obj.pose.yaw),
+                               obj.size[0] / 2, obj.size[1] / 2), obj.elevation, obj.top, obj.rgb, inst))
+    ids = [o.id for o in objects]
+    for i, oid in enumerate(ids):
+        if oid in ids[:i]:
+            problems.append(doc.problem_at(("objects", i, "id"), f"duplicate object id {oid!r}",
+                                           "give every object a unique id"))
+    people = []
+    for j, pspec in enumerate(spec.people):
+        inst = 2 + len(objects) + j
+        people.append(Person(pspec, inst))
+        instances[inst] = InstanceInfo(inst, "person", pspec.id, "person")
+
+    grid, walls_grid, map_bounds = _rasterise(spec, seg_array, objects, map_grid)
+    _check_objects(doc, objects, seg_array, walls_grid, grid, problems)
+    clearance = cv2.distanceTransform((grid.data < 50).astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
+    start = Pose2D(spec.robot.start.x, spec.robot.start.y, spec.robot.start.heading)
+    rooms = [Room(r.name, r.type, np.array(r.polygon, float), r.floor_rgb) for r in spec.rooms]
+    world = World(
+        name=spec.name, source=str(path), spec=spec, start=start, profile_name=spec.robot.profile,
+        wall_segments=seg_array, static=Primitives.build(rows), grid=grid, walls_grid=walls_grid,
+        rooms=rooms, objects=objects, crowd=Crowd(people), instances=instances, ceiling=ceiling,
+        floor_rgb=_floor_colours(grid, rooms), _clearance=clearance,
+    )
+    if not problems:
+        _check_start(doc, world, problems)
+    del map_bounds
+    return world
+
+
+def _make_object(ospec: ObjectSpec, oid: str, inst: int) -> WorldObject:
+    obstacle = ospec.obstacle if ospec.obstacle is not None else ospec.elevation < OBSTACLE_BELOW
+    size = ospec.size if ospec.shape == "box" else (ospec.size[0], ospec.size[0], ospec.size[2])
+    return WorldObject(
+        id=oid, label=ospec.label, color=(ospec.color or "").lower(), rgb=ospec.rgb_value,
+        attributes=tuple(ospec.attributes), description=ospec.description, shape=ospec.shape,
+        size=size, pose=Pose2D(ospec.pose.x, ospec.pose.y, ospec.pose.heading),
+        elevation=ospec.elevation, movable=ospec.movable, obstacle=obstacle, inst=inst,
+    )
+
+
+def _read_nav2_map(spec: WorldSpec, doc: Located, path: Path,
+                   problems: list[Problem]) -> tuple[np.ndarray, float, Pose2D] | None:
+    assert spec.map is not None
+    map_yaml = (path.parent / spec.map.yaml).resolve()
+    if not map_yaml.is_file():
+        problems.append(doc.problem_at(("map", "yaml"), f"map yaml {spec.map.yaml!r} does not exist "
+                                       f"(looked at {map_yaml})", "give a path relative to the world file"))
+        return None
+    mdoc = load_yaml(map_yaml, error=WorldFileError)
+    try:
+        meta = NavMapYaml.model_validate(mdoc.data)
+    except pydantic.ValidationError as exc:
+        for err in exc.errors():
+            problems.append(mdoc.problem_at(tuple(err["loc"]), _message(err, NavMapYaml), _hint(err)))
+        return None
+    image_path = (map_yaml.parent / meta.image).resolve()
+    image = cv2.imread(str(image_path), cv2.IMREAD_GRAYSCALE) if image_path.is_file() else None
+    if image is None:
+        problems.append(mdoc.problem_at(("image",), f"map image {meta.image!r} does not exist or is not an "
+                                        f"image (looked at {image_path})", "fix the `image:` path"))
+        return None
+    value = image.astype(float) / 255.0
+    occ = value if meta.negate else 1.0 - value
+    occupied = np.flipud(occ > meta.occupied_thresh)  # row 0 = lowest y, as in OccupancyGrid
+    return occupied, meta.resolution, Pose2D(meta.origin[0], meta.origin[1], 0.0)
+
+
+def _contour_segments(occupied: np.ndarray, res: float, origin: Pose2D) -> list[tuple[float, float, float, float]]:
+    """Outline the occupied cells of a map as wall segments (cell corners, exact to the grid)."""
+    mask = np.pad(occupied.astype(np.uint8), 1)
+    big = cv2.resize(mask, (mask.shape[1] * 2, mask.shape[0] * 2), interpolation=cv2.INTER_NEAREST)
+    contours, _ = cv2.findContours(big, cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
+    segments = []
+    for contour in contours:
+        pts = contour[:, 0, :].astype(float)
+        # doubled pixels: boundary pixel centres sit 0.25 cell inside; outline at cell corners
+        xy = np.stack([origin.x + (pts[:, 0] / 2.0 - 1.0 + 0.25) * res,
+                       origin.y + (pts[:, 1] / 2.0 - 1.0 + 0.25) * res], axis=1)
+        for a, b in zip(xy, np.roll(xy, -1, axis=0), strict=True):
+            if np.hypot(*(b - a)) > 1e-9:
+                segments.append((a[0], a[1], b[0], b[1]))
+    return segments
+
+
+def _rasterise(spec: WorldSpec, segs: np.ndarray, objects: list[WorldObject],
+               map_grid: tuple[np.ndarray, float, Pose2D] | None) -> tuple[OccupancyGrid, np.ndarray, Any]:
+    if map_grid is not None:
+        occupied, res, origin = map_grid
+        walls = occupied.copy()
+    else:
+        res = spec.resolution
+        pts = [segs[:, :2], segs[:, 2:]] + [o.footprint() for o in objects]
+        allp = np.concatenate([p for p in pts if len(p)]) if any(len(p) for p in pts) else np.zeros((1, 2))
+        lo, hi = allp.min(axis=0) - 0.5, allp.max(axis=0) + 0.5
+        origin = Pose2D(math.floor(lo[0] / res) * res, math.floor(lo[1] / res) * res, 0.0)
+        cols = int(math.ceil((hi[0] - origin.x) / res))
+        rows = int(math.ceil((hi[1] - origin.y) / res))
+        walls = np.zeros((rows, cols), bool)
+    thickness = spec.walls.thickness if spec.walls is not None else res
+    canvas = walls.astype(np.uint8)
+    px = max(1, int(round(thickness / res)))
+    for x1, y1, x2, y2 in segs if spec.walls is not None else []:
+        p1 = (int((x1 - origin.x) / res * 16), int((y1 - origin.y) / res * 16))
+        p2 = (int((x2 - origin.x) / res * 16), int((y2 - origin.y) / res * 16))
+        cv2.line(canvas, p1, p2, 1, px, cv2.LINE_8, shift=4)
+    walls_grid = canvas.astype(bool)
+    for obj in objects:
+        if obj.obstacle:
+            poly = ((obj.footprint() - [origin.x, origin.y]) / res * 16).astype(np.int32)
+            cv2.fillPoly(canvas, [poly], 1, cv2.LINE_8, shift=4)
+    data = np.where(canvas > 0, 100, 0).astype(np.int8)
+    return OccupancyGrid(0.0, res, origin, data), walls_grid, None
+
+
+def _floor_colours(grid: OccupancyGrid, rooms: list[Room]) -> np.ndarray:
+    rgb = np.empty(grid.data.shape + (3,), np.float64)
+    rgb[:] = (170, 160, 145)
+    for room in rooms:
+        colour = room.floor_rgb or _ROOM_FLOORS.get(room.type, (170, 160, 145))
+        poly = ((room.polygon - [grid.origin.x, grid.origin.y]) / grid.resolution * 16).astype(np.int32)
+        mask = np.zeros(grid.data.shape, np.uint8)
+        cv2.fillPoly(mask, [poly], 1, cv2.LINE_8, shift=4)
+        rgb[mask > 0] = colour
+    return rgb
+
+
+_ROOM_FLOORS = {
+    "kitchen": (196, 190, 178), "office": (128, 118, 104), "corridor": (160, 158, 150),
+    "hall": (180, 176, 168), "living room": (150, 120, 90), "bedroom": (140, 115, 95),
+    "bathroom": (200, 205, 210),
+}
+
+
+def _check_objects(doc: Located, objects: list[WorldObject], segs: np.ndarray, walls_grid: np.ndarray,
+                   grid: OccupancyGrid, problems: list[Problem]) -> None:
+    for i, obj in enumerate(objects):
+        hit = _footprint_hits_walls(obj, segs) if len(segs) else False
+        if not hit and walls_grid.any():
+            hit = _footprint_hits_grid(obj, walls_grid, grid) and not len(segs)
+        if hit:
+            problems.append(doc.problem_at(
+                ("objects", i, "pose"),
+                f"object {obj.id!r} ({obj.label}, {obj.size[0]:.2f} x {obj.size[1]:.2f} m at "
+                f"{obj.pose.x:.2f}, {obj.pose.y:.2f}) overlaps a wall",
+                "move it off the wall or make it smaller",
+            ))
+
+
+def _footprint_hits_walls(obj: WorldObject, segs: np.ndarray) -> bool:
+    """Whether a wall segment passes through the object's outline shrunk by a contact slack."""
+    if obj.shape == "cylinder":
+        r = obj.size[0] / 2 - _CONTACT_SLACK
+        return bool(np.any(_point_segment_distance(obj.pose.x, obj.pose.y, segs) < r))
+    c, s = math.cos(obj.pose.yaw), math.sin(obj.pose.yaw)
+    hx, hy = obj.size[0] / 2 - _CONTACT_SLACK, obj.size[1] / 2 - _CONTACT_SLACK
+    if hx <= 0 or hy <= 0:
+        return False
+    # segment endpoints in the box frame; Liang-Barsky clip against the box
+    for x1, y1, x2, y2 in segs:
+        ax, ay = c * (x1 - obj.pose.x) + s * (y1 - obj.pose.y), -s * (x1 - obj.pose.x) + c * (y1 - obj.pose.y)
+        bx, by = c * (x2 - obj.pose.x) + s * (y2 - obj.pose.y), -s * (x2 - obj.pose.x) + c * (y2 - obj.pose.y)
+        t0, t1 = 0.0, 1.0
+        ok = True
+        for p, q in ((-(bx - ax), ax + hx), (bx - ax, hx - ax), (-(by - ay), ay + hy), (by - ay, hy - ay)):
+            if abs(p) < 1e-12:
+                if q < 0:
+                    ok = False
+                    break
+                continue
+            r = q / p
+            if p < 0:
+                t0 = max(t0, r)
+            else:
+                t1 = min(t1, r)
+            if t0 > t1:
+                ok = False
+                break
+        if ok:
+            return True
+    return False
+
+
+def _footprint_hits_grid(obj: WorldObject, walls_grid: np.ndarray, grid: OccupancyGrid) -> bool:
+    mask = np.zeros(walls_grid.shape, np.uint8)
+    poly = ((obj.footprint() - [grid.origin.x, grid.origin.y]) / grid.resolution * 16).astype(np.int32)
+    cv2.fillPoly(mask, [poly], 1, cv2.LINE_8, shift=4)
+    mask = cv2.erode(mask, np.ones((3, 3), np.uint8))
+    return bool((mask.astype(bool) & walls_grid).any())
+
+
+def _point_segment_distance(x: float, y: float, segs: np.ndarray) -> np.ndarray:
+    a, b = segs[:, :2], segs[:, 2:]
+    ab = b - a
+    denom = np.maximum((ab * ab).sum(axis=1), 1e-12)
+    t = np.clip(((np.array([x, y]) - a) * ab).sum(axis=1) / denom, 0.0, 1.0)
+    closest = a + ab * t[:, None]
+    return np.hypot(closest[:, 0] - x, closest[:, 1] - y)
+
+
+def _check_start(doc: Located, world: World, problems: list[Problem]) -> None:
+    try:
+        profile = load_robot_profile(world.profile_name)
+    except WorldFileError:
+        return  # reported as an unknown profile (or its own file's problems) elsewhere
+    s = world.start
+    xmin, ymin, xmax, ymax = world.bounds()
+    if not (xmin <= s.x <= xmax and ymin <= s.y <= ymax):
+        problems.append(doc.problem_at(("robot", "start"), f"robot start ({s.x:.2f}, {s.y:.2f}) lies outside "
+                                       f"the world ({xmin:.1f}..{xmax:.1f}, {ymin:.1f}..{ymax:.1f})",
+                                       "move the start inside the walls"))
+        return
+    gap = min(world.clearance(s.x, s.y),
+              float(np.min(_point_segment_distance(s.x, s.y, world.wall_segments)))
+              if len(world.wall_segments) else math.inf)
+    if gap < profile.body.radius:
+        problems.append(doc.problem_at(
+            ("robot", "start"),
+            f"robot start ({s.x:.2f}, {s.y:.2f}) is {gap:.2f} m from a wall or obstacle; the "
+            f"{profile.name} body needs {profile.body.radius:.2f} m (it would start inside the wall)",
+            "move the start into free space",
+        ))
