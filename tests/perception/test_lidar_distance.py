@@ -146,3 +146,11 @@ def test_position_from_range_uses_robot_pose() -> None:
     """A return 2 m at +90° from a robot facing +x at (1, 1) is at (1, 3)."""
     x, y = position_from_range(Pose2D(1.0, 1.0, 0.0), math.pi / 2, 2.0)
     assert (x, y) == pytest.approx((1.0, 3.0))
+
+
+def test_cone_keeps_a_single_beam_target_in_a_narrow_cone() -> None:
+    """A far person's leg caught by one beam in a narrow cone is the target, not the wall behind."""
+    ranges = np.full(360, 7.0)
+    ranges[90] = 4.0
+    reading = cone_distance(turtlebot_scan(ranges), 0.0, math.radians(2.5))
+    assert reading.distance == pytest.approx(4.0)

@@ -102,14 +102,15 @@ def cone_distance(
     *,
     min_range: float = 0.2,
     cluster_gap: float = 0.25,
+    min_beams_for_stray: int = 8,
 ) -> ConeReading:
     """Distance to the nearest compact cluster of returns in a cone centred on ``bearing``.
 
     The cone is a detection's angular extent: a person seen by the camera at 25° is measured at
     25°, not straight ahead. Inside it the returns are sorted by range and the first cluster
     (consecutive ranges no more than ``cluster_gap`` apart) is the target; its median range is
-    the distance. Background returns behind the target and single stray returns in front of it
-    (a cluster of one beam when the cone holds more) are ignored.
+    the distance. Background returns behind the target are ignored, and so is a single stray
+    return in front of it when the cone is wide (a far person's leg may be a single beam).
 
     Args:
         scan: The scan taken at the moment the frame was (``robot.scan_at(frame.stamp)``).
@@ -117,6 +118,7 @@ def cone_distance(
         half_width: Half the cone's width, rad.
         min_range: Returns closer than this are the robot's own body.
         cluster_gap: Largest range step inside one cluster, metres.
+        min_beams_for_stray: Returns in the cone from which a lone front return counts as a stray.
 
     Returns:
         A :class:`ConeReading`; ``distance`` is ``inf`` when the cone holds no return.
@@ -133,8 +135,8 @@ def cone_distance(
     starts = np.concatenate(([0], breaks + 1))
     ends = np.concatenate((breaks + 1, [len(cone_r)]))
     chosen = 0
-    if len(starts) > 1 and ends[0] - starts[0] == 1:
-        chosen = 1  # a lone return in front of a larger cluster is noise, not a target
+    if len(starts) > 1 and ends[0] - starts[0] == 1 and len(cone_r) >= min_beams_for_stray:
+        chosen = 1  # in a wide cone a lone return in front of the rest is a stray, not the target
     lo, hi = starts[chosen], ends[chosen]
     members_r, members_a = cone_r[lo:hi], cone_a[lo:hi]
     mean_bearing = math.atan2(float(np.mean(np.sin(members_a))), float(np.mean(np.cos(members_a))))
