@@ -275,7 +275,8 @@ def depth_to_msg(depth: np.ndarray, stamp: float, frame_id: str, encoding: str =
 def intrinsics_from_msg(msg: CameraInfo) -> CameraIntrinsics:
     """Pinhole intrinsics from ``sensor_msgs/CameraInfo``'s K matrix."""
     k = msg.k
-    return CameraIntrinsics(width=msg.width, height=msg.height, fx=k[0], fy=k[4], cx=k[2], cy=k[5])
+    return CameraIntrinsics(width=int(msg.width), height=int(msg.height), fx=float(k[0]), fy=float(k[4]),
+                            cx=float(k[2]), cy=float(k[5]))
 
 
 def intrinsics_to_msg(intr: CameraIntrinsics, stamp: float, frame_id: str) -> CameraInfo:

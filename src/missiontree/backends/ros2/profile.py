@@ -99,6 +99,10 @@ class Ros2Profile(_Section):
         domain_id: ROS_DOMAIN_ID for this robot's context; None takes the environment's.
     """
 
+    # Unknown top-level keys are ignored: a --config file may hold the profile and other run options
+    # side by side. Sections stay strict, so a misspelt topic name is still an error.
+    model_config = ConfigDict(extra="ignore")
+
     name: str = "turtlebot4"
     namespace: str = ""
     pose_source: Literal["tf", "amcl"] = "tf"

@@ -1,0 +1,298 @@
+"""The simulator served as a ROS 2 robot: TurtleBot 4 topics, TF, /map and a NavigateToPose server.
+
+:class:`SimBridge` steps a :class:`~missiontree.backends.sim.SimRobot` in real time and publishes
+what a TurtleBot 4 running Nav2 would: /scan, /odom, the OAK-D colour and depth images with
+camera_info, /tf (map → odom → base_link), /tf_static (lidar and camera mounts), /map (transient
+local), /amcl_pose; it drives the simulated base from /cmd_vel and serves NavigateToPose (and
+/goal_pose, as bt_navigator does) with the simulator's navigation. Missions, RViz and other ROS
+tools then run against it as against the robot.
+
+Threads: the pacing loop (``run``) owns the simulator's stepping; the executor's threads serve
+callbacks and the action server. Every simulator call holds ``_sim_lock``.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from typing import Any
+
+import rclpy
+from geometry_msgs.msg import PoseStamped as PoseStampedMsg
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped, Twist, TwistStamped
+from nav2_msgs.action import NavigateToPose
+from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
+from nav_msgs.msg import Odometry
+from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import LaserScan as LaserScanMsg
+from tf2_msgs.msg import TFMessage
+
+from missiontree.backends.ros2 import conversions as conv
+from missiontree.backends.ros2.profile import Ros2Profile
+from missiontree.backends.ros2.robot import latched_qos, reliable_qos
+from missiontree.robot.actions import ActionStatus
+from missiontree.types import Pose2D
+
+#: Nav2's result code for an error it cannot name (nav2_msgs NavigateToPose.Result.UNKNOWN).
+NAV2_UNKNOWN = 9000
+#: Optical frame orientation relative to the camera link (z forward, x right, y down).
+_OPTICAL = (-0.5, 0.5, -0.5, 0.5)
+
+
+class SimBridge:
+    """Serves a simulated robot over ROS 2 in real time.
+
+    Args:
+        sim: The simulated robot (``missiontree.backends.sim.create_robot``).
+        profile: Topic and frame names to serve (the same profile a Ros2Robot reads).
+        rate: Simulated seconds per wall second (1.0 = real time).
+        odom_hz: Rate of /odom and /tf.
+    """
+
+    def __init__(self, sim: Any, profile: Ros2Profile, rate: float = 1.0, odom_hz: float = 20.0) -> None:
+        self.sim = sim
+        self.profile = profile
+        self.rate = rate
+        self.odom_period = 1.0 / odom_hz
+        self._sim_lock = threading.RLock()
+        self._stop = threading.Event()
+        self._context = rclpy.Context()
+        rclpy.init(context=self._context, domain_id=profile.domain_id,
+                   signal_handler_options=SignalHandlerOptions.NO)
+        self.node = Node("missiontree_sim", context=self._context, namespace=profile.namespace or None)
+        # ROS time of simulated time 0: stamps are ROS time, in step with the simulator when paced.
+        self._epoch = self._ros_now() - sim.now()
+        self._last_scan = self._last_frame = -math.inf
+        self._last_odom = -math.inf
+        self._last_pose: Pose2D | None = None
+        self._advertise()
+        self._executor = MultiThreadedExecutor(num_threads=4, context=self._context)
+        self._executor.add_node(self.node)
+        self._spinner = threading.Thread(target=self._spin, name="sim-ros-executor", daemon=True)
+        self.goals_served = 0
+
+    # ------------------------------------------------------------------------------ wiring
+
+    def _advertise(self) -> None:
+        t, node = self.profile.topics, self.node
+        self._scan_pub = node.create_publisher(LaserScanMsg, t.scan, reliable_qos(10))
+        self._odom_pub = node.create_publisher(Odometry, t.odom, reliable_qos(10))
+        self._tf_pub = node.create_publisher(TFMessage, t.tf, reliable_qos(100))
+        self._tf_static_pub = node.create_publisher(TFMessage, t.tf_static, latched_qos(100))
+        self._map_pub = node.create_publisher(OccupancyGridMsg, t.map, latched_qos())
+        self._amcl_pub = node.create_publisher(PoseWithCovarianceStamped, t.amcl_pose, latched_qos())
+        self._color_pub = node.create_publisher(Image, t.color, reliable_qos(5))
+        self._info_pub = node.create_publisher(CameraInfo, t.color_info, reliable_qos(5))
+        self._depth_pub = node.create_publisher(Image, t.depth, reliable_qos(5))
+        twist_type = TwistStamped if self.profile.cmd_vel_stamped else Twist
+        node.create_subscription(twist_type, t.cmd_vel, self._on_cmd_vel, reliable_qos())
+        group = ReentrantCallbackGroup()
+        self._server = ActionServer(
+            node, NavigateToPose, self.profile.navigation.action, execute_callback=self._execute,
+            goal_callback=lambda _goal: GoalResponse.ACCEPT, cancel_callback=lambda _h: CancelResponse.ACCEPT,
+            handle_accepted_callback=self._on_accepted, callback_group=group)
+        # bt_navigator turns /goal_pose into a goal of its own action server; so does the bridge.
+        self._self_client = ActionClient(node, NavigateToPose, self.profile.navigation.action,
+                                         callback_group=group)
+        node.create_subscription(PoseStampedMsg, t.goal_pose, self._on_goal_pose, reliable_qos(),
+                                 callback_group=group)
+
+    def _spin(self) -> None:
+        try:
+            while self._context.ok() and not self._stop.is_set():
+                self._executor.spin_once(timeout_sec=0.1)
+        except (ExternalShutdownException, rclpy.executors.ShutdownException):
+            pass
+
+    def _ros_now(self) -> float:
+        return self.node.get_clock().now().nanoseconds * 1e-9
+
+    def stamp(self, sim_time: float) -> float:
+        """ROS time of a simulated time."""
+        return self._epoch + sim_time
+
+    # ------------------------------------------------------------------------------ commands in
+
+    def _on_cmd_vel(self, msg: Twist | TwistStamped) -> None:
+        v, w = conv.twist_from_msg(msg)
+        with self._sim_lock:
+            self.sim.drive(v, w)
+
+    def _on_goal_pose(self, msg: PoseStampedMsg) -> None:
+        goal = NavigateToPose.Goal()
+        goal.pose = msg
+        self._self_client.send_goal_async(goal)
+
+    def _on_accepted(self, goal_handle: Any) -> None:
+        goal_handle.execute()
+
+    def _execute(self, goal_handle: Any) -> Any:
+        """Run one NavigateToPose goal on the simulator: feedback at 10 Hz, result, cancel, preemption."""
+        request = goal_handle.request
+        goal = conv.pose_from_msg(request.pose.pose)
+        with self._sim_lock:
+            handle = self.sim.navigate_to(goal)
+            started = self.sim.now()
+        self.goals_served += 1
+        result = NavigateToPose.Result()
+        while True:
+            with self._sim_lock:
+                status = handle.status()
+                feedback = handle.feedback()
+                if goal_handle.is_cancel_requested and not status.done:
+                    handle.cancel()
+                    self.sim.stop()
+                    status = handle.status() if handle.status().done else ActionStatus.CANCELED
+                now = self.sim.now()
+            if not goal_handle.is_active:
+                return result
+            if status.done or self._stop.is_set():
+                break
+            if feedback is not None:
+                goal_handle.publish_feedback(self._feedback(feedback, now - started))
+            time.sleep(0.1 / self.rate)
+        outcome = handle.result()
+        reason = outcome.reason if outcome is not None else "the simulator stopped"
+        if self._stop.is_set() and not status.done:
+            result.error_code, result.error_msg = NAV2_UNKNOWN, "the simulator was shut down"
+            goal_handle.abort()
+        elif status is ActionStatus.SUCCEEDED:
+            goal_handle.succeed()
+        elif status is ActionStatus.CANCELED and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        else:  # aborted, or preempted by a newer goal (Nav2 ends the older one the same way)
+            result.error_code = (outcome.code if outcome is not None and outcome.code else NAV2_UNKNOWN)
+            result.error_msg = reason
+            goal_handle.abort()
+        return result
+
+    def _feedback(self, fb: Any, elapsed: float) -> Any:
+        msg = NavigateToPose.Feedback()
+        msg.current_pose = conv.pose_stamped_to_msg(fb.current_pose, self.stamp(self.sim.now()),
+                                                    self.profile.frames.map)
+        msg.navigation_time = conv.sec_to_duration(elapsed)
+        speed = self.sim.profile.limits.max_v
+        msg.estimated_time_remaining = conv.sec_to_duration(fb.distance_remaining / speed)
+        msg.number_of_recoveries = int(fb.number_of_recoveries)
+        msg.distance_remaining = float(fb.distance_remaining)
+        return msg
+
+    # ------------------------------------------------------------------------------ sensors out
+
+    def publish_static(self) -> None:
+        """Publish /tf_static (lidar and camera mounts) and /map once; transient local keeps them."""
+        f, sp = self.profile.frames, self.sim.profile
+        stamp = self.stamp(self.sim.now())
+        lidar, cam = sp.lidar.mount, sp.camera.mount
+        scan_frame = sp.lidar.frame_id
+        camera_frame = self.profile.camera.frame
+        transforms = [
+            conv.transform_to_msg(Pose2D(lidar.x, lidar.y, math.radians(lidar.yaw_deg)), stamp, f.base,
+                                  scan_frame),
+            conv.transform_to_msg(Pose2D(cam.x, cam.y, math.radians(cam.yaw_deg)), stamp, f.base,
+                                  camera_frame),
+        ]
+        transforms[0].transform.translation.z = float(lidar.z)
+        transforms[1].transform.translation.z = float(cam.z)
+        optical = TransformStamped()
+        optical.header.stamp = conv.sec_to_time(stamp)
+        optical.header.frame_id = camera_frame
+        optical.child_frame_id = self._optical_frame
+        q = optical.transform.rotation
+        q.x, q.y, q.z, q.w = _OPTICAL
+        transforms.append(optical)
+        self._tf_static_pub.publish(TFMessage(transforms=transforms))
+        grid = self.sim.occupancy()
+        if grid is not None:
+            self._map_pub.publish(conv.occupancy_to_msg(grid, f.map))
+
+    @property
+    def _optical_frame(self) -> str:
+        return f"{self.profile.camera.frame.removesuffix('_frame')}_optical_frame"
+
+    def publish_sensors(self) -> None:
+        """Publish whatever the simulator produced since the last call (call with the sim lock held)."""
+        sim, f = self.sim, self.profile.frames
+        now = sim.now()
+        if now - self._last_odom >= self.odom_period - 1e-9:
+            pose = sim.pose()
+            stamp = self.stamp(pose.stamp)
+            v, w = self._body_velocity(pose.pose, now - self._last_odom)
+            self._odom_pub.publish(conv.odometry_to_msg(pose.pose, v, w, stamp, f.odom, f.base))
+            self._tf_pub.publish(TFMessage(transforms=[
+                conv.transform_to_msg(Pose2D(0.0, 0.0, 0.0), stamp, f.map, f.odom),
+                conv.transform_to_msg(pose.pose, stamp, f.odom, f.base),
+            ]))
+            amcl = PoseWithCovarianceStamped()
+            amcl.header.stamp, amcl.header.frame_id = conv.sec_to_time(stamp), f.map
+            amcl.pose.pose = conv.pose_to_msg(pose.pose)
+            self._amcl_pub.publish(amcl)
+            self._last_odom, self._last_pose = now, pose.pose
+        scan = sim.scan()
+        if scan is not None and scan.stamp > self._last_scan:
+            self._last_scan = scan.stamp
+            msg = conv.scan_to_msg(scan, scan_time=1.0 / sim.profile.lidar.rate)
+            msg.header.stamp = conv.sec_to_time(self.stamp(scan.stamp))
+            self._scan_pub.publish(msg)
+        frame = sim.rgbd()
+        if frame is not None and frame.stamp > self._last_frame:
+            self._last_frame = frame.stamp
+            stamp = self.stamp(frame.stamp)
+            optical = self._optical_frame
+            self._color_pub.publish(conv.image_to_msg(frame.color, "rgb8", stamp, optical))
+            self._info_pub.publish(conv.intrinsics_to_msg(frame.intrinsics, stamp, optical))
+            self._depth_pub.publish(conv.depth_to_msg(frame.depth, stamp, optical, "16UC1"))
+
+    def _body_velocity(self, pose: Pose2D, dt: float) -> tuple[float, float]:
+        """Forward speed and yaw rate since the last odometry message (the estimate's own motion)."""
+        last = self._last_pose
+        if last is None or not 0.0 < dt < math.inf:
+            return 0.0, 0.0
+        dx, dy = pose.x - last.x, pose.y - last.y
+        forward = dx * math.cos(last.yaw) + dy * math.sin(last.yaw)
+        turn = math.atan2(math.sin(pose.yaw - last.yaw), math.cos(pose.yaw - last.yaw))
+        return forward / dt, turn / dt
+
+    # ------------------------------------------------------------------------------ the loop
+
+    def run(self, duration: float | None = None) -> None:
+        """Serve until :meth:`shutdown` (or for ``duration`` wall seconds), paced in real time."""
+        self._spinner.start()
+        with self._sim_lock:
+            self.publish_static()
+            self.publish_sensors()
+        wall0, sim0 = time.monotonic(), self.sim.now()
+        dt = self.sim.profile.physics_dt
+        while not self._stop.is_set():
+            elapsed = time.monotonic() - wall0
+            if duration is not None and elapsed >= duration:
+                break
+            with self._sim_lock:
+                self.sim.spin_until(sim0 + elapsed * self.rate)
+                self.publish_sensors()
+            next_wall = wall0 + (self.sim.now() - sim0 + dt) / self.rate
+            self._stop.wait(max(0.0, next_wall - time.monotonic()))
+
+    def shutdown(self) -> None:
+        """Stop the loop (safe from a signal handler or another thread)."""
+        self._stop.set()
+
+    def close(self) -> None:
+        """Stop serving, end running goals, leave the ROS graph and close the simulator."""
+        self._stop.set()
+        time.sleep(0.2)  # let running goals publish their end
+        self._executor.shutdown(timeout_sec=1.0)
+        self._server.destroy()
+        self.node.destroy_node()
+        if self._context.ok():
+            self._context.try_shutdown()
+        if self._spinner.is_alive():
+            self._spinner.join(timeout=2.0)
+        with self._sim_lock:
+            self.sim.close()
