@@ -161,3 +161,21 @@ def test_patrol_in_a_tree_restarts_after_success() -> None:
     tick_until(root, max_ticks=10)
     tick_until(root, max_ticks=10)
     assert [(g.goal.x, g.goal.y) for g in robot.goals] == [(1.0, 0.0), (1.0, 0.0)]
+
+
+def test_order_list_gives_the_loop_with_repeats(tmp_path: Path) -> None:
+    """A file's `order:` list drives out and back (names repeat), as the combined route does."""
+    path = tmp_path / "c.yaml"
+    path.write_text("waypoints:\n  - {name: P1, pose: [0, 0, 0]}\n  - {name: P2, pose: [1, 0, 0]}\n"
+                    "  - {name: P3, pose: [2, 0, 0]}\norder: [P1, P2, P3, P2]\n")
+    assert [w.name for w in load_waypoints(str(path))] == ["P1", "P2", "P3", "P2"]
+    path.write_text("waypoints:\n  - {name: P1, pose: [0, 0, 0]}\norder: [P1, P9]\n")
+    with pytest.raises(ConfigError, match="unknown waypoints P9"):
+        load_waypoints(str(path))
+
+
+def test_shipped_scenario_routes_load() -> None:
+    """The seed's scenario files load by name: A has 2 waypoints, C the 22-stop combined loop."""
+    assert len(load_waypoints("scenario_a")) == 2
+    route = load_waypoints("scenario_c")
+    assert len(route) == 22 and route[8].name == "P7"

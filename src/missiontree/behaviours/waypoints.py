@@ -9,8 +9,9 @@ Accepted shapes, for a list given inline in a tree or read from a file:
 - the Nav2 RViz panel's saved file: ``waypoints: {waypoint0: {pose: [x, y, z],
   orientation: [x, y, z, w]}, ...}``.
 
-A file holds one of these at its top, under ``waypoints:``, or under ``routes: {name: ...}``
-(several named routes, picked with ``route``). Files are found by path or by name under
+A file holds one of these at its top, under ``waypoints:`` (with an optional ``order:`` list of
+names giving the loop, names may repeat), or under ``routes: {name: ...}`` (several named routes,
+picked with ``route``). Files are found by path or by name under
 ``config/waypoints/`` (:func:`missiontree.paths.find_config`). Bad input raises a ConfigError
 saying where, what was expected and what was found.
 """
@@ -50,7 +51,9 @@ def parse_waypoints(raw: Any, where: str = "waypoints") -> list[Waypoint]:
     Raises:
         ConfigError: The value is empty or an entry has another shape.
     """
+    order = None
     if isinstance(raw, Mapping) and "waypoints" in raw:
+        order = raw.get("order")
         raw = raw["waypoints"]
     if isinstance(raw, Mapping):  # Nav2 panel: {waypoint0: {...}, waypoint1: {...}}
         items = [(str(k), v) for k, v in sorted(raw.items(), key=lambda kv: _natural_key(str(kv[0])))]
@@ -60,7 +63,20 @@ def parse_waypoints(raw: Any, where: str = "waypoints") -> list[Waypoint]:
         raise ConfigError(f"{where}: expected a list of waypoints ({_FORMS}), found {type(raw).__name__}")
     if not items:
         raise ConfigError(f"{where}: expected at least one waypoint, found an empty list")
-    return [_one(name, value, f"{where}[{i}]") for i, (name, value) in enumerate(items)]
+    waypoints = [_one(name, value, f"{where}[{i}]") for i, (name, value) in enumerate(items)]
+    return waypoints if order is None else _ordered(waypoints, order, where)
+
+
+def _ordered(waypoints: list[Waypoint], order: Any, where: str) -> list[Waypoint]:
+    """The patrol loop named by ``order`` (names may repeat: out and back along a corridor)."""
+    by_name = {w.name: w for w in waypoints}
+    if not isinstance(order, Sequence) or isinstance(order, str) or not order:
+        raise ConfigError(f"{where}: expected `order:` to be a list of waypoint names, found {order!r}")
+    unknown = [str(n) for n in order if str(n) not in by_name]
+    if unknown:
+        raise ConfigError(f"{where}: `order:` names unknown waypoints {', '.join(unknown)}; "
+                          f"known: {', '.join(by_name)}")
+    return [by_name[str(n)] for n in order]
 
 
 def load_waypoints(name_or_path: str, route: str | None = None) -> list[Waypoint]:
