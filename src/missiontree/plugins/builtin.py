@@ -32,6 +32,7 @@ NODE_MODULES: list[str] = [
 
 #: Modules whose ``register_providers(providers)`` adds built-in model providers.
 PROVIDER_MODULES: list[str] = [
+    "missiontree.reasoning.providers",
 ]
 
 #: Backend name → ``"module:function"`` of its ``factory(options) -> Robot``.

@@ -42,7 +42,7 @@ import threading
 from collections.abc import Callable, Mapping
 from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from missiontree.errors import ConfigError, MissionTreeError, ModelConfigError
@@ -53,6 +53,8 @@ if TYPE_CHECKING:
 
 #: Key under which a mission's ModelCaller is kept in ``MissionContext.models``.
 CALLER_KEY = "_caller"
+#: Key under which the models hub leaves the :class:`CallSettings` of a models config.
+SETTINGS_KEY = "_calls"
 
 #: Wall-clock seconds the simulator waits for a worker that has not finished at its due time.
 DEFAULT_WALL_TIMEOUT = 300.0
@@ -127,6 +129,23 @@ class LatencyModel:
                 f"{where}: expected 0 <= low <= high seconds, found low={low}, high={high}; "
                 "swap the bounds or use non-negative numbers")
         return cls(low, high)
+
+
+@dataclass(frozen=True)
+class CallSettings:
+    """How a mission's model calls run, from the models config (``latency:``/``timeout:`` per role).
+
+    Attributes:
+        latency: Simulated latency model per role.
+        timeouts: Timeout per role in seconds (None: no timeout).
+        default_timeout: Timeout of roles without their own.
+        workers: Worker threads.
+    """
+
+    latency: Mapping[str, LatencyModel | None] = field(default_factory=dict)
+    timeouts: Mapping[str, float | None] = field(default_factory=dict)
+    default_timeout: float | None = 30.0
+    workers: int = 2
 
 
 class ModelCall:
@@ -330,11 +349,13 @@ class ModelCaller:
         self._lock = threading.Lock()
 
     @classmethod
-    def for_context(cls, context: MissionContext, **kwargs: Any) -> ModelCaller:
-        """A caller on the context's robot clock, events, models and seed."""
+    def for_context(cls, context: MissionContext, settings: CallSettings | None = None) -> ModelCaller:
+        """A caller on the context's robot clock, events, models and seed, with ``settings``."""
         robot = context.robot
+        settings = settings or CallSettings()
         return cls(robot.now, context.events, simulated=bool(getattr(robot, "simulated", False)),
-                   models=context.models, seed=context.seed, **kwargs)
+                   latency=settings.latency, timeouts=settings.timeouts, models=context.models,
+                   seed=context.seed, workers=settings.workers, default_timeout=settings.default_timeout)
 
     def submit(
         self,
@@ -416,10 +437,19 @@ class ModelCaller:
 
 
 def model_caller(context: MissionContext) -> ModelCaller:
-    """The mission's ModelCaller (built by the models hub, or made on first use and kept)."""
+    """The mission's ModelCaller, made on first use from the context and the models config's settings.
+
+    On first use it also binds providers that need the robot (those with a ``bind(robot)`` method,
+    such as the simulation oracle detector) to ``context.robot``.
+    """
     caller = context.models.get(CALLER_KEY)
     if not isinstance(caller, ModelCaller):
-        caller = ModelCaller.for_context(context)
+        settings = context.models.get(SETTINGS_KEY)
+        caller = ModelCaller.for_context(context, settings if isinstance(settings, CallSettings) else None)
+        for role, provider in list(context.models.items()):
+            bind = getattr(provider, "bind", None) if not role.startswith("_") else None
+            if callable(bind):
+                bind(context.robot)
         context.models[CALLER_KEY] = caller
     return caller
 

@@ -1,0 +1,260 @@
+"""The models hub: a models config (config/models/*.yaml) → model providers by role.
+
+A models config names, for each role a mission uses, the provider and its options, and optionally
+the role's simulated latency and timeout::
+
+    roles:
+      detector:
+        provider: sim_detector            # a provider registered through the plugin hooks
+      vlm:
+        provider: offline_vlm
+        detector: detector                # another role this provider uses
+        latency: {uniform: [0.5, 3.0]}    # simulated seconds (seed 001's cloud VLM)
+        timeout: 10
+      embedder:
+        provider: minilm
+    calls:                                # optional
+      timeout: 30                         # default timeout of every role
+      workers: 2
+
+Everything in a role's section except ``provider``, ``latency`` and ``timeout`` is handed to the
+provider's factory. A factory with the attribute ``wants_models = True`` is called as
+``factory(options, models=built, seed=seed)`` and may look up the roles its options name (they
+are built first).
+
+:func:`build_models` checks the whole file first and reports every problem with file:line:col
+(a :class:`~missiontree.errors.ProblemsError`, exit code 2). A provider that fails to *build*
+(a missing model file, an unset API key, a missing extra) does not stop the run: its role holds a
+:class:`BrokenProvider` that raises the reason when used, so a mission that needs it fails with
+the reason in the tick log and a mission that does not runs on. ``missiontree models`` shows
+the same reasons.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from missiontree.errors import ConfigError, MissionTreeError, ModelError, Problem, ProblemsError
+from missiontree.paths import available, find_config
+from missiontree.reasoning.calls import SETTINGS_KEY, CallSettings, LatencyModel
+from missiontree.yamlio import Located, load_yaml, parse_yaml
+
+#: The models config used when none is given.
+DEFAULT_MODELS = "offline"
+
+_ROLE_KEYS = {"provider", "latency", "timeout"}
+_CALLS_KEYS = {"timeout", "workers"}
+_TIMEOUT_EXPECTED = "expected a positive number of seconds or null, found {!r}"
+
+
+class BrokenProvider:
+    """Stands in for a provider that could not be built; every use raises the reason.
+
+    Attributes:
+        role: The role it was configured for.
+        name: The provider name from the config.
+        reason: Why it could not be built (names the provider and the fix).
+    """
+
+    labels: list[str] = []
+
+    def __init__(self, role: str, name: str, reason: str) -> None:
+        self.role = role
+        self.name = name
+        self.reason = reason
+
+    def _fail(self, *args: Any, **kwargs: Any) -> Any:
+        raise ModelError(f"model role {self.role!r} (provider {self.name!r}) is unusable: {self.reason}")
+
+    ask = chat = embed = detect = detect_frame = check = _fail
+
+    def __repr__(self) -> str:
+        return f"BrokenProvider(role={self.role!r}, name={self.name!r})"
+
+
+def load_models_config(models: str | os.PathLike[str] | Mapping[str, Any] | None) -> Located:
+    """Read a models config: a shipped name (``offline``), a path, or data already in memory."""
+    if isinstance(models, Mapping):
+        import yaml
+
+        text = yaml.safe_dump(dict(models), sort_keys=False)
+        return parse_yaml(text, "<models config>", error=ProblemsError)
+    path = find_config("models", models if models is not None else DEFAULT_MODELS)
+    return load_yaml(path, error=ProblemsError)
+
+
+def build_models(
+    models: str | os.PathLike[str] | Mapping[str, Any] | None = None,
+    providers: Mapping[str, Any] | None = None,
+    seed: int = 0,
+) -> dict[str, Any]:
+    """Build every role of a models config.
+
+    Args:
+        models: A shipped models config name, a path, or the config as data; default ``offline``.
+        providers: Provider name → factory (from the plugin hooks); default: every loaded plugin's.
+        seed: Run seed, handed to factories that want the models (``wants_models``).
+
+    Returns:
+        Role → provider, plus the :class:`CallSettings` under ``calls.SETTINGS_KEY``.
+
+    Raises:
+        ProblemsError: The file is malformed (every problem, with file:line:col).
+    """
+    if providers is None:
+        from missiontree.plugins.manager import load_plugins
+
+        providers = load_plugins().providers
+    document = load_models_config(models)
+    roles, settings = check_models_config(document, providers)
+    built: dict[str, Any] = {}
+    for role in _build_order(roles):
+        built[role] = _build_role(role, roles[role], providers, built, seed)
+    built[SETTINGS_KEY] = settings
+    return built
+
+
+def check_models_config(
+    document: Located, providers: Mapping[str, Any]
+) -> tuple[dict[str, dict[str, Any]], CallSettings]:
+    """Check a models config whole; return its role sections and call settings.
+
+    Raises:
+        ProblemsError: Every problem found.
+    """
+    problems: list[Problem] = []
+    data = document.data
+    if not isinstance(data, dict):
+        found = type(data).__name__
+        raise ProblemsError([document.problem_at((), f"expected a mapping with 'roles:', found {found}")])
+    for key in data:
+        if key not in {"roles", "calls"}:
+            problems.append(document.problem_at((key,), f"unknown section {key!r}; expected roles or calls",
+                                                "put each role under roles:", key=True))
+    raw_roles = data.get("roles")
+    if not isinstance(raw_roles, dict) or not raw_roles:
+        problems.append(document.problem_at(("roles",), "expected 'roles:' mapping each role to a provider",
+                                            "e.g. roles: {vlm: {provider: offline_vlm}}"))
+        raise ProblemsError(problems)
+    roles: dict[str, dict[str, Any]] = {}
+    latency: dict[str, LatencyModel | None] = {}
+    timeouts: dict[str, float | None] = {}
+    known = ", ".join(sorted(providers)) or "none"
+    for role, section in raw_roles.items():
+        path = ("roles", role)
+        if role.startswith("_"):
+            problems.append(document.problem_at(path, f"role names may not start with '_' (found {role!r})",
+                                                key=True))
+            continue
+        if not isinstance(section, dict):
+            problems.append(document.problem_at(
+                path, f"expected a mapping with 'provider:', found {section!r}",
+                "e.g. vlm: {provider: offline_vlm}"))
+            continue
+        name = section.get("provider")
+        if not isinstance(name, str):
+            problems.append(document.problem_at(path, "expected 'provider: <name>'",
+                                                f"known providers: {known}"))
+        elif name not in providers:
+            problems.append(document.problem_at((*path, "provider"), f"unknown model provider {name!r}",
+                                                f"known providers: {known}; a plugin may provide others"))
+        try:
+            latency[role] = LatencyModel.parse(section.get("latency"), "latency")
+        except ConfigError as exc:
+            problems.append(document.problem_at((*path, "latency"), str(exc)))
+        timeout = section.get("timeout", "default")
+        if timeout != "default":
+            if not _is_timeout(timeout):
+                problems.append(document.problem_at((*path, "timeout"), _TIMEOUT_EXPECTED.format(timeout)))
+            else:
+                timeouts[role] = float(timeout) if timeout is not None else None
+        roles[role] = section
+    calls = data.get("calls") or {}
+    default_timeout: float | None = 30.0
+    workers = 2
+    if not isinstance(calls, dict):
+        problems.append(document.problem_at(("calls",), f"expected a mapping, found {calls!r}"))
+    else:
+        for key in calls:
+            if key not in _CALLS_KEYS:
+                problems.append(document.problem_at(("calls", key), f"unknown option {key!r}",
+                                                    f"known: {', '.join(sorted(_CALLS_KEYS))}", key=True))
+        if "timeout" in calls:
+            value = calls["timeout"]
+            if not _is_timeout(value):
+                problems.append(document.problem_at(("calls", "timeout"), _TIMEOUT_EXPECTED.format(value)))
+            else:
+                default_timeout = float(value) if value is not None else None
+        if "workers" in calls:
+            value = calls["workers"]
+            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 32:
+                problems.append(document.problem_at(("calls", "workers"),
+                                                    f"expected a whole number from 1 to 32, found {value!r}"))
+            else:
+                workers = value
+    if problems:
+        raise ProblemsError(problems)
+    settings = CallSettings(latency=latency, timeouts=timeouts, default_timeout=default_timeout,
+                            workers=workers)
+    return roles, settings
+
+
+def _is_timeout(value: Any) -> bool:
+    return value is None or (isinstance(value, int | float) and not isinstance(value, bool) and value > 0)
+
+
+def _build_order(roles: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """Roles in file order, each after the roles its options name (cycles keep file order)."""
+    order: list[str] = []
+    visiting: set[str] = set()
+
+    def visit(role: str) -> None:
+        if role in order or role in visiting:
+            return
+        visiting.add(role)
+        for key, value in roles[role].items():
+            if key not in _ROLE_KEYS and isinstance(value, str) and value in roles and value != role:
+                visit(value)
+        visiting.discard(role)
+        order.append(role)
+
+    for role in roles:
+        visit(role)
+    return order
+
+
+def _build_role(role: str, section: Mapping[str, Any], providers: Mapping[str, Any],
+                built: Mapping[str, Any], seed: int) -> Any:
+    from missiontree.plugins.builtin import resolve_factory
+
+    name = str(section["provider"])
+    options = {k: v for k, v in section.items() if k not in _ROLE_KEYS}
+    try:
+        factory = resolve_factory("provider", name, providers[name])
+        if getattr(factory, "wants_models", False):
+            return factory(options, models=built, seed=seed)
+        return factory(options)
+    except (MissionTreeError, ImportError, ValueError, TypeError, OSError) as exc:
+        reason = str(exc) if isinstance(exc, MissionTreeError) else f"{type(exc).__name__}: {exc}"
+        return BrokenProvider(role, name, reason)
+
+
+def model_roles(models: Mapping[str, Any]) -> dict[str, Any]:
+    """The providers of a built models dict, without the hub's reserved entries."""
+    return {role: provider for role, provider in models.items() if not role.startswith("_")}
+
+
+def shipped_models_configs() -> list[str]:
+    """Names of the models configs found on the config search path."""
+    return available("models")
+
+
+def describe_source(models: str | os.PathLike[str] | Mapping[str, Any] | None) -> str:
+    """Where a models config comes from, for messages."""
+    if isinstance(models, Mapping):
+        return "<models config>"
+    return str(find_config("models", models if models is not None else DEFAULT_MODELS)
+               if not isinstance(models, Path) else models)
