@@ -25,6 +25,7 @@ SUBCOMMANDS: list[str] = [
     "missiontree.cli.validate",
     "missiontree.cli.render",
     "missiontree.cli.schema",
+    "missiontree.cli.models",
     "missiontree.cli.sim_ros",
 ]
 

@@ -90,6 +90,7 @@ def build_models(
     models: str | os.PathLike[str] | Mapping[str, Any] | None = None,
     providers: Mapping[str, Any] | None = None,
     seed: int = 0,
+    strict: bool | None = None,
 ) -> dict[str, Any]:
     """Build every role of a models config.
 
@@ -97,6 +98,8 @@ def build_models(
         models: A shipped models config name, a path, or the config as data; default ``offline``.
         providers: Provider name → factory (from the plugin hooks); default: every loaded plugin's.
         seed: Run seed, handed to factories that want the models (``wants_models``).
+        strict: Whether an unknown provider name is a problem of the file (default: when ``models``
+            was given); otherwise its role holds a :class:`BrokenProvider` saying so.
 
     Returns:
         Role → provider, plus the :class:`CallSettings` under ``calls.SETTINGS_KEY``.
@@ -109,7 +112,9 @@ def build_models(
 
         providers = load_plugins().providers
     document = load_models_config(models)
-    roles, settings = check_models_config(document, providers)
+    # The default config must not stop missions that use no model when a provider is missing.
+    roles, settings = check_models_config(document, providers, strict=models is not None if strict is None
+                                          else strict)
     built: dict[str, Any] = {}
     for role in _build_order(roles):
         built[role] = _build_role(role, roles[role], providers, built, seed)
@@ -118,9 +123,11 @@ def build_models(
 
 
 def check_models_config(
-    document: Located, providers: Mapping[str, Any]
+    document: Located, providers: Mapping[str, Any], strict: bool = True
 ) -> tuple[dict[str, dict[str, Any]], CallSettings]:
     """Check a models config whole; return its role sections and call settings.
+
+    With ``strict=False`` an unknown provider name is not a problem (its role will be broken).
 
     Raises:
         ProblemsError: Every problem found.
@@ -158,7 +165,7 @@ def check_models_config(
         if not isinstance(name, str):
             problems.append(document.problem_at(path, "expected 'provider: <name>'",
                                                 f"known providers: {known}"))
-        elif name not in providers:
+        elif name not in providers and strict:
             problems.append(document.problem_at((*path, "provider"), f"unknown model provider {name!r}",
                                                 f"known providers: {known}; a plugin may provide others"))
         try:
@@ -232,6 +239,10 @@ def _build_role(role: str, section: Mapping[str, Any], providers: Mapping[str, A
 
     name = str(section["provider"])
     options = {k: v for k, v in section.items() if k not in _ROLE_KEYS}
+    if name not in providers:
+        known = ", ".join(sorted(providers)) or "none"
+        return BrokenProvider(role, name, f"unknown model provider {name!r} (known: {known}); install the "
+                              "plugin that provides it or pick a known one in the models config")
     try:
         factory = resolve_factory("provider", name, providers[name])
         if getattr(factory, "wants_models", False):

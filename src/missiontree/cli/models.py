@@ -1,0 +1,116 @@
+"""``missiontree models``: list the configured model providers and check that each one is usable.
+
+For every role of a models config (config/models/*.yaml, default ``offline``) it builds the
+provider and checks it — loads the model, pings the server (the provider's ``check()``; a detector
+without one is run on a blank frame) — and prints one line per role. Exit code 0 when every role is
+usable, 1 when one is not (its line says why and how to fix it), 2 when the config itself is broken.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from typing import Any
+
+import numpy as np
+
+from missiontree.cli import add_plugin_flag, plugins_from_args, print_json
+from missiontree.reasoning.calls import SETTINGS_KEY, CallSettings
+from missiontree.reasoning.hub import (
+    DEFAULT_MODELS,
+    build_models,
+    describe_source,
+    load_models_config,
+    model_roles,
+)
+
+EXIT_UNUSABLE = 1
+_BLANK = np.zeros((64, 64, 3), dtype=np.uint8)
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``models`` subcommand."""
+    parser = subparsers.add_parser(
+        "models", help="list the configured model providers and check each one",
+        description="Build every role of a models config, check each provider (load the model, ping "
+        "the server) and print one line per role. Exit 0 when all are usable, 1 otherwise.",
+    )
+    parser.add_argument("--models",
+                        help=f"models config: a shipped name or a path (default: {DEFAULT_MODELS})")
+    parser.add_argument("--no-check", action="store_true", help="list the providers without checking them")
+    parser.add_argument("--json", action="store_true", help="print the result as JSON")
+    add_plugin_flag(parser)
+    parser.set_defaults(func=run)
+
+
+def check_provider(provider: Any) -> str:
+    """Check one provider; return its one-line description (raises with the reason when unusable)."""
+    check = getattr(provider, "check", None)
+    if callable(check):
+        return str(check())
+    detect = getattr(provider, "detect", None)
+    if callable(detect):
+        detect(_BLANK)
+        labels = list(getattr(provider, "labels", []) or [])
+        more = " ..." if len(labels) > 8 else ""
+        return f"detector with {len(labels)} labels: {', '.join(labels[:8])}{more}"
+    return f"{type(provider).__name__} (no check available)"
+
+
+def run(args: argparse.Namespace) -> int:
+    """List and check the providers; return 0 when all are usable."""
+    plugins = plugins_from_args(args)
+    name = args.models if args.models is not None else DEFAULT_MODELS
+    document = load_models_config(name)
+    models = build_models(name, plugins.providers, strict=False)  # unknown providers become rows
+    settings = models.get(SETTINGS_KEY)
+    settings = settings if isinstance(settings, CallSettings) else CallSettings()
+    rows: list[dict[str, Any]] = []
+    providers = model_roles(models)
+    for role, section in document.data["roles"].items():
+        provider = providers[role]
+        latency = settings.latency.get(role)
+        row: dict[str, Any] = {
+            "role": role,
+            "provider": str(section.get("provider")),
+            "plugin": plugins.provided_by("providers", str(section.get("provider"))),
+            "timeout": settings.timeouts.get(role, settings.default_timeout),
+            "latency": None if latency is None else [latency.low, latency.high],
+        }
+        if args.no_check:
+            row["status"] = "unchecked"
+        else:
+            start = time.perf_counter()
+            try:
+                row["detail"] = check_provider(provider)
+                row["status"] = "ok"
+            except Exception as exc:  # noqa: BLE001 - any failure is this provider's verdict, shown in full
+                row["status"] = "unusable"
+                row["error"] = str(exc) if str(exc) else type(exc).__name__
+            row["check_seconds"] = round(time.perf_counter() - start, 3)
+        rows.append(row)
+    usable = all(r["status"] != "unusable" for r in rows)
+    if args.json:
+        print_json({"config": describe_source(name), "usable": usable, "roles": rows})
+    else:
+        print(f"models config: {describe_source(name)}")
+        width = max((len(r["role"]) for r in rows), default=4)
+        pwidth = max((len(r["provider"]) for r in rows), default=8)
+        for r in rows:
+            timing = _timing(r)
+            text = r.get("detail") or r.get("error") or ""
+            print(f"  {r['role']:<{width}}  {r['provider']:<{pwidth}}  {r['status']:<9} {text}{timing}")
+        bad = [r["role"] for r in rows if r["status"] == "unusable"]
+        print("all providers usable" if usable else f"unusable: {', '.join(bad)}")
+    return 0 if usable else EXIT_UNUSABLE
+
+
+def _timing(row: dict[str, Any]) -> str:
+    parts = []
+    if row.get("latency") is not None:
+        low, high = row["latency"]
+        parts.append(f"simulated latency {low:g} s" if low == high
+                     else f"simulated latency {low:g}-{high:g} s")
+    if row.get("timeout") is not None:
+        parts.append(f"timeout {row['timeout']:g} s")
+    return f"  [{', '.join(parts)}]" if parts else ""
