@@ -399,8 +399,11 @@ class _Loader:
             self.files.append(resolved)
         if not self._check_top(sub_doc, is_subtree=True):
             return None
-        site = doc.child(params_path)
+        site = doc.view(params_path, params)
+        before = len(self.problems)
         values = self._declared_params(sub_doc, given, (site, path))
+        if len(self.problems) > before:
+            return None  # the subtree cannot be checked meaningfully with wrong parameters
         line = doc.position((*params_path, "file"))[0]
         sub = _File(resolved, sub_doc, values, (*file.chain, f"{doc.file}:{line}"),
                     (*file.resolved_chain, resolved))
@@ -475,7 +478,7 @@ class _Loader:
             key_path, f"expected a reference to a declared parameter ({', '.join(known) or 'none'}), "
             f"found ${{{name}}}",
             f"did you mean ${{{near[0]}}}?" if near else "declare it under `params:` at the top of the file "
-            "(write $${ for a literal ${)", where=where))
+            "(write $${ for a literal ${)"))
         return False
 
 

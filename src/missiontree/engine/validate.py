@@ -13,6 +13,7 @@ Each problem reads ``file:line:col: node path: expected …, found … (hint: �
 from __future__ import annotations
 
 import difflib
+import re
 import types
 import typing
 from dataclasses import dataclass
@@ -24,6 +25,8 @@ from missiontree.engine.ports import BlackboardRef, ports_of
 from missiontree.engine.registry import NodeRegistry, NodeType
 from missiontree.engine.spec import CHILD_KEY, CHILDREN_KEY, MissionSpec, NodeSpec
 from missiontree.errors import Problem
+
+_UNRESOLVED = re.compile(r"(?<!\$)\$\{[^}]*\}")
 
 
 @dataclass(frozen=True)
@@ -93,6 +96,8 @@ def validate_params(
             loc = tuple(err["loc"])
             if err["type"] == "missing" and loc and loc[0] in refs:
                 continue
+            if isinstance(err.get("input"), str) and _UNRESOLVED.search(err["input"]):
+                continue  # an unknown ${param}: the loader reported it where it was written
             issues.append(_issue(model, err))
     if issues:
         return None, issues
@@ -200,7 +205,7 @@ def _unknown_type(node: NodeSpec, registry: NodeRegistry) -> Problem:
     near = registry.nearest(node.type)
     if near:
         named = ", ".join(f"{n} (from {registry.get(n).provider})" for n in near)  # type: ignore[union-attr]
-        hint = f"did you mean {named}? `missiontree nodes` lists every type"
+        hint = f"did you mean {named}? If a plugin provides it, install it (`missiontree plugins` lists them)"
     else:
         hint = "`missiontree nodes` lists every known type; a plugin that provides it may not be installed"
     return Problem(node.source.file, node.source.line, node.source.col, node.path,
