@@ -54,6 +54,8 @@ try:
 except ImportError:  # pragma: no cover
     TFMessage = None
 
+#: Rate at which a drive() command is repeated until stop(), navigate_to() or another drive().
+DRIVE_REPEAT_HZ = 10.0
 #: Largest gap (s) between a requested stamp and the scan ``scan_at`` returns.
 SCAN_MATCH_GAP = 0.5
 
@@ -111,6 +113,7 @@ class Ros2Robot:
         self._rgbd: RGBDFrame | None = None
         self._mount_yaws: dict[str, float] = {}
         self._goal: NavGoal | None = None
+        self._drive_command: tuple[float, float] | None = None
         self._subscribe()
         self._advertise()
         self.world = WorldPublisher(self.node, profile.topics)
@@ -162,7 +165,7 @@ class Ros2Robot:
             self._goal_pub = node.create_publisher(PoseStampedMsg, t.goal_pose, reliable_qos())
             self._cancel_client = node.create_client(CancelGoal, p.nav_cancel_service)
             node.create_subscription(GoalStatusArray, p.nav_status_topic, self._on_nav_status, latched_qos())
-        node.create_timer(0.1, self._advance_goal)
+        node.create_timer(1.0 / DRIVE_REPEAT_HZ, self._on_timer)
 
     def _spin(self) -> None:
         try:
@@ -241,7 +244,10 @@ class Ros2Robot:
         if isinstance(goal, TopicGoal):
             goal.on_status(msg)
 
-    def _advance_goal(self) -> None:
+    def _on_timer(self) -> None:
+        command = self._drive_command
+        if command is not None:  # bases stop when commands stop coming (Create 3's cmd_vel timeout)
+            self._publish_velocity(*command)
         goal = self._goal
         if goal is not None:
             goal.advance()
@@ -338,8 +344,9 @@ class Ros2Robot:
     # ------------------------------------------------------------------------------ Robot: motion
 
     def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> ActionHandle:
-        """Send a NavigateToPose goal; the previous goal is cancelled (preempted)."""
+        """Send a NavigateToPose goal; the previous goal is cancelled (preempted), a drive() ends."""
         nav = self.profile.navigation
+        self._drive_command = None
         previous = self._goal
         if previous is not None and not previous.done:
             if isinstance(previous, TopicGoal):
@@ -383,10 +390,14 @@ class Ros2Robot:
             goal.within_tolerance()
 
     def drive(self, v: float, w: float) -> None:
-        """Publish a velocity command on cmd_vel (a running goal is cancelled: this overrides it)."""
+        """Command body velocity on cmd_vel, repeated at 10 Hz until stopped, sent a goal or changed.
+
+        A running goal is cancelled: with Nav2 the controller would fight the command.
+        """
         goal = self._goal
         if goal is not None and not goal.done and (v != 0.0 or w != 0.0):
             goal.cancel()
+        self._drive_command = (float(v), float(w))
         self._publish_velocity(v, w)
 
     def _publish_velocity(self, v: float, w: float) -> None:
@@ -399,6 +410,7 @@ class Ros2Robot:
 
     def stop(self) -> None:
         """Cancel navigation and publish zero velocity; always safe, idempotent."""
+        self._drive_command = None
         goal = self._goal
         if goal is not None and not goal.done:
             goal.cancel()

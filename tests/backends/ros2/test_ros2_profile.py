@@ -1,0 +1,62 @@
+"""ROS 2 backend profiles: the shipped files, overrides, clear errors (runs without ROS)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from missiontree.backends.ros2 import profile_from_options
+from missiontree.backends.ros2.profile import load_profile
+from missiontree.errors import ConfigError
+
+
+def test_turtlebot4_profile_names_the_turtlebot4_topics() -> None:
+    """The default profile subscribes to the TurtleBot 4's topics and sends TwistStamped (Jazzy)."""
+    p = load_profile()
+    assert (p.topics.scan, p.topics.odom, p.topics.cmd_vel) == ("/scan", "/odom", "/cmd_vel")
+    assert p.topics.color == "/oakd/rgb/preview/image_raw"
+    assert p.cmd_vel_stamped is True
+    assert p.nav_status_topic == "/navigate_to_pose/_action/status"
+    assert p.nav_cancel_service == "/navigate_to_pose/_action/cancel_goal"
+
+
+def test_realsense_profile_uses_aligned_depth_and_plain_twist() -> None:
+    """NAIS's RealSense rig: aligned depth, /camera/color topics, Twist; the rest stays TurtleBot 4."""
+    p = load_profile("realsense")
+    assert p.topics.depth == "/camera/aligned_depth_to_color/image_raw"
+    assert p.topics.color_info == "/camera/color/camera_info"
+    assert p.cmd_vel_stamped is False
+    assert p.topics.scan == "/scan"
+
+
+def test_run_config_ros2_section_overrides_key_by_key() -> None:
+    """A ``ros2:`` mapping in the run config changes only the keys it names."""
+    p = profile_from_options({"config": {"ros2": {"topics": {"scan": "/robot1/scan"},
+                                                   "navigation": {"server_timeout": 1.5}}},
+                              "domain_id": 42})
+    assert p.topics.scan == "/robot1/scan" and p.topics.odom == "/odom"
+    assert p.navigation.server_timeout == 1.5 and p.navigation.action == "/navigate_to_pose"
+    assert p.domain_id == 42
+
+
+def test_misspelt_key_is_reported_with_file_and_key(tmp_path: Path) -> None:
+    """An unknown key inside a section names the file, the key path and where to look."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("topics:\n  scann: /scan\n")
+    with pytest.raises(ConfigError, match=r"bad\.yaml.*topics\.scann.*turtlebot4\.yaml"):
+        load_profile(bad)
+
+
+def test_wrong_type_is_reported(tmp_path: Path) -> None:
+    """A value of the wrong type names the key and what was found."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("navigation:\n  interface: carrier-pigeon\n")
+    with pytest.raises(ConfigError, match=r"navigation\.interface.*carrier-pigeon"):
+        load_profile(bad)
+
+
+def test_unknown_profile_name_lists_the_known_ones() -> None:
+    """A profile name that does not exist lists the shipped ones."""
+    with pytest.raises(ConfigError, match="turtlebot4"):
+        load_profile("no-such-robot")
