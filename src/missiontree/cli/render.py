@@ -82,15 +82,16 @@ def unicode_tree(spec: MissionSpec) -> str:
     """The tree as indented text with box-drawing lines."""
     lines: list[str] = []
 
-    def visit(node: NodeSpec, prefix: str, connector: str, child_prefix: str) -> None:
+    def visit(node: NodeSpec, prefix: str, connector: str, child_prefix: str, parent_file: str) -> None:
         extra = params_text(node)
-        origin = f"  [{Path(node.source.file).name}]" if node.source.included_from else ""
+        origin = f"  [from {node.source.file}]" if node.source.file != parent_file else ""
         lines.append(f"{prefix}{connector}{label(node)}{'  ' + extra if extra else ''}{origin}")
         for i, child in enumerate(node.children):
             last = i == len(node.children) - 1
-            visit(child, prefix + child_prefix, "└── " if last else "├── ", "    " if last else "│   ")
+            visit(child, prefix + child_prefix, "└── " if last else "├── ", "    " if last else "│   ",
+                  node.source.file)
 
-    visit(spec.root, "", "", "")
+    visit(spec.root, "", "", "", spec.root.source.file)
     return "\n".join(lines) + "\n"
 
 

@@ -222,13 +222,13 @@ class _Loader:
                         f"{name!r}, found none",
                         f"add `params: {{{name}: ...}}` to the Include", where=where))
             values.update(given)
-        else:
-            for name in required:
-                self.problems.append(doc.problem_at(
-                    ("required",), f"expected a default for parameter {name!r}, found none (a "
-                    "mission file is not included by anything that could give it)", "declare it as `params: "
-                    f"{{{name}: ...}}`",
-                    where=""))
+        elif required:
+            self.problems.append(doc.problem_at(
+                ("required",), f"expected a mission file, found a subtree with required parameters "
+                f"({', '.join(required)})", "check a mission that includes it, or give the parameters "
+                "defaults under `params:`", where=""))
+            # keep ${name} as written so the rest of the file is still checked without noise
+            values.update({name: f"${{{name}}}" for name in required})
         return values
 
     def _blackboard(self, file: _File) -> dict[str, Any]:
