@@ -1,0 +1,127 @@
+"""Tests of the offline intent stand-in and reference parsing."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from missiontree.errors import ModelError
+from missiontree.reasoning.checks import chat_checked
+from missiontree.reasoning.embedder import MiniLMEmbedder
+from missiontree.reasoning.offline_llm import OfflineLanguageModel
+from missiontree.reasoning.phrases import parse_reference, split_relation
+from missiontree.reasoning.prompts import intent_messages
+from missiontree.reasoning.protocols import Message
+from missiontree.reasoning.schemas import IntentResolution, ReferenceParse
+
+LABELS = ["bottle", "cup", "sofa", "chair", "backpack", "laptop", "sink", "tv", "book"]
+
+
+@pytest.fixture(scope="module")
+def llm() -> OfflineLanguageModel:
+    return OfflineLanguageModel(MiniLMEmbedder())
+
+
+def obj(id_: str, label: str, x: float, y: float, *attributes: str, **extra: Any) -> dict[str, Any]:
+    return {"id": id_, "label": label, "x": x, "y": y, "attributes": list(attributes), **extra}
+
+
+SCENE = [
+    obj("bottle_1", "bottle", 1.0, 0.0, "pink", room="kitchen"),
+    obj("cup_1", "cup", 1.5, 0.5, "white", room="kitchen"),
+    obj("sink_1", "sink", 2.0, 0.0, "grey", room="kitchen"),
+    obj("sofa_1", "sofa", 6.0, 4.0, "green", room="office", yaw=0.0),
+    obj("laptop_1", "laptop", 7.0, 4.0, "grey", room="office"),
+    obj("laptop_2", "laptop", 5.0, 4.0, "black", room="office"),
+    obj("backpack_1", "backpack", 3.0, 3.0, "grey", room="office"),
+    obj("backpack_2", "backpack", 8.0, 1.0, "red", room="office"),
+    obj("chair_1", "chair", 4.0, 2.0, "blue", room="office"),
+    obj("tv_1", "tv", 9.0, 4.0, "black", room="office"),
+]
+
+
+def resolve(llm: OfflineLanguageModel, request: str) -> IntentResolution:
+    return IntentResolution.model_validate_json(llm.chat(intent_messages(request, SCENE), IntentResolution))
+
+
+def test_thirsty_names_bottle_and_cup(llm: OfflineLanguageModel) -> None:
+    """"I am thirsty" names the bottle and the cup (NAIS Table II), not the sink."""
+    assert set(resolve(llm, "I am thirsty").candidates) == {"bottle_1", "cup_1"}
+
+
+def test_need_with_nothing_serving_it_names_nothing(llm: OfflineLanguageModel) -> None:
+    """A need no scene object serves gives no candidates and says why."""
+    answer = resolve(llm, "I need to recharge the car battery with jumper cables")
+    assert answer.candidates == [] and "no object in the scene serves" in answer.reason
+
+
+def test_grey_backpack_picks_the_grey_one(llm: OfflineLanguageModel) -> None:
+    """"I want the grey backpack" names only the grey backpack, with the parsed reference."""
+    answer = resolve(llm, "I want the grey backpack")
+    assert answer.candidates == ["backpack_1"]
+    assert answer.reference == ReferenceParse(label="backpack", attributes=["grey"])
+
+
+def test_colour_synonym_and_plural(llm: OfflineLanguageModel) -> None:
+    """"gray" folds to grey and "laptops" to laptop."""
+    assert resolve(llm, "show me the gray laptops").candidates == ["laptop_1"]
+
+
+def test_missing_attribute_names_nothing(llm: OfflineLanguageModel) -> None:
+    """A purple backpack that does not exist gives no candidates and lists what exists."""
+    answer = resolve(llm, "bring me the purple backpack")
+    assert answer.candidates == [] and "'grey', 'red'" in answer.reason
+
+
+def test_in_front_of_uses_the_anchor_heading(llm: OfflineLanguageModel) -> None:
+    """"the laptop in front of the sofa" picks the laptop ahead of the sofa (yaw 0 faces +x), not behind."""
+    answer = resolve(llm, "find the laptop in front of the sofa")
+    assert answer.candidates == ["laptop_1"]
+    assert answer.reference is not None and answer.reference.relation == "in_front_of"
+
+
+def test_behind_picks_the_other_side(llm: OfflineLanguageModel) -> None:
+    """"behind the sofa" picks the laptop on the sofa's back side."""
+    assert resolve(llm, "the laptop behind the couch").candidates == ["laptop_2"]
+
+
+def test_in_a_room_filters_by_room(llm: OfflineLanguageModel) -> None:
+    """"the cup in the kitchen" filters by the objects' room."""
+    assert resolve(llm, "the cup in the kitchen").candidates == ["cup_1"]
+
+
+def test_answers_pass_grounding_checks(llm: OfflineLanguageModel) -> None:
+    """The stand-in's answers name only ids of the scene, so the checks pass first time."""
+    ids = {o["id"] for o in SCENE}
+    answer = chat_checked(llm, intent_messages("I am bored", SCENE), IntentResolution, valid_ids=ids)
+    assert answer.attempts == 1 and answer.value.candidates
+
+
+def test_unreadable_conversation_names_the_fix(llm: OfflineLanguageModel) -> None:
+    """A conversation not built by intent_messages is refused, naming what to use instead."""
+    with pytest.raises(ModelError, match="offline_llm: cannot read the conversation.*intent_messages"):
+        llm.chat([Message("user", "hello")], IntentResolution)
+
+
+def test_reference_parse_schema(llm: OfflineLanguageModel) -> None:
+    """Asked for a ReferenceParse, it returns the parsed phrase."""
+    text = llm.chat(intent_messages("the red backpack next to the chair", SCENE), ReferenceParse)
+    assert ReferenceParse.model_validate_json(text) == ReferenceParse(
+        label="backpack", attributes=["red"], relation="next_to", anchor="chair")
+
+
+def test_split_relation_prefers_the_longest_phrase() -> None:
+    """"in front of" wins over "in" at the same place."""
+    assert split_relation("the laptop in front of the sofa") == ("the laptop", "in_front_of", "the sofa")
+
+
+def test_parse_reference_without_a_known_label_is_none() -> None:
+    """A need names no label, so it is not a reference."""
+    assert parse_reference("I am thirsty", LABELS) is None
+
+
+def test_parse_reference_reads_size_and_synonyms() -> None:
+    """"the big mug near the couch" → cup, large, near sofa."""
+    assert parse_reference("the big mug near the couch", LABELS) == ReferenceParse(
+        label="cup", attributes=["large"], relation="near", anchor="sofa")
