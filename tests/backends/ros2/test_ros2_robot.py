@@ -1,0 +1,275 @@
+"""Ros2Robot over real DDS against a peer node in another rclpy context (and, for SIGINT, another process)."""
+
+from __future__ import annotations
+
+import math
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy", reason="ROS 2 extra not installed: pip install -e .[ros2]; setup-ros2.sh")
+pytest.importorskip("nav2_msgs.action", reason="nav2_msgs not built: run scripts/setup-ros2.sh")
+pytestmark = pytest.mark.ros2
+
+import rclpy  # noqa: E402
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped  # noqa: E402
+from nav2_msgs.action import NavigateToPose  # noqa: E402
+from rclpy.action import ActionServer, CancelResponse  # noqa: E402
+from rclpy.callback_groups import ReentrantCallbackGroup  # noqa: E402
+from rclpy.executors import MultiThreadedExecutor  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rclpy.signals import SignalHandlerOptions  # noqa: E402
+from sensor_msgs.msg import LaserScan as LaserScanMsg  # noqa: E402
+from tf2_msgs.msg import TFMessage  # noqa: E402
+
+from missiontree.backends.ros2 import conversions as conv  # noqa: E402
+from missiontree.backends.ros2.robot import latched_qos, reliable_qos  # noqa: E402
+from missiontree.robot.actions import ActionStatus  # noqa: E402
+from missiontree.types import LaserScan, Pose2D  # noqa: E402
+
+
+class Peer:
+    """Another ROS 2 participant: publishes sensors, records velocity commands, can serve NavigateToPose."""
+
+    def __init__(self, domain: int) -> None:
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = Node("peer", context=self.context)
+        self.executor = MultiThreadedExecutor(num_threads=3, context=self.context)
+        self.executor.add_node(self.node)
+        self.velocities: list[tuple[float, float]] = []
+        self.cancel_requests = 0
+        self.goals: list[Pose2D] = []
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self) -> None:
+        while self.context.ok():
+            try:
+                self.executor.spin_once(timeout_sec=0.05)
+            except Exception:  # noqa: BLE001 - shutting down under the executor
+                return
+
+    def now(self) -> float:
+        return self.node.get_clock().now().nanoseconds * 1e-9
+
+    def publisher(self, msg_type: Any, topic: str, qos: Any = None) -> Any:
+        return self.node.create_publisher(msg_type, topic, qos or reliable_qos())
+
+    def record_velocity(self, stamped: bool) -> None:
+        def record(msg: Any) -> None:
+            self.velocities.append(conv.twist_from_msg(msg))
+
+        self.node.create_subscription(TwistStamped if stamped else Twist, "/cmd_vel", record, reliable_qos())
+
+    def serve_forever_until_cancelled(self) -> None:
+        """A NavigateToPose server whose goals run until cancelled."""
+        def execute(goal_handle: Any) -> Any:
+            self.goals.append(conv.pose_from_msg(goal_handle.request.pose.pose))
+            while goal_handle.is_active and not goal_handle.is_cancel_requested:
+                time.sleep(0.02)
+            if goal_handle.is_cancel_requested:
+                goal_handle.canceled()
+            return NavigateToPose.Result()
+
+        def on_cancel(_handle: Any) -> CancelResponse:
+            self.cancel_requests += 1
+            return CancelResponse.ACCEPT
+
+        self.server = ActionServer(self.node, NavigateToPose, "/navigate_to_pose", execute_callback=execute,
+                                   cancel_callback=on_cancel, callback_group=ReentrantCallbackGroup())
+
+    def close(self) -> None:
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        self.context.try_shutdown()
+        self.thread.join(timeout=2.0)
+
+
+@pytest.fixture
+def peer(domain_id: int) -> Iterator[Peer]:
+    p = Peer(domain_id)
+    yield p
+    p.close()
+
+
+def _scan_msg(stamp: float, value: float = 2.0) -> LaserScanMsg:
+    ranges = np.full(360, value, dtype=np.float32)
+    return conv.scan_to_msg(LaserScan(stamp, -math.pi, 2 * math.pi / 360, 0.15, 12.0, ranges))
+
+
+def test_scan_from_another_node_is_visible_with_its_stamp(domain_id: int, peer: Peer, make_robot: Callable,
+                                                           wait_until: Callable) -> None:
+    """A LaserScan published by another participant comes back from scan() with its stamp and ranges."""
+    robot = make_robot(domain_id)
+    pub = peer.publisher(LaserScanMsg, "/scan")
+    stamp = peer.now()
+
+    def seen() -> Any:
+        pub.publish(_scan_msg(stamp, 3.25))
+        return robot.scan()
+
+    scan = wait_until(seen, 10.0, "the scan to arrive")
+    assert scan.stamp == pytest.approx(stamp, abs=1e-6)
+    assert float(scan.ranges[0]) == pytest.approx(3.25)
+    assert scan.mount_yaw == pytest.approx(math.pi / 2)  # the profile's mount until TF names one
+    assert robot.scan_at(stamp) is scan
+
+
+def test_silent_lidar_shows_as_a_stale_stamp(domain_id: int, peer: Peer, make_robot: Callable,
+                                             wait_until: Callable) -> None:
+    """When the lidar stops publishing, scan() keeps the last scan and its age grows with ROS time."""
+    robot = make_robot(domain_id)
+    pub = peer.publisher(LaserScanMsg, "/scan")
+    wait_until(lambda: pub.publish(_scan_msg(peer.now())) or robot.scan(), 10.0, "a first scan")
+    time.sleep(0.3)  # scans still in flight from the loop above land
+    last = robot.scan()
+    time.sleep(0.6)
+    assert robot.scan() is last
+    assert robot.now() - last.stamp >= 0.6
+
+
+def test_pose_comes_from_tf_and_is_interpolated_in_history(domain_id: int, peer: Peer, make_robot: Callable,
+                                                           wait_until: Callable) -> None:
+    """The chain map → odom → base_link on /tf gives pose(); pose_at() interpolates between two stamps."""
+    robot = make_robot(domain_id)
+    pub = peer.publisher(TFMessage, "/tf", reliable_qos(100))
+    t0 = peer.now()
+
+    def tf(stamp: float, x: float) -> TFMessage:
+        return TFMessage(transforms=[conv.transform_to_msg(Pose2D(1.0, 0.0, 0.0), stamp, "map", "odom"),
+                                     conv.transform_to_msg(Pose2D(x, 0.0, 0.0), stamp, "odom", "base_link")])
+
+    wait_until(lambda: pub.publish(tf(t0, 0.0)) or robot.pose(), 10.0, "a first pose")
+    pub.publish(tf(t0 + 1.0, 2.0))
+    current = wait_until(lambda: (p := robot.pose()) and p.stamp > t0 + 0.5 and p, 5.0, "the second pose")
+    assert current.pose.x == pytest.approx(3.0)
+    assert robot.pose_at(t0 + 0.5).x == pytest.approx(2.0)
+    assert robot.pose_at(t0 + 5.0) is None
+
+
+def test_amcl_pose_is_advanced_by_odometry(domain_id: int, peer: Peer, make_robot: Callable,
+                                           wait_until: Callable) -> None:
+    """With pose_source amcl, /amcl_pose plus the odometry since its stamp gives pose()."""
+    from nav_msgs.msg import Odometry
+
+    robot = make_robot(domain_id, pose_source="amcl")
+    amcl_pub = peer.publisher(PoseWithCovarianceStamped, "/amcl_pose", latched_qos())
+    odom_pub = peer.publisher(Odometry, "/odom")
+    t0 = peer.now()
+    amcl = PoseWithCovarianceStamped()
+    amcl.header.stamp, amcl.header.frame_id = conv.sec_to_time(t0), "map"
+    amcl.pose.pose = conv.pose_to_msg(Pose2D(5.0, 5.0, math.pi / 2))
+    amcl_pub.publish(amcl)
+    start = conv.odometry_to_msg(Pose2D(0.0, 0.0, 0.0), 0.0, 0.0, t0)
+    wait_until(lambda: odom_pub.publish(start) or robot.pose(), 10.0, "the AMCL pose")
+    odom_pub.publish(conv.odometry_to_msg(Pose2D(1.0, 0.0, 0.0), 0.0, 0.0, t0 + 1.0))
+    pose = wait_until(lambda: (p := robot.pose()) and p.stamp > t0 + 0.5 and p, 5.0, "odometry to advance it")
+    # one metre forward in the odometry frame is one metre along +y for a robot facing +y in the map
+    assert (pose.pose.x, pose.pose.y) == (pytest.approx(5.0), pytest.approx(6.0))
+
+
+def test_navigate_without_a_server_aborts_with_a_reason(domain_id: int, make_robot: Callable,
+                                                        wait_until: Callable) -> None:
+    """With no NavigateToPose server, the goal aborts after the server timeout and says why; nothing hangs."""
+    robot = make_robot(domain_id, navigation={"server_timeout": 0.5})
+    started = time.monotonic()
+    handle = robot.navigate_to(Pose2D(1.0, 0.0, 0.0))
+    assert handle.status() is ActionStatus.PENDING
+    wait_until(lambda: handle.status().done, 5.0, "the goal to abort")
+    assert time.monotonic() - started < 3.0
+    result = handle.result()
+    assert result.status is ActionStatus.ABORTED
+    assert "no NavigateToPose action server" in result.reason
+
+
+def test_topic_goal_without_nav2_aborts_with_a_reason(domain_id: int, make_robot: Callable,
+                                                      wait_until: Callable) -> None:
+    """The /goal_pose fallback aborts too when nobody subscribes, naming the topic."""
+    robot = make_robot(domain_id, navigation={"server_timeout": 0.5, "interface": "topic"})
+    handle = robot.navigate_to(Pose2D(1.0, 0.0, 0.0))
+    wait_until(lambda: handle.status().done, 5.0, "the goal to abort")
+    assert handle.result().status is ActionStatus.ABORTED
+    assert "/goal_pose" in handle.result().reason
+
+
+def test_drive_repeats_and_stop_sends_zero_as_twist_stamped(domain_id: int, peer: Peer, make_robot: Callable,
+                                                            wait_until: Callable) -> None:
+    """drive() goes out as TwistStamped (TurtleBot 4 on Jazzy), repeated until stop() sends zero."""
+    peer.record_velocity(stamped=True)
+    robot = make_robot(domain_id)
+    wait_until(lambda: robot._cmd_vel.get_subscription_count() > 0, 10.0, "the peer's cmd_vel subscription")
+    robot.drive(0.2, -0.5)
+    wait_until(lambda: len(peer.velocities) >= 3, 5.0, "the command to be repeated")
+    assert peer.velocities[0] == pytest.approx((0.2, -0.5))
+    robot.stop()
+    wait_until(lambda: peer.velocities[-1] == (0.0, 0.0), 5.0, "zero velocity")
+    count = len(peer.velocities)
+    time.sleep(0.3)
+    assert len(peer.velocities) == count  # after stop() nothing is repeated
+
+
+def test_plain_twist_profile_publishes_twist(domain_id: int, peer: Peer, make_robot: Callable,
+                                             wait_until: Callable) -> None:
+    """With cmd_vel_stamped false (NAIS on Humble), velocity goes out as geometry_msgs/Twist."""
+    peer.record_velocity(stamped=False)
+    robot = make_robot(domain_id, cmd_vel_stamped=False)
+    wait_until(lambda: robot._cmd_vel.get_subscription_count() > 0, 10.0, "the peer's cmd_vel subscription")
+    robot.drive(0.1, 0.0)
+    wait_until(lambda: peer.velocities, 5.0, "a Twist")
+    assert peer.velocities[0] == pytest.approx((0.1, 0.0))
+
+
+def test_close_in_the_middle_of_a_goal_cancels_it_and_sends_zero(domain_id: int, peer: Peer,
+                                                                 make_robot: Callable,
+                                                                 wait_until: Callable) -> None:
+    """Shutting down mid-goal cancels the goal at the server and leaves zero velocity as the last command."""
+    peer.serve_forever_until_cancelled()
+    peer.record_velocity(stamped=True)
+    robot = make_robot(domain_id)
+    handle = robot.navigate_to(Pose2D(4.0, 1.0, 0.0))
+    wait_until(lambda: peer.goals, 10.0, "the server to receive the goal")
+    assert peer.goals[0].x == pytest.approx(4.0)
+    assert not handle.status().done
+    robot.close()
+    wait_until(lambda: peer.cancel_requests == 1, 5.0, "the cancel request")
+    wait_until(lambda: peer.velocities and peer.velocities[-1] == (0.0, 0.0), 5.0, "zero velocity")
+
+
+def test_sigint_sends_zero_velocity_before_the_process_stops(domain_id: int, peer: Peer,
+                                                             wait_until: Callable) -> None:
+    """A process driving the robot that receives SIGINT publishes zero velocity on its way out."""
+    peer.record_velocity(stamped=True)
+    script = textwrap.dedent(f"""
+        import time
+        from missiontree.backends.ros2 import create_robot
+        robot = create_robot({{"domain_id": {domain_id}, "node_name": "sigint_test"}})
+        while robot._cmd_vel.get_subscription_count() == 0:
+            time.sleep(0.05)
+        robot.drive(0.25, 0.0)
+        print("driving", flush=True)
+        while True:
+            time.sleep(0.1)
+    """)
+    import os
+
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain_id))
+    proc = subprocess.Popen([sys.executable, "-c", script], env=env, stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "driving"
+        wait_until(lambda: len(peer.velocities) >= 2, 10.0, "the robot to drive")
+        assert peer.velocities[-1] == pytest.approx((0.25, 0.0))
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=10)
+        wait_until(lambda: peer.velocities[-1] == (0.0, 0.0), 5.0, "zero velocity after SIGINT")
+    finally:
+        if proc.poll() is None:
+            proc.kill()
