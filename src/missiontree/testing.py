@@ -103,12 +103,14 @@ class ScriptedLeaf(Leaf):
     """Returns the scripted statuses in turn (last one repeats); records its lifecycle.
 
     Script letters: ``S`` success, ``F`` failure, ``R`` running, ``X`` raise an error. The
-    script restarts each time the leaf is initialised.
+    script restarts each time the leaf is initialised, unless ``restart`` is False (then it
+    goes on across runs: ``FS`` fails on the first tick and succeeds on every later one).
     """
 
     class Params(BaseModel):
         script: str = Field("S", description="statuses to return, one letter a tick: S, F, R or X")
         reason: str = Field("scripted failure", description="failure reason given on F")
+        restart: bool = Field(True, description="start the script again at each initialise")
 
     def __init__(self, name: str, params: BaseModel | None = None, **kwargs: Any) -> None:
         if params is None and kwargs:
@@ -120,7 +122,8 @@ class ScriptedLeaf(Leaf):
     def initialise(self) -> None:
         """Restart the script."""
         self.calls.append("initialise")
-        self._step = 0
+        if self.params.restart:  # type: ignore[attr-defined]
+            self._step = 0
 
     def update(self) -> Status:
         """Return the next scripted status."""
@@ -163,6 +166,8 @@ def capture_tick_log(root: py_trees.behaviour.Behaviour, context: MissionContext
                      **options: Any) -> tuple[Any, list[dict[str, Any]]]:
     """Run ``root`` with the runner (on a :class:`ClockRobot` unless ``context`` says otherwise).
 
+    ``options`` go to :class:`~missiontree.engine.runner.Runner`; ``max_duration`` defaults to 60 s.
+
     Returns:
         The :class:`~missiontree.engine.runner.RunResult` and the tick log, one dict per line.
     """
@@ -171,6 +176,7 @@ def capture_tick_log(root: py_trees.behaviour.Behaviour, context: MissionContext
     context = context or MissionContext(robot=ClockRobot())
     stream = io.StringIO()
     options.setdefault("handle_signals", False)
+    options.setdefault("max_duration", 60.0)  # a test tree that never ends must not hang the suite
     result = Runner(root, context, log_stream=stream, **options).run()
     return result, [json.loads(line) for line in stream.getvalue().splitlines()]
 
