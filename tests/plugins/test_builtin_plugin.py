@@ -1,0 +1,57 @@
+"""Tests of the built-in plugin: listed modules, lazy backends, clear errors."""
+
+from __future__ import annotations
+
+import pytest
+
+from missiontree.errors import PluginError
+from missiontree.plugins import builtin
+from missiontree.plugins.builtin import resolve_factory
+from missiontree.plugins.manager import load_plugins
+from missiontree.testing import clean_state
+
+
+@pytest.fixture(autouse=True)
+def _clean() -> None:
+    clean_state()
+
+
+def test_every_listed_node_module_registers_its_types() -> None:
+    """Each module in NODE_MODULES imports and adds node types provided by 'builtin'."""
+    plugins = load_plugins(autoload=False)
+    if builtin.NODE_MODULES:
+        assert len(plugins.nodes) > 0
+    assert all(t.provider == "builtin" for t in plugins.nodes)
+
+
+def test_backends_are_registered_lazily_as_module_function_strings() -> None:
+    """Listing backends imports nothing: sim and ros2 are 'module:function' references."""
+    backends = load_plugins(autoload=False).backends
+    assert backends["sim"] == "missiontree.backends.sim:create_robot"
+    assert backends["ros2"] == "missiontree.backends.ros2:create_robot"
+
+
+def test_missing_listed_module_is_a_plugin_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A node module listed but missing is reported with the list it is in."""
+    monkeypatch.setattr(builtin, "NODE_MODULES", ["missiontree.no_such_nodes"])
+    with pytest.raises(PluginError, match=r"'missiontree.no_such_nodes' \(listed in .*NODE_MODULES\)"):
+        load_plugins(autoload=False)
+
+
+def test_resolve_factory_rejects_a_malformed_reference() -> None:
+    """A backend registered as something that is neither callable nor 'module:function' is refused."""
+    with pytest.raises(PluginError, match="expected a callable or a 'module:function' string"):
+        resolve_factory("backend", "odd", 42)
+
+
+def test_resolve_factory_names_a_missing_function() -> None:
+    """A 'module:function' reference whose function does not exist says which."""
+    with pytest.raises(PluginError, match="module 'json' has no function 'nope'"):
+        resolve_factory("backend", "odd", "json:nope")
+
+
+def test_resolve_factory_imports_the_function() -> None:
+    """A valid reference resolves to the function itself."""
+    import json
+
+    assert resolve_factory("backend", "j", "json:dumps") is json.dumps
