@@ -204,7 +204,7 @@ def test_blackboard_defaults_are_written_before_the_first_tick() -> None:
     """Blackboard defaults exist when the first tick runs and appear in its log line."""
     result, lines = capture_tick_log(ScriptedLeaf("a", script="S"), blackboard={"speed": 0.25})
     first_tick = next(line for line in lines if line["event"] == "tick")
-    assert first_tick["bb"] == {"/speed": 0.25}
+    assert first_tick["bb"] == {"speed": 0.25}
     assert py_trees.blackboard.Blackboard.get("/speed") == 0.25
 
 

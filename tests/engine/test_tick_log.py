@@ -83,10 +83,10 @@ def test_blackboard_changes_list_new_values_only() -> None:
     """A key written with an unchanged value is not logged again; a removed key is listed as unset."""
     _, lines = capture_tick_log(_Writer("w"))
     ticks = _ticks(lines)
-    assert ticks[0]["bb"] == {"/value": 1.5}
+    assert ticks[0]["bb"] == {"value": 1.5}
     assert "bb" not in ticks[1]
-    assert ticks[2]["bb"] == {"/value": 2.5}
-    assert ticks[3]["bb_unset"] == ["/value"]
+    assert ticks[2]["bb"] == {"value": 2.5}
+    assert ticks[3]["bb_unset"] == ["value"]
 
 
 class _Emits(Leaf):

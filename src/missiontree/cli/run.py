@@ -8,9 +8,6 @@ duration limit, 2 on bad input, 128+N when stopped by signal N.
 from __future__ import annotations
 
 import argparse
-import importlib
-import importlib.util
-import inspect
 from pathlib import Path
 from typing import Any
 
@@ -19,13 +16,10 @@ from missiontree.engine.context import MissionContext
 from missiontree.engine.runner import Runner, RunResult
 from missiontree.errors import ConfigError, ProblemsError
 from missiontree.paths import find_config
-from missiontree.plugins.manager import Plugins
 
 DEFAULT_BACKEND = "sim"
 DEFAULT_TICK_HZ = 10.0
 DEFAULT_SEED = 0
-#: Module (written by the models work) whose ``build_models`` turns a models config into providers.
-MODELS_HUB = "missiontree.reasoning.hub"
 
 
 def register(subparsers: Any) -> None:
@@ -73,28 +67,32 @@ def load_run_config(name: str | None) -> dict[str, Any]:
     return dict(document.data)
 
 
-def build_models(models: str | None, plugins: Plugins, seed: int, config: dict[str, Any]) -> dict[str, Any]:
-    """Model providers by role, from the models hub when it is installed (else none).
+def robot_options(
+    args: argparse.Namespace, defaults: Any, seed: int, config: dict[str, Any],
+) -> dict[str, Any]:
+    """The backend factory's options: ``world``, ``robot``, ``seed``, ``config`` (only those given).
 
-    The hub's ``build_models`` receives the keyword arguments it declares among ``models``,
-    ``plugins``, ``providers``, ``seed`` and ``config``.
+    ``realtime`` is added only when asked for, so a backend that cannot pace itself says so.
     """
-    if importlib.util.find_spec(MODELS_HUB) is None:
-        if models is not None:
-            raise ConfigError(f"--models {models!r} given, but this installation has no models hub "
-                              f"({MODELS_HUB}); drop --models")
-        return {}
-    build = importlib.import_module(MODELS_HUB).build_models
-    offered = {"models": models, "plugins": plugins, "providers": plugins.providers, "seed": seed,
-               "config": config}
-    accepted = inspect.signature(build).parameters
-    return dict(build(**{k: v for k, v in offered.items() if k in accepted}))
+    options: dict[str, Any] = {"seed": seed}
+    world = _pick(args.world, defaults.world, None)
+    robot = _pick(args.robot, defaults.robot, None)
+    if world is not None:
+        options["world"] = world
+    if robot is not None:
+        options["robot"] = robot
+    if config:
+        options["config"] = config
+    if _pick(args.realtime, defaults.realtime, False):
+        options["realtime"] = True
+    return options
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the mission; print a one-line result and where the run directory is."""
     from missiontree.engine.build import build_tree
     from missiontree.engine.loader import load_mission
+    from missiontree.reasoning.hub import build_models
 
     plugins = plugins_from_args(args)
     spec = load_mission(args.tree, plugins.nodes, allow_outside=args.allow_outside)
@@ -110,18 +108,10 @@ def run(args: argparse.Namespace) -> int:
 
     root = build_tree(spec, plugins.nodes)
     factory = plugins.backend(backend)
-    options = {
-        "world": _pick(args.world, defaults.world, None),
-        "robot": _pick(args.robot, defaults.robot, None),
-        "seed": seed,
-        "config": config,
-        "config_path": config_name,
-        "realtime": bool(_pick(args.realtime, defaults.realtime, False)),
-        "run_dir": run_dir,
-    }
-    robot = factory(options)
+    robot = factory(robot_options(args, defaults, seed, config))
     try:
-        models = build_models(_pick(args.models, defaults.models, None), plugins, seed, config)
+        models_config = _pick(args.models, defaults.models, None)
+        models = build_models(models_config, providers=plugins.providers, seed=seed)
         context = MissionContext(robot=robot, models=models, config=config, seed=seed)
         runner = Runner(root, context, tick_hz=tick_hz, max_duration=max_duration, run_dir=run_dir,
                         mission=mission, hook=plugins.hook, spec=spec, blackboard=spec.blackboard)

@@ -324,14 +324,15 @@ class TickRecorder:
         changes: dict[str, Any] = {}
         unset: list[str] = []
         for key in written:
+            shown = key[1:] if key.startswith("/") else key  # as mission files write keys
             if key in storage:
                 value = plain(storage[key])
                 if key not in self._bb_logged or self._bb_logged[key] != value:
                     self._bb_logged[key] = value
-                    changes[key] = value
+                    changes[shown] = value
             else:
                 self._bb_logged.pop(key, None)
-                unset.append(key)
+                unset.append(shown)
         return changes, unset
 
     def summary(self) -> dict[str, Any]:
