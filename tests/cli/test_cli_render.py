@@ -1,0 +1,50 @@
+"""Tests of `missiontree render`."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from missiontree.cli.main import main
+
+REPO = Path(__file__).resolve().parents[2]
+EXAMPLE = str(REPO / "trees/examples/subtree_include.yaml")
+
+
+def test_text_tree_shows_types_names_params_and_origin(capsys: pytest.CaptureFixture[str]) -> None:
+    """The unicode tree shows each node with its type, name, parameters and the subtree file it came from."""
+    assert main(["render", "--no-plugins", EXAMPLE]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "main (Sequence)  memory=true"
+    assert out[1] == "├── both_countdowns (Parallel)  policy=success_on_all"
+    assert out[2].startswith("│   ├── countdown_door (Sequence)  memory=true  [from ")
+    assert "Wait  seconds={bb: first_delay}" in out[3]
+    assert out[-1] == "└── CheckBlackboard  key=lights value=lit"
+
+
+def test_dot_source_has_one_node_per_tree_node(capsys: pytest.CaptureFixture[str]) -> None:
+    """The dot output declares every node and every parent-child edge."""
+    assert main(["render", "--no-plugins", "--format", "dot", EXAMPLE]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("digraph mission {")
+    assert out.count("shape=") == 10 and out.count(" -> ") == 9
+
+
+def test_svg_without_graphviz_says_how_to_get_it(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Without `dot` on PATH, --format svg exits 2 naming Graphviz and the dot alternative."""
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    assert main(["render", "--no-plugins", "--format", "svg", EXAMPLE]) == 2
+    err = capsys.readouterr().err
+    assert "Graphviz" in err and "--format dot" in err and "Traceback" not in err
+
+
+@pytest.mark.skipif(shutil.which("dot") is None, reason="Graphviz is not installed")
+def test_svg_with_graphviz(tmp_path: Path) -> None:
+    """With Graphviz installed, --format svg writes an SVG file."""
+    out = tmp_path / "tree.svg"
+    assert main(["render", "--no-plugins", "--format", "svg", "--out", str(out), EXAMPLE]) == 0
+    assert "<svg" in out.read_text()
