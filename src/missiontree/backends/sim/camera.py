@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from missiontree.backends.sim.raycast import HAVE_NUMBA, Primitives, k_hits
+from missiontree.backends.sim.raycast import HAVE_NUMBA, Primitives, column_hits
 from missiontree.backends.sim.schema import CameraSpec
 from missiontree.types import CameraIntrinsics, Pose2D
 
@@ -52,6 +52,7 @@ class Rendering:
     color: np.ndarray        # (H, W, 3) uint8
     depth: np.ndarray        # (H, W) float32, NaN where unknown
     instances: np.ndarray    # (H, W) int32 instance id per pixel (0 = floor / ceiling)
+    counts: np.ndarray       # pixels per instance id
 
 
 def intrinsics_for(spec: CameraSpec) -> CameraIntrinsics:
@@ -74,28 +75,28 @@ class Camera:
 
     def render(self, cam: Pose2D, height: float, prims: Primitives, floor: Floor) -> Rendering:
         """Render from camera pose ``cam`` (optical axis along its yaw) at ``height`` above the floor."""
-        c, s = math.cos(cam.yaw), math.sin(cam.yaw)
-        dx = c - self._a * s
-        dy = s + self._a * c
-        t_in, t_out, idx, shade = k_hits(cam.x, cam.y, dx, dy, prims, HITS_PER_COLUMN, self.accelerate)
-        args = (cam.x, cam.y, height, dx, dy, self._b, t_in, t_out, idx, shade, prims.z, prims.rgb,
-                prims.inst, floor.rgb, floor.origin_x, floor.origin_y, floor.resolution, floor.ceiling)
-        if self.accelerate:
-            color, depth, inst = _fill_jit(*args)
-        else:
-            color, depth, inst = _fill_numpy(*args)
+        k = self.intrinsics
         spec = self.spec
+        t_in, t_out, idx, shade = column_hits(cam.x, cam.y, cam.yaw, self._a, k.fx, k.cx, prims,
+                                              HITS_PER_COLUMN, self.accelerate)
+        c, s = math.cos(cam.yaw), math.sin(cam.yaw)
+        args = (cam.x, cam.y, height, c - self._a * s, s + self._a * c, self._b, t_in, t_out, idx, shade,
+                prims.z, prims.rgb, prims.inst, floor.rgb, floor.origin_x, floor.origin_y, floor.resolution,
+                floor.ceiling, spec.depth_min, spec.depth_max, int(prims.inst.max(initial=1)) + 1)
+        color, depth, inst, counts = (_fill_jit if self.accelerate else _fill_numpy)(*args)
         if spec.depth_noise > 0:
-            depth = depth + self.rng.normal(0.0, 1.0, depth.shape) * spec.depth_noise * depth * depth
-        depth = np.where((depth >= spec.depth_min) & (depth <= spec.depth_max), depth, np.nan)
+            depth = depth + self.rng.normal(0.0, 1.0, depth.shape).astype(np.float32) * (
+                spec.depth_noise * depth * depth)
+            depth = np.where((depth >= spec.depth_min) & (depth <= spec.depth_max), depth, np.nan).astype(
+                np.float32)
         if spec.color_noise > 0:
-            color = color + self.rng.normal(0.0, spec.color_noise, color.shape)
-        return Rendering(np.clip(color, 0, 255).astype(np.uint8), depth.astype(np.float32),
-                         inst.astype(np.int32))
+            noisy = color + self.rng.normal(0.0, spec.color_noise, color.shape)
+            color = np.clip(noisy, 0, 255).astype(np.uint8)
+        return Rendering(color, depth, inst, counts)
 
 
 def _fill_numpy(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,  # noqa: ANN001, ANN202
-                floor_rgb, fox, foy, fres, ceiling):
+                floor_rgb, fox, foy, fres, ceiling, dmin, dmax, ninst):
     """Vectorised painter: floor and ceiling first, then the k hits from far to near."""
     h, w = len(b), len(dx)
     bb = np.broadcast_to(b[:, None], (h, w))
@@ -135,30 +136,36 @@ def _fill_numpy(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,
         color = np.where(top[..., None], rgb * _TOP_SHADE, color)
         color = np.where(bottom[..., None], rgb * _BOTTOM_SHADE, color)
         inst = np.where(front | top | bottom, pinst[pp][None, :], inst)
-    return color, depth, inst
+    depth = np.where((depth >= dmin) & (depth <= dmax), depth, np.nan).astype(np.float32)
+    counts = np.bincount(inst.ravel(), minlength=ninst)
+    return np.clip(color, 0, 255).astype(np.uint8), depth, inst.astype(np.int32), counts
 
 
 def _fill_loops(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,  # noqa: ANN001, ANN202
-                floor_rgb, fox, foy, fres, ceiling):
+                floor_rgb, fox, foy, fres, ceiling, dmin, dmax, ninst):
     """Per-pixel loops (compiled by numba): the nearest prism face the ray meets, else floor/ceiling."""
     h, w = len(b), len(dx)
-    color = np.empty((h, w, 3))
-    depth = np.empty((h, w))
-    inst = np.zeros((h, w), np.int64)
+    color = np.empty((h, w, 3), np.uint8)
+    depth = np.empty((h, w), np.float32)
+    inst = np.zeros((h, w), np.int32)
+    counts = np.zeros(ninst, np.int64)
     nrows, ncols = floor_rgb.shape[0], floor_rgb.shape[1]
-    for u in range(w):
-        for v in range(h):
-            bv = b[v]
-            done = False
-            for k in range(t_in.shape[1]):
-                p = idx[u, k]
-                if p < 0:
-                    break
-                z0, z1 = pz[p, 0], pz[p, 1]
+    kmax = t_in.shape[1]
+    for v in range(h):
+        bv = b[v]
+        # where this row's ray meets the floor (looking down) or the ceiling (looking up)
+        t_plane = -hc / bv if bv < 0.0 else ((ceiling - hc) / bv if bv > 0.0 else np.inf)
+        for u in range(w):
+            t = -1.0
+            f = 0.0
+            p = -1
+            for k in range(kmax):
+                q = idx[u, k]
                 tin = t_in[u, k]
+                if q < 0 or tin > t_plane:  # hits are sorted: the floor or ceiling comes first
+                    break
+                z0, z1 = pz[q, 0], pz[q, 1]
                 zin = hc + tin * bv
-                t = -1.0
-                f = 0.0
                 if z0 <= zin <= z1:
                     t = tin
                     f = _FACE_SHADE[0] + _FACE_SHADE[1] * shade[u, k]
@@ -173,34 +180,28 @@ def _fill_loops(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,
                         t = tb
                         f = _BOTTOM_SHADE
                 if t >= 0.0:
-                    depth[v, u] = t
-                    for ch in range(3):
-                        color[v, u, ch] = prgb[p, ch] * f
-                    inst[v, u] = pinst[p]
-                    done = True
+                    p = q
                     break
-            if done:
-                continue
-            if bv < 0.0:
-                t = -hc / bv
+            if p >= 0:
+                for ch in range(3):
+                    color[v, u, ch] = min(255.0, prgb[p, ch] * f)
+                inst[v, u] = pinst[p]
+                counts[pinst[p]] += 1
+            elif bv < 0.0:
+                t = t_plane
                 px = ox + t * dx[u]
                 py = oy + t * dy[u]
                 r = min(max(int((py - foy) / fres), 0), nrows - 1)
                 c = min(max(int((px - fox) / fres), 0), ncols - 1)
-                tile = (math.floor(px / _TILE) + math.floor(py / _TILE)) % 2
-                f = 0.94 if tile > 0 else 1.0
-                depth[v, u] = t
+                f = 0.94 if (math.floor(px / _TILE) + math.floor(py / _TILE)) % 2 else 1.0
                 for ch in range(3):
-                    color[v, u, ch] = floor_rgb[r, c, ch] * f
-            elif bv > 0.0:
-                depth[v, u] = (ceiling - hc) / bv
-                for ch in range(3):
-                    color[v, u, ch] = CEILING_RGB[ch]
+                    color[v, u, ch] = min(255.0, floor_rgb[r, c, ch] * f)
             else:
-                depth[v, u] = np.inf
+                t = t_plane
                 for ch in range(3):
                     color[v, u, ch] = CEILING_RGB[ch]
-    return color, depth, inst
+            depth[v, u] = t if dmin <= t <= dmax else np.nan
+    return color, depth, inst, counts
 
 
 _fill_jit = numba.njit(cache=True)(_fill_loops) if HAVE_NUMBA else _fill_loops

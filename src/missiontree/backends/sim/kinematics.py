@@ -70,8 +70,8 @@ class DiffDrive:
 
     def command(self, v: float, w: float) -> None:
         """Set the target body velocity; clipped to the speed limits."""
-        self.cmd_v = float(np.clip(v, -self.limits.max_v, self.limits.max_v))
-        self.cmd_w = float(np.clip(w, -self.limits.max_w, self.limits.max_w))
+        self.cmd_v = max(-self.limits.max_v, min(self.limits.max_v, float(v)))
+        self.cmd_w = max(-self.limits.max_w, min(self.limits.max_w, float(w)))
 
     def halt(self) -> None:
         """Stop at once (a bump): velocity and command become zero."""

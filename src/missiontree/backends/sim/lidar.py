@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from missiontree.backends.sim.raycast import Primitives, first_hit
+from missiontree.backends.sim.raycast import Primitives, fan_first_hit
 from missiontree.backends.sim.schema import LidarSpec
 from missiontree.types import LaserScan, Pose2D
 
@@ -44,9 +44,9 @@ class Lidar:
     def scan(self, pose: Pose2D, stamp: float, static: Primitives, dynamic: Primitives) -> LaserScan:
         """Cast every beam from the sensor at the robot's true ``pose``; ``stamp`` is the scan time."""
         ox, oy = pose.transform(self.spec.mount.x, self.spec.mount.y)
-        world = pose.yaw + self.robot_angles
-        ranges = first_hit(ox, oy, np.cos(world), np.sin(world), self.plane_primitives(static, dynamic),
-                           self.accelerate)
+        angle0 = pose.yaw + self.mount_yaw + self.angle_min
+        ranges = fan_first_hit(ox, oy, angle0, self.angle_increment, self.spec.beams,
+                               self.plane_primitives(static, dynamic), self.accelerate)
         if self.spec.noise > 0:
             ranges = ranges + self.rng.normal(0.0, self.spec.noise, len(ranges))
         ranges = np.where(ranges > self.spec.range_max, np.inf, ranges)

@@ -226,12 +226,22 @@ class SimNavHandle:
 @dataclass
 class _Follow:
     path: np.ndarray
+    cumulative: np.ndarray = None  # type: ignore[assignment]  # arc length at each path point
     index: int = 0
     blocked_since: float | None = None
     last_replan: float = -math.inf
     best_remaining: float = math.inf
     best_time: float = 0.0
     aligning: bool = False
+
+    def __post_init__(self) -> None:
+        self.set_path(self.path)
+
+    def set_path(self, path: np.ndarray) -> None:
+        """Follow a new path from its start."""
+        self.path, self.index = path, 0
+        steps = np.hypot(*np.diff(path, axis=0).T) if len(path) > 1 else np.zeros(0)
+        self.cumulative = np.concatenate([[0.0], np.cumsum(steps)])
 
 
 class Navigator:
@@ -245,6 +255,7 @@ class Navigator:
         self._follow: _Follow | None = None
         self.plan_ms: list[float] = []
         self.goals: list[Pose2D] = []
+        self._xy_cache: tuple[LaserScan, np.ndarray, np.ndarray] | None = None
 
     def send(self, goal: Pose2D, tolerance: Tolerance | None, now: float) -> SimNavHandle:
         """Accept a new goal, preempting the running one."""
@@ -337,7 +348,7 @@ class Navigator:
         lo, hi = follow.index, min(len(path), follow.index + 40)
         d = np.hypot(path[lo:hi, 0] - pose.x, path[lo:hi, 1] - pose.y)
         follow.index = lo + int(np.argmin(d))
-        return float(d.min()) + path_length(path[follow.index:])
+        return float(d.min()) + float(follow.cumulative[-1] - follow.cumulative[follow.index])
 
     def _drive(self, follow: _Follow, now: float, pose: Pose2D, scan: LaserScan | None,
                remaining: float) -> tuple[float, float]:
@@ -349,7 +360,7 @@ class Navigator:
                 break
         err = wrap_angle(math.atan2(target[1] - pose.y, target[0] - pose.x) - pose.yaw)
         lim = self.robot.profile.limits
-        w = float(np.clip(self.spec.heading_gain * err, -lim.max_w, lim.max_w))
+        w = max(-lim.max_w, min(lim.max_w, self.spec.heading_gain * err))
         if abs(err) > _ROTATE_FIRST:
             follow.blocked_since = None
             return 0.0, w
@@ -369,17 +380,14 @@ class Navigator:
             points = self._scan_points(scan, pose)
             path2 = self._plan(self.costmap.with_points(points), pose, self.handle.goal) if self.handle else None
             if path2 is not None:
-                follow.path, follow.index = path2, 0
+                follow.set_path(path2)
         return 0.0, 0.0
 
     def _obstacle_ahead(self, scan: LaserScan | None, v: float) -> tuple[float, float] | None:
         """The nearest scan point (robot frame) in the corridor the robot is about to sweep."""
         if scan is None:
             return None
-        r = np.asarray(scan.ranges, float)
-        ang = scan.angles()
-        ok = np.isfinite(r)
-        x, y = r[ok] * np.cos(ang[ok]), r[ok] * np.sin(ang[ok])
+        x, y = self._scan_xy(scan)
         radius = self.costmap.radius
         reach = radius + self.spec.obstacle_margin + max(v, 0.1) * 0.5
         hit = (x > 0.0) & (x < reach) & (np.abs(y) < radius + 0.03)
@@ -387,6 +395,15 @@ class Navigator:
             return None
         i = int(np.argmin(np.where(hit, x, np.inf)))
         return float(x[i]), float(y[i])
+
+    def _scan_xy(self, scan: LaserScan) -> tuple[np.ndarray, np.ndarray]:
+        """Scan end points in the robot frame (cached per scan)."""
+        if self._xy_cache is None or self._xy_cache[0] is not scan:
+            r = np.asarray(scan.ranges, float)
+            ok = np.isfinite(r)
+            ang = scan.angles()[ok]
+            self._xy_cache = (scan, r[ok] * np.cos(ang), r[ok] * np.sin(ang))
+        return self._xy_cache[1], self._xy_cache[2]
 
     def _scan_points(self, scan: LaserScan | None, pose: Pose2D) -> np.ndarray:
         if scan is None:

@@ -16,8 +16,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 from missiontree.backends.sim.raycast import CYLINDER, Primitives
 from missiontree.backends.sim.schema import PersonSpec
 
@@ -52,50 +50,51 @@ class Person:
         self.spec = spec
         self.id = spec.id
         self.inst = inst
-        points = [tuple(p) for p in spec.route]
+        points = [(float(p[0]), float(p[1])) for p in spec.route]
         if spec.loop and len(points) > 1:
             points.append(points[0])
-        self._points = np.array(points, dtype=float)
-        legs = np.diff(self._points, axis=0) if len(points) > 1 else np.zeros((0, 2))
-        self._lengths = np.hypot(legs[:, 0], legs[:, 1]) if len(legs) else np.zeros(0)
-        walk = self._lengths / spec.speed if spec.speed > 0 else np.full(len(self._lengths), np.inf)
-        # each leg: pause at its start, then walk
-        self._durations = walk + spec.pause
-        self._period = float(self._durations.sum()) if len(self._durations) else 0.0
+        self._points = points
+        self._lengths = [math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(points[:-1], points[1:])]
+        self._headings = [math.atan2(b[1] - a[1], b[0] - a[0]) for a, b in zip(points[:-1], points[1:])]
+        self._total = sum(self._lengths)
+        walk = [n / spec.speed if spec.speed > 0 else math.inf for n in self._lengths]
+        self._durations = [t + spec.pause for t in walk]  # each leg: pause at its start, then walk
+        self._period = sum(self._durations)
 
     def state_at(self, t: float) -> PersonState:
         """The person's position, heading and whether they walk or are present at time ``t``."""
         pts = self._points
-        if len(pts) == 1 or self.spec.speed == 0 or t < self.spec.start_time:
-            heading = self._leg_heading(0)
-            return PersonState(pts[0, 0], pts[0, 1], heading, False, True, 0.0)
-        elapsed = t - self.spec.start_time
-        laps = 0
-        if self.spec.loop and self._period > 0:
+        spec = self.spec
+        if len(pts) == 1 or spec.speed == 0 or t < spec.start_time:
+            return PersonState(pts[0][0], pts[0][1], self._leg_heading(0), False, True, 0.0)
+        elapsed = t - spec.start_time
+        travelled = 0.0
+        if spec.loop and self._period > 0:
             laps = int(elapsed // self._period)
             elapsed -= laps * self._period
+            travelled = laps * self._total
         elif elapsed >= self._period:
             last = len(self._lengths) - 1
-            return PersonState(pts[-1, 0], pts[-1, 1], self._leg_heading(last), False,
-                               not self.spec.vanish_at_end, float(self._lengths.sum()))
-        travelled = laps * float(self._lengths.sum())
+            return PersonState(pts[-1][0], pts[-1][1], self._leg_heading(last), False,
+                               not spec.vanish_at_end, self._total)
+        last = len(self._durations) - 1
         for i, duration in enumerate(self._durations):
-            if elapsed < duration or i == len(self._durations) - 1:
-                walked = max(0.0, min(self._lengths[i], (elapsed - self.spec.pause) * self.spec.speed))
-                frac = walked / self._lengths[i] if self._lengths[i] > 0 else 0.0
-                x, y = pts[i] + frac * (pts[i + 1] - pts[i])
-                walking = elapsed >= self.spec.pause and walked < self._lengths[i]
-                return PersonState(float(x), float(y), self._leg_heading(i), walking, True,
-                                   travelled + float(self._lengths[:i].sum()) + walked)
+            if elapsed < duration or i == last:
+                length = self._lengths[i]
+                walked = max(0.0, min(length, (elapsed - spec.pause) * spec.speed))
+                frac = walked / length if length > 0 else 0.0
+                (x0, y0), (x1, y1) = pts[i], pts[i + 1]
+                walking = elapsed >= spec.pause and walked < length
+                return PersonState(x0 + frac * (x1 - x0), y0 + frac * (y1 - y0), self._headings[i], walking,
+                                   True, travelled + walked)
             elapsed -= duration
+            travelled += self._lengths[i]
         raise AssertionError("unreachable: the last leg always returns")
 
     def _leg_heading(self, i: int) -> float:
-        if len(self._points) < 2:
+        if not self._headings:
             return 0.0
-        i = min(i, len(self._points) - 2)
-        d = self._points[i + 1] - self._points[i]
-        return math.atan2(d[1], d[0])
+        return self._headings[min(i, len(self._headings) - 1)]
 
     def primitives(self, t: float) -> list[tuple[int, tuple[float, ...], float, float, tuple[int, int, int], int]]:
         """Prism rows (see :class:`Primitives`) for legs, torso and head at time ``t``."""
@@ -116,26 +115,32 @@ class Person:
 
 
 class Crowd:
-    """All people of a world."""
+    """All people of a world; the last queried instant is cached (sensors and physics share it)."""
 
     def __init__(self, people: list[Person]) -> None:
         self.people = people
+        self._prims_at: tuple[float, Primitives] | None = None
+        self._pos_at: tuple[float, list[tuple[str, float, float]]] | None = None
 
     def __len__(self) -> int:
         return len(self.people)
 
     def primitives(self, t: float) -> Primitives:
         """Prisms of everyone present at time ``t``."""
-        rows = []
-        for person in self.people:
-            rows.extend(person.primitives(t))
-        return Primitives.build(rows)
+        if self._prims_at is None or self._prims_at[0] != t:
+            rows = []
+            for person in self.people:
+                rows.extend(person.primitives(t))
+            self._prims_at = (t, Primitives.build(rows))
+        return self._prims_at[1]
 
     def positions(self, t: float) -> list[tuple[str, float, float]]:
         """(id, x, y) of everyone present at time ``t``."""
-        out = []
-        for person in self.people:
-            s = person.state_at(t)
-            if s.present:
-                out.append((person.id, s.x, s.y))
-        return out
+        if self._pos_at is None or self._pos_at[0] != t:
+            out = []
+            for person in self.people:
+                s = person.state_at(t)
+                if s.present:
+                    out.append((person.id, s.x, s.y))
+            self._pos_at = (t, out)
+        return list(self._pos_at[1])

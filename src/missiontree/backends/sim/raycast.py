@@ -255,62 +255,114 @@ def _hit_one(ox, oy, dx, dy, kind, g):  # noqa: ANN001, ANN202 - numba kernel, t
     return t1, t2, abs(hx_ * dx + hy_ * dy) / (max(r, _EPS) * dlen)
 
 
-def _first_hit_loops(ox, oy, dx, dy, kind, geom):  # noqa: ANN001, ANN202
-    out = np.full(len(dx), np.inf)
-    for i in range(len(dx)):
-        best = np.inf
-        for p in range(len(kind)):
-            t, _, _ = _hit_one(ox, oy, dx[i], dy[i], kind[p], geom[p])
-            if t < best:
-                best = t
-        out[i] = best
+def _bound(kind, g):  # noqa: ANN001, ANN202
+    """Bounding circle (cx, cy, r) of one primitive."""
+    if kind == 0:
+        return 0.5 * (g[0] + g[2]), 0.5 * (g[1] + g[3]), 0.5 * np.sqrt((g[2] - g[0]) ** 2 + (g[3] - g[1]) ** 2)
+    if kind == 1:
+        return g[0], g[1], np.sqrt(g[4] * g[4] + g[5] * g[5])
+    return g[0], g[1], g[2]
+
+
+def _fan_loops(ox, oy, angle0, inc, n, kind, geom):  # noqa: ANN001, ANN202
+    """Nearest entry per ray of a full fan, visiting only the rays each primitive's bound subtends."""
+    out = np.full(n, np.inf)
+    two_pi = 2.0 * np.pi
+    for p in range(len(kind)):
+        bx, by, br = _bound(kind[p], geom[p])
+        d = np.sqrt((bx - ox) ** 2 + (by - oy) ** 2)
+        if d <= br + 1e-9:
+            start, count = 0, n
+        else:
+            hw = np.arcsin(min(1.0, br / d))
+            rel = (np.arctan2(by - oy, bx - ox) - hw - angle0) % two_pi
+            start = int(np.floor(rel / inc))
+            count = min(n, int(np.ceil(2.0 * hw / inc)) + 2)
+        for j in range(count):
+            i = (start + j) % n
+            a = angle0 + i * inc
+            t, _, _ = _hit_one(ox, oy, np.cos(a), np.sin(a), kind[p], geom[p])
+            if t < out[i]:
+                out[i] = t
     return out
 
 
-def _k_hits_loops(ox, oy, dx, dy, kind, geom, k):  # noqa: ANN001, ANN202
-    n = len(dx)
+def _columns_loops(ox, oy, yaw, a, fx, cx, kind, geom, k):  # noqa: ANN001, ANN202
+    """The k nearest entries per camera column, visiting only the columns each bound subtends."""
+    n = len(a)
     tin = np.full((n, k), np.inf)
     tout = np.full((n, k), np.inf)
     idx = np.full((n, k), -1, np.int64)
     shade = np.ones((n, k))
-    for i in range(n):
-        for p in range(len(kind)):
-            t1, t2, sh = _hit_one(ox, oy, dx[i], dy[i], kind[p], geom[p])
-            if t1 >= tin[i, k - 1]:
+    c, s = np.cos(yaw), np.sin(yaw)
+    half = np.pi / 2.0 - 1e-6
+    for p in range(len(kind)):
+        bx, by, br = _bound(kind[p], geom[p])
+        d = np.sqrt((bx - ox) ** 2 + (by - oy) ** 2)
+        if d <= br + 1e-9:
+            u0, u1 = 0, n - 1
+        else:
+            hw = np.arcsin(min(1.0, br / d))
+            rel = (np.arctan2(by - oy, bx - ox) - yaw + np.pi) % (2.0 * np.pi) - np.pi
+            lo, hi = rel - hw, rel + hw
+            if hi < -half or lo > half:
+                continue
+            lo, hi = max(lo, -half), min(hi, half)
+            u0 = max(0, int(np.floor(cx - fx * np.tan(hi))) - 1)
+            u1 = min(n - 1, int(np.ceil(cx - fx * np.tan(lo))) + 1)
+        for u in range(u0, u1 + 1):
+            dx = c - a[u] * s
+            dy = s + a[u] * c
+            t1, t2, sh = _hit_one(ox, oy, dx, dy, kind[p], geom[p])
+            if t1 >= tin[u, k - 1]:
                 continue
             j = k - 1
-            while j > 0 and tin[i, j - 1] > t1:
-                tin[i, j] = tin[i, j - 1]
-                tout[i, j] = tout[i, j - 1]
-                idx[i, j] = idx[i, j - 1]
-                shade[i, j] = shade[i, j - 1]
+            while j > 0 and tin[u, j - 1] > t1:
+                tin[u, j] = tin[u, j - 1]
+                tout[u, j] = tout[u, j - 1]
+                idx[u, j] = idx[u, j - 1]
+                shade[u, j] = shade[u, j - 1]
                 j -= 1
-            tin[i, j], tout[i, j], idx[i, j], shade[i, j] = t1, t2, p, sh
+            tin[u, j], tout[u, j], idx[u, j], shade[u, j] = t1, t2, p, sh
     return tin, tout, idx, shade
 
 
 if HAVE_NUMBA:
-    # Rebinding the module global first makes the loop kernels call the compiled _hit_one.
+    # Rebinding the module globals first makes the loop kernels call the compiled helpers.
     _hit_one = numba.njit(cache=True)(_hit_one)
-    _first_hit_jit = numba.njit(cache=True)(_first_hit_loops)
-    _k_hits_jit = numba.njit(cache=True)(_k_hits_loops)
+    _bound = numba.njit(cache=True)(_bound)
+    _fan_jit = numba.njit(cache=True)(_fan_loops)
+    _columns_jit = numba.njit(cache=True)(_columns_loops)
 
 
-def first_hit(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray, prims: Primitives,
-              accelerate: bool = True) -> np.ndarray:
-    """Nearest entry parameter per ray; numba when available and ``accelerate``, else numpy."""
-    if accelerate and HAVE_NUMBA:
-        if len(prims) == 0:
-            return np.full(len(dx), np.inf)
-        return _first_hit_jit(float(ox), float(oy), np.ascontiguousarray(dx, np.float64),
-                              np.ascontiguousarray(dy, np.float64), prims.kind, prims.geom)
+def first_hit(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray, prims: Primitives) -> np.ndarray:
+    """Nearest entry parameter per ray (numpy; rays of any directions)."""
     return first_hit_numpy(ox, oy, dx, dy, prims)
 
 
-def k_hits(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray, prims: Primitives, k: int,
-           accelerate: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The ``k`` nearest entries per ray (t_in, t_out, index, shade); numba or numpy."""
+def fan_first_hit(ox: float, oy: float, angle0: float, increment: float, n: int, prims: Primitives,
+                  accelerate: bool = True) -> np.ndarray:
+    """Range of the nearest entry for ``n`` unit rays at world angles ``angle0 + i * increment``.
+
+    Uses the culled numba kernel when numba is present and ``accelerate``; numpy otherwise.
+    """
+    if len(prims) == 0:
+        return np.full(n, np.inf)
     if accelerate and HAVE_NUMBA:
-        return _k_hits_jit(float(ox), float(oy), np.ascontiguousarray(dx, np.float64),
-                           np.ascontiguousarray(dy, np.float64), prims.kind, prims.geom, k)
-    return k_hits_numpy(ox, oy, dx, dy, prims, k)
+        return _fan_jit(float(ox), float(oy), float(angle0), float(increment), int(n), prims.kind, prims.geom)
+    a = angle0 + increment * np.arange(n)
+    return first_hit_numpy(ox, oy, np.cos(a), np.sin(a), prims)
+
+
+def column_hits(ox: float, oy: float, yaw: float, a: np.ndarray, fx: float, cx: float, prims: Primitives,
+                k: int, accelerate: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The ``k`` nearest entries per camera column (t_in, t_out, index, shade), each (W, k).
+
+    Column ``u`` casts along ``forward + a[u] * left`` of heading ``yaw``, so ``t`` is depth
+    along the optical axis. Culled numba kernel or numpy, as :func:`fan_first_hit`.
+    """
+    if accelerate and HAVE_NUMBA:
+        return _columns_jit(float(ox), float(oy), float(yaw), np.ascontiguousarray(a, np.float64), float(fx),
+                            float(cx), prims.kind, prims.geom, int(k))
+    c, s = np.cos(yaw), np.sin(yaw)
+    return k_hits_numpy(ox, oy, c - a * s, s + a * c, prims, k)

@@ -247,7 +247,7 @@ class SimRobot:
         mount_yaw = math.radians(spec.mount.yaw_deg)
         true_cam = self._camera_pose(self._base.pose, mount_yaw)
         image = self.camera.render(true_cam, spec.mount.z, self.world.static.concat(dynamic), self._floor)
-        self.truth.record_frame(t, image.instances)
+        self.truth.record_frame(t, image.instances, image.counts)
         return RGBDFrame(t, image.color, image.depth, self.camera.intrinsics,
                          self._camera_pose(self._odom.pose, mount_yaw), spec.mount.z)
 

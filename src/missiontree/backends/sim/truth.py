@@ -45,15 +45,16 @@ class GroundTruth:
         """Remember the true pose at ``stamp``."""
         self._poses.push(stamp, pose)
 
-    def record_frame(self, stamp: float, instances: np.ndarray) -> None:
-        """Remember a frame's instance mask and who it shows."""
-        self._masks.push(stamp, instances.astype(np.int16))
-        ids, counts = np.unique(instances, return_counts=True)
+    def record_frame(self, stamp: float, instances: np.ndarray, counts: np.ndarray | None = None) -> None:
+        """Remember a frame's instance mask and who it shows (``counts``: pixels per instance id)."""
+        self._masks.push(stamp, instances)
+        if counts is None:
+            counts = np.bincount(instances.ravel(), minlength=len(self.world.instances))
         seen = {}
-        for inst, count in zip(ids.tolist(), counts.tolist(), strict=True):
+        for inst in np.flatnonzero(counts).tolist():
             info = self.world.instances.get(inst)
             if info is not None and info.kind in ("object", "person"):
-                seen[info.name] = Sighting(info.name, info.kind, info.label, count)
+                seen[info.name] = Sighting(info.name, info.kind, info.label, int(counts[inst]))
         self.visibility.append((stamp, seen))
 
     # -- queries -----------------------------------------------------------------------------------
