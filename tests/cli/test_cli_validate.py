@@ -13,7 +13,8 @@ REPO = Path(__file__).resolve().parents[2]
 
 def test_valid_missions_exit_zero(capsys: pytest.CaptureFixture[str]) -> None:
     """Valid files print one ok line each and exit 0."""
-    files = [str(REPO / "trees/examples" / name) for name in ("timer_and_blackboard.yaml", "subtree_include.yaml")]
+    names = ("timer_and_blackboard.yaml", "subtree_include.yaml")
+    files = [str(REPO / "trees/examples" / name) for name in names]
     assert main(["validate", "--no-plugins", *files]) == 0
     out = capsys.readouterr().out
     assert out.count("ok: ") == 2
