@@ -172,3 +172,38 @@ def test_latency_config_forms() -> None:
         LatencyModel.parse({"gauss": 1})
     with pytest.raises(ModelConfigError, match="low <= high"):
         LatencyModel.parse({"uniform": [3.0, 0.5]})
+
+
+def test_chat_convenience_checks_and_grounds_ids() -> None:
+    """caller.chat with a schema returns a checked answer whose ids exist; events carry the attempts."""
+    from missiontree.reasoning.checks import CheckedAnswer
+    from missiontree.reasoning.schemas import IntentResolution
+
+    class TwoAnswers:
+        name = "two"
+
+        def __init__(self) -> None:
+            self.answers = ['{"candidates": ["ghost"]}', '{"candidates": ["cup_1"]}']
+
+        def chat(self, messages: Any, schema: Any = None) -> str:
+            return self.answers.pop(0)
+
+    clock = Clock()
+    events = Events()
+    caller = ModelCaller(clock, events, simulated=True, models={"llm": TwoAnswers()})
+    call = caller.chat("llm", [], IntentResolution, valid_ids={"cup_1"}, node="intent")
+    assert call.status() is CallStatus.SUCCEEDED
+    answer = call.result()
+    assert isinstance(answer, CheckedAnswer) and answer.value.candidates == ["cup_1"]
+    event = events.events[-1][1]
+    assert event["provider"] == "two" and event["attempts"] == 2 and "ghost" in event["rejected"][0]
+    caller.close()
+
+
+def test_unknown_role_names_the_configured_ones() -> None:
+    """Asking a role nobody configured is a ConfigError listing the configured roles."""
+    from missiontree.errors import ConfigError
+
+    caller = ModelCaller(Clock(), Events(), models={"vlm": object(), "_calls": None})
+    with pytest.raises(ConfigError, match=r"no model configured for role 'llm' \(configured: vlm\)"):
+        caller.chat("llm", [])

@@ -13,7 +13,6 @@ from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.errors import ModelConfigError, ModelError, ProblemsError
 from missiontree.reasoning.calls import SETTINGS_KEY, CallStatus, LatencyModel, ModelCall, model_caller
-from missiontree.reasoning.checks import ask_checked
 from missiontree.reasoning.hub import BrokenProvider, build_models
 from missiontree.reasoning.offline_vlm import OfflineVisionModel
 from missiontree.reasoning.prompts import surveillance_prompt
@@ -125,10 +124,9 @@ class AskVLM(Leaf):
 
     def initialise(self) -> None:
         image = np.zeros((16, 16, 3), np.uint8)
-        vlm = self.context.model("vlm")
-        self.call: ModelCall | None = model_caller(self.context).submit(
-            "vlm", ask_checked, vlm, [image], surveillance_prompt(), SurveillanceVerdict,
-            timeout=self.params.timeout, node=self.name)
+        self.call: ModelCall | None = model_caller(self.context).ask(
+            "vlm", [image], surveillance_prompt(), SurveillanceVerdict, timeout=self.params.timeout,
+            node=self.name)
 
     def update(self) -> Status:
         assert self.call is not None

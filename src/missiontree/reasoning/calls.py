@@ -6,8 +6,8 @@ A leaf never waits for a model on the tick thread (ARCHITECTURE §3). It submits
 
     def initialise(self) -> None:
         caller = model_caller(self.context)
-        self.call = caller.call("vlm", "ask", [frame.color], prompt, schema=SurveillanceVerdict,
-                                node=self.name)
+        self.call = caller.ask("vlm", [frame.color], surveillance_prompt(), SurveillanceVerdict,
+                               node=self.name)
 
     def update(self) -> Status:
         status = self.call.status()
@@ -15,6 +15,7 @@ A leaf never waits for a model on the tick thread (ARCHITECTURE §3). It submits
             return self.running(f"waiting for the vlm ({status.value})")
         if status is not CallStatus.SUCCEEDED:
             return self.fail(self.call.error())
+        verdict = self.call.result().value   # a checked SurveillanceVerdict
         ...
 
     def terminate(self, new_status: Status) -> None:
@@ -39,11 +40,13 @@ from __future__ import annotations
 import enum
 import random
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
+
+from pydantic import BaseModel
 
 from missiontree.errors import ConfigError, MissionTreeError, ModelConfigError
 from missiontree.reasoning.protocols import provider_name
@@ -408,14 +411,46 @@ class ModelCaller:
         Raises:
             ConfigError: No provider configured for ``role`` (names the configured roles).
         """
+        provider = self._provider(role)
+        return self.submit(role, getattr(provider, method), *args, timeout=timeout,
+                           provider=provider_name(provider), node=node, **kwargs)
+
+    def ask(self, role: str, images: Sequence[Any], prompt: str, schema: type[BaseModel] | None = None, *,
+            valid_ids: Collection[str] | None = None, timeout: float | None | str = "default",
+            node: str = "") -> ModelCall:
+        """Ask the VLM of ``role`` about ``images``; with a schema the answer is checked.
+
+        The result is the answer text without a schema, else a
+        :class:`~missiontree.reasoning.checks.CheckedAnswer` (validated, ids grounded in
+        ``valid_ids``, retried once with the error fed back).
+        """
+        if schema is None:
+            return self.call(role, "ask", list(images), prompt, timeout=timeout, node=node)
+        from missiontree.reasoning.checks import ask_checked
+
+        provider = self._provider(role)
+        return self.submit(role, ask_checked, provider, list(images), prompt, schema, valid_ids=valid_ids,
+                           timeout=timeout, provider=provider_name(provider), node=node)
+
+    def chat(self, role: str, messages: Sequence[Any], schema: type[BaseModel] | None = None, *,
+             valid_ids: Collection[str] | None = None, timeout: float | None | str = "default",
+             node: str = "") -> ModelCall:
+        """Ask the language model of ``role``; with a schema the answer is checked (as :meth:`ask`)."""
+        if schema is None:
+            return self.call(role, "chat", list(messages), timeout=timeout, node=node)
+        from missiontree.reasoning.checks import chat_checked
+
+        provider = self._provider(role)
+        return self.submit(role, chat_checked, provider, list(messages), schema, valid_ids=valid_ids,
+                           timeout=timeout, provider=provider_name(provider), node=node)
+
+    def _provider(self, role: str) -> Any:
         if role not in self.models:
             known = ", ".join(sorted(r for r in self.models if not r.startswith("_"))) or "none"
             raise ConfigError(
                 f"no model configured for role {role!r} (configured: {known}); "
                 "add it to the models config (config/models/*.yaml)")
-        provider = self.models[role]
-        return self.submit(role, getattr(provider, method), *args, timeout=timeout,
-                           provider=provider_name(provider), node=node, **kwargs)
+        return self.models[role]
 
     def close(self) -> None:
         """Stop accepting calls; queued calls are dropped, running ones finish in the background."""
