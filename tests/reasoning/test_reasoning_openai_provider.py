@@ -200,3 +200,24 @@ def test_empty_image_names_provider_and_fix(server: Fake) -> None:
     with pytest.raises(ValueError, match="openai: expected an HxWx3 RGB image, found shape"):
         vlm.ask([np.zeros((4, 4, 2), dtype=np.uint8)], "hi")
     assert server.chat_requests() == []
+
+
+def test_json_object_mode_for_servers_without_schemas(server: Fake) -> None:
+    """structured: json_object asks for a JSON object and puts the schema in a system message."""
+    vlm = provider(server, structured="json_object")
+    vlm.ask([image()], "look", SurveillanceVerdict)
+    request = server.chat_requests()[0]
+    assert request["response_format"] == {"type": "json_object"}
+    assert request["messages"][0]["role"] == "system" and "verdict" in request["messages"][0]["content"]
+
+
+def test_chat_sends_roles_and_images(server: Fake) -> None:
+    """chat() keeps the roles and sends a message's images as data URLs."""
+    from missiontree.reasoning.protocols import Message
+
+    llm = provider(server)
+    llm.chat([Message("system", "be brief"), Message("user", "what is this?", (image(),))])
+    messages = server.chat_requests()[0]["messages"]
+    assert messages[0] == {"role": "system", "content": "be brief"}
+    assert messages[1]["content"][1]["image_url"]["url"].startswith("data:image/jpeg;base64,")
+    assert "response_format" not in server.chat_requests()[0]
