@@ -50,7 +50,7 @@ def entry_points(monkeypatch: pytest.MonkeyPatch) -> Callable[..., None]:
             else:
                 value = module
             eps.append(importlib.metadata.EntryPoint(name=ep_name, value=value, group="missiontree"))
-        monkeypatch.setattr(manager.importlib.metadata, "entry_points", lambda group: eps)
+        monkeypatch.setattr(manager, "discover_entry_points", lambda: eps)
 
     return install
 

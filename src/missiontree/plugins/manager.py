@@ -142,12 +142,16 @@ def autoload_enabled(autoload: bool | None = None) -> bool:
     return value in {"", "0", "false", "no", "off"}
 
 
+def discover_entry_points() -> list[importlib.metadata.EntryPoint]:
+    """The installed entry points of the group ``missiontree``, sorted by name."""
+    return sorted(importlib.metadata.entry_points(group=hookspecs.ENTRY_POINT_GROUP), key=lambda e: e.name)
+
+
 def _entry_point_plugins() -> list[tuple[str, Any, str]]:
     """Import every ``missiontree`` entry point: (name, module, distribution), sorted by name."""
     loaded: list[tuple[str, Any, str]] = []
     seen: set[str] = set()
-    entry_points = importlib.metadata.entry_points(group=hookspecs.ENTRY_POINT_GROUP)
-    for ep in sorted(entry_points, key=lambda e: e.name):
+    for ep in discover_entry_points():
         if ep.name in seen or ep.name == BUILTIN:
             continue
         seen.add(ep.name)

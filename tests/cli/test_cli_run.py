@@ -1,0 +1,147 @@
+"""Tests of `missiontree run`: exit codes, run directory, flags over the mission's run section."""
+
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import sys
+import types
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from missiontree.cli.main import main
+from missiontree.plugins import manager
+from missiontree.plugins.hookspecs import hookimpl
+from missiontree.testing import ClockRobot, clean_state
+
+REPO = Path(__file__).resolve().parents[2]
+Capture = pytest.CaptureFixture[str]
+SEEN_OPTIONS: list[dict[str, Any]] = []
+
+
+@pytest.fixture(autouse=True)
+def _clock_backend(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every test starts clean, with a plugin offering the 'clock' backend (a ClockRobot)."""
+    clean_state()
+    SEEN_OPTIONS.clear()
+    module = types.ModuleType("mt_test_clock_backend")
+
+    def missiontree_register_backends(backends: dict[str, Any]) -> None:
+        backends["clock"] = lambda options: SEEN_OPTIONS.append(options) or ClockRobot()
+
+    module.missiontree_register_backends = hookimpl(missiontree_register_backends)  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, module.__name__, module)
+    ep = importlib.metadata.EntryPoint(name="clock", value=module.__name__, group="missiontree")
+    monkeypatch.setattr(manager, "discover_entry_points", lambda: [ep])
+
+
+MISSION = """\
+version: 1
+run: {backend: clock, tick_hz: 10}
+blackboard: {phase: idle}
+root:
+  Sequence:
+    name: main
+    memory: true
+    children:
+      - Wait: {seconds: 1.0}
+      - SetBlackboard: {key: phase, value: done}
+"""
+
+FAILING = """\
+version: 1
+run: {backend: clock}
+root:
+  Sequence:
+    name: main
+    memory: true
+    children:
+      - Wait: {seconds: 0.3}
+      - Fail: {reason: "dock not found"}
+"""
+
+
+def _write(tmp_path: Path, text: str, name: str = "mission.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_successful_mission_exits_zero_and_writes_the_run_directory(
+        tmp_path: Path, capsys: Capture) -> None:
+    """A mission that succeeds exits 0 and leaves ticks.jsonl and summary.json in --out."""
+    out = tmp_path / "run"
+    assert main(["run", str(_write(tmp_path, MISSION)), "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["status"], summary["ticks"], summary["mission"]) == ("SUCCESS", 11, "mission")
+    assert "mission: SUCCESS after 11 ticks" in capsys.readouterr().out
+    ticks = [json.loads(line) for line in (out / "ticks.jsonl").read_text().splitlines()]
+    assert ticks[1]["bb"]["phase"] == "idle"  # the blackboard defaults, logged with tick 1
+
+
+def test_failing_mission_exits_one(tmp_path: Path) -> None:
+    """A mission whose root fails exits 1 and the summary keeps the reason."""
+    out = tmp_path / "run"
+    assert main(["run", str(_write(tmp_path, FAILING)), "--out", str(out)]) == 1
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["failure_reasons"]["main/Fail"] == ["dock not found"]
+
+
+def test_duration_limit_exits_one(tmp_path: Path) -> None:
+    """--max-duration shorter than the mission stops it with exit code 1."""
+    out = tmp_path / "run"
+    assert main(["run", str(_write(tmp_path, MISSION)), "--out", str(out), "--max-duration", "0.5"]) == 1
+    assert json.loads((out / "summary.json").read_text())["stopped_by"] == "limit"
+
+
+def test_flags_override_the_run_section(tmp_path: Path) -> None:
+    """--tick-hz and --seed win over the mission's run: section and reach the run and the backend."""
+    out = tmp_path / "run"
+    mission = _write(tmp_path, MISSION)
+    assert main(["run", str(mission), "--out", str(out), "--tick-hz", "5", "--seed", "7"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["ticks"], summary["seed"], summary["tick_hz"]) == (6, 7, 5.0)
+    assert SEEN_OPTIONS == [{"seed": 7}]
+
+
+def test_config_file_reaches_the_backend_as_a_mapping(tmp_path: Path) -> None:
+    """--config FILE is read (safely) and handed to the backend factory as a dict."""
+    config = _write(tmp_path, "lidar: {rate: 20}\n", "run-config.yaml")
+    mission = _write(tmp_path, MISSION)
+    assert main(["run", str(mission), "--out", str(tmp_path / "r"), "--config", str(config)]) == 0
+    assert SEEN_OPTIONS[0]["config"] == {"lidar": {"rate": 20}}
+
+
+def test_broken_mission_exits_two_with_file_and_line(tmp_path: Path, capsys: Capture) -> None:
+    """A mission naming an unknown node type exits 2 with file:line on stderr and no traceback."""
+    path = _write(tmp_path, "version: 1\nroot:\n  Wiat: {seconds: 1}\n")
+    assert main(["run", str(path), "--backend", "clock"]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}:3:" in err or "mission.yaml:3:" in err
+    assert "Traceback" not in err
+
+
+def test_unknown_backend_exits_two_naming_the_known_ones(tmp_path: Path, capsys: Capture) -> None:
+    """--backend with a name nobody registered exits 2 and lists the backends."""
+    assert main(["run", str(_write(tmp_path, MISSION)), "--backend", "gazebo"]) == 2
+    assert "known backends: clock, ros2, sim" in capsys.readouterr().err
+
+
+def test_no_plugins_flag_leaves_installed_plugins_out(tmp_path: Path, capsys: Capture) -> None:
+    """With --no-plugins the plugin's backend is unknown."""
+    assert main(["run", str(_write(tmp_path, MISSION)), "--no-plugins", "--out", str(tmp_path / "r")]) == 2
+    assert "unknown backend 'clock'" in capsys.readouterr().err
+
+
+def test_same_seed_on_the_simulator_gives_the_same_log_bytes(tmp_path: Path) -> None:
+    """Two simulator runs of the same mission and seed write byte-identical tick logs."""
+    tree = REPO / "trees" / "examples" / "timer_and_blackboard.yaml"
+    logs = []
+    for name in ("a", "b"):
+        clean_state()
+        assert main(["run", str(tree), "--backend", "sim", "--seed", "3", "--out", str(tmp_path / name)]) == 0
+        logs.append((tmp_path / name / "ticks.jsonl").read_bytes())
+    assert logs[0] == logs[1]
+    assert b'"wall"' not in logs[0]
