@@ -120,6 +120,7 @@ class _Loader:
         self.files: list[Path] = []
         self.node_count = 0
         self.mission_dir = path.resolve().parent
+        self._parsed: dict[Path, Located | None] = {}
 
     # -- top level --------------------------------------------------------------------------
 
@@ -357,6 +358,8 @@ class _Loader:
         source: Source, index: int | None,
     ) -> NodeSpec | None:
         doc = file.doc
+        if self.node_count > MAX_TREE_NODES:
+            return None  # already reported; stop expanding
         for key in params:
             if key not in ("file", "params", NAME_KEY):
                 self.problems.append(doc.problem_at(
@@ -390,10 +393,8 @@ class _Loader:
                 f"deep, found deeper",
                 "flatten the subtrees", where=path))
             return None
-        try:
-            sub_doc = load_yaml(resolved, error=MissionFileError, display_name=_display(resolved))
-        except MissionFileError as exc:
-            self.problems += exc.problems
+        sub_doc = self._read_subtree(resolved)
+        if sub_doc is None:
             return None
         if resolved not in self.files:
             self.files.append(resolved)
@@ -415,6 +416,17 @@ class _Loader:
         if node is not None and NAME_KEY in params and isinstance(params[NAME_KEY], str):
             node.name = params[NAME_KEY]
         return node
+
+    def _read_subtree(self, resolved: Path) -> Located | None:
+        """Parse a subtree file once, however often it is included (its problems are reported once)."""
+        if resolved not in self._parsed:
+            try:
+                shown = _display(resolved)
+                self._parsed[resolved] = load_yaml(resolved, error=MissionFileError, display_name=shown)
+            except MissionFileError as exc:
+                self.problems += exc.problems
+                self._parsed[resolved] = None
+        return self._parsed[resolved]
 
     def _resolve_include(
         self, file: _File, target: str, key_path: tuple[str | int, ...], path: str
