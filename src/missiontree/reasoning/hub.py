@@ -34,11 +34,10 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 from missiontree.errors import ConfigError, MissionTreeError, ModelError, Problem, ProblemsError
-from missiontree.paths import available, find_config
+from missiontree.paths import find_config
 from missiontree.reasoning.calls import SETTINGS_KEY, CallSettings, LatencyModel
 from missiontree.yamlio import Located, load_yaml, parse_yaml
 
@@ -258,14 +257,8 @@ def model_roles(models: Mapping[str, Any]) -> dict[str, Any]:
     return {role: provider for role, provider in models.items() if not role.startswith("_")}
 
 
-def shipped_models_configs() -> list[str]:
-    """Names of the models configs found on the config search path."""
-    return available("models")
-
-
 def describe_source(models: str | os.PathLike[str] | Mapping[str, Any] | None) -> str:
     """Where a models config comes from, for messages."""
     if isinstance(models, Mapping):
         return "<models config>"
-    return str(find_config("models", models if models is not None else DEFAULT_MODELS)
-               if not isinstance(models, Path) else models)
+    return str(find_config("models", models if models is not None else DEFAULT_MODELS))
