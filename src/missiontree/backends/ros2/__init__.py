@@ -61,4 +61,12 @@ def create_robot(options: dict[str, Any]) -> Ros2Robot:
     require_rclpy()
     from missiontree.backends.ros2.robot import Ros2Robot
 
-    return Ros2Robot(profile, node_name=str(options.get("node_name") or "missiontree"))
+    robot = Ros2Robot(profile, node_name=str(options.get("node_name") or "missiontree"))
+    missing = robot.wait_until_ready(profile.startup_timeout)
+    if missing:
+        import structlog
+
+        structlog.get_logger("missiontree.ros2").warning(
+            "robot not fully up", missing=missing, waited_s=profile.startup_timeout,
+            hint="is the robot (or missiontree sim-ros) running in this ROS_DOMAIN_ID?")
+    return robot

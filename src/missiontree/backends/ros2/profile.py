@@ -97,6 +97,8 @@ class Ros2Profile(_Section):
         sensor_qos_depth: Queue depth of the best-effort sensor subscriptions.
         history_horizon: Seconds of pose and scan history kept for ``pose_at``/``scan_at``.
         domain_id: ROS_DOMAIN_ID for this robot's context; None takes the environment's.
+        startup_timeout: Seconds ``create_robot`` waits for a pose, a scan and the navigation server
+            before handing the robot over (it is handed over anyway: missing data shows as None).
     """
 
     # Unknown top-level keys are ignored: a --config file may hold the profile and other run options
@@ -110,6 +112,7 @@ class Ros2Profile(_Section):
     sensor_qos_depth: int = 5
     history_horizon: float = 10.0
     domain_id: int | None = None
+    startup_timeout: float = 5.0
     topics: Topics = Topics()
     frames: Frames = Frames()
     navigation: Navigation = Navigation()

@@ -253,6 +253,26 @@ class Ros2Robot:
             goal.advance()
             self._check_tolerance(goal)
 
+    def wait_until_ready(self, timeout: float) -> list[str]:
+        """Wait up to ``timeout`` s for a pose, a scan and the navigation server; return what is missing."""
+        deadline = time.monotonic() + timeout
+        while True:
+            missing = self.missing()
+            if not missing or time.monotonic() >= deadline:
+                return missing
+            time.sleep(0.05)
+
+    def missing(self) -> list[str]:
+        """What the robot has not heard of yet: ``pose``, ``scan``, ``navigation server``."""
+        missing = []
+        if self.pose() is None:
+            missing.append("pose")
+        if self._scan is None:
+            missing.append(f"scan on {self.profile.topics.scan}")
+        if self.nav_interface == "action" and not self._nav_client.server_is_ready():
+            missing.append(f"NavigateToPose server on {self.profile.navigation.action}")
+        return missing
+
     # ------------------------------------------------------------------------------ Robot: state
 
     def now(self) -> float:
