@@ -380,21 +380,30 @@ def _read_nav2_map(spec: WorldSpec, doc: Located, path: Path,
     return occupied, meta.resolution, Pose2D(meta.origin[0], meta.origin[1], 0.0)
 
 
-def _contour_segments(occupied: np.ndarray, res: float, origin: Pose2D) -> list[tuple[float, float, float, float]]:
-    """Outline the occupied cells of a map as wall segments (cell corners, exact to the grid)."""
-    mask = np.pad(occupied.astype(np.uint8), 1)
-    big = cv2.resize(mask, (mask.shape[1] * 2, mask.shape[0] * 2), interpolation=cv2.INTER_NEAREST)
-    contours, _ = cv2.findContours(big, cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
-    segments = []
-    for contour in contours:
-        pts = contour[:, 0, :].astype(float)
-        # doubled pixels: boundary pixel centres sit 0.25 cell inside; outline at cell corners
-        xy = np.stack([origin.x + (pts[:, 0] / 2.0 - 1.0 + 0.25) * res,
-                       origin.y + (pts[:, 1] / 2.0 - 1.0 + 0.25) * res], axis=1)
-        for a, b in zip(xy, np.roll(xy, -1, axis=0), strict=True):
-            if np.hypot(*(b - a)) > 1e-9:
-                segments.append((a[0], a[1], b[0], b[1]))
+def _contour_segments(occupied: np.ndarray, res: float,
+                      origin: Pose2D) -> list[tuple[float, float, float, float]]:
+    """Outline the occupied cells of a map as wall segments along cell edges (exact to the grid)."""
+    occ = np.pad(occupied.astype(bool), 1)
+    segments: list[tuple[float, float, float, float]] = []
+    # edges between horizontally adjacent cells run vertically at x = column boundary
+    vertical = occ[:, 1:] != occ[:, :-1]          # (rows+2, cols+1)
+    for boundary in np.flatnonzero(vertical.any(axis=0)):
+        for r0, r1 in _runs(vertical[:, boundary]):
+            x = origin.x + (boundary - 1 + 1) * res
+            segments.append((x, origin.y + (r0 - 1) * res, x, origin.y + (r1 - 1) * res))
+    horizontal = occ[1:, :] != occ[:-1, :]        # (rows+1, cols+2)
+    for boundary in np.flatnonzero(horizontal.any(axis=1)):
+        for c0, c1 in _runs(horizontal[boundary, :]):
+            y = origin.y + (boundary - 1 + 1) * res
+            segments.append((origin.x + (c0 - 1) * res, y, origin.x + (c1 - 1) * res, y))
     return segments
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(start, end) index pairs of the runs of True in a 1-D mask (end exclusive)."""
+    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
 def _rasterise(spec: WorldSpec, segs: np.ndarray, objects: list[WorldObject],
