@@ -107,6 +107,8 @@ class ClockedTimeout(_Clocked, py_trees.decorators.Timeout):
             return Status.FAILURE
         if self.decorated.status == Status.RUNNING:
             self.feedback_message = f"{self.finish_time - now:.2f} s left"
+        else:
+            self.feedback_message = "child finished in time"
         return self.decorated.status
 
 
