@@ -113,14 +113,23 @@ def test_crop_without_the_label_does_not_match() -> None:
 
 
 def test_room_voted_by_objects() -> None:
-    """A sink and a cup make a kitchen; a laptop alone cannot outvote them."""
-    detector = BoxDetector(Detection("sink", 0.9, (0, 0, 9, 9)), Detection("cup", 0.8, (10, 0, 19, 9)),
-                           Detection("laptop", 0.9, (20, 0, 29, 9)))
+    """A sink and a cup make a kitchen; a laptop of the same size alone cannot outvote them."""
+    detector = BoxDetector(Detection("sink", 0.9, (0, 0, 9, 10)), Detection("cup", 0.8, (10, 0, 19, 10)),
+                           Detection("laptop", 0.9, (20, 0, 29, 10)))
     room = RoomClassification.model_validate_json(
         OfflineVisionModel(detector).ask([scene()], room_prompt(), RoomClassification))
     assert room.room_type == "kitchen"
     assert room.evidence == ["cup", "sink"]
     assert room.confidence == pytest.approx(1.7 / 2.6, abs=1e-3)
+
+
+def test_near_objects_outvote_far_ones() -> None:
+    """One large (near) desk outvotes two small (far) kitchen objects seen through a doorway."""
+    detector = BoxDetector(Detection("desk", 0.9, (0, 30, 60, 100)), Detection("sink", 0.9, (70, 40, 75, 50)),
+                           Detection("cup", 0.9, (80, 40, 85, 50)))
+    room = RoomClassification.model_validate_json(
+        OfflineVisionModel(detector).ask([scene()], room_prompt(), RoomClassification))
+    assert room.room_type == "office"
 
 
 def test_room_unknown_without_evidence() -> None:

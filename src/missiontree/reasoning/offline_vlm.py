@@ -9,7 +9,9 @@ schema (or, without one, by the prompt):
   and attributes; it matches when the detector finds that label and the colour measured in HSV
   inside the box (:mod:`missiontree.perception.colour`) is the one asked for.
 - :class:`RoomClassification`: room types voted by the objects detected (a sink and a cup say
-  kitchen, a laptop says office, ...), weighted by score.
+  kitchen, a laptop says office, ...), each vote weighted by score and by the box's height in the
+  image (near objects, seen large, belong to the room the camera is in; far ones may be seen
+  through a doorway).
 - :class:`ObjectDescription`: label, measured colour, a typical size of the class and a shape from
   the box's aspect ratio.
 - No schema: seed 001's free-text sentence for a prompt about a PERSON, else a list of what is seen.
@@ -42,11 +44,14 @@ from missiontree.reasoning.schemas import (
 )
 from missiontree.types import Detection
 
-#: Objects that tell a room's type (NAIS classifies kitchens and offices).
+#: Objects that tell a room's type: the room types of the shipped worlds (NAIS's office has its sofa).
 ROOM_OBJECTS: dict[str, tuple[str, ...]] = {
-    "kitchen": ("sink", "refrigerator", "cup", "bottle", "oven", "microwave", "dining table", "bowl"),
-    "office": ("laptop", "monitor", "keyboard", "mouse", "printer", "desk", "book"),
-    "living_room": ("sofa", "tv", "potted plant", "armchair"),
+    "kitchen": ("sink", "refrigerator", "microwave", "oven", "counter", "dining table", "cup", "bottle",
+                "stool", "bowl"),
+    "office": ("laptop", "printer", "bookshelf", "desk", "monitor", "keyboard", "book", "chair", "sofa",
+               "tv"),
+    "corridor": ("door", "fire extinguisher", "bench", "trash can"),
+    "hall": ("pillar", "notice board", "umbrella", "potted plant"),
     "bedroom": ("bed", "wardrobe"),
     "bathroom": ("toilet", "bathtub", "shower"),
 }
@@ -147,13 +152,17 @@ class OfflineVisionModel:
         seen = [d for d in self._detections(image) if fold_label(d.label) == fold_label(wanted)]
         if not seen:
             return CropMatch(matches=False, confidence=0.9, reason=f"no {wanted} detected")
-        best = max(seen, key=lambda d: d.score)
         if not colours:
+            best = max(seen, key=lambda d: d.score)
             return CropMatch(matches=True, confidence=round(float(best.score), 4),
                              reason=f"a {wanted} detected (score {best.score:.2f})")
-        reading = dominant_colour(image, best.box, best.mask, inner=INNER)
-        shares = reading.shares if reading is not None else {}
-        share = max(shares.get(c, 0.0) for c in colours)
+        # Several objects of the class may be in view: the one that has the asked colour decides.
+        measured_all = []
+        for d in seen:
+            reading = dominant_colour(image, d.box, d.mask, inner=INNER)
+            shares = reading.shares if reading is not None else {}
+            measured_all.append((max(shares.get(c, 0.0) for c in colours), float(d.score), d, reading))
+        share, _, best, reading = max(measured_all, key=lambda m: (m[0], m[1]))
         measured = reading.name if reading is not None else "unknown"
         if share >= self.colour_share:
             return CropMatch(matches=True, confidence=round(float(best.score) * min(1.0, share / 0.5), 4),
@@ -166,10 +175,12 @@ class OfflineVisionModel:
         """The room type the detected objects vote for."""
         votes: dict[str, float] = {}
         evidence: dict[str, list[str]] = {}
+        height = float(image.shape[0])
         for d in self._detections(image):
+            weight = float(d.score) * max(d.box[3] - d.box[1], 1.0) / height
             for room, labels in self.room_objects.items():
                 if fold_label(d.label) in {fold_label(x) for x in labels}:
-                    votes[room] = votes.get(room, 0.0) + float(d.score)
+                    votes[room] = votes.get(room, 0.0) + weight
                     evidence.setdefault(room, []).append(d.label)
         if not votes:
             return RoomClassification(room_type="unknown", confidence=0.0, evidence=[])

@@ -19,7 +19,8 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 #: Room types the shipped worlds and the offline stand-in use; models may answer others.
-ROOM_TYPES = ("kitchen", "office", "living_room", "bedroom", "bathroom", "corridor", "storage", "unknown")
+ROOM_TYPES = ("kitchen", "office", "corridor", "hall", "living_room", "bedroom", "bathroom", "storage",
+              "unknown")
 
 #: Spatial relations a reference may use (seed 000: "the laptop in front of the sofa").
 RELATIONS = ("near", "next_to", "in_front_of", "behind", "left_of", "right_of", "on", "in")
