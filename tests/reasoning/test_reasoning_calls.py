@@ -207,3 +207,17 @@ def test_unknown_role_names_the_configured_ones() -> None:
     caller = ModelCaller(Clock(), Events(), models={"vlm": object(), "_calls": None})
     with pytest.raises(ConfigError, match=r"no model configured for role 'llm' \(configured: vlm\)"):
         caller.chat("llm", [])
+
+
+def test_provider_timeout_error_is_a_failure_not_the_wall_limit() -> None:
+    """A provider raising its own timeout error fails the call with that reason (not the wall-clock limit)."""
+    from missiontree.errors import ModelTimeoutError
+
+    def slow_server() -> None:
+        raise ModelTimeoutError("openai: chat at http://x took longer than 2 s; raise timeout")
+
+    caller = ModelCaller(Clock(), Events(), simulated=True)
+    call = caller.submit("vlm", slow_server)
+    assert call.status() is CallStatus.FAILED
+    assert "took longer than 2 s" in call.error()
+    caller.close()

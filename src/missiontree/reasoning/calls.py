@@ -41,8 +41,7 @@ import enum
 import random
 import threading
 from collections.abc import Callable, Collection, Mapping, Sequence
-from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
-from concurrent.futures import TimeoutError as FutureTimeout
+from concurrent.futures import CancelledError, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -203,16 +202,14 @@ class ModelCall:
             return self._set_running()
         if now < self.submitted_at + latency:
             return self._set_running()
-        try:
-            self._future.result(timeout=self._caller.wall_timeout)
-        except FutureTimeout:
+        # wait() rather than result(): a provider's own TimeoutError must not pass for the wall limit.
+        wait([self._future], timeout=self._caller.wall_timeout)
+        if not self._future.done():
             self._future.cancel()
             return self._finish(CallStatus.TIMED_OUT, latency, error=(
                 f"{self.provider}: the provider did not finish within "
                 f"{self._caller.wall_timeout:g} s of wall time (simulated latency {latency:g} s); "
                 "check that the model server answers"))
-        except BaseException:  # noqa: BLE001 - the provider's exception is read from the future below
-            pass
         return self._finish_from_future(latency)
 
     def _poll_real(self, now: float) -> CallStatus:
