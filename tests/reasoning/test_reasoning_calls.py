@@ -209,8 +209,8 @@ def test_unknown_role_names_the_configured_ones() -> None:
         caller.chat("llm", [])
 
 
-def test_provider_timeout_error_is_a_failure_not_the_wall_limit() -> None:
-    """A provider raising its own timeout error fails the call with that reason (not the wall-clock limit)."""
+def test_provider_timeout_error_is_timed_out_with_its_reason() -> None:
+    """A provider's own timeout ends the call TIMED_OUT with its reason (not the wall-clock limit's)."""
     from missiontree.errors import ModelTimeoutError
 
     def slow_server() -> None:
@@ -218,6 +218,6 @@ def test_provider_timeout_error_is_a_failure_not_the_wall_limit() -> None:
 
     caller = ModelCaller(Clock(), Events(), simulated=True)
     call = caller.submit("vlm", slow_server)
-    assert call.status() is CallStatus.FAILED
+    assert call.status() is CallStatus.TIMED_OUT
     assert "took longer than 2 s" in call.error()
     caller.close()

@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Any
 
 from pydantic import BaseModel
 
-from missiontree.errors import ConfigError, MissionTreeError, ModelConfigError
+from missiontree.errors import ConfigError, MissionTreeError, ModelConfigError, ModelTimeoutError
 from missiontree.reasoning.protocols import provider_name
 
 if TYPE_CHECKING:
@@ -238,7 +238,8 @@ class ModelCall:
             return self._finish(CallStatus.CANCELLED, latency, error="cancelled")
         except BaseException as exc:  # noqa: BLE001 - any provider failure is this call's outcome
             self._exception = exc
-            return self._finish(CallStatus.FAILED, latency, error=_describe(exc, self.provider))
+            status = CallStatus.TIMED_OUT if isinstance(exc, ModelTimeoutError) else CallStatus.FAILED
+            return self._finish(status, latency, error=_describe(exc, self.provider))
         self._result = value
         return self._finish(CallStatus.SUCCEEDED, latency)
 
