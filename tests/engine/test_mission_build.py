@@ -18,6 +18,7 @@ from missiontree.testing import tick_until
 
 REPO = Path(__file__).resolve().parents[2]
 Status = py_trees.common.Status
+Behaviour = py_trees.behaviour.Behaviour
 
 
 @pytest.fixture
@@ -79,3 +80,27 @@ def test_specs_map_to_behaviours(registry: NodeRegistry) -> None:
     mapping = node_specs_by_behaviour(spec, root)
     assert len(mapping) == len(spec.nodes())
     assert mapping[root.id] is spec.root
+
+
+def test_factory_error_becomes_located_problem(tmp_path: Path, registry: NodeRegistry) -> None:
+    """A plugin factory that raises is reported at the node's line, naming the plugin, not as a crash."""
+    from pydantic import BaseModel
+
+    from missiontree.engine.registry import NodeType
+    from missiontree.errors import MissionFileError
+
+    class NoParams(BaseModel):
+        pass
+
+    def broken(name: str, params: BaseModel, children: list[Behaviour]) -> Behaviour:
+        raise RuntimeError("driver missing")
+
+    registry.add(NodeType("Broken", "leaf", NoParams, broken, provider="acme"))
+    path = tmp_path / "m.yaml"
+    path.write_text("root:\n  Sequence:\n    memory: true\n    children: [Succeed, Broken]\n")
+    spec = load_mission(path, registry)
+    with pytest.raises(MissionFileError) as info:
+        build_tree(spec, registry)
+    (problem,) = info.value.problems
+    assert (problem.line, problem.col) == (4, 25)
+    assert "driver missing" in problem.message and "acme" in problem.hint

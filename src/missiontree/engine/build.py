@@ -45,7 +45,7 @@ def build_node(node: NodeSpec, registry: NodeRegistry) -> Behaviour:
         behaviour = node_type.factory(node.name, node.params, children)
     except MissionFileError as exc:
         raise MissionFileError([_at(node, p.message, p.hint) for p in exc.problems]) from None
-    except (TypeError, ValueError) as exc:
+    except Exception as exc:  # noqa: BLE001 - a plugin's factory bug becomes a located problem, not a crash
         hint = f"check the parameters of {node.type} (provider {node_type.provider})"
         raise MissionFileError([_at(node, f"cannot build {node.type}: {exc}", hint)]) from exc
     if not isinstance(behaviour, Behaviour):

@@ -91,7 +91,11 @@ def validate_params(
     instance: BaseModel | None = None
     try:
         instance = model.model_validate(plain)
-    except ValidationError as exc:
+    except (ValidationError, TypeError, ValueError) as exc:  # a buggy Params model may raise plainly
+        if not isinstance(exc, ValidationError):
+            return None, [ParamIssue((), f"expected the parameters to pass the node type's own checks, but "
+                                     f"they raised {type(exc).__name__}: {exc}",
+                                     "a bug in the node type's Params model; report it to its provider")]
         for err in exc.errors():
             loc = tuple(err["loc"])
             if err["type"] == "missing" and loc and loc[0] in refs:
