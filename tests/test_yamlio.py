@@ -154,3 +154,9 @@ def test_timestamps_stay_strings() -> None:
 def test_format_path() -> None:
     """Key paths render as dotted names with [index]."""
     assert format_path(("root", "children", 2, "Wait")) == "root.children[2].Wait"
+
+
+def test_control_characters_are_refused_with_position() -> None:
+    """A control character (other than tab and line breaks) is named with its line and column."""
+    (line,) = problems_of("a: 1\nb: x\x07\n")
+    assert line.startswith("f.yaml:2:5: expected printable text, found the control character '\\x07'")

@@ -28,6 +28,7 @@ safe loader reads them, except timestamps, which stay strings. Merge keys (``<<:
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,6 +52,7 @@ _STANDARD_TAGS = {
 }
 _MERGE_TAG = "tag:yaml.org,2002:merge"
 _MAX_TAB_REPORTS = 20
+_CONTROL = re.compile("[\x01-\x08\x0b\x0c\x0e-\x1f\x7f]")
 
 
 @dataclass(frozen=True)
@@ -238,7 +240,7 @@ def _decode(source: str | bytes, file: str, limits: YamlLimits, error: type[Prob
                 file, 1, 1, "", f"expected at most {limits.max_bytes} characters, found {len(source)}")])
         if "\x00" in source:
             raise error([_binary_problem(file, source.index("\x00"), source)])
-        return source
+        return _check_printable(source, file, error)
     if len(source) > limits.max_bytes:
         raise error([Problem(file, 1, 1, "", f"expected at most {limits.max_bytes} bytes, found more")])
     if b"\x00" in source:
@@ -252,7 +254,21 @@ def _decode(source: str | bytes, file: str, limits: YamlLimits, error: type[Prob
             file, line, col, "", f"expected UTF-8 text, found the byte 0x{source[exc.start]:02x}",
             "this looks like a binary file or another encoding; save it as UTF-8 YAML",
         )]) from None
-    return text.removeprefix("\ufeff")
+    return _check_printable(text.removeprefix("\ufeff"), file, error)
+
+
+def _check_printable(text: str, file: str, error: type[ProblemsError]) -> str:
+    """Refuse control characters (YAML forbids them) with their line and column."""
+    found = _CONTROL.search(text)
+    if found is None:
+        return text
+    index = found.start()
+    line = text.count("\n", 0, index) + 1
+    col = index - (text.rfind("\n", 0, index) + 1) + 1
+    raise error([Problem(
+        file, line, col, "", f"expected printable text, found the control character {found.group()!r}",
+        "remove it (YAML allows only tabs, line breaks and printable characters)",
+    )])
 
 
 def _binary_problem(file: str, index: int, source: str | bytes) -> Problem:
@@ -290,7 +306,7 @@ def _syntax_problem(file: str, exc: yaml.MarkedYAMLError) -> Problem:
     hint = "check indentation, colons and quoting on this line and the one before"
     if "found character '\\t'" in what or "found character '\t'" in what:
         hint = "replace the tab with spaces"
-    elif "found duplicate anchor" in what or "found undefined alias" in what:
+    elif "anchor" in what + str(exc.context) or "found undefined alias" in what:
         hint = "define the anchor (&name) before using the alias (*name), once"
     elif "expected a single document" in what or "but found another document" in what:
         what, hint = "expected one YAML document, found several", "remove the `---` separators"
