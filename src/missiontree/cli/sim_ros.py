@@ -51,10 +51,10 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--rate must be positive, found {args.rate}")
     profile = profile_from_options({"profile": args.profile, "domain_id": args.domain_id})
     require_rclpy()
-    sim = create_sim({"world": args.world, "seed": args.seed, "robot": args.robot})
+    options = {"world": args.world, "seed": args.seed, "robot": args.robot}
     from missiontree.backends.ros2.bridge import SimBridge
 
-    bridge = SimBridge(sim, profile, rate=args.rate)
+    bridge = SimBridge(lambda: create_sim(options), profile, rate=args.rate)
     stop_signal: list[int] = []
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -76,6 +76,6 @@ def run(args: argparse.Namespace) -> int:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     why = signal.Signals(stop_signal[0]).name if stop_signal else "duration reached"
-    print(f"missiontree sim-ros: stopped ({why}) after {sim.now():.1f} s simulated, "
-          f"{bridge.goals_served} goals served", file=sys.stderr, flush=True)
+    print(f"missiontree sim-ros: stopped ({why}) after {bridge.sim.now():.1f} s simulated, "
+          f"{bridge.goals_served} goals served, {bridge.resets} resets", file=sys.stderr, flush=True)
     return 0

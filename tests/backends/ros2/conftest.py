@@ -114,9 +114,14 @@ def domain_id() -> int:
 
 
 @pytest.fixture(scope="module")
-def sim_ros() -> Iterator[SimRos]:
-    """One sim-ros process (office world, seed 0) shared by a test module."""
-    server = SimRos(next_domain_id())
+def sim_ros(request: pytest.FixtureRequest) -> Iterator[SimRos]:
+    """One sim-ros process shared by a test module.
+
+    The module may name the world (``SIM_ROS_WORLD``, default office) and seed (``SIM_ROS_SEED``, 0).
+    """
+    world = getattr(request.module, "SIM_ROS_WORLD", "office")
+    seed = getattr(request.module, "SIM_ROS_SEED", 0)
+    server = SimRos(next_domain_id(), world=world, seed=seed)
     yield server
     server.stop()
 

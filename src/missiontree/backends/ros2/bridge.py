@@ -13,9 +13,11 @@ callbacks and the action server. Every simulator call holds ``_sim_lock``.
 
 from __future__ import annotations
 
+import json
 import math
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import rclpy
@@ -31,6 +33,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import CameraInfo, Image
 from sensor_msgs.msg import LaserScan as LaserScanMsg
+from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
 from missiontree.backends.ros2 import conversions as conv
@@ -41,6 +44,11 @@ from missiontree.types import Pose2D
 
 #: Nav2's result code for an error it cannot name (nav2_msgs NavigateToPose.Result.UNKNOWN).
 NAV2_UNKNOWN = 9000
+#: Simulator controls in (std_msgs/String) and the bridge's status out (JSON, transient local).
+CONTROL_TOPIC = "/missiontree/sim/control"
+STATUS_TOPIC = "/missiontree/sim/status"
+#: A velocity command received this recently (s) survives the cancel of a goal.
+CMD_VEL_HOLD = 0.5
 #: Optical frame orientation relative to the camera link (z forward, x right, y down).
 _OPTICAL = (-0.5, 0.5, -0.5, 0.5)
 
@@ -48,15 +56,23 @@ _OPTICAL = (-0.5, 0.5, -0.5, 0.5)
 class SimBridge:
     """Serves a simulated robot over ROS 2 in real time.
 
+    Besides the robot's topics it listens on ``/missiontree/sim/control`` (std_msgs/String) for
+    simulator controls, as Gazebo's reset service: ``reset`` (a fresh simulator from the factory,
+    robot back at the start; running goals abort), ``silence lidar|camera`` and ``resume
+    lidar|camera`` (a sensor stops or restarts publishing); and publishes ``/missiontree/sim/status``
+    (JSON: resets, controls applied, goals served; transient local) after each.
+
     Args:
-        sim: The simulated robot (``missiontree.backends.sim.create_robot``).
+        make_sim: Builds the simulated robot (``missiontree.backends.sim.create_robot`` with options).
         profile: Topic and frame names to serve (the same profile a Ros2Robot reads).
         rate: Simulated seconds per wall second (1.0 = real time).
         odom_hz: Rate of /odom and /tf.
     """
 
-    def __init__(self, sim: Any, profile: Ros2Profile, rate: float = 1.0, odom_hz: float = 20.0) -> None:
-        self.sim = sim
+    def __init__(self, make_sim: Callable[[], Any], profile: Ros2Profile, rate: float = 1.0,
+                 odom_hz: float = 20.0) -> None:
+        self.make_sim = make_sim
+        self.sim = make_sim()
         self.profile = profile
         self.rate = rate
         self.odom_period = 1.0 / odom_hz
@@ -67,15 +83,22 @@ class SimBridge:
                    signal_handler_options=SignalHandlerOptions.NO)
         self.node = Node("missiontree_sim", context=self._context, namespace=profile.namespace or None)
         # ROS time of simulated time 0: stamps are ROS time, in step with the simulator when paced.
-        self._epoch = self._ros_now() - sim.now()
-        self._last_scan = self._last_frame = -math.inf
-        self._last_odom = -math.inf
-        self._last_pose: Pose2D | None = None
+        self._epoch = self._ros_now() - self.sim.now()
+        self._wall0, self._sim0 = time.monotonic(), self.sim.now()
+        self._forget_published()
+        self._last_command: tuple[float, float, float] | None = None  # (v, w, wall time received)
+        self.resets = 0
+        self.controls = 0
+        self.goals_served = 0
         self._advertise()
         self._executor = MultiThreadedExecutor(num_threads=4, context=self._context)
         self._executor.add_node(self.node)
         self._spinner = threading.Thread(target=self._spin, name="sim-ros-executor", daemon=True)
-        self.goals_served = 0
+
+    def _forget_published(self) -> None:
+        self._last_scan = self._last_frame = -math.inf
+        self._last_odom = -math.inf
+        self._last_pose: Pose2D | None = None
 
     # ------------------------------------------------------------------------------ wiring
 
@@ -102,6 +125,8 @@ class SimBridge:
                                          callback_group=group)
         node.create_subscription(PoseStampedMsg, t.goal_pose, self._on_goal_pose, reliable_qos(),
                                  callback_group=group)
+        node.create_subscription(String, CONTROL_TOPIC, self._on_control, reliable_qos())
+        self._status_pub = node.create_publisher(String, STATUS_TOPIC, latched_qos())
 
     def _spin(self) -> None:
         try:
@@ -122,7 +147,41 @@ class SimBridge:
     def _on_cmd_vel(self, msg: Twist | TwistStamped) -> None:
         v, w = conv.twist_from_msg(msg)
         with self._sim_lock:
+            self._last_command = (v, w, time.monotonic())
             self.sim.drive(v, w)
+
+    def _on_control(self, msg: String) -> None:
+        words = msg.data.split()
+        with self._sim_lock:
+            if words == ["reset"]:
+                self.reset()
+            elif len(words) == 2 and words[0] in ("silence", "resume") and words[1] in ("lidar", "camera"):
+                self.sim.silence(words[1], quiet=words[0] == "silence")
+            else:
+                self.node.get_logger().warning(
+                    f"unknown simulator control {msg.data!r}; expected 'reset', 'silence lidar|camera' "
+                    "or 'resume lidar|camera'")
+                return
+            self.controls += 1
+        self._publish_status()
+
+    def reset(self) -> None:
+        """Replace the simulator by a fresh one (robot at the start); running goals end aborted."""
+        with self._sim_lock:
+            old = self.sim
+            self.sim = self.make_sim()
+            old.close()
+            self.resets += 1
+            self._last_command = None
+            self._epoch = self._ros_now() - self.sim.now()
+            self._wall0, self._sim0 = time.monotonic(), self.sim.now()
+            self._forget_published()
+            self.publish_static()
+            self.publish_sensors()
+
+    def _publish_status(self) -> None:
+        status = {"resets": self.resets, "controls": self.controls, "goals_served": self.goals_served}
+        self._status_pub.publish(String(data=json.dumps(status)))
 
     def _on_goal_pose(self, msg: PoseStampedMsg) -> None:
         goal = NavigateToPose.Goal()
@@ -137,19 +196,23 @@ class SimBridge:
         request = goal_handle.request
         goal = conv.pose_from_msg(request.pose.pose)
         with self._sim_lock:
-            handle = self.sim.navigate_to(goal)
-            started = self.sim.now()
+            sim = self.sim
+            handle = sim.navigate_to(goal)
+            started = sim.now()
         self.goals_served += 1
         result = NavigateToPose.Result()
         while True:
             with self._sim_lock:
+                if sim is not self.sim:  # reset under the goal
+                    result.error_code, result.error_msg = NAV2_UNKNOWN, "the simulator was reset"
+                    goal_handle.abort()
+                    return result
                 status = handle.status()
                 feedback = handle.feedback()
                 if goal_handle.is_cancel_requested and not status.done:
-                    handle.cancel()
-                    self.sim.stop()
-                    status = handle.status() if handle.status().done else ActionStatus.CANCELED
-                now = self.sim.now()
+                    self._cancel_navigation()
+                    status = handle.status()
+                now = sim.now()
             if not goal_handle.is_active:
                 return result
             if status.done or self._stop.is_set():
@@ -171,6 +234,14 @@ class SimBridge:
             result.error_msg = reason
             goal_handle.abort()
         return result
+
+    def _cancel_navigation(self) -> None:
+        """End the simulator's goal at once; a velocity command received lately stays in force."""
+        self.sim.stop()
+        if self._last_command is not None:
+            v, w, received = self._last_command
+            if time.monotonic() - received < CMD_VEL_HOLD:
+                self.sim.drive(v, w)
 
     def _feedback(self, fb: Any, elapsed: float) -> Any:
         msg = NavigateToPose.Feedback()
@@ -263,20 +334,24 @@ class SimBridge:
 
     def run(self, duration: float | None = None) -> None:
         """Serve until :meth:`shutdown` (or for ``duration`` wall seconds), paced in real time."""
-        self._spinner.start()
         with self._sim_lock:
+            self._epoch = self._ros_now() - self.sim.now()
+            self._wall0, self._sim0 = time.monotonic(), self.sim.now()
             self.publish_static()
             self.publish_sensors()
-        wall0, sim0 = time.monotonic(), self.sim.now()
-        dt = self.sim.profile.physics_dt
+        self._spinner.start()
+        self._publish_status()
+        started = time.monotonic()
         while not self._stop.is_set():
-            elapsed = time.monotonic() - wall0
-            if duration is not None and elapsed >= duration:
+            if duration is not None and time.monotonic() - started >= duration:
                 break
             with self._sim_lock:
-                self.sim.spin_until(sim0 + elapsed * self.rate)
+                dt = self.sim.profile.physics_dt
+                elapsed = (time.monotonic() - self._wall0) * self.rate
+                # whole physics steps only, so that no stamp lies ahead of ROS time
+                self.sim.spin_until(self._sim0 + math.floor(elapsed / dt + 1e-6) * dt)
                 self.publish_sensors()
-            next_wall = wall0 + (self.sim.now() - sim0 + dt) / self.rate
+                next_wall = self._wall0 + (self.sim.now() - self._sim0 + dt) / self.rate
             self._stop.wait(max(0.0, next_wall - time.monotonic()))
 
     def shutdown(self) -> None:
