@@ -221,3 +221,34 @@ def test_provider_timeout_error_is_timed_out_with_its_reason() -> None:
     assert call.status() is CallStatus.TIMED_OUT
     assert "took longer than 2 s" in call.error()
     caller.close()
+
+
+def test_model_caller_binds_providers_that_need_the_robot() -> None:
+    """model_caller(context) binds needs_robot providers once; one refusing the robot becomes broken."""
+    from missiontree.engine.context import MissionContext
+    from missiontree.errors import ModelConfigError
+    from missiontree.reasoning.calls import model_caller
+    from missiontree.reasoning.hub import BrokenProvider
+    from missiontree.testing import ClockRobot
+
+    class NeedsRobot:
+        name = "needy"
+        needs_robot = True
+
+        def __init__(self, refuse: bool) -> None:
+            self.refuse = refuse
+            self.bound: list[object] = []
+
+        def bind(self, robot: object) -> None:
+            if self.refuse:
+                raise ModelConfigError("detector 'needy' is simulation-only; configure a real detector")
+            self.bound.append(robot)
+
+    robot = ClockRobot()
+    good, bad = NeedsRobot(False), NeedsRobot(True)
+    context = MissionContext(robot=robot, models={"detector": good, "other": bad})
+    caller = model_caller(context)
+    assert model_caller(context) is caller
+    assert good.bound == [robot]
+    assert isinstance(context.models["other"], BrokenProvider)
+    assert "simulation-only" in context.models["other"].reason

@@ -472,17 +472,24 @@ class ModelCaller:
 def model_caller(context: MissionContext) -> ModelCaller:
     """The mission's ModelCaller, made on first use from the context and the models config's settings.
 
-    On first use it also binds providers that need the robot (those with a ``bind(robot)`` method,
-    such as the simulation oracle detector) to ``context.robot``.
+    On first use it also binds the providers marked ``needs_robot`` (the simulation oracle detector)
+    to ``context.robot``; one that refuses the robot is replaced by a
+    :class:`~missiontree.reasoning.hub.BrokenProvider` carrying the reason, so the leaves that use it
+    fail with that reason.
     """
     caller = context.models.get(CALLER_KEY)
     if not isinstance(caller, ModelCaller):
+        from missiontree.reasoning.hub import BrokenProvider
+
         settings = context.models.get(SETTINGS_KEY)
         caller = ModelCaller.for_context(context, settings if isinstance(settings, CallSettings) else None)
         for role, provider in list(context.models.items()):
-            bind = getattr(provider, "bind", None) if not role.startswith("_") else None
-            if callable(bind):
-                bind(context.robot)
+            if role.startswith("_") or getattr(provider, "needs_robot", False) is not True:
+                continue
+            try:
+                provider.bind(context.robot)
+            except MissionTreeError as exc:
+                context.models[role] = BrokenProvider(role, provider_name(provider), str(exc))
         context.models[CALLER_KEY] = caller
     return caller
 
