@@ -97,3 +97,24 @@ def test_type_labels_are_readable() -> None:
     assert type_label(bool) == "true/false"
     assert type_label(list[str]) == "list of text"
     assert type_label(int | None) == "integer"
+
+
+class Route(BaseModel):
+    """A nested parameter model (like a plugin's waypoint list)."""
+
+    class Point(BaseModel):
+        x: float
+        y: float
+
+    points: list[Point]
+    mode: int | str = 1
+
+
+def test_nested_errors_point_at_the_written_item() -> None:
+    """Errors inside lists of mappings name the item; union members merge into one message."""
+    _, issues = validate_params(Route, {"points": [{"x": 1, "y": 2}, {"x": "far", "y": 0}, {"x": 0}],
+                                        "mode": [1]})
+    messages = {issue.loc: issue.message for issue in issues}
+    assert messages[("points", 1, "x")].startswith("points[1].x: expected a valid number")
+    assert messages[("points", 2)] == "points[2]: expected key 'y', found none"
+    assert messages[("mode",)] == "mode: expected a valid integer or a valid string, found [1]"

@@ -25,6 +25,7 @@ from missiontree.engine.ports import BlackboardRef, ports_of
 from missiontree.engine.registry import NodeRegistry, NodeType
 from missiontree.engine.spec import CHILD_KEY, CHILDREN_KEY, MissionSpec, NodeSpec
 from missiontree.errors import Problem
+from missiontree.yamlio import format_path
 
 _UNRESOLVED = re.compile(r"(?<!\$)\$\{[^}]*\}")
 
@@ -96,13 +97,21 @@ def validate_params(
             return None, [ParamIssue((), f"expected the parameters to pass the node type's own checks, but "
                                      f"they raised {type(exc).__name__}: {exc}",
                                      "a bug in the node type's Params model; report it to its provider")]
+        by_loc: dict[tuple[str | int, ...], list[Any]] = {}
         for err in exc.errors():
             loc = tuple(err["loc"])
             if err["type"] == "missing" and loc and loc[0] in refs:
                 continue
             if isinstance(err.get("input"), str) and _UNRESOLVED.search(err["input"]):
                 continue  # an unknown ${param}: the loader reported it where it was written
-            issues.append(_issue(model, err))
+            # drop union-member tags (``int``, ``str``...) that pydantic puts in loc: keep written keys
+            by_loc.setdefault(_written_loc(plain, loc, err["type"]), []).append(err)
+        for loc, errs in by_loc.items():
+            merged = dict(errs[0], loc=loc)
+            if len(errs) > 1 and all(e["type"] not in ("missing", "extra_forbidden") for e in errs):
+                merged["msg"] = " or ".join(dict.fromkeys(_expected_text(e) for e in errs))
+                merged["type"] = "union"
+            issues.append(_issue(model, merged))
     if issues:
         return None, issues
     if not refs:
@@ -127,6 +136,9 @@ def _issue(model: type[BaseModel], err: Any) -> ParamIssue:
         return ParamIssue(loc[:-1], "expected `memory: true` or `memory: false` (stated), found none",
                           "true resumes the RUNNING child next tick (a plan of steps); false restarts from "
                           "the first child every tick (earlier children are re-checked)")
+    if err["type"] == "missing" and len(loc) > 1:
+        return ParamIssue(loc[:-1], f"{format_path(loc[:-1])}: expected key {loc[-1]!r}, found none",
+                          f"add `{loc[-1]}: ...`" + (f" ({doc})" if doc else ""))
     if err["type"] == "missing":
         kind = type_label(info.annotation) if info is not None else "a value"
         hint = f"add `{name}: ...`" + (f" ({doc})" if doc else "")
@@ -134,16 +146,37 @@ def _issue(model: type[BaseModel], err: Any) -> ParamIssue:
     if err["type"] == "extra_forbidden":
         return ParamIssue(loc, f"expected no parameter {'.'.join(map(str, loc))!r}, found one", "remove it",
                           at_key=True)
-    msg = str(err.get("msg", ""))
-    for prefix in ("Input should be ", "Value error, ", "Assertion failed, "):
-        msg = msg.removeprefix(prefix)
-    where = ".".join(map(str, loc))
+    msg = _expected_text(err)
+    where = format_path(loc)
     found = err.get("input")
     found_text = "nothing" if found is None else repr(found) if not isinstance(found, dict) else "a mapping"
     if err["type"] == "value_error":
         return ParamIssue(loc, f"{where}: {msg}" if where else msg, doc)
     return ParamIssue(loc, f"{where}: expected {msg}, found {found_text}" if where else f"expected {msg}",
                       doc or "fix the value")
+
+
+def _expected_text(err: Any) -> str:
+    msg = str(err.get("msg", ""))
+    for prefix in ("Input should be ", "Value error, ", "Assertion failed, "):
+        msg = msg.removeprefix(prefix)
+    return msg
+
+
+def _written_loc(data: Any, loc: tuple[Any, ...], kind: str) -> tuple[str | int, ...]:
+    """The part of a pydantic ``loc`` that names keys and indices present in the written data."""
+    kept: list[str | int] = []
+    for part in loc:
+        if isinstance(data, dict) and part in data:
+            data = data[part]
+        elif isinstance(data, list) and isinstance(part, int) and 0 <= part < len(data):
+            data = data[part]
+        elif kind in ("missing", "extra_forbidden") and not isinstance(part, int) and part == loc[-1]:
+            pass  # the missing/extra key itself is kept below
+        else:
+            continue
+        kept.append(part)
+    return tuple(kept)
 
 
 def type_label(annotation: Any) -> str:
