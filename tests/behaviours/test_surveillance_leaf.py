@@ -10,6 +10,7 @@ import pytest
 from patrol_doubles import Events, FakeRobot, ScriptedVLM, SlabDetector, person_frame, wall_scan
 
 from missiontree.behaviours.surveillance import Surveillance
+from missiontree.behaviours.tracks import CallBudget, PersonTracks
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Status
 from missiontree.reasoning.calls import CALLER_KEY, LatencyModel, ModelCaller
@@ -132,13 +133,41 @@ def test_safe_verdict_raises_nothing() -> None:
     assert events.of("surveillance_verdict")[0]["verdict"] == "SAFE"
 
 
-def test_confirmations_are_rate_limited_by_period() -> None:
-    """With a person always in view and one call in flight, calls stay at or under 1/period."""
+def test_a_person_in_view_costs_one_call() -> None:
+    """A person seen in 50 frames is asked about once (tracked), raising one alarm."""
     robot = FakeRobot()
-    leaf, _, models = setup_leaf(robot, latency=0.3, period=0.5)
+    leaf, events, models = setup_leaf(robot, latency=0.3, period=0.5)
     for _ in range(50):  # 10 s
         step(robot, leaf, 0.1)
-    assert 15 <= models["vlm"].asked <= 20
+    assert models["vlm"].asked == 1
+    assert len(events.of("alarm")) == 1
+
+
+def test_a_safe_verdict_is_rechecked_after_a_while() -> None:
+    """A person the VLM called SAFE is asked about again after `recheck` seconds, not every frame."""
+    robot = FakeRobot()
+    vlm = ScriptedVLM(lambda image: json.dumps({"verdict": "SAFE", "description": "a mannequin"}))
+    leaf, _, _ = setup_leaf(robot, latency=0.2, vlm=vlm, recheck=3.0)
+    for _ in range(50):  # 10 s
+        step(robot, leaf, 0.1)
+    assert 3 <= vlm.asked <= 4
+
+
+def test_call_budget_holds_the_average_rate() -> None:
+    """The token bucket allows a burst of two, then one call per period on average."""
+    budget = CallBudget(rate=2.0, burst=2)
+    granted = sum(budget.take(t * 0.05) for t in range(200))  # 10 s of asking every 50 ms
+    assert 20 <= granted <= 22
+
+
+def test_tracks_follow_a_walking_person_and_forget_them() -> None:
+    """A person moving 0.3 m between frames keeps their track; after forget_after a new one starts."""
+    tracks = PersonTracks(forget_after=2.0)
+    first = tracks.match(0.0, (1.0, 0.0), 0.0)
+    assert tracks.match(0.2, (1.0, 0.3), 0.3).id == first.id
+    assert tracks.match(0.4, (4.0, 3.0), 0.6).id != first.id
+    tracks.expire(3.0)
+    assert tracks.match(3.0, (1.0, 0.6), 0.5).id not in (first.id,)
 
 
 def test_halting_cancels_calls_in_flight() -> None:

@@ -5,8 +5,10 @@ Runs beside the patrol (a Parallel) and never finishes by itself. Two modes:
 - ``poll`` — seed 001: every ``period`` seconds (0.5 s, or 0.2 s in scenario D) the latest frame
   goes to the vision-language model with the ALARM/SAFE prompt. People who cross the view between
   two checks, or while answers are slow, are missed.
-- ``detect`` — a cheap detector looks at *every* frame; only frames that show a person are sent to
-  the VLM, which confirms, at most one call every ``period`` seconds and ``max_in_flight`` at once.
+- ``detect`` — a cheap detector looks at *every* frame; a frame showing a person not seen before
+  (light tracks by map position, :mod:`missiontree.behaviours.tracks`) goes to the VLM, which
+  confirms; calls stay within a budget of one per ``period`` on average (short bursts of two, so
+  two newcomers are both asked at once) and ``max_in_flight`` at once. Each person costs one call.
 
 Model calls never block the tick: they are submitted through the mission's
 :class:`~missiontree.reasoning.calls.ModelCaller` and polled. The answer is read through the
@@ -26,8 +28,10 @@ from pydantic import BaseModel, Field
 
 from missiontree.behaviours.alarms import Alarm, record_alarm
 from missiontree.behaviours.measure import FuseAt, Measurement, Method, measure
+from missiontree.behaviours.tracks import CallBudget, PersonTracks, Track, TrackState
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Output
+from missiontree.perception.depth import centre_region
 from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
 from missiontree.reasoning.checks import ask_checked
 from missiontree.reasoning.prompts import surveillance_prompt
@@ -36,13 +40,21 @@ from missiontree.types import Detection, RGBDFrame
 
 
 @dataclass
+class _Sighting:
+    """One person in a frame: their box, what was measured at the frame's instant, their track."""
+
+    detection: Detection | None
+    measurement: Measurement | None
+    track: Track | None = None
+
+
+@dataclass
 class _Pending:
-    """A frame sent to the VLM, with what was measured at the frame's instant."""
+    """A frame sent to the VLM, with the people it was sent for."""
 
     call: ModelCall
     frame: RGBDFrame
-    detection: Detection | None
-    measurement: Measurement | None
+    sightings: list[_Sighting]
 
 
 class Surveillance(Leaf):
@@ -68,6 +80,9 @@ class Surveillance(Leaf):
         label: str = Field("person", description="Detector label that counts as a person.")
         surface_offset: float = Field(
             0.1, ge=0, description="Added to measured ranges: sensors see a person's near surface (m).")
+        forget_after: float = Field(
+            1.0, gt=0, description="detect mode: seconds out of view before a person counts as new.")
+        recheck: float = Field(3.0, gt=0, description="detect mode: seconds before asking again if SAFE.")
         alarm_cooldown: float = Field(
             0.0, ge=0, description="Seconds after an alarm with no new alarm (0: every sighting).")
         timeout: float = Field(10.0, gt=0, description="Seconds to wait for a VLM answer.")
@@ -85,6 +100,8 @@ class Surveillance(Leaf):
         self.alarm_count = 0
         self.checks = 0
         self.sightings = 0
+        self.tracks = PersonTracks(forget_after=self.params.forget_after)
+        self.budget = CallBudget(1.0 / self.params.period)
 
     def on_setup(self) -> None:
         """Check that the models this mode needs are configured."""
@@ -127,36 +144,59 @@ class Surveillance(Leaf):
         if self.params.fuse_at == "frame":
             measurement = measure(self.context.robot, frame, None, self.params.method, fuse_at="frame",
                                   surface_offset=self.params.surface_offset)
-        self._submit(frame, None, measurement)
+        self._submit(frame, [_Sighting(None, measurement)])
 
     def _detect(self, frame: RGBDFrame) -> None:
         detector = self.context.model("detector")
         people = [d for d in detector.detect(frame.color)
                   if d.label == self.params.label and d.score >= self.params.min_score]
         self.checks += 1
-        if not people:
-            return
-        person = max(people, key=lambda d: (d.box[2] - d.box[0]) * (d.box[3] - d.box[1]))
-        self.sightings += 1
         now = self.context.robot.now()
+        self.tracks.expire(now)
+        newcomers: list[_Sighting] = []
+        taken: set[int] = set()
+        for person in sorted(people, key=lambda d: -(d.box[2] - d.box[0]) * (d.box[3] - d.box[1])):
+            self.sightings += 1
+            sighting = self._sighting(frame, person, taken)
+            track = sighting.track
+            assert track is not None
+            recheck = track.state == "safe" and now - track.state_since > self.params.recheck
+            if track.state == "new" or recheck:
+                newcomers.append(sighting)
+        if not newcomers:
+            return
         if not self.params.confirm:
-            self._raise(frame, person, self._measure(frame, person), "detector: person")
+            for sighting in newcomers:
+                self._raise(frame, sighting, "detector: person")
             return
-        if not self._may_submit(now):
-            return
-        self._submit(frame, person, self._measure(frame, person))
+        if len(self.pending) < self.params.max_in_flight and self.budget.take(now):
+            for sighting in newcomers:
+                assert sighting.track is not None
+                sighting.track.set("pending", now)
+            self._submit(frame, newcomers)
+
+    def _sighting(self, frame: RGBDFrame, person: Detection, taken: set[int]) -> _Sighting:
+        """Measure a person at the frame's instant and find their track."""
+        measurement = measure(self.context.robot, frame, person, self.params.method, fuse_at="frame",
+                              surface_offset=self.params.surface_offset)
+        now = self.context.robot.now()
+        if measurement is not None:
+            pose = measurement.robot_pose
+            map_bearing = pose.yaw + measurement.bearing
+        else:
+            k = frame.intrinsics
+            map_bearing = frame.camera_pose.yaw + k.pixel_bearing(person.center[0])
+        track = self.tracks.match(now, measurement.position if measurement else None, map_bearing, taken,
+                                  appearance_of(frame, person))
+        taken.add(track.id)
+        kept = measurement if self.params.fuse_at == "frame" else None
+        return _Sighting(person, kept, track)
 
     def _may_submit(self, now: float) -> bool:
         waited = now - self.last_submit >= self.params.period - 1e-9
         return waited and len(self.pending) < self.params.max_in_flight
 
-    def _measure(self, frame: RGBDFrame, person: Detection | None) -> Measurement | None:
-        if self.params.fuse_at != "frame":
-            return None
-        return measure(self.context.robot, frame, person, self.params.method, fuse_at="frame",
-                       surface_offset=self.params.surface_offset)
-
-    def _submit(self, frame: RGBDFrame, detection: Detection | None, measurement: Measurement | None) -> None:
+    def _submit(self, frame: RGBDFrame, sightings: list[_Sighting]) -> None:
         caller = model_caller(self.context)
         vlm = self.context.model("vlm")
         prompt = self.params.prompt or surveillance_prompt()
@@ -165,7 +205,7 @@ class Surveillance(Leaf):
         self.last_submit = self.context.robot.now()
         if self.params.mode == "poll":
             self.checks += 1
-        self.pending.append(_Pending(call, frame, detection, measurement))
+        self.pending.append(_Pending(call, frame, sightings))
 
     # -- answers ---------------------------------------------------------------------------------
 
@@ -174,38 +214,59 @@ class Surveillance(Leaf):
         status = pending.call.status()
         if not status.done:
             return False
+        now = self.context.robot.now()
         if status is not CallStatus.SUCCEEDED:
             self.emit("surveillance_check_failed", frame_stamp=pending.frame.stamp,
                       error=pending.call.error())
+            self._set_tracks(pending, "new", now)  # ask again on a later frame
             return True
         verdict: SurveillanceVerdict = pending.call.result().value
         self.emit("surveillance_verdict", frame_stamp=pending.frame.stamp, verdict=verdict.verdict,
                   latency=pending.call.latency)
         if not verdict.alarm:
+            self._set_tracks(pending, "safe", now)
             return True
-        detection = pending.detection
-        if detection is None and verdict.people:
-            best = max(verdict.people, key=lambda p: p.score)
-            detection = Detection("person", best.score, best.box)
-        measurement = pending.measurement
-        if measurement is None or (pending.detection is None and detection is not None
-                                   and self.params.fuse_at == "frame"):
-            measurement = measure(self.context.robot, pending.frame, detection, self.params.method,
-                                  fuse_at=self.params.fuse_at, surface_offset=self.params.surface_offset)
-        self._raise(pending.frame, detection, measurement, verdict.as_text())
+        self._set_tracks(pending, "confirmed", now)
+        for sighting in pending.sightings:
+            detection, measurement = sighting.detection, sighting.measurement
+            if detection is None and verdict.people:  # poll mode: the VLM's own box, if it gave one
+                best = max(verdict.people, key=lambda p: p.score)
+                detection = Detection("person", best.score, best.box)
+            if measurement is None or (sighting.detection is None and detection is not None
+                                       and self.params.fuse_at == "frame"):
+                measurement = measure(self.context.robot, pending.frame, detection, self.params.method,
+                                      fuse_at=self.params.fuse_at, surface_offset=self.params.surface_offset)
+            self._raise(pending.frame, _Sighting(detection, measurement), verdict.as_text())
         return True
 
-    def _raise(self, frame: RGBDFrame, detection: Detection | None, measurement: Measurement | None,
-               text: str) -> None:
+    @staticmethod
+    def _set_tracks(pending: _Pending, state: TrackState, now: float) -> None:
+        for sighting in pending.sightings:
+            if sighting.track is not None:
+                sighting.track.set(state, now)
+
+    def _raise(self, frame: RGBDFrame, sighting: _Sighting, text: str) -> None:
         robot = self.context.robot
         now = robot.now()
         if now - self.last_alarm_time < self.params.alarm_cooldown:
             return
         self.last_alarm_time = now
         self.alarm_count += 1
-        alarm = alarm_from(self.alarm_count, frame, detection, measurement, self.params.method, now, text)
+        alarm = alarm_from(self.alarm_count, frame, sighting.detection, sighting.measurement,
+                           self.params.method, now, text)
         alarm = record_alarm(self.context, alarm, self.name, frame.color)
         self.write("alarm", alarm.to_dict())
+
+
+def appearance_of(frame: RGBDFrame, person: Detection) -> tuple[float, float, float] | None:
+    """Mean RGB of the central third of a person's box (their clothing), None for an empty box."""
+    h, w = frame.color.shape[:2]
+    x1, y1, x2, y2 = centre_region(person.box, w, h, fraction=0.33)
+    patch = frame.color[y1:y2, x1:x2].reshape(-1, 3)
+    if patch.size == 0:
+        return None
+    r, g, b = (float(v) for v in patch.mean(axis=0))
+    return r, g, b
 
 
 def alarm_from(number: int, frame: RGBDFrame, detection: Detection | None, measurement: Measurement | None,

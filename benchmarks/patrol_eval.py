@@ -1,0 +1,383 @@
+"""Seed 001's patrol scenarios, measured: the seed's surveillance (0.5 s and 0.2 s) against ours.
+
+Scenarios (seed 001 §4.5): A = corridor, B = entrance hall, C/D = the combined route. People cross
+the robot's path: walkers pace back and forth across every leg of the route at 1.0-1.6 m/s, so they
+cross the camera's view at bearings across its 70° field of view. The VLM answers after a latency
+drawn from 0.5-3 s (simulated clock). Configurations, all on the same worlds, seeds and routes:
+
+- ``seed_05`` — seed 001 as built: the latest frame to the VLM every 0.5 s (scenarios A-C), the
+  distance read by its ±15° front cone from the *latest* scan once the answer arrives.
+- ``seed_02`` — the same every 0.2 s (scenario D).
+- ``ours`` — the detector on every frame, the VLM confirming at most every 0.5 s (≤ 2 calls/s),
+  the distance from the depth inside the person's box, fused at the frame's instant.
+
+Each run is the real mission (loader, builder, runner, leaves) on the simulator: a Parallel of
+Patrol (one lap) and Surveillance, without servoing so that every configuration drives the same
+path. Scoring uses the simulator's ground truth (never seen by the leaves):
+
+- an *encounter* is a run of frames in which a person shows (gaps up to 1 s bridged), with at least
+  two frames showing them with MIN_PIXELS or more; it is *detected* when an alarm's frame lies inside
+  it and shows that person;
+- the distance error of an alarm is |reported − true| against the true distance, at the frame's
+  time, from the robot to the person in that frame whose distance matches best (favourable to
+  every method alike); an alarm without a distance (the seed's ``inf``) counts as an error > 1 m.
+
+Runs alternate between configurations scenario by scenario; ratios of ours against the seed's are
+printed with min/median/max over scenarios. Last line: one JSON object with the figures.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import random
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from missiontree.backends.sim import create_robot, load_world
+from missiontree.behaviours.waypoints import load_waypoints
+from missiontree.engine.build import build_tree
+from missiontree.engine.context import MissionContext
+from missiontree.engine.loader import load_mission
+from missiontree.engine.runner import Runner
+from missiontree.paths import find_config
+from missiontree.plugins.manager import load_plugins
+from missiontree.reasoning.calls import SETTINGS_KEY, CallSettings, LatencyModel
+
+#: (scenario, world, route file, laps) — C and D share the combined route; D is seed_02's scenario.
+SCENARIOS = [("A", "corridor", "scenario_a", 5), ("B", "entrance_hall", "scenario_b", 3),
+             ("C/D", "combined", "scenario_c", 1)]
+
+CONFIGS: dict[str, dict[str, Any]] = {
+    "seed_05": {"mode": "poll", "period": 0.5, "method": "seed", "fuse_at": "answer", "max_in_flight": 99},
+    "seed_02": {"mode": "poll", "period": 0.2, "method": "seed", "fuse_at": "answer", "max_in_flight": 99},
+    "ours": {"mode": "detect", "period": 0.5, "method": "depth", "fuse_at": "frame", "max_in_flight": 4},
+}
+
+LATENCY = (0.5, 3.0)          # seconds, seed 001's cloud VLM
+SPEEDS = (1.0, 1.6)           # m/s, people crossing
+MIN_PIXELS = 400              # a person this visible in a frame can be asked to be seen
+MERGE_GAP = 1.0               # seconds out of view that still belong to the same encounter
+WALKER_SPACING = 3.0          # metres of route between crossing walkers
+BEARING_BINS = [-35, -25, -15, -5, 5, 15, 25, 35]
+SEED = 7
+
+
+@dataclass
+class RunScore:
+    """What one run of one configuration on one scenario measured."""
+
+    scenario: str
+    config: str
+    sim_seconds: float = 0.0
+    wall_seconds: float = 0.0
+    encounters: int = 0
+    detected: int = 0
+    calls: int = 0
+    errors: list[float] = field(default_factory=list)
+    bearings: list[float] = field(default_factory=list)
+    no_distance: int = 0
+    reached: int = 0
+    skipped: int = 0
+
+    @property
+    def detection_rate(self) -> float:
+        return self.detected / self.encounters if self.encounters else float("nan")
+
+    @property
+    def calls_per_s(self) -> float:
+        return self.calls / self.sim_seconds if self.sim_seconds else float("nan")
+
+
+# -- worlds with crossing people ---------------------------------------------------------------------
+
+
+def crossing_world(world_name: str, route_name: str, out_dir: Path, rng: random.Random) -> Path:
+    """The scenario's world with its people replaced by walkers pacing across every leg of the route."""
+    source = find_config("worlds", world_name)
+    data = yaml.safe_load(source.read_text())
+    data["people"] = []
+    empty = out_dir / f"{world_name}_empty.yaml"
+    empty.write_text(yaml.safe_dump(data, sort_keys=False))
+    world = load_world(empty)
+    route = load_waypoints(route_name)
+    legs = {(a.pose.x, a.pose.y, b.pose.x, b.pose.y)
+            for a, b in zip(route, route[1:] + route[:1], strict=True) if a.name != b.name}
+    people = []
+    for x1, y1, x2, y2 in sorted(legs):
+        if (x2, y2, x1, y1) in legs and (x2, y2) < (x1, y1):
+            continue  # out and back along the same leg: one set of walkers
+        length = math.hypot(x2 - x1, y2 - y1)
+        nx, ny = -(y2 - y1) / max(length, 1e-9), (x2 - x1) / max(length, 1e-9)
+        for k in range(max(1, int(length // WALKER_SPACING))):
+            f = (k + 0.5) / max(1, int(length // WALKER_SPACING))
+            cx, cy = x1 + f * (x2 - x1), y1 + f * (y2 - y1)
+            ends = [_free_end(world, cx, cy, s * nx, s * ny) for s in (1.0, -1.0)]
+            if math.dist(ends[0], ends[1]) < 1.0:
+                continue
+            people.append({
+                "id": f"walker{len(people) + 1}", "route": [list(ends[0]), list(ends[1])],
+                "speed": round(rng.uniform(*SPEEDS), 2), "start_time": round(rng.uniform(0.0, 15.0), 1),
+                "loop": True, "pause": round(rng.uniform(1.0, 6.0), 1),
+                "shirt_rgb": [rng.randrange(30, 226) for _ in range(3)],   # people dress differently
+                "trousers_rgb": [rng.randrange(20, 120) for _ in range(3)],
+            })
+    data["people"] = people
+    path = out_dir / f"{world_name}_crossing.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def _free_end(world: Any, cx: float, cy: float, dx: float, dy: float) -> tuple[float, float]:
+    """The farthest point up to 2.5 m from (cx, cy) along (dx, dy) with 0.35 m to any wall."""
+    best = (round(cx, 2), round(cy, 2))
+    for step in np.arange(0.1, 2.55, 0.1):
+        x, y = cx + step * dx, cy + step * dy
+        if world.clearance(x, y) < 0.35:
+            break
+        best = (round(float(x), 2), round(float(y), 2))
+    return best
+
+
+# -- one run -----------------------------------------------------------------------------------------
+
+
+def tree_text(route: str, laps: int, config: dict[str, Any]) -> str:
+    """The benchmark mission: one lap of the route with surveillance, no servoing."""
+    options = "\n".join(f"                {k}: {v}" for k, v in config.items())
+    return f"""version: 1
+description: patrol_eval run
+root:
+  Parallel:
+    name: patrol_and_watch
+    policy: success_on_one
+    children:
+      - Patrol:
+          name: patrol
+          waypoints_file: {route}
+          laps: {laps}
+          yaw_tolerance: 6.28
+          waypoint_timeout: 90
+      - Surveillance:
+          name: surveillance
+          alarm_cooldown: 0
+{options.replace("                ", "          ")}
+"""
+
+
+def build_models(robot: Any) -> tuple[dict[str, Any], str]:
+    """The shipped offline models (the trained detector), or the simulation oracle when it is missing."""
+    from missiontree.errors import ConfigError
+    from missiontree.reasoning.hub import BrokenProvider
+    from missiontree.reasoning.hub import build_models as hub_models
+
+    try:
+        models = hub_models("offline")
+        unavailable = getattr(models.get("detector"), "reason", "") \
+            if isinstance(models.get("detector"), BrokenProvider) else ""
+    except ConfigError as error:
+        models, unavailable = {}, str(error)
+    detector_note = "sim_detector (trained)"
+    if unavailable:
+        from missiontree.perception.oracle import OracleDetector
+        from missiontree.reasoning.offline_vlm import OfflineVisionModel
+
+        detector_note = f"oracle (trained detector unavailable: {unavailable})"
+        models["detector"] = OracleDetector(robot)
+        models["vlm"] = OfflineVisionModel(models["detector"])
+    models[SETTINGS_KEY] = CallSettings(latency={"vlm": LatencyModel(*LATENCY)}, timeouts={"vlm": 10.0})
+    return models, detector_note
+
+
+def run_one(scenario: str, world_path: Path, route: str, laps: int, name: str, tmp: Path) -> tuple[RunScore, str]:
+    """Run one configuration on one scenario and score it against ground truth."""
+    plugins = load_plugins(autoload=False)
+    tree = tmp / f"{name}.yaml"
+    tree.write_text(tree_text(route, laps, CONFIGS[name]))
+    spec = load_mission(tree, plugins.nodes, allow_outside=True)
+    root = build_tree(spec, plugins.nodes)
+    robot = create_robot({"world": str(world_path), "seed": SEED})
+    models, note = build_models(robot)
+    context = MissionContext(robot=robot, models=models, seed=SEED)
+    truth_poses: dict[float, Any] = {}
+    spin = robot.spin_until
+
+    def spin_and_record(t: float) -> None:  # keep the true pose of every frame for scoring
+        spin(t)
+        frame = robot.rgbd()
+        if frame is not None and frame.stamp not in truth_poses:
+            truth_poses[frame.stamp] = robot.truth.robot_pose_at(frame.stamp)
+
+    robot.spin_until = spin_and_record  # type: ignore[method-assign]
+    stream = io.StringIO()
+    started = time.perf_counter()
+    result = Runner(root, context, tick_hz=10, max_duration=900, log_stream=stream, mission=name,
+                    handle_signals=False).run()
+    score = RunScore(scenario, name, sim_seconds=robot.now(), wall_seconds=time.perf_counter() - started)
+    events = [json.loads(line) for line in stream.getvalue().splitlines()]
+    robot.close()
+    if result.status.name != "SUCCESS":
+        print(f"  note: {scenario}/{name} ended {result.status.name} ({result.stopped_by})", file=sys.stderr)
+    score_events(score, events, robot.truth, truth_poses)
+    return score, note
+
+
+def score_events(score: RunScore, events: list[dict[str, Any]], truth: Any, poses: dict[float, Any]) -> None:
+    """Fill ``score`` from the run's tick-log events and the simulator's ground truth."""
+    alarms = [e for e in events if e["event"] == "alarm"]
+    score.calls = sum(1 for e in events if e["event"] == "model_call" and e.get("role") == "vlm")
+    score.reached = sum(1 for e in events if e["event"] == "waypoint_reached")
+    score.skipped = sum(1 for e in events if e["event"] == "waypoint_skipped")
+    spans = encounters(truth.visibility)
+    shown = [(a["stamp"], set(truth.visible_at(a["stamp"]))) for a in alarms]
+    score.encounters = len(spans)
+    score.detected = sum(1 for name, t0, t1 in spans
+                         if any(t0 - 1e-6 <= stamp <= t1 + 1e-6 and name in people for stamp, people in shown))
+    for alarm in alarms:
+        stamp = alarm["stamp"]
+        pose = poses.get(stamp)
+        seen = truth.visible_at(stamp)
+        people = {pid: (x, y) for pid, x, y in truth.people_at(stamp) if pid in seen}
+        if pose is None or not people:
+            continue
+        truths = {pid: (math.hypot(x - pose.x, y - pose.y), pose.bearing_to(x, y))
+                  for pid, (x, y) in people.items()}
+        reported = alarm.get("distance")
+        if reported is None:
+            score.no_distance += 1
+            score.errors.append(math.inf)
+            score.bearings.append(min(truths.values())[1])
+            continue
+        best = min(truths.values(), key=lambda tb: abs(tb[0] - reported))
+        score.errors.append(abs(best[0] - reported))
+        score.bearings.append(best[1])
+
+
+def encounters(visibility: list[tuple[float, dict[str, Any]]]) -> list[tuple[str, float, float]]:
+    """(person, first frame, last frame) of every encounter.
+
+    An encounter is a run of frames in which a person shows at all, gaps up to MERGE_GAP seconds
+    bridged (a leg hidden for a frame is the same crossing); it counts when at least two of its
+    frames show the person with MIN_PIXELS or more (someone a guard could be asked to notice).
+    """
+    spans: list[tuple[str, float, float]] = []
+    current: dict[str, list[Any]] = {}  # name -> [first, last, frames with MIN_PIXELS]
+
+    def close(name: str) -> None:
+        first, last, big = current.pop(name)
+        if big >= 2:
+            spans.append((name, first, last))
+
+    for stamp, seen in visibility:
+        for name in [n for n, (_, last, _) in current.items() if stamp - last > MERGE_GAP]:
+            close(name)
+        for name, sighting in seen.items():
+            if sighting.kind != "person":
+                continue
+            entry = current.setdefault(name, [stamp, stamp, 0])
+            entry[1] = stamp
+            entry[2] += sighting.pixels >= MIN_PIXELS
+    for name in list(current):
+        close(name)
+    return spans
+
+
+# -- report ------------------------------------------------------------------------------------------
+
+
+def stats(errors: list[float]) -> tuple[float, float, int]:
+    """Median and p95 of the finite errors (inf when any error is infinite at that rank), and count > 1 m."""
+    if not errors:
+        return float("nan"), float("nan"), 0
+    values = np.sort(np.array(errors))
+    median = float(values[int(0.5 * (len(values) - 1))]) if len(values) else float("nan")
+    p95 = float(values[int(math.ceil(0.95 * (len(values) - 1)))])
+    return median, p95, int(np.sum(values > 1.0))
+
+
+def fmt(value: float) -> str:
+    return "inf" if math.isinf(value) else ("nan" if math.isnan(value) else f"{value:.3f}")
+
+
+def json_number(value: float) -> float | None:
+    return None if not math.isfinite(value) else round(value, 4)
+
+
+def main() -> int:
+    rng = random.Random(SEED)
+    scores: list[RunScore] = []
+    note = ""
+    started = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="patrol_eval_") as tmp_name:
+        tmp = Path(tmp_name)
+        for i, (scenario, world, route, laps) in enumerate(SCENARIOS):
+            world_path = crossing_world(world, route, tmp, rng)
+            order = list(CONFIGS) if i % 2 == 0 else list(reversed(CONFIGS))  # alternate the order
+            for name in order:
+                score, note = run_one(scenario, world_path, route, laps, name, tmp)
+                scores.append(score)
+                median, p95, over = stats(score.errors)
+                print(f"scenario {scenario:4} {name:8} encounters {score.encounters:3} detected "
+                      f"{score.detection_rate:.3f}  calls/s {score.calls_per_s:.2f}  error median "
+                      f"{fmt(median)} p95 {fmt(p95)} >1m {over:3} (alarms {len(score.errors)}, no distance "
+                      f"{score.no_distance})  waypoints reached {score.reached} skipped {score.skipped}  "
+                      f"[{score.sim_seconds:.0f} s simulated, {score.wall_seconds:.1f} s wall]", flush=True)
+    print(f"detector: {note}")
+    summary: dict[str, Any] = {}
+    for name in CONFIGS:
+        runs = [s for s in scores if s.config == name]
+        errors = [e for s in runs for e in s.errors]
+        bearings = [b for s in runs for b in s.bearings]
+        median, p95, over = stats(errors)
+        encounters_n = sum(s.encounters for s in runs)
+        rate = sum(s.detected for s in runs) / encounters_n if encounters_n else float("nan")
+        calls = sum(s.calls for s in runs) / sum(s.sim_seconds for s in runs)
+        per_bin = {}
+        for lo, hi in zip(BEARING_BINS, BEARING_BINS[1:], strict=False):
+            chosen = [e for e, b in zip(errors, bearings, strict=True) if lo <= math.degrees(b) < hi]
+            m, p, o = stats(chosen)
+            per_bin[f"{lo}..{hi}"] = {"n": len(chosen), "median_m": json_number(m), "p95_m": json_number(p),
+                                      "over_1m": o}
+        summary[name] = {
+            "detection_rate": round(rate, 4), "model_calls_per_s": round(calls, 3),
+            "distance_error_median_m": json_number(median), "distance_error_p95_m": json_number(p95),
+            "errors_over_1m": over, "alarms": len(errors), "no_distance": sum(s.no_distance for s in runs),
+            "encounters": encounters_n, "waypoints_reached": sum(s.reached for s in runs),
+            "waypoints_skipped": sum(s.skipped for s in runs), "by_bearing_deg": per_bin,
+        }
+        print(f"{name:8} detection {rate:.3f}  calls/s {calls:.2f}  error median {fmt(median)} p95 {fmt(p95)}"
+              f"  >1m {over}  waypoints reached {summary[name]['waypoints_reached']} skipped "
+              f"{summary[name]['waypoints_skipped']}")
+        print("         by bearing (deg): " + "  ".join(
+            f"{k}: n={v['n']} med={v['median_m']} p95={v['p95_m']}" for k, v in per_bin.items()))
+    for reference in ("seed_05", "seed_02"):
+        ratios_err, ratios_det = [], []
+        for scenario, *_ in SCENARIOS:
+            ours = next(s for s in scores if s.scenario == scenario and s.config == "ours")
+            ref = next(s for s in scores if s.scenario == scenario and s.config == reference)
+            m_ours, m_ref = stats(ours.errors)[0], stats(ref.errors)[0]
+            if m_ours > 0 and math.isfinite(m_ref):
+                ratios_err.append(m_ref / m_ours)
+            if ref.detection_rate > 0:
+                ratios_det.append(ours.detection_rate / ref.detection_rate)
+        for label, ratios in (("median error, reference/ours", ratios_err),
+                              ("detection, ours/reference", ratios_det)):
+            if ratios:
+                print(f"ratio {label} vs {reference}: min {min(ratios):.2f} "
+                      f"median {float(np.median(ratios)):.2f} max {max(ratios):.2f} over {len(ratios)} scenarios")
+    summary["detector"] = note
+    summary["wall_seconds"] = round(time.perf_counter() - started, 1)
+    print(json.dumps(summary, sort_keys=True))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
