@@ -87,3 +87,13 @@ def test_average_precision_of_a_known_curve() -> None:
     recall = np.array([0.2, 0.4, 0.4, 0.6, 0.8])
     precision = np.array([1.0, 1.0, 2 / 3, 0.5, 0.5])
     assert average_precision(recall, precision) == pytest.approx(0.4 * 1.0 + 0.4 * 0.5)
+
+
+def test_detection_on_an_ignored_object_counts_neither_way() -> None:
+    """A box on an ignored (too small) object is no false positive, and missing it is no miss."""
+    acc = APAccumulator()
+    acc.add([_det("cup", 0.9, (50, 50, 54, 54)), _det("cup", 0.5, (0, 0, 10, 10))],
+            [GroundTruth("cup", (0, 0, 10, 10)), GroundTruth("cup", (50, 50, 54, 54), ignored=True),
+             GroundTruth("cup", (80, 80, 83, 83), ignored=True)])
+    assert acc.per_class()["cup"] == 1.0
+    assert acc.truth_counts() == {"cup": 1}

@@ -2,9 +2,10 @@
 
 A detection is a true positive when it overlaps a not-yet-matched ground-truth box of its class
 by at least the IoU threshold (best-scoring detections match first, each ground-truth box at most
-once); otherwise it is a false positive. AP is the area under the precision-recall curve with
-precision made monotone (all-point interpolation, VOC 2010+ and COCO's per-threshold rule without
-the 101-point sampling). mAP@0.5 averages AP over the classes that have ground truth.
+once); otherwise it is a false positive, unless it overlaps a ground-truth box marked *ignored*
+(too small or hidden to demand, VOC's "difficult"), when it counts neither way. AP is the area
+under the precision-recall curve with precision made monotone (all-point interpolation, as VOC
+2010+ computes it). mAP@0.5 averages AP over the classes that have ground truth.
 """
 
 from __future__ import annotations
@@ -21,10 +22,15 @@ from missiontree.types import Detection
 
 @dataclass(frozen=True, slots=True)
 class GroundTruth:
-    """One object really visible in an image: its class and box (x1, y1, x2, y2) in pixels."""
+    """One object really visible in an image: its class and box (x1, y1, x2, y2) in pixels.
+
+    ``ignored`` marks an object too small or hidden to demand: missing it costs nothing, and a
+    detection on it is not a false positive.
+    """
 
     label: str
     box: tuple[float, float, float, float]
+    ignored: bool = False
 
 
 def average_precision(recall: np.ndarray, precision: np.ndarray) -> float:
@@ -58,7 +64,8 @@ class APAccumulator:
         truth_by_label: dict[str, list[GroundTruth]] = defaultdict(list)
         for t in truth:
             truth_by_label[t.label].append(t)
-            self._truth_count[t.label] += 1
+            if not t.ignored:
+                self._truth_count[t.label] += 1
         dets_by_label: dict[str, list[Detection]] = defaultdict(list)
         for d in detections:
             dets_by_label[d.label].append(d)
@@ -69,14 +76,16 @@ class APAccumulator:
                 self._scored[label].extend((d.score, False) for d in dets)
                 continue
             ious = iou_matrix(np.array([d.box for d in dets], float), np.array([g.box for g in gts], float))
+            ignored = np.array([g.ignored for g in gts], dtype=bool)
             matched = np.zeros(len(gts), dtype=bool)
             for i, d in enumerate(dets):
-                candidates = np.where(matched, -1.0, ious[i])
+                candidates = np.where(matched | ignored, -1.0, ious[i])
                 j = int(candidates.argmax())
-                hit = candidates[j] >= self.iou_threshold
-                if hit:
+                if candidates[j] >= self.iou_threshold:
                     matched[j] = True
-                self._scored[label].append((d.score, bool(hit)))
+                    self._scored[label].append((d.score, True))
+                elif not (ignored & (ious[i] >= self.iou_threshold)).any():
+                    self._scored[label].append((d.score, False))
 
     def per_class(self) -> dict[str, float]:
         """AP of every class with ground truth (a class never present is left out)."""

@@ -33,6 +33,7 @@ NODE_MODULES: list[str] = [
 #: Modules whose ``register_providers(providers)`` adds built-in model providers.
 PROVIDER_MODULES: list[str] = [
     "missiontree.reasoning.providers",
+    "missiontree.perception.providers",
 ]
 
 #: Backend name → ``"module:function"`` of its ``factory(options) -> Robot``.

@@ -1,0 +1,146 @@
+"""Quality and speed of the shipped simulator detector on scenes it never saw.
+
+Renders views of generated worlds whose seeds training never used (scripts/detector_data.py:
+training uses world seeds below 10 000, this benchmark seeds from 10 000 on), labels them from
+the simulator's instance mask, and scores two detectors on the same frames, alternating frame by
+frame so that machine load affects both alike:
+
+- ``sim_detector`` — the shipped ONNX model (missiontree/data/models/sim_detector.onnx) through
+  :class:`~missiontree.perception.detectors.YoloOnnxDetector`, onnxruntime on 2 threads;
+- ``oracle`` — the reference: :class:`~missiontree.perception.oracle.OracleDetector` reading each
+  frame's instance mask (through a small stand-in for the simulator's ground-truth API, since the
+  views are rendered straight from the camera). Its mAP is 1 by construction, which checks the
+  scoring end to end; its time is the cost of reading the mask.
+
+mAP@0.5 and per-class AP use :class:`~missiontree.perception.evaluation.APAccumulator` (VOC
+all-point AP); objects showing fewer than MIN_PIXELS pixels are *ignored* (neither demanded nor
+held against a detection). Times are wall-clock milliseconds per frame of ``detect()``
+(letterbox, inference, decoding, NMS); the ratio sim_detector/oracle is taken per frame.
+
+Run: ``.venv/bin/python benchmarks/detector_quality.py [--views N] [--worlds N]``.
+The last line is one JSON object: ``map50`` (target >= 0.9), ``ms_per_frame_median`` (target
+<= 10), ``ap50_per_class``, and the rest of the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+from detector_data import CLASSES, EVAL_FIRST_WORLD, MIN_PIXELS, generated_world, render_views  # noqa: E402
+
+from missiontree.perception.evaluation import APAccumulator, GroundTruth  # noqa: E402
+from missiontree.perception.oracle import OracleDetector  # noqa: E402
+from missiontree.perception.providers import SIM_DETECTOR_MODEL, create_sim_detector  # noqa: E402
+
+
+def truth_of(kept: np.ndarray, ignored: np.ndarray) -> list[GroundTruth]:
+    """Ground truth of one view from its label arrays (class, x1, y1, x2, y2)."""
+    rows = [(r, False) for r in kept] + [(r, True) for r in ignored]
+    return [GroundTruth(CLASSES[int(r[0])], (float(r[1]), float(r[2]), float(r[3]), float(r[4])), flag)
+            for r, flag in rows]
+
+
+class FrameTruth:
+    """The two calls of the simulator's ground-truth API the oracle makes, for one rendered view."""
+
+    def __init__(self, world: object) -> None:
+        self.instances = world.instances  # type: ignore[attr-defined]
+        self.mask: np.ndarray | None = None
+
+    def instance_mask(self, stamp: float) -> np.ndarray | None:
+        """The mask of the view being scored."""
+        return self.mask
+
+
+def make_oracle(truth: FrameTruth) -> OracleDetector:
+    """The oracle on a stand-in simulated robot whose ground truth is ``truth``."""
+    robot = SimpleNamespace(name="benchmark", simulated=True, truth=truth, rgbd=lambda: None)
+    return OracleDetector(robot, min_pixels=MIN_PIXELS, labels=CLASSES, score=1.0)
+
+
+def spread(values: list[float]) -> str:
+    """Min / median / max, for printing."""
+    return f"{min(values):.3f} / {statistics.median(values):.3f} / {max(values):.3f}"
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Render, detect alternately, score, print; last line JSON."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--worlds", type=int, default=20, help="fresh worlds to render")
+    parser.add_argument("--views", type=int, default=25, help="views per world")
+    parser.add_argument("--seed", type=int, default=12345, help="seed of the camera poses")
+    args = parser.parse_args(argv)
+
+    detector = create_sim_detector({"threads": 2, "score_threshold": 0.05})
+    rng = np.random.default_rng(args.seed)
+    ours, reference = APAccumulator(0.5), APAccumulator(0.5)
+    ms_ours: list[float] = []
+    ms_ref: list[float] = []
+    ratios: list[float] = []
+    detector.detect(np.zeros((240, 320, 3), np.uint8))  # load and warm the session once
+    frames = 0
+    for w in range(args.worlds):
+        world = generated_world(EVAL_FIRST_WORLD + w)
+        truth_api = FrameTruth(world)
+        oracle = make_oracle(truth_api)
+        for color, instances, kept, ignored in render_views(world, args.views, rng, with_instances=True):
+            truth_api.mask = instances
+            frame = SimpleNamespace(stamp=float(frames), color=color)
+            truth = truth_of(kept, ignored)
+            order = (0, 1) if frames % 2 == 0 else (1, 0)  # alternate which runs first
+            timings = [0.0, 0.0]
+            for which in order:
+                started = time.perf_counter()
+                if which == 0:
+                    found = detector.detect(color)
+                else:
+                    ref = oracle.detect_frame(frame)  # type: ignore[arg-type]
+                timings[which] = (time.perf_counter() - started) * 1000.0
+            ours.add(found, truth)
+            reference.add(ref, truth)
+            ms_ours.append(timings[0])
+            ms_ref.append(timings[1])
+            ratios.append(timings[0] / max(timings[1], 1e-6))
+            frames += 1
+
+    per_class = ours.per_class()
+    counts = ours.truth_counts()
+    print(f"{frames} views of {args.worlds} fresh worlds (seeds {EVAL_FIRST_WORLD}..."
+          f"{EVAL_FIRST_WORLD + args.worlds - 1}); model {SIM_DETECTOR_MODEL.name}")
+    print(f"{'class':<14} {'objects':>7} {'AP@0.5':>7}")
+    for label in CLASSES:
+        if label in per_class:
+            print(f"{label:<14} {counts[label]:>7} {per_class[label]:>7.3f}")
+    print(f"mAP@0.5  sim_detector {ours.mean_ap():.3f}   oracle {reference.mean_ap():.3f}   "
+          f"ratio {ours.mean_ap() / max(reference.mean_ap(), 1e-9):.3f}")
+    print(f"ms/frame sim_detector min/median/max {spread(ms_ours)}")
+    print(f"ms/frame oracle       min/median/max {spread(ms_ref)}")
+    print(f"ratio sim_detector/oracle per frame min/median/max {spread(ratios)}")
+    print(json.dumps({
+        "map50": round(ours.mean_ap(), 4),
+        "ms_per_frame_median": round(statistics.median(ms_ours), 3),
+        "ms_per_frame_min": round(min(ms_ours), 3),
+        "ms_per_frame_max": round(max(ms_ours), 3),
+        "ap50_per_class": {k: round(v, 4) for k, v in per_class.items()},
+        "objects_per_class": counts,
+        "oracle_map50": round(reference.mean_ap(), 4),
+        "oracle_ms_per_frame_median": round(statistics.median(ms_ref), 3),
+        "ratio_ms_vs_oracle": {"min": round(min(ratios), 2), "median": round(statistics.median(ratios), 2),
+                               "max": round(max(ratios), 2)},
+        "views": frames,
+        "worlds": args.worlds,
+        "threads": 2,
+    }))
+
+
+if __name__ == "__main__":
+    main()

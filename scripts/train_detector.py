@@ -1,0 +1,378 @@
+"""Train the shipped simulator detector and export it in the YOLOv8/YOLO11 ONNX layout.
+
+Renders labelled views with the simulator's camera (scripts/detector_data.py), trains a small
+single-stage anchor-free detector with CPU PyTorch, and writes an ONNX model whose one output is
+``[1, 4 + classes, N]`` (box centre, width, height in input pixels, then sigmoid class scores) with
+the class names in its metadata, so :class:`missiontree.perception.detectors.YoloOnnxDetector`
+loads it like any Ultralytics export.
+
+Needs the ``train`` extra (``.venv/bin/pip install -e '.[train]'``, which pins the CPU torch).
+Reproducible from ``--seed``: the same seed renders the same images and initialises and shuffles
+the same way (torch's CPU kernels are deterministic on one machine with fixed threads)::
+
+    .venv/bin/python scripts/train_detector.py --seed 7 --out src/missiontree/data/models/sim_detector.onnx
+
+The network (about 0.3 M parameters): a strided conv backbone with depthwise-separable residual
+blocks to stride 32, a top-down feature pyramid, and a shared-weight-free head per level (strides
+8, 16, 32) predicting class logits and a box (centre offset and log size per cell). Each object is
+assigned to the cells around its centre on the level whose stride suits its size; classification
+is binary cross-entropy with the predicted box's IoU as the positives' target (so scores rank by
+localisation quality), boxes are trained with GIoU.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+try:
+    import torch
+    from torch import nn
+    from torch.nn import functional as F  # noqa: N812 (the conventional name)
+except ImportError:  # pragma: no cover - depends on the extra
+    sys.exit("training needs the train extra: .venv/bin/pip install -e '.[train]' (pins the CPU torch)")
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from detector_data import CLASSES, IMAGE_HW, MIN_PIXELS, render_dataset  # noqa: E402
+
+STRIDES = (8, 16, 32)
+#: Input size of the network (height, width): the camera image letterboxed, multiples of 32.
+INPUT_HW = (256, 320)
+
+
+# -- the network ----------------------------------------------------------------------------------
+
+
+def conv_bn(
+    c_in: int, c_out: int, k: int = 3, s: int = 1, groups: int = 1, act: bool = True
+) -> nn.Sequential:
+    """Convolution, batch norm and (optionally) SiLU."""
+    layers: list[nn.Module] = [
+        nn.Conv2d(c_in, c_out, k, s, 0 if k == s else k // 2, groups=groups, bias=False),
+        nn.BatchNorm2d(c_out),
+    ]
+    if act:
+        layers.append(nn.SiLU())
+    return nn.Sequential(*layers)
+
+
+class SeparableBlock(nn.Module):
+    """Residual depthwise 3x3 + pointwise 1x1 block."""
+
+    def __init__(self, c: int) -> None:
+        super().__init__()
+        self.body = nn.Sequential(conv_bn(c, c, 3, groups=c), conv_bn(c, c, 1, act=False))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Add the block's output to its input."""
+        return F.silu(x + self.body(x))
+
+
+class TinyDetector(nn.Module):
+    """A small anchor-free detector; ``forward`` returns raw per-level maps, ``export`` decodes."""
+
+    def __init__(self, num_classes: int, widths: tuple[int, ...] = (16, 48, 96, 160)) -> None:
+        super().__init__()
+        w2, w3, w4, w5 = widths
+        self.num_classes = num_classes
+        # A 4x4 stride-4 "patchify" stem: rendered scenes need no fine texture at full resolution,
+        # and it costs a fifth of two strided 3x3 convolutions.
+        self.stem = nn.Sequential(conv_bn(3, w2, 4, 4), SeparableBlock(w2))
+        self.down3 = nn.Sequential(conv_bn(w2, w3, 3, 2), SeparableBlock(w3), SeparableBlock(w3))
+        self.down4 = nn.Sequential(conv_bn(w3, w4, 3, 2), SeparableBlock(w4), SeparableBlock(w4))
+        self.down5 = nn.Sequential(conv_bn(w4, w5, 3, 2), SeparableBlock(w5))
+        self.lat5 = conv_bn(w5, w4, 1)
+        self.lat4 = conv_bn(w4, w3, 1)
+        self.fuse4 = SeparableBlock(w4)
+        self.fuse3 = SeparableBlock(w3)
+        self.heads = nn.ModuleList(
+            nn.Sequential(conv_bn(c, c, 3, groups=c), conv_bn(c, c, 1), nn.Conv2d(c, 4 + num_classes, 1))
+            for c in (w3, w4, w5)
+        )
+        prior = -math.log((1 - 0.01) / 0.01)  # start every class score near 1 %
+        for head in self.heads:
+            nn.init.constant_(head[-1].bias[4:], prior)
+            nn.init.zeros_(head[-1].bias[:4])
+
+    def forward(self, x: torch.Tensor) -> list[torch.Tensor]:
+        """Raw head maps, one [B, 4 + C, H/s, W/s] per stride."""
+        p3 = self.down3(self.stem(x))
+        p4 = self.down4(p3)
+        p5 = self.down5(p4)
+        f4 = self.fuse4(p4 + F.interpolate(self.lat5(p5), scale_factor=2.0, mode="nearest"))
+        f3 = self.fuse3(p3 + F.interpolate(self.lat4(f4), scale_factor=2.0, mode="nearest"))
+        return [head(f) for head, f in zip(self.heads, (f3, f4, p5), strict=True)]
+
+
+def make_grid(height: int, width: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Cell centres (N x 2, input pixels) and strides (N) of every output cell, level by level."""
+    centres, strides = [], []
+    for s in STRIDES:
+        ys, xs = torch.meshgrid(torch.arange(height // s), torch.arange(width // s), indexing="ij")
+        centres.append(torch.stack([(xs.flatten() + 0.5) * s, (ys.flatten() + 0.5) * s], dim=1))
+        strides.append(torch.full((xs.numel(),), float(s)))
+    return torch.cat(centres).float(), torch.cat(strides)
+
+
+def flatten_maps(maps: list[torch.Tensor]) -> torch.Tensor:
+    """Concatenate per-level maps into [B, N, 4 + C]."""
+    return torch.cat([m.flatten(2) for m in maps], dim=2).transpose(1, 2)
+
+
+def decode_boxes(raw: torch.Tensor, centres: torch.Tensor, strides: torch.Tensor) -> torch.Tensor:
+    """Box (cx, cy, w, h in input pixels) from raw outputs: centre offset in cells, log size in cells."""
+    s = strides[None, :, None]
+    cxy = centres[None] + torch.tanh(raw[..., 0:2]) * 2.0 * s
+    wh = torch.exp(raw[..., 2:4].clamp(-6.0, 6.0)) * 2.0 * s
+    return torch.cat([cxy, wh], dim=-1)
+
+
+class ExportWrapper(nn.Module):
+    """The network with decoding, output ``[1, 4 + C, N]`` as a YOLOv8 export has."""
+
+    def __init__(self, model: TinyDetector, height: int, width: int) -> None:
+        super().__init__()
+        self.model = model
+        centres, strides = make_grid(height, width)
+        self.register_buffer("centres", centres)
+        self.register_buffer("strides", strides)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Decoded boxes and sigmoid class scores, channels first."""
+        raw = flatten_maps(self.model(x))
+        boxes = decode_boxes(raw, self.centres, self.strides)
+        return torch.cat([boxes, torch.sigmoid(raw[..., 4:])], dim=-1).transpose(1, 2)
+
+
+# -- assignment and loss -------------------------------------------------------------------------
+
+
+def box_xyxy(b: torch.Tensor) -> torch.Tensor:
+    """cx, cy, w, h → x1, y1, x2, y2."""
+    return torch.cat([b[..., :2] - b[..., 2:] / 2, b[..., :2] + b[..., 2:] / 2], dim=-1)
+
+
+def giou(a: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """IoU and generalised IoU of matching xyxy boxes."""
+    lt, rb = torch.max(a[:, :2], b[:, :2]), torch.min(a[:, 2:], b[:, 2:])
+    inter = (rb - lt).clamp(min=0).prod(1)
+    area_a, area_b = (a[:, 2:] - a[:, :2]).prod(1), (b[:, 2:] - b[:, :2]).prod(1)
+    union = area_a + area_b - inter + 1e-7
+    iou = inter / union
+    hull = (torch.max(a[:, 2:], b[:, 2:]) - torch.min(a[:, :2], b[:, :2])).prod(1) + 1e-7
+    return iou, iou - (hull - union) / hull
+
+
+def assign(
+    targets: list[np.ndarray], centres: torch.Tensor, strides: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Positive cells of each image and what they should predict.
+
+    An object (class, x1, y1, x2, y2 in input pixels) goes to the level whose stride is nearest
+    a quarter of its larger side, and to the next level in that direction when it lies between
+    two; on a level it claims the cells whose centre lies within 1.5 strides of its centre
+    (at least the nearest one). A cell claimed twice goes to the smaller object. An object with
+    class -1 (too small to label) makes its cells *ignored*: no loss there either way.
+
+    Returns:
+        (positive mask [B, N], ignored mask [B, N], class id [B, N], target box xyxy [B, N, 4]).
+    """
+    batch, n = len(targets), len(centres)
+    positive = torch.zeros(batch, n, dtype=torch.bool)
+    ignored = torch.zeros(batch, n, dtype=torch.bool)
+    cls = torch.zeros(batch, n, dtype=torch.long)
+    boxes = torch.zeros(batch, n, 4)
+    best_area = torch.full((batch, n), float("inf"))
+    log_strides = np.log2(np.array(STRIDES, float))
+    for b, objects in enumerate(targets):
+        for c, x1, y1, x2, y2 in objects.tolist():
+            size = max(x2 - x1, y2 - y1)
+            ideal = math.log2(max(size, 1.0) / 4.0)
+            levels = np.argsort(np.abs(log_strides - ideal))[:2]
+            if abs(log_strides[levels[1]] - ideal) > 1.0:
+                levels = levels[:1]
+            cx, cy = (x1 + x2) / 2, (y1 + y2) / 2
+            area = float((x2 - x1) * (y2 - y1))
+            for level in levels:
+                s = STRIDES[int(level)]
+                on_level = strides == s
+                dist = torch.max((centres[:, 0] - cx).abs(), (centres[:, 1] - cy).abs())
+                near = on_level & (dist <= 1.5 * s)
+                if not near.any():
+                    near = on_level & (dist == dist[on_level].min())
+                if c < 0:
+                    ignored[b, near] = True
+                    continue
+                claim = near & (area < best_area[b])
+                positive[b, claim] = True
+                cls[b, claim] = int(c)
+                boxes[b, claim] = torch.tensor([x1, y1, x2, y2], dtype=torch.float32)
+                best_area[b, claim] = area
+    return positive, ignored & ~positive, cls, boxes
+
+
+def detection_loss(
+    raw: torch.Tensor, targets: list[np.ndarray], centres: torch.Tensor, strides: torch.Tensor
+) -> tuple[torch.Tensor, dict[str, float]]:
+    """Classification (BCE, IoU-valued targets) plus GIoU box loss, per positive cell."""
+    positive, ignored, cls, target_boxes = assign(targets, centres, strides)
+    logits = raw[..., 4:]
+    score_target = torch.zeros_like(logits)
+    num_pos = max(int(positive.sum()), 1)
+    box_loss = raw.sum() * 0.0
+    if positive.any():
+        pred = box_xyxy(decode_boxes(raw, centres, strides)[positive])
+        iou, g = giou(pred, target_boxes[positive])
+        box_loss = (1.0 - g).sum() / num_pos
+        score_target[positive, cls[positive]] = iou.detach().clamp(min=0.1)
+    weight = (~ignored).float()[..., None].expand_as(logits)
+    cls_loss = F.binary_cross_entropy_with_logits(logits, score_target, weight, reduction="sum") / num_pos
+    total = cls_loss + 5.0 * box_loss
+    return total, {"cls": float(cls_loss.detach()), "box": float(box_loss.detach())}
+
+
+# -- data -----------------------------------------------------------------------------------------
+
+
+def to_input(images: np.ndarray, labels: list[np.ndarray]) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Letterbox camera images (all IMAGE_HW) into INPUT_HW; shift their boxes the same way."""
+    h, w = IMAGE_HW
+    ih, iw = INPUT_HW
+    scale = min(ih / h, iw / w)
+    if scale != 1.0:
+        raise SystemExit(f"camera images {IMAGE_HW} do not fit the input {INPUT_HW} unscaled")
+    top, left = (ih - h) // 2, (iw - w) // 2
+    out = np.full((len(images), ih, iw, 3), 114, np.uint8)
+    out[:, top : top + h, left : left + w] = images
+    shifted = []
+    for objects in labels:
+        moved = objects.copy()
+        moved[:, [1, 3]] += left
+        moved[:, [2, 4]] += top
+        shifted.append(moved)
+    return out, shifted
+
+
+def batch_tensors(
+    images: np.ndarray, labels: list[np.ndarray], index: np.ndarray, rng: np.random.Generator
+) -> tuple[torch.Tensor, list[np.ndarray]]:
+    """A training batch: random horizontal flips and brightness/contrast jitter."""
+    batch = images[index].astype(np.float32) / 255.0
+    targets = [labels[i].copy() for i in index]
+    width = batch.shape[2]
+    for k in range(len(index)):
+        if rng.random() < 0.5:
+            batch[k] = batch[k, :, ::-1]
+            x1 = targets[k][:, 1].copy()
+            targets[k][:, 1] = width - targets[k][:, 3]
+            targets[k][:, 3] = width - x1
+        gain, bias = rng.uniform(0.75, 1.25), rng.uniform(-0.08, 0.08)
+        batch[k] = np.clip(batch[k] * gain + bias, 0.0, 1.0)
+    return torch.from_numpy(np.ascontiguousarray(batch.transpose(0, 3, 1, 2))), targets
+
+
+# -- training and export --------------------------------------------------------------------------
+
+
+def train(args: argparse.Namespace) -> None:
+    """Render, train, export; print progress and a JSON summary line."""
+    torch.manual_seed(args.seed)
+    torch.set_num_threads(args.threads)
+    rng = np.random.default_rng(args.seed)
+    started = time.perf_counter()
+    images, kept, ignored = render_dataset(args.images, seed=args.seed, first_world=args.first_world)
+    render_s = time.perf_counter() - started
+    counts = np.bincount(np.concatenate([obj[:, 0].astype(int) for obj in kept]), minlength=len(CLASSES))
+    for small in ignored:
+        small[:, 0] = -1
+    labels = [np.concatenate([k, i]) for k, i in zip(kept, ignored, strict=True)]
+    print(f"rendered {len(images)} views in {render_s:.0f} s; objects per class: "
+          + ", ".join(f"{c}={n}" for c, n in zip(CLASSES, counts, strict=True))
+          + f"; ignored (under {MIN_PIXELS} px): {sum(len(i) for i in ignored)}", flush=True)
+    images, labels = to_input(images, labels)
+    model = TinyDetector(len(CLASSES), widths=tuple(args.widths))
+    params = sum(p.numel() for p in model.parameters())
+    print(f"model: {params} parameters", flush=True)
+    centres, strides = make_grid(*INPUT_HW)
+    steps_per_epoch = math.ceil(len(images) / args.batch)
+    total_steps = steps_per_epoch * args.epochs
+    optimiser = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=5e-4)
+    schedule = torch.optim.lr_scheduler.OneCycleLR(
+        optimiser, max_lr=args.lr, total_steps=total_steps, pct_start=0.1
+    )
+    model.train()
+    for epoch in range(args.epochs):
+        order = rng.permutation(len(images))
+        sums = {"loss": 0.0, "cls": 0.0, "box": 0.0}
+        for step in range(steps_per_epoch):
+            index = order[step * args.batch : (step + 1) * args.batch]
+            x, targets = batch_tensors(images, labels, index, rng)
+            raw = flatten_maps(model(x))
+            loss, parts = detection_loss(raw, targets, centres, strides)
+            optimiser.zero_grad()
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
+            optimiser.step()
+            schedule.step()
+            sums["loss"] += float(loss.detach())
+            sums["cls"] += parts["cls"]
+            sums["box"] += parts["box"]
+        means = {k: v / steps_per_epoch for k, v in sums.items()}
+        print(f"epoch {epoch + 1}/{args.epochs} loss {means['loss']:.3f} cls {means['cls']:.3f} "
+              f"box {means['box']:.3f} ({time.perf_counter() - started:.0f} s)", flush=True)
+    export(model, Path(args.out), args)
+    print(json.dumps({"parameters": params, "images": len(images), "epochs": args.epochs, "seed": args.seed,
+                      "render_s": round(render_s, 1), "total_s": round(time.perf_counter() - started, 1),
+                      "out": args.out}))
+
+
+def export(model: TinyDetector, out: Path, args: argparse.Namespace) -> None:
+    """Write the ONNX model with Ultralytics-style metadata (names, stride, imgsz, task)."""
+    import onnx
+
+    model.eval()
+    wrapper = ExportWrapper(model, *INPUT_HW).eval()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    dummy = torch.zeros(1, 3, *INPUT_HW)
+    torch.onnx.export(wrapper, (dummy,), str(out), input_names=["images"], output_names=["output0"],
+                      opset_version=17, dynamo=False)
+    proto = onnx.load(str(out))
+    metadata = {
+        "names": str(dict(enumerate(CLASSES))),
+        "stride": str(max(STRIDES)),
+        "imgsz": str(list(INPUT_HW)),
+        "task": "detect",
+        "description": "missiontree simulator detector (scripts/train_detector.py)",
+        "training": f"seed={args.seed} images={args.images} epochs={args.epochs} "
+        f"first_world={args.first_world} widths={args.widths}",
+    }
+    onnx.helper.set_model_props(proto, metadata)
+    onnx.save(proto, str(out))
+    print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)", flush=True)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Parse the command line and train."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seed", type=int, default=7, help="seed of rendering, init and shuffling")
+    parser.add_argument("--images", type=int, default=3000, help="views to render")
+    parser.add_argument("--first-world", type=int, default=0,
+                        help="seed of the first generated world (evaluation uses seeds from 10000)")
+    parser.add_argument("--epochs", type=int, default=30)
+    parser.add_argument("--batch", type=int, default=32)
+    parser.add_argument("--lr", type=float, default=4e-3)
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--widths", type=int, nargs=4, default=[16, 48, 96, 160],
+                        help="channels at strides 4, 8, 16, 32")
+    parser.add_argument("--out", default="src/missiontree/data/models/sim_detector.onnx")
+    train(parser.parse_args(argv))
+
+
+if __name__ == "__main__":
+    main()

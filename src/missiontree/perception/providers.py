@@ -1,0 +1,149 @@
+"""The perception layer's model providers, registered through the plugin hooks.
+
+:func:`register_providers` adds, by name (the ``provider:`` of a models config):
+
+- ``yolo_onnx`` — :class:`~missiontree.perception.detectors.YoloOnnxDetector` on any YOLOv8/YOLO11
+  ONNX export; ``model:`` is required.
+- ``sim_detector`` — the same detector on the model shipped in the package
+  (``missiontree/data/models/sim_detector.onnx``), trained on the simulator's rendered images
+  by ``scripts/train_detector.py``.
+- ``oracle`` — :class:`~missiontree.perception.oracle.OracleDetector`, simulation only: it must be
+  bound to the simulated robot (``options["robot"]``, or :func:`bind_robot` once the robot
+  exists) and refuses any other robot.
+
+A models config section, e.g.::
+
+    roles:
+      detector:
+        provider: yolo_onnx
+        model: models/yolov8n.onnx
+        score_threshold: 0.4
+        threads: 2
+
+Options are checked: an unknown or mistyped option is a :class:`ModelConfigError` naming the
+provider and the options it knows. onnxruntime is imported only when a detector is built.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from missiontree.errors import ModelConfigError
+
+#: The detector shipped in the package (trained on the simulator's images).
+SIM_DETECTOR_MODEL = Path(__file__).resolve().parents[1] / "data" / "models" / "sim_detector.onnx"
+
+
+class YoloOptions(BaseModel):
+    """Options of ``yolo_onnx`` and ``sim_detector``."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    model: str | None = None
+    labels_file: str | None = None
+    score_threshold: float = Field(0.25, ge=0, le=1)
+    iou_threshold: float = Field(0.45, ge=0, le=1)
+    max_detections: int = Field(100, ge=1)
+    threads: int = Field(2, ge=1, le=64)
+    input_size: tuple[int, int] = (640, 640)
+    name: str | None = None
+
+
+class OracleOptions(BaseModel):
+    """Options of ``oracle``."""
+
+    model_config = ConfigDict(extra="forbid", arbitrary_types_allowed=True)
+
+    robot: Any = None
+    miss_rate: float = Field(0.0, ge=0, le=1)
+    false_positive_rate: float = Field(0.0, ge=0, le=1)
+    seed: int = 0
+    min_pixels: int = Field(30, ge=1)
+    score: float = Field(0.99, ge=0, le=1)
+    labels: list[str] | None = None
+    name: str = "oracle"
+
+
+def _parse(model: type[BaseModel], options: Mapping[str, Any], provider: str) -> Any:
+    try:
+        return model.model_validate(dict(options))
+    except ValidationError as exc:
+        problems = "; ".join(
+            f"{'.'.join(str(p) for p in e['loc']) or 'options'}: {e['msg']}" for e in exc.errors())
+        raise ModelConfigError(
+            f"model provider {provider!r}: invalid options ({problems}); known options: "
+            f"{', '.join(model.model_fields)}"
+        ) from None
+
+
+def _yolo(parsed: YoloOptions, model: str | Path, name: str) -> Any:
+    from missiontree.perception.detectors import YoloOnnxDetector
+
+    return YoloOnnxDetector(
+        model,
+        labels_file=parsed.labels_file,
+        score_threshold=parsed.score_threshold,
+        iou_threshold=parsed.iou_threshold,
+        max_detections=parsed.max_detections,
+        threads=parsed.threads,
+        input_size=parsed.input_size,
+        name=parsed.name or name,
+    )
+
+
+def create_yolo_onnx(options: Mapping[str, Any]) -> Any:
+    """Build ``yolo_onnx`` on the model its ``model:`` option names."""
+    parsed = _parse(YoloOptions, options, "yolo_onnx")
+    if parsed.model is None:
+        raise ModelConfigError(
+            "model provider 'yolo_onnx': option 'model' is required; set it to a YOLOv8/YOLO11 ONNX "
+            "export (yolo export model=yolov8n.pt format=onnx), or use provider 'sim_detector' for "
+            "the shipped simulator model"
+        )
+    return _yolo(parsed, parsed.model, "yolo_onnx")
+
+
+def create_sim_detector(options: Mapping[str, Any]) -> Any:
+    """Build ``sim_detector``: the shipped model, or ``model:`` if given (e.g. a retrained one)."""
+    parsed = _parse(YoloOptions, {"score_threshold": 0.3, **options}, "sim_detector")
+    return _yolo(parsed, parsed.model or SIM_DETECTOR_MODEL, "sim_detector")
+
+
+def create_oracle(options: Mapping[str, Any]) -> Any:
+    """Build ``oracle``, bound now if ``options["robot"]`` holds the simulated robot."""
+    from missiontree.perception.oracle import OracleDetector
+
+    parsed = _parse(OracleOptions, options, "oracle")
+    return OracleDetector(
+        robot=parsed.robot,
+        miss_rate=parsed.miss_rate,
+        false_positive_rate=parsed.false_positive_rate,
+        seed=parsed.seed,
+        min_pixels=parsed.min_pixels,
+        score=parsed.score,
+        labels=parsed.labels,
+        name=parsed.name,
+    )
+
+
+def bind_robot(models: Mapping[str, Any], robot: Any) -> None:
+    """Bind every provider marked ``needs_robot`` (the oracle) to ``robot``, once it exists.
+
+    Raises:
+        ModelConfigError: A simulation-only provider was configured for a robot that is not
+            simulated.
+    """
+    for provider in models.values():
+        if getattr(provider, "needs_robot", False) is True:
+            provider.bind(robot)
+
+
+def register_providers(providers: dict[str, Any]) -> None:
+    """Add the perception layer's detectors to ``providers`` (name → factory)."""
+    providers["yolo_onnx"] = create_yolo_onnx
+    providers["sim_detector"] = create_sim_detector
+    providers["oracle"] = create_oracle
