@@ -16,6 +16,7 @@ from missiontree.engine.loader import INCLUDE
 from missiontree.engine.ports import ports_of
 from missiontree.engine.registry import NodeRegistry, NodeType
 from missiontree.engine.spec import CHILD_KEY, CHILDREN_KEY, NAME_KEY, RunSection
+from missiontree.engine.validate import reads_refs
 
 SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
 _NODE_REF = {"$ref": "#/$defs/node"}
@@ -92,7 +93,9 @@ def _node_schema(node_type: NodeType, defs: dict[str, Any]) -> tuple[dict[str, A
             properties[prop] = {"anyOf": [prop_schema, _PARAM_REF]}
         else:
             meta = {k: prop_schema[k] for k in ("description", "title") if k in prop_schema}
-            properties[prop] = {"anyOf": [copy.deepcopy(prop_schema), _BB_REF, _PARAM_REF], **meta}
+            prop_schema = {k: v for k, v in prop_schema.items() if k != "bb_ref"}
+            refs = [_BB_REF, _PARAM_REF] if reads_refs(node_type, field_name) else [_PARAM_REF]
+            properties[prop] = {"anyOf": [copy.deepcopy(prop_schema), *refs], **meta}
     properties[NAME_KEY] = {"type": "string", "description": "Name of this node (default: its type)."}
     required = list(params.get("required", []))
     if node_type.category == "decorator":

@@ -224,11 +224,38 @@ def check_node(node: NodeSpec, registry: NodeRegistry) -> list[Problem]:
     problems = _structure(node, node_type)
     instance, issues = validate_params(node_type.params, node.raw)
     node.params = instance
+    if instance is not None and node_type.category != "leaf":
+        issues += _refs_not_read(node_type, instance)
+        if issues:
+            node.params = None
     for issue in issues:
         problems.append(_locate(node, issue))
     if instance is not None and node.type == "Parallel":
         problems += _parallel_selection(node, instance)
     return problems
+
+
+def reads_refs(node_type: NodeType, field_name: str) -> bool:
+    """Whether ``{bb: key}`` is accepted for a parameter of ``node_type``.
+
+    Always for leaves (:meth:`~missiontree.engine.leaf.Leaf.value` reads it); for decorators and
+    composites only where the field says so (``json_schema_extra={"bb_ref": True}``).
+    """
+    if node_type.category == "leaf":
+        return True
+    info = node_type.params.model_fields.get(field_name)
+    extra = info.json_schema_extra if info is not None else None
+    return isinstance(extra, dict) and extra.get("bb_ref") is True
+
+
+def _refs_not_read(node_type: NodeType, params: BaseModel) -> list[ParamIssue]:
+    return [
+        ParamIssue((name,), f"{name}: expected a fixed value ({node_type.name} is a {node_type.category} and "
+                   f"reads no blackboard), found {{bb: {value.key}}}",
+                   "write the value itself; only leaves (and Guard's value) read {bb: key} references")
+        for name in type(params).model_fields
+        if isinstance(value := getattr(params, name, None), BlackboardRef) and not reads_refs(node_type, name)
+    ]
 
 
 def _locate(node: NodeSpec, issue: ParamIssue) -> Problem:

@@ -138,3 +138,16 @@ def test_status_shaping_decorators(
     nodes = build(f"root:\n  {node}:\n    child: {child}\n")
     nodes["root"].tick_once()
     assert nodes["root"].status == expected
+
+
+def test_guard_compares_with_another_key(build: Callable[[str], Nodes]) -> None:
+    """Guard's value may be {bb: key}: the condition compares two blackboard keys each tick."""
+    nodes = build("blackboard: {speed: 1, limit: 2}\nroot:\n  Guard:\n    key: speed\n    op: '<'\n"
+                  "    value: {bb: limit}\n    child: Running\n")
+    py_trees.blackboard.Blackboard.set("/speed", 1)
+    py_trees.blackboard.Blackboard.set("/limit", 2)
+    nodes["root"].tick_once()
+    assert nodes["root"].status == Status.RUNNING
+    py_trees.blackboard.Blackboard.set("/limit", 0.5)
+    nodes["root"].tick_once()
+    assert nodes["root"].status == Status.FAILURE

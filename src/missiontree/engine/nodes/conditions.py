@@ -36,7 +36,8 @@ class ConditionFields(BaseModel):
     key: str = Field(description="Blackboard key to test.")
     op: Op | None = Field(
         None, description="Operator; default `==` when a value is given, else `set` (the key exists).")
-    value: Any = Field(None, description="Value to compare with (a `{bb: key}` compares with another key).")
+    value: Any = Field(None, description="Value to compare with (a `{bb: key}` compares with another key).",
+                       json_schema_extra={"bb_ref": True})
 
     @model_validator(mode="after")
     def _value_needed(self) -> ConditionFields:
