@@ -89,6 +89,14 @@ def validate_params(
                 refs[by_name[key]] = BlackboardRef(value["bb"])
         else:
             plain[key] = value
+    if refs:  # fields typed Any (a compared value) take the reference as it is, validators included
+        try:
+            alias = {name: fields[name].alias or name for name in refs}
+            whole = model.model_validate({**plain, **{alias[n]: ref for n, ref in refs.items()}})
+            if all(getattr(whole, name) is ref for name, ref in refs.items()):
+                return whole, []
+        except (ValidationError, TypeError, ValueError):
+            pass  # typed fields refuse a reference: check the others alone below
     instance: BaseModel | None = None
     try:
         instance = model.model_validate(plain)
