@@ -35,7 +35,8 @@ def create_robot(options: Mapping[str, Any] | None = None) -> SimRobot:
     opts = dict(options or {})
     unknown = sorted(set(opts) - _OPTIONS)
     if unknown:
-        raise ConfigError(f"unknown simulator option(s) {', '.join(unknown)}; expected: {', '.join(sorted(_OPTIONS))}")
+        raise ConfigError(f"unknown simulator option(s) {', '.join(unknown)}; "
+                          f"expected: {', '.join(sorted(_OPTIONS))}")
     world = load_world(opts.get("world", "office"))
     profile = load_robot_profile(opts.get("robot") or world.profile_name, opts.get("config") or None)
     seed = opts.get("seed", 0)

@@ -378,7 +378,8 @@ class Navigator:
         if now - follow.last_replan >= self.spec.replan_period and now - follow.blocked_since >= 0.5:
             follow.last_replan = now
             points = self._scan_points(scan, pose)
-            path2 = self._plan(self.costmap.with_points(points), pose, self.handle.goal) if self.handle else None
+            goal = self.handle.goal if self.handle else None
+            path2 = self._plan(self.costmap.with_points(points), pose, goal) if goal else None
             if path2 is not None:
                 follow.set_path(path2)
         return 0.0, 0.0

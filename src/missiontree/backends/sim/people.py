@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from missiontree.backends.sim.raycast import CYLINDER, Primitives
+from missiontree.backends.sim.raycast import CYLINDER, Primitives, Row
 from missiontree.backends.sim.schema import PersonSpec
 
 LEG_RADIUS = 0.065
@@ -54,8 +54,9 @@ class Person:
         if spec.loop and len(points) > 1:
             points.append(points[0])
         self._points = points
-        self._lengths = [math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(points[:-1], points[1:])]
-        self._headings = [math.atan2(b[1] - a[1], b[0] - a[0]) for a, b in zip(points[:-1], points[1:])]
+        legs = list(zip(points[:-1], points[1:], strict=True))
+        self._lengths = [math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in legs]
+        self._headings = [math.atan2(b[1] - a[1], b[0] - a[0]) for a, b in legs]
         self._total = sum(self._lengths)
         walk = [n / spec.speed if spec.speed > 0 else math.inf for n in self._lengths]
         self._durations = [t + spec.pause for t in walk]  # each leg: pause at its start, then walk
@@ -96,7 +97,7 @@ class Person:
             return 0.0
         return self._headings[min(i, len(self._headings) - 1)]
 
-    def primitives(self, t: float) -> list[tuple[int, tuple[float, ...], float, float, tuple[int, int, int], int]]:
+    def primitives(self, t: float) -> list[Row]:
         """Prism rows (see :class:`Primitives`) for legs, torso and head at time ``t``."""
         s = self.state_at(t)
         if not s.present:

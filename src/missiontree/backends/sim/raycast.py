@@ -30,6 +30,10 @@ except ImportError:  # pragma: no cover - exercised only without numba
     HAVE_NUMBA = False
 
 
+#: One prism as a row: (kind, geometry, z0, z1, rgb, instance id).
+Row = tuple[int, tuple[float, ...], float, float, tuple[int, int, int], int]
+
+
 @dataclass(frozen=True)
 class Primitives:
     """A table of prisms, one row each.
@@ -59,7 +63,7 @@ class Primitives:
                           np.zeros(0, np.int64))
 
     @staticmethod
-    def build(rows: list[tuple[int, tuple[float, ...], float, float, tuple[int, int, int], int]]) -> Primitives:
+    def build(rows: list[Row]) -> Primitives:
         """Make a table from rows ``(kind, geom, z0, z1, rgb, inst)``."""
         if not rows:
             return Primitives.empty()
@@ -258,7 +262,8 @@ def _hit_one(ox, oy, dx, dy, kind, g):  # noqa: ANN001, ANN202 - numba kernel, t
 def _bound(kind, g):  # noqa: ANN001, ANN202
     """Bounding circle (cx, cy, r) of one primitive."""
     if kind == 0:
-        return 0.5 * (g[0] + g[2]), 0.5 * (g[1] + g[3]), 0.5 * np.sqrt((g[2] - g[0]) ** 2 + (g[3] - g[1]) ** 2)
+        half = 0.5 * np.sqrt((g[2] - g[0]) ** 2 + (g[3] - g[1]) ** 2)
+        return 0.5 * (g[0] + g[2]), 0.5 * (g[1] + g[3]), half
     if kind == 1:
         return g[0], g[1], np.sqrt(g[4] * g[4] + g[5] * g[5])
     return g[0], g[1], g[2]

@@ -92,7 +92,8 @@ def draw_topdown(robot: SimRobot, markers: list[Marker], path: Path) -> None:
         raise OSError(f"could not write {path}")
 
 
-def _cells_region(canvas: _Canvas, robot: SimRobot, values: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+def _cells_region(canvas: _Canvas, robot: SimRobot,
+                  values: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """The canvas region under the grid and the grid ``values`` resized onto it (row 0 at the top)."""
     grid = robot.world.grid
     h, w = values.shape

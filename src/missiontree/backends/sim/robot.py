@@ -131,7 +131,10 @@ class SimRobot:
         return self._nav.send(goal, tolerance, self._t)
 
     def drive(self, v: float, w: float) -> None:
-        """Command body velocity until stop(), another drive() or navigate_to(); overrides navigation."""
+        """Command a body velocity (m/s, rad/s), overriding navigation.
+
+        The command holds until stop(), another drive() or navigate_to().
+        """
         self._drive = (float(v), float(w))
 
     def stop(self) -> None:
@@ -179,7 +182,9 @@ class SimRobot:
     def _step(self) -> None:
         dt = self.profile.physics_dt
         # drive() overrides navigation while commanded; the goal waits (its timers paused)
-        command = self._drive if self._drive is not None else self._nav.step(self._t, self._odom.pose, self._scan)
+        command = self._drive
+        if command is None:
+            command = self._nav.step(self._t, self._odom.pose, self._scan)
         if command is not None:
             self._base.command(*command)
         proposed, v, w = self._base.propose(dt)

@@ -80,7 +80,8 @@ class WorldObject:
             r = self.size[0] / 2
             return np.stack([self.pose.x + r * np.cos(a), self.pose.y + r * np.sin(a)], axis=1)
         hx, hy = self.size[0] / 2, self.size[1] / 2
-        return np.array([self.pose.transform(px, py) for px, py in ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy))])
+        corners = ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy))
+        return np.array([self.pose.transform(px, py) for px, py in corners])
 
 
 @dataclass(frozen=True)
@@ -235,7 +236,8 @@ def _message(err: Any, model: type[pydantic.BaseModel]) -> str:
     if err["type"] == "missing":
         return f"missing required key {loc[-1]!r}"
     found = err.get("input")
-    shown = repr(found) if not isinstance(found, dict | list) or len(repr(found)) < 60 else type(found).__name__
+    short = not isinstance(found, dict | list) or len(repr(found)) < 60
+    shown = repr(found) if short else type(found).__name__
     return f"{err['msg']}, found {shown}"
 
 
@@ -310,7 +312,8 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]) -
         objects.append(obj)
         instances[inst] = InstanceInfo(inst, "object", oid, obj.label)
         if obj.shape == "cylinder":
-            rows.append((CYLINDER, (obj.pose.x, obj.pose.y, obj.size[0] / 2), obj.elevation, obj.top, obj.rgb, inst))
+            rows.append((CYLINDER, (obj.pose.x, obj.pose.y, obj.size[0] / 2), obj.elevation, obj.top, obj.rgb,
+                         inst))
         else:
             rows.append((BOX, (obj.pose.x, obj.pose.y, math.cos(obj.pose.yaw), math.sin(obj.pose.yaw),
                                obj.size[0] / 2, obj.size[1] / 2), obj.elevation, obj.top, obj.rgb, inst))

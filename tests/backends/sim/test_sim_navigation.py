@@ -1,0 +1,132 @@
+"""NavigateToPose in the simulator: paths where they exist, aborts with reasons where not, blocking."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import ROOM
+
+from missiontree.backends.sim import create_robot
+from missiontree.backends.sim.navigation import (
+    GOAL_IN_OBSTACLE,
+    INSCRIBED,
+    NO_VALID_PATH,
+    OUT_OF_MAP,
+    Costmap,
+)
+from missiontree.backends.sim.schema import NavigationSpec
+from missiontree.robot.actions import ActionStatus
+from missiontree.types import Pose2D, Tolerance
+
+ANY = Tolerance(0.25, 2 * math.pi)
+
+
+def _run(robot, handle, budget: float = 120.0):
+    end = robot.now() + budget
+    while not handle.status().done and robot.now() < end:
+        robot.spin_until(robot.now() + 0.1)
+    return handle.result()
+
+
+def test_path_through_the_office_door_is_found_and_followed():
+    """From the kitchen to the office the robot plans through the door and arrives."""
+    robot = create_robot({"world": "office"})
+    goal = Pose2D(7.0, 5.5, 0.0)
+    handle = robot.navigate_to(goal, ANY)
+    result = _run(robot, handle)
+    assert result.succeeded, result
+    assert robot.truth.robot_pose().distance_to(goal) < 0.3
+    assert robot.bumps == 0
+
+
+def test_feedback_distance_decreases_and_any_heading_is_accepted():
+    """Feedback's distance remaining falls as the robot goes; yaw 2 pi accepts any final heading."""
+    robot = create_robot({"world": "conformance"})
+    goal = Pose2D(2.5, 3.8, math.pi)
+    handle = robot.navigate_to(goal, ANY)
+    distances = []
+    while not handle.status().done and robot.now() < 60:
+        robot.spin_until(robot.now() + 0.5)
+        if handle.feedback() is not None:
+            distances.append(handle.feedback().distance_remaining)
+    assert handle.status() is ActionStatus.SUCCEEDED
+    assert distances[0] > distances[-1] and distances[-1] < 0.5
+    assert abs(math.remainder(robot.pose().pose.yaw - math.pi, 2 * math.pi)) > 0.3  # did not turn to pi
+
+
+@pytest.mark.parametrize(("goal", "words", "code"), [
+    (Pose2D(3.5, 1.0), "inside an obstacle", GOAL_IN_OBSTACLE),
+    (Pose2D(4.9, 2.5), "inscribed zone", GOAL_IN_OBSTACLE),
+    (Pose2D(40.0, 2.5), "outside the map", OUT_OF_MAP),
+])
+def test_unreachable_goals_abort_with_a_reason(goal, words, code):
+    """Goals in an obstacle, in its inscribed zone or off the map abort at once with a reason."""
+    robot = create_robot({"world": "conformance"})
+    handle = robot.navigate_to(goal, ANY)
+    result = _run(robot, handle, 5.0)
+    assert handle.status() is ActionStatus.ABORTED
+    assert words in result.reason and result.code == code
+    assert robot.now() < 1.0
+
+
+def test_free_goal_in_a_sealed_room_has_no_path(write_world):
+    """A free goal inside a walled-off room aborts with 'no valid path'."""
+    text = ROOM.replace("    - [[0, 0], [6, 0], [6, 4], [0, 4]]",
+                        "    - [[0, 0], [6, 0], [6, 4], [0, 4]]\n    - [[4, 1], [5.5, 1], [5.5, 3], [4, 3]]")
+    robot = create_robot({"world": write_world(text)})
+    handle = robot.navigate_to(Pose2D(4.75, 2.0), ANY)
+    result = _run(robot, handle, 5.0)
+    assert handle.status() is ActionStatus.ABORTED
+    assert "no valid path" in result.reason and result.code == NO_VALID_PATH
+
+
+def test_person_standing_in_a_narrow_corridor_blocks_the_goal(write_world):
+    """A person standing in a 1 m corridor stops the robot; the goal aborts after blocked_timeout."""
+    text = """\
+    name: narrow
+    robot: {profile: turtlebot4, start: {x: 0.8, y: 0.5, yaw: 0.0}}
+    walls:
+      polygons: [[[0, 0], [8, 0], [8, 1.0], [0, 1.0]]]
+    people:
+      - {id: blocker, route: [[3.5, 0.5]], speed: 0.0}
+    """
+    robot = create_robot({"world": write_world(text),
+                          "config": {"navigation": {"blocked_timeout": 3.0, "inflation_radius": 0.3}}})
+    handle = robot.navigate_to(Pose2D(6.5, 0.5), ANY)
+    result = _run(robot, handle, 30.0)
+    assert handle.status() is ActionStatus.ABORTED
+    assert "blocked" in result.reason
+    assert robot.true_pose.x < 3.5 - 0.3 and robot.bumps == 0
+
+
+def test_robot_waits_for_a_person_crossing_and_then_arrives(write_world):
+    """A person walking across the path makes the robot wait, then the goal succeeds."""
+    text = """\
+    name: crossing
+    robot: {profile: turtlebot4, start: {x: 0.6, y: 1.5, yaw: 0.0}}
+    walls:
+      polygons: [[[0, 0], [6, 0], [6, 3], [0, 3]]]
+    people:
+      - {id: walker, route: [[2.0, 0.3], [2.0, 2.7]], speed: 0.5, start_time: 2.0, loop: false,
+         vanish_at_end: true}
+    """
+    robot = create_robot({"world": write_world(text)})
+    handle = robot.navigate_to(Pose2D(4.5, 1.5), ANY)
+    result = _run(robot, handle, 60.0)
+    assert result.succeeded, result
+    assert robot.bumps == 0
+
+
+def test_inflation_radius_is_configurable():
+    """A wider inflation radius puts cost further from the walls; the inscribed zone is the body radius."""
+    robot = create_robot({"world": "conformance"})
+    grid = robot.world.grid
+    narrow = Costmap(grid, 0.17, NavigationSpec(inflation_radius=0.3))
+    wide = Costmap(grid, 0.17, NavigationSpec(inflation_radius=0.9))
+    x, y = 2.5, 4.4   # 0.6 m from the north wall (5.0 minus half the wall's thickness)
+    assert narrow.cell_cost(narrow.cost, x, y) == 0
+    assert 0 < wide.cell_cost(wide.cost, x, y) < INSCRIBED
+    assert narrow.cell_cost(narrow.cost, 2.5, 4.85) == INSCRIBED
+    assert np.count_nonzero(wide.cost) > np.count_nonzero(narrow.cost)

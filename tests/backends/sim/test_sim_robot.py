@@ -1,0 +1,117 @@
+"""SimRobot: determinism, sensor rates, estimate versus truth, ground truth off the protocol, pictures."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from missiontree.backends.sim import create_robot
+from missiontree.robot.interface import Drawable, Robot
+from missiontree.types import Marker, Pose2D, Tolerance
+
+NOISY = {"lidar": {"noise": 0.02}, "camera": {"depth_noise": 0.01, "color_noise": 3.0},
+         "odometry": {"noise_v": 0.03, "noise_w": 0.03}}
+
+
+def _patrol(seed: int, seconds: float = 12.0):
+    robot = create_robot({"world": "combined", "seed": seed, "config": NOISY})
+    handle = robot.navigate_to(Pose2D(4.75, 0.15), Tolerance(0.25, 2 * math.pi))
+    scans, frames = [], []
+    while robot.now() < seconds:
+        robot.spin_until(robot.now() + 0.5)
+        scans.append(robot.scan().ranges.copy())
+        frames.append((robot.rgbd().color.copy(), robot.rgbd().depth.copy()))
+    return robot, handle, scans, frames
+
+
+def test_same_seed_gives_the_same_sensors_and_trajectory():
+    """Two runs with one seed produce identical scans, images, poses and goal outcome."""
+    a, ha, scans_a, frames_a = _patrol(7)
+    b, hb, scans_b, frames_b = _patrol(7)
+    assert all(np.array_equal(x, y, equal_nan=True) for x, y in zip(scans_a, scans_b, strict=True))
+    assert all(np.array_equal(c1, c2) and np.array_equal(d1, d2, equal_nan=True)
+               for (c1, d1), (c2, d2) in zip(frames_a, frames_b, strict=True))
+    assert a.trajectory == b.trajectory and a.pose() == b.pose()
+    assert ha.status() == hb.status()
+
+
+def test_another_seed_gives_other_noise():
+    """A different seed changes the noisy readings."""
+    robot_a = create_robot({"world": "conformance", "seed": 1, "config": NOISY})
+    robot_b = create_robot({"world": "conformance", "seed": 2, "config": NOISY})
+    assert not np.array_equal(robot_a.scan().ranges, robot_b.scan().ranges)
+
+
+def test_sensor_rates_are_configurable():
+    """Lidar and camera publish at their configured rates on the simulated clock."""
+    rates = {"lidar": {"rate": 20.0}, "camera": {"rate": 2.0}}
+    robot = create_robot({"world": "conformance", "config": rates})
+    scan_stamps, frame_stamps = set(), set()
+    while robot.now() < 5.0 - 1e-9:
+        robot.spin_until(robot.now() + 0.05)
+        scan_stamps.add(robot.scan().stamp)
+        frame_stamps.add(robot.rgbd().stamp)
+    scan_stamps.discard(0.0)
+    frame_stamps.discard(0.0)   # the first readings come at t = 0
+    assert len(scan_stamps) == 100 and len(frame_stamps) == 10
+    assert min(np.diff(sorted(scan_stamps))) > 0.049
+
+
+def test_pose_is_the_estimate_not_the_truth():
+    """With odometry noise, pose() drifts from the true pose that only ground truth knows."""
+    robot = create_robot({"world": "conformance", "seed": 4,
+                          "config": {"odometry": {"noise_v": 0.1, "noise_w": 0.1}}})
+    robot.drive(0.25, 0.4)
+    robot.spin_until(10.0)
+    estimate, truth = robot.pose().pose, robot.truth.robot_pose()
+    assert estimate.distance_to(truth) > 0.01
+    assert robot.rgbd().camera_pose.distance_to(estimate) < 0.1
+
+
+def test_ground_truth_is_not_part_of_the_robot_protocol():
+    """The Robot protocol exposes no ground truth; the simulator keeps it on the side."""
+    robot = create_robot({"world": "conformance"})
+    assert isinstance(robot, Robot) and isinstance(robot, Drawable)
+    assert not hasattr(Robot, "truth") and not hasattr(Robot, "true_pose")
+    assert robot.truth.object("chair_red").label == "chair"
+
+
+def test_collisions_stop_the_robot_at_the_wall():
+    """Driving into a wall stops the robot next to it, its body short of the wall line."""
+    robot = create_robot({"world": "conformance"})
+    robot.drive(0.31, 0.0)
+    robot.spin_until(20.0)
+    assert robot.bumps > 0
+    gap = 5.0 - robot.true_pose.x   # the east wall's line is x = 5
+    assert 0.17 <= gap < 0.17 + 0.1
+
+
+def test_history_forgets_beyond_its_horizon():
+    """pose_at and scan_at answer within the history horizon and None beyond it."""
+    robot = create_robot({"world": "conformance", "config": {"history_horizon": 2.0}})
+    robot.spin_until(5.0)
+    assert robot.pose_at(4.0) is not None and robot.scan_at(4.0) is not None
+    assert robot.pose_at(1.0) is None and robot.scan_at(1.0) is None
+
+
+def test_draw_writes_a_topdown_png(tmp_path):
+    """draw() writes a PNG with the map, the trajectory and the markers."""
+    robot = create_robot({"world": "office"})
+    robot.drive(0.2, 0.2)
+    robot.spin_until(5.0)
+    markers = [Marker("alarm", 3.0, 3.0, 2.0, "ALARM"), Marker("detection", 2, 2, 1, "cup")]
+    (path,) = robot.draw(tmp_path, markers)
+    image = cv2.imread(str(path))
+    assert image is not None and image.shape[0] > 300 and image.shape[1] > 400
+    assert (np.abs(image.astype(int) - (30, 30, 220)).sum(axis=2) < 60).any()   # the red alarm marker
+
+
+def test_close_stops_everything():
+    """After close() the clock no longer advances and the robot does not move."""
+    robot = create_robot({"world": "conformance"})
+    robot.drive(0.2, 0.0)
+    robot.close()
+    robot.spin_until(3.0)
+    assert robot.now() == 0.0

@@ -1,0 +1,139 @@
+"""World files: the shipped worlds load, waypoints are reachable, broken files give file:line errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import ROOM
+
+from missiontree.backends.sim import create_robot, load_robot_profile, load_world
+from missiontree.backends.sim.navigation import INSCRIBED, Costmap, plan
+from missiontree.errors import ConfigError, WorldFileError
+from missiontree.paths import REPO_ROOT
+from missiontree.types import Pose2D
+
+SHIPPED = ["office", "corridor", "entrance_hall", "combined", "conformance", "map_example"]
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_shipped_worlds_load(name):
+    """Every shipped world loads and its robot starts in free space."""
+    world = load_world(name)
+    assert world.name == name
+    assert world.clearance(world.start.x, world.start.y) > 0.17
+
+
+def test_office_holds_what_nais_used():
+    """The office world has the NAIS objects: chairs, sofas, umbrellas, bottles, cups, backpacks, laptop."""
+    world = load_world("office")
+    labels = {o.label for o in world.objects}
+    assert {"chair", "sofa", "umbrella", "bottle", "cup", "backpack", "laptop", "sink", "refrigerator",
+            "dining table"} <= labels
+    colours = {(o.label, o.color) for o in world.objects}
+    assert {("backpack", "grey"), ("backpack", "red"), ("chair", "blue"), ("bottle", "pink")} <= colours
+    assert {r.type for r in world.rooms} == {"kitchen", "office"}
+
+
+@pytest.mark.parametrize("scenario", ["a", "b", "c", "d"])
+def test_seed001_waypoints_are_reachable(scenario):
+    """Each waypoint of seed 001's tables is free of the inscribed zone and the loop has paths."""
+    data = yaml.safe_load((REPO_ROOT / "config" / "waypoints" / f"scenario_{scenario}.yaml").read_text())
+    world = load_world(data["world"])
+    profile = load_robot_profile(world.profile_name)
+    costmap = Costmap(world.grid, profile.body.radius, profile.navigation)
+    points = {w["name"]: Pose2D(w["pose"][0], w["pose"][1]) for w in data["waypoints"]}
+    order = data.get("order") or list(points)
+    for name in order:
+        assert costmap.cell_cost(costmap.cost, points[name].x, points[name].y) < INSCRIBED, name
+    for a, b in zip(order, order[1:] + order[:1], strict=True):
+        assert plan(costmap, costmap.cost, points[a], points[b]) is not None, (a, b)
+
+
+def _problems(path: Path) -> list[str]:
+    with pytest.raises(WorldFileError) as info:
+        load_world(path)
+    return [str(p) for p in info.value.problems]
+
+
+def test_unknown_key_names_its_line_and_the_known_keys(write_world):
+    """A misspelt key is reported at its line with the keys that exist."""
+    cup = "  - {label: cup, size: [0.1, 0.1, 0.1], pose: {x: 1, y: 1}, colour: red}\n"
+    path = write_world(ROOM + "objects:\n" + cup)
+    (problem,) = _problems(path)
+    assert problem.startswith(f"{path}:10:")
+    assert "unknown key 'colour'" in problem and "color" in problem
+
+
+def test_missing_fields_are_all_reported(write_world):
+    """Every missing required field is reported, each with a line."""
+    path = write_world(ROOM + "objects:\n  - {label: cup, pose: {x: 1}}\n")
+    problems = _problems(path)
+    assert any("missing required key 'size'" in p and ":10:" in p for p in problems)
+    assert any("missing required key 'y'" in p for p in problems)
+
+
+def test_walls_or_map_required(write_world):
+    """A world with neither walls nor a map is refused."""
+    path = write_world("name: x\nrobot: {start: {x: 0, y: 0}}\n")
+    assert any("expected `walls:` or `map:`" in p for p in _problems(path))
+
+
+def test_object_inside_a_wall(write_world):
+    """An object that overlaps a wall is reported at its pose's line."""
+    shelf = "  - {id: shelf, label: shelf, size: [1, 0.5, 1], pose: {x: 6.0, y: 2}}\n"
+    path = write_world(ROOM + "objects:\n" + shelf)
+    (problem,) = _problems(path)
+    assert ":10:" in problem and "'shelf'" in problem and "overlaps a wall" in problem
+
+
+def test_object_against_a_wall_is_fine(write_world):
+    """An object touching a wall (not crossing it) is accepted."""
+    path = write_world(ROOM + "objects:\n  - {label: shelf, size: [1, 0.5, 1], pose: {x: 3.0, y: 3.75}}\n")
+    assert load_world(path).objects[0].label == "shelf"
+
+
+def test_robot_starting_inside_a_wall(write_world):
+    """A start pose closer to a wall than the body radius is reported at the start's line."""
+    path = write_world(ROOM.replace("{x: 2.0, y: 1.5, yaw: 0.0}", "{x: 0.05, y: 1.5, yaw: 0.0}"))
+    (problem,) = _problems(path)
+    assert ":4:" in problem and "robot start" in problem and "inside the wall" in problem
+
+
+def test_unknown_robot_profile(write_world):
+    """An unknown robot profile is reported with the known profiles."""
+    path = write_world(ROOM.replace("profile: turtlebot4", "profile: turtlebot9"))
+    (problem,) = _problems(path)
+    assert ":3:" in problem and "turtlebot9" in problem and "turtlebot4" in problem
+
+
+def test_missing_map_image(write_world, tmp_path):
+    """A map yaml naming an image that does not exist is reported at the map yaml's image line."""
+    (tmp_path / "m.yaml").write_text("image: nowhere.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
+    path = write_world("name: m\nrobot: {start: {x: 1, y: 1}}\nmap: {yaml: m.yaml}\n")
+    (problem,) = _problems(path)
+    assert "m.yaml:1:" in problem and "nowhere.pgm" in problem and "does not exist" in problem
+
+
+def test_missing_map_yaml(write_world):
+    """A world naming a map yaml that does not exist is reported at its line."""
+    path = write_world("name: m\nrobot: {start: {x: 1, y: 1}}\nmap: {yaml: gone.yaml}\n")
+    (problem,) = _problems(path)
+    assert ":3:" in problem and "gone.yaml" in problem
+
+
+def test_unknown_world_name_lists_the_known_ones():
+    """An unknown world name is an error listing the shipped worlds."""
+    with pytest.raises(WorldFileError) as info:
+        load_world("atlantis")
+    assert "office" in str(info.value) and "combined" in str(info.value)
+
+
+def test_bad_config_override_and_option():
+    """A broken profile override and an unknown option are clear errors (ConfigError, exit 2)."""
+    with pytest.raises(WorldFileError) as info:
+        create_robot({"world": "conformance", "config": {"lidar": {"beems": 10}}})
+    assert "lidar.beems" in str(info.value) and "unknown key" in str(info.value)
+    with pytest.raises(ConfigError, match="unknown simulator option"):
+        create_robot({"wrld": "office"})
