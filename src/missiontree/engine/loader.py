@@ -35,6 +35,7 @@ from missiontree.engine.spec import (
     RunSection,
     Source,
 )
+from missiontree.engine.validate import check_tree
 from missiontree.errors import MissionFileError, Problem
 from missiontree.paths import REPO_ROOT
 from missiontree.yamlio import Located, load_yaml
@@ -75,8 +76,6 @@ def load_mission(path: str | Path, registry: NodeRegistry, *, allow_outside: boo
     Raises:
         MissionFileError: With every problem found in the file and the subtrees it includes.
     """
-    from missiontree.engine.validate import check_tree
-
     loader = _Loader(Path(path), registry, allow_outside)
     spec = loader.load()
     problems = list(loader.problems)
@@ -112,6 +111,8 @@ class _File:
 
 
 class _Loader:
+    """Reads one mission and its includes, collecting problems instead of stopping at the first."""
+
     def __init__(self, path: Path, registry: NodeRegistry, allow_outside: bool) -> None:
         self.path = path
         self.registry = registry
