@@ -48,3 +48,13 @@ def test_svg_with_graphviz(tmp_path: Path) -> None:
     out = tmp_path / "tree.svg"
     assert main(["render", "--no-plugins", "--format", "svg", "--out", str(out), EXAMPLE]) == 0
     assert "<svg" in out.read_text()
+
+
+def test_render_of_broken_mission_exits_two(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A broken mission is reported like validate does (file:line:col), exit 2, nothing drawn."""
+    path = tmp_path / "m.yaml"
+    path.write_text("root:\n  Sequence:\n    children: [Succeed]\n")
+    assert main(["render", "--no-plugins", str(path)]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert "m.yaml:2:3: root/Sequence: expected `memory: true` or `memory: false`" in captured.err
