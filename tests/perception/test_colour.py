@@ -26,6 +26,7 @@ SWATCHES = {
     "white": (240, 240, 240),
     "grey": (128, 128, 128),
     "black": (15, 15, 15),
+    "beige": (215, 195, 160),
 }
 
 
@@ -116,6 +117,18 @@ def test_find_colour_below_the_threshold_is_absent() -> None:
     image[0:5, 0:5] = SWATCHES["red"]  # 25 of 5400 pixels
     assert find_colour(image, "red") is None
     assert find_colour(image, "red", min_fraction=0.004) is not None
+
+
+@pytest.mark.parametrize("shade", [1.0, 0.8])
+def test_simulator_palette_is_named_back_when_lit_or_turned_from_the_light(shade: float) -> None:
+    """Every colour of the simulator's palette, at full light and at 80 %, gets its canonical name."""
+    from missiontree.backends.sim.schema import COLOR_NAMES
+
+    for name, rgb in COLOR_NAMES.items():
+        if name in ("silver", "light grey") and shade == 1.0:
+            continue  # 190 grey under full light reads as white: the two overlap in HSV
+        swatch = _canvas(tuple(int(c * shade) for c in rgb))
+        assert dominant_colour(swatch).name == canonical_colour(name), name
 
 
 def test_aliases_name_the_same_colour() -> None:

@@ -7,7 +7,8 @@ module does that, and the inverse: name the dominant colour of a box or mask, so
 carry "grey backpack" or "red cup".
 
 Hues are OpenCV's (0-179). Unsaturated pixels are named by brightness (black, grey, white);
-saturated ones by hue, with dark orange called brown. The names are the ones world files use.
+saturated ones by hue, with dark orange called brown and pale bright orange or yellow beige. The
+names are those world files use (the simulator's palette names map onto them through ALIASES).
 """
 
 from __future__ import annotations
@@ -23,12 +24,15 @@ Position = Literal["left", "centre", "right"]
 #: Every colour name this module can return, in a fixed order (the index of a pixel's class).
 COLOUR_NAMES: tuple[str, ...] = (
     "black", "grey", "white", "red", "orange", "brown", "yellow", "green", "cyan", "blue", "purple", "pink",
+    "beige",
 )
 
 #: Spellings people use for the same colour.
 ALIASES: dict[str, str] = {
     "gray": "grey", "silver": "grey", "violet": "purple", "magenta": "pink", "teal": "cyan",
-    "navy": "blue", "beige": "white", "tan": "brown", "golden": "yellow", "gold": "yellow",
+    "navy": "blue", "tan": "beige", "cream": "beige", "golden": "yellow", "gold": "yellow",
+    "dark grey": "grey", "dark gray": "grey", "light grey": "grey", "light gray": "grey",
+    "wood": "brown", "wooden": "brown",
 }
 
 #: Hue upper bounds (exclusive, OpenCV 0-179) of the saturated colours, in order round the wheel.
@@ -41,10 +45,12 @@ _HUE_BINS: tuple[tuple[int, str], ...] = (
 DARK_V = 45
 #: Below this saturation (0-255) a pixel has no hue: black, grey or white by value.
 GREY_S = 50
-#: Unsaturated pixels brighter than this are white.
-WHITE_V = 200
+#: Unsaturated pixels brighter than this are white (a white face turned from the light is ~75 %).
+WHITE_V = 175
 #: Orange-hued pixels darker than this are brown.
 BROWN_V = 170
+#: Orange- and yellow-hued pixels this pale (saturation below) and bright (value above) are beige.
+BEIGE_S, BEIGE_V = 100, 150
 
 
 def canonical_colour(name: str) -> str:
@@ -70,8 +76,11 @@ def colour_classes(image: np.ndarray) -> np.ndarray:
     hsv = cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2HSV)
     h, s, v = hsv[..., 0], hsv[..., 1], hsv[..., 2]
     classes = _HUE_TO_CLASS[np.minimum(h, 179)]
+    warm = (classes == COLOUR_NAMES.index("orange")) | (classes == COLOUR_NAMES.index("yellow"))
+    beige = warm & (s < BEIGE_S) & (v >= BEIGE_V)
     brown = (classes == COLOUR_NAMES.index("orange")) & (v < BROWN_V)
     classes = np.where(brown, COLOUR_NAMES.index("brown"), classes)
+    classes = np.where(beige, COLOUR_NAMES.index("beige"), classes)
     grey_level = np.where(v >= WHITE_V, COLOUR_NAMES.index("white"), COLOUR_NAMES.index("grey"))
     classes = np.where(s < GREY_S, grey_level, classes)
     classes = np.where(v < DARK_V, COLOUR_NAMES.index("black"), classes)
