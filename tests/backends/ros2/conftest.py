@@ -135,7 +135,7 @@ def make_robot() -> Iterator[Callable[..., Any]]:
         from missiontree.backends.ros2.profile import load_profile
         from missiontree.backends.ros2.robot import Ros2Robot
 
-        profile = load_profile("turtlebot4", {"domain_id": domain, **overrides})
+        profile = load_profile("turtlebot4", {"domain_id": domain, "shutdown_timeout": 0.3, **overrides})
         robot = Ros2Robot(profile, node_name=f"test_robot_{len(robots)}", install_signal_stop=False)
         robots.append(robot)
         return robot

@@ -1,9 +1,12 @@
-"""`missiontree sim-ros` in another process, driven by a Ros2Robot over DDS (office world, real time)."""
+"""`missiontree sim-ros` in another process, driven by a Ros2Robot over DDS (office world, real time).
+
+What the conformance suite (test_ros2_conformance.py) does not cover: the TurtleBot 4 specifics of
+what is served, Nav2's error code reaching the client, and the /goal_pose fallback.
+"""
 
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from typing import Any
 
@@ -50,38 +53,12 @@ def test_sim_ros_serves_turtlebot4_sensors_tf_and_map(robot: Any, wait_until: Ca
     assert 0.0 < pose.x < 12.0 and 0.0 < pose.y < 8.0
 
 
-def test_navigate_to_through_the_action_reaches_the_goal(robot: Any, wait_until: Callable) -> None:
-    """A NavigateToPose goal sent through the action succeeds, with feedback on the way."""
-    assert robot.nav_interface == "action"
-    goal = Pose2D(3.5, 4.0, 0.0)
-    handle = robot.navigate_to(goal, ANY_HEADING)
-    feedback = wait_until(handle.feedback, 10.0, "feedback")
-    assert feedback.distance_remaining >= 0.0
-    wait_until(lambda: handle.status().done, 30.0, "the goal to end")
-    assert handle.result().status is ActionStatus.SUCCEEDED, handle.result()
-    assert robot.pose().pose.distance_to(goal) <= 0.3
-
-
 def test_unreachable_goal_aborts_with_the_servers_reason(robot: Any, wait_until: Callable) -> None:
     """A goal outside the map is aborted by the server, and its error message comes back as the reason."""
     handle = _drive_to(robot, Pose2D(40.0, 40.0, 0.0), wait_until)
     result = handle.result()
     assert result.status is ActionStatus.ABORTED
     assert result.reason and result.code != 0
-
-
-def test_cancel_mid_goal_stops_the_robot(robot: Any, wait_until: Callable) -> None:
-    """Cancelling a running goal ends it as cancelled at the server and the robot stops."""
-    handle = robot.navigate_to(Pose2D(4.3, 5.3, 0.0), ANY_HEADING)
-    wait_until(lambda: handle.status() is ActionStatus.RUNNING, 10.0, "the goal to run")
-    time.sleep(0.5)
-    handle.cancel()
-    wait_until(lambda: handle.status().done, 10.0, "the cancel to take effect")
-    assert handle.result().status is ActionStatus.CANCELED
-    time.sleep(0.3)
-    before = robot.pose().pose
-    time.sleep(0.5)
-    assert robot.pose().pose.distance_to(before) < 0.02
 
 
 def test_goal_pose_fallback_reaches_the_goal(sim_ros: Any, make_robot: Callable,

@@ -251,7 +251,8 @@ def test_sigint_sends_zero_velocity_before_the_process_stops(domain_id: int, pee
     script = textwrap.dedent(f"""
         import time
         from missiontree.backends.ros2 import create_robot
-        robot = create_robot({{"domain_id": {domain_id}, "node_name": "sigint_test"}})
+        robot = create_robot({{"domain_id": {domain_id}, "node_name": "sigint_test",
+                              "config": {{"ros2": {{"startup_timeout": 0.0}}}}}})
         while robot._cmd_vel.get_subscription_count() == 0:
             time.sleep(0.05)
         robot.drive(0.25, 0.0)
@@ -264,7 +265,7 @@ def test_sigint_sends_zero_velocity_before_the_process_stops(domain_id: int, pee
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain_id))
     proc = subprocess.Popen([sys.executable, "-c", script], env=env, stdout=subprocess.PIPE, text=True)
     try:
-        assert proc.stdout.readline().strip() == "driving"
+        wait_until(lambda: proc.stdout.readline().strip() == "driving", 20.0, "the child to drive")
         wait_until(lambda: len(peer.velocities) >= 2, 10.0, "the robot to drive")
         assert peer.velocities[-1] == pytest.approx((0.25, 0.0))
         proc.send_signal(signal.SIGINT)

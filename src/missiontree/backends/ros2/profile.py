@@ -99,6 +99,8 @@ class Ros2Profile(_Section):
         domain_id: ROS_DOMAIN_ID for this robot's context; None takes the environment's.
         startup_timeout: Seconds ``create_robot`` waits for a pose, a scan and the navigation server
             before handing the robot over (it is handed over anyway: missing data shows as None).
+        shutdown_timeout: Seconds ``close`` waits for the goal's cancel to be answered and the zero
+            velocity to be acknowledged by its subscribers before leaving the ROS graph.
     """
 
     # Unknown top-level keys are ignored: a --config file may hold the profile and other run options
@@ -113,6 +115,7 @@ class Ros2Profile(_Section):
     history_horizon: float = 10.0
     domain_id: int | None = None
     startup_timeout: float = 5.0
+    shutdown_timeout: float = 1.0
     topics: Topics = Topics()
     frames: Frames = Frames()
     navigation: Navigation = Navigation()

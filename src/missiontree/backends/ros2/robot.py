@@ -441,8 +441,9 @@ class Ros2Robot:
         if self._closed:
             return
         try:
-            self.stop()
-            self._flush()
+            if self._context.ok():
+                self.stop()
+                self._flush(self.profile.shutdown_timeout)
         finally:
             self._closed = True
             self._restore_sigint()
@@ -452,7 +453,7 @@ class Ros2Robot:
                 self._context.try_shutdown()
             self._spinner.join(timeout=2.0)
 
-    def _flush(self, timeout: float = 1.0) -> None:
+    def _flush(self, timeout: float) -> None:
         deadline = time.monotonic() + timeout
         goal = self._goal
         future = getattr(goal, "cancel_future", None)
