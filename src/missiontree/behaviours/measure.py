@@ -6,8 +6,8 @@ data, which is what seed 001 did and why its distances drifted by Δd = v·T:
 
 - ``seed``: seed 001's ±15° front cone (:func:`~missiontree.perception.lidar.seed_front_distance`);
   it assumes the person is straight ahead.
-- ``cone``: a lidar cone on the bearing and width of the person's box
-  (:func:`~missiontree.perception.lidar.cone_distance`).
+- ``cone``: a lidar cone on the bearing and width of the person's box, reaching past an image
+  border that cuts the box (:func:`~missiontree.perception.lidar.cone_distance`).
 - ``depth``: the robust median depth inside the box, projected through the frame's intrinsics
   and camera pose (:func:`~missiontree.perception.depth.detection_position`); when the box holds
   no depth (a person beyond the depth range), the cone is used instead.
@@ -29,6 +29,8 @@ FuseAt = Literal["frame", "answer"]
 
 #: Narrowest cone used around a box, rad (a person far away is a few beams wide).
 MIN_CONE_HALF_WIDTH = math.radians(1.5)
+#: How far past the image border the lidar cone looks when a box is cut by the border, rad.
+EDGE_EXTENSION = math.radians(20.0)
 
 
 @dataclass(frozen=True)
@@ -89,8 +91,10 @@ def measure(
     k = frame.intrinsics
     if detection is not None:
         bearing, half = box_bearings(frame.camera_pose, pose, detection.box[0], detection.box[2], k.fx, k.cx)
+        cone_bearing, cone_half = _cone_of(bearing, half, detection, k.width)
     else:
         bearing, half = 0.0, math.radians(15.0)
+        cone_bearing, cone_half = bearing, half
     if method == "seed":
         if scan is None:
             return None
@@ -106,9 +110,23 @@ def measure(
         scan = robot.scan_at(stamp) if fuse_at == "frame" else robot.scan()
     if scan is None:
         return None
-    reading = cone_distance(scan, bearing, max(half, MIN_CONE_HALF_WIDTH))
+    reading = cone_distance(scan, cone_bearing, max(cone_half, MIN_CONE_HALF_WIDTH))
     if not reading.found:
         return Measurement(stamp, pose, bearing, math.inf, None, "cone")
     distance = reading.distance + surface_offset
     return Measurement(stamp, pose, reading.bearing, distance,
                        position_from_range(pose, reading.bearing, distance), "cone")
+
+
+def _cone_of(bearing: float, half: float, detection: Detection, width: int) -> tuple[float, float]:
+    """The lidar cone for a box: the box's extent, reaching past an image border that cuts the box.
+
+    A person standing at the edge of the camera's view is boxed only up to the border; the rest
+    of them, often the part nearest the robot, lies beyond it where only the lidar sees.
+    """
+    left, right = bearing + half, bearing - half
+    if detection.box[0] <= 1.0:
+        left += EDGE_EXTENSION
+    if detection.box[2] >= width - 1.0:
+        right -= EDGE_EXTENSION
+    return (left + right) / 2.0, (left - right) / 2.0
