@@ -98,3 +98,20 @@ def test_lost_target_ends_servo_after_timeout() -> None:
     assert "target lost" in leaf.feedback_message
     assert events.of("servo_lost")
     assert robot.current.yaw < 0  # it turned towards where the person was reported
+
+
+def test_servo_skips_a_person_served_moments_ago() -> None:
+    """A new alarm for the same spot right after serving it does not preempt the patrol again."""
+    robot = FakeRobot()
+    person = (1.2, 0.05)
+    post_alarm(0.04)
+    leaf, events = make(robot)
+    run(robot, leaf, person, 5.0)
+    assert leaf.status == Status.SUCCESS
+    client = py_trees.blackboard.Client(name="surveillance2")
+    client.register_key("alarm", access=py_trees.common.Access.WRITE)
+    again = Alarm(2, robot.time, robot.time, (0.0, 0.0, 0.0), 0.04, 1.2, "depth", (1.2, 0.05))
+    client.alarm = again.to_dict()
+    leaf.tick_once()
+    assert leaf.status == Status.FAILURE
+    assert events.of("servo_skipped")[0]["alarm"] == 2

@@ -53,6 +53,9 @@ class ServoToTarget(Leaf):
         min_score: float = Field(0.4, ge=0, le=1, description="Detector score needed to track the person.")
         max_jump: float = Field(
             math.radians(25.0), gt=0, description="Largest bearing jump accepted between frames (rad).")
+        ignore_radius: float = Field(
+            1.5, ge=0, description="Skip an alarm this close (m) to a person served within ignore_for.")
+        ignore_for: float = Field(20.0, ge=0, description="Seconds a served person is not served again.")
         alarm: Annotated[str, Input("the alarm to serve", type="dict")] = "alarm"
         result: Annotated[str, Output("the servoed alarm record", type="dict")] = "servo_result"
 
@@ -69,6 +72,7 @@ class ServoToTarget(Leaf):
         self.last_frame = float("-inf")
         self.seen_once = False
         self.active = False
+        self.served: list[tuple[float, float, float]] = []  # (time, x, y) of people served
 
     def initialise(self) -> None:
         """Take a new alarm, if there is one, and start turning towards it."""
@@ -78,6 +82,9 @@ class ServoToTarget(Leaf):
             return
         self.alarm = Alarm.from_dict(raw)
         self.served_id = self.alarm.id
+        if self._recently_served(self.alarm):
+            self.emit("servo_skipped", alarm=self.alarm.id, reason="person served moments ago")
+            return
         self.active = True
         self.seen_once = False
         robot = self.context.robot
@@ -127,6 +134,17 @@ class ServoToTarget(Leaf):
 
     # -- helpers ---------------------------------------------------------------------------------
 
+    def _recently_served(self, alarm: Alarm) -> bool:
+        now = self.context.robot.now()
+        self.served = [s for s in self.served if now - s[0] <= self.params.ignore_for]
+        if alarm.position is None:
+            return False
+        return any(math.dist(alarm.position, (x, y)) <= self.params.ignore_radius for _, x, y in self.served)
+
+    def _remember(self, position: tuple[float, float] | None) -> None:
+        if position is not None:
+            self.served.append((self.context.robot.now(), position[0], position[1]))
+
     def _pose(self) -> Pose2D:
         stamped = self.context.robot.pose()
         if stamped is None:
@@ -166,6 +184,7 @@ class ServoToTarget(Leaf):
                             detected_distance=None if not math.isfinite(self.alarm.distance)
                             else round(self.alarm.distance, 4))
         record = record_alarm(self.context, record, self.name, frame.color)
+        self._remember(record.position or self.alarm.position)
         self.write("result", record.to_dict())
         self.emit("servo_done", alarm=self.alarm.id, distance=record.to_dict()["distance"],
                   seconds=round(robot.now() - self.started, 3))
@@ -176,5 +195,6 @@ class ServoToTarget(Leaf):
         self.context.robot.drive(0.0, 0.0)
         assert self.alarm is not None
         self.emit("servo_lost", alarm=self.alarm.id, reason=reason)
+        self._remember(self.alarm.position)
         self.active = False
         return self.fail(reason)
