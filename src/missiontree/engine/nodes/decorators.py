@@ -11,7 +11,7 @@ from collections.abc import Iterator
 from typing import Any, Literal
 
 import py_trees
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from missiontree.engine.nodes.clock import Clock, clock_of
 from missiontree.engine.nodes.conditions import ConditionFields, evaluate, read_key
@@ -54,6 +54,13 @@ class RepeatParams(BaseModel):
 
     times: int = Field(description="Succeed after the child succeeded this many times in a row; -1 repeats "
                        "forever. A failure of the child fails the Repeat.")
+
+    @field_validator("times")
+    @classmethod
+    def _forever_or_positive(cls, times: int) -> int:
+        if times == 0 or times < -1:
+            raise ValueError(f"expected -1 (forever) or at least 1, found {times}")
+        return times
 
 
 class TimeoutParams(BaseModel):
