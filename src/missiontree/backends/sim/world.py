@@ -19,6 +19,7 @@ from typing import Any
 import cv2
 import numpy as np
 import pydantic
+import yaml
 
 from missiontree.backends.sim.people import Crowd, Person
 from missiontree.backends.sim.raycast import BOX, CYLINDER, SEGMENT, Primitives
@@ -31,13 +32,15 @@ from missiontree.backends.sim.schema import (
 from missiontree.errors import ConfigError, Problem, WorldFileError
 from missiontree.paths import find_config
 from missiontree.types import OccupancyGrid, Pose2D
-from missiontree.yamlio import Located, load_yaml
+from missiontree.yamlio import Located, load_yaml, parse_yaml
 
 #: Instance ids: 0 is floor and ceiling, 1 every wall; objects and people follow.
 FLOOR_INSTANCE, WALL_INSTANCE = 0, 1
 #: Objects reaching below this height block the robot unless the file says otherwise.
 OBSTACLE_BELOW = 0.3
 _CONTACT_SLACK = 0.02
+#: World names of this form are generated apartments: ``generated:42``.
+GENERATED_PREFIX = "generated:"
 
 
 @dataclass(frozen=True)
@@ -157,11 +160,28 @@ def load_world(name_or_path: str | Path) -> World:
     Raises:
         WorldFileError: Every problem found, each with file:line:col.
     """
+    text = str(name_or_path)
+    if text.startswith(GENERATED_PREFIX):
+        return _load_generated(text)
     try:
         path = find_config("worlds", name_or_path)
     except ConfigError as exc:
         raise WorldFileError([Problem(str(name_or_path), 0, 0, "", str(exc))]) from None
-    doc = load_yaml(path, error=WorldFileError)
+    return _load_doc(load_yaml(path, error=WorldFileError), path)
+
+
+def _load_generated(name: str) -> World:
+    """``generated:<seed>`` — an apartment from :mod:`missiontree.backends.sim.generator`."""
+    from missiontree.backends.sim.generator import generate_world
+
+    seed = name[len(GENERATED_PREFIX):]
+    if not seed.lstrip("-").isdigit():
+        raise WorldFileError([Problem(name, 0, 0, "", f"expected `generated:<integer seed>`, found {name!r}")])
+    text = yaml.safe_dump(generate_world(int(seed)), sort_keys=False)
+    return _load_doc(parse_yaml(text, f"<{name}>", error=WorldFileError), Path.cwd() / "generated.yaml")
+
+
+def _load_doc(doc: Located, path: Path) -> World:
     spec = _validate(doc, WorldSpec)
     problems: list[Problem] = []
     try:
