@@ -10,7 +10,8 @@ import pytest
 from missiontree.cli.main import main
 from missiontree.paths import REPO_ROOT
 
-ALARM_KEYS = {"stamp", "raised_at", "robot_pose", "bearing", "distance", "method", "position", "image", "phase"}
+ALARM_KEYS = {"stamp", "raised_at", "robot_pose", "bearing", "distance", "method", "position", "image",
+              "phase"}
 
 
 @pytest.mark.slow
