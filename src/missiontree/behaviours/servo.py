@@ -31,6 +31,7 @@ from missiontree.behaviours.surveillance import alarm_from
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Input, Output
 from missiontree.perception.lidar import box_bearings
+from missiontree.reasoning.calls import model_caller
 from missiontree.types import Detection, Pose2D, RGBDFrame, wrap_angle
 
 
@@ -73,6 +74,12 @@ class ServoToTarget(Leaf):
         self.seen_once = False
         self.active = False
         self.served: list[tuple[float, float, float]] = []  # (time, x, y) of people served
+
+    def on_setup(self) -> None:
+        """Check that a detector is configured (it tracks the person while turning)."""
+        if self.ctx is not None:
+            self.ctx.model("detector")
+            model_caller(self.ctx)  # binds simulation-only providers to the robot
 
     def initialise(self) -> None:
         """Take a new alarm, if there is one, and start turning towards it."""

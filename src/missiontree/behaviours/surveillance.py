@@ -111,6 +111,7 @@ class Surveillance(Leaf):
             self.ctx.model("detector")
         if self.params.mode == "poll" or self.params.confirm:
             self.ctx.model("vlm")
+        model_caller(self.ctx)  # the mission's caller; it also binds simulation-only providers to the robot
 
     # -- lifecycle -------------------------------------------------------------------------------
 
