@@ -5,12 +5,21 @@ umbrellas blue, bottles purple, cups pink, sofas lime — and publishes its scen
 ``std_msgs/String`` on ``/scene_graph``. :class:`WorldPublisher` does the same from a mission,
 plus alarms as ``std_msgs/String`` JSON on their own topic. Message building is pure
 (:func:`detection_markers`), so it is tested without a node.
+
+Leaves do not call it: :class:`RosEvents` mirrors the mission's own events (installed by
+:mod:`missiontree.backends.ros2.plugin` when a mission starts on this backend):
+
+- ``alarm`` (fields of ``behaviours.alarms.Alarm``) → the alarms topic;
+- ``object_confirmed`` / ``detection_confirmed`` / ``semantic_object`` with ``label``, ``x``, ``y``
+  (and optionally ``id``, ``z``) → one more cube in the MarkerArray;
+- ``scene_graph`` with ``graph`` (a JSON-able mapping) → /scene_graph.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import zlib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -129,3 +138,48 @@ class WorldPublisher:
         """Publish an alarm as JSON: ``{"stamp": ..., "message": ..., **fields}``."""
         payload = {"stamp": self._stamp(), "message": message, **fields}
         self._alarms.publish(String(data=json.dumps(payload, sort_keys=True, default=str)))
+
+
+#: Events whose ``label``, ``x``, ``y`` place an object in the map (see the module docstring).
+OBJECT_EVENTS = frozenset({"object_confirmed", "detection_confirmed", "semantic_object"})
+
+
+class RosEvents:
+    """An event sink that records as before and mirrors alarms, objects and scene graphs to ROS.
+
+    Args:
+        inner: The sink being wrapped (the runner's tick log); every event still reaches it first.
+        world: Where to publish.
+    """
+
+    def __init__(self, inner: Any, world: WorldPublisher) -> None:
+        self.inner = inner
+        self.world = world
+        self.objects: dict[str, PlacedObject] = {}
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+    def emit(self, event: str, **fields: Any) -> None:
+        """Record the event, then publish what the ROS world should see of it."""
+        self.inner.emit(event, **fields)
+        try:
+            self._mirror(event, fields)
+        except Exception as error:  # noqa: BLE001 - a publishing problem must never stop the mission
+            import structlog
+
+            structlog.get_logger("missiontree.ros2").warning("publishing an event to ROS failed", event=event,
+                                                             error=f"{type(error).__name__}: {error}")
+
+    def _mirror(self, event: str, fields: dict[str, Any]) -> None:
+        if event == "alarm":
+            verdict = str(fields.get("verdict") or "")
+            self.world.alarm(f"ALARM: PERSON DETECTED{': ' + verdict if verdict else ''}", **fields)
+        elif event in OBJECT_EVENTS and {"label", "x", "y"} <= fields.keys():
+            key = str(fields.get("id", f"{fields['label']}@{fields['x']:.1f},{fields['y']:.1f}"))
+            marker_id = zlib.crc32(key.encode()) % 1_000_000 + 1  # stable per object across updates
+            self.objects[key] = PlacedObject(str(fields["label"]), float(fields["x"]), float(fields["y"]),
+                                             float(fields.get("z", 0.3)), marker_id)
+            self.world.detections(self.objects.values())
+        elif event == "scene_graph" and isinstance(fields.get("graph"), Mapping):
+            self.world.scene_graph(fields["graph"])
