@@ -71,3 +71,15 @@ def test_goal_pose_fallback_reaches_the_goal(sim_ros: Any, make_robot: Callable,
     handle = _drive_to(robot, goal, wait_until)
     assert handle.result().status is ActionStatus.SUCCEEDED, handle.result()
     assert robot.pose().pose.distance_to(goal) <= 0.3
+
+
+def test_goal_pose_fallback_cancels_through_the_cancel_service(sim_ros: Any, make_robot: Callable,
+                                                               wait_until: Callable) -> None:
+    """Without the action, cancel() goes through the action's cancel service and the goal ends CANCELED."""
+    robot = make_robot(sim_ros.domain_id, navigation={"interface": "topic"})
+    wait_until(lambda: robot.pose() and robot.scan(), 20.0, "sim-ros to publish")
+    handle = robot.navigate_to(Pose2D(4.3, 5.5, 0.0), ANY_HEADING)
+    wait_until(lambda: handle.status() is ActionStatus.RUNNING, 10.0, "the goal to run")
+    handle.cancel()
+    wait_until(lambda: handle.status().done, 10.0, "the cancel to take effect")
+    assert handle.result().status is ActionStatus.CANCELED, handle.result()

@@ -229,11 +229,13 @@ class TopicGoal(NavGoal):
         pose_now: Latest robot pose (feedback comes from it: the feedback topic needs nav2_msgs).
         now: ROS time in seconds (goal stamps are compared with it).
         topic: /goal_pose's resolved name, shown in reasons.
+        known_goals: Ids of the goals on the status topic before this one was sent (never ours).
     """
 
     def __init__(self, publish_goal: Callable[[], None], has_subscriber: Callable[[], bool],
                  cancel_client: Any, goal: Pose2D, server_timeout: float,
-                 pose_now: Callable[[], Pose2D | None], now: Callable[[], float], topic: str) -> None:
+                 pose_now: Callable[[], Pose2D | None], now: Callable[[], float], topic: str,
+                 known_goals: set[bytes] | None = None) -> None:
         super().__init__(goal, server_timeout, pose_now)
         self._publish_goal = publish_goal
         self._has_subscriber = has_subscriber
@@ -241,7 +243,7 @@ class TopicGoal(NavGoal):
         self._now = now
         self._topic = topic
         self._sent_at: float | None = None
-        self._known_before: set[bytes] = set()
+        self._known_before: set[bytes] = set(known_goals or ())
         self._goal_id: bytes | None = None
         self.cancel_future: Any = None
 
@@ -268,7 +270,7 @@ class TopicGoal(NavGoal):
                 return
             entries = {bytes(s.goal_info.goal_id.uuid): s for s in msg.status_list}
             if self._sent_at is None:
-                self._known_before = set(entries)
+                self._known_before |= set(entries)
                 return
             if self._goal_id is None:
                 earliest = self._sent_at - 0.5  # the server stamps acceptance; allow for clock skew

@@ -114,6 +114,7 @@ class Ros2Robot:
         self._mount_yaws: dict[str, float] = {}
         self._goal: NavGoal | None = None
         self._drive_command: tuple[float, float] | None = None
+        self._nav_goal_ids: set[bytes] = set()  # goals seen on the NavigateToPose status topic
         self._subscribe()
         self._advertise()
         self.world = WorldPublisher(self.node, profile.topics)
@@ -240,6 +241,7 @@ class Ros2Robot:
         self._depths.append(msg)
 
     def _on_nav_status(self, msg: GoalStatusArray) -> None:
+        self._nav_goal_ids = {bytes(s.goal_info.goal_id.uuid) for s in msg.status_list}
         goal = self._goal
         if isinstance(goal, TopicGoal):
             goal.on_status(msg)
@@ -386,7 +388,7 @@ class Ros2Robot:
             handle = TopicGoal(lambda: self._goal_pub.publish(goal_msg),
                                lambda: self._goal_pub.get_subscription_count() > 0,
                                self._cancel_client, goal, nav.server_timeout, pose_now, self.now,
-                               self._goal_pub.topic_name)
+                               self._goal_pub.topic_name, known_goals=set(self._nav_goal_ids))
         handle.tolerance = tolerance
         self._goal = handle
         handle.advance()
