@@ -96,10 +96,17 @@ class ServoToTarget(Leaf):
         self.seen_once = False
         robot = self.context.robot
         self.started = self.last_seen = robot.now()
-        self.target = self.alarm.position
         pose = self._pose()
-        # Without a position, keep the bearing in the map frame: turning changes the robot's.
-        self.bearing_hint = wrap_angle(self.alarm.robot_pose[2] + self.alarm.bearing)
+        # Keep the direction in the map frame (turning changes the robot's): where the camera saw the
+        # person, else where the distance method put them.
+        seen = self.alarm.extra.get("map_bearing")
+        self.bearing_hint = float(seen) if seen is not None else wrap_angle(
+            self.alarm.robot_pose[2] + self.alarm.bearing)
+        self.target = self.alarm.position
+        if self.target is not None:  # a position that disagrees with the camera (the seed's cone) is ignored
+            at = self.alarm.pose
+            gap = abs(wrap_angle(at.bearing_to(*self.target) + at.yaw - self.bearing_hint))
+            self.target = self.target if gap <= self.params.max_jump else None
         self.emit("servo_started", alarm=self.alarm.id, bearing=round(self._expected_bearing(pose), 4))
 
     def update(self) -> Status:

@@ -36,7 +36,7 @@ from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
 from missiontree.reasoning.checks import ask_checked
 from missiontree.reasoning.prompts import surveillance_prompt
 from missiontree.reasoning.schemas import SurveillanceVerdict
-from missiontree.types import Detection, RGBDFrame
+from missiontree.types import Detection, RGBDFrame, wrap_angle
 
 
 @dataclass
@@ -253,8 +253,12 @@ class Surveillance(Leaf):
             return
         self.last_alarm_time = now
         self.alarm_count += 1
+        extra = {}
+        if sighting.detection is not None:  # where the camera saw them, whatever the distance method assumed
+            seen = frame.camera_pose.yaw + frame.intrinsics.pixel_bearing(sighting.detection.center[0])
+            extra["map_bearing"] = round(wrap_angle(seen), 4)
         alarm = alarm_from(self.alarm_count, frame, sighting.detection, sighting.measurement,
-                           self.params.method, now, text)
+                           self.params.method, now, text, **extra)
         alarm = record_alarm(self.context, alarm, self.name, frame.color)
         self.write("alarm", alarm.to_dict())
 
