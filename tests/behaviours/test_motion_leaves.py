@@ -10,7 +10,7 @@ from patrol_doubles import Events, FakeRobot
 from missiontree.behaviours.motion import NavigateTo, Rotate
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Status
-from missiontree.engine.ports import BlackboardRef
+from missiontree.engine.validate import validate_params
 from missiontree.testing import tick_until
 
 
@@ -54,7 +54,9 @@ def test_navigate_to_reads_goal_from_blackboard() -> None:
     writer = py_trees.blackboard.Client(name="writer")
     writer.register_key("goal_x", access=py_trees.common.Access.WRITE)
     writer.goal_x = 4.5
-    leaf = NavigateTo("go", NavigateTo.Params(x=BlackboardRef("goal_x"), y=0.0))
+    params, issues = validate_params(NavigateTo.Params, {"x": {"bb": "goal_x"}, "y": 0.0})
+    assert not issues
+    leaf = NavigateTo("go", params)
     leaf.setup(context=MissionContext(robot=robot))
     leaf.tick_once()
     assert robot.goals[0].goal.x == 4.5

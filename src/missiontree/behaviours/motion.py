@@ -14,7 +14,7 @@ from typing import Annotated
 from pydantic import BaseModel, Field
 
 from missiontree.engine.leaf import Leaf, Status
-from missiontree.engine.ports import BlackboardRef, Output
+from missiontree.engine.ports import Output
 from missiontree.robot.actions import ActionHandle, ActionStatus
 from missiontree.types import Pose2D, Tolerance, wrap_angle
 
@@ -30,9 +30,9 @@ class NavigateTo(Leaf):
     """
 
     class Params(BaseModel):
-        x: float | BlackboardRef = Field(description="Goal x in the map frame (m).")
-        y: float | BlackboardRef = Field(description="Goal y in the map frame (m).")
-        yaw: float | BlackboardRef = Field(0.0, description="Goal heading (rad).")
+        x: float = Field(description="Goal x in the map frame (m); {bb: key} reads it when the leaf starts.")
+        y: float = Field(description="Goal y in the map frame (m).")
+        yaw: float = Field(0.0, description="Goal heading (rad).")
         xy_tolerance: float = Field(0.25, gt=0, description="Distance that counts as reached (m).")
         yaw_tolerance: float = Field(
             0.25, gt=0, le=ANY_HEADING, description="Heading error accepted (rad); 6.28 accepts any heading.")
@@ -96,7 +96,7 @@ class Rotate(Leaf):
     """Turn in place by an angle with a proportional controller on the remaining angle."""
 
     class Params(BaseModel):
-        angle: float | BlackboardRef = Field(description="Angle to turn (rad), positive counter-clockwise.")
+        angle: float = Field(description="Angle to turn (rad), positive counter-clockwise.")
         tolerance: float = Field(0.05, gt=0, description="Remaining angle that counts as done (rad).")
         gain: float = Field(2.0, gt=0, description="Angular speed per radian of remaining angle (1/s).")
         max_speed: float = Field(1.0, gt=0, description="Largest angular speed (rad/s).")
