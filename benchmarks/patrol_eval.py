@@ -336,7 +336,8 @@ def main() -> int:
                 score, note = run_one(scenario, world_path, route, laps, name, tmp)
                 scores.append(score)
                 median, p95, over = stats(score.errors)
-                print(f"scenario {scenario:4} {name:8} encounters {score.encounters:3} detected "
+                label = {"seed_05": "C", "seed_02": "D"}.get(name, "C/D") if scenario == "C/D" else scenario
+                print(f"scenario {label:4} {name:8} encounters {score.encounters:3} detected "
                       f"{score.detection_rate:.3f}  calls/s {score.calls_per_s:.2f}  error median "
                       f"{fmt(median)} p95 {fmt(p95)} >1m {over:3} (alarms {len(score.errors)}, no distance "
                       f"{score.no_distance}, overlapping {score.overlapping})  waypoints reached "
