@@ -274,3 +274,29 @@ def test_sigint_sends_zero_velocity_before_the_process_stops(domain_id: int, pee
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_without_nav2_msgs_auto_falls_back_to_goal_pose(domain_id: int) -> None:
+    """With nav2_msgs missing, `auto` picks the /goal_pose interface and `action` says what to install."""
+    import os
+
+    script = textwrap.dedent(f"""
+        import sys
+        sys.modules["nav2_msgs"] = sys.modules["nav2_msgs.action"] = None  # as if never built
+        from missiontree.backends.ros2.profile import load_profile
+        from missiontree.backends.ros2.robot import Ros2Robot
+        from missiontree.errors import BackendUnavailableError
+        robot = Ros2Robot(load_profile("turtlebot4", {{"domain_id": {domain_id}}}), install_signal_stop=False)
+        print(robot.nav_interface)
+        robot.close()
+        try:
+            action = {{"domain_id": {domain_id}, "navigation": {{"interface": "action"}}}}
+            Ros2Robot(load_profile("turtlebot4", action))
+        except BackendUnavailableError as error:
+            print(error)
+    """)
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain_id))
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=60)
+    lines = out.stdout.splitlines()
+    assert lines[0] == "topic", out.stderr
+    assert "scripts/setup-ros2.sh" in lines[1] and "interface: topic" in lines[1]

@@ -115,8 +115,13 @@ class Ros2Robot:
         self._goal: NavGoal | None = None
         self._drive_command: tuple[float, float] | None = None
         self._nav_goal_ids: set[bytes] = set()  # goals seen on the NavigateToPose status topic
-        self._subscribe()
-        self._advertise()
+        try:
+            self._subscribe()
+            self._advertise()
+        except BaseException:
+            self.node.destroy_node()
+            self._context.try_shutdown()
+            raise
         self.world = WorldPublisher(self.node, profile.topics)
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self.node)
