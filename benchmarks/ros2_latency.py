@@ -5,10 +5,11 @@ publication. This process holds a Ros2Robot polling ``scan()`` as a leaf would (
 and, as the reference, a bare rclpy subscription in its own context that records the arrival
 time in its callback: the floor DDS and rclpy set. Rounds alternate which of the two is listening
 (the other is destroyed), so they never compete for the interpreter. Printed: per-round medians,
-the ratio Ros2Robot / bare rclpy (min/median/max over rounds), and, with ``--patrol``, the wall
-time of trees/patrol.yaml over ROS 2 against the in-process simulator in the same run.
+the ratio Ros2Robot / bare rclpy (min/median/max over rounds), and the wall
+time of trees/patrol.yaml over ROS 2 (real time) against the in-process simulator (as fast as it
+goes) in the same run, with the waypoints each reached (skip it with ``--no-patrol``).
 
-    ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST python benchmarks/ros2_latency.py [--rounds 6] [--patrol]
+    ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST python benchmarks/ros2_latency.py [--rounds 6] [--no-patrol]
 
 The last line is JSON: scan_latency_median_ms, scan_latency_p95_ms (target <= 10 ms), ...
 """
@@ -115,30 +116,47 @@ def measure_bare(samples: int, domain: int) -> list[float]:
         context.try_shutdown()
 
 
+def _reached(run_dir: Path) -> list[str]:
+    """Waypoints reached, in order, from a run's tick log."""
+    log = run_dir / "ticks.jsonl"
+    if not log.exists():
+        return []
+    events = (json.loads(line) for line in log.read_text(encoding="utf-8").splitlines())
+    return [e["waypoint"] for e in events if e.get("event") == "waypoint_reached"]
+
+
 def patrol_wall_times(tree: Path, world: str, seed: int, domain: int,
-                      max_duration: float) -> dict[str, float]:
+                      max_duration: float | None) -> dict[str, Any]:
     """Wall seconds of the patrol in-process (simulator) and over ROS 2 against sim-ros, in one run."""
+    import tempfile
+
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
     exe = [sys.executable, "-m", "missiontree.cli.main"]
-    common = ["run", str(tree), "--seed", str(seed), "--max-duration", str(max_duration)]
-    t0 = time.monotonic()
-    subprocess.run([*exe, *common, "--out", str(REPO / "runs" / "bench_patrol_sim")], env=env, check=False,
-                   cwd=REPO, capture_output=True)
-    in_process = time.monotonic() - t0
-    server = subprocess.Popen([*exe, "sim-ros", "--world", world, "--seed", str(seed)], env=env, cwd=REPO,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        time.sleep(3.0)
+    common = ["run", str(tree), "--seed", str(seed)]
+    if max_duration is not None:
+        common += ["--max-duration", str(max_duration)]
+    with tempfile.TemporaryDirectory(prefix="missiontree-bench-") as tmp:
         t0 = time.monotonic()
-        out = REPO / "runs" / "bench_patrol_ros2"
-        subprocess.run([*exe, *common, "--backend", "ros2", "--out", str(out)], env=env, check=False,
-                       cwd=REPO, capture_output=True)
-        over_ros = time.monotonic() - t0
-    finally:
-        server.send_signal(2)
-        server.wait(timeout=15)
-    return {"patrol_wall_s_sim": in_process, "patrol_wall_s_ros2": over_ros,
-            "patrol_wall_ratio_ros2_over_sim": over_ros / in_process}
+        subprocess.run([*exe, *common, "--out", f"{tmp}/sim"], env=env, check=False, cwd=REPO,
+                       capture_output=True)
+        in_process = time.monotonic() - t0
+        server = subprocess.Popen([*exe, "sim-ros", "--world", world, "--seed", str(seed)], env=env, cwd=REPO,
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            time.sleep(3.0)
+            t0 = time.monotonic()
+            subprocess.run([*exe, *common, "--backend", "ros2", "--out", f"{tmp}/ros2"], env=env, check=False,
+                           cwd=REPO, capture_output=True)
+            over_ros = time.monotonic() - t0
+        finally:
+            server.send_signal(2)
+            server.wait(timeout=15)
+        sim_reached, ros_reached = _reached(Path(tmp) / "sim"), _reached(Path(tmp) / "ros2")
+    return {"patrol_wall_s_sim": round(in_process, 3), "patrol_wall_s_ros2": round(over_ros, 3),
+            "patrol_wall_ratio_ros2_over_sim": round(over_ros / in_process, 3),
+            "patrol_waypoints_reached_sim": len(sim_reached),
+            "patrol_waypoints_reached_ros2": len(ros_reached),
+            "patrol_same_waypoints": sim_reached == ros_reached}
 
 
 def main() -> int:
@@ -146,8 +164,10 @@ def main() -> int:
     parser.add_argument("--rounds", type=int, default=6, help="alternating rounds (default 6)")
     parser.add_argument("--samples", type=int, default=100, help="scans per round (default 100)")
     parser.add_argument("--hz", type=float, default=50.0, help="publication rate (default 50)")
-    parser.add_argument("--patrol", action="store_true", help="also time trees/patrol.yaml over ROS 2 vs sim")
-    parser.add_argument("--patrol-max-duration", type=float, default=900.0)
+    parser.add_argument("--no-patrol", dest="patrol", action="store_false",
+                        help="skip timing trees/patrol.yaml over ROS 2 against the in-process simulator")
+    parser.add_argument("--patrol-max-duration", type=float, metavar="S",
+                        help="stop each patrol run after S seconds of its clock (default: the mission's)")
     args = parser.parse_args()
     domain = int(os.environ["ROS_DOMAIN_ID"])
     print(f"ROS_DOMAIN_ID={domain}, discovery {os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE']}; "
@@ -199,9 +219,13 @@ def main() -> int:
         run = (yaml.safe_load(tree.read_text()) or {}).get("run", {})
         times = patrol_wall_times(tree, str(run.get("world", "office")), int(run.get("seed", 0)), domain,
                                   args.patrol_max_duration)
-        print(f"patrol wall time: in-process {times['patrol_wall_s_sim']:.1f} s, over ROS 2 "
-              f"{times['patrol_wall_s_ros2']:.1f} s, ratio {times['patrol_wall_ratio_ros2_over_sim']:.1f}")
-        figures.update({k: round(v, 3) for k, v in times.items()})
+        t = times
+        print(f"patrol wall time: in-process {t['patrol_wall_s_sim']:.1f} s "
+              f"({t['patrol_waypoints_reached_sim']} waypoints), "
+              f"over ROS 2 {t['patrol_wall_s_ros2']:.1f} s ({t['patrol_waypoints_reached_ros2']} waypoints), "
+              f"ratio {t['patrol_wall_ratio_ros2_over_sim']:.1f}; "
+              f"same waypoints: {t['patrol_same_waypoints']}")
+        figures.update(times)
     print(json.dumps(figures))
     return 0
 
