@@ -184,3 +184,11 @@ def test_detect_refuses_a_bad_image_naming_the_provider(tmp_path: Path) -> None:
     model = constant_yolo_model(tmp_path / "m.onnx", np.zeros((1, 6, 10), np.float32), names=NAMES)
     with pytest.raises(ModelConfigError, match="detector 'mine'.*empty"):
         YoloOnnxDetector(model, name="mine").detect(np.zeros((0, 0, 3), np.uint8))
+
+
+def test_check_runs_the_model_and_describes_it(tmp_path: Path) -> None:
+    """check() (used by `missiontree models`) runs a blank frame and names the model and classes."""
+    model = constant_yolo_model(tmp_path / "m.onnx", np.zeros((1, 6, 10), np.float32), names=NAMES)
+    assert YoloOnnxDetector(model).check() == (
+        "YOLO-layout ONNX detector m.onnx (input 64x64, 2 classes: person, cup)"
+    )

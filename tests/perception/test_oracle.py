@@ -120,3 +120,8 @@ def test_factory_builds_unbound_and_bind_robot_binds_it(robot) -> None:  # noqa:
     oracle = create_oracle({"miss_rate": 0.0, "seed": 1})
     bind_robot({"detector": oracle, "other": object()}, robot)
     assert len(oracle.detect(robot.rgbd().color)) >= 3
+
+
+def test_check_describes_an_unbound_oracle_without_failing() -> None:
+    """An oracle not yet bound is still usable (it binds at run time); check() says so."""
+    assert "simulation-only oracle" in OracleDetector(miss_rate=0.2).check()

@@ -368,6 +368,13 @@ class YoloOnnxDetector:
             for b, s, c in zip(boxes, scores, class_ids, strict=True)
         ]
 
+    def check(self) -> str:
+        """Run the model on a blank frame; return a one-line description (``missiontree models``)."""
+        self.detect(np.zeros((self.input_height, self.input_width, 3), dtype=np.uint8))
+        more = ", ..." if len(self._labels) > 6 else ""
+        return (f"YOLO-layout ONNX detector {self.model_path.name} (input {self.input_height}x"
+                f"{self.input_width}, {len(self._labels)} classes: {', '.join(self._labels[:6])}{more})")
+
     def describe(self) -> dict[str, Any]:
         """What this detector is, for ``missiontree models`` and run summaries."""
         return {

@@ -126,6 +126,13 @@ class OracleDetector:
         check_image(frame.color, self.name)
         return self._detect_at(frame.stamp, frame.color.shape[:2])
 
+    def check(self) -> str:
+        """One-line description for ``missiontree models``; usable once bound to the simulated robot."""
+        rates = f"miss rate {self.miss_rate:g}, false-positive rate {self.false_positive_rate:g}"
+        if self._robot is None:
+            return f"simulation-only oracle ({rates}); reads the simulator's instance mask once bound to it"
+        return f"simulation-only oracle on robot {getattr(self._robot, 'name', '?')!r} ({rates})"
+
     def describe(self) -> dict[str, Any]:
         """What this detector is, for ``missiontree models`` and run summaries."""
         return {"provider": self.name, "simulation_only": True, "miss_rate": self.miss_rate,
