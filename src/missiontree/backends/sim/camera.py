@@ -36,13 +36,23 @@ if HAVE_NUMBA:
 
 @dataclass(frozen=True)
 class Floor:
-    """Floor colours per grid cell (rooms have their own floors) and the ceiling height."""
+    """The floor's texture (room colours with a faint tile checker, per grid cell) and the ceiling height."""
 
-    rgb: np.ndarray          # (rows, cols, 3) float64
+    texture: np.ndarray      # (rows, cols, 3) uint8
     origin_x: float
     origin_y: float
     resolution: float
     ceiling: float
+
+    @staticmethod
+    def build(rgb: np.ndarray, origin_x: float, origin_y: float, resolution: float, ceiling: float) -> Floor:
+        """Bake the tile checker into the per-cell floor colours."""
+        rows, cols = rgb.shape[:2]
+        xs = origin_x + (np.arange(cols) + 0.5) * resolution
+        ys = origin_y + (np.arange(rows) + 0.5) * resolution
+        parity = (np.floor(ys / _TILE)[:, None] + np.floor(xs / _TILE)[None, :]) % 2
+        texture = rgb * np.where(parity > 0, 0.94, 1.0)[..., None]
+        return Floor(np.clip(texture, 0, 255).astype(np.uint8), origin_x, origin_y, resolution, ceiling)
 
 
 @dataclass(frozen=True)
@@ -75,15 +85,26 @@ class Camera:
 
     def render(self, cam: Pose2D, height: float, prims: Primitives, floor: Floor) -> Rendering:
         """Render from camera pose ``cam`` (optical axis along its yaw) at ``height`` above the floor."""
+        return self.add_noise(self.render_exact(cam, height, prims, floor))
+
+    def render_exact(self, cam: Pose2D, height: float, prims: Primitives, floor: Floor) -> Rendering:
+        """The noise-free image; pure (no random draws), so it may run on a worker thread."""
         k = self.intrinsics
         spec = self.spec
         t_in, t_out, idx, shade = column_hits(cam.x, cam.y, cam.yaw, self._a, k.fx, k.cx, prims,
                                               HITS_PER_COLUMN, self.accelerate)
         c, s = math.cos(cam.yaw), math.sin(cam.yaw)
         args = (cam.x, cam.y, height, c - self._a * s, s + self._a * c, self._b, t_in, t_out, idx, shade,
-                prims.z, prims.rgb, prims.inst, floor.rgb, floor.origin_x, floor.origin_y, floor.resolution,
-                floor.ceiling, spec.depth_min, spec.depth_max, int(prims.inst.max(initial=1)) + 1)
+                prims.z, prims.rgb, prims.inst, floor.texture, floor.origin_x, floor.origin_y,
+                floor.resolution, floor.ceiling, spec.depth_min, spec.depth_max,
+                int(prims.inst.max(initial=1)) + 1, k.fy, k.cy)
         color, depth, inst, counts = (_fill_jit if self.accelerate else _fill_numpy)(*args)
+        return Rendering(color, depth, inst, counts)
+
+    def add_noise(self, image: Rendering) -> Rendering:
+        """Depth and colour noise as configured, drawn from the camera's generator (in frame order)."""
+        spec = self.spec
+        color, depth = image.color, image.depth
         if spec.depth_noise > 0:
             depth = depth + self.rng.normal(0.0, 1.0, depth.shape).astype(np.float32) * (
                 spec.depth_noise * depth * depth)
@@ -92,11 +113,11 @@ class Camera:
         if spec.color_noise > 0:
             noisy = color + self.rng.normal(0.0, spec.color_noise, color.shape)
             color = np.clip(noisy, 0, 255).astype(np.uint8)
-        return Rendering(color, depth, inst, counts)
+        return Rendering(color, depth, image.instances, image.counts)
 
 
 def _fill_numpy(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,  # noqa: ANN001, ANN202
-                floor_rgb, fox, foy, fres, ceiling, dmin, dmax, ninst):
+                floor_rgb, fox, foy, fres, ceiling, dmin, dmax, ninst, fy, cy):
     """Vectorised painter: floor and ceiling first, then the k hits from far to near."""
     h, w = len(b), len(dx)
     bb = np.broadcast_to(b[:, None], (h, w))
@@ -105,13 +126,12 @@ def _fill_numpy(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,
     depth = t_floor.copy()
     px = ox + t_floor * dx[None, :]
     py = oy + t_floor * dy[None, :]
-    rows = np.clip(np.nan_to_num((py - foy) / fres, nan=0.0, posinf=0.0, neginf=0.0).astype(np.int64), 0,
-                   floor_rgb.shape[0] - 1)
-    cols = np.clip(np.nan_to_num((px - fox) / fres, nan=0.0, posinf=0.0, neginf=0.0).astype(np.int64), 0,
-                   floor_rgb.shape[1] - 1)
-    tile = (np.floor(np.nan_to_num(px / _TILE, posinf=0.0, neginf=0.0))
-            + np.floor(np.nan_to_num(py / _TILE, posinf=0.0, neginf=0.0))) % 2
-    color = floor_rgb[rows, cols] * np.where(tile > 0, 0.94, 1.0)[..., None]
+    inv = 1.0 / fres
+    rows = np.nan_to_num((py - foy) * inv, nan=0.0, posinf=0.0, neginf=0.0).astype(np.int64)
+    cols = np.nan_to_num((px - fox) * inv, nan=0.0, posinf=0.0, neginf=0.0).astype(np.int64)
+    rows = np.clip(rows, 0, floor_rgb.shape[0] - 1)
+    cols = np.clip(cols, 0, floor_rgb.shape[1] - 1)
+    color = floor_rgb[rows, cols].astype(np.float64)
     color = np.where((bb > 0)[..., None], np.array(CEILING_RGB, float), color)
     inst = np.zeros((h, w), np.int64)
     for k in range(t_in.shape[1] - 1, -1, -1):
@@ -142,8 +162,13 @@ def _fill_numpy(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,
 
 
 def _fill_loops(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,  # noqa: ANN001, ANN202
-                floor_rgb, fox, foy, fres, ceiling, dmin, dmax, ninst):
-    """Per-pixel loops (compiled by numba): the nearest prism face the ray meets, else floor/ceiling."""
+                floor_rgb, fox, foy, fres, ceiling, dmin, dmax, ninst, fy, cy):
+    """Pixel loops (compiled by numba): the nearest prism face each pixel's ray meets, else floor/ceiling.
+
+    The rows a column's nearest prism covers with its front face are one run of constant colour
+    and depth (found first, per column), written without testing; the other pixels test the
+    column's hits in order.
+    """
     h, w = len(b), len(dx)
     color = np.empty((h, w, 3), np.uint8)
     depth = np.empty((h, w), np.float32)
@@ -151,11 +176,40 @@ def _fill_loops(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,
     counts = np.zeros(ninst, np.int64)
     nrows, ncols = floor_rgb.shape[0], floor_rgb.shape[1]
     kmax = t_in.shape[1]
+    inv_res = 1.0 / fres
+    # per column: the run of rows the nearest prism's front face covers, its colour, depth, id
+    VA = np.full(w, h, np.int64)
+    VB = np.full(w, -1, np.int64)
+    C0 = np.zeros((w, 3), np.uint8)
+    D0 = np.zeros(w, np.float32)
+    I0 = np.zeros(w, np.int32)
+    for u in range(w):
+        q0 = idx[u, 0]
+        if q0 >= 0:
+            tin0 = t_in[u, 0]
+            top = min(pz[q0, 1], ceiling)
+            va = max(0, int(math.ceil(cy - fy * (top - hc) / tin0)) + 1)
+            vb = min(h - 1, int(math.floor(cy - fy * (pz[q0, 0] - hc) / tin0)) - 1)
+            if va <= vb:
+                f0 = _FACE_SHADE[0] + _FACE_SHADE[1] * shade[u, 0]
+                for ch in range(3):
+                    C0[u, ch] = min(255.0, prgb[q0, ch] * f0)
+                D0[u] = tin0 if dmin <= tin0 <= dmax else np.nan
+                I0[u] = pinst[q0]
+                VA[u] = va
+                VB[u] = vb
+                counts[I0[u]] += vb - va + 1
     for v in range(h):
         bv = b[v]
-        # where this row's ray meets the floor (looking down) or the ceiling (looking up)
         t_plane = -hc / bv if bv < 0.0 else ((ceiling - hc) / bv if bv > 0.0 else np.inf)
         for u in range(w):
+            if VA[u] <= v <= VB[u]:
+                color[v, u, 0] = C0[u, 0]
+                color[v, u, 1] = C0[u, 1]
+                color[v, u, 2] = C0[u, 2]
+                depth[v, u] = D0[u]
+                inst[v, u] = I0[u]
+                continue
             t = -1.0
             f = 0.0
             p = -1
@@ -189,13 +243,10 @@ def _fill_loops(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,
                 counts[pinst[p]] += 1
             elif bv < 0.0:
                 t = t_plane
-                px = ox + t * dx[u]
-                py = oy + t * dy[u]
-                r = min(max(int((py - foy) / fres), 0), nrows - 1)
-                c = min(max(int((px - fox) / fres), 0), ncols - 1)
-                f = 0.94 if (math.floor(px / _TILE) + math.floor(py / _TILE)) % 2 else 1.0
+                r = min(max(int((oy + t * dy[u] - foy) * inv_res), 0), nrows - 1)
+                c = min(max(int((ox + t * dx[u] - fox) * inv_res), 0), ncols - 1)
                 for ch in range(3):
-                    color[v, u, ch] = min(255.0, floor_rgb[r, c, ch] * f)
+                    color[v, u, ch] = floor_rgb[r, c, ch]
             else:
                 t = t_plane
                 for ch in range(3):
@@ -204,4 +255,4 @@ def _fill_loops(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,
     return color, depth, inst, counts
 
 
-_fill_jit = numba.njit(cache=True)(_fill_loops) if HAVE_NUMBA else _fill_loops
+_fill_jit = numba.njit(cache=True, nogil=True)(_fill_loops) if HAVE_NUMBA else _fill_loops

@@ -48,9 +48,10 @@ class Lidar:
         ranges = fan_first_hit(ox, oy, angle0, self.angle_increment, self.spec.beams,
                                self.plane_primitives(static, dynamic), self.accelerate)
         if self.spec.noise > 0:
-            ranges = ranges + self.rng.normal(0.0, self.spec.noise, len(ranges))
-        ranges = np.where(ranges > self.spec.range_max, np.inf, ranges)
-        ranges = np.where(ranges < self.spec.range_min, np.nan, ranges).astype(np.float32)
+            ranges += self.rng.normal(0.0, self.spec.noise, len(ranges))
+        ranges[ranges > self.spec.range_max] = np.inf
+        ranges[ranges < self.spec.range_min] = np.nan
+        ranges = ranges.astype(np.float32)
         return LaserScan(
             stamp=stamp, angle_min=self.angle_min, angle_increment=self.angle_increment,
             range_min=self.spec.range_min, range_max=self.spec.range_max, ranges=ranges,

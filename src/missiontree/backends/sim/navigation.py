@@ -256,6 +256,7 @@ class Navigator:
         self.plan_ms: list[float] = []
         self.goals: list[Pose2D] = []
         self._xy_cache: tuple[LaserScan, np.ndarray, np.ndarray] | None = None
+        self._trig: tuple[tuple[float, float, int, float], np.ndarray, np.ndarray] | None = None
 
     def send(self, goal: Pose2D, tolerance: Tolerance | None, now: float) -> SimNavHandle:
         """Accept a new goal, preempting the running one."""
@@ -400,10 +401,13 @@ class Navigator:
     def _scan_xy(self, scan: LaserScan) -> tuple[np.ndarray, np.ndarray]:
         """Scan end points in the robot frame (cached per scan)."""
         if self._xy_cache is None or self._xy_cache[0] is not scan:
+            layout = (scan.angle_min, scan.angle_increment, len(scan.ranges), scan.mount_yaw)
+            if self._trig is None or self._trig[0] != layout:
+                ang = scan.angles()
+                self._trig = (layout, np.cos(ang), np.sin(ang))
             r = np.asarray(scan.ranges, float)
             ok = np.isfinite(r)
-            ang = scan.angles()[ok]
-            self._xy_cache = (scan, r[ok] * np.cos(ang), r[ok] * np.sin(ang))
+            self._xy_cache = (scan, r[ok] * self._trig[1][ok], r[ok] * self._trig[2][ok])
         return self._xy_cache[1], self._xy_cache[2]
 
     def _scan_points(self, scan: LaserScan | None, pose: Pose2D) -> np.ndarray:

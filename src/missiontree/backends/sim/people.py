@@ -97,9 +97,9 @@ class Person:
             return 0.0
         return self._headings[min(i, len(self._headings) - 1)]
 
-    def primitives(self, t: float) -> list[Row]:
+    def primitives(self, t: float, state: PersonState | None = None) -> list[Row]:
         """Prism rows (see :class:`Primitives`) for legs, torso and head at time ``t``."""
-        s = self.state_at(t)
+        s = state if state is not None else self.state_at(t)
         if not s.present:
             return []
         c, si = math.cos(s.heading), math.sin(s.heading)
@@ -121,27 +121,26 @@ class Crowd:
     def __init__(self, people: list[Person]) -> None:
         self.people = people
         self._prims_at: tuple[float, Primitives] | None = None
-        self._pos_at: tuple[float, list[tuple[str, float, float]]] | None = None
+        self._states_at: tuple[float, list[PersonState]] | None = None
 
     def __len__(self) -> int:
         return len(self.people)
+
+    def states(self, t: float) -> list[PersonState]:
+        """Everyone's state at time ``t`` (cached for the last instant asked)."""
+        if self._states_at is None or self._states_at[0] != t:
+            self._states_at = (t, [person.state_at(t) for person in self.people])
+        return self._states_at[1]
 
     def primitives(self, t: float) -> Primitives:
         """Prisms of everyone present at time ``t``."""
         if self._prims_at is None or self._prims_at[0] != t:
             rows = []
-            for person in self.people:
-                rows.extend(person.primitives(t))
+            for person, state in zip(self.people, self.states(t), strict=True):
+                rows.extend(person.primitives(t, state))
             self._prims_at = (t, Primitives.build(rows))
         return self._prims_at[1]
 
     def positions(self, t: float) -> list[tuple[str, float, float]]:
         """(id, x, y) of everyone present at time ``t``."""
-        if self._pos_at is None or self._pos_at[0] != t:
-            out = []
-            for person in self.people:
-                s = person.state_at(t)
-                if s.present:
-                    out.append((person.id, s.x, s.y))
-            self._pos_at = (t, out)
-        return list(self._pos_at[1])
+        return [(p.id, s.x, s.y) for p, s in zip(self.people, self.states(t), strict=True) if s.present]

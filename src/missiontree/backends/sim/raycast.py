@@ -67,15 +67,11 @@ class Primitives:
         """Make a table from rows ``(kind, geom, z0, z1, rgb, inst)``."""
         if not rows:
             return Primitives.empty()
-        geom = np.zeros((len(rows), 6))
-        for i, row in enumerate(rows):
-            geom[i, : len(row[1])] = row[1]
-        return Primitives(
-            np.array([r[0] for r in rows], np.int64), geom,
-            np.array([(r[2], r[3]) for r in rows], np.float64),
-            np.array([r[4] for r in rows], np.float64),
-            np.array([r[5] for r in rows], np.int64),
-        )
+        pad = (0.0,) * 6
+        table = np.array([(r[0], *(tuple(r[1]) + pad)[:6], r[2], r[3], *r[4], r[5]) for r in rows],
+                         np.float64)
+        return Primitives(table[:, 0].astype(np.int64), table[:, 1:7].copy(), table[:, 7:9].copy(),
+                          table[:, 9:12].copy(), table[:, 12].astype(np.int64))
 
     def concat(self, other: Primitives) -> Primitives:
         """Rows of both tables."""
@@ -333,11 +329,12 @@ def _columns_loops(ox, oy, yaw, a, fx, cx, kind, geom, k):  # noqa: ANN001, ANN2
 
 
 if HAVE_NUMBA:
-    # Rebinding the module globals first makes the loop kernels call the compiled helpers.
-    _hit_one = numba.njit(cache=True)(_hit_one)
-    _bound = numba.njit(cache=True)(_bound)
-    _fan_jit = numba.njit(cache=True)(_fan_loops)
-    _columns_jit = numba.njit(cache=True)(_columns_loops)
+    # Rebinding the module globals first makes the loop kernels call the compiled helpers; the
+    # kernels release the GIL so the camera can render on a worker thread while physics steps.
+    _hit_one = numba.njit(cache=True, nogil=True)(_hit_one)
+    _bound = numba.njit(cache=True, nogil=True)(_bound)
+    _fan_jit = numba.njit(cache=True, nogil=True)(_fan_loops)
+    _columns_jit = numba.njit(cache=True, nogil=True)(_columns_loops)
 
 
 def first_hit(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray, prims: Primitives) -> np.ndarray:

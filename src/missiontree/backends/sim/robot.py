@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import math
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
-from missiontree.backends.sim.camera import Camera, Floor
+from missiontree.backends.sim.camera import Camera, Floor, Rendering
 from missiontree.backends.sim.kinematics import DiffDrive, Odometry
 from missiontree.backends.sim.lidar import Lidar
 from missiontree.backends.sim.navigation import Navigator, SimNavHandle
@@ -29,6 +30,15 @@ from missiontree.types import LaserScan, Marker, OccupancyGrid, Pose2D, PoseStam
 
 _TIME_EPS = 1e-9
 _TRAJECTORY_PERIOD = 0.25
+_render_pool: ThreadPoolExecutor | None = None
+
+
+def _pool() -> ThreadPoolExecutor:
+    """One worker thread shared by every SimRobot for camera frames (numba kernels drop the GIL)."""
+    global _render_pool
+    if _render_pool is None:
+        _render_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="sim-camera")
+    return _render_pool
 
 
 class SimRobot:
@@ -54,7 +64,7 @@ class SimRobot:
         self._base = DiffDrive(world.start, profile.limits)
         self._odom = Odometry(world.start, profile.odometry, np.random.default_rng(streams[2]))
         self._nav = Navigator(self, profile.navigation)
-        self._floor = Floor(world.floor_rgb, world.grid.origin.x, world.grid.origin.y,
+        self._floor = Floor.build(world.floor_rgb, world.grid.origin.x, world.grid.origin.y,
                             world.grid.resolution, world.ceiling)
         self._steps = 0
         self._t = 0.0
@@ -67,7 +77,9 @@ class SimRobot:
         self._next_frame = 0.0
         self._quiet: set[str] = set()
         self.bumps = 0
-        self.truth = GroundTruth(world, lambda: self._base.pose, profile.history_horizon)
+        self._pending: tuple[Future[tuple[Rendering, float]], float, Pose2D] | None = None
+        self._background = accel and profile.camera_thread
+        self.truth = GroundTruth(world, lambda: self._base.pose, profile.history_horizon, self._finish_frame)
         self.trajectory: list[tuple[float, float, float]] = []
         self.timings: dict[str, list[float]] = {"lidar": [], "camera": [], "planner": self._nav.plan_ms}
         self._closed = False
@@ -95,6 +107,7 @@ class SimRobot:
 
     def rgbd(self) -> RGBDFrame | None:
         """The latest colour + depth frame."""
+        self._finish_frame()
         return self._frame
 
     def occupancy(self) -> OccupancyGrid | None:
@@ -146,6 +159,7 @@ class SimRobot:
     def close(self) -> None:
         """Stop; further spinning does nothing."""
         self.stop()
+        self._finish_frame()
         self._closed = True
 
     # -- Drawable ----------------------------------------------------------------------------------
@@ -236,9 +250,7 @@ class SimRobot:
             if "camera" not in self._quiet:
                 if dynamic is None:
                     dynamic = self.dynamic_primitives(t)
-                t0 = time.perf_counter()
-                self._frame = self._render(t, dynamic)
-                self.timings["camera"].append((time.perf_counter() - t0) * 1000.0)
+                self._start_frame(t, dynamic)
 
     def _tick_after(self, previous: float, rate: float) -> float:
         period = 1.0 / rate
@@ -247,14 +259,44 @@ class SimRobot:
             nxt += period
         return nxt
 
-    def _render(self, t: float, dynamic: Primitives) -> RGBDFrame:
+    def _start_frame(self, t: float, dynamic: Primitives) -> None:
+        """Render the frame of time ``t``: on the worker thread when accelerated, else at once.
+
+        The inputs are snapshots (true camera pose, prisms at ``t``) and the noise is added in
+        frame order on this thread, so the result is the same whichever thread renders.
+        """
+        self._finish_frame()
         spec = self.profile.camera
         mount_yaw = math.radians(spec.mount.yaw_deg)
         true_cam = self._camera_pose(self._base.pose, mount_yaw)
-        image = self.camera.render(true_cam, spec.mount.z, self.world.static.concat(dynamic), self._floor)
+        prims = self.world.static.concat(dynamic)
+        estimate = self._camera_pose(self._odom.pose, mount_yaw)
+
+        def job() -> tuple[Rendering, float]:
+            t0 = time.perf_counter()
+            image = self.camera.render_exact(true_cam, spec.mount.z, prims, self._floor)
+            return image, (time.perf_counter() - t0) * 1000.0
+
+        if self._background:
+            self._pending = (_pool().submit(job), t, estimate)
+        else:
+            done: Future[tuple[Rendering, float]] = Future()
+            done.set_result(job())
+            self._pending = (done, t, estimate)
+            self._finish_frame()
+
+    def _finish_frame(self) -> None:
+        """Publish the frame being rendered, if any (wait for it)."""
+        if self._pending is None:
+            return
+        future, t, estimate = self._pending
+        self._pending = None
+        exact, ms = future.result()
+        self.timings["camera"].append(ms)
+        image = self.camera.add_noise(exact)
         self.truth.record_frame(t, image.instances, image.counts)
-        return RGBDFrame(t, image.color, image.depth, self.camera.intrinsics,
-                         self._camera_pose(self._odom.pose, mount_yaw), spec.mount.z)
+        self._frame = RGBDFrame(t, image.color, image.depth, self.camera.intrinsics, estimate,
+                                self.profile.camera.mount.z)
 
     def _camera_pose(self, base: Pose2D, mount_yaw: float) -> Pose2D:
         m = self.profile.camera.mount

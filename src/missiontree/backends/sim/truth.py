@@ -31,13 +31,14 @@ class Sighting:
 class GroundTruth:
     """Read-only access to the simulator's state for evaluation."""
 
-    def __init__(self, world: World, true_pose: Callable[[], Pose2D], horizon: float) -> None:
+    def __init__(self, world: World, true_pose: Callable[[], Pose2D], horizon: float,
+                 flush: Callable[[], None] = lambda: None) -> None:
         self.world = world
         self._true_pose = true_pose
+        self._flush = flush  # publishes a camera frame still being rendered
         self._poses: StampedHistory[Pose2D] = StampedHistory(horizon=max(horizon, 60.0), maxlen=100_000)
         self._masks: StampedHistory[np.ndarray] = StampedHistory(horizon=horizon, maxlen=1000)
-        #: Every frame's sightings for the whole run: (stamp, {name: Sighting}).
-        self.visibility: list[tuple[float, dict[str, Sighting]]] = []
+        self._visibility: list[tuple[float, dict[str, Sighting]]] = []
 
     # -- recording (called by the simulator) -------------------------------------------------------
 
@@ -55,9 +56,15 @@ class GroundTruth:
             info = self.world.instances.get(inst)
             if info is not None and info.kind in ("object", "person"):
                 seen[info.name] = Sighting(info.name, info.kind, info.label, int(counts[inst]))
-        self.visibility.append((stamp, seen))
+        self._visibility.append((stamp, seen))
 
     # -- queries -----------------------------------------------------------------------------------
+
+    @property
+    def visibility(self) -> list[tuple[float, dict[str, Sighting]]]:
+        """Every frame's sightings for the whole run: (stamp, {name: Sighting})."""
+        self._flush()
+        return self._visibility
 
     def robot_pose(self) -> Pose2D:
         """The robot's true pose now (the robot itself only knows its estimate)."""
@@ -91,11 +98,13 @@ class GroundTruth:
 
     def instance_mask(self, stamp: float) -> np.ndarray | None:
         """The instance mask of the frame taken at ``stamp`` (nearest within 1 ms), if still kept."""
+        self._flush()
         return self._masks.nearest(stamp, max_gap=1e-3)
 
     def visible_at(self, stamp: float, min_pixels: int = 1) -> dict[str, Sighting]:
         """Objects and people visible in the frame taken at ``stamp``, with their pixel counts."""
-        for frame_stamp, seen in reversed(self.visibility):
+        self._flush()
+        for frame_stamp, seen in reversed(self._visibility):
             if abs(frame_stamp - stamp) <= 1e-3:
                 return {k: v for k, v in seen.items() if v.pixels >= min_pixels}
             if frame_stamp < stamp - 1e-3:

@@ -176,7 +176,8 @@ def _load_generated(name: str) -> World:
 
     seed = name[len(GENERATED_PREFIX):]
     if not seed.lstrip("-").isdigit():
-        raise WorldFileError([Problem(name, 0, 0, "", f"expected `generated:<integer seed>`, found {name!r}")])
+        raise WorldFileError([Problem(name, 0, 0, "", f"expected `generated:<integer seed>`, "
+                                              f"found {name!r}")])
     text = yaml.safe_dump(generate_world(int(seed)), sort_keys=False)
     return _load_doc(parse_yaml(text, f"<{name}>", error=WorldFileError), Path.cwd() / "generated.yaml")
 
