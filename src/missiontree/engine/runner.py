@@ -83,14 +83,33 @@ class RunResult:
         return 0 if self.status is Status.SUCCESS else 1
 
 
+#: py_trees classes whose code only manages children or returns a fixed status: an exception cannot
+#: start in them (their children are guarded themselves), so they are ticked without a wrapper —
+#: wrapping every node would add a generator frame per node per tick. Exact types only: a subclass
+#: may override anything. EternalGuard is absent on purpose: it calls a user-given condition.
+TRUSTED_TYPES: frozenset[type] = frozenset({
+    py_trees.composites.Sequence, py_trees.composites.Selector, py_trees.composites.Parallel,
+    py_trees.decorators.Inverter, py_trees.decorators.Retry, py_trees.decorators.Repeat,
+    py_trees.decorators.OneShot, py_trees.decorators.Timeout, py_trees.decorators.Condition,
+    py_trees.decorators.FailureIsSuccess, py_trees.decorators.FailureIsRunning,
+    py_trees.decorators.SuccessIsFailure, py_trees.decorators.SuccessIsRunning,
+    py_trees.decorators.RunningIsFailure, py_trees.decorators.RunningIsSuccess,
+    py_trees.behaviours.Success, py_trees.behaviours.Failure, py_trees.behaviours.Running,
+    py_trees.behaviours.Dummy,
+})
+
+
 def guard_exceptions(root: Behaviour, on_error: Callable[[Behaviour, Exception], None]) -> None:
     """Make an exception escaping any non-Leaf behaviour under ``root`` FAILURE of that behaviour.
 
     Each such node's ``tick`` is wrapped on the instance (composites call ``child.tick()``, so the
-    wrapper sits exactly where py_trees calls it). Leaves already fail safely on their own.
+    wrapper sits exactly where py_trees calls it). Leaves already fail safely on their own, and
+    :data:`TRUSTED_TYPES` need no wrapper.
     """
     for node in root.iterate():
-        if isinstance(node, Leaf) or getattr(node, "_missiontree_guarded", False):
+        if isinstance(node, Leaf) or type(node) in TRUSTED_TYPES:
+            continue
+        if getattr(node, "_missiontree_guarded", False):
             continue
         node.tick = _guarded_tick(node, node.tick, on_error)  # type: ignore[method-assign]
         node._missiontree_guarded = True  # type: ignore[attr-defined]
@@ -216,7 +235,7 @@ class Runner:
         except Exception as error:  # noqa: BLE001 - halting must go on to stop the robot
             self._on_node_error(self.root, error)
         if self.recorder is not None:
-            self.recorder.record(self.robot.now(), (), event="halted")
+            self.recorder.record(self.robot.now(), [], event="halted")
 
     def _on_node_error(self, node: Behaviour, error: Exception) -> None:
         if self.log is None:

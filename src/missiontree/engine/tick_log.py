@@ -27,7 +27,7 @@ import enum
 import json
 import math
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -51,7 +51,7 @@ def plain(value: Any) -> Any:
     Dataclasses, pydantic models, enums, numpy values and paths are converted; anything else
     becomes ``"<TypeName>"`` (never ``repr``, which may hold a memory address).
     """
-    if value is None or isinstance(value, bool | int | str):
+    if value is None or isinstance(value, (bool, int, str)):  # noqa: UP038 - a tuple is faster here
         return value
     if isinstance(value, float):
         if math.isfinite(value):
@@ -92,8 +92,12 @@ def _add_wall_time(logger: Any, method: str, event_dict: dict[str, Any]) -> dict
     return event_dict
 
 
+#: One encoder for every line (``json.dumps`` with options would build a new one per call).
+_ENCODE = json.JSONEncoder(separators=(",", ":"), ensure_ascii=False, sort_keys=True).encode
+
+
 def _dumps(obj: Any, **kwargs: Any) -> str:
-    return json.dumps(obj, separators=(",", ":"), ensure_ascii=False, **kwargs)
+    return _ENCODE(obj)
 
 
 class _LineWriter:
@@ -132,13 +136,17 @@ class TickLog:
         self.clock = clock
         self.simulated = simulated
         self.event_counts: dict[str, int] = {}
-        processors: list[Any] = [structlog.contextvars.merge_contextvars]
-        if not simulated:
-            processors.append(_add_wall_time)
-        processors += [_plain_event, structlog.processors.JSONRenderer(serializer=_dumps, sort_keys=True)]
-        self._log = structlog.wrap_logger(
-            _LineWriter(stream, flush_each_line=not simulated), processors=processors, context_class=dict,
-        )
+        writer = _LineWriter(stream, flush_each_line=not simulated)
+        render = structlog.processors.JSONRenderer(serializer=_dumps)  # keys sorted by _ENCODE
+        stamp = [] if simulated else [_add_wall_time]
+        merge = structlog.contextvars.merge_contextvars
+        #: Events from leaves: any fields, made JSON-ready and stable first.
+        self._log = structlog.wrap_logger(writer, processors=[merge, *stamp, _plain_event, render],
+                                          context_class=dict).bind()  # bound once, not per call
+        #: Tick lines: built here from plain values with the ids given explicitly, so they skip the
+        #: conversion and the context merge (the hot path).
+        self._tick_log = structlog.wrap_logger(writer, processors=[*stamp, render], context_class=dict).bind()
+        self._tick = 0
 
     # -- binding -------------------------------------------------------------------------------
 
@@ -148,6 +156,7 @@ class TickLog:
 
     def set_tick(self, tick: int) -> None:
         """Bind the current tick number."""
+        self._tick = tick
         structlog.contextvars.bind_contextvars(tick=tick)
 
     def unbind(self) -> None:
@@ -170,14 +179,15 @@ class TickLog:
     def tick(self, t: float, status: Status, changed: list[dict[str, Any]], bb: dict[str, Any],
              bb_unset: list[str]) -> None:
         """Write the line of one tick (empty change lists are left out)."""
-        fields: dict[str, Any] = {"t": t, "status": status.name}
+        fields: dict[str, Any] = {"mission": self.mission, "tick": self._tick, "t": round(t, FLOAT_DIGITS),
+                                  "status": status.name}
         if changed:
             fields["changed"] = changed
         if bb:
             fields["bb"] = bb
         if bb_unset:
             fields["bb_unset"] = bb_unset
-        self._log.msg("tick", **fields)
+        self._tick_log.msg("tick", **fields)
 
     def flush(self) -> None:
         """Flush the underlying stream."""
@@ -230,6 +240,10 @@ def failure_reason(node: Behaviour) -> str:
 class TickRecorder:
     """Finds what changed in a tick and keeps the counts for the summary.
 
+    Per tick it looks only at the nodes ticked and the nodes that were active (not INVALID)
+    after the previous tick — a node can only change status by being ticked or by being
+    halted, and a halted node was active before.
+
     Args:
         root: The tree's root.
         log: Where tick lines go.
@@ -240,8 +254,9 @@ class TickRecorder:
         self.log = log
         self.paths = node_paths(root)
         self.ticks = 0
-        self.counts: dict[str, dict[str, int]] = {}
-        self.reasons: dict[str, list[str]] = {}
+        #: node -> [SUCCESS count, FAILURE count], for every node up front (no lookups that miss)
+        self._counts: dict[Behaviour, list[int]] = {node: [0, 0] for node in self.paths}
+        self._reasons: dict[Behaviour, list[str]] = {}
         #: Status of every node that is not INVALID, as of the end of the last tick.
         self._active: dict[Behaviour, Status] = {}
         self._bb_logged: dict[str, Any] = {}
@@ -260,21 +275,49 @@ class TickRecorder:
             found = self.paths[node] = f"{parent}/{node.name}" if parent else node.name
         return found
 
-    def record(self, t: float, visited: Iterable[Behaviour], event: str = "tick") -> None:
+    def record(self, t: float, visited: list[Behaviour], event: str = "tick") -> None:
         """Write the line for a tick in which ``visited`` were ticked (or a halt when ``event`` says so)."""
-        changed: list[dict[str, Any]] = []
         active = self._active
-        seen: set[Behaviour] = set()
-        for node in visited:
-            if node in seen:
-                continue
-            seen.add(node)
+        counts = self._counts
+        changed: list[dict[str, Any]] = []
+        success, failure, invalid = Status.SUCCESS, Status.FAILURE, Status.INVALID
+        for node in visited:  # the hot loop: subscripts rather than calls, a few a node
             status = node.status
-            if status is Status.SUCCESS or status is Status.FAILURE:
-                self._count(node, status)
-            self._compare(node, status, active, changed)
-        for node in [n for n in active if n not in seen]:
-            self._compare(node, node.status, active, changed)
+            try:
+                was = active[node]
+            except KeyError:
+                was = invalid
+            if status is not was:
+                changed.append(self._change(node, status, was))
+                if status is invalid:
+                    del active[node]
+                else:
+                    active[node] = status
+            if status is success:
+                try:
+                    counts[node][0] += 1
+                except KeyError:  # a node added to the tree after the start
+                    counts[node] = [1, 0]
+            elif status is failure:
+                try:
+                    counts[node][1] += 1
+                except KeyError:
+                    counts[node] = [0, 1]
+                if node.feedback_message:  # Leaf.fail() sets it to the reason too
+                    self._keep_reason(node, failure_reason(node))
+        # A node not ticked can only have changed by being halted, and a composite halts a child
+        # only as some ticked node changes (it finishes, or another child takes over): a tick with
+        # no change among the ticked nodes skips the search. Set operations find the halted nodes
+        # cheaply; sorting by path keeps the line independent of memory addresses.
+        if changed or event != "tick":
+            halted = [n for n in active.keys() - set(visited) if n.status is not active[n]]
+            for node in sorted(halted, key=self.path):
+                status = node.status
+                changed.append(self._change(node, status, active[node]))
+                if status is invalid:
+                    del active[node]
+                else:
+                    active[node] = status
         bb, unset = self._blackboard_changes()
         if event == "tick":
             self.ticks += 1
@@ -282,11 +325,7 @@ class TickRecorder:
         else:
             self.log.line(event, t=t, changed=changed, bb=bb, bb_unset=unset)
 
-    def _compare(self, node: Behaviour, status: Status, active: dict[Behaviour, Status],
-                 changed: list[dict[str, Any]]) -> None:
-        was = active.get(node, Status.INVALID)
-        if status is was:
-            return
+    def _change(self, node: Behaviour, status: Status, was: Status) -> dict[str, Any]:
         entry: dict[str, Any] = {"node": self.path(node), "status": status.name, "was": was.name}
         if node.feedback_message:
             entry["feedback"] = node.feedback_message
@@ -294,23 +333,14 @@ class TickRecorder:
             reason = failure_reason(node)
             if reason:
                 entry["reason"] = reason
-        changed.append(entry)
-        if status is Status.INVALID:
-            active.pop(node, None)
-        else:
-            active[node] = status
+        return entry
 
-    def _count(self, node: Behaviour, status: Status) -> None:
-        path = self.path(node)
-        counts = self.counts.get(path)
-        if counts is None:
-            counts = self.counts[path] = {"SUCCESS": 0, "FAILURE": 0}
-        counts[status.name] += 1
-        if status is Status.FAILURE:
-            reason = failure_reason(node)
-            reasons = self.reasons.setdefault(path, [])
-            if reason and reason not in reasons and len(reasons) < MAX_REASONS:
-                reasons.append(reason)
+    def _keep_reason(self, node: Behaviour, reason: str) -> None:
+        reasons = self._reasons.get(node)
+        if reasons is None:
+            reasons = self._reasons[node] = []
+        if reason not in reasons and len(reasons) < MAX_REASONS:
+            reasons.append(reason)
 
     def _blackboard_changes(self) -> tuple[dict[str, Any], list[str]]:
         storage = self._storage
@@ -337,9 +367,11 @@ class TickRecorder:
 
     def summary(self) -> dict[str, Any]:
         """Per-node SUCCESS/FAILURE counts and failure reasons, sorted by node path."""
+        nodes = {self.path(n): {"SUCCESS": c[0], "FAILURE": c[1]} for n, c in self._counts.items() if any(c)}
+        reasons = {self.path(n): r for n, r in self._reasons.items() if r}
         return {
-            "nodes": {path: self.counts[path] for path in sorted(self.counts)},
-            "failure_reasons": {p: self.reasons[p] for p in sorted(self.reasons) if self.reasons[p]},
+            "nodes": dict(sorted(nodes.items())),
+            "failure_reasons": dict(sorted(reasons.items())),
         }
 
 

@@ -1,0 +1,227 @@
+"""Engine overhead: the runner with its JSON-lines tick log against raw py_trees, in one run.
+
+Three ways of ticking identical 100-node trees (mixed composites, ten leaves RUNNING, two of
+them writing the blackboard every tick, a few status changes every tick), alternating in rounds:
+
+- ``runner``: :class:`missiontree.engine.runner.Runner` on a clock-only robot, writing
+  ``ticks.jsonl`` (one line a tick: changed nodes, blackboard changes) to a temporary run directory;
+- ``raw``: ``root.tick_once()`` with no logging at all (the floor);
+- ``pytrees_logging``: ``BehaviourTree.tick()`` with a SnapshotVisitor and the whole tree serialised
+  to JSON every tick, as py_trees' own logging demo does (file opened once, no indentation — the
+  cheapest form of that reference).
+
+Each round ticks every variant ``--ticks`` times from a fresh (INVALID) tree, rotating which goes
+first; the ratios are taken per round, so machine load affects both sides alike. Times are the
+process's CPU time (``time.process_time``): on a shared machine wall time also counts the time spent
+waiting for a core, which has nothing to do with the engine. The last line is one JSON object.
+
+Run: ``.venv/bin/python benchmarks/engine_overhead.py [--rounds N] [--ticks N]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import io
+import json
+import statistics
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any
+
+import py_trees
+from pydantic import BaseModel
+
+from missiontree.engine.context import MissionContext
+from missiontree.engine.leaf import Leaf, Status
+from missiontree.engine.ports import Output
+from missiontree.engine.runner import Runner
+from missiontree.testing import ClockRobot, clean_state
+
+TICK_HZ = 10.0
+#: Periods (in ticks) of the ten running leaves: primes, so the tree as a whole never finishes.
+PERIODS = (23, 29, 31, 37, 41, 43, 47, 53, 59, 61)
+
+
+class Periodic(Leaf):
+    """RUNNING, but SUCCESS every ``period`` ticks; optionally writes its tick count each tick."""
+
+    class Params(BaseModel):
+        period: int = 10
+        out: Annotated[str, Output("tick count")] = ""
+
+    def initialise(self) -> None:
+        """Start counting."""
+        self.count = 0
+
+    def update(self) -> Status:
+        """Count; write the count when asked to; succeed every ``period`` ticks."""
+        self.count += 1
+        if self.params.out:
+            self.write("out", self.count * 0.1)
+        return Status.SUCCESS if self.count % self.params.period == 0 else Status.RUNNING
+
+
+def branch(index: int) -> py_trees.behaviour.Behaviour:
+    """One branch of ten nodes: a reactive check that fails, then a plan with a running step."""
+    # branch(1) + check(1 + 2) + plan(1 + 4) + idle(1) = 10 nodes
+    s = py_trees.behaviours
+    check = py_trees.composites.Sequence(f"check{index}", memory=False, children=[
+        s.Success(f"ready{index}"), s.Failure(f"alarm{index}"),
+    ])
+    out = f"odometer{index}" if index < 2 else ""
+    plan = py_trees.composites.Sequence(f"plan{index}", memory=True, children=[
+        s.Success(f"prepare{index}"),
+        Periodic(f"work{index}", Periodic.Params(period=PERIODS[index], out=out)),
+        s.Success(f"report{index}"),
+        s.Success(f"rest{index}"),
+    ])
+    return py_trees.composites.Selector(f"branch{index}", memory=False, children=[
+        check, plan, s.Success(f"idle{index}"),
+    ])
+
+
+def build_tree() -> py_trees.behaviour.Behaviour:
+    """The 100-node tree: a Parallel over ten branches, the last without its idle leaf (10 × 10 - 1 + 1)."""
+    branches = [branch(i) for i in range(10)]
+    branches[-1].remove_child(branches[-1].children[-1])  # 101 → 100 nodes
+    policy = py_trees.common.ParallelPolicy.SuccessOnAll(synchronise=False)
+    return py_trees.composites.Parallel("root", policy=policy, children=branches)
+
+
+def count_nodes(root: py_trees.behaviour.Behaviour) -> int:
+    """Number of nodes in the tree."""
+    return sum(1 for _ in root.iterate())
+
+
+def time_runner(root: py_trees.behaviour.Behaviour, ticks: int, run_dir: Path) -> float:
+    """Seconds for the runner to do ``ticks`` ticks with its tick log written to ``run_dir``."""
+    runner = Runner(root, MissionContext(robot=ClockRobot()), tick_hz=TICK_HZ,
+                    max_duration=ticks / TICK_HZ, run_dir=run_dir, mission="bench", handle_signals=False)
+    start = time.process_time()
+    result = runner.run()
+    elapsed = time.process_time() - start
+    assert result.ticks == ticks, (result.ticks, result.stopped_by)
+    return elapsed
+
+
+def time_raw(root: py_trees.behaviour.Behaviour, ticks: int) -> float:
+    """Seconds for ``ticks`` bare ``tick_once()`` calls, then a halt like the runner's."""
+    start = time.process_time()
+    for _ in range(ticks):
+        root.tick_once()
+    root.stop(Status.INVALID)
+    return time.process_time() - start
+
+
+def _serialise(tree: py_trees.trees.BehaviourTree, snapshot: py_trees.visitors.SnapshotVisitor) -> dict:
+    """The whole tree as py_trees' logging demo serialises it."""
+    nodes = []
+    for node in tree.root.iterate():
+        tip = node.tip()
+        nodes.append({
+            "name": node.name, "id": str(node.id),
+            "parent_id": str(node.parent.id) if node.parent else "none",
+            "child_ids": [str(child.id) for child in node.children],
+            "tip_id": str(tip.id) if tip is not None else "none",
+            "class_name": f"{node.__module__}.{type(node).__name__}",
+            "status": node.status.value, "message": node.feedback_message,
+            "is_active": node.id in snapshot.visited,
+        })
+    return {"tick": tree.count, "nodes": nodes}
+
+
+def time_pytrees_logging(root: py_trees.behaviour.Behaviour, ticks: int, out: io.TextIOBase) -> float:
+    """Seconds for ``ticks`` of ``BehaviourTree.tick()`` with a snapshot and a JSON dump each tick."""
+    tree = py_trees.trees.BehaviourTree(root)
+    snapshot = py_trees.visitors.SnapshotVisitor()
+    tree.add_visitor(snapshot)
+    tree.add_post_tick_handler(lambda t: out.write(json.dumps(_serialise(t, snapshot)) + "\n"))
+    start = time.process_time()
+    for _ in range(ticks):
+        tree.tick()
+    root.stop(Status.INVALID)
+    out.flush()
+    return time.process_time() - start
+
+
+def spread(values: list[float]) -> dict[str, float]:
+    """Min / median / max, rounded."""
+    return {"min": round(min(values), 3), "median": round(statistics.median(values), 3),
+            "max": round(max(values), 3)}
+
+
+def main() -> None:
+    """Run the rounds and print the ratios; the last line is JSON."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=11)
+    parser.add_argument("--ticks", type=int, default=600, help="ticks per variant per round (60 s at 10 Hz)")
+    args = parser.parse_args()
+
+    clean_state()
+    trees = {"runner": build_tree(), "raw": build_tree(), "pytrees_logging": build_tree()}
+    nodes = count_nodes(trees["raw"])
+    for root in trees.values():
+        root.setup_with_descendants()
+    visited_per_tick = _visited_per_tick()
+    times: dict[str, list[float]] = {name: [] for name in trees}
+    half = args.ticks // 2  # each round runs every variant twice, palindromically
+    with tempfile.TemporaryDirectory() as tmp:
+        run_dir = Path(tmp) / "run"
+        with (Path(tmp) / "dump.jsonl").open("w") as dump:
+            variants: dict[str, Callable[[], float]] = {
+                "runner": lambda: time_runner(trees["runner"], half, run_dir),
+                "raw": lambda: time_raw(trees["raw"], half),
+                "pytrees_logging": lambda: time_pytrees_logging(trees["pytrees_logging"], half, dump),
+            }
+            for variant in variants.values():  # warm-up, not counted
+                variant()
+            order = list(variants)
+            for round_index in range(args.rounds):
+                # A B C C B A (rotating who starts): a load that drifts within the round hits all alike.
+                rotated = order[round_index % 3:] + order[:round_index % 3]
+                spent = dict.fromkeys(order, 0.0)
+                for name in rotated + rotated[::-1]:
+                    gc.collect()
+                    spent[name] += variants[name]()
+                for name in order:
+                    times[name].append(spent[name])
+            log_lines = sum(1 for _ in (run_dir / "ticks.jsonl").open())
+    vs_raw = [r / w for r, w in zip(times["runner"], times["raw"], strict=True)]
+    vs_logging = [r / p for r, p in zip(times["runner"], times["pytrees_logging"], strict=True)]
+    per_tick = {name: spread([t / (2 * half) * 1e6 for t in values]) for name, values in times.items()}
+    print(f"tree: {nodes} nodes, {visited_per_tick} ticked per tick, {len(PERIODS)} leaves running; "
+          f"{args.rounds} rounds x {2 * half} ticks per variant (two runs of {half}, A B C C B A); "
+          f"last runner log: {log_lines} lines")
+    for name, s in per_tick.items():
+        print(f"  {name:16s} µs/tick  min {s['min']:8.1f}  median {s['median']:8.1f}  max {s['max']:8.1f}")
+    print("runner / raw per round: " + " ".join(f"{v:.2f}" for v in vs_raw))
+    r, p = spread(vs_raw), spread(vs_logging)
+    for label, v, target in (("runner / raw tick_once:            ", r, "median <= 1.3"),
+                             ("runner / BehaviourTree.tick + JSON:", p, "well below 1")):
+        print(f"{label} min {v['min']:.3f}  median {v['median']:.3f}  max {v['max']:.3f}  (target {target})")
+    result: dict[str, Any] = {
+        "benchmark": "engine_overhead", "nodes": nodes, "visited_per_tick": visited_per_tick,
+        "running_leaves": len(PERIODS), "rounds": args.rounds, "ticks_per_round": 2 * half,
+        "ratio_vs_raw_median": r["median"], "ratio_vs_raw_min": r["min"], "ratio_vs_raw_max": r["max"],
+        "ratio_vs_pytrees_logging_median": p["median"], "ratio_vs_pytrees_logging_min": p["min"],
+        "ratio_vs_pytrees_logging_max": p["max"],
+        "us_per_tick_median": {name: s["median"] for name, s in per_tick.items()},
+    }
+    print(json.dumps(result, sort_keys=True))
+
+
+def _visited_per_tick() -> int:
+    """Nodes ticked in a steady-state tick of a fresh tree (after the first tick)."""
+    root = build_tree()
+    root.setup_with_descendants()
+    root.tick_once()
+    visited = sum(1 for _ in root.tick())
+    root.stop(Status.INVALID)
+    return visited
+
+
+if __name__ == "__main__":
+    main()
