@@ -137,3 +137,16 @@ def test_bad_config_override_and_option():
     assert "lidar.beems" in str(info.value) and "unknown key" in str(info.value)
     with pytest.raises(ConfigError, match="unknown simulator option"):
         create_robot({"wrld": "office"})
+
+
+def test_broken_world_through_the_cli_exits_2(write_world, tmp_path, capsys):
+    """`missiontree run --world broken.yaml` prints file:line problems and exits with code 2."""
+    from missiontree.cli.main import main
+
+    cup = "objects:\n  - {label: cup, size: [0.1, 0.1, 0.1], pose: {x: 1, y: 1}, colour: red}\n"
+    path = write_world(ROOM.replace("profile: turtlebot4", "profile: turtlebot9") + cup)
+    code = main(["run", str(REPO_ROOT / "trees" / "patrol.yaml"), "--world", str(path),
+                 "--out", str(tmp_path / "run"), "--max-duration", "1"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert f"{path}:10:" in err and "colour" in err and f"{path}:3:" in err and "turtlebot9" in err

@@ -232,6 +232,7 @@ class _Follow:
     last_replan: float = -math.inf
     best_remaining: float = math.inf
     best_time: float = 0.0
+    last_step: float = 0.0
     aligning: bool = False
 
     def __post_init__(self) -> None:
@@ -288,6 +289,12 @@ class Navigator:
                 return 0.0, 0.0
         follow = self._follow
         assert follow is not None
+        gap = now - follow.last_step - self.robot.profile.physics_dt
+        if gap > 1e-6:  # drive() overrode us meanwhile: the goal's timers pause
+            follow.best_time += gap
+            if follow.blocked_since is not None:
+                follow.blocked_since += gap
+        follow.last_step = now
         h._status = ActionStatus.RUNNING
         remaining = self._remaining(follow, pose)
         h._feedback = NavFeedback(pose, remaining, now - h.sent, 0)
@@ -328,7 +335,7 @@ class Navigator:
         if path is None:
             h._finish(ActionStatus.ABORTED, f"no valid path to ({goal.x:.2f}, {goal.y:.2f})", NO_VALID_PATH)
             return False
-        self._follow = _Follow(path, best_time=now)
+        self._follow = _Follow(path, best_time=now, last_step=now - self.robot.profile.physics_dt)
         return True
 
     def _outside(self, goal: Pose2D) -> bool:

@@ -183,17 +183,29 @@ def _load_generated(name: str) -> World:
 
 
 def _load_doc(doc: Located, path: Path) -> World:
-    spec = _validate(doc, WorldSpec)
-    problems: list[Problem] = []
     try:
-        find_config("robots", spec.robot.profile)
-    except ConfigError as exc:
-        problems.append(doc.problem_at(("robot", "profile"), str(exc), "create config/robots/<name>.yaml"))
+        spec = _validate(doc, WorldSpec)
+    except WorldFileError as exc:
+        # report an unknown profile together with the schema problems (the rest needs a valid file)
+        raise WorldFileError(exc.problems + _profile_problems(doc)) from None
+    problems = _profile_problems(doc)
     world = _build(spec, doc, path, problems)
     if problems:
         raise WorldFileError(problems)
     assert world is not None
     return world
+
+
+def _profile_problems(doc: Located) -> list[Problem]:
+    robot = doc.data.get("robot") if isinstance(doc.data, dict) else None
+    profile = robot.get("profile", "turtlebot4") if isinstance(robot, dict) else "turtlebot4"
+    if not isinstance(profile, str):
+        return []
+    try:
+        find_config("robots", profile)
+    except ConfigError as exc:
+        return [doc.problem_at(("robot", "profile"), str(exc), "create config/robots/<name>.yaml")]
+    return []
 
 
 def load_robot_profile(name: str | Path, overrides: dict[str, Any] | None = None) -> RobotProfile:
