@@ -274,3 +274,52 @@ def test_real_clock_robot_logs_wall_time() -> None:
     context = MissionContext(robot=ClockRobot(simulated=False))
     _, lines = capture_tick_log(ScriptedLeaf("a", script="S"), context)
     assert all("wall" in line for line in lines)
+
+
+class _BadCleanup(Leaf):
+    """Runs forever; its terminate() raises (a cleanup bug)."""
+
+    def update(self) -> Status:
+        return Status.RUNNING
+
+    def terminate(self, new_status: Status) -> None:
+        if new_status == Status.INVALID:
+            raise RuntimeError("cancel failed")
+
+
+def test_leaf_whose_cleanup_raises_when_preempted_does_not_kill_the_run() -> None:
+    """A running leaf halted by its parent whose terminate() raises is logged; the run goes on."""
+    guard = ScriptedLeaf("guard", script="FS", restart=False)  # tick 2: succeeds, preempting "work"
+    root = py_trees.composites.Selector("root", memory=False, children=[guard, _BadCleanup("work")])
+    result, lines = capture_tick_log(root)
+    assert result.status == Status.SUCCESS
+    errors = [line for line in lines if line["event"] == "error"]
+    assert errors and "cancel failed" in errors[0]["error"]
+
+
+def test_halt_reaches_every_leaf_even_when_one_cleanup_raises() -> None:
+    """At the limit, a leaf whose cancel raises does not stop the other running leaves from being halted."""
+    bad, good = _BadCleanup("bad"), ScriptedLeaf("good", script="R")
+    policy = py_trees.common.ParallelPolicy.SuccessOnAll(synchronise=False)
+    root = py_trees.composites.Parallel("root", policy=policy, children=[bad, good])
+    robot = ClockRobot()
+    result = _runner(root, robot, max_duration=0.3).run()
+    assert result.stopped_by == "limit"
+    assert good.calls[-1] == "terminate:INVALID"
+    assert robot.stop_calls == 1
+
+
+class _Custom(py_trees.composites.Sequence):
+    """A subclass of a py_trees composite: may override anything, so it is guarded."""
+
+
+def test_only_py_trees_own_types_go_unguarded() -> None:
+    """py_trees' own Sequence is ticked without a wrapper; a subclass and a plain behaviour get one."""
+    from missiontree.engine.runner import guard_exceptions
+
+    plain_seq = py_trees.composites.Sequence("s", memory=True)
+    custom, broken = _Custom("c", memory=True), _BrokenBehaviour("b")
+    root = py_trees.composites.Sequence("root", memory=True, children=[plain_seq, custom, broken])
+    guard_exceptions(root, lambda node, error: None)
+    assert "tick" not in vars(plain_seq) and "tick" not in vars(root)
+    assert "tick" in vars(custom) and "tick" in vars(broken)

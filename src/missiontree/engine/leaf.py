@@ -78,15 +78,36 @@ class Leaf(py_trees.behaviour.Behaviour):
             self._fail_on_exception(error)
             yield self
 
-    def _fail_on_exception(self, error: Exception) -> None:
+    def stop(self, new_status: Status) -> None:
+        """Stop as py_trees does; when halted (INVALID), an exception in terminate() is reported, not raised.
+
+        A parent halts its running children from inside its own tick; a cancel that raises must not
+        escape into the parent (and from there end the run). Inside this leaf's own tick, stop()
+        keeps raising so that :meth:`tick` turns the error into FAILURE.
+        """
+        if new_status != Status.INVALID:
+            super().stop(new_status)
+            return
+        try:
+            super().stop(new_status)
+        except Exception as error:  # noqa: BLE001 - a failed cancel must not kill the mission
+            self._report_error(error)
+            self.status = Status.INVALID
+            self.iterator = self.tick()
+
+    def _report_error(self, error: Exception) -> str:
+        """Record ``error`` as this leaf's feedback and send an ``error`` event; return the reason."""
         reason = f"{type(error).__name__}: {error}"
-        self.failure_reason = reason
         self.feedback_message = reason
         if self.ctx is not None:
             self.ctx.events.emit(
                 "error", node=self.name, error=reason,
                 where=traceback.extract_tb(error.__traceback__)[-1].name if error.__traceback__ else "",
             )
+        return reason
+
+    def _fail_on_exception(self, error: Exception) -> None:
+        self.failure_reason = self._report_error(error)
         try:
             if self.status == Status.RUNNING:
                 self.terminate(Status.FAILURE)

@@ -112,6 +112,7 @@ def guard_exceptions(root: Behaviour, on_error: Callable[[Behaviour, Exception],
         if getattr(node, "_missiontree_guarded", False):
             continue
         node.tick = _guarded_tick(node, node.tick, on_error)  # type: ignore[method-assign]
+        node.stop = _guarded_stop(node, node.stop, on_error)  # type: ignore[method-assign]
         node._missiontree_guarded = True  # type: ignore[attr-defined]
 
 
@@ -135,6 +136,25 @@ def _guarded_tick(
             yield node
 
     return tick
+
+
+def _guarded_stop(
+    node: Behaviour, original: Callable[[Status], None], on_error: Callable[[Behaviour, Exception], None],
+) -> Callable[[Status], None]:
+    """A halt (stop with INVALID) whose terminate() raises reports the error instead of raising."""
+
+    def stop(new_status: Status) -> None:
+        if new_status != Status.INVALID:
+            original(new_status)  # inside the node's own tick: the tick guard makes it FAILURE
+            return
+        try:
+            original(new_status)
+        except Exception as error:  # noqa: BLE001 - a failed cancel must not kill the mission
+            node.status = Status.INVALID
+            node.iterator = node.tick()
+            on_error(node, error)
+
+    return stop
 
 
 class Runner:
@@ -234,6 +254,13 @@ class Runner:
             self.root.stop(Status.INVALID)
         except Exception as error:  # noqa: BLE001 - halting must go on to stop the robot
             self._on_node_error(self.root, error)
+            for node in self.root.iterate():  # children first: reach every node still active
+                if node.status != Status.INVALID:
+                    try:
+                        node.stop(Status.INVALID)
+                    except Exception as again:  # noqa: BLE001 - keep halting the others
+                        self._on_node_error(node, again)
+                        node.status = Status.INVALID
         if self.recorder is not None:
             self.recorder.record(self.robot.now(), [], event="halted")
 
