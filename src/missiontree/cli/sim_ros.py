@@ -34,7 +34,8 @@ def register(subparsers: Any) -> None:
                         help="ROS 2 profile naming the topics and frames to serve (config/backends; "
                         "default turtlebot4)")
     parser.add_argument("--rate", type=float, default=1.0,
-                        help="simulated seconds per wall second (default 1.0: real time)")
+                        help="simulated seconds per wall second (default 1.0: real time; other rates make "
+                        "stamps drift from ROS time, so sensor ages seen by clients are wrong)")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S wall seconds")
     parser.add_argument("--domain-id", type=int, metavar="N",
                         help="ROS_DOMAIN_ID to serve on (default: the environment's)")
