@@ -323,3 +323,26 @@ def test_only_py_trees_own_types_go_unguarded() -> None:
     guard_exceptions(root, lambda node, error: None)
     assert "tick" not in vars(plain_seq) and "tick" not in vars(root)
     assert "tick" in vars(custom) and "tick" in vars(broken)
+
+
+class _SignalsTwice(Leaf):
+    """Sends SIGINT twice in one tick (an impatient user)."""
+
+    def update(self) -> Status:
+        os.kill(os.getpid(), signal.SIGINT)
+        os.kill(os.getpid(), signal.SIGINT)
+        return Status.RUNNING
+
+    def terminate(self, new_status: Status) -> None:
+        self.halted_with = new_status
+
+
+def test_second_signal_interrupts_at_once_but_still_halts_and_stops() -> None:
+    """A second SIGINT raises KeyboardInterrupt, after the tree was halted and the robot stopped."""
+    leaf = _SignalsTwice("impatient")
+    robot = ClockRobot()
+    with pytest.raises(KeyboardInterrupt):
+        Runner(leaf, MissionContext(robot=robot), handle_signals=True).run()
+    assert leaf.halted_with == Status.INVALID
+    assert robot.stop_calls == 1
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -273,6 +273,9 @@ class Runner:
                       where=frames[-1].name if frames else "")
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        """First signal: stop after this tick. A second one: stop now (the tree is still halted)."""
+        if self._signal:
+            raise KeyboardInterrupt
         self._signal = signum
 
     # -- the loop ------------------------------------------------------------------------------
