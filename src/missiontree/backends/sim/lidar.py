@@ -34,19 +34,23 @@ class Lidar:
         self._static_key: int | None = None
         self._static_plane = Primitives.empty()
 
-    def plane_primitives(self, static: Primitives, dynamic: Primitives) -> Primitives:
-        """The prisms crossing the scan plane (the static part is cut once per world)."""
+    def plane_primitives(self, static: Primitives, dynamic: Primitives) -> tuple[np.ndarray, np.ndarray]:
+        """Kinds and geometry of the prisms crossing the scan plane (static part cut once per world)."""
         if self._static_key != id(static):
             self._static_key = id(static)
             self._static_plane = static.crossing(self.spec.mount.z)
-        return self._static_plane.concat(dynamic.crossing(self.spec.mount.z))
+        z = self.spec.mount.z
+        keep = (dynamic.z[:, 0] <= z) & (dynamic.z[:, 1] >= z)
+        return (np.concatenate([self._static_plane.kind, dynamic.kind[keep]]),
+                np.concatenate([self._static_plane.geom, dynamic.geom[keep]]))
 
     def scan(self, pose: Pose2D, stamp: float, static: Primitives, dynamic: Primitives) -> LaserScan:
         """Cast every beam from the sensor at the robot's true ``pose``; ``stamp`` is the scan time."""
         ox, oy = pose.transform(self.spec.mount.x, self.spec.mount.y)
         angle0 = pose.yaw + self.mount_yaw + self.angle_min
-        ranges = fan_first_hit(ox, oy, angle0, self.angle_increment, self.spec.beams,
-                               self.plane_primitives(static, dynamic), self.accelerate)
+        kind, geom = self.plane_primitives(static, dynamic)
+        ranges = fan_first_hit(ox, oy, angle0, self.angle_increment, self.spec.beams, kind, geom,
+                               self.accelerate)
         if self.spec.noise > 0:
             ranges += self.rng.normal(0.0, self.spec.noise, len(ranges))
         ranges[ranges > self.spec.range_max] = np.inf

@@ -258,6 +258,7 @@ class Navigator:
         self.goals: list[Pose2D] = []
         self._xy_cache: tuple[LaserScan, np.ndarray, np.ndarray] | None = None
         self._trig: tuple[tuple[float, float, int, float], np.ndarray, np.ndarray] | None = None
+        self._ahead_cache: tuple[LaserScan, tuple[float, float] | None] | None = None
 
     def send(self, goal: Pose2D, tolerance: Tolerance | None, now: float) -> SimNavHandle:
         """Accept a new goal, preempting the running one."""
@@ -396,14 +397,18 @@ class Navigator:
         """The nearest scan point (robot frame) in the corridor the robot is about to sweep."""
         if scan is None:
             return None
-        x, y = self._scan_xy(scan)
-        radius = self.costmap.radius
-        reach = radius + self.spec.obstacle_margin + max(v, 0.1) * 0.5
-        hit = (x > 0.0) & (x < reach) & (np.abs(y) < radius + 0.03)
-        if not hit.any():
-            return None
-        i = int(np.argmin(np.where(hit, x, np.inf)))
-        return float(x[i]), float(y[i])
+        if self._ahead_cache is None or self._ahead_cache[0] is not scan:
+            # nearest point in the robot's swept corridor, once per scan
+            x, y = self._scan_xy(scan)
+            hit = (x > 0.0) & (np.abs(y) < self.costmap.radius + 0.03)
+            nearest = None
+            if hit.any():
+                i = int(np.argmin(np.where(hit, x, np.inf)))
+                nearest = (float(x[i]), float(y[i]))
+            self._ahead_cache = (scan, nearest)
+        nearest = self._ahead_cache[1]
+        reach = self.costmap.radius + self.spec.obstacle_margin + max(v, 0.1) * 0.5
+        return nearest if nearest is not None and nearest[0] < reach else None
 
     def _scan_xy(self, scan: LaserScan) -> tuple[np.ndarray, np.ndarray]:
         """Scan end points in the robot frame (cached per scan)."""

@@ -342,17 +342,21 @@ def first_hit(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray, prims: Primi
     return first_hit_numpy(ox, oy, dx, dy, prims)
 
 
-def fan_first_hit(ox: float, oy: float, angle0: float, increment: float, n: int, prims: Primitives,
-                  accelerate: bool = True) -> np.ndarray:
+def fan_first_hit(ox: float, oy: float, angle0: float, increment: float, n: int, kind: np.ndarray,
+                  geom: np.ndarray, accelerate: bool = True) -> np.ndarray:
     """Range of the nearest entry for ``n`` unit rays at world angles ``angle0 + i * increment``.
 
-    Uses the culled numba kernel when numba is present and ``accelerate``; numpy otherwise.
+    ``kind`` and ``geom`` are the columns of a :class:`Primitives` table (heights do not matter
+    to a planar fan). Uses the culled numba kernel when numba is present and ``accelerate``;
+    numpy otherwise.
     """
-    if len(prims) == 0:
+    if len(kind) == 0:
         return np.full(n, np.inf)
     if accelerate and HAVE_NUMBA:
-        return _fan_jit(float(ox), float(oy), float(angle0), float(increment), int(n), prims.kind, prims.geom)
+        return _fan_jit(float(ox), float(oy), float(angle0), float(increment), int(n), kind, geom)
     a = angle0 + increment * np.arange(n)
+    m = len(kind)
+    prims = Primitives(kind, geom, np.zeros((m, 2)), np.zeros((m, 3)), np.zeros(m, np.int64))
     return first_hit_numpy(ox, oy, np.cos(a), np.sin(a), prims)
 
 
