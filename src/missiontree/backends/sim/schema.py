@@ -272,4 +272,5 @@ class RobotProfile(_Strict):
     physics_dt: float = Field(0.05, gt=0, le=0.2)
     history_horizon: float = Field(10.0, gt=0)
     accelerate: bool = Field(True, description="use numba kernels when numba is installed")
-    camera_thread: bool = Field(True, description="render camera frames on a worker thread (with numba)")
+    camera_thread: bool = Field(False, description="render camera frames on a worker thread (numba); "
+                                "pays off when frames are read less often than they are made")
