@@ -180,3 +180,46 @@ def test_read_log_names_a_broken_line(tmp_path: Path) -> None:
     path.write_text('{"event": "tick"}\nnot json\n')
     with pytest.raises(ConfigError, match=r"ticks.jsonl:2: not a tick log line"):
         read_log(path)
+
+
+class _ThreadEmitter(Leaf):
+    """Emits one event from a worker thread during its first tick, then succeeds on the second."""
+
+    def initialise(self) -> None:
+        self.n = 0
+
+    def update(self) -> Status:
+        import threading
+
+        self.n += 1
+        if self.n == 1:
+            worker = threading.Thread(target=lambda: self.emit("model_answer", latency=0.25))
+            worker.start()
+            worker.join()
+            return Status.RUNNING
+        return Status.SUCCESS
+
+
+def test_event_from_another_thread_is_written_on_the_tick_thread() -> None:
+    """An event emitted off the tick thread is written with its tick's line, like the tick's own events."""
+    _, lines = capture_tick_log(_ThreadEmitter("caller"))
+    kinds = [line["event"] for line in lines]
+    assert kinds[:3] == ["mission_started", "model_answer", "tick"]  # tick 1's events, then its line
+    answer = lines[1]
+    assert (answer["tick"], answer["latency"], answer["node"]) == (1, 0.25, "caller")
+
+
+def test_event_field_named_event_is_kept_under_another_name() -> None:
+    """A leaf field called 'event' does not clash with the line's kind."""
+    stream = io.StringIO()
+    TickLog(stream, "m", clock=lambda: 0.0, simulated=True).emit("alarm", event="person")
+    assert '"event":"alarm"' in stream.getvalue() and '"event_field":"person"' in stream.getvalue()
+
+
+def test_events_after_the_run_are_dropped() -> None:
+    """Once the run has finished, a late event from a worker is dropped, not written to a closed file."""
+    stream = io.StringIO()
+    log = TickLog(stream, "m", clock=lambda: 0.0, simulated=True)
+    log.unbind()
+    log.emit("late", x=1)
+    assert stream.getvalue() == ""

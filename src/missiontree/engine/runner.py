@@ -334,6 +334,8 @@ class Runner:
     def _finish(self, status: Status, stopped_by: str, duration: float) -> RunResult:
         """Restore handlers, draw pictures, write the summary and close the log."""
         self._restore_signal_handlers()
+        if self.log is not None:
+            self.log.flush_pending()
         pictures: list[str] = []
         if self.run_dir is not None and isinstance(self.robot, Drawable):
             try:

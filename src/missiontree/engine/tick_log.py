@@ -26,6 +26,7 @@ import dataclasses
 import enum
 import json
 import math
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -147,11 +148,17 @@ class TickLog:
         #: conversion and the context merge (the hot path).
         self._tick_log = structlog.wrap_logger(writer, processors=[*stamp, render], context_class=dict).bind()
         self._tick = 0
+        #: Events emitted off the tick thread wait here and are written on it, in arrival order.
+        self._owner = threading.get_ident()
+        self._pending: list[tuple[str, dict[str, Any]]] = []
+        self._lock = threading.Lock()
+        self._closed = False
 
     # -- binding -------------------------------------------------------------------------------
 
     def bind(self) -> None:
-        """Bind the mission id for everything logged through structlog from now on."""
+        """Bind the mission id for everything logged through structlog from now on (on this thread)."""
+        self._owner = threading.get_ident()
         structlog.contextvars.bind_contextvars(mission=self.mission, tick=0)
 
     def set_tick(self, tick: int) -> None:
@@ -160,15 +167,41 @@ class TickLog:
         structlog.contextvars.bind_contextvars(tick=tick)
 
     def unbind(self) -> None:
-        """Remove the mission and tick ids from structlog's context."""
+        """Write what other threads left, remove the ids from structlog's context; drop later events."""
+        self.flush_pending()
+        self._closed = True
         structlog.contextvars.unbind_contextvars("mission", "tick")
 
     # -- lines ---------------------------------------------------------------------------------
 
-    def emit(self, event: str, **fields: Any) -> None:
-        """Record a typed event (EventSink): its kind, the backend time and the leaf's fields."""
+    def emit(self, event: str, /, **fields: Any) -> None:
+        """Record a typed event (EventSink): its kind, the backend time and the leaf's fields.
+
+        Called from another thread (a model call's worker), the event is written on the tick
+        thread with the current tick's line (just before it), so lines never interleave. After the
+        run it is dropped.
+        """
+        if self._closed:
+            return
+        if threading.get_ident() != self._owner:
+            with self._lock:
+                self._pending.append((event, fields))
+            return
+        self._write(event, fields)
+
+    def _write(self, event: str, fields: dict[str, Any]) -> None:
         self.event_counts[event] = self.event_counts.get(event, 0) + 1
-        self.line(event, **fields)
+        if "event" in fields:  # structlog's own key: keep the leaf's value under another name
+            fields["event_field"] = fields.pop("event")
+        fields.setdefault("t", self.clock())
+        self._log.msg(event, **fields)
+
+    def flush_pending(self) -> None:
+        """Write the events other threads emitted since the last tick (call on the tick thread)."""
+        with self._lock:
+            pending, self._pending = self._pending, []
+        for event, fields in pending:
+            self._write(event, fields)
 
     def line(self, event: str, **fields: Any) -> None:
         """Write a line of the runner's own (not counted as a leaf event); empty fields left out."""
@@ -179,6 +212,8 @@ class TickLog:
     def tick(self, t: float, status: Status, changed: list[dict[str, Any]], bb: dict[str, Any],
              bb_unset: list[str]) -> None:
         """Write the line of one tick (empty change lists are left out)."""
+        if self._pending:
+            self.flush_pending()
         fields: dict[str, Any] = {"mission": self.mission, "tick": self._tick, "t": round(t, FLOAT_DIGITS),
                                   "status": status.name}
         if changed:
