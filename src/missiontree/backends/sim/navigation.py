@@ -227,6 +227,7 @@ class SimNavHandle:
 class _Follow:
     path: np.ndarray
     cumulative: np.ndarray = None  # type: ignore[assignment]  # arc length at each path point
+    points: list[tuple[float, float]] = None  # type: ignore[assignment]
     index: int = 0
     blocked_since: float | None = None
     last_replan: float = -math.inf
@@ -241,6 +242,7 @@ class _Follow:
     def set_path(self, path: np.ndarray) -> None:
         """Follow a new path from its start."""
         self.path, self.index = path, 0
+        self.points = [(float(x), float(y)) for x, y in path]   # plain floats for the per-step loop
         steps = np.hypot(*np.diff(path, axis=0).T) if len(path) > 1 else np.zeros(0)
         self.cumulative = np.concatenate([[0.0], np.cumsum(steps)])
 
@@ -361,11 +363,12 @@ class Navigator:
 
     def _drive(self, follow: _Follow, now: float, pose: Pose2D, scan: LaserScan | None,
                remaining: float) -> tuple[float, float]:
-        path = follow.path
-        target = path[-1]
-        for i in range(follow.index, len(path)):
-            if math.hypot(path[i, 0] - pose.x, path[i, 1] - pose.y) >= self.spec.lookahead:
-                target = path[i]
+        points = follow.points
+        target = points[-1]
+        for i in range(follow.index, len(points)):
+            px, py = points[i]
+            if math.hypot(px - pose.x, py - pose.y) >= self.spec.lookahead:
+                target = points[i]
                 break
         err = wrap_angle(math.atan2(target[1] - pose.y, target[0] - pose.x) - pose.yaw)
         lim = self.robot.profile.limits
