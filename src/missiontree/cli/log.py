@@ -69,6 +69,8 @@ def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
     last = ticks[-1] if ticks else {}
     ended_by = [c for c in last.get("changed", []) if c.get("status") == "FAILURE"]
     ended_by.sort(key=lambda c: -str(c.get("node", "")).count("/"))
+    if any(c.get("reason") for c in ended_by):  # composites failing "because a child did" add nothing
+        ended_by = [c for c in ended_by if c.get("reason")]
     events: dict[str, int] = {}
     errors: list[dict[str, Any]] = []
     for record in lines:
