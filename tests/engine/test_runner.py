@@ -346,3 +346,12 @@ def test_second_signal_interrupts_at_once_but_still_halts_and_stops() -> None:
     assert leaf.halted_with == Status.INVALID
     assert robot.stop_calls == 1
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_realtime_paces_ticks_to_wall_time() -> None:
+    """With realtime on, five ticks at 20 Hz take at least 0.2 s of wall time."""
+    import time
+
+    start = time.monotonic()
+    _runner(ScriptedLeaf("a", script="RRRRS"), tick_hz=20, realtime=True).run()
+    assert time.monotonic() - start >= 0.19

@@ -40,7 +40,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--max-duration", type=float, metavar="S", help="stop after S seconds (robot clock)")
     parser.add_argument("--tick-hz", type=float, metavar="H", help=f"tick rate (default {DEFAULT_TICK_HZ:g})")
     parser.add_argument("--realtime", action="store_true", default=None,
-                        help="pace the simulator to wall time")
+                        help="pace the ticks to wall time (the simulator then runs no faster than life)")
     parser.add_argument("--allow-outside", action="store_true",
                         help="let subtree includes leave the mission's folder")
     add_plugin_flag(parser)
@@ -70,10 +70,7 @@ def load_run_config(name: str | None) -> dict[str, Any]:
 def robot_options(
     args: argparse.Namespace, defaults: Any, seed: int, config: dict[str, Any],
 ) -> dict[str, Any]:
-    """The backend factory's options: ``world``, ``robot``, ``seed``, ``config`` (only those given).
-
-    ``realtime`` is added only when asked for, so a backend that cannot pace itself says so.
-    """
+    """The backend factory's options: ``world``, ``robot``, ``seed``, ``config`` (only those given)."""
     options: dict[str, Any] = {"seed": seed}
     world = _pick(args.world, defaults.world, None)
     robot = _pick(args.robot, defaults.robot, None)
@@ -83,8 +80,6 @@ def robot_options(
         options["robot"] = robot
     if config:
         options["config"] = config
-    if _pick(args.realtime, defaults.realtime, False):
-        options["realtime"] = True
     return options
 
 
@@ -114,7 +109,8 @@ def run(args: argparse.Namespace) -> int:
         models = build_models(models_config, providers=plugins.providers, seed=seed)
         context = MissionContext(robot=robot, models=models, config=config, seed=seed)
         runner = Runner(root, context, tick_hz=tick_hz, max_duration=max_duration, run_dir=run_dir,
-                        mission=mission, hook=plugins.hook, spec=spec, blackboard=spec.blackboard)
+                        mission=mission, hook=plugins.hook, spec=spec, blackboard=spec.blackboard,
+                        realtime=bool(_pick(args.realtime, defaults.realtime, False)))
         result = runner.run()
     finally:
         robot.close()

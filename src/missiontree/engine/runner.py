@@ -26,6 +26,7 @@ import json
 import math
 import signal
 import threading
+import time
 import traceback
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -173,6 +174,8 @@ class Runner:
         spec: The checked mission spec handed to ``missiontree_mission_started``.
         log_stream: Write the tick log here instead of ``run_dir/ticks.jsonl``.
         blackboard: Keys written to the blackboard before the first tick (logged with tick 1).
+        realtime: Pace the ticks to wall time as well (a simulator then runs no faster than life;
+            a backend on wall time is unaffected). Wall time never reaches the tick log.
         handle_signals: Install SIGINT/SIGTERM handlers while running (main thread only).
     """
 
@@ -180,7 +183,7 @@ class Runner:
         self, root: Behaviour, context: MissionContext, *, tick_hz: float = 10.0,
         max_duration: float | None = None, run_dir: Path | None = None, mission: str = "mission",
         hook: Any = None, spec: Any = None, log_stream: TextIO | None = None, handle_signals: bool = True,
-        blackboard: dict[str, Any] | None = None,
+        blackboard: dict[str, Any] | None = None, realtime: bool = False,
     ) -> None:
         if not (tick_hz > 0 and math.isfinite(tick_hz)):
             raise ConfigError(f"tick rate must be a positive number of ticks per second, found {tick_hz!r}")
@@ -198,6 +201,7 @@ class Runner:
         self.spec = spec
         self.handle_signals = handle_signals
         self.blackboard = dict(blackboard or {})
+        self.realtime = realtime
         self._own_stream = log_stream is None and self.run_dir is not None
         self._stream: TextIO = log_stream if log_stream is not None else io.StringIO()
         self._signal = 0
@@ -313,6 +317,7 @@ class Runner:
 
     def _loop(self, start: float) -> tuple[Status, str]:
         index = 0
+        wall_start = time.monotonic()
         while True:
             if self._signal:
                 return self.root.status, STOPPED_BY_SIGNAL
@@ -330,6 +335,8 @@ class Runner:
             if self.max_duration is not None:
                 next_time = min(next_time, start + self.max_duration)
             self.robot.spin_until(next_time)
+            if self.realtime:
+                time.sleep(max(0.0, wall_start + (next_time - start) - time.monotonic()))
 
     def _finish(self, status: Status, stopped_by: str, duration: float) -> RunResult:
         """Restore handlers, draw pictures, write the summary and close the log."""
