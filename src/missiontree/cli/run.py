@@ -59,6 +59,8 @@ def load_run_config(name: str | None) -> dict[str, Any]:
         return {}
     from missiontree.yamlio import load_yaml
 
+    if Path(name).suffix in {".yaml", ".yml"} and not Path(name).is_file():
+        raise ConfigError(f"--config file {name!r} does not exist; give a YAML file of run options")
     path = find_config("backends", name)
     document = load_yaml(path, error=ProblemsError)
     if not isinstance(document.data, dict):
