@@ -13,7 +13,9 @@ so each running leaf's ``terminate()`` cancels its work) and then calls ``robot.
 Ticking walks only the nodes the tick reaches (the root's tick generator, as ``tick_once()``
 does), never the whole tree as ``BehaviourTree.tick()`` does after every tick (ARCHITECTURE §9).
 An exception escaping a behaviour that is not a :class:`~missiontree.engine.leaf.Leaf` (those
-handle their own) becomes FAILURE of that node with an ``error`` event; the run goes on.
+handle their own) becomes FAILURE of that node with an ``error`` event; the run goes on. A halt
+whose cancel raises is reported the same way. py_trees' own composites and decorators, which only
+manage their children, are trusted and ticked without a wrapper (:data:`TRUSTED_TYPES`).
 
 The run directory gets ``ticks.jsonl`` (:mod:`missiontree.engine.tick_log`), ``summary.json``
 and whatever pictures the backend draws (:class:`~missiontree.robot.interface.Drawable`).
