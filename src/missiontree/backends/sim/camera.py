@@ -134,7 +134,8 @@ def _fill_numpy(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,
     color = floor_rgb[rows, cols].astype(np.float64)
     color = np.where((bb > 0)[..., None], np.array(CEILING_RGB, float), color)
     inst = np.zeros((h, w), np.int64)
-    for k in range(t_in.shape[1] - 1, -1, -1):
+    used = int((idx >= 0).sum(axis=1).max(initial=0))   # layers any column has
+    for k in range(used - 1, -1, -1):
         p = idx[:, k]
         valid = p >= 0
         if not valid.any():
