@@ -361,7 +361,7 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]) -
         people.append(Person(pspec, inst))
         instances[inst] = InstanceInfo(inst, "person", pspec.id, "person")
 
-    grid, walls_grid, map_bounds = _rasterise(spec, seg_array, objects, map_grid)
+    grid, walls_grid = _rasterise(spec, seg_array, objects, map_grid)
     _check_objects(doc, objects, seg_array, walls_grid, grid, problems)
     clearance = cv2.distanceTransform((grid.data < 50).astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
     start = Pose2D(spec.robot.start.x, spec.robot.start.y, spec.robot.start.heading)
@@ -374,7 +374,6 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]) -
     )
     if not problems:
         _check_start(doc, world, problems)
-    del map_bounds
     return world
 
 
@@ -443,7 +442,7 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _rasterise(spec: WorldSpec, segs: np.ndarray, objects: list[WorldObject],
-               map_grid: tuple[np.ndarray, float, Pose2D] | None) -> tuple[OccupancyGrid, np.ndarray, Any]:
+               map_grid: tuple[np.ndarray, float, Pose2D] | None) -> tuple[OccupancyGrid, np.ndarray]:
     if map_grid is not None:
         occupied, res, origin = map_grid
         walls = occupied.copy()
@@ -469,7 +468,7 @@ def _rasterise(spec: WorldSpec, segs: np.ndarray, objects: list[WorldObject],
             poly = ((obj.footprint() - [origin.x, origin.y]) / res * 16).astype(np.int32)
             cv2.fillPoly(canvas, [poly], 1, cv2.LINE_8, shift=4)
     data = np.where(canvas > 0, 100, 0).astype(np.int8)
-    return OccupancyGrid(0.0, res, origin, data), walls_grid, None
+    return OccupancyGrid(0.0, res, origin, data), walls_grid
 
 
 def _floor_colours(grid: OccupancyGrid, rooms: list[Room]) -> np.ndarray:
