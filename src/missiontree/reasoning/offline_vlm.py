@@ -96,8 +96,12 @@ class OfflineVisionModel:
         self.person_label = person_label
 
     def check(self) -> str:
-        """Run the detector on a blank frame; return a one-line description."""
-        self.detector.detect(np.zeros((64, 64, 3), dtype=np.uint8))
+        """Check the detector (its ``check()``, else a run on a blank frame); return one line."""
+        check = getattr(self.detector, "check", None)
+        if callable(check):
+            check()
+        else:
+            self.detector.detect(np.zeros((64, 64, 3), dtype=np.uint8))
         labels = list(getattr(self.detector, "labels", []) or [])
         return (f"offline VLM stand-in on detector {getattr(self.detector, 'name', '?')!r} "
                 f"({len(labels)} labels)")
