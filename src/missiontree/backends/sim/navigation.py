@@ -228,6 +228,8 @@ class _Follow:
     path: np.ndarray
     cumulative: np.ndarray = None  # type: ignore[assignment]  # arc length at each path point
     points: list[tuple[float, float]] = None  # type: ignore[assignment]
+    cumulative_list: list[float] = None  # type: ignore[assignment]
+    total: float = 0.0
     index: int = 0
     blocked_since: float | None = None
     last_replan: float = -math.inf
@@ -245,6 +247,8 @@ class _Follow:
         self.points = [(float(x), float(y)) for x, y in path]   # plain floats for the per-step loop
         steps = np.hypot(*np.diff(path, axis=0).T) if len(path) > 1 else np.zeros(0)
         self.cumulative = np.concatenate([[0.0], np.cumsum(steps)])
+        self.cumulative_list = self.cumulative.tolist()
+        self.total = self.cumulative_list[-1]
 
 
 class Navigator:
@@ -355,11 +359,15 @@ class Navigator:
         return path
 
     def _remaining(self, follow: _Follow, pose: Pose2D) -> float:
-        path = follow.path
-        lo, hi = follow.index, min(len(path), follow.index + 40)
-        d = np.hypot(path[lo:hi, 0] - pose.x, path[lo:hi, 1] - pose.y)
-        follow.index = lo + int(np.argmin(d))
-        return float(d.min()) + float(follow.cumulative[-1] - follow.cumulative[follow.index])
+        """Distance along the path from the robot; moves the progress index to the nearest point ahead."""
+        points = follow.points
+        best, best_i = math.inf, follow.index
+        for i in range(follow.index, min(len(points), follow.index + 40)):
+            d = math.hypot(points[i][0] - pose.x, points[i][1] - pose.y)
+            if d < best:
+                best, best_i = d, i
+        follow.index = best_i
+        return best + follow.total - follow.cumulative_list[best_i]
 
     def _drive(self, follow: _Follow, now: float, pose: Pose2D, scan: LaserScan | None,
                remaining: float) -> tuple[float, float]:

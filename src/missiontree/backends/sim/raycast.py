@@ -269,6 +269,8 @@ def _fan_loops(ox, oy, angle0, inc, n, kind, geom):  # noqa: ANN001, ANN202
     """Nearest entry per ray of a full fan, visiting only the rays each primitive's bound subtends."""
     out = np.full(n, np.inf)
     two_pi = 2.0 * np.pi
+    angles = angle0 + inc * np.arange(n)
+    cos_a, sin_a = np.cos(angles), np.sin(angles)
     for p in range(len(kind)):
         bx, by, br = _bound(kind[p], geom[p])
         d = np.sqrt((bx - ox) ** 2 + (by - oy) ** 2)
@@ -281,8 +283,7 @@ def _fan_loops(ox, oy, angle0, inc, n, kind, geom):  # noqa: ANN001, ANN202
             count = min(n, int(np.ceil(2.0 * hw / inc)) + 2)
         for j in range(count):
             i = (start + j) % n
-            a = angle0 + i * inc
-            t, _, _ = _hit_one(ox, oy, np.cos(a), np.sin(a), kind[p], geom[p])
+            t, _, _ = _hit_one(ox, oy, cos_a[i], sin_a[i], kind[p], geom[p])
             if t < out[i]:
                 out[i] = t
     return out
