@@ -16,6 +16,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from missiontree.backends.sim.raycast import CYLINDER, Primitives, Row
 from missiontree.backends.sim.schema import PersonSpec
 
@@ -97,22 +99,29 @@ class Person:
             return 0.0
         return self._headings[min(i, len(self._headings) - 1)]
 
+    def centres(self, state: PersonState) -> list[tuple[float, float]]:
+        """Centres of the left leg, right leg, torso and head (the legs swing with the gait)."""
+        c, si = math.cos(state.heading), math.sin(state.heading)
+        swing = 0.18 * math.sin(2.0 * math.pi * state.travelled / STEP_LENGTH) if state.walking else 0.0
+        left = (state.x - si * LEG_SPREAD + c * swing, state.y + c * LEG_SPREAD + si * swing)
+        right = (state.x + si * LEG_SPREAD - c * swing, state.y - c * LEG_SPREAD - si * swing)
+        return [left, right, (state.x, state.y), (state.x, state.y)]
+
+    def rows(self) -> list[tuple[float, float, float, tuple[int, int, int]]]:
+        """(radius, bottom, top, colour) of the left leg, right leg, torso and head."""
+        spec = self.spec
+        return [(LEG_RADIUS, 0.0, LEG_HEIGHT, spec.trousers_rgb),
+                (LEG_RADIUS, 0.0, LEG_HEIGHT, spec.trousers_rgb),
+                (TORSO_RADIUS, LEG_HEIGHT, TORSO_TOP, spec.shirt_rgb),
+                (HEAD_RADIUS, TORSO_TOP + 0.04, HEAD_TOP, spec.skin_rgb)]
+
     def primitives(self, t: float, state: PersonState | None = None) -> list[Row]:
         """Prism rows (see :class:`Primitives`) for legs, torso and head at time ``t``."""
         s = state if state is not None else self.state_at(t)
         if not s.present:
             return []
-        c, si = math.cos(s.heading), math.sin(s.heading)
-        swing = 0.18 * math.sin(2.0 * math.pi * s.travelled / STEP_LENGTH) if s.walking else 0.0
-        spec = self.spec
-        rows = []
-        for side, sign in ((LEG_SPREAD, 1.0), (-LEG_SPREAD, -1.0)):
-            lx = s.x - si * side + c * swing * sign
-            ly = s.y + c * side + si * swing * sign
-            rows.append((CYLINDER, (lx, ly, LEG_RADIUS), 0.0, LEG_HEIGHT, spec.trousers_rgb, self.inst))
-        rows.append((CYLINDER, (s.x, s.y, TORSO_RADIUS), LEG_HEIGHT, TORSO_TOP, spec.shirt_rgb, self.inst))
-        rows.append((CYLINDER, (s.x, s.y, HEAD_RADIUS), TORSO_TOP + 0.04, HEAD_TOP, spec.skin_rgb, self.inst))
-        return rows
+        return [(CYLINDER, (x, y, r), z0, z1, rgb, self.inst)
+                for (x, y), (r, z0, z1, rgb) in zip(self.centres(s), self.rows(), strict=True)]
 
 
 class Crowd:
@@ -122,6 +131,13 @@ class Crowd:
         self.people = people
         self._prims_at: tuple[float, Primitives] | None = None
         self._states_at: tuple[float, list[PersonState]] | None = None
+        # the parts that do not move: radius, heights, colours, ids (4 rows a person)
+        rows = [row for person in people for row in person.rows()]
+        self._geom = np.zeros((len(rows), 6))
+        self._geom[:, 2] = [r[0] for r in rows]
+        self._z = np.array([(r[1], r[2]) for r in rows], np.float64).reshape(-1, 2)
+        self._rgb = np.array([r[3] for r in rows], np.float64).reshape(-1, 3)
+        self._inst = np.repeat(np.array([p.inst for p in people], np.int64), 4)
 
     def __len__(self) -> int:
         return len(self.people)
@@ -135,10 +151,16 @@ class Crowd:
     def primitives(self, t: float) -> Primitives:
         """Prisms of everyone present at time ``t``."""
         if self._prims_at is None or self._prims_at[0] != t:
-            rows = []
-            for person, state in zip(self.people, self.states(t), strict=True):
-                rows.extend(person.primitives(t, state))
-            self._prims_at = (t, Primitives.build(rows))
+            states = self.states(t)
+            geom = self._geom.copy()
+            present = np.ones(len(geom), bool)
+            for i, (person, state) in enumerate(zip(self.people, states, strict=True)):
+                if state.present:
+                    geom[4 * i: 4 * i + 4, :2] = person.centres(state)
+                else:
+                    present[4 * i: 4 * i + 4] = False
+            table = Primitives(np.full(len(geom), CYLINDER, np.int64), geom, self._z, self._rgb, self._inst)
+            self._prims_at = (t, table if present.all() else table.select(present))
         return self._prims_at[1]
 
     def positions(self, t: float) -> list[tuple[str, float, float]]:
