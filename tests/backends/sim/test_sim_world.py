@@ -150,3 +150,10 @@ def test_broken_world_through_the_cli_exits_2(write_world, tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2
     assert f"{path}:10:" in err and "colour" in err and f"{path}:3:" in err and "turtlebot9" in err
+
+
+def test_person_walking_through_a_wall(write_world):
+    """A route leg that crosses a wall is reported at the route point it leads to."""
+    path = write_world(ROOM + "people:\n  - {id: ghost, route: [[1, 1], [7, 1]], loop: false}\n")
+    (problem,) = _problems(path)
+    assert ":10:" in problem and "'ghost' walks through a wall" in problem

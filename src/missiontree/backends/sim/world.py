@@ -363,6 +363,7 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]) -
 
     grid, walls_grid = _rasterise(spec, seg_array, objects, map_grid)
     _check_objects(doc, objects, seg_array, walls_grid, grid, problems)
+    _check_routes(doc, spec, seg_array, problems)
     clearance = cv2.distanceTransform((grid.data < 50).astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
     start = Pose2D(spec.robot.start.x, spec.robot.start.y, spec.robot.start.heading)
     rooms = [Room(r.name, r.type, np.array(r.polygon, float), r.floor_rgb) for r in spec.rooms]
@@ -503,6 +504,42 @@ def _check_objects(doc: Located, objects: list[WorldObject], segs: np.ndarray, w
                 f"{obj.pose.x:.2f}, {obj.pose.y:.2f}) overlaps a wall",
                 "move it off the wall or make it smaller",
             ))
+
+
+def _check_routes(doc: Located, spec: WorldSpec, segs: np.ndarray, problems: list[Problem]) -> None:
+    """People must not walk through walls (their route legs may not cross a wall segment)."""
+    if not len(segs):
+        return
+    for i, person in enumerate(spec.people):
+        points = [tuple(p) for p in person.route]
+        if person.loop and len(points) > 2:
+            points.append(points[0])
+        for j, (a, b) in enumerate(zip(points[:-1], points[1:], strict=True)):
+            if _crosses_any(a, b, segs):
+                k = min(j + 1, len(person.route) - 1)
+                problems.append(doc.problem_at(
+                    ("people", i, "route", k),
+                    f"person {person.id!r} walks through a wall between ({a[0]:g}, {a[1]:g}) and "
+                    f"({b[0]:g}, {b[1]:g})" + (" (the loop closes back to the first point)"
+                                               if j == len(person.route) - 1 else ""),
+                    "add a route point at a door, or set loop: false",
+                ))
+                break
+
+
+def _crosses_any(a: tuple[float, float], b: tuple[float, float], segs: np.ndarray) -> bool:
+    """Whether the segment a-b properly crosses any wall segment (touching does not count)."""
+    ax, ay, bx, by = a[0], a[1], b[0], b[1]
+    p, q = segs[:, :2], segs[:, 2:]
+
+    def side(ox: Any, oy: Any, px: Any, py: Any, qx: Any, qy: Any) -> Any:
+        return (px - ox) * (qy - oy) - (py - oy) * (qx - ox)
+
+    d1 = side(ax, ay, bx, by, p[:, 0], p[:, 1])
+    d2 = side(ax, ay, bx, by, q[:, 0], q[:, 1])
+    d3 = side(p[:, 0], p[:, 1], q[:, 0], q[:, 1], ax, ay)
+    d4 = side(p[:, 0], p[:, 1], q[:, 0], q[:, 1], bx, by)
+    return bool(np.any((d1 * d2 < -1e-12) & (d3 * d4 < -1e-12)))
 
 
 def _footprint_hits_walls(obj: WorldObject, segs: np.ndarray) -> bool:
