@@ -132,12 +132,13 @@ def _hits_numpy(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray,
         with np.errstate(divide="ignore", invalid="ignore"):
             ax1, ax2 = (-hx - qx) / lx, (hx - qx) / lx
             ay1, ay2 = (-hy - qy) / ly, (hy - qy) / ly
-        ax1 = np.where(np.abs(lx) < _EPS, np.where(np.abs(qx) <= hx, -np.inf, np.inf), ax1)
-        ax2 = np.where(np.abs(lx) < _EPS, np.where(np.abs(qx) <= hx, np.inf, -np.inf), ax2)
-        ay1 = np.where(np.abs(ly) < _EPS, np.where(np.abs(qy) <= hy, -np.inf, np.inf), ay1)
-        ay2 = np.where(np.abs(ly) < _EPS, np.where(np.abs(qy) <= hy, np.inf, -np.inf), ay2)
-        xmin, xmax = np.minimum(ax1, ax2), np.maximum(ax1, ax2)
-        ymin, ymax = np.minimum(ay1, ay2), np.maximum(ay1, ay2)
+        # a ray parallel to a slab is inside it everywhere or nowhere
+        par_x, par_y = np.abs(lx) < _EPS, np.abs(ly) < _EPS
+        in_x, in_y = np.abs(qx) <= hx, np.abs(qy) <= hy
+        xmin = np.where(par_x, np.where(in_x, -np.inf, np.inf), np.minimum(ax1, ax2))
+        xmax = np.where(par_x, np.where(in_x, np.inf, -np.inf), np.maximum(ax1, ax2))
+        ymin = np.where(par_y, np.where(in_y, -np.inf, np.inf), np.minimum(ay1, ay2))
+        ymax = np.where(par_y, np.where(in_y, np.inf, -np.inf), np.maximum(ay1, ay2))
         tmin, tmax = np.maximum(xmin, ymin), np.minimum(xmax, ymax)
         ok = (tmax >= tmin) & (tmin > _EPS)
         t_in[:, idx] = np.where(ok, tmin, np.inf)
