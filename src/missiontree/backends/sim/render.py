@@ -70,7 +70,7 @@ def draw_topdown(robot: SimRobot, markers: list[Marker], path: Path) -> None:
               center=True)
     _draw_people(canvas, robot)
     _draw_robot(canvas, robot)
-    for goal in robot._nav.goals:
+    for goal in robot.goals:
         p = canvas.px(goal.x, goal.y)
         cv2.drawMarker(img, p, (40, 160, 40), cv2.MARKER_TILTED_CROSS, 12, 2)
     for marker in markers:

@@ -183,6 +183,11 @@ class SimRobot:
         (self._quiet.add if quiet else self._quiet.discard)(sensor)
 
     @property
+    def goals(self) -> list[Pose2D]:
+        """Every navigation goal sent so far, in order (for pictures and evaluation)."""
+        return list(self._nav.goals)
+
+    @property
     def true_pose(self) -> Pose2D:
         """The true pose (for evaluation; behaviours use pose())."""
         return self._base.pose
