@@ -17,7 +17,8 @@ path. Scoring uses the simulator's ground truth (never seen by the leaves):
 
 - an *encounter* is a run of frames in which a person shows (gaps up to 1 s bridged), with at least
   two frames showing them with MIN_PIXELS or more; it is *detected* when an alarm's frame lies inside
-  it and shows that person;
+  it and shows that person (encounters that begin in a run's last 3 s, the longest answer latency,
+  are not scored: no configuration could answer them before the patrol ends);
 - the distance error of an alarm is |reported − true| against the true distance, at the frame's
   time, from the robot to the person in that frame whose distance matches best (favourable to
   every method alike); an alarm without a distance (the seed's ``inf``) counts as an error > 1 m.
@@ -244,7 +245,8 @@ def score_events(score: RunScore, events: list[dict[str, Any]], truth: Any, pose
     score.calls = sum(1 for e in events if e["event"] == "model_call" and e.get("role") == "vlm")
     score.reached = sum(1 for e in events if e["event"] == "waypoint_reached")
     score.skipped = sum(1 for e in events if e["event"] == "waypoint_skipped")
-    spans = encounters(truth.visibility)
+    end = truth.visibility[-1][0] if truth.visibility else 0.0
+    spans = [span for span in encounters(truth.visibility) if span[1] < end - LATENCY[1]]
     shown = [(a["stamp"], set(truth.visible_at(a["stamp"]))) for a in alarms]
     score.encounters = len(spans)
     score.detected = sum(1 for name, t0, t1 in spans
