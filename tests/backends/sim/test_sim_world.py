@@ -157,3 +157,22 @@ def test_person_walking_through_a_wall(write_world):
     path = write_world(ROOM + "people:\n  - {id: ghost, route: [[1, 1], [7, 1]], loop: false}\n")
     (problem,) = _problems(path)
     assert ":10:" in problem and "'ghost' walks through a wall" in problem
+
+
+def test_map_server_world_reads_occupied_free_and_unknown():
+    """A map_server map: black cells are walls (the lidar sees their edges), grey ones unknown (-1)."""
+    import math
+
+    import numpy as np
+
+    robot = create_robot({"world": "map_example", "config": {"lidar": {"noise": 0.0}}})
+    grid = robot.occupancy()
+    assert set(np.unique(grid.data).tolist()) == {-1, 0, 100}
+    assert grid.data[grid.world_to_cell(0.1, 0.1)] == -1       # the unknown border of the image
+    assert grid.data[grid.world_to_cell(0.3, 3.0)] == 100      # the west wall cells (x 0.25-0.40)
+    scan = robot.scan()
+    angles = np.angle(np.exp(1j * scan.angles()))
+    ahead = int(np.argmin(np.abs(angles)))
+    right = int(np.argmin(np.abs(angles + math.pi / 2)))
+    assert scan.ranges[ahead] == pytest.approx(2.0, abs=0.02)  # inner wall face at x = 4.0, start x = 2.0
+    assert scan.ranges[right] == pytest.approx(1.6, abs=0.02)  # south wall face at y = 0.4, start y = 2.0

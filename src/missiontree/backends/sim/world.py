@@ -326,8 +326,8 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]) -
     if spec.map is not None:
         map_grid = _read_nav2_map(spec, doc, path, problems)
         if map_grid is not None:
-            occupied, res, origin = map_grid
-            map_segments = _contour_segments(occupied, res, origin)
+            cells, res, origin = map_grid
+            map_segments = _contour_segments(cells >= 50, res, origin)
             segments += map_segments
             rows += [(SEGMENT, s, 0.0, spec.map.height, spec.map.rgb, WALL_INSTANCE) for s in map_segments]
             ceiling = max(ceiling if spec.walls else 0.0, spec.map.height)
@@ -410,10 +410,27 @@ def _read_nav2_map(spec: WorldSpec, doc: Located, path: Path,
         problems.append(mdoc.problem_at(("image",), f"map image {meta.image!r} does not exist or is not an "
                                         f"image (looked at {image_path})", "fix the `image:` path"))
         return None
-    value = image.astype(float) / 255.0
-    occ = value if meta.negate else 1.0 - value
-    occupied = np.flipud(occ > meta.occupied_thresh)  # row 0 = lowest y, as in OccupancyGrid
-    return occupied, meta.resolution, Pose2D(meta.origin[0], meta.origin[1], 0.0)
+    return _map_cells(image, meta), meta.resolution, Pose2D(meta.origin[0], meta.origin[1], 0.0)
+
+
+def _map_cells(image: np.ndarray, meta: NavMapYaml) -> np.ndarray:
+    """Occupancy values (100 occupied, 0 free, -1 unknown) as Nav2's map_server reads the image.
+
+    Row 0 of the result is the map's lowest y (the image's bottom row), as in OccupancyGrid.
+    """
+    if meta.mode == "raw":
+        cells = np.where(image <= 100, image, -1).astype(np.int8)
+    else:
+        occ = image.astype(float) / 255.0
+        occ = occ if meta.negate else 1.0 - occ
+        cells = np.full(image.shape, -1, np.int8)
+        cells[occ < meta.free_thresh] = 0
+        if meta.mode == "scale":
+            between = (occ >= meta.free_thresh) & (occ <= meta.occupied_thresh)
+            scaled = 99.0 * (occ - meta.free_thresh) / max(meta.occupied_thresh - meta.free_thresh, 1e-9)
+            cells[between] = scaled[between].astype(np.int8)
+        cells[occ > meta.occupied_thresh] = 100
+    return np.flipud(cells)
 
 
 def _contour_segments(occupied: np.ndarray, res: float,
@@ -444,9 +461,11 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 def _rasterise(spec: WorldSpec, segs: np.ndarray, objects: list[WorldObject],
                map_grid: tuple[np.ndarray, float, Pose2D] | None) -> tuple[OccupancyGrid, np.ndarray]:
+    unknown = None
     if map_grid is not None:
-        occupied, res, origin = map_grid
-        walls = occupied.copy()
+        cells, res, origin = map_grid
+        walls = cells >= 50
+        unknown = cells < 0
     else:
         res = spec.resolution
         pts = [segs[:, :2], segs[:, 2:]] + [o.footprint() for o in objects]
@@ -469,6 +488,8 @@ def _rasterise(spec: WorldSpec, segs: np.ndarray, objects: list[WorldObject],
             poly = ((obj.footprint() - [origin.x, origin.y]) / res * 16).astype(np.int32)
             cv2.fillPoly(canvas, [poly], 1, cv2.LINE_8, shift=4)
     data = np.where(canvas > 0, 100, 0).astype(np.int8)
+    if unknown is not None:
+        data[unknown & (canvas == 0)] = -1
     return OccupancyGrid(0.0, res, origin, data), walls_grid
 
 
