@@ -73,7 +73,7 @@ MERGE_GAP = 1.0               # seconds out of view that still belong to the sam
 OVERLAP = 0.36                # m: robot body (0.17) + torso (0.19); simulated walkers pass through it
 WALKER_SPACING = 3.0          # metres of route between crossing walkers
 BEARING_BINS = [-35, -25, -15, -5, 5, 15, 25, 35]
-SEED = 7
+SEEDS = (7, 13)               # each scenario runs with walkers and simulator seeded by each
 
 
 @dataclass
@@ -82,6 +82,7 @@ class RunScore:
 
     scenario: str
     config: str
+    seed: int = 0
     sim_seconds: float = 0.0
     wall_seconds: float = 0.0
     encounters: int = 0
@@ -206,16 +207,16 @@ def build_models(robot: Any) -> tuple[dict[str, Any], str]:
 
 
 def run_one(scenario: str, world_path: Path, route: str, laps: int, name: str,
-            tmp: Path) -> tuple[RunScore, str]:
+            tmp: Path, seed: int) -> tuple[RunScore, str]:
     """Run one configuration on one scenario and score it against ground truth."""
     plugins = load_plugins(autoload=False)
     tree = tmp / f"{name}.yaml"
     tree.write_text(tree_text(route, laps, CONFIGS[name]))
     spec = load_mission(tree, plugins.nodes, allow_outside=True)
     root = build_tree(spec, plugins.nodes)
-    robot = create_robot({"world": str(world_path), "seed": SEED})
+    robot = create_robot({"world": str(world_path), "seed": seed})
     models, note = build_models(robot)
-    context = MissionContext(robot=robot, models=models, seed=SEED)
+    context = MissionContext(robot=robot, models=models, seed=seed)
     truth_poses: dict[float, Any] = {}
     spin = robot.spin_until
 
@@ -230,7 +231,8 @@ def run_one(scenario: str, world_path: Path, route: str, laps: int, name: str,
     started = time.perf_counter()
     result = Runner(root, context, tick_hz=10, max_duration=900, log_stream=stream, mission=name,
                     handle_signals=False).run()
-    score = RunScore(scenario, name, sim_seconds=robot.now(), wall_seconds=time.perf_counter() - started)
+    score = RunScore(scenario, name, seed, sim_seconds=robot.now(),
+                     wall_seconds=time.perf_counter() - started)
     events = [json.loads(line) for line in stream.getvalue().splitlines()]
     robot.close()
     if result.status.name != "SUCCESS":
@@ -325,21 +327,21 @@ def json_number(value: float) -> float | None:
 
 
 def main() -> int:
-    rng = random.Random(SEED)
     scores: list[RunScore] = []
     note = ""
     started = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="patrol_eval_") as tmp_name:
         tmp = Path(tmp_name)
-        for i, (scenario, world, route, laps) in enumerate(SCENARIOS):
-            world_path = crossing_world(world, route, tmp, rng)
+        runs = [(seed, *scenario) for seed in SEEDS for scenario in SCENARIOS]
+        for i, (seed, scenario, world, route, laps) in enumerate(runs):
+            world_path = crossing_world(world, route, tmp, random.Random(f"{seed}:{scenario}"))
             order = list(CONFIGS) if i % 2 == 0 else list(reversed(CONFIGS))  # alternate the order
             for name in order:
-                score, note = run_one(scenario, world_path, route, laps, name, tmp)
+                score, note = run_one(scenario, world_path, route, laps, name, tmp, seed)
                 scores.append(score)
                 median, p95, over = stats(score.errors)
                 label = {"seed_05": "C", "seed_02": "D"}.get(name, "C/D") if scenario == "C/D" else scenario
-                print(f"scenario {label:4} {name:8} encounters {score.encounters:3} detected "
+                print(f"seed {seed:2} scenario {label:4} {name:8} encounters {score.encounters:3} detected "
                       f"{score.detection_rate:.3f}  calls/s {score.calls_per_s:.2f}  error median "
                       f"{fmt(median)} p95 {fmt(p95)} >1m {over:3} (alarms {len(score.errors)}, no distance "
                       f"{score.no_distance}, overlapping {score.overlapping})  waypoints reached "
@@ -376,9 +378,9 @@ def main() -> int:
             f"{k}: n={v['n']} med={v['median_m']} p95={v['p95_m']}" for k, v in per_bin.items()))
     for reference in ("seed_05", "seed_02"):
         ratios_err, ratios_det = [], []
-        for scenario, *_ in SCENARIOS:
-            ours = next(s for s in scores if s.scenario == scenario and s.config == "ours")
-            ref = next(s for s in scores if s.scenario == scenario and s.config == reference)
+        for seed, (scenario, *_) in ((seed, sc) for seed in SEEDS for sc in SCENARIOS):
+            ours = next(s for s in scores if (s.seed, s.scenario, s.config) == (seed, scenario, "ours"))
+            ref = next(s for s in scores if (s.seed, s.scenario, s.config) == (seed, scenario, reference))
             m_ours, m_ref = stats(ours.errors)[0], stats(ref.errors)[0]
             if m_ours > 0 and math.isfinite(m_ref):
                 ratios_err.append(m_ref / m_ours)
@@ -389,7 +391,7 @@ def main() -> int:
             if ratios:
                 print(f"ratio {label} vs {reference}: min {min(ratios):.2f} "
                       f"median {float(np.median(ratios)):.2f} max {max(ratios):.2f} "
-                      f"over {len(ratios)} scenarios")
+                      f"over {len(ratios)} scenario runs")
     summary["detector"] = note
     summary["wall_seconds"] = round(time.perf_counter() - started, 1)
     print(json.dumps(summary, sort_keys=True))
