@@ -70,7 +70,7 @@ class Surveillance(Leaf):
             "detect", description="poll: send a frame every period (seed 001); detect: detector on every "
             "frame, VLM confirms.")
         period: float = Field(
-            0.5, gt=0, description="Seconds between VLM calls (poll) or least gap between confirmations.")
+            0.5, gt=0, description="Seconds between VLM calls (poll); seconds per call on average (detect).")
         max_in_flight: int = Field(1, ge=1, description="Most VLM calls waiting for an answer at once.")
         confirm: bool = Field(True, description="detect mode: the VLM confirms (false: detector decides).")
         method: Method = Field("depth", description="Distance method: seed, cone or depth.")
@@ -131,8 +131,10 @@ class Surveillance(Leaf):
 
     def terminate(self, new_status: Status) -> None:
         """Cancel the calls in flight (a halted surveillance does not act on late answers)."""
+        now = self.context.robot.now() if self.ctx is not None else 0.0
         for pending in self.pending:
             pending.call.cancel()
+            self._set_tracks(pending, "new", now)  # never answered: ask again when seen again
         self.pending.clear()
 
     # -- frames ----------------------------------------------------------------------------------
