@@ -176,3 +176,11 @@ def test_unsupported_schema_names_what_it_answers() -> None:
 
     with pytest.raises(ModelError, match="IntentResolution schema.*configure a VLM provider"):
         OfflineVisionModel(BoxDetector()).ask([scene()], "which?", IntentResolution)
+
+
+def test_class_the_detector_cannot_see_is_no_match_with_zero_confidence() -> None:
+    """A description naming no class the detector knows is not a match, with confidence 0 and why."""
+    prompt = crop_match_prompt("red fire extinguisher")
+    match = CropMatch.model_validate_json(OfflineVisionModel(BoxDetector()).ask([scene()], prompt, CropMatch))
+    assert not match.matches and match.confidence == 0.0
+    assert "knows no class in 'red fire extinguisher'" in match.reason

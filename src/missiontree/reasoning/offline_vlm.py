@@ -151,7 +151,11 @@ class OfflineVisionModel:
         """Whether ``image`` shows the described object (label and colour)."""
         labels = list(getattr(self.detector, "labels", []) or [])
         found = find_label(description, labels) if labels else None
-        wanted = found[0] if found else fold_label(description.split()[-1]) if description.split() else ""
+        if found is None:
+            return CropMatch(matches=False, confidence=0.0, reason=(
+                f"cannot tell: the detector knows no class in {description!r} "
+                f"(it knows {', '.join(labels[:12]) or 'nothing'})"))
+        wanted = found[0]
         colours = colour_words(description)
         seen = [d for d in self._detections(image) if fold_label(d.label) == fold_label(wanted)]
         if not seen:
