@@ -103,3 +103,15 @@ def test_no_check_only_lists(tmp_path: Path, capsys: pytest.CaptureFixture[str])
                            "api_key_env: null}\n")
     assert main(["models", "--models", str(path), "--no-plugins", "--no-check"]) == 0
     assert "unchecked" in capsys.readouterr().out
+
+
+def test_shipped_default_config_is_usable(capsys: pytest.CaptureFixture[str]) -> None:
+    """The default (offline) models config is usable as shipped: detector, stand-ins and embedder load."""
+    from missiontree.perception.providers import SIM_DETECTOR_MODEL
+
+    if not SIM_DETECTOR_MODEL.is_file():
+        pytest.skip("the simulator detector model is not built in this checkout")
+    code = main(["models", "--no-plugins"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "offline.yaml" in out and "all providers usable" in out
