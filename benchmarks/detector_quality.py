@@ -14,7 +14,8 @@ frame so that machine load affects both alike:
 
 mAP@0.5 and per-class AP use :class:`~missiontree.perception.evaluation.APAccumulator` (VOC
 all-point AP); objects showing fewer than MIN_PIXELS pixels are *ignored* (neither demanded nor
-held against a detection). Times are wall-clock milliseconds per frame of ``detect()``
+held against a detection). ``map50_medium_large`` also ignores COCO's "small" objects (box under
+32x32 pixels of the 320x240 frame). Times are wall-clock milliseconds per frame of ``detect()``
 (letterbox, inference, decoding, NMS); the ratio sim_detector/oracle is taken per frame.
 
 Run: ``.venv/bin/python benchmarks/detector_quality.py [--views N] [--worlds N]``.
@@ -41,10 +42,17 @@ from missiontree.perception.evaluation import APAccumulator, GroundTruth  # noqa
 from missiontree.perception.oracle import OracleDetector  # noqa: E402
 from missiontree.perception.providers import SIM_DETECTOR_MODEL, create_sim_detector  # noqa: E402
 
+#: COCO's "small" objects: box area under 32 x 32 pixels (ignored in the medium+large figure).
+SMALL_AREA = 32 * 32
 
-def truth_of(kept: np.ndarray, ignored: np.ndarray) -> list[GroundTruth]:
-    """Ground truth of one view from its label arrays (class, x1, y1, x2, y2)."""
-    rows = [(r, False) for r in kept] + [(r, True) for r in ignored]
+
+def truth_of(kept: np.ndarray, ignored: np.ndarray, min_area: float = 0.0) -> list[GroundTruth]:
+    """Ground truth of one view from its label arrays (class, x1, y1, x2, y2).
+
+    Objects in ``ignored``, and those whose box is smaller than ``min_area``, are marked ignored.
+    """
+    small = [(r[3] - r[1]) * (r[4] - r[2]) < min_area for r in kept]
+    rows = [(r, bool(s)) for r, s in zip(kept, small, strict=True)] + [(r, True) for r in ignored]
     return [GroundTruth(CLASSES[int(r[0])], (float(r[1]), float(r[2]), float(r[3]), float(r[4])), flag)
             for r, flag in rows]
 
@@ -78,11 +86,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--worlds", type=int, default=20, help="fresh worlds to render")
     parser.add_argument("--views", type=int, default=25, help="views per world")
     parser.add_argument("--seed", type=int, default=12345, help="seed of the camera poses")
+    parser.add_argument("--model", default=None, help="another model to score (default: the shipped one)")
     args = parser.parse_args(argv)
 
-    detector = create_sim_detector({"threads": 2, "score_threshold": 0.05})
+    options = {"threads": 2, "score_threshold": 0.05}
+    detector = create_sim_detector(options if args.model is None else {**options, "model": args.model})
     rng = np.random.default_rng(args.seed)
-    ours, reference = APAccumulator(0.5), APAccumulator(0.5)
+    ours, reference, ours_ml = APAccumulator(0.5), APAccumulator(0.5), APAccumulator(0.5)
     ms_ours: list[float] = []
     ms_ref: list[float] = []
     ratios: list[float] = []
@@ -106,6 +116,7 @@ def main(argv: list[str] | None = None) -> None:
                     ref = oracle.detect_frame(frame)  # type: ignore[arg-type]
                 timings[which] = (time.perf_counter() - started) * 1000.0
             ours.add(found, truth)
+            ours_ml.add(found, truth_of(kept, ignored, min_area=SMALL_AREA))
             reference.add(ref, truth)
             ms_ours.append(timings[0])
             ms_ref.append(timings[1])
@@ -115,13 +126,14 @@ def main(argv: list[str] | None = None) -> None:
     per_class = ours.per_class()
     counts = ours.truth_counts()
     print(f"{frames} views of {args.worlds} fresh worlds (seeds {EVAL_FIRST_WORLD}..."
-          f"{EVAL_FIRST_WORLD + args.worlds - 1}); model {SIM_DETECTOR_MODEL.name}")
+          f"{EVAL_FIRST_WORLD + args.worlds - 1}); model {args.model or SIM_DETECTOR_MODEL}")
     print(f"{'class':<14} {'objects':>7} {'AP@0.5':>7}")
     for label in CLASSES:
         if label in per_class:
             print(f"{label:<14} {counts[label]:>7} {per_class[label]:>7.3f}")
     print(f"mAP@0.5  sim_detector {ours.mean_ap():.3f}   oracle {reference.mean_ap():.3f}   "
           f"ratio {ours.mean_ap() / max(reference.mean_ap(), 1e-9):.3f}")
+    print(f"mAP@0.5 on medium and large objects (box >= 32x32 px) sim_detector {ours_ml.mean_ap():.3f}")
     print(f"ms/frame sim_detector min/median/max {spread(ms_ours)}")
     print(f"ms/frame oracle       min/median/max {spread(ms_ref)}")
     print(f"ratio sim_detector/oracle per frame min/median/max {spread(ratios)}")
@@ -131,6 +143,8 @@ def main(argv: list[str] | None = None) -> None:
         "ms_per_frame_min": round(min(ms_ours), 3),
         "ms_per_frame_max": round(max(ms_ours), 3),
         "ap50_per_class": {k: round(v, 4) for k, v in per_class.items()},
+        "map50_medium_large": round(ours_ml.mean_ap(), 4),
+        "ap50_medium_large_per_class": {k: round(v, 4) for k, v in ours_ml.per_class().items()},
         "objects_per_class": counts,
         "oracle_map50": round(reference.mean_ap(), 4),
         "oracle_ms_per_frame_median": round(statistics.median(ms_ref), 3),

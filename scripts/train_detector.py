@@ -16,8 +16,9 @@ The network (about 0.3 M parameters): a strided conv backbone with depthwise-sep
 blocks to stride 32, a top-down feature pyramid, and a shared-weight-free head per level (strides
 8, 16, 32) predicting class logits and a box (centre offset and log size per cell). Each object is
 assigned to the cells around its centre on the level whose stride suits its size; classification
-is binary cross-entropy with the predicted box's IoU as the positives' target (so scores rank by
-localisation quality), boxes are trained with GIoU.
+is binary cross-entropy with the IoU of the cell's predicted box as its target (at least 0.2; 0
+elsewhere, nothing on the cells of objects too small to demand), so that scores rank boxes by how
+well they fit; boxes are trained with GIoU.
 """
 
 from __future__ import annotations
@@ -234,7 +235,7 @@ def detection_loss(
         pred = box_xyxy(decode_boxes(raw, centres, strides)[positive])
         iou, g = giou(pred, target_boxes[positive])
         box_loss = (1.0 - g).sum() / num_pos
-        score_target[positive, cls[positive]] = iou.detach().clamp(min=0.1)
+        score_target[positive, cls[positive]] = iou.detach().clamp(min=0.2)
     weight = (~ignored).float()[..., None].expand_as(logits)
     cls_loss = F.binary_cross_entropy_with_logits(logits, score_target, weight, reduction="sum") / num_pos
     total = cls_loss + 5.0 * box_loss
@@ -295,6 +296,9 @@ def train(args: argparse.Namespace) -> None:
           + f"; ignored (under {MIN_PIXELS} px): {sum(len(i) for i in ignored)}", flush=True)
     images, labels = to_input(images, labels)
     model = TinyDetector(len(CLASSES), widths=tuple(args.widths))
+    if args.init:
+        model.load_state_dict(torch.load(args.init))
+        print(f"starting from {args.init}", flush=True)
     params = sum(p.numel() for p in model.parameters())
     print(f"model: {params} parameters", flush=True)
     centres, strides = make_grid(*INPUT_HW)
@@ -305,7 +309,12 @@ def train(args: argparse.Namespace) -> None:
         optimiser, max_lr=args.lr, total_steps=total_steps, pct_start=0.1
     )
     model.train()
+    deadline = started + args.max_minutes * 60.0
     for epoch in range(args.epochs):
+        if time.perf_counter() > deadline:
+            print(f"stopping after {epoch} epochs: --max-minutes {args.max_minutes} reached (the result "
+                  f"then depends on the machine's speed, not only on the seed)", flush=True)
+            break
         order = rng.permutation(len(images))
         sums = {"loss": 0.0, "cls": 0.0, "box": 0.0}
         for step in range(steps_per_epoch):
@@ -327,6 +336,7 @@ def train(args: argparse.Namespace) -> None:
         means = {k: v / steps_per_epoch for k, v in sums.items()}
         print(f"epoch {epoch + 1}/{args.epochs} loss {means['loss']:.3f} cls {means['cls']:.3f} "
               f"box {means['box']:.3f} ({time.perf_counter() - started:.0f} s)", flush=True)
+    torch.save(model.state_dict(), Path(args.out).with_suffix(".pt"))
     export(model, Path(args.out), args)
     print(json.dumps({"parameters": params, "images": len(images), "epochs": args.epochs, "seed": args.seed,
                       "render_s": round(render_s, 1), "total_s": round(time.perf_counter() - started, 1),
@@ -351,7 +361,7 @@ def export(model: TinyDetector, out: Path, args: argparse.Namespace) -> None:
         "task": "detect",
         "description": "missiontree simulator detector (scripts/train_detector.py)",
         "training": f"seed={args.seed} images={args.images} epochs={args.epochs} "
-        f"first_world={args.first_world} widths={args.widths}",
+        f"first_world={args.first_world} widths={args.widths} lr={args.lr} init={args.init}",
     }
     onnx.helper.set_model_props(proto, metadata)
     onnx.save(proto, str(out))
@@ -362,13 +372,16 @@ def main(argv: list[str] | None = None) -> None:
     """Parse the command line and train."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seed", type=int, default=7, help="seed of rendering, init and shuffling")
-    parser.add_argument("--images", type=int, default=3000, help="views to render")
+    parser.add_argument("--images", type=int, default=2400, help="views to render")
     parser.add_argument("--first-world", type=int, default=0,
                         help="seed of the first generated world (evaluation uses seeds from 10000)")
-    parser.add_argument("--epochs", type=int, default=30)
+    parser.add_argument("--epochs", type=int, default=24)
     parser.add_argument("--batch", type=int, default=32)
     parser.add_argument("--lr", type=float, default=4e-3)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--init", default=None, help="start from these weights (a .pt written by a run)")
+    parser.add_argument("--max-minutes", type=float, default=40.0,
+                        help="stop at the end of the epoch that passes this much wall time")
     parser.add_argument("--widths", type=int, nargs=4, default=[16, 48, 96, 160],
                         help="channels at strides 4, 8, 16, 32")
     parser.add_argument("--out", default="src/missiontree/data/models/sim_detector.onnx")
