@@ -34,8 +34,14 @@ def register(subparsers: Any) -> None:
                         help="ROS 2 profile naming the topics and frames to serve (config/backends; "
                         "default turtlebot4)")
     parser.add_argument("--rate", type=float, default=1.0,
-                        help="simulated seconds per wall second (default 1.0: real time; other rates make "
-                        "stamps drift from ROS time, so sensor ages seen by clients are wrong)")
+                        help="simulated seconds per wall second (default 1.0: real time; without --sim-time "
+                        "other rates make stamps drift from ROS time)")
+    parser.add_argument("--sim-time", action="store_true",
+                        help="stamp with simulated time and publish /clock, as Gazebo with use_sim_time "
+                        "(clients set use_sim_time: true in their profile); any --rate then stays consistent")
+    parser.add_argument("--paused", action="store_true",
+                        help="hold the clock at 0 until the first goal or velocity command (or a 'resume' "
+                        "on /missiontree/sim/control), so a mission starts with the world's clock")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S wall seconds")
     parser.add_argument("--domain-id", type=int, metavar="N",
                         help="ROS_DOMAIN_ID to serve on (default: the environment's)")
@@ -55,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
     options = {"world": args.world, "seed": args.seed, "robot": args.robot}
     from missiontree.backends.ros2.bridge import SimBridge
 
-    bridge = SimBridge(lambda: create_sim(options), profile, rate=args.rate)
+    bridge = SimBridge(lambda: create_sim(options), profile, rate=args.rate, sim_time=args.sim_time,
+                       paused=args.paused)
     stop_signal: list[int] = []
 
     def on_signal(signum: int, frame: FrameType | None) -> None:

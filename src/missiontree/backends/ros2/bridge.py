@@ -30,7 +30,9 @@ from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalRespons
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image
 from sensor_msgs.msg import LaserScan as LaserScanMsg
 from std_msgs.msg import String
@@ -47,6 +49,8 @@ NAV2_UNKNOWN = 9000
 #: Simulator controls in (std_msgs/String) and the bridge's status out (JSON, transient local).
 CONTROL_TOPIC = "/missiontree/sim/control"
 STATUS_TOPIC = "/missiontree/sim/status"
+#: Wall seconds between republications of the sensor data while paused.
+PAUSED_PERIOD = 0.25
 #: A velocity command received this recently (s) survives the cancel of a goal.
 CMD_VEL_HOLD = 0.5
 #: Optical frame orientation relative to the camera link (z forward, x right, y down).
@@ -62,16 +66,26 @@ class SimBridge:
     lidar|camera`` (a sensor stops or restarts publishing); and publishes ``/missiontree/sim/status``
     (JSON: resets, controls applied, goals served; transient local) after each.
 
+    With ``sim_time`` it works as Gazebo with ``use_sim_time``: stamps are simulated time and the
+    simulated clock goes out on ``/clock``, so clients that set ``use_sim_time`` (a profile's
+    ``use_sim_time: true``) stay consistent at any ``rate``, and when the machine cannot keep up.
+    ``paused`` holds the clock at 0 (republishing the first sensor data) until the first goal,
+    velocity command or ``resume`` control: a mission then starts with the world's clock.
+
     Args:
         make_sim: Builds the simulated robot (``missiontree.backends.sim.create_robot`` with options).
         profile: Topic and frame names to serve (the same profile a Ros2Robot reads).
         rate: Simulated seconds per wall second (1.0 = real time).
         odom_hz: Rate of /odom and /tf.
+        sim_time: Stamp with simulated time and publish /clock.
+        paused: Start with the clock held (see above).
     """
 
     def __init__(self, make_sim: Callable[[], Any], profile: Ros2Profile, rate: float = 1.0,
-                 odom_hz: float = 20.0) -> None:
+                 odom_hz: float = 20.0, sim_time: bool = False, paused: bool = False) -> None:
         self.make_sim = make_sim
+        self.sim_time = sim_time
+        self.paused = paused
         self.sim = make_sim()
         self.profile = profile
         self.rate = rate
@@ -81,7 +95,9 @@ class SimBridge:
         self._context = rclpy.Context()
         rclpy.init(context=self._context, domain_id=profile.domain_id,
                    signal_handler_options=SignalHandlerOptions.NO)
-        self.node = Node("missiontree_sim", context=self._context, namespace=profile.namespace or None)
+        overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if sim_time else []
+        self.node = Node("missiontree_sim", context=self._context, namespace=profile.namespace or None,
+                         parameter_overrides=overrides)
         # ROS time of simulated time 0: stamps are ROS time, in step with the simulator when paced.
         self._epoch = self._ros_now() - self.sim.now()
         self._wall0, self._sim0 = time.monotonic(), self.sim.now()
@@ -127,6 +143,7 @@ class SimBridge:
                                  callback_group=group)
         node.create_subscription(String, CONTROL_TOPIC, self._on_control, reliable_qos())
         self._status_pub = node.create_publisher(String, STATUS_TOPIC, latched_qos())
+        self._clock_pub = node.create_publisher(Clock, "/clock", reliable_qos(10))
 
     def _spin(self) -> None:
         try:
@@ -139,8 +156,15 @@ class SimBridge:
         return self.node.get_clock().now().nanoseconds * 1e-9
 
     def stamp(self, sim_time: float) -> float:
-        """ROS time of a simulated time."""
-        return self._epoch + sim_time
+        """ROS time of a simulated time (the simulated time itself in sim-time mode)."""
+        return sim_time if self.sim_time else self._epoch + sim_time
+
+    def resume(self) -> None:
+        """Let a paused clock run (from now on, in step with wall time at the bridge's rate)."""
+        with self._sim_lock:
+            if self.paused:
+                self.paused = False
+                self._wall0, self._sim0 = time.monotonic(), self.sim.now()
 
     # ------------------------------------------------------------------------------ commands in
 
@@ -149,18 +173,22 @@ class SimBridge:
         with self._sim_lock:
             self._last_command = (v, w, time.monotonic())
             self.sim.drive(v, w)
+        if v or w:
+            self.resume()
 
     def _on_control(self, msg: String) -> None:
         words = msg.data.split()
         with self._sim_lock:
             if words == ["reset"]:
                 self.reset()
+            elif words == ["resume"]:
+                self.resume()
             elif len(words) == 2 and words[0] in ("silence", "resume") and words[1] in ("lidar", "camera"):
                 self.sim.silence(words[1], quiet=words[0] == "silence")
             else:
                 self.node.get_logger().warning(
-                    f"unknown simulator control {msg.data!r}; expected 'reset', 'silence lidar|camera' "
-                    "or 'resume lidar|camera'")
+                    f"unknown simulator control {msg.data!r}; expected 'reset', 'resume', "
+                    "'silence lidar|camera' or 'resume lidar|camera'")
                 return
             self.controls += 1
         self._publish_status()
@@ -195,6 +223,7 @@ class SimBridge:
         """Run one NavigateToPose goal on the simulator: feedback at 10 Hz, result, cancel, preemption."""
         request = goal_handle.request
         goal = conv.pose_from_msg(request.pose.pose)
+        self.resume()
         with self._sim_lock:
             sim = self.sim
             handle = sim.navigate_to(goal)
@@ -345,14 +374,30 @@ class SimBridge:
         while not self._stop.is_set():
             if duration is not None and time.monotonic() - started >= duration:
                 break
+            if self.paused:
+                with self._sim_lock:
+                    self._publish_clock()
+                    self.republish()
+                self._stop.wait(PAUSED_PERIOD)
+                continue
             with self._sim_lock:
                 dt = self.sim.profile.physics_dt
                 elapsed = (time.monotonic() - self._wall0) * self.rate
                 # whole physics steps only, so that no stamp lies ahead of ROS time
                 self.sim.spin_until(self._sim0 + math.floor(elapsed / dt + 1e-6) * dt)
+                self._publish_clock()
                 self.publish_sensors()
                 next_wall = self._wall0 + (self.sim.now() - self._sim0 + dt) / self.rate
             self._stop.wait(max(0.0, next_wall - time.monotonic()))
+
+    def _publish_clock(self) -> None:
+        if self.sim_time:
+            self._clock_pub.publish(Clock(clock=conv.sec_to_time(self.sim.now())))
+
+    def republish(self) -> None:
+        """Publish the latest sensor data again, same stamps (while paused, for late subscribers)."""
+        self._forget_published()
+        self.publish_sensors()
 
     def shutdown(self) -> None:
         """Stop the loop (safe from a signal handler or another thread)."""

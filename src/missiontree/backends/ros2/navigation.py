@@ -8,7 +8,10 @@ cancel service. Both never block: every method returns at once, and a goal nobod
 aborted with a reason after the profile's ``server_timeout``.
 
 Handles are advanced from two threads: the tick thread (``status()``) and the executor thread
-(callbacks and the robot's 10 Hz timer), so their state sits behind a lock.
+(callbacks and the robot's 10 Hz timer), so their state sits behind a lock. Requests (send goal,
+cancel) are always issued *on the executor thread* through ``in_executor``: rclpy's action and
+service clients register a request only after sending it, so a response that the executor
+thread takes in between is dropped ("Ignoring unexpected goal response") and the goal is lost.
 """
 
 from __future__ import annotations
@@ -47,10 +50,16 @@ class NavGoal:
         goal: The goal pose in the map frame.
         server_timeout: Seconds to wait for the server before aborting.
         pose_now: Returns the robot's latest map pose (for feedback when the server sends none).
+        in_executor: Runs a function on the executor thread (default: at once, for tests without one).
     """
 
-    def __init__(self, goal: Pose2D, server_timeout: float, pose_now: Callable[[], Pose2D | None]) -> None:
+    def __init__(self, goal: Pose2D, server_timeout: float, pose_now: Callable[[], Pose2D | None],
+                 in_executor: Callable[[Callable[[], None]], Any] | None = None) -> None:
         self.goal = goal
+        self._in_executor = in_executor or (lambda fn: fn())
+        #: Set once a cancel request is on its way; done when the server answered it.
+        self.cancel_future: Any = None
+        self._cancel_scheduled = False
         self.server_timeout = server_timeout
         self._pose_now = pose_now
         self._lock = threading.RLock()
@@ -93,6 +102,13 @@ class NavGoal:
     def advance(self) -> None:
         """Move the goal on (send when the server appears, time out); called often, returns at once."""
 
+    def cancel_settled(self) -> bool:
+        """True unless a cancel request is scheduled or waiting for the server's answer."""
+        with self._lock:
+            if not self._cancel_scheduled:
+                return True
+            return self.cancel_future is not None and self.cancel_future.done()
+
     @property
     def done(self) -> bool:
         """True once the goal has ended."""
@@ -132,15 +148,15 @@ class ActionGoal(NavGoal):
     """
 
     def __init__(self, client: Any, goal_msg: Any, goal: Pose2D, server_timeout: float,
-                 pose_now: Callable[[], Pose2D | None], action_name: str) -> None:
-        super().__init__(goal, server_timeout, pose_now)
+                 pose_now: Callable[[], Pose2D | None], action_name: str,
+                 in_executor: Callable[[Callable[[], None]], Any] | None = None) -> None:
+        super().__init__(goal, server_timeout, pose_now, in_executor)
         self._client = client
         self._goal_msg = goal_msg
         self._action_name = action_name
         self._sent = False
         self._goal_handle: Any = None
         self._last_seen_server = time.monotonic()
-        self.cancel_future: Any = None
 
     def advance(self) -> None:
         """Send once the server is up; abort when it never appears or goes away mid-goal."""
@@ -154,8 +170,7 @@ class ActionGoal(NavGoal):
             if not self._sent:
                 if ready:
                     self._sent = True
-                    future = self._client.send_goal_async(self._goal_msg, feedback_callback=self._on_feedback)
-                    future.add_done_callback(self._on_goal_response)
+                    self._in_executor(self._send)
                 elif self._timed_out():
                     self._finish(ActionStatus.ABORTED,
                                  f"no NavigateToPose action server on {self._action_name} after "
@@ -179,7 +194,21 @@ class ActionGoal(NavGoal):
             if not self._sent:
                 self._finish(ActionStatus.CANCELED, "cancelled before it was sent")
             elif self._goal_handle is not None:
-                self.cancel_future = self._goal_handle.cancel_goal_async()
+                self._schedule_cancel()
+
+    def _send(self) -> None:
+        """Send the goal (on the executor thread)."""
+        future = self._client.send_goal_async(self._goal_msg, feedback_callback=self._on_feedback)
+        future.add_done_callback(self._on_goal_response)
+
+    def _schedule_cancel(self) -> None:
+        self._cancel_scheduled = True
+        handle = self._goal_handle
+
+        def send() -> None:
+            self.cancel_future = handle.cancel_goal_async()
+
+        self._in_executor(send)
 
     def _on_goal_response(self, future: Any) -> None:
         goal_handle = future.result()
@@ -191,7 +220,8 @@ class ActionGoal(NavGoal):
             self._goal_handle = goal_handle
             self._set_status(ActionStatus.ACCEPTED)
             if self._cancel_requested:
-                self.cancel_future = goal_handle.cancel_goal_async()
+                self._cancel_scheduled = True
+                self.cancel_future = goal_handle.cancel_goal_async()  # already on the executor thread
         goal_handle.get_result_async().add_done_callback(self._on_result)
 
     def _on_feedback(self, message: Any) -> None:
@@ -235,8 +265,9 @@ class TopicGoal(NavGoal):
     def __init__(self, publish_goal: Callable[[], None], has_subscriber: Callable[[], bool],
                  cancel_client: Any, goal: Pose2D, server_timeout: float,
                  pose_now: Callable[[], Pose2D | None], now: Callable[[], float], topic: str,
-                 known_goals: set[bytes] | None = None) -> None:
-        super().__init__(goal, server_timeout, pose_now)
+                 known_goals: set[bytes] | None = None,
+                 in_executor: Callable[[Callable[[], None]], Any] | None = None) -> None:
+        super().__init__(goal, server_timeout, pose_now, in_executor)
         self._publish_goal = publish_goal
         self._has_subscriber = has_subscriber
         self._cancel_client = cancel_client
@@ -245,7 +276,6 @@ class TopicGoal(NavGoal):
         self._sent_at: float | None = None
         self._known_before: set[bytes] = set(known_goals or ())
         self._goal_id: bytes | None = None
-        self.cancel_future: Any = None
 
     def advance(self) -> None:
         """Publish once /goal_pose has a subscriber; abort when nobody answers in time."""
@@ -325,4 +355,9 @@ class TopicGoal(NavGoal):
             info.stamp = sec_to_time(self._now() + 1.0)
         request.goal_info = info
         if self._cancel_client.service_is_ready():
-            self.cancel_future = self._cancel_client.call_async(request)
+            self._cancel_scheduled = True
+
+            def send() -> None:
+                self.cancel_future = self._cancel_client.call_async(request)
+
+            self._in_executor(send)

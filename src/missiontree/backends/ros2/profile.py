@@ -97,6 +97,8 @@ class Ros2Profile(_Section):
         sensor_qos_depth: Queue depth of the best-effort sensor subscriptions.
         history_horizon: Seconds of pose and scan history kept for ``pose_at``/``scan_at``.
         domain_id: ROS_DOMAIN_ID for this robot's context; None takes the environment's.
+        use_sim_time: Take ROS time from /clock (a simulator such as ``missiontree sim-ros --sim-time``
+            or Gazebo); ``now()`` and ``spin_until`` then follow the simulated clock.
         startup_timeout: Seconds ``create_robot`` waits for a pose, a scan and the navigation server
             before handing the robot over (it is handed over anyway: missing data shows as None).
         shutdown_timeout: Seconds ``close`` waits for the goal's cancel to be answered and the zero
@@ -114,6 +116,7 @@ class Ros2Profile(_Section):
     sensor_qos_depth: int = 5
     history_horizon: float = 10.0
     domain_id: int | None = None
+    use_sim_time: bool = False
     startup_timeout: float = 5.0
     shutdown_timeout: float = 1.0
     topics: Topics = Topics()

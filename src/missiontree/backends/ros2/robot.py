@@ -17,6 +17,7 @@ import threading
 import time
 import weakref
 from collections import deque
+from collections.abc import Callable
 from types import FrameType
 from typing import Any
 
@@ -31,6 +32,7 @@ from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import CameraInfo, Image
@@ -56,6 +58,8 @@ except ImportError:  # pragma: no cover
 
 #: Rate at which a drive() command is repeated until stop(), navigate_to() or another drive().
 DRIVE_REPEAT_HZ = 10.0
+#: Longest sleep (wall s) between looks at a simulated clock in spin_until.
+SIM_CLOCK_POLL = 0.002
 #: Largest gap (s) between a requested stamp and the scan ``scan_at`` returns.
 SCAN_MATCH_GAP = 0.5
 
@@ -98,7 +102,9 @@ class Ros2Robot:
         self._context = rclpy.Context()
         rclpy.init(context=self._context, domain_id=profile.domain_id,
                    signal_handler_options=SignalHandlerOptions.NO)
-        self.node = Node(node_name, context=self._context, namespace=profile.namespace or None)
+        overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if profile.use_sim_time else []
+        self.node = Node(node_name, context=self._context, namespace=profile.namespace or None,
+                         parameter_overrides=overrides)
         self._tf = TransformBuffer(horizon=profile.history_horizon)
         self._poses: StampedHistory[Pose2D] = StampedHistory(horizon=profile.history_horizon)
         self._odom: StampedHistory[Pose2D] = StampedHistory(horizon=profile.history_horizon)
@@ -287,12 +293,17 @@ class Ros2Robot:
         return self.node.get_clock().now().nanoseconds * 1e-9
 
     def spin_until(self, t: float) -> None:
-        """Wait in wall time until ROS time reaches ``t``; the executor thread keeps spinning."""
+        """Wait until ROS time reaches ``t`` (in wall time, or on /clock with use_sim_time).
+
+        The executor thread keeps spinning meanwhile. A simulated clock may run at any rate, so it is
+        polled in short sleeps.
+        """
+        longest = SIM_CLOCK_POLL if self.profile.use_sim_time else 0.05
         while not self._closed:
             remaining = t - self.now()
             if remaining <= 0.0:
                 return
-            time.sleep(min(remaining, 0.05))
+            time.sleep(min(remaining, longest))
 
     def pose(self) -> PoseStamped | None:
         """Latest map pose: map → base from TF, or /amcl_pose advanced by odometry."""
@@ -387,17 +398,25 @@ class Ros2Robot:
             msg.pose = conv.pose_stamped_to_msg(goal, stamp, self.profile.frames.map)
             msg.behavior_tree = nav.behavior_tree
             handle: NavGoal = ActionGoal(self._nav_client, msg, goal, nav.server_timeout, pose_now,
-                                         nav.action)
+                                         nav.action, in_executor=self._in_executor)
         else:
             goal_msg = conv.pose_stamped_to_msg(goal, stamp, self.profile.frames.map)
             handle = TopicGoal(lambda: self._goal_pub.publish(goal_msg),
                                lambda: self._goal_pub.get_subscription_count() > 0,
                                self._cancel_client, goal, nav.server_timeout, pose_now, self.now,
-                               self._goal_pub.topic_name, known_goals=set(self._nav_goal_ids))
+                               self._goal_pub.topic_name, known_goals=set(self._nav_goal_ids),
+                               in_executor=self._in_executor)
         handle.tolerance = tolerance
         self._goal = handle
         handle.advance()
         return handle
+
+    def _in_executor(self, fn: Callable[[], None]) -> None:
+        """Run ``fn`` on the executor thread (where rclpy requests must be issued, see .navigation)."""
+        if threading.current_thread() is self._spinner:
+            fn()
+        else:
+            self._executor.create_task(fn)
 
     def _pose_only(self) -> Pose2D | None:
         current = self.pose()
@@ -463,8 +482,7 @@ class Ros2Robot:
     def _flush(self, timeout: float) -> None:
         deadline = time.monotonic() + timeout
         goal = self._goal
-        future = getattr(goal, "cancel_future", None)
-        while future is not None and not future.done() and time.monotonic() < deadline:
+        while goal is not None and not goal.cancel_settled() and time.monotonic() < deadline:
             time.sleep(0.01)
         from rclpy.duration import Duration
 
