@@ -75,3 +75,64 @@ def test_json_summary(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     _failed_run(tmp_path)
     assert main(["log", "summarize", str(tmp_path / "ticks.jsonl"), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["mission"] == "patrol"
+
+
+def _lines(run_dir: Path) -> list[dict]:
+    return [json.loads(line) for line in (run_dir / "ticks.jsonl").read_text().splitlines()]
+
+
+def test_a_composite_that_failed_names_the_child_that_ended_it(tmp_path: Path) -> None:
+    """A Sequence failing because a nested leaf failed says which child failed and the leaf's reason."""
+    ask = ScriptedLeaf("ask", script="RF", reason="model said no")
+    root = py_trees.composites.Sequence("mission", memory=True, children=[
+        py_trees.composites.Sequence("surveillance", memory=True,
+                                     children=[ScriptedLeaf("look", script="S"), ask]),
+    ])
+    Runner(root, MissionContext(robot=ClockRobot()), run_dir=tmp_path, handle_signals=False).run()
+    failures = summarize(_lines(tmp_path))["failures"]
+    assert failures["mission/surveillance"]["reasons"] == {"child 'ask' failed: model said no": 1}
+    assert failures["mission"]["reasons"] == {
+        "child 'surveillance' failed: model said no (from 'surveillance/ask')": 1}
+
+
+def test_the_failure_ending_a_run_is_the_leaf_not_its_parents(tmp_path: Path) -> None:
+    """"Ended by" lists only nodes with reasons of their own, not the composites that passed them up."""
+    root = py_trees.composites.Sequence("mission", memory=True, children=[
+        py_trees.composites.Sequence("inner", memory=True, children=[
+            ScriptedLeaf("ask", script="F", reason="model said no")])])
+    Runner(root, MissionContext(robot=ClockRobot()), run_dir=tmp_path, handle_signals=False).run()
+    ended_by = summarize(_lines(tmp_path))["ended_by"]
+    assert ended_by == [{"node": "mission/inner/ask", "reason": "model said no"}]
+
+
+def test_a_decorator_keeps_its_words_and_adds_the_childs_reason(tmp_path: Path) -> None:
+    """A Retry that gave up shows its own count followed by the reason of the child that failed."""
+    _failed_run(tmp_path)
+    reasons = summarize(_lines(tmp_path))["failures"]["patrol/retry"]["reasons"]
+    [reason] = reasons
+    assert reason.endswith("; child 'navigate' failed: goal blocked by an obstacle")
+    assert reason.startswith("final failure")
+
+
+def test_the_child_that_failed_earlier_is_found_from_the_replayed_state() -> None:
+    """A composite turning FAILURE when its child failed on an earlier tick still names that child."""
+    lines = [
+        {"event": "tick", "tick": 1, "t": 0.0, "status": "RUNNING", "changed": [
+            {"node": "main/guarded/check", "status": "FAILURE", "was": "INVALID", "reason": "battery low"},
+            {"node": "main/guarded", "status": "RUNNING", "was": "INVALID"}]},
+        {"event": "tick", "tick": 2, "t": 0.1, "status": "FAILURE", "changed": [
+            {"node": "main/guarded", "status": "FAILURE", "was": "RUNNING"},
+            {"node": "main", "status": "FAILURE", "was": "RUNNING"}]},
+    ]
+    summary = summarize(lines)
+    assert summary["failures"]["main/guarded"]["reasons"] == {"child 'check' failed: battery low": 1}
+    assert summary["ended_by"] == [{"node": "main/guarded", "reason": "child 'check' failed: battery low"}]
+    assert summary["failures"]["main"]["reasons"] == {
+        "child 'guarded' failed: battery low (from 'guarded/check')": 1}
+
+
+def test_a_composite_with_no_failed_child_in_the_log_says_so() -> None:
+    """With no failing descendant anywhere in the log, the reason stays "(no reason given)"."""
+    lines = [{"event": "tick", "tick": 1, "t": 0.0, "status": "FAILURE",
+              "changed": [{"node": "main", "status": "FAILURE", "was": "INVALID"}]}]
+    assert summarize(lines)["failures"]["main"]["reasons"] == {"(no reason given)": 1}

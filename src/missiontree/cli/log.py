@@ -48,29 +48,101 @@ def log_file(run_path: Path) -> Path:
     return run_path
 
 
+def _depth(path: str) -> int:
+    return path.count("/")
+
+
+def explain_failures(changed: list[dict[str, Any]],
+                     latest: dict[str, dict[str, Any]]) -> dict[str, dict[str, str]]:
+    """Why each node that turned FAILURE in one tick failed: its own reason, or the child's that ended it.
+
+    A composite fails because a child failed; py_trees gives it no reason of its own. Its reason is
+    derived from the same tick's changes, deepest first: the shallowest descendant that turned
+    FAILURE in this tick (the last ticked, when several did) is the child that ended it, and that
+    child's reason — its own, or derived in turn — is the composite's. When no descendant changed
+    in this tick (it had already failed before), the last known status of each node (``latest``)
+    is used instead. A decorator that has words of its own ("final failure [... 2 from 2]") keeps
+    them and gains its child's reason after them, unless it only repeats them.
+
+    Args:
+        changed: The ``changed`` entries of one tick line, in the order the log holds them.
+        latest: Every node's last ``changed`` entry from earlier ticks, with ``reason`` and
+            ``origin`` filled in for failures.
+
+    Returns:
+        node path -> {"reason": the text to show, "origin": path of the node whose own reason it
+        ends in (or ""), "own": that node's own reason, "child": path of the child that ended it (or
+        "")} for every entry that turned FAILURE.
+    """
+    failed = [c for c in changed if c.get("status") == "FAILURE" and "node" in c]
+    explained: dict[str, dict[str, str]] = {}
+    for change in sorted(failed, key=lambda c: -_depth(c["node"])):  # stable: visit order kept
+        node, own = change["node"], change.get("reason", "")
+        prefix = node + "/"
+        below = [c["node"] for c in failed if c["node"].startswith(prefix)]
+        if not below and not own:  # failed in an earlier tick and has not changed since
+            below = sorted(p for p, c in latest.items()
+                           if p.startswith(prefix) and c.get("status") == "FAILURE")
+        if not below:
+            explained[node] = {"reason": own, "origin": node if own else "", "own": own, "child": ""}
+            continue
+        top = min(_depth(p) for p in below)
+        children = [p for p in below if _depth(p) == top]
+        child = children[-1]
+        cause = explained.get(child) or {"origin": latest[child].get("origin", ""),
+                                         "own": latest[child].get("own", "")}
+        if own and (not cause["own"] or cause["own"] in own):  # a decorator repeating its child's words
+            origin = cause["origin"] if cause["own"] else node
+            explained[node] = {"reason": own, "origin": origin, "own": cause["own"] or own, "child": child}
+            continue
+        text = f"child {child[len(prefix):]!r} failed"
+        others = [p[len(prefix):] for p in children[:-1]]
+        if others:
+            text += " (as did " + ", ".join(repr(o) for o in others) + ")"
+        text += ": " + (cause["own"] or "(no reason given)")
+        origin = cause["origin"]
+        if origin and origin != child:
+            text += f" (from {origin[len(prefix):]!r})"
+        if own:  # a decorator's own words (a retry's count, a timeout) come first
+            text = f"{own}; {text}"
+        explained[node] = {"reason": text, "origin": origin, "own": cause["own"], "child": child}
+    return explained
+
+
 def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
-    """Summarise a tick log (one dict a line) into how it ended and what failed why."""
+    """Summarise a tick log (one dict a line) into how it ended and what failed why.
+
+    Failure reasons are the nodes' own; a composite that failed because a child did is given
+    "child 'name' failed: <its reason>" (see :func:`explain_failures`).
+    """
     started = next((r for r in lines if r.get("event") == "mission_started"), {})
     finished = next((r for r in reversed(lines) if r.get("event") == "mission_finished"), {})
     ticks = [r for r in lines if r.get("event") == "tick"]
-    statuses: dict[str, str] = {}
+    latest: dict[str, dict[str, Any]] = {}
     failures: dict[str, dict[str, Any]] = {}
+    explained: dict[str, dict[str, str]] = {}
     for record in ticks:
-        for change in record.get("changed", []):
-            node, status = change.get("node", "?"), change.get("status", "?")
-            statuses[node] = status
-            if status == "FAILURE":
-                entry = failures.setdefault(node, {"count": 0, "reasons": {}})
-                entry.setdefault("first_tick", record.get("tick"))
-                entry["count"] += 1
-                reason = change.get("reason", "") or "(no reason given)"
-                entry["reasons"][reason] = entry["reasons"].get(reason, 0) + 1
-                entry["last_tick"] = record.get("tick")
+        changed = record.get("changed", [])
+        explained = explain_failures(changed, latest)
+        for change in changed:
+            node = change.get("node", "?")
+            entry = latest[node] = dict(change)
+            if change.get("status") == "FAILURE":
+                why = explained.get(node, {"reason": "", "origin": "", "own": ""})
+                entry.update(reason=why["reason"], origin=why["origin"], own=why["own"])
+                failure = failures.setdefault(node, {"count": 0, "reasons": {}})
+                failure.setdefault("first_tick", record.get("tick"))
+                failure["count"] += 1
+                reason = why["reason"] or "(no reason given)"
+                failure["reasons"][reason] = failure["reasons"].get(reason, 0) + 1
+                failure["last_tick"] = record.get("tick")
     last = ticks[-1] if ticks else {}
-    ended_by = [c for c in last.get("changed", []) if c.get("status") == "FAILURE"]
-    ended_by.sort(key=lambda c: -str(c.get("node", "")).count("/"))
-    if any(c.get("reason") for c in ended_by):  # composites failing "because a child did" add nothing
-        ended_by = [c for c in ended_by if c.get("reason")]
+    ended_by = [c["node"] for c in last.get("changed", []) if c.get("status") == "FAILURE" and "node" in c]
+    ended_by.sort(key=lambda n: -_depth(n))
+    own = [n for n in ended_by if explained[n]["origin"] == n]
+    # Composites failing "because a child did" add nothing to the leaf's reason; when no node of this
+    # tick has words of its own (the leaf failed earlier), the deepest composite carries them.
+    ended_by = own or ended_by[:1]
     events: dict[str, int] = {}
     errors: list[dict[str, Any]] = []
     for record in lines:
@@ -86,8 +158,9 @@ def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
         "stopped_by": finished.get("stopped_by", "unknown (the log has no mission_finished line)"),
         "ticks": len(ticks),
         "duration": finished.get("duration", (last.get("t", 0.0) - ticks[0].get("t", 0.0)) if ticks else 0.0),
-        "ended_by": [{k: c.get(k) for k in ("node", "reason") if c.get(k)} for c in ended_by],
-        "running_at_end": sorted(n for n, s in statuses.items() if s == "RUNNING"),
+        "ended_by": [{"node": n, "reason": explained[n]["reason"]} if explained[n]["reason"] else {"node": n}
+                     for n in ended_by],
+        "running_at_end": sorted(n for n, c in latest.items() if c.get("status") == "RUNNING"),
         "failures": dict(sorted(failures.items())),
         "errors": errors,
         "events": dict(sorted(events.items())),
@@ -105,7 +178,7 @@ def format_summary(summary: dict[str, Any]) -> str:
         out.append("still running when stopped:")
         out += [f"  {node}" for node in summary["running_at_end"]]
     if summary["failures"]:
-        out.append("failures (node: times, reasons):")
+        out.append("failures (node: times it turned FAILURE — reasons):")
         for node, entry in summary["failures"].items():
             reasons = ", ".join(f"{r} (x{n})" for r, n in entry["reasons"].items())
             out.append(f"  {node}: {entry['count']} — {reasons}")
