@@ -69,7 +69,7 @@ class DriveUntilObstacle(Leaf):
         stop_at: float = Field(0.5, gt=0, description="stop when the front distance is below this, m")
         half_width: float = Field(30.0, gt=0, le=90, description="half width of the front cone, degrees")
         max_scan_age: float = Field(0.5, gt=0, description="a scan older than this is stale, s")
-        speed_limit: Annotated[str, Input("a speed cap in m/s, if a node set one", type="float")] = "speed_limit"
+        speed_limit: Annotated[str, Input("a speed cap, m/s, if set", type="float")] = "speed_limit"
         front: Annotated[str, Output("the last front distance measured, m", type="float")] = "front_distance"
 
     def on_setup(self) -> None:
