@@ -117,11 +117,13 @@ def domain_id() -> int:
 def sim_ros(request: pytest.FixtureRequest) -> Iterator[SimRos]:
     """One sim-ros process shared by a test module.
 
-    The module may name the world (``SIM_ROS_WORLD``, default office) and seed (``SIM_ROS_SEED``, 0).
+    The module may name the world (``SIM_ROS_WORLD``, default office), the seed (``SIM_ROS_SEED``, 0)
+    and more command-line flags (``SIM_ROS_FLAGS``).
     """
     world = getattr(request.module, "SIM_ROS_WORLD", "office")
     seed = getattr(request.module, "SIM_ROS_SEED", 0)
-    server = SimRos(next_domain_id(), world=world, seed=seed)
+    flags = list(getattr(request.module, "SIM_ROS_FLAGS", []))
+    server = SimRos(next_domain_id(), world=world, seed=seed, extra=flags)
     yield server
     server.stop()
 

@@ -103,6 +103,7 @@ class SimBridge:
         self._wall0, self._sim0 = time.monotonic(), self.sim.now()
         self._forget_published()
         self._last_command: tuple[float, float, float] | None = None  # (v, w, wall time received)
+        self._executing = 0  # NavigateToPose goals running: their controller owns the base
         self.resets = 0
         self.controls = 0
         self.goals_served = 0
@@ -172,6 +173,11 @@ class SimBridge:
         v, w = conv.twist_from_msg(msg)
         with self._sim_lock:
             self._last_command = (v, w, time.monotonic())
+            if self._executing:
+                # As with Nav2, the goal's controller owns the base while a goal runs: a stray command
+                # (a client's last repeat crossing its new goal on the wire) must not stall the goal.
+                # Clients that mean to take over cancel the goal first (Ros2Robot.drive does).
+                return
             self.sim.drive(v, w)
         if v or w:
             self.resume()
@@ -228,7 +234,16 @@ class SimBridge:
             sim = self.sim
             handle = sim.navigate_to(goal)
             started = sim.now()
+            self._executing += 1
         self.goals_served += 1
+        try:
+            return self._follow(goal_handle, sim, handle, started)
+        finally:
+            with self._sim_lock:
+                self._executing -= 1
+
+    def _follow(self, goal_handle: Any, sim: Any, handle: Any, started: float) -> Any:
+        """Poll the simulator's goal until it ends; mirror it on the action goal."""
         result = NavigateToPose.Result()
         while True:
             with self._sim_lock:
