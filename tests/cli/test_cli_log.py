@@ -51,6 +51,8 @@ def test_text_summary_from_a_run_directory(tmp_path: Path, capsys: pytest.Captur
     out = capsys.readouterr().out
     assert out.startswith("mission patrol: FAILURE (stopped by status)")
     assert "patrol/retry/navigate: 2 — goal blocked by an obstacle (x2)" in out
+    assert "patrol: 1 — child 'retry' failed: goal blocked by an obstacle (from 'retry/navigate') (x1)" in out
+    assert "(no reason given)" not in out
     assert "RuntimeError: camera_ok: scripted error" in out
 
 
@@ -136,3 +138,13 @@ def test_a_composite_with_no_failed_child_in_the_log_says_so() -> None:
     lines = [{"event": "tick", "tick": 1, "t": 0.0, "status": "FAILURE",
               "changed": [{"node": "main", "status": "FAILURE", "was": "INVALID"}]}]
     assert summarize(lines)["failures"]["main"]["reasons"] == {"(no reason given)": 1}
+
+
+def test_when_several_children_fail_in_one_tick_the_last_ticked_is_named_with_the_others() -> None:
+    """A Parallel whose two children failed in the same tick names the last one ticked and lists the other."""
+    lines = [{"event": "tick", "tick": 1, "t": 0.0, "status": "FAILURE", "changed": [
+        {"node": "watch/camera", "status": "FAILURE", "was": "INVALID", "reason": "no frames"},
+        {"node": "watch/lidar", "status": "FAILURE", "was": "INVALID", "reason": "no scans"},
+        {"node": "watch", "status": "FAILURE", "was": "INVALID"}]}]
+    reasons = summarize(lines)["failures"]["watch"]["reasons"]
+    assert reasons == {"child 'lidar' failed (as did 'camera'): no scans": 1}

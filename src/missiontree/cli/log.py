@@ -3,7 +3,10 @@
 Works from ``ticks.jsonl`` alone (a run directory or the file itself): it replays the status
 changes of every tick, so it can say which nodes were running when the run stopped, which
 failure ended it (the deepest node that turned FAILURE on the last tick), every node's failures
-with their reasons, and the errors and events leaves emitted.
+with their reasons, and the errors and events leaves emitted. A composite that failed because a
+child did has no reason of its own in the log; the summary names the child that ended it and the
+reason that failure ends in (``child 'fetch' failed: goal aborted (from 'fetch/to_fridge')``),
+found among the same tick's changes.
 """
 
 from __future__ import annotations
