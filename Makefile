@@ -23,10 +23,10 @@ demo: setup
 	$(VENV)/bin/missiontree run trees/patrol.yaml --out runs/demo
 
 lint: setup
-	$(VENV)/bin/ruff check src tests benchmarks
+	$(VENV)/bin/ruff check src tests examples benchmarks scripts plugins
 
 test: setup setup-ros2
-	$(VENV)/bin/ruff check src tests
+	$(VENV)/bin/ruff check src tests examples benchmarks scripts plugins
 	$(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests)
 
 bench: setup
