@@ -23,6 +23,7 @@ def setup_leaf(robot: FakeRobot, latency: float = 1.0, vlm: ScriptedVLM | None =
     models: dict = {"detector": SlabDetector(), "vlm": vlm or ScriptedVLM()}
     models[CALLER_KEY] = ModelCaller(robot.now, events, simulated=True, models=models,
                                      latency={"vlm": LatencyModel(latency, latency)})
+    params.setdefault("min_hits", 1)  # act on the first frame unless a test says otherwise
     leaf = Surveillance("watch", Surveillance.Params(**params))
     leaf.setup(context=MissionContext(robot=robot, models=models, events=events, run_dir=run_dir))
     return leaf, events, models
@@ -204,3 +205,16 @@ def test_alarm_cooldown_suppresses_repeats() -> None:
     for _ in range(20):
         step(robot, leaf, 0.0)
     assert len(events.of("alarm")) == 1
+
+
+def test_a_one_frame_detection_is_not_asked_about_with_min_hits_two() -> None:
+    """A person (or a false detection) seen in a single frame costs no call; seen twice, it does."""
+    robot = FakeRobot()
+    leaf, _, models = setup_leaf(robot, latency=0.2, min_hits=2)
+    step(robot, leaf, 0.0)
+    for _ in range(10):
+        step(robot, leaf, None)
+    assert models["vlm"].asked == 0
+    step(robot, leaf, 0.0)
+    step(robot, leaf, 0.0)
+    assert models["vlm"].asked == 1

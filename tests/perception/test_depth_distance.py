@@ -93,3 +93,25 @@ def test_detection_position_adds_surface_offset_along_the_ray() -> None:
     x, y, rng = detection_position(frame_with(depth), det, surface_offset=0.15)
     assert rng == pytest.approx(2.15, abs=0.01)
     assert x == pytest.approx(2.15, abs=0.01)
+
+
+def test_box_depth_drops_the_floor_at_the_persons_feet() -> None:
+    """Floor pixels in the box's lower part (nearer than the person) are not taken as the target."""
+    k = K
+    depth = np.full((240, 320), 6.0)
+    rows = np.arange(240)[:, None]
+    floor = np.where(rows > k.cy + 1, 0.4 * k.fy / np.maximum(rows - k.cy, 1e-6), np.inf)  # camera 0.4 m high
+    depth = np.minimum(depth, np.broadcast_to(floor, depth.shape))
+    depth[20:150, 140:180] = 2.5  # the person's body above the floor line
+    frame = RGBDFrame(1.0, np.zeros((240, 320, 3), np.uint8), depth.astype(np.float32), K, ORIGIN, 0.4)
+    reading = box_depth(frame, (130, 20, 190, 239))
+    assert reading.depth == pytest.approx(2.5)
+
+
+def test_box_depth_finds_the_target_in_a_loose_box() -> None:
+    """A box much wider than the person still measures the person, and says in which column they are."""
+    depth = np.full((240, 320), 5.0)
+    depth[30:230, 200:230] = 1.8
+    reading = box_depth(frame_with(depth), (100, 20, 240, 235))
+    assert reading.depth == pytest.approx(1.8)
+    assert reading.column == pytest.approx(214.5, abs=1.0)

@@ -6,7 +6,9 @@ Runs beside the patrol (a Parallel) and never finishes by itself. Two modes:
   goes to the vision-language model with the ALARM/SAFE prompt. People who cross the view between
   two checks, or while answers are slow, are missed.
 - ``detect`` — a cheap detector looks at *every* frame; a frame showing a person not seen before
-  (light tracks by map position, :mod:`missiontree.behaviours.tracks`) goes to the VLM, which
+  (light tracks by map position and clothing colour, :mod:`missiontree.behaviours.tracks`; a
+  person counts once detected in ``min_hits`` frames, which drops one-frame false detections)
+  goes to the VLM, which
   confirms; calls stay within a budget of one per ``period`` on average (short bursts of two, so
   two newcomers are both asked at once) and ``max_in_flight`` at once. Each person costs one call.
 
@@ -82,6 +84,8 @@ class Surveillance(Leaf):
             0.1, ge=0, description="Added to measured ranges: sensors see a person's near surface (m).")
         forget_after: float = Field(
             1.0, gt=0, description="detect mode: seconds out of view before a person counts as new.")
+        min_hits: int = Field(
+            2, ge=1, description="detect mode: frames a person must be detected in before the VLM is asked.")
         recheck: float = Field(3.0, gt=0, description="detect mode: seconds before asking again if SAFE.")
         alarm_cooldown: float = Field(
             0.0, ge=0, description="Seconds after an alarm with no new alarm (0: every sighting).")
@@ -164,7 +168,7 @@ class Surveillance(Leaf):
             track = sighting.track
             assert track is not None
             recheck = track.state == "safe" and now - track.state_since > self.params.recheck
-            if track.state == "new" or recheck:
+            if (track.state == "new" and track.hits >= self.params.min_hits) or recheck:
                 newcomers.append(sighting)
         if not newcomers:
             return

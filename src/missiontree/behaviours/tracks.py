@@ -37,6 +37,8 @@ class Track:
         last_seen: Time of the last frame showing them.
         state: ``new``, ``pending`` (a call is out), ``confirmed`` (alarm raised) or ``safe``.
         state_since: When the state last changed.
+        appearance: Mean RGB of the centre of the person's box (their clothing), None if unknown.
+        hits: Frames the person was detected in.
     """
 
     id: int
@@ -46,6 +48,7 @@ class Track:
     state: TrackState = "new"
     state_since: float = 0.0
     appearance: tuple[float, float, float] | None = None
+    hits: int = 1
 
     def set(self, state: TrackState, now: float) -> None:
         """Change state."""
@@ -116,6 +119,7 @@ class PersonTracks:
             best.position = position if position is not None else best.position
             best.map_bearing = map_bearing
             best.last_seen = now
+            best.hits += 1
             best.appearance = appearance if appearance is not None else best.appearance
         return best
 

@@ -1,10 +1,11 @@
 """Distance and map position of a detection from the depth image of its own frame.
 
-Method (c) of issue 5: the median depth inside the box's centre region, made robust against the
-background that shows between a person's legs and around their outline (the nearest cluster of
-depths is kept, as NAIS takes the median depth around the box centre, seed 000). The position
-is the box centre's ray from the camera, through the frame's intrinsics, scaled to that depth
-and placed in the map with the frame's camera pose. Pure functions of
+Method (c) of issue 5: the median depth inside the box, made robust against what a box holds
+besides its target — the floor at its feet, the background between the legs and around the
+outline (floor pixels are dropped by their height, the nearest cluster of depths is kept, as NAIS
+takes the median depth around the box centre, seed 000). The position is the ray through the
+target's pixels (their median column) from the camera, through the frame's intrinsics, scaled to
+that depth and placed in the map with the frame's camera pose. Pure functions of
 :class:`~missiontree.types.RGBDFrame` and :class:`~missiontree.types.Detection`.
 """
 
@@ -25,10 +26,12 @@ class DepthReading:
     Attributes:
         depth: Depth along the optical axis in metres (``nan`` when the box held none).
         pixels: How many depth pixels were used.
+        column: Median image column of those pixels: where in a loose box the target really is.
     """
 
     depth: float
     pixels: int
+    column: float = float("nan")
 
     @property
     def found(self) -> bool:
@@ -64,19 +67,30 @@ def box_depth(
     frame: RGBDFrame,
     box: tuple[float, float, float, float],
     *,
-    fraction: float = 0.5,
+    fraction: float = 0.9,
     max_depth: float = 12.0,
     cluster_gap: float = 0.3,
+    min_share: float = 0.1,
+    floor_clearance: float = 0.15,
     mask: np.ndarray | None = None,
 ) -> DepthReading:
-    """Robust depth of what a box shows: the median of the nearest depth cluster in its centre.
+    """Robust depth of what a box shows: the median of the nearest depth cluster standing off the floor.
+
+    A detector's box holds the target and whatever is around it: the floor at its feet (nearer
+    than the target at the bottom of the box), the wall behind, a door frame beside. The pixels
+    that lie on the floor (less than ``floor_clearance`` above it, from their depth, row, the
+    intrinsics and the camera height) are dropped; of the rest, sorted by depth, the nearest
+    cluster (steps no larger than ``cluster_gap``) holding at least ``min_share`` of them is the
+    target: it stands in front of its background.
 
     Args:
         frame: The frame the box was found in.
         box: (x1, y1, x2, y2) in pixels.
-        fraction: Share of the box's width and height that forms the centre region.
+        fraction: Share of the box's width and height used, around its centre.
         max_depth: Depths beyond this are invalid.
         cluster_gap: Largest step between sorted depths inside one cluster, metres.
+        min_share: Least share of the box's off-floor pixels the target's cluster must hold.
+        floor_clearance: Pixels lower than this above the floor are floor (m).
         mask: Optional instance mask (HxW bool); when given, only its pixels are used.
 
     Returns:
@@ -86,22 +100,27 @@ def box_depth(
     h, w = depth.shape[:2]
     x1, y1, x2, y2 = centre_region(box, w, h, fraction)
     patch = depth[y1:y2, x1:x2].astype(float)
+    rows, cols = np.mgrid[y1:y2, x1:x2]
+    k = frame.intrinsics
+    height = frame.camera_height - (rows - k.cy) * patch / k.fy
+    keep = np.isfinite(patch) & (patch > 0.0) & (patch <= max_depth) & (height > floor_clearance)
     if mask is not None:
-        patch = patch[np.asarray(mask)[y1:y2, x1:x2].astype(bool)]
-    values = patch[np.isfinite(patch) & (patch > 0.0) & (patch <= max_depth)].ravel()
+        keep &= np.asarray(mask)[y1:y2, x1:x2].astype(bool)
+    values, columns = patch[keep], cols[keep]
     if values.size == 0:
         return DepthReading(float("nan"), 0)
-    values = np.sort(values)
+    order = np.argsort(values, kind="stable")
+    values, columns = values[order], columns[order]
     breaks = np.flatnonzero(np.diff(values) > cluster_gap)
-    # The target stands in front of its background: keep the nearest cluster that holds at least
-    # a tenth of the pixels (smaller ones are speckle or the floor's near edge).
     starts = np.concatenate(([0], breaks + 1))
     ends = np.concatenate((breaks + 1, [values.size]))
-    floor_size = max(1, values.size // 10)
-    for lo, hi in zip(starts, ends, strict=True):
-        if hi - lo >= floor_size:
-            return DepthReading(float(np.median(values[lo:hi])), int(hi - lo))
-    return DepthReading(float(np.median(values)), int(values.size))
+    need = max(1, int(min_share * values.size))
+    lo, hi = 0, values.size
+    for a, b in zip(starts, ends, strict=True):
+        if b - a >= need:
+            lo, hi = a, b
+            break
+    return DepthReading(float(np.median(values[lo:hi])), int(hi - lo), float(np.median(columns[lo:hi])))
 
 
 def pixel_to_map(frame: RGBDFrame, u: float, depth: float) -> tuple[float, float]:
@@ -112,7 +131,7 @@ def pixel_to_map(frame: RGBDFrame, u: float, depth: float) -> tuple[float, float
 
 
 def detection_position(
-    frame: RGBDFrame, detection: Detection, *, fraction: float = 0.5, surface_offset: float = 0.0,
+    frame: RGBDFrame, detection: Detection, *, fraction: float = 0.9, surface_offset: float = 0.0,
 ) -> tuple[float, float, float] | None:
     """Map position of a detection and its range from the camera, from the frame's depth.
 
@@ -129,7 +148,7 @@ def detection_position(
     reading = box_depth(frame, detection.box, fraction=fraction, mask=detection.mask)
     if not reading.found:
         return None
-    u = detection.center[0]
+    u = reading.column if math.isfinite(reading.column) else detection.center[0]
     k = frame.intrinsics
     ray = math.atan2(k.cx - u, k.fx)
     rng = reading.depth / math.cos(ray) + surface_offset
