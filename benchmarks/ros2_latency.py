@@ -125,6 +125,14 @@ def _reached(run_dir: Path) -> list[str]:
     return [e["waypoint"] for e in events if e.get("event") == "waypoint_reached"]
 
 
+def _mission_seconds(run_dir: Path) -> float:
+    """The mission's duration on its robot clock, from the run's summary (nan when missing)."""
+    summary = run_dir / "summary.json"
+    if not summary.exists():
+        return float("nan")
+    return round(float(json.loads(summary.read_text(encoding="utf-8")).get("duration", "nan")), 3)
+
+
 def _is_prefix(a: list[str], b: list[str]) -> bool:
     """True when the shorter sequence is the start of the longer one."""
     shorter, longer = sorted([a, b], key=len)
@@ -146,8 +154,10 @@ def patrol_wall_times(tree: Path, world: str, seed: int, domain: int,
         subprocess.run([*exe, *common, "--out", f"{tmp}/sim"], env=env, check=False, cwd=REPO,
                        capture_output=True)
         in_process = time.monotonic() - t0
-        server = subprocess.Popen([*exe, "sim-ros", "--world", world, "--seed", str(seed)], env=env, cwd=REPO,
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        # real time, clock held until the first goal: the world starts with the mission, as in-process
+        serve = [*exe, "sim-ros", "--world", world, "--seed", str(seed), "--paused"]
+        server = subprocess.Popen(serve, env=env, cwd=REPO, stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.DEVNULL)
         try:
             time.sleep(3.0)
             t0 = time.monotonic()
@@ -158,8 +168,10 @@ def patrol_wall_times(tree: Path, world: str, seed: int, domain: int,
             server.send_signal(2)
             server.wait(timeout=15)
         sim_reached, ros_reached = _reached(Path(tmp) / "sim"), _reached(Path(tmp) / "ros2")
+        sim_clock, ros_clock = _mission_seconds(Path(tmp) / "sim"), _mission_seconds(Path(tmp) / "ros2")
     return {"patrol_wall_s_sim": round(in_process, 3), "patrol_wall_s_ros2": round(over_ros, 3),
             "patrol_wall_ratio_ros2_over_sim": round(over_ros / in_process, 3),
+            "patrol_mission_clock_s_sim": sim_clock, "patrol_mission_clock_s_ros2": ros_clock,
             "patrol_waypoints_reached_sim": len(sim_reached),
             "patrol_waypoints_reached_ros2": len(ros_reached),
             # with a duration limit one run may stop a waypoint earlier: the order must still agree

@@ -166,6 +166,7 @@ class SimBridge:
             if self.paused:
                 self.paused = False
                 self._wall0, self._sim0 = time.monotonic(), self.sim.now()
+                self._epoch = self._ros_now() - self.sim.now()  # wall-clock stamps restart from now
 
     # ------------------------------------------------------------------------------ commands in
 
