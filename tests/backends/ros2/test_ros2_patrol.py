@@ -27,7 +27,7 @@ pytestmark = [pytest.mark.ros2, pytest.mark.slow]
 REPO = Path(__file__).resolve().parents[3]
 PATROL = REPO / "trees" / "patrol.yaml"
 #: Simulated seconds per wall second served by sim-ros.
-RATE = 3.0
+RATE = 4.0
 
 _RUN = (yaml.safe_load(PATROL.read_text(encoding="utf-8")) or {}).get("run", {}) if PATROL.exists() else {}
 #: sim-ros serves the world and seed the mission runs on in-process.
