@@ -300,3 +300,58 @@ def test_without_nav2_msgs_auto_falls_back_to_goal_pose(domain_id: int) -> None:
     lines = out.stdout.splitlines()
     assert lines[0] == "topic", out.stderr
     assert "scripts/setup-ros2.sh" in lines[1] and "interface: topic" in lines[1]
+
+
+def test_goal_within_a_looser_tolerance_succeeds_and_cancels_nav2(domain_id: int, peer: Peer,
+                                                                  make_robot: Callable,
+                                                                  wait_until: Callable) -> None:
+    """Nav2 carries no tolerance: within the caller's looser one the goal succeeds and Nav2's is cancelled."""
+    from missiontree.types import Tolerance
+
+    peer.serve_forever_until_cancelled()
+    robot = make_robot(domain_id)
+    tf = peer.publisher(TFMessage, "/tf", reliable_qos(100))
+
+    def at_one_one() -> TFMessage:
+        stamp = peer.now()
+        base = conv.transform_to_msg(Pose2D(1.0, 1.0, 0.0), stamp, "odom", "base_link")
+        odom = conv.transform_to_msg(Pose2D(0.0, 0.0, 0.0), stamp, "map", "odom")
+        return TFMessage(transforms=[odom, base])
+
+    wait_until(lambda: tf.publish(at_one_one()) or robot.pose(), 10.0, "a pose")
+    handle = robot.navigate_to(Pose2D(1.2, 1.0, math.pi), Tolerance(xy=0.3, yaw=2 * math.pi))
+    wait_until(lambda: tf.publish(at_one_one()) or handle.status().done, 10.0, "the goal to end")
+    assert handle.result().status is ActionStatus.SUCCEEDED
+    wait_until(lambda: peer.cancel_requests == 1, 5.0, "Nav2's goal to be cancelled")
+
+
+def test_rgbd_pairs_colour_with_nearest_depth_in_metres(domain_id: int, peer: Peer, make_robot: Callable,
+                                                        wait_until: Callable) -> None:
+    """rgbd() pairs the colour image with the depth image nearest in time, in metres, at colour size."""
+    from sensor_msgs.msg import CameraInfo, Image
+
+    from missiontree.types import CameraIntrinsics
+
+    robot = make_robot(domain_id)
+    color_pub = peer.publisher(Image, "/oakd/rgb/preview/image_raw")
+    info_pub = peer.publisher(CameraInfo, "/oakd/rgb/preview/camera_info")
+    depth_pub = peer.publisher(Image, "/oakd/stereo/image_raw")
+    stamp = peer.now()
+    rgb = np.zeros((240, 320, 3), np.uint8)
+    rgb[:, :, 0] = 200
+    depth = np.full((120, 160), 2.5, np.float32)  # stereo depth at half the preview's size
+
+    def publish() -> Any:
+        depth_pub.publish(conv.depth_to_msg(depth, stamp, "oakd", "16UC1"))
+        depth_pub.publish(conv.depth_to_msg(depth * 2, stamp - 1.0, "oakd", "16UC1"))  # older, farther
+        info_pub.publish(conv.intrinsics_to_msg(CameraIntrinsics(320, 240, 228.5, 228.5, 159.5, 119.5),
+                                                stamp, "oakd"))
+        color_pub.publish(conv.image_to_msg(rgb, "rgb8", stamp, "oakd"))
+        return robot.rgbd()
+
+    frame = wait_until(publish, 10.0, "an RGB-D frame")
+    assert frame.stamp == pytest.approx(stamp, abs=1e-6)
+    assert frame.color.shape == (240, 320, 3) and frame.color[0, 0, 0] == 200
+    assert frame.depth.shape == (240, 320) and frame.depth.dtype == np.float32
+    assert float(np.nanmedian(frame.depth)) == pytest.approx(2.5, abs=1e-3)
+    assert frame.intrinsics.fx == pytest.approx(228.5)
