@@ -26,12 +26,15 @@ path. Scoring uses the simulator's ground truth (never seen by the leaves):
   is closer than OVERLAP (bodies overlapping, impossible for real people) are not scored for
   distance and are counted apart (``overlapping``).
 
+``--detector oracle`` runs every configuration on the simulation oracle (a perfect detector) instead
+of the shipped trained detector, to separate what the detector costs from what the design costs.
 Runs alternate between configurations scenario by scenario; ratios of ours against the seed's are
 printed with min/median/max over scenarios. Last line: one JSON object with the figures.
 """
 
 from __future__ import annotations
 
+import argparse
 import io
 import json
 import math
@@ -182,13 +185,15 @@ root:
 """
 
 
-def build_models(robot: Any) -> tuple[dict[str, Any], str]:
-    """The shipped offline models (the trained detector), or the simulation oracle when it is missing."""
+def build_models(robot: Any, force_oracle: bool = False) -> tuple[dict[str, Any], str]:
+    """The shipped offline models (the trained detector), or the simulation oracle when asked or missing."""
     from missiontree.errors import ConfigError
     from missiontree.reasoning.hub import BrokenProvider
     from missiontree.reasoning.hub import build_models as hub_models
 
     try:
+        if force_oracle:
+            raise ConfigError("--detector oracle")
         models = hub_models("offline")
         unavailable = getattr(models.get("detector"), "reason", "") \
             if isinstance(models.get("detector"), BrokenProvider) else ""
@@ -199,7 +204,7 @@ def build_models(robot: Any) -> tuple[dict[str, Any], str]:
         from missiontree.perception.oracle import OracleDetector
         from missiontree.reasoning.offline_vlm import OfflineVisionModel
 
-        detector_note = f"oracle (trained detector unavailable: {unavailable})"
+        detector_note = f"oracle (trained detector not used: {unavailable})"
         models["detector"] = OracleDetector(robot)
         models["vlm"] = OfflineVisionModel(models["detector"])
     models[SETTINGS_KEY] = CallSettings(latency={"vlm": LatencyModel(*LATENCY)}, timeouts={"vlm": 10.0})
@@ -207,7 +212,7 @@ def build_models(robot: Any) -> tuple[dict[str, Any], str]:
 
 
 def run_one(scenario: str, world_path: Path, route: str, laps: int, name: str,
-            tmp: Path, seed: int) -> tuple[RunScore, str]:
+            tmp: Path, seed: int, oracle: bool = False) -> tuple[RunScore, str]:
     """Run one configuration on one scenario and score it against ground truth."""
     plugins = load_plugins(autoload=False)
     tree = tmp / f"{name}.yaml"
@@ -215,7 +220,7 @@ def run_one(scenario: str, world_path: Path, route: str, laps: int, name: str,
     spec = load_mission(tree, plugins.nodes, allow_outside=True)
     root = build_tree(spec, plugins.nodes)
     robot = create_robot({"world": str(world_path), "seed": seed})
-    models, note = build_models(robot)
+    models, note = build_models(robot, force_oracle=oracle)
     context = MissionContext(robot=robot, models=models, seed=seed)
     truth_poses: dict[float, Any] = {}
     spin = robot.spin_until
@@ -327,6 +332,10 @@ def json_number(value: float) -> float | None:
 
 
 def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--detector", choices=("shipped", "oracle"), default="shipped",
+                        help="the shipped trained detector, or the simulation oracle (a perfect detector)")
+    oracle = parser.parse_args().detector == "oracle"
     scores: list[RunScore] = []
     note = ""
     started = time.perf_counter()
@@ -337,7 +346,7 @@ def main() -> int:
             world_path = crossing_world(world, route, tmp, random.Random(f"{seed}:{scenario}"))
             order = list(CONFIGS) if i % 2 == 0 else list(reversed(CONFIGS))  # alternate the order
             for name in order:
-                score, note = run_one(scenario, world_path, route, laps, name, tmp, seed)
+                score, note = run_one(scenario, world_path, route, laps, name, tmp, seed, oracle)
                 scores.append(score)
                 median, p95, over = stats(score.errors)
                 label = {"seed_05": "C", "seed_02": "D"}.get(name, "C/D") if scenario == "C/D" else scenario

@@ -23,7 +23,6 @@ def setup_leaf(robot: FakeRobot, latency: float = 1.0, vlm: ScriptedVLM | None =
     models: dict = {"detector": SlabDetector(), "vlm": vlm or ScriptedVLM()}
     models[CALLER_KEY] = ModelCaller(robot.now, events, simulated=True, models=models,
                                      latency={"vlm": LatencyModel(latency, latency)})
-    params.setdefault("min_hits", 1)  # act on the first frame unless a test says otherwise
     leaf = Surveillance("watch", Surveillance.Params(**params))
     leaf.setup(context=MissionContext(robot=robot, models=models, events=events, run_dir=run_dir))
     return leaf, events, models

@@ -10,6 +10,7 @@ import pytest
 from missiontree.perception.lidar import (
     box_bearings,
     cone_distance,
+    legs_at,
     position_from_range,
     seed_front_distance,
 )
@@ -154,3 +155,21 @@ def test_cone_keeps_a_single_beam_target_in_a_narrow_cone() -> None:
     ranges[90] = 4.0
     reading = cone_distance(turtlebot_scan(ranges), 0.0, math.radians(2.5))
     assert reading.distance == pytest.approx(4.0)
+
+
+def test_legs_at_finds_a_person_standing_clear_of_the_wall() -> None:
+    """Two legs 1.5 m away in front of a wall 5 m away are leg-like at their bearing and range."""
+    scan = room_scan(n=360, people=((1.5, math.radians(10), 0.07), (1.5, math.radians(18), 0.07)))
+    assert legs_at(scan, math.radians(14), 1.45)
+
+
+def test_legs_at_refuses_a_wall() -> None:
+    """A flat wall at the expected range is not legs, whatever the camera thought it saw."""
+    ranges = np.full(360, 2.0)
+    assert not legs_at(turtlebot_scan(ranges), 0.0, 2.0)
+
+
+def test_legs_at_refuses_when_nothing_is_near_the_expected_range() -> None:
+    """A leg at 3 m does not vouch for a detection measured at 1.5 m."""
+    scan = room_scan(people=((3.0, 0.0, 0.07),))
+    assert not legs_at(scan, 0.0, 1.5)

@@ -7,7 +7,8 @@ Runs beside the patrol (a Parallel) and never finishes by itself. Two modes:
   two checks, or while answers are slow, are missed.
 - ``detect`` — a cheap detector looks at *every* frame; a frame showing a person not seen before
   (light tracks by map position and clothing colour, :mod:`missiontree.behaviours.tracks`; a
-  person counts once detected in ``min_hits`` frames, which drops one-frame false detections)
+  detection counts only where the lidar also sees legs at the measured range, which drops boxes on
+  walls; ``min_hits`` frames may be asked for as well)
   goes to the VLM, which
   confirms; calls stay within a budget of one per ``period`` on average (short bursts of two, so
   two newcomers are both asked at once) and ``max_in_flight`` at once. Each person costs one call.
@@ -23,6 +24,7 @@ the latest scan once the answer came back.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
@@ -34,6 +36,7 @@ from missiontree.behaviours.tracks import CallBudget, PersonTracks, Track, Track
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Output
 from missiontree.perception.depth import centre_region
+from missiontree.perception.lidar import legs_at
 from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
 from missiontree.reasoning.checks import ask_checked
 from missiontree.reasoning.prompts import surveillance_prompt
@@ -84,8 +87,10 @@ class Surveillance(Leaf):
             0.1, ge=0, description="Added to measured ranges: sensors see a person's near surface (m).")
         forget_after: float = Field(
             1.0, gt=0, description="detect mode: seconds out of view before a person counts as new.")
+        lidar_check: bool = Field(
+            True, description="detect mode: count a detection only where the lidar sees legs at its range.")
         min_hits: int = Field(
-            2, ge=1, description="detect mode: frames a person must be detected in before the VLM is asked.")
+            1, ge=1, description="detect mode: frames a person must be detected in before the VLM is asked.")
         recheck: float = Field(3.0, gt=0, description="detect mode: seconds before asking again if SAFE.")
         alarm_cooldown: float = Field(
             0.0, ge=0, description="Seconds after an alarm with no new alarm (0: every sighting).")
@@ -104,6 +109,7 @@ class Surveillance(Leaf):
         self.alarm_count = 0
         self.checks = 0
         self.sightings = 0
+        self.rejected = 0
         self.tracks = PersonTracks(forget_after=self.params.forget_after)
         self.budget = CallBudget(1.0 / self.params.period)
 
@@ -165,6 +171,8 @@ class Surveillance(Leaf):
         for person in sorted(people, key=lambda d: -(d.box[2] - d.box[0]) * (d.box[3] - d.box[1])):
             self.sightings += 1
             sighting = self._sighting(frame, person, taken)
+            if sighting is None:
+                continue
             track = sighting.track
             assert track is not None
             recheck = track.state == "safe" and now - track.state_since > self.params.recheck
@@ -182,10 +190,18 @@ class Surveillance(Leaf):
                 sighting.track.set("pending", now)
             self._submit(frame, newcomers)
 
-    def _sighting(self, frame: RGBDFrame, person: Detection, taken: set[int]) -> _Sighting:
-        """Measure a person at the frame's instant and find their track."""
+    def _sighting(self, frame: RGBDFrame, person: Detection, taken: set[int]) -> _Sighting | None:
+        """Measure a person at the frame's instant and find their track (None: the lidar saw no legs)."""
         measurement = measure(self.context.robot, frame, person, self.params.method, fuse_at="frame",
                               surface_offset=self.params.surface_offset)
+        checkable = self.params.method != "seed"  # the seed's cone measures straight ahead, not the box
+        if (self.params.lidar_check and checkable and measurement is not None
+                and math.isfinite(measurement.distance)):
+            scan = self.context.robot.scan_at(frame.stamp)
+            near_surface = measurement.distance - self.params.surface_offset
+            if scan is not None and not legs_at(scan, measurement.bearing, near_surface):
+                self.rejected += 1
+                return None
         now = self.context.robot.now()
         if measurement is not None:
             pose = measurement.robot_pose

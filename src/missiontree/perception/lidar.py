@@ -168,3 +168,61 @@ def box_bearings(
 def position_from_range(robot_pose: Pose2D, bearing: float, distance: float) -> tuple[float, float]:
     """Map position of a point at ``distance`` along ``bearing`` from the robot (lidar at the base)."""
     return robot_pose.transform(distance * math.cos(bearing), distance * math.sin(bearing))
+
+
+def legs_at(
+    scan: LaserScan,
+    bearing: float,
+    distance: float,
+    *,
+    half_width: float = math.radians(6.0),
+    tolerance: float = 0.4,
+    max_width: float = 0.5,
+    clearance: float = 0.4,
+    step: float = 0.15,
+) -> bool:
+    """Whether the scan shows something leg-like near (``bearing``, ``distance``): the lidar's vote.
+
+    A person cut by a 2D scan plane at shin height is one or two narrow segments (legs) standing
+    clear of what is behind them; a wall, a door or a bench is a long continuous surface. This
+    looks for a segment of consecutive returns (range steps under ``step``) that has a return
+    within ``tolerance`` of ``distance`` inside ±``half_width`` of ``bearing``, is at most
+    ``max_width`` metres wide and has, on at least one side, a return ``clearance`` farther away
+    (the background seen past the leg). It lets surveillance drop detections that the camera made
+    on a wall: independent evidence, not a second look by the same detector.
+
+    Args:
+        scan: The scan of the frame's instant.
+        bearing: Expected direction, robot frame (rad).
+        distance: Expected range of the person's near surface (m).
+        half_width: Half-width of the search cone (rad).
+        tolerance: Largest range difference from ``distance`` (m).
+        max_width: Widest segment that still counts as legs (m).
+        clearance: How much farther the neighbouring return must be (m).
+        step: Largest range step between neighbouring beams of one segment (m).
+    """
+    r = np.asarray(scan.ranges, dtype=float)
+    n = len(r)
+    if n == 0:
+        return False
+    ok = np.isfinite(r) & (r >= scan.range_min) & (r <= scan.range_max)
+    r = np.where(ok, r, np.inf)
+    angles = (scan.angles() + np.pi) % (2.0 * np.pi) - np.pi
+    offset = np.abs((angles - bearing + np.pi) % (2.0 * np.pi) - np.pi)
+    seen: set[int] = set()
+    for i in np.flatnonzero((offset <= half_width) & (np.abs(r - distance) <= tolerance)).tolist():
+        if i in seen:
+            continue
+        lo = hi = i
+        while (hi + 1) % n != lo and abs(r[(hi + 1) % n] - r[hi % n]) < step:
+            hi += 1
+        while (lo - 1) % n != hi % n and abs(r[(lo - 1) % n] - r[lo % n]) < step:
+            lo -= 1
+        members = [k % n for k in range(lo, hi + 1)]
+        seen.update(members)
+        mean = float(np.mean(r[members]))
+        width = mean * len(members) * abs(scan.angle_increment)
+        beyond = max(r[(lo - 1) % n], r[(hi + 1) % n]) - mean
+        if width <= max_width and beyond >= clearance:
+            return True
+    return False
