@@ -67,21 +67,23 @@ class Listener:
                                  lambda m: self.alarms.append(json.loads(m.data)), reliable_qos())
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
+        self.stopping = threading.Event()
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
 
     def _spin(self) -> None:
-        while self.context.ok():
+        while self.context.ok() and not self.stopping.is_set():
             try:
                 self.executor.spin_once(timeout_sec=0.05)
             except Exception:  # noqa: BLE001 - shutting down under the executor
                 return
 
     def close(self) -> None:
+        self.stopping.set()
+        self.thread.join(timeout=2.0)
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         self.context.try_shutdown()
-        self.thread.join(timeout=2.0)
 
 
 class RecordingSink:

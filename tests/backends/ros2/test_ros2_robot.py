@@ -48,11 +48,12 @@ class Peer:
         self.velocities: list[tuple[float, float]] = []
         self.cancel_requests = 0
         self.goals: list[Pose2D] = []
+        self.stopping = threading.Event()
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
 
     def _spin(self) -> None:
-        while self.context.ok():
+        while self.context.ok() and not self.stopping.is_set():
             try:
                 self.executor.spin_once(timeout_sec=0.05)
             except Exception:  # noqa: BLE001 - shutting down under the executor
@@ -88,10 +89,11 @@ class Peer:
                                    cancel_callback=on_cancel, callback_group=ReentrantCallbackGroup())
 
     def close(self) -> None:
+        self.stopping.set()
+        self.thread.join(timeout=2.0)
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         self.context.try_shutdown()
-        self.thread.join(timeout=2.0)
 
 
 @pytest.fixture

@@ -91,7 +91,8 @@ class SimBridge:
         self.rate = rate
         self.odom_period = 1.0 / odom_hz
         self._sim_lock = threading.RLock()
-        self._stop = threading.Event()
+        self._stop = threading.Event()  # ends the pacing loop and running goals
+        self._spin_stop = threading.Event()  # then ends the executor's spinning
         self._context = rclpy.Context()
         rclpy.init(context=self._context, domain_id=profile.domain_id,
                    signal_handler_options=SignalHandlerOptions.NO)
@@ -148,7 +149,7 @@ class SimBridge:
 
     def _spin(self) -> None:
         try:
-            while self._context.ok() and not self._stop.is_set():
+            while self._context.ok() and not self._spin_stop.is_set():
                 self._executor.spin_once(timeout_sec=0.1)
         except (ExternalShutdownException, rclpy.executors.ShutdownException):
             pass
@@ -422,13 +423,14 @@ class SimBridge:
     def close(self) -> None:
         """Stop serving, end running goals, leave the ROS graph and close the simulator."""
         self._stop.set()
-        time.sleep(0.2)  # let running goals publish their end
+        time.sleep(0.2)  # let running goals publish their end while the executor still spins
+        self._spin_stop.set()
+        if self._spinner.is_alive():
+            self._spinner.join(timeout=2.0)
         self._executor.shutdown(timeout_sec=1.0)
         self._server.destroy()
         self.node.destroy_node()
         if self._context.ok():
             self._context.try_shutdown()
-        if self._spinner.is_alive():
-            self._spinner.join(timeout=2.0)
         with self._sim_lock:
             self.sim.close()

@@ -129,6 +129,7 @@ class Ros2Robot:
             self._context.try_shutdown()
             raise
         self.world = WorldPublisher(self.node, profile.topics)
+        self._spin_stop = threading.Event()
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self.node)
         self._spinner = threading.Thread(target=self._spin, name=f"ros2-{node_name}", daemon=True)
@@ -181,7 +182,7 @@ class Ros2Robot:
 
     def _spin(self) -> None:
         try:
-            while self._context.ok():
+            while self._context.ok() and not self._spin_stop.is_set():
                 self._executor.spin_once(timeout_sec=0.1)
         except (ExternalShutdownException, rclpy.executors.ShutdownException):
             pass
@@ -473,11 +474,14 @@ class Ros2Robot:
         finally:
             self._closed = True
             self._restore_sigint()
+            # The spinner stops before the executor is shut down: a callback running under a shutdown
+            # executor fails on its destroyed guard condition.
+            self._spin_stop.set()
+            self._spinner.join(timeout=2.0)
             self._executor.shutdown(timeout_sec=1.0)
             self.node.destroy_node()
             if self._context.ok():
                 self._context.try_shutdown()
-            self._spinner.join(timeout=2.0)
 
     def _flush(self, timeout: float) -> None:
         deadline = time.monotonic() + timeout
