@@ -55,3 +55,31 @@ def test_resolve_factory_imports_the_function() -> None:
     import json
 
     assert resolve_factory("backend", "j", "json:dumps") is json.dumps
+
+
+def test_mission_hooks_of_listed_modules_run_for_every_mission(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The built-in plugin hands mission started/finished to every module in MISSION_HOOK_MODULES."""
+    import sys
+    import types
+
+    seen: list[str] = []
+    module = types.ModuleType("missiontree_test_mission_hooks")
+    module.missiontree_mission_started = lambda context, mission: seen.append(f"started {mission}")
+    module.missiontree_mission_finished = lambda context, summary: seen.append(f"finished {summary}")
+    monkeypatch.setitem(sys.modules, module.__name__, module)
+    monkeypatch.setattr(builtin, "MISSION_HOOK_MODULES", [module.__name__])
+    hook = load_plugins(autoload=False).pm.hook
+    hook.missiontree_mission_started(context=None, mission="m")
+    hook.missiontree_mission_finished(context=None, summary={"status": "SUCCESS"})
+    assert seen == ["started m", "finished {'status': 'SUCCESS'}"]
+
+
+def test_ros2_event_mirroring_is_listed_and_imports_without_rclpy() -> None:
+    """The ROS 2 backend's mission hook is wired in, and importing it does not import rclpy."""
+    import importlib
+    import sys
+
+    assert "missiontree.backends.ros2.plugin" in builtin.MISSION_HOOK_MODULES
+    had_rclpy = "rclpy" in sys.modules
+    importlib.import_module("missiontree.backends.ros2.plugin")
+    assert ("rclpy" in sys.modules) == had_rclpy

@@ -9,6 +9,10 @@ Everything it pulls in is listed here, in one place:
 - :data:`PROVIDER_MODULES`: modules exposing ``register_providers(providers)``.
 - :data:`BACKENDS`: backend name → ``"module:function"``, resolved only when a run asks for that
   backend (so listing backends never imports rclpy), see :func:`resolve_factory`.
+- :data:`MISSION_HOOK_MODULES`: modules whose ``missiontree_mission_started`` /
+  ``missiontree_mission_finished`` hook implementations run for every mission (each decides
+  whether the mission concerns it, e.g. the ROS 2 backend mirrors events to topics only when the
+  robot is a Ros2Robot, and imports rclpy only then).
 """
 
 from __future__ import annotations
@@ -41,6 +45,11 @@ BACKENDS: dict[str, str] = {
     "sim": "missiontree.backends.sim:create_robot",
     "ros2": "missiontree.backends.ros2:create_robot",
 }
+
+#: Modules with mission started/finished hooks of built-in backends (cheap to import: no rclpy).
+MISSION_HOOK_MODULES: list[str] = [
+    "missiontree.backends.ros2.plugin",
+]
 
 #: What to install when a backend's module cannot be imported.
 BACKEND_HINTS: dict[str, str] = {
@@ -77,6 +86,25 @@ def missiontree_register_model_providers(providers: dict[str, Any]) -> None:
 def missiontree_register_backends(backends: dict[str, Any]) -> None:
     """Add the built-in backends as lazy ``"module:function"`` references."""
     backends.update(BACKENDS)
+
+
+def _mission_hooks(hook_name: str) -> list[Callable[..., Any]]:
+    modules = (_import_listed(name, "MISSION_HOOK_MODULES") for name in MISSION_HOOK_MODULES)
+    return [hook for module in modules if (hook := getattr(module, hook_name, None)) is not None]
+
+
+@hookimpl
+def missiontree_mission_started(context: Any, mission: Any) -> None:
+    """Give every module in :data:`MISSION_HOOK_MODULES` its look at the starting mission."""
+    for hook in _mission_hooks("missiontree_mission_started"):
+        hook(context=context, mission=mission)
+
+
+@hookimpl
+def missiontree_mission_finished(context: Any, summary: dict[str, Any]) -> None:
+    """Give every module in :data:`MISSION_HOOK_MODULES` its look at the finished mission."""
+    for hook in _mission_hooks("missiontree_mission_finished"):
+        hook(context=context, summary=summary)
 
 
 def resolve_factory(kind: str, name: str, factory: Any) -> Callable[..., Any]:
