@@ -18,7 +18,7 @@ blocks to stride 32, a top-down feature pyramid, and a shared-weight-free head p
 assigned to the cells around its centre on the level whose stride suits its size; classification
 is binary cross-entropy with the IoU of the cell's predicted box as its target (at least 0.2; 0
 elsewhere, nothing on the cells of objects too small to demand), so that scores rank boxes by how
-well they fit; boxes are trained with GIoU.
+well they fit (``--cls-target one``: target 1); boxes are trained with GIoU.
 """
 
 from __future__ import annotations
@@ -175,15 +175,17 @@ def giou(a: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
 
 
 def assign(
-    targets: list[np.ndarray], centres: torch.Tensor, strides: torch.Tensor
+    targets: list[np.ndarray], centres: torch.Tensor, strides: torch.Tensor, inside: bool = False
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """Positive cells of each image and what they should predict.
 
     An object (class, x1, y1, x2, y2 in input pixels) goes to the level whose stride is nearest
     a quarter of its larger side, and to the next level in that direction when it lies between
     two; on a level it claims the cells whose centre lies within 1.5 strides of its centre
-    (at least the nearest one). A cell claimed twice goes to the smaller object. An object with
-    class -1 (too small to label) makes its cells *ignored*: no loss there either way.
+    (at least the nearest one) — with ``inside``, only those whose centre also lies inside the
+    object's box, so that a narrow object (a person, a bottle) is not predicted from cells beside
+    it. A cell claimed twice goes to the smaller object. An object with class -1 (too small to
+    label) makes its cells *ignored*: no loss there either way.
 
     Returns:
         (positive mask [B, N], ignored mask [B, N], class id [B, N], target box xyxy [B, N, 4]).
@@ -209,6 +211,9 @@ def assign(
                 on_level = strides == s
                 dist = torch.max((centres[:, 0] - cx).abs(), (centres[:, 1] - cy).abs())
                 near = on_level & (dist <= 1.5 * s)
+                if inside and c >= 0:
+                    near = near & (centres[:, 0] >= x1) & (centres[:, 0] <= x2)
+                    near = near & (centres[:, 1] >= y1) & (centres[:, 1] <= y2)
                 if not near.any():
                     near = on_level & (dist == dist[on_level].min())
                 if c < 0:
@@ -223,10 +228,15 @@ def assign(
 
 
 def detection_loss(
-    raw: torch.Tensor, targets: list[np.ndarray], centres: torch.Tensor, strides: torch.Tensor
+    raw: torch.Tensor,
+    targets: list[np.ndarray],
+    centres: torch.Tensor,
+    strides: torch.Tensor,
+    inside: bool = False,
+    iou_targets: bool = True,
 ) -> tuple[torch.Tensor, dict[str, float]]:
     """Classification (BCE, IoU-valued targets) plus GIoU box loss, per positive cell."""
-    positive, ignored, cls, target_boxes = assign(targets, centres, strides)
+    positive, ignored, cls, target_boxes = assign(targets, centres, strides, inside)
     logits = raw[..., 4:]
     score_target = torch.zeros_like(logits)
     num_pos = max(int(positive.sum()), 1)
@@ -235,7 +245,7 @@ def detection_loss(
         pred = box_xyxy(decode_boxes(raw, centres, strides)[positive])
         iou, g = giou(pred, target_boxes[positive])
         box_loss = (1.0 - g).sum() / num_pos
-        score_target[positive, cls[positive]] = iou.detach().clamp(min=0.2)
+        score_target[positive, cls[positive]] = iou.detach().clamp(min=0.2) if iou_targets else 1.0
     weight = (~ignored).float()[..., None].expand_as(logits)
     cls_loss = F.binary_cross_entropy_with_logits(logits, score_target, weight, reduction="sum") / num_pos
     total = cls_loss + 5.0 * box_loss
@@ -311,6 +321,9 @@ def train(args: argparse.Namespace) -> None:
     model.train()
     deadline = started + args.max_minutes * 60.0
     for epoch in range(args.epochs):
+        if args.stop_epoch is not None and epoch >= args.stop_epoch:
+            print(f"stopping after {epoch} of {args.epochs} epochs (--stop-epoch)", flush=True)
+            break
         if time.perf_counter() > deadline:
             print(f"stopping after {epoch} epochs: --max-minutes {args.max_minutes} reached (the result "
                   f"then depends on the machine's speed, not only on the seed)", flush=True)
@@ -321,7 +334,8 @@ def train(args: argparse.Namespace) -> None:
             index = order[step * args.batch : (step + 1) * args.batch]
             x, targets = batch_tensors(images, labels, index, rng)
             raw = flatten_maps(model(x))
-            loss, parts = detection_loss(raw, targets, centres, strides)
+            loss, parts = detection_loss(raw, targets, centres, strides, inside=args.assign == "inside",
+                                         iou_targets=args.cls_target == "iou")
             optimiser.zero_grad()
             loss.backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
@@ -331,7 +345,8 @@ def train(args: argparse.Namespace) -> None:
             sums["cls"] += parts["cls"]
             sums["box"] += parts["box"]
             if (step + 1) % 25 == 0:
-                print(f"  step {epoch * steps_per_epoch + step + 1}/{total_steps} loss {float(loss.detach()):.3f} "
+                done = epoch * steps_per_epoch + step + 1
+                print(f"  step {done}/{total_steps} loss {float(loss.detach()):.3f} "
                       f"({time.perf_counter() - started:.0f} s)", flush=True)
         means = {k: v / steps_per_epoch for k, v in sums.items()}
         print(f"epoch {epoch + 1}/{args.epochs} loss {means['loss']:.3f} cls {means['cls']:.3f} "
@@ -361,7 +376,8 @@ def export(model: TinyDetector, out: Path, args: argparse.Namespace) -> None:
         "task": "detect",
         "description": "missiontree simulator detector (scripts/train_detector.py)",
         "training": f"seed={args.seed} images={args.images} epochs={args.epochs} "
-        f"first_world={args.first_world} widths={args.widths} lr={args.lr} init={args.init}",
+        f"first_world={args.first_world} widths={args.widths} lr={args.lr} init={args.init} "
+        f"cls_target={args.cls_target} assign={args.assign}",
     }
     onnx.helper.set_model_props(proto, metadata)
     onnx.save(proto, str(out))
@@ -379,7 +395,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--batch", type=int, default=32)
     parser.add_argument("--lr", type=float, default=4e-3)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--stop-epoch", type=int, default=None,
+                        help="stop after this many epochs of the schedule (reproduces a run cut short)")
     parser.add_argument("--init", default=None, help="start from these weights (a .pt written by a run)")
+    parser.add_argument("--cls-target", choices=["iou", "one"], default="iou",
+                        help="score target of an object's cells: its predicted box's IoU, or 1")
+    parser.add_argument("--assign", choices=["centre", "inside"], default="centre",
+                        help="positive cells: near the object's centre, or near it and inside its box")
     parser.add_argument("--max-minutes", type=float, default=40.0,
                         help="stop at the end of the epoch that passes this much wall time")
     parser.add_argument("--widths", type=int, nargs=4, default=[16, 48, 96, 160],
