@@ -30,9 +30,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from missiontree.errors import ModelConfigError
+from missiontree.options import parse_provider_options
 
 #: The detector shipped in the package (trained on the simulator's images).
 SIM_DETECTOR_MODEL = Path(__file__).resolve().parents[1] / "data" / "models" / "sim_detector.onnx"
@@ -68,18 +69,6 @@ class OracleOptions(BaseModel):
     name: str = "oracle"
 
 
-def _parse(model: type[BaseModel], options: Mapping[str, Any], provider: str) -> Any:
-    try:
-        return model.model_validate(dict(options))
-    except ValidationError as exc:
-        problems = "; ".join(
-            f"{'.'.join(str(p) for p in e['loc']) or 'options'}: {e['msg']}" for e in exc.errors())
-        raise ModelConfigError(
-            f"model provider {provider!r}: invalid options ({problems}); known options: "
-            f"{', '.join(model.model_fields)}"
-        ) from None
-
-
 def _yolo(parsed: YoloOptions, model: str | Path, name: str) -> Any:
     from missiontree.perception.detectors import YoloOnnxDetector
 
@@ -97,7 +86,7 @@ def _yolo(parsed: YoloOptions, model: str | Path, name: str) -> Any:
 
 def create_yolo_onnx(options: Mapping[str, Any]) -> Any:
     """Build ``yolo_onnx`` on the model its ``model:`` option names."""
-    parsed = _parse(YoloOptions, options, "yolo_onnx")
+    parsed = parse_provider_options(YoloOptions, options, "yolo_onnx")
     if parsed.model is None:
         raise ModelConfigError(
             "model provider 'yolo_onnx': option 'model' is required; set it to a YOLOv8/YOLO11 ONNX "
@@ -109,7 +98,7 @@ def create_yolo_onnx(options: Mapping[str, Any]) -> Any:
 
 def create_sim_detector(options: Mapping[str, Any]) -> Any:
     """Build ``sim_detector``: the shipped model, or ``model:`` if given (e.g. a retrained one)."""
-    parsed = _parse(YoloOptions, {"score_threshold": 0.3, **options}, "sim_detector")
+    parsed = parse_provider_options(YoloOptions, {"score_threshold": 0.3, **options}, "sim_detector")
     return _yolo(parsed, parsed.model or SIM_DETECTOR_MODEL, "sim_detector")
 
 
@@ -117,7 +106,7 @@ def create_oracle(options: Mapping[str, Any]) -> Any:
     """Build ``oracle``, bound now if ``options["robot"]`` holds the simulated robot."""
     from missiontree.perception.oracle import OracleDetector
 
-    parsed = _parse(OracleOptions, options, "oracle")
+    parsed = parse_provider_options(OracleOptions, options, "oracle")
     return OracleDetector(
         robot=parsed.robot,
         miss_rate=parsed.miss_rate,

@@ -34,9 +34,10 @@ from typing import Any, Literal
 
 import cv2
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from missiontree.errors import BackendUnavailableError, ModelConfigError, ModelError, ModelTimeoutError
+from missiontree.options import parse_provider_options
 from missiontree.reasoning.protocols import Message, check_image
 
 _MASKED_KEY = re.compile(r"\b(sk|key|Bearer)[-_ ][A-Za-z0-9*_\-.]{4,}", re.IGNORECASE)
@@ -101,13 +102,7 @@ class OpenAIChatModel:
             ModelConfigError: An unknown or invalid option, or the key variable is unset.
             BackendUnavailableError: The ``openai`` extra is not installed.
         """
-        try:
-            parsed = OpenAIOptions.model_validate(dict(options))
-        except ValidationError as exc:
-            problems = "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors())
-            raise ModelConfigError(
-                f"model provider 'openai': invalid options ({problems}); known options: "
-                f"{', '.join(OpenAIOptions.model_fields)}") from None
+        parsed = parse_provider_options(OpenAIOptions, options, "openai")
         key: str | None = None
         if parsed.api_key_env:
             key = os.environ.get(parsed.api_key_env)

@@ -18,9 +18,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from missiontree.errors import ModelConfigError
+from missiontree.options import parse_provider_options
 
 M = TypeVar("M", bound=BaseModel)
 
@@ -50,17 +51,6 @@ class OfflineLanguageOptions(BaseModel):
     name: str = "offline_llm"
 
 
-def _parse(model: type[M], options: Mapping[str, Any], provider: str) -> M:
-    try:
-        return model.model_validate(dict(options))
-    except ValidationError as exc:
-        problems = "; ".join(
-            f"{'.'.join(str(p) for p in e['loc']) or 'options'}: {e['msg']}" for e in exc.errors())
-        raise ModelConfigError(
-            f"model provider {provider!r}: invalid options ({problems}); known options: "
-            f"{', '.join(model.model_fields)}") from None
-
-
 def _role(models: Mapping[str, Any], role: str, provider: str, what: str) -> Any:
     if role not in models:
         configured = ", ".join(sorted(r for r in models if not r.startswith("_"))) or "none"
@@ -82,7 +72,7 @@ def create_offline_vlm(options: Mapping[str, Any], models: Mapping[str, Any], se
     """Build ``offline_vlm`` on the detector role its options name."""
     from missiontree.reasoning.offline_vlm import OfflineVisionModel
 
-    parsed = _parse(OfflineVisionOptions, options, "offline_vlm")
+    parsed = parse_provider_options(OfflineVisionOptions, options, "offline_vlm")
     detector = _role(models, parsed.detector, parsed.name, "detector")
     return OfflineVisionModel(detector, min_score=parsed.min_score, colour_share=parsed.colour_share,
                               room_objects=parsed.room_objects, person_label=parsed.person_label,
@@ -93,7 +83,7 @@ def create_offline_llm(options: Mapping[str, Any], models: Mapping[str, Any], se
     """Build ``offline_llm`` on the embedder role its options name."""
     from missiontree.reasoning.offline_llm import OfflineLanguageModel
 
-    parsed = _parse(OfflineLanguageOptions, options, "offline_llm")
+    parsed = parse_provider_options(OfflineLanguageOptions, options, "offline_llm")
     embedder = _role(models, parsed.embedder, parsed.name, "embedder")
     return OfflineLanguageModel(embedder, affordances=parsed.affordances, margin=parsed.margin,
                                 min_score=parsed.min_score, name=parsed.name)
