@@ -27,7 +27,7 @@ lint: setup
 
 test: setup setup-ros2
 	$(VENV)/bin/ruff check src tests examples benchmarks scripts plugins
-	$(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests)
+	MISSIONTREE_REQUIRE_ROS2=1 $(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests)
 
 bench: setup
 	for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

@@ -145,3 +145,16 @@ def make_robot() -> Iterator[Callable[..., Any]]:
     yield make
     for robot in robots:
         robot.close()
+
+
+def pytest_collectstart(collector: pytest.Collector) -> None:
+    """With MISSIONTREE_REQUIRE_ROS2=1 (``make test``), a missing ROS 2 install fails instead of skipping."""
+    if os.environ.get("MISSIONTREE_REQUIRE_ROS2") != "1" or not isinstance(collector, pytest.Module):
+        return
+    for module in ("rclpy", "nav2_msgs.action", "tf2_msgs.msg"):
+        try:
+            __import__(module)
+        except ImportError as error:
+            raise pytest.UsageError(
+                f"MISSIONTREE_REQUIRE_ROS2=1 but {module} does not import ({error}); "
+                "run `make setup-ros2` (scripts/setup-ros2.sh)") from error
