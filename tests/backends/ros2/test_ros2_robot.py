@@ -236,13 +236,15 @@ def test_close_in_the_middle_of_a_goal_cancels_it_and_sends_zero(domain_id: int,
     """Shutting down mid-goal cancels the goal at the server and leaves zero velocity as the last command."""
     peer.serve_forever_until_cancelled()
     peer.record_velocity(stamped=True)
-    robot = make_robot(domain_id)
+    # The profile's default wait for the cancel's answer (not the fixture's 0.3 s, which a loaded
+    # machine can overrun before the request has even left).
+    robot = make_robot(domain_id, shutdown_timeout=3.0)
     handle = robot.navigate_to(Pose2D(4.0, 1.0, 0.0))
     wait_until(lambda: peer.goals, 10.0, "the server to receive the goal")
     assert peer.goals[0].x == pytest.approx(4.0)
     assert not handle.status().done
     robot.close()
-    wait_until(lambda: peer.cancel_requests == 1, 5.0, "the cancel request")
+    wait_until(lambda: peer.cancel_requests >= 1, 5.0, "the cancel request")
     wait_until(lambda: peer.velocities and peer.velocities[-1] == (0.0, 0.0), 5.0, "zero velocity")
 
 

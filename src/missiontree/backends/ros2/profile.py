@@ -118,7 +118,7 @@ class Ros2Profile(_Section):
     domain_id: int | None = None
     use_sim_time: bool = False
     startup_timeout: float = 5.0
-    shutdown_timeout: float = 1.0
+    shutdown_timeout: float = 3.0
     topics: Topics = Topics()
     frames: Frames = Frames()
     navigation: Navigation = Navigation()
