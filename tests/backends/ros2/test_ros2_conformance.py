@@ -8,7 +8,6 @@ test starts with the robot at the world's start, exactly as the in-process suite
 from __future__ import annotations
 
 import json
-import threading
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -19,39 +18,23 @@ pytest.importorskip("rclpy", reason="ROS 2 extra not installed: pip install -e .
 pytest.importorskip("nav2_msgs.action", reason="nav2_msgs not built: run scripts/setup-ros2.sh")
 pytestmark = [pytest.mark.ros2, pytest.mark.slow]
 
-import rclpy  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.node import Node  # noqa: E402
-from rclpy.signals import SignalHandlerOptions  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from missiontree.backends.ros2.bridge import CONTROL_TOPIC, STATUS_TOPIC  # noqa: E402
 from missiontree.backends.ros2.robot import latched_qos, reliable_qos  # noqa: E402
+from missiontree.backends.ros2.testing import SpinningPeer  # noqa: E402
 from missiontree.robot.conformance import RobotConformance  # noqa: E402
 
 
-class SimControl:
+class SimControl(SpinningPeer):
     """Sends simulator controls to sim-ros and follows its status topic."""
 
     def __init__(self, domain: int) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = Node("sim_control", context=self.context)
+        super().__init__(domain, "sim_control")
         self.status: dict[str, int] = {}
         self.publisher = self.node.create_publisher(String, CONTROL_TOPIC, reliable_qos())
         self.node.create_subscription(String, STATUS_TOPIC, self._on_status, latched_qos())
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.stopping = threading.Event()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self) -> None:
-        while self.context.ok() and not self.stopping.is_set():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception:  # noqa: BLE001 - shutting down under the executor
-                return
+        self.start()
 
     def _on_status(self, msg: String) -> None:
         self.status = json.loads(msg.data)
@@ -64,12 +47,6 @@ class SimControl:
         self.publisher.publish(String(data=command))
         wait_until(lambda: self.status["controls"] >= done, 10.0, f"sim-ros to apply {command!r}")
 
-    def close(self) -> None:
-        self.stopping.set()
-        self.thread.join(timeout=2.0)
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        self.context.try_shutdown()
 
 
 #: What sim-ros serves to this module: the conformance world, with the in-process suite's seed.

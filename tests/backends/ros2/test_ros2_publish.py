@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -12,10 +11,6 @@ import pytest
 pytest.importorskip("rclpy", reason="ROS 2 extra not installed: pip install -e .[ros2]; setup-ros2.sh")
 pytestmark = pytest.mark.ros2
 
-import rclpy  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.node import Node  # noqa: E402
-from rclpy.signals import SignalHandlerOptions  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 
@@ -27,6 +22,7 @@ from missiontree.backends.ros2.publish import (  # noqa: E402
     label_colour,
 )
 from missiontree.backends.ros2.robot import latched_qos, reliable_qos  # noqa: E402
+from missiontree.backends.ros2.testing import SpinningPeer  # noqa: E402
 from missiontree.engine.context import MissionContext  # noqa: E402
 
 
@@ -49,13 +45,11 @@ def test_unknown_labels_get_a_stable_colour() -> None:
     assert label_colour("stapler") == label_colour("stapler") != label_colour("lamp")
 
 
-class Listener:
+class Listener(SpinningPeer):
     """A peer node recording what arrives on the three publishing topics."""
 
     def __init__(self, domain: int) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = Node("listener", context=self.context)
+        super().__init__(domain, "listener")
         self.markers: list[MarkerArray] = []
         self.graphs: list[dict[str, Any]] = []
         self.alarms: list[dict[str, Any]] = []
@@ -65,25 +59,8 @@ class Listener:
                                  latched_qos())
         node.create_subscription(String, "/missiontree/alarms",
                                  lambda m: self.alarms.append(json.loads(m.data)), reliable_qos())
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.stopping = threading.Event()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
+        self.start()
 
-    def _spin(self) -> None:
-        while self.context.ok() and not self.stopping.is_set():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception:  # noqa: BLE001 - shutting down under the executor
-                return
-
-    def close(self) -> None:
-        self.stopping.set()
-        self.thread.join(timeout=2.0)
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        self.context.try_shutdown()
 
 
 class RecordingSink:

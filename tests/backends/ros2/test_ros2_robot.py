@@ -7,7 +7,6 @@ import signal
 import subprocess
 import sys
 import textwrap
-import threading
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -19,45 +18,29 @@ pytest.importorskip("rclpy", reason="ROS 2 extra not installed: pip install -e .
 pytest.importorskip("nav2_msgs.action", reason="nav2_msgs not built: run scripts/setup-ros2.sh")
 pytestmark = pytest.mark.ros2
 
-import rclpy  # noqa: E402
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped  # noqa: E402
 from nav2_msgs.action import NavigateToPose  # noqa: E402
 from rclpy.action import ActionServer, CancelResponse  # noqa: E402
 from rclpy.callback_groups import ReentrantCallbackGroup  # noqa: E402
-from rclpy.executors import MultiThreadedExecutor  # noqa: E402
-from rclpy.node import Node  # noqa: E402
-from rclpy.signals import SignalHandlerOptions  # noqa: E402
 from sensor_msgs.msg import LaserScan as LaserScanMsg  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
 from missiontree.backends.ros2 import conversions as conv  # noqa: E402
 from missiontree.backends.ros2.robot import latched_qos, reliable_qos  # noqa: E402
+from missiontree.backends.ros2.testing import SpinningPeer  # noqa: E402
 from missiontree.robot.actions import ActionStatus  # noqa: E402
 from missiontree.types import LaserScan, Pose2D  # noqa: E402
 
 
-class Peer:
+class Peer(SpinningPeer):
     """Another ROS 2 participant: publishes sensors, records velocity commands, can serve NavigateToPose."""
 
     def __init__(self, domain: int) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = Node("peer", context=self.context)
-        self.executor = MultiThreadedExecutor(num_threads=3, context=self.context)
-        self.executor.add_node(self.node)
+        super().__init__(domain, "peer", threads=3)
         self.velocities: list[tuple[float, float]] = []
         self.cancel_requests = 0
         self.goals: list[Pose2D] = []
-        self.stopping = threading.Event()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self) -> None:
-        while self.context.ok() and not self.stopping.is_set():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception:  # noqa: BLE001 - shutting down under the executor
-                return
+        self.start()
 
     def now(self) -> float:
         return self.node.get_clock().now().nanoseconds * 1e-9
@@ -88,12 +71,6 @@ class Peer:
         self.server = ActionServer(self.node, NavigateToPose, "/navigate_to_pose", execute_callback=execute,
                                    cancel_callback=on_cancel, callback_group=ReentrantCallbackGroup())
 
-    def close(self) -> None:
-        self.stopping.set()
-        self.thread.join(timeout=2.0)
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        self.context.try_shutdown()
 
 
 @pytest.fixture
