@@ -5,23 +5,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import yaml
+from patrol_doubles import Events
 
 from missiontree.backends.sim import create_robot
 from missiontree.behaviours.patrol import Patrol
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Status
 from missiontree.types import Pose2D
-
-
-class Events:
-    def __init__(self) -> None:
-        self.items: list[tuple[str, dict]] = []
-
-    def emit(self, event: str, **fields: object) -> None:
-        self.items.append((event, fields))
-
-    def of(self, kind: str) -> list[dict]:
-        return [f for e, f in self.items if e == kind]
 
 
 def room(tmp_path: Path) -> Path:

@@ -8,6 +8,7 @@ from pathlib import Path
 import py_trees
 import pytest
 import yaml
+from patrol_doubles import Events
 
 from missiontree.backends.sim import create_robot
 from missiontree.behaviours.servo import ServoToTarget
@@ -17,17 +18,6 @@ from missiontree.engine.leaf import Status
 from missiontree.perception.oracle import OracleDetector
 from missiontree.reasoning.calls import SETTINGS_KEY, CallSettings, LatencyModel
 from missiontree.reasoning.offline_vlm import OfflineVisionModel
-
-
-class Events:
-    def __init__(self) -> None:
-        self.items: list[tuple[str, dict]] = []
-
-    def emit(self, event: str, **fields: object) -> None:
-        self.items.append((event, fields))
-
-    def of(self, kind: str) -> list[dict]:
-        return [f for e, f in self.items if e == kind]
 
 
 def hall(tmp_path: Path, people: list[dict]) -> Path:
