@@ -217,14 +217,14 @@ class RobotConformance:
         start = self._pose(ready)
         ready.drive(0.2, 0.0)
         spin_for(ready, 2.0)
-        moved = self._pose(ready)
+        moved = self._pose_after(ready, ready.now()).pose
         ahead = (moved.x - start.x) * math.cos(start.yaw) + (moved.y - start.y) * math.sin(start.yaw)
         assert 0.2 < ahead < 0.6
         ready.stop()
         spin_for(ready, 1.0)
-        settled = self._pose(ready)
+        settled = self._pose_after(ready, ready.now()).pose
         spin_for(ready, 1.0)
-        assert settled.distance_to(self._pose(ready)) < 0.02
+        assert settled.distance_to(self._pose_after(ready, ready.now()).pose) < 0.02
 
     def test_conformance_drive_rotates_in_place(self, ready: Robot) -> None:
         """drive(0, w) turns the robot without moving it."""
@@ -233,7 +233,7 @@ class RobotConformance:
         spin_for(ready, 1.0)
         ready.stop()
         spin_for(ready, 0.5)
-        end = self._pose(ready)
+        end = self._pose_after(ready, ready.now()).pose
         turned = math.remainder(end.yaw - start.yaw, 2 * math.pi)
         assert 0.6 < turned < 1.6
         assert start.distance_to(end) < 0.05
@@ -262,7 +262,8 @@ class RobotConformance:
         result = handle.result()
         assert handle.status() is ActionStatus.SUCCEEDED, result
         assert result is not None and result.succeeded
-        assert self._pose(ready).distance_to(self.free_goal) < 0.25 + 0.1
+        pose = self._pose_after(ready, ready.now())
+        assert pose.pose.distance_to(self.free_goal) < 0.25 + 0.1, (pose, ready.now())
         assert feedback and all(fb.distance_remaining >= 0 for fb in feedback)
 
     def test_conformance_navigate_reaches_goal_heading(self, ready: Robot) -> None:
@@ -271,7 +272,8 @@ class RobotConformance:
         handle = ready.navigate_to(goal, Tolerance(xy=0.25, yaw=0.2))
         spin_for(ready, self.navigation_budget, until=lambda: handle.status().done)
         assert handle.status() is ActionStatus.SUCCEEDED, handle.result()
-        assert abs(math.remainder(self._pose(ready).yaw - goal.yaw, 2 * math.pi)) < 0.2 + 0.1
+        pose = self._pose_after(ready, ready.now())
+        assert abs(math.remainder(pose.pose.yaw - goal.yaw, 2 * math.pi)) < 0.2 + 0.1, (pose, ready.now())
 
     def test_conformance_navigate_aborts_unreachable_goal_with_reason(self, ready: Robot) -> None:
         """A goal inside an obstacle ends ABORTED (or REJECTED) with a reason, not an exception."""
@@ -308,17 +310,30 @@ class RobotConformance:
         """While drive() is commanded during a goal, the robot follows the drive command."""
         handle = ready.navigate_to(self.far_goal, Tolerance(xy=0.1, yaw=ANY_HEADING))
         spin_for(ready, 1.0)
-        before = self._pose(ready)
         ready.drive(0.0, 0.8)
+        spin_for(ready, 0.5)  # the goal's cancel takes effect (on ROS 2, a round trip to the server)
+        before = self._pose_after(ready, ready.now()).pose
         spin_for(ready, 1.0)
-        after = self._pose(ready)
+        after = self._pose_after(ready, ready.now()).pose
         ready.stop()
-        assert before.distance_to(after) < 0.1
+        assert before.distance_to(after) < 0.05
         assert abs(math.remainder(after.yaw - before.yaw, 2 * math.pi)) > 0.4
         spin_for(ready, 1.0, until=lambda: handle.status().done)
         assert handle.status().done, "stop() must end the goal that drive() interrupted"
 
     # -- helpers ---------------------------------------------------------------------------------
+
+    @staticmethod
+    def _pose_after(robot: Robot, stamp: float, budget: float = 2.0) -> PoseStamped:
+        """The first pose stamped at or after ``stamp``.
+
+        A goal's result and the robot's pose travel separately (on ROS 2, an action response and
+        /tf); a pose read the instant the result arrives may be older than the result.
+        """
+        spin_for(robot, budget, step=0.02, until=lambda: (p := robot.pose()) is not None and p.stamp >= stamp)
+        stamped = robot.pose()
+        assert stamped is not None and stamped.stamp >= stamp, (stamped, stamp)
+        return stamped
 
     @staticmethod
     def _pose(robot: Robot) -> Pose2D:

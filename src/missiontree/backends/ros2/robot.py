@@ -120,6 +120,9 @@ class Ros2Robot:
         self._mount_yaws: dict[str, float] = {}
         self._goal: NavGoal | None = None
         self._drive_command: tuple[float, float] | None = None
+        # Held while the drive command changes and while it is published: the timer's repeat of an
+        # old command must never go out after stop()'s zero velocity (the base would keep driving).
+        self._drive_lock = threading.RLock()
         self._nav_goal_ids: set[bytes] = set()  # goals seen on the NavigateToPose status topic
         try:
             self._subscribe()
@@ -259,9 +262,10 @@ class Ros2Robot:
             goal.on_status(msg)
 
     def _on_timer(self) -> None:
-        command = self._drive_command
-        if command is not None:  # bases stop when commands stop coming (Create 3's cmd_vel timeout)
-            self._publish_velocity(*command)
+        with self._drive_lock:
+            command = self._drive_command
+            if command is not None:  # bases stop when commands stop coming (Create 3's cmd_vel timeout)
+                self._publish_velocity(*command)
         goal = self._goal
         if goal is not None:
             goal.advance()
@@ -385,7 +389,8 @@ class Ros2Robot:
     def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> ActionHandle:
         """Send a NavigateToPose goal; the previous goal is cancelled (preempted), a drive() ends."""
         nav = self.profile.navigation
-        self._drive_command = None
+        with self._drive_lock:
+            self._drive_command = None
         previous = self._goal
         if previous is not None and not previous.done:
             if isinstance(previous, TopicGoal):
@@ -444,8 +449,9 @@ class Ros2Robot:
         goal = self._goal
         if goal is not None and not goal.done and (v != 0.0 or w != 0.0):
             goal.cancel()
-        self._drive_command = (float(v), float(w))
-        self._publish_velocity(v, w)
+        with self._drive_lock:
+            self._drive_command = (float(v), float(w))
+            self._publish_velocity(v, w)
 
     def _publish_velocity(self, v: float, w: float) -> None:
         if not self._context.ok():
@@ -457,11 +463,12 @@ class Ros2Robot:
 
     def stop(self) -> None:
         """Cancel navigation and publish zero velocity; always safe, idempotent."""
-        self._drive_command = None
         goal = self._goal
         if goal is not None and not goal.done:
             goal.cancel()
-        self._publish_velocity(0.0, 0.0)
+        with self._drive_lock:
+            self._drive_command = None
+            self._publish_velocity(0.0, 0.0)
 
     def close(self) -> None:
         """Stop, wait briefly for the cancel and the zero velocity to go out, then leave the ROS graph."""
