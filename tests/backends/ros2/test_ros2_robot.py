@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -194,6 +195,35 @@ def test_drive_repeats_and_stop_sends_zero_as_twist_stamped(domain_id: int, peer
     count = len(peer.velocities)
     time.sleep(0.3)
     assert len(peer.velocities) == count  # after stop() nothing is repeated
+
+
+def test_stop_during_a_repeat_of_the_drive_command_leaves_zero_last(domain_id: int, peer: Peer,
+                                                                   make_robot: Callable,
+                                                                   wait_until: Callable) -> None:
+    """stop() racing the timer's repeat of the drive command: zero velocity is still the last word.
+
+    The repeat is held mid-publish (as a loaded machine might pause that thread) while stop() runs;
+    without ordering the two, the stale command would go out after the zero and the base drive on.
+    """
+    peer.record_velocity(stamped=True)
+    robot = make_robot(domain_id)
+    wait_until(lambda: robot._cmd_vel.get_subscription_count() > 0, 10.0, "the peer's cmd_vel subscription")
+    publish = robot._publish_velocity
+    repeating = threading.Event()
+
+    def slow_repeat(v: float, w: float) -> None:
+        if threading.current_thread() is robot._spinner and (v, w) != (0.0, 0.0):
+            repeating.set()
+            time.sleep(0.3)
+        publish(v, w)
+
+    robot._publish_velocity = slow_repeat
+    robot.drive(0.2, 0.0)
+    assert repeating.wait(5.0), "the drive command was not repeated"
+    robot.stop()
+    time.sleep(0.5)
+    wait_until(lambda: len(peer.velocities) >= 2, 5.0, "the commands")
+    assert peer.velocities[-1] == (0.0, 0.0), peer.velocities[-3:]
 
 
 def test_plain_twist_profile_publishes_twist(domain_id: int, peer: Peer, make_robot: Callable,
