@@ -188,6 +188,7 @@ class RobotConformance:
     def test_conformance_pose_at_interpolates_recent_history(self, ready: Robot) -> None:
         """pose_at(t) answers for recent stamps (between the poses around it) and None outside."""
         ready.drive(0.2, 0.0)
+        spin_for(ready, 0.5)  # under way (the command's trip and the base's acceleration)
         t0 = ready.now()
         spin_for(ready, 1.0)
         t1 = ready.now()
