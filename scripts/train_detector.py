@@ -45,9 +45,10 @@ from detector_data import CLASSES, MIN_PIXELS, render_dataset  # noqa: E402
 from missiontree.perception.detectors import letterbox  # noqa: E402
 
 STRIDES = (8, 16, 32)
-#: Input size of the network (height, width): the 320x240 camera image letterboxed at half scale
-#: (160x120 plus 4 grey rows above and below). Half scale quarters the cost of training on the
-#: shared 2-core CPU; objects smaller than MIN_PIXELS at full scale are not demanded.
+#: Default input size of the network (height, width): the 320x240 camera image letterboxed at half
+#: scale (160x120 plus 4 grey rows above and below). Half scale quarters the cost of training on the
+#: shared 2-core CPU; objects smaller than MIN_PIXELS at full scale are not demanded. ``--input-hw
+#: 256 320`` trains at full scale (8 grey rows above and below), which small and narrow objects need.
 INPUT_HW = (128, 160)
 
 
@@ -255,12 +256,14 @@ def detection_loss(
 # -- data -----------------------------------------------------------------------------------------
 
 
-def to_input(images: np.ndarray, labels: list[np.ndarray]) -> tuple[np.ndarray, list[np.ndarray]]:
-    """Letterbox camera images into INPUT_HW exactly as the runtime does; move their boxes alike."""
-    out = np.empty((len(images), *INPUT_HW, 3), np.uint8)
+def to_input(
+    images: np.ndarray, labels: list[np.ndarray], input_hw: tuple[int, int] = INPUT_HW
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Letterbox camera images into ``input_hw`` exactly as the runtime does; move their boxes alike."""
+    out = np.empty((len(images), *input_hw, 3), np.uint8)
     moved = []
     for k, (image, objects) in enumerate(zip(images, labels, strict=True)):
-        out[k], box = letterbox(image, *INPUT_HW)
+        out[k], box = letterbox(image, *input_hw)
         shifted = objects.copy()
         shifted[:, [1, 3]] = shifted[:, [1, 3]] * box.scale + box.pad_x
         shifted[:, [2, 4]] = shifted[:, [2, 4]] * box.scale + box.pad_y
@@ -304,14 +307,15 @@ def train(args: argparse.Namespace) -> None:
     print(f"rendered {len(images)} views in {render_s:.0f} s; objects per class: "
           + ", ".join(f"{c}={n}" for c, n in zip(CLASSES, counts, strict=True))
           + f"; ignored (under {MIN_PIXELS} px): {sum(len(i) for i in ignored)}", flush=True)
-    images, labels = to_input(images, labels)
+    input_hw = (args.input_hw[0], args.input_hw[1])
+    images, labels = to_input(images, labels, input_hw)
     model = TinyDetector(len(CLASSES), widths=tuple(args.widths))
     if args.init:
         model.load_state_dict(torch.load(args.init))
         print(f"starting from {args.init}", flush=True)
     params = sum(p.numel() for p in model.parameters())
     print(f"model: {params} parameters", flush=True)
-    centres, strides = make_grid(*INPUT_HW)
+    centres, strides = make_grid(*input_hw)
     steps_per_epoch = math.ceil(len(images) / args.batch)
     total_steps = steps_per_epoch * args.epochs
     optimiser = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=5e-4)
@@ -363,21 +367,22 @@ def export(model: TinyDetector, out: Path, args: argparse.Namespace) -> None:
     import onnx
 
     model.eval()
-    wrapper = ExportWrapper(model, *INPUT_HW).eval()
+    input_hw = (args.input_hw[0], args.input_hw[1])
+    wrapper = ExportWrapper(model, *input_hw).eval()
     out.parent.mkdir(parents=True, exist_ok=True)
-    dummy = torch.zeros(1, 3, *INPUT_HW)
+    dummy = torch.zeros(1, 3, *input_hw)
     torch.onnx.export(wrapper, (dummy,), str(out), input_names=["images"], output_names=["output0"],
                       opset_version=17, dynamo=False)
     proto = onnx.load(str(out))
     metadata = {
         "names": str(dict(enumerate(CLASSES))),
         "stride": str(max(STRIDES)),
-        "imgsz": str(list(INPUT_HW)),
+        "imgsz": str(list(input_hw)),
         "task": "detect",
         "description": "missiontree simulator detector (scripts/train_detector.py)",
         "training": f"seed={args.seed} images={args.images} epochs={args.epochs} "
         f"first_world={args.first_world} widths={args.widths} lr={args.lr} init={args.init} "
-        f"cls_target={args.cls_target} assign={args.assign}",
+        f"cls_target={args.cls_target} assign={args.assign} input_hw={list(input_hw)}",
     }
     onnx.helper.set_model_props(proto, metadata)
     onnx.save(proto, str(out))
@@ -406,6 +411,9 @@ def main(argv: list[str] | None = None) -> None:
                         help="stop at the end of the epoch that passes this much wall time")
     parser.add_argument("--widths", type=int, nargs=4, default=[16, 48, 96, 160],
                         help="channels at strides 4, 8, 16, 32")
+    parser.add_argument("--input-hw", type=int, nargs=2, default=list(INPUT_HW), metavar=("H", "W"),
+                        help="network input (height, width), multiples of 32: 128 160 is half scale, "
+                        "256 320 full scale")
     parser.add_argument("--out", default="src/missiontree/data/models/sim_detector.onnx")
     train(parser.parse_args(argv))
 
