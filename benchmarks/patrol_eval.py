@@ -16,7 +16,10 @@ Patrol (one lap) and Surveillance, without servoing so that every configuration 
 path. Scoring uses the simulator's ground truth (never seen by the leaves):
 
 - an *encounter* is a run of frames in which a person shows (gaps up to 1 s bridged), with at least
-  two frames showing them with MIN_PIXELS or more; it is *detected* when an alarm's frame lies inside
+  two frames showing them with MIN_PIXELS or more while they stand at least OVERLAP from the robot
+  (a walker passing through the robot's body, which real people cannot, is not a crossing anyone
+  can be asked to see; such encounters are counted apart, ``through_robot``, in the JSON and the
+  per-run lines, as overlapping alarms are); it is *detected* when an alarm's frame lies inside
   it and shows that person (encounters that begin in a run's last 3 s, the longest answer latency,
   are not scored: no configuration could answer them before the patrol ends);
 - the distance error of an alarm is |reported − true| against the true distance, at the frame's
@@ -42,6 +45,7 @@ import random
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -95,6 +99,7 @@ class RunScore:
     bearings: list[float] = field(default_factory=list)
     no_distance: int = 0
     overlapping: int = 0
+    through_robot: int = 0
     reached: int = 0
     skipped: int = 0
 
@@ -253,7 +258,15 @@ def score_events(score: RunScore, events: list[dict[str, Any]], truth: Any, pose
     score.reached = sum(1 for e in events if e["event"] == "waypoint_reached")
     score.skipped = sum(1 for e in events if e["event"] == "waypoint_skipped")
     end = truth.visibility[-1][0] if truth.visibility else 0.0
-    spans = [span for span in encounters(truth.visibility) if span[1] < end - LATENCY[1]]
+
+    def through_robot(name: str, stamp: float) -> bool:
+        pose = poses.get(stamp)
+        return pose is not None and any(pid == name and math.hypot(x - pose.x, y - pose.y) < OVERLAP
+                                        for pid, x, y in truth.people_at(stamp))
+
+    spans = [span for span in encounters(truth.visibility, through_robot) if span[1] < end - LATENCY[1]]
+    score.through_robot = len([span for span in encounters(truth.visibility) if span[1] < end - LATENCY[1]]) \
+        - len(spans)
     shown = [(a["stamp"], set(truth.visible_at(a["stamp"]))) for a in alarms]
     score.encounters = len(spans)
     score.detected = sum(1 for name, t0, t1 in spans
@@ -281,12 +294,16 @@ def score_events(score: RunScore, events: list[dict[str, Any]], truth: Any, pose
         score.bearings.append(best[1])
 
 
-def encounters(visibility: list[tuple[float, dict[str, Any]]]) -> list[tuple[str, float, float]]:
+def encounters(
+    visibility: list[tuple[float, dict[str, Any]]],
+    through_robot: Callable[[str, float], bool] | None = None,
+) -> list[tuple[str, float, float]]:
     """(person, first frame, last frame) of every encounter.
 
     An encounter is a run of frames in which a person shows at all, gaps up to MERGE_GAP seconds
     bridged (a leg hidden for a frame is the same crossing); it counts when at least two of its
-    frames show the person with MIN_PIXELS or more (someone a guard could be asked to notice).
+    frames show the person with MIN_PIXELS or more (someone a guard could be asked to notice) and,
+    when ``through_robot(person, stamp)`` is given, not inside the robot's body at that frame.
     """
     spans: list[tuple[str, float, float]] = []
     current: dict[str, list[Any]] = {}  # name -> [first, last, frames with MIN_PIXELS]
@@ -304,7 +321,7 @@ def encounters(visibility: list[tuple[float, dict[str, Any]]]) -> list[tuple[str
                 continue
             entry = current.setdefault(name, [stamp, stamp, 0])
             entry[1] = stamp
-            entry[2] += sighting.pixels >= MIN_PIXELS
+            entry[2] += sighting.pixels >= MIN_PIXELS and not (through_robot and through_robot(name, stamp))
     for name in list(current):
         close(name)
     return spans
@@ -353,8 +370,8 @@ def main() -> int:
                 print(f"seed {seed:2} scenario {label:4} {name:8} encounters {score.encounters:3} detected "
                       f"{score.detection_rate:.3f}  calls/s {score.calls_per_s:.2f}  error median "
                       f"{fmt(median)} p95 {fmt(p95)} >1m {over:3} (alarms {len(score.errors)}, no distance "
-                      f"{score.no_distance}, overlapping {score.overlapping})  waypoints reached "
-                      f"{score.reached} skipped {score.skipped}  "
+                      f"{score.no_distance}, overlapping {score.overlapping}, through robot "
+                      f"{score.through_robot})  waypoints reached {score.reached} skipped {score.skipped}  "
                       f"[{score.sim_seconds:.0f} s simulated, {score.wall_seconds:.1f} s wall]", flush=True)
     print(f"detector: {note}")
     summary: dict[str, Any] = {}
@@ -377,6 +394,7 @@ def main() -> int:
             "distance_error_median_m": json_number(median), "distance_error_p95_m": json_number(p95),
             "errors_over_1m": over, "alarms": len(errors), "no_distance": sum(s.no_distance for s in runs),
             "overlapping_not_scored": sum(s.overlapping for s in runs),
+            "through_robot_not_scored": sum(s.through_robot for s in runs),
             "encounters": encounters_n, "waypoints_reached": sum(s.reached for s in runs),
             "waypoints_skipped": sum(s.skipped for s in runs), "by_bearing_deg": per_bin,
         }
