@@ -194,6 +194,7 @@ class RobotConformance:
         t1 = ready.now()
         spin_for(ready, 0.5)
         ready.stop()
+        self._pose_after(ready, t1 + 0.1)  # the history reaches past t1
         p0, p1 = ready.pose_at(t0), ready.pose_at(t1)
         mid = ready.pose_at((t0 + t1) / 2)
         assert p0 is not None and p1 is not None and mid is not None
@@ -325,7 +326,7 @@ class RobotConformance:
     # -- helpers ---------------------------------------------------------------------------------
 
     @staticmethod
-    def _pose_after(robot: Robot, stamp: float, budget: float = 2.0) -> PoseStamped:
+    def _pose_after(robot: Robot, stamp: float, budget: float = 5.0) -> PoseStamped:
         """The first pose stamped at or after ``stamp``.
 
         A goal's result and the robot's pose travel separately (on ROS 2, an action response and

@@ -334,17 +334,21 @@ class Ros2Robot:
         return self._scan
 
     def rgbd(self) -> RGBDFrame | None:
-        """Latest colour image with the depth image nearest in time and the camera's map pose."""
+        """Latest colour image with the depth image nearest in time and the camera's map pose.
+
+        Colour and depth come on separate topics; while the newest colour image still waits for its
+        depth, the last complete frame is returned (its stamp shows its age), None before the first.
+        """
         color, info = self._color, self._color_info
-        if color is None or info is None or not self._depths:
-            return None
-        stamp = conv.time_to_sec(color.header.stamp)
         cached = self._rgbd
+        if color is None or info is None or not self._depths:
+            return cached
+        stamp = conv.time_to_sec(color.header.stamp)
         if cached is not None and cached.stamp == stamp:
             return cached
         depth_msg = min(self._depths, key=lambda m: abs(conv.time_to_sec(m.header.stamp) - stamp))
         if abs(conv.time_to_sec(depth_msg.header.stamp) - stamp) > self.profile.camera.max_depth_lag:
-            return None
+            return cached
         rgb = conv.color_from_msg(color)
         depth = conv.depth_from_msg(depth_msg)
         if depth.shape != rgb.shape[:2]:  # OAK-D stereo depth is not registered to the preview image
