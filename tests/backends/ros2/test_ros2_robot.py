@@ -366,3 +366,38 @@ def test_rgbd_pairs_colour_with_nearest_depth_in_metres(domain_id: int, peer: Pe
     assert frame.depth.shape == (240, 320) and frame.depth.dtype == np.float32
     assert float(np.nanmedian(frame.depth)) == pytest.approx(2.5, abs=1e-3)
     assert frame.intrinsics.fx == pytest.approx(228.5)
+
+
+def test_rgbd_keeps_the_last_complete_frame_while_the_next_waits_for_depth(
+        domain_id: int, peer: Peer, make_robot: Callable, wait_until: Callable) -> None:
+    """A colour image whose depth has not arrived yet does not hide the last complete frame."""
+    from sensor_msgs.msg import CameraInfo, Image
+
+    from missiontree.types import CameraIntrinsics
+
+    robot = make_robot(domain_id)
+    color_pub = peer.publisher(Image, "/oakd/rgb/preview/image_raw")
+    info_pub = peer.publisher(CameraInfo, "/oakd/rgb/preview/camera_info")
+    depth_pub = peer.publisher(Image, "/oakd/stereo/image_raw")
+    first = peer.now()
+    rgb = np.zeros((240, 320, 3), np.uint8)
+    depth = np.full((240, 320), 2.0, np.float32)
+
+    def publish_complete() -> Any:
+        depth_pub.publish(conv.depth_to_msg(depth, first, "oakd", "16UC1"))
+        info_pub.publish(conv.intrinsics_to_msg(CameraIntrinsics(320, 240, 228.5, 228.5, 159.5, 119.5),
+                                                first, "oakd"))
+        color_pub.publish(conv.image_to_msg(rgb, "rgb8", first, "oakd"))
+        return robot.rgbd()
+
+    complete = wait_until(publish_complete, 10.0, "an RGB-D frame")
+    later = first + 5.0  # a colour image whose depth is still on its way
+    color_pub.publish(conv.image_to_msg(rgb, "rgb8", later, "oakd"))
+    wait_until(lambda: conv.time_to_sec(robot._color.header.stamp) == pytest.approx(later, abs=1e-6), 5.0,
+               "the newer colour image")
+    frame = robot.rgbd()
+    assert frame is not None and frame.stamp == pytest.approx(complete.stamp, abs=1e-6)
+    depth_pub.publish(conv.depth_to_msg(depth, later, "oakd", "16UC1"))
+    newer = wait_until(lambda: (f := robot.rgbd()) is not None and f.stamp > complete.stamp and f, 5.0,
+                       "the frame completed by its depth")
+    assert newer.stamp == pytest.approx(later, abs=1e-6)
