@@ -103,10 +103,14 @@ class NavGoal:
         """Move the goal on (send when the server appears, time out); called often, returns at once."""
 
     def cancel_settled(self) -> bool:
-        """True unless a cancel request is scheduled or waiting for the server's answer."""
+        """True unless a cancel request is pending.
+
+        Pending: scheduled, waiting for the server's answer, or asked for before the server's
+        acceptance arrived (it goes out with the acceptance).
+        """
         with self._lock:
             if not self._cancel_scheduled:
-                return True
+                return not self._cancel_requested or self._status.done
             return self.cancel_future is not None and self.cancel_future.done()
 
     @property
