@@ -49,6 +49,25 @@ class Peer(SpinningPeer):
     def publisher(self, msg_type: Any, topic: str, qos: Any = None) -> Any:
         return self.node.create_publisher(msg_type, topic, qos or reliable_qos())
 
+    def start_camera(self) -> None:
+        """Publishers of the TurtleBot 4 camera topics (OAK-D preview colour, its info, stereo depth)."""
+        from sensor_msgs.msg import CameraInfo, Image
+
+        self.color_pub = self.publisher(Image, "/oakd/rgb/preview/image_raw")
+        self.info_pub = self.publisher(CameraInfo, "/oakd/rgb/preview/camera_info")
+        self.depth_pub = self.publisher(Image, "/oakd/stereo/image_raw")
+
+    def publish_depth(self, depth: np.ndarray, stamp: float) -> None:
+        self.depth_pub.publish(conv.depth_to_msg(depth, stamp, "oakd", "16UC1"))
+
+    def publish_colour(self, rgb: np.ndarray, stamp: float) -> None:
+        """The colour image and its camera info, both stamped ``stamp``."""
+        from missiontree.types import CameraIntrinsics
+
+        self.info_pub.publish(conv.intrinsics_to_msg(CameraIntrinsics(320, 240, 228.5, 228.5, 159.5, 119.5),
+                                                     stamp, "oakd"))
+        self.color_pub.publish(conv.image_to_msg(rgb, "rgb8", stamp, "oakd"))
+
     def record_velocity(self, stamped: bool) -> None:
         def record(msg: Any) -> None:
             self.velocities.append(conv.twist_from_msg(msg))
@@ -339,25 +358,17 @@ def test_goal_within_a_looser_tolerance_succeeds_and_cancels_nav2(domain_id: int
 def test_rgbd_pairs_colour_with_nearest_depth_in_metres(domain_id: int, peer: Peer, make_robot: Callable,
                                                         wait_until: Callable) -> None:
     """rgbd() pairs the colour image with the depth image nearest in time, in metres, at colour size."""
-    from sensor_msgs.msg import CameraInfo, Image
-
-    from missiontree.types import CameraIntrinsics
-
     robot = make_robot(domain_id)
-    color_pub = peer.publisher(Image, "/oakd/rgb/preview/image_raw")
-    info_pub = peer.publisher(CameraInfo, "/oakd/rgb/preview/camera_info")
-    depth_pub = peer.publisher(Image, "/oakd/stereo/image_raw")
+    peer.start_camera()
     stamp = peer.now()
     rgb = np.zeros((240, 320, 3), np.uint8)
     rgb[:, :, 0] = 200
     depth = np.full((120, 160), 2.5, np.float32)  # stereo depth at half the preview's size
 
     def publish() -> Any:
-        depth_pub.publish(conv.depth_to_msg(depth, stamp, "oakd", "16UC1"))
-        depth_pub.publish(conv.depth_to_msg(depth * 2, stamp - 1.0, "oakd", "16UC1"))  # older, farther
-        info_pub.publish(conv.intrinsics_to_msg(CameraIntrinsics(320, 240, 228.5, 228.5, 159.5, 119.5),
-                                                stamp, "oakd"))
-        color_pub.publish(conv.image_to_msg(rgb, "rgb8", stamp, "oakd"))
+        peer.publish_depth(depth, stamp)
+        peer.publish_depth(depth * 2, stamp - 1.0)  # older, farther
+        peer.publish_colour(rgb, stamp)
         return robot.rgbd()
 
     frame = wait_until(publish, 10.0, "an RGB-D frame")
@@ -371,33 +382,25 @@ def test_rgbd_pairs_colour_with_nearest_depth_in_metres(domain_id: int, peer: Pe
 def test_rgbd_keeps_the_last_complete_frame_while_the_next_waits_for_depth(
         domain_id: int, peer: Peer, make_robot: Callable, wait_until: Callable) -> None:
     """A colour image whose depth has not arrived yet does not hide the last complete frame."""
-    from sensor_msgs.msg import CameraInfo, Image
-
-    from missiontree.types import CameraIntrinsics
-
     robot = make_robot(domain_id)
-    color_pub = peer.publisher(Image, "/oakd/rgb/preview/image_raw")
-    info_pub = peer.publisher(CameraInfo, "/oakd/rgb/preview/camera_info")
-    depth_pub = peer.publisher(Image, "/oakd/stereo/image_raw")
+    peer.start_camera()
     first = peer.now()
     rgb = np.zeros((240, 320, 3), np.uint8)
     depth = np.full((240, 320), 2.0, np.float32)
 
     def publish_complete() -> Any:
-        depth_pub.publish(conv.depth_to_msg(depth, first, "oakd", "16UC1"))
-        info_pub.publish(conv.intrinsics_to_msg(CameraIntrinsics(320, 240, 228.5, 228.5, 159.5, 119.5),
-                                                first, "oakd"))
-        color_pub.publish(conv.image_to_msg(rgb, "rgb8", first, "oakd"))
+        peer.publish_depth(depth, first)
+        peer.publish_colour(rgb, first)
         return robot.rgbd()
 
     complete = wait_until(publish_complete, 10.0, "an RGB-D frame")
     later = first + 5.0  # a colour image whose depth is still on its way
-    color_pub.publish(conv.image_to_msg(rgb, "rgb8", later, "oakd"))
+    peer.publish_colour(rgb, later)
     wait_until(lambda: conv.time_to_sec(robot._color.header.stamp) == pytest.approx(later, abs=1e-6), 5.0,
                "the newer colour image")
     frame = robot.rgbd()
     assert frame is not None and frame.stamp == pytest.approx(complete.stamp, abs=1e-6)
-    depth_pub.publish(conv.depth_to_msg(depth, later, "oakd", "16UC1"))
+    peer.publish_depth(depth, later)
     newer = wait_until(lambda: (f := robot.rgbd()) is not None and f.stamp > complete.stamp and f, 5.0,
                        "the frame completed by its depth")
     assert newer.stamp == pytest.approx(later, abs=1e-6)
