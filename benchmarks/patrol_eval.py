@@ -70,7 +70,7 @@ SCENARIOS = [("A", "corridor", "scenario_a", 5), ("B", "entrance_hall", "scenari
 CONFIGS: dict[str, dict[str, Any]] = {
     "seed_05": {"mode": "poll", "period": 0.5, "method": "seed", "fuse_at": "answer", "max_in_flight": 99},
     "seed_02": {"mode": "poll", "period": 0.2, "method": "seed", "fuse_at": "answer", "max_in_flight": 99},
-    "ours": {"mode": "detect", "period": 0.5, "method": "depth", "fuse_at": "frame", "max_in_flight": 4},
+    "ours": {"mode": "detect", "period": 0.5, "method": "depth", "fuse_at": "frame", "max_in_flight": 6},
 }
 
 LATENCY = (0.5, 3.0)          # seconds, seed 001's cloud VLM

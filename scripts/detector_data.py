@@ -45,6 +45,9 @@ MIN_PIXELS = 100
 #: First world seed used for scoring; training uses seeds below it.
 EVAL_FIRST_WORLD = 10_000
 CAMERA_HEIGHT = 0.4
+#: Closest a view stands to a person (m): the robot's body (0.17) and a torso (0.19) touching, as
+#: a patrol robot meets people who pass right beside it.
+CLOSEST = 0.36
 
 
 @dataclass(frozen=True)
@@ -92,6 +95,11 @@ _SKINS = ((205, 160, 130), (150, 105, 75), (90, 60, 45), (235, 200, 175))
 
 
 # -- worlds ---------------------------------------------------------------------------------------
+
+
+def _dress(rng: np.random.Generator, usual: list[int], low: int, high: int) -> list[int]:
+    """A garment's colour: one of the usual ones, or (half the time) any colour, as people dress."""
+    return [int(v) for v in rng.integers(low, high, 3)] if rng.random() < 0.5 else usual
 
 
 def _free(x: float, y: float, r: float, placed: list[tuple[float, float, float]]) -> bool:
@@ -152,13 +160,14 @@ def world_spec(seed: int) -> dict[str, Any]:
         if label == "table":
             tables.append(entry)
     people = []
+    dress = np.random.default_rng([seed, 1])  # its own stream: the rest of the world stays as it was
     for j in range(int(rng.integers(0, 4))):
         route = [[float(rng.uniform(0.5, width - 0.5)), float(rng.uniform(0.5, depth - 0.5))]
                  for _ in range(3)]
         people.append({
             "id": f"person_{j}", "route": route, "speed": float(rng.uniform(0.4, 1.2)), "loop": True,
-            "shirt_rgb": list(_SHIRTS[int(rng.integers(len(_SHIRTS)))]),
-            "trousers_rgb": list(_TROUSERS[int(rng.integers(len(_TROUSERS)))]),
+            "shirt_rgb": _dress(dress, list(_SHIRTS[int(rng.integers(len(_SHIRTS)))]), 30, 226),
+            "trousers_rgb": _dress(dress, list(_TROUSERS[int(rng.integers(len(_TROUSERS)))]), 20, 120),
             "skin_rgb": list(_SKINS[int(rng.integers(len(_SKINS)))]),
         })
     for _attempt in range(200):
@@ -228,12 +237,14 @@ def render_views(
         t = float(rng.uniform(0.0, 120.0))
         people = world.crowd.positions(t)
         x, y = float(rng.uniform(xmin, xmax)), float(rng.uniform(ymin, ymax))
-        if world.clearance(x, y) < 0.3 or any(math.hypot(x - px, y - py) < 0.45 for _, px, py in people):
+        if world.clearance(x, y) < 0.3 or any(math.hypot(x - px, y - py) < CLOSEST for _, px, py in people):
             continue
         aims = targets + [(px, py) for _, px, py in people] * 3
         if aims and rng.random() < 0.8:
-            ax, ay = aims[int(rng.integers(len(aims)))]
-            yaw = math.atan2(ay - y, ax - x) + float(rng.uniform(-0.5, 0.5))
+            pick = int(rng.integers(len(aims)))
+            ax, ay = aims[pick]
+            spread = 0.5 if pick < len(targets) else 0.8  # people also at the edge, half out of view
+            yaw = math.atan2(ay - y, ax - x) + float(rng.uniform(-1.0, 1.0)) * spread
         else:
             yaw = float(rng.uniform(-math.pi, math.pi))
         prims = world.static.concat(world.crowd.primitives(t))

@@ -156,6 +156,101 @@ class ExportWrapper(nn.Module):
         return torch.cat([boxes, torch.sigmoid(raw[..., 4:])], dim=-1).transpose(1, 2)
 
 
+def _layers(model: TinyDetector) -> list[tuple[nn.Conv2d, nn.BatchNorm2d | None, int | None, int | None]]:
+    """Every convolution with its batch norm and the channel spaces it reads and writes.
+
+    Spaces 0-3 are the widths at strides 4, 8, 16 and 32 (every tensor joined to another by an
+    addition lives in one of them); None is the RGB input or the head's output.
+    """
+    layers: list[tuple[nn.Conv2d, nn.BatchNorm2d | None, int | None, int | None]] = []
+
+    def conv(seq: nn.Sequential, c_in: int | None, c_out: int | None) -> None:
+        layers.append((seq[0], seq[1], c_in, c_out))
+
+    def block(b: SeparableBlock, space: int) -> None:
+        conv(b.body[0], space, space)
+        conv(b.body[1], space, space)
+
+    conv(model.stem[0], None, 0)
+    block(model.stem[1], 0)
+    conv(model.down3[0], 0, 1)
+    block(model.down3[1], 1)
+    block(model.down3[2], 1)
+    conv(model.down4[0], 1, 2)
+    block(model.down4[1], 2)
+    block(model.down4[2], 2)
+    conv(model.down5[0], 2, 3)
+    block(model.down5[1], 3)
+    conv(model.lat5, 3, 2)
+    conv(model.lat4, 2, 1)
+    block(model.fuse4, 2)
+    block(model.fuse3, 1)
+    for head, space in zip(model.heads, (1, 2, 3), strict=True):
+        conv(head[0], space, space)
+        conv(head[1], space, space)
+        layers.append((head[2], None, space, None))
+    return layers
+
+
+def widen(narrow: TinyDetector, wide: TinyDetector, seed: int, noise: float = 0.01) -> None:
+    """Copy ``narrow``'s weights into the wider ``wide`` so that it computes the same function.
+
+    Net2Net widening (Chen et al., 2016): each new channel of a width copies a random existing
+    one; a layer reading a copied channel divides that channel's weights by its number of copies,
+    so sums stay as they were. Small noise (``noise`` times each weight tensor's spread) on the
+    copies breaks their symmetry, since identical channels would otherwise get identical gradients.
+    """
+    rng = np.random.default_rng(seed)
+    old_widths, new_widths = _widths(narrow), _widths(wide)
+    pick, copies = [], []
+    for old, new in zip(old_widths, new_widths, strict=True):
+        if new < old:
+            raise ValueError(f"cannot widen {old_widths} to narrower {new_widths}")
+        g = np.concatenate([np.arange(old), rng.integers(0, old, new - old)])
+        pick.append(torch.from_numpy(g))
+        copies.append(torch.from_numpy(np.bincount(g, minlength=old)).float())
+    with torch.no_grad():
+        pairs = zip(_layers(narrow), _layers(wide), strict=True)
+        for (c_old, bn_old, s_in, s_out), (c_new, bn_new, _, _) in pairs:
+            w = c_old.weight
+            out_pick = pick[s_out] if s_out is not None else torch.arange(w.shape[0])
+            w = w[out_pick]
+            if c_old.groups == 1 and s_in is not None:
+                w = w[:, pick[s_in]] / copies[s_in][pick[s_in]][None, :, None, None]
+            fresh = torch.zeros(w.shape[0], dtype=torch.bool)
+            if s_out is not None:
+                fresh[old_widths[s_out]:] = True
+            w = w + fresh[:, None, None, None] * torch.randn(w.shape, generator=torch.Generator().manual_seed(
+                int(rng.integers(2**31)))) * noise * float(c_old.weight.std())
+            c_new.weight.copy_(w)
+            if c_old.bias is not None:
+                c_new.bias.copy_(c_old.bias[out_pick])
+            if bn_old is not None and bn_new is not None:
+                for name in ("weight", "bias", "running_mean", "running_var"):
+                    getattr(bn_new, name).copy_(getattr(bn_old, name)[out_pick])
+                bn_new.num_batches_tracked.copy_(bn_old.num_batches_tracked)
+
+
+def load_init(model: TinyDetector, path: str, seed: int) -> None:
+    """Start from the weights in ``path``: as they are, or widened when they are a narrower network's."""
+    state = torch.load(path)
+    old = tuple(int(state[k].shape[0]) for k in ("stem.0.0.weight", "down3.0.0.weight", "down4.0.0.weight",
+                                                 "down5.0.0.weight"))
+    if _widths(model) == old:
+        model.load_state_dict(state)
+        return
+    narrow = TinyDetector(model.num_classes, widths=old)
+    narrow.load_state_dict(state)
+    widen(narrow, model, seed)
+    print(f"widened {path} from widths {list(old)} to {list(_widths(model))}", flush=True)
+
+
+def _widths(model: TinyDetector) -> tuple[int, ...]:
+    """Channels at strides 4, 8, 16 and 32."""
+    firsts = (model.stem[0], model.down3[0], model.down4[0], model.down5[0])
+    return tuple(int(m[0].out_channels) for m in firsts)
+
+
 # -- assignment and loss -------------------------------------------------------------------------
 
 
@@ -311,7 +406,7 @@ def train(args: argparse.Namespace) -> None:
     images, labels = to_input(images, labels, input_hw)
     model = TinyDetector(len(CLASSES), widths=tuple(args.widths))
     if args.init:
-        model.load_state_dict(torch.load(args.init))
+        load_init(model, args.init, args.seed)
         print(f"starting from {args.init}", flush=True)
     params = sum(p.numel() for p in model.parameters())
     print(f"model: {params} parameters", flush=True)
