@@ -1,0 +1,68 @@
+"""scripts/train_detector.py: widening a trained network keeps what it computes (needs the train extra)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+torch = pytest.importorskip("torch", reason="the train extra (CPU torch) is not installed")
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
+import train_detector  # noqa: E402
+
+
+def _trained_like(widths: tuple[int, ...]) -> train_detector.TinyDetector:
+    """A network whose batch norms carry non-trivial statistics, as a trained one's do."""
+    torch.manual_seed(3)
+    model = train_detector.TinyDetector(5, widths=widths)
+    with torch.no_grad():
+        for module in model.modules():
+            if isinstance(module, torch.nn.BatchNorm2d):
+                module.running_mean.uniform_(-0.5, 0.5)
+                module.running_var.uniform_(0.5, 2.0)
+                module.weight.uniform_(0.5, 1.5)
+                module.bias.uniform_(-0.2, 0.2)
+    return model.eval()
+
+
+def test_widening_without_noise_computes_the_same_outputs() -> None:
+    narrow = _trained_like((8, 16, 24, 32))
+    wide = train_detector.TinyDetector(5, widths=(12, 24, 40, 48))
+    train_detector.widen(narrow, wide, seed=0, noise=0.0)
+    x = torch.rand(2, 3, 64, 96)
+    with torch.no_grad():
+        before = train_detector.flatten_maps(narrow(x))
+        after = train_detector.flatten_maps(wide.eval()(x))
+    assert after.shape == before.shape
+    assert torch.allclose(before, after, atol=1e-4)
+    assert sum(p.numel() for p in wide.parameters()) > sum(p.numel() for p in narrow.parameters())
+
+
+def test_the_noise_makes_copied_channels_differ() -> None:
+    narrow = _trained_like((8, 16, 24, 32))
+    wide = train_detector.TinyDetector(5, widths=(16, 16, 24, 32))
+    train_detector.widen(narrow, wide, seed=0, noise=0.05)
+    stem = wide.stem[0][0].weight
+    copies = [c for c in range(8, 16) if not torch.equal(stem[c], stem[c % 8])]
+    assert copies  # no new channel is an exact copy, so training can pull them apart
+    assert torch.equal(stem[:8], narrow.stem[0][0].weight)  # the originals are untouched
+
+
+def test_load_init_widens_a_narrower_checkpoint_and_loads_a_matching_one(tmp_path: Path) -> None:
+    narrow = _trained_like((8, 16, 24, 32))
+    path = tmp_path / "narrow.pt"
+    torch.save(narrow.state_dict(), path)
+    same = train_detector.TinyDetector(5, widths=(8, 16, 24, 32))
+    train_detector.load_init(same, str(path), seed=0)
+    assert all(torch.equal(a, b) for a, b in zip(same.state_dict().values(), narrow.state_dict().values(),
+                                                 strict=True))
+    wide = train_detector.TinyDetector(5, widths=(8, 32, 24, 32))
+    train_detector.load_init(wide, str(path), seed=0)
+    assert wide.down3[0][0].weight.shape[0] == 32
+
+
+def test_widening_to_a_narrower_network_is_refused() -> None:
+    with pytest.raises(ValueError, match="cannot widen"):
+        narrower = train_detector.TinyDetector(5, (8, 8, 24, 32))
+        train_detector.widen(_trained_like((8, 16, 24, 32)), narrower, 0)
