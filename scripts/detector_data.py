@@ -3,9 +3,11 @@
 Each world is generated from a seed: a rectangular room (sometimes split by a wall with a door),
 a random floor and wall tint, 8-16 objects drawn from :data:`CATALOGUE` (sizes, shapes, colours
 and heights like the shipped worlds' objects, small things sometimes standing on tables) and 0-3
-people walking routes. The world is written as an ordinary world file and loaded with the
-simulator's own loader, and views are rendered with its camera (TurtleBot 4 profile: 320x240,
-70 degrees, 0.4 m high) from free positions, mostly aimed at an object or person.
+people walking routes, dressed in the usual colours or, half the time, in any colour. The world is
+written as an ordinary world file and loaded with the simulator's own loader, and views are
+rendered with its camera (TurtleBot 4 profile: 320x240, 70 degrees, 0.4 m high) from free
+positions, mostly aimed at an object or person, as close to people as :data:`CLOSEST` (a robot
+meets people passing right beside it) and sometimes with a person at the edge of the view.
 
 Labels come from the instance mask: an object's box is the extent of its visible pixels.
 Objects showing fewer than :data:`MIN_PIXELS` pixels (far away, hidden or cut off) are marked
