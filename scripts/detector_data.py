@@ -29,6 +29,7 @@ import numpy as np
 import yaml
 
 from missiontree.backends.sim.camera import Camera, Floor
+from missiontree.backends.sim.raycast import Primitives
 from missiontree.backends.sim.schema import COLOR_NAMES, CameraSpec
 from missiontree.backends.sim.world import World, load_world
 from missiontree.errors import WorldFileError
@@ -205,9 +206,13 @@ def generated_world(seed: int) -> World:
 # -- views ----------------------------------------------------------------------------------------
 
 
-def labels_of(instances: np.ndarray, world: World) -> tuple[np.ndarray, np.ndarray]:
-    """Boxes of the visible detector classes: (kept K x 5 [class, x1, y1, x2, y2], ignored M x 5)."""
-    kept, ignored = [], []
+def labels_of(instances: np.ndarray, world: World) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Boxes of the visible detector classes.
+
+    Returns:
+        (kept K x 5 [class, x1, y1, x2, y2], ignored M x 5, instance id of each kept row (K,)).
+    """
+    kept, ignored, ids_kept = [], [], []
     ids, counts = np.unique(instances, return_counts=True)
     for inst, count in zip(ids.tolist(), counts.tolist(), strict=True):
         info = world.instances.get(inst)
@@ -217,18 +222,30 @@ def labels_of(instances: np.ndarray, world: World) -> tuple[np.ndarray, np.ndarr
         rows = np.flatnonzero(pixels.any(axis=1))
         cols = np.flatnonzero(pixels.any(axis=0))
         row = [CLASSES.index(info.label), cols[0], rows[0], cols[-1] + 1, rows[-1] + 1]
-        (kept if count >= MIN_PIXELS else ignored).append(row)
+        if count >= MIN_PIXELS:
+            kept.append(row)
+            ids_kept.append(inst)
+        else:
+            ignored.append(row)
     as_array = lambda rows: np.array(rows, np.float32).reshape(-1, 5)  # noqa: E731
-    return as_array(kept), as_array(ignored)
+    return as_array(kept), as_array(ignored), np.array(ids_kept, np.int64)
 
 
-def render_views(
-    world: World, count: int, rng: np.random.Generator, with_instances: bool = False
-) -> list[Any]:
-    """``count`` views of ``world`` from free positions: (image, kept labels, ignored labels).
+@dataclass
+class View:
+    """One labelled view: the image, its instance mask and labels, and where it was taken from."""
 
-    With ``with_instances`` each view is (image, instance mask, kept labels, ignored labels).
-    """
+    color: np.ndarray        # (240, 320, 3) uint8 RGB
+    instances: np.ndarray    # (240, 320) instance id per pixel
+    kept: np.ndarray         # K x 5 [class, x1, y1, x2, y2] of objects showing MIN_PIXELS or more
+    ignored: np.ndarray      # M x 5, objects showing fewer
+    kept_ids: np.ndarray     # (K,) instance id of each kept row
+    pose: Pose2D             # camera pose
+    prims: Primitives        # the scene as rendered (walls, objects and people at that moment)
+
+
+def render_views(world: World, count: int, rng: np.random.Generator) -> list[View]:
+    """``count`` labelled views of ``world`` from free positions."""
     camera = Camera(CameraSpec(), rng)
     floor = Floor(world.floor_rgb, world.grid.origin.x, world.grid.origin.y, world.grid.resolution,
                   world.ceiling)
@@ -250,13 +267,30 @@ def render_views(
         else:
             yaw = float(rng.uniform(-math.pi, math.pi))
         prims = world.static.concat(world.crowd.primitives(t))
-        rendering = camera.render(Pose2D(x, y, yaw), CAMERA_HEIGHT, prims, floor)
-        kept, ignored = labels_of(rendering.instances, world)
-        if with_instances:
-            views.append((rendering.color, rendering.instances, kept, ignored))
-        else:
-            views.append((rendering.color, kept, ignored))
+        pose = Pose2D(x, y, yaw)
+        rendering = camera.render(pose, CAMERA_HEIGHT, prims, floor)
+        kept, ignored, kept_ids = labels_of(rendering.instances, world)
+        views.append(View(rendering.color, rendering.instances, kept, ignored, kept_ids, pose, prims))
     return views
+
+
+def unoccluded_share(world: World, view: View) -> np.ndarray:
+    """For each kept object of ``view``, the share of its in-frame pixels that nothing else hides.
+
+    Renders each object alone from the same pose (noise-free, no random draws) and compares its
+    pixel count with the view's. 1.0: in full view; 0.3: 70 % hidden behind other things. (Being
+    cut off by the frame's edge is not counted here: the object alone is cut off the same way.)
+    """
+    camera = Camera(CameraSpec(), np.random.default_rng(0))
+    floor = Floor(world.floor_rgb, world.grid.origin.x, world.grid.origin.y, world.grid.resolution,
+                  world.ceiling)
+    shares = np.ones(len(view.kept_ids))
+    for k, inst in enumerate(view.kept_ids.tolist()):
+        itself = view.prims.select(view.prims.inst == inst)
+        alone = camera.render_exact(view.pose, CAMERA_HEIGHT, itself, floor)
+        shown = int((view.instances == inst).sum())
+        shares[k] = shown / max(int((alone.instances == inst).sum()), shown, 1)
+    return shares
 
 
 def render_dataset(
@@ -275,8 +309,8 @@ def render_dataset(
     while len(kept) < images:
         world = generated_world(world_seed)
         world_seed += 1
-        for color, k, i in render_views(world, min(views_per_world, images - len(kept)), rng):
-            colours[len(kept)] = color
-            kept.append(k)
-            ignored.append(i)
+        for view in render_views(world, min(views_per_world, images - len(kept)), rng):
+            colours[len(kept)] = view.color
+            kept.append(view.kept)
+            ignored.append(view.ignored)
     return colours, kept, ignored
