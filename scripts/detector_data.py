@@ -64,6 +64,8 @@ class Kind:
     weight: float = 1.0
     on_table: float = 0.0      # probability of standing on a table when one exists
     square: bool = False       # x and y sizes equal (cylinders always are)
+    raised: float = 0.0        # probability of hanging or standing raised (a tv on the wall or a stand)
+    raised_to: tuple[float, float] = (0.0, 0.0)  # range of the raised object's bottom height (m)
 
 
 _ANY = ("black", "white", "grey", "red", "green", "blue", "yellow", "orange", "pink", "purple", "brown",
@@ -81,9 +83,10 @@ CATALOGUE: dict[str, Kind] = {
     "backpack": Kind("box", (0.28, 0.18, 0.4), (0.36, 0.26, 0.5), _ANY, 1.2),
     "laptop": Kind("box", (0.3, 0.22, 0.18), (0.36, 0.27, 0.24), ("silver", "black", "grey", "dark grey",
                                                                  "white"), 1.0, on_table=0.5),
-    "umbrella": Kind("cylinder", (0.08, 0.08, 0.85), (0.12, 0.12, 1.0), _ANY, 1.0),
+    "umbrella": Kind("cylinder", (0.08, 0.08, 0.7), (0.25, 0.25, 1.0), _ANY, 1.0),  # furled, or a stand
     "potted plant": Kind("cylinder", (0.35, 0.35, 0.6), (0.5, 0.5, 1.0), ("green",), 1.0),
-    "tv": Kind("box", (0.9, 0.08, 0.55), (1.3, 0.12, 0.75), ("black", "dark grey"), 0.8),
+    "tv": Kind("box", (0.9, 0.08, 0.55), (1.3, 0.12, 0.75), ("black", "dark grey"), 0.8, raised=0.6,
+               raised_to=(0.4, 1.1)),
     "refrigerator": Kind("box", (0.6, 0.6, 1.7), (0.8, 0.8, 1.9), ("white", "silver", "light grey"), 0.8),
     "trash can": Kind("cylinder", (0.3, 0.3, 0.5), (0.4, 0.4, 0.7), ("grey", "black", "dark grey",
                                                                      "silver"), 1.0),
@@ -125,6 +128,7 @@ def world_spec(seed: int) -> dict[str, Any]:
     weights = np.array([CATALOGUE[k].weight for k in labels])
     objects: list[dict[str, Any]] = []
     tables: list[dict[str, Any]] = []
+    lift = np.random.default_rng([seed, 2])  # its own stream, as ``dress`` below
     for _ in range(int(rng.integers(8, 17))):
         label = labels[int(rng.choice(len(labels), p=weights / weights.sum()))]
         kind = CATALOGUE[label]
@@ -159,6 +163,8 @@ def world_spec(seed: int) -> dict[str, Any]:
         square_yaw = rng.choice([0.0, math.pi / 2, math.pi, -math.pi / 2])
         yaw = float(square_yaw if size[0] > 0.7 else rng.uniform(-math.pi, math.pi))
         entry["pose"] = {"x": x, "y": y, "yaw": yaw}
+        if kind.raised and lift.random() < kind.raised:
+            entry["elevation"] = float(lift.uniform(*kind.raised_to))
         objects.append(entry)
         if label == "table":
             tables.append(entry)
