@@ -112,13 +112,17 @@ def record_alarm(context: MissionContext, alarm: Alarm, node: str, image: np.nda
     """
     run_dir = context.run_dir
     if run_dir is not None and image is not None:
+        folder = Path(run_dir) / "alarms"
+        if context.starts(folder):  # frames an earlier run left in this directory are not this run's
+            for stale in folder.glob("[0-9][0-9][0-9][0-9]-*.png"):
+                stale.unlink()
         alarm = _with_image(alarm, _save_frame(Path(run_dir), alarm, image))
     record = alarm.to_dict()
     context.events.emit("alarm", node=node, **record)
     if run_dir is not None:
         path = Path(run_dir) / "alarms.jsonl"
         path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("a", encoding="utf-8") as handle:
+        with path.open("w" if context.starts(path) else "a", encoding="utf-8") as handle:
             handle.write(json.dumps(record, sort_keys=True) + "\n")
     if alarm.position is not None:
         context.mark("alarm", alarm.position[0], alarm.position[1], f"alarm {alarm.id} ({alarm.phase})")

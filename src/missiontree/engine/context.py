@@ -41,6 +41,7 @@ class MissionContext:
         markers: Things to draw on the run's top-down picture.
         config: Free-form run configuration (from ``--config``).
         seed: The run's random seed.
+        started_files: Run-directory files this run has begun (see :meth:`open_run_file`).
     """
 
     robot: Robot
@@ -50,6 +51,19 @@ class MissionContext:
     markers: list[Marker] = field(default_factory=list)
     config: dict[str, Any] = field(default_factory=dict)
     seed: int = 0
+    started_files: set[Path] = field(default_factory=set)
+
+    def starts(self, path: Path) -> bool:
+        """Whether ``path`` in the run directory is new to this run (True once, on the first call).
+
+        A run writes into a directory that an earlier run may have used: the first write of a
+        file replaces what the earlier run left there, and later writes of this run add to it.
+        """
+        key = Path(path).resolve()
+        if key in self.started_files:
+            return False
+        self.started_files.add(key)
+        return True
 
     def mark(self, kind: str, x: float, y: float, label: str = "") -> None:
         """Add a marker for the run's picture at the current time."""
