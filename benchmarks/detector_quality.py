@@ -177,9 +177,9 @@ def main(argv: list[str] | None = None) -> None:
                 timings[which] = (time.perf_counter() - started) * 1000.0
             ours.add(found, truth)
             ours_ml.add(found, truth_of(kept, ignored, min_area=SMALL_AREA))
-            shares = unoccluded_share(world, view)
-            ours_visible.add(found, truth_of(kept, ignored, hidden=shares < MOSTLY_VISIBLE))
-            hidden_count += int((shares < MOSTLY_VISIBLE).sum())
+            hidden = unoccluded_share(world, view) < MOSTLY_VISIBLE
+            ours_visible.add(found, truth_of(kept, ignored, hidden=hidden))
+            hidden_count += int(hidden.sum())
             reference.add(ref, truth)
             ms_ours.append(timings[0])
             ms_ref.append(timings[1])

@@ -250,11 +250,16 @@ class View:
     prims: Primitives        # the scene as rendered (walls, objects and people at that moment)
 
 
+def floor_of(world: World) -> Floor:
+    """The floor and ceiling the camera renders in ``world``."""
+    return Floor(world.floor_rgb, world.grid.origin.x, world.grid.origin.y, world.grid.resolution,
+                 world.ceiling)
+
+
 def render_views(world: World, count: int, rng: np.random.Generator) -> list[View]:
     """``count`` labelled views of ``world`` from free positions."""
     camera = Camera(CameraSpec(), rng)
-    floor = Floor(world.floor_rgb, world.grid.origin.x, world.grid.origin.y, world.grid.resolution,
-                  world.ceiling)
+    floor = floor_of(world)
     xmin, ymin, xmax, ymax = world.bounds()
     targets = [(o.pose.x, o.pose.y) for o in world.objects]
     views = []
@@ -288,8 +293,7 @@ def unoccluded_share(world: World, view: View) -> np.ndarray:
     cut off by the frame's edge is not counted here: the object alone is cut off the same way.)
     """
     camera = Camera(CameraSpec(), np.random.default_rng(0))
-    floor = Floor(world.floor_rgb, world.grid.origin.x, world.grid.origin.y, world.grid.resolution,
-                  world.ceiling)
+    floor = floor_of(world)
     shares = np.ones(len(view.kept_ids))
     for k, inst in enumerate(view.kept_ids.tolist()):
         itself = view.prims.select(view.prims.inst == inst)

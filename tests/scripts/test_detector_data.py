@@ -11,7 +11,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
 import detector_data  # noqa: E402
 from detector_data import CLASSES, View, generated_world, render_views, unoccluded_share, world_spec  # noqa: E402
 
-from missiontree.backends.sim.camera import Camera, Floor  # noqa: E402
+from missiontree.backends.sim.camera import Camera  # noqa: E402
 from missiontree.backends.sim.schema import CameraSpec  # noqa: E402
 from missiontree.backends.sim.world import load_world  # noqa: E402
 from missiontree.types import Pose2D  # noqa: E402
@@ -63,8 +63,7 @@ def test_an_object_behind_another_counts_as_partly_hidden(tmp_path: Path) -> Non
     path.write_text(ROOM)
     world = load_world(path)
     camera = Camera(CameraSpec(), np.random.default_rng(0))
-    floor = Floor(world.floor_rgb, world.grid.origin.x, world.grid.origin.y, world.grid.resolution,
-                  world.ceiling)
+    floor = detector_data.floor_of(world)
     pose = Pose2D(0.5, 0.0, 0.0)
     rendering = camera.render(pose, detector_data.CAMERA_HEIGHT, world.static, floor)
     kept, ignored, ids = detector_data.labels_of(rendering.instances, world)

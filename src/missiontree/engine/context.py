@@ -41,7 +41,7 @@ class MissionContext:
         markers: Things to draw on the run's top-down picture.
         config: Free-form run configuration (from ``--config``).
         seed: The run's random seed.
-        started_files: Run-directory files this run has begun (see :meth:`open_run_file`).
+        started_files: Run-directory files this run has begun (see :meth:`starts`).
     """
 
     robot: Robot
