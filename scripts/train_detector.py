@@ -80,10 +80,59 @@ class SeparableBlock(nn.Module):
         return F.silu(x + self.body(x))
 
 
+class Refiner(nn.Module):
+    """Re-scores one level's classes from the cell's features, its predicted box and its first scores.
+
+    Objects here are prisms of a few colours whose classes differ mostly in size (a grey table and
+    a grey sofa, a white bookshelf and a white refrigerator, a chair and a refrigerator close up).
+    With the camera level at a fixed height, the size of a floor-standing object in metres follows
+    from where its box lies relative to the horizon (the image's middle row): its height is
+    the camera height times the box's height over the distance from the horizon to its bottom edge.
+    The convolutions see only local patterns, so each cell is given its box's edges relative to
+    the frame's centre; a small 1x1 network adds a correction to the class logits. Its last layer
+    starts at zero, so a trained detector given a refiner first computes exactly what it did.
+    """
+
+    #: Geometry channels: box left, right, top and bottom edges relative to the frame's centre
+    #: (in frame heights and widths), log width and log height (in frame heights).
+    GEOMETRY = 6
+
+    def __init__(self, channels: int, num_classes: int, hidden: int = 64) -> None:
+        super().__init__()
+        self.body = nn.Sequential(
+            nn.Conv2d(channels + self.GEOMETRY + num_classes, hidden, 1),
+            nn.SiLU(),
+            nn.Conv2d(hidden, num_classes, 1),
+        )
+        nn.init.zeros_(self.body[-1].weight)
+        nn.init.zeros_(self.body[-1].bias)
+
+    def forward(self, features: torch.Tensor, out: torch.Tensor, stride: int) -> torch.Tensor:
+        """``out`` (a head's raw [B, 4 + C, h, w] map) with corrected class logits."""
+        h, w = out.shape[2], out.shape[3]
+        height, width = float(h * stride), float(w * stride)
+        raw = out.detach()
+        xs = (torch.arange(w, dtype=raw.dtype) + 0.5) * stride
+        ys = (torch.arange(h, dtype=raw.dtype) + 0.5) * stride
+        cx = xs.view(1, 1, 1, w) + torch.tanh(raw[:, 0:1]) * (2.0 * stride)
+        cy = ys.view(1, 1, h, 1) + torch.tanh(raw[:, 1:2]) * (2.0 * stride)
+        bw = torch.exp(raw[:, 2:3].clamp(-6.0, 6.0)) * (2.0 * stride)
+        bh = torch.exp(raw[:, 3:4].clamp(-6.0, 6.0)) * (2.0 * stride)
+        geometry = torch.cat([
+            (cx - bw / 2 - width / 2) / width, (cx + bw / 2 - width / 2) / width,
+            (cy - bh / 2 - height / 2) / height, (cy + bh / 2 - height / 2) / height,
+            torch.log(bw / height), torch.log(bh / height),
+        ], dim=1)
+        delta = self.body(torch.cat([features, geometry, torch.sigmoid(raw[:, 4:])], dim=1))
+        return torch.cat([out[:, :4], out[:, 4:] + delta], dim=1)
+
+
 class TinyDetector(nn.Module):
     """A small anchor-free detector; ``forward`` returns raw per-level maps, ``export`` decodes."""
 
-    def __init__(self, num_classes: int, widths: tuple[int, ...] = (16, 48, 96, 160)) -> None:
+    def __init__(
+        self, num_classes: int, widths: tuple[int, ...] = (16, 48, 96, 160), refine: bool = False
+    ) -> None:
         super().__init__()
         w2, w3, w4, w5 = widths
         self.num_classes = num_classes
@@ -105,6 +154,7 @@ class TinyDetector(nn.Module):
         for head in self.heads:
             nn.init.constant_(head[-1].bias[4:], prior)
             nn.init.zeros_(head[-1].bias[:4])
+        self.refiners = nn.ModuleList(Refiner(c, num_classes) for c in (w3, w4, w5)) if refine else None
 
     def forward(self, x: torch.Tensor) -> list[torch.Tensor]:
         """Raw head maps, one [B, 4 + C, H/s, W/s] per stride."""
@@ -113,7 +163,13 @@ class TinyDetector(nn.Module):
         p5 = self.down5(p4)
         f4 = self.fuse4(p4 + F.interpolate(self.lat5(p5), scale_factor=2.0, mode="nearest"))
         f3 = self.fuse3(p3 + F.interpolate(self.lat4(f4), scale_factor=2.0, mode="nearest"))
-        return [head(f) for head, f in zip(self.heads, (f3, f4, p5), strict=True)]
+        if self.refiners is None:
+            return [head(f) for head, f in zip(self.heads, (f3, f4, p5), strict=True)]
+        maps = []
+        for head, refiner, f, s in zip(self.heads, self.refiners, (f3, f4, p5), STRIDES, strict=True):
+            features = head[1](head[0](f))
+            maps.append(refiner(features, head[2](features), s))
+        return maps
 
 
 def make_grid(height: int, width: int) -> tuple[torch.Tensor, torch.Tensor]:
@@ -231,18 +287,117 @@ def widen(narrow: TinyDetector, wide: TinyDetector, seed: int, noise: float = 0.
                 bn_new.num_batches_tracked.copy_(bn_old.num_batches_tracked)
 
 
-def load_init(model: TinyDetector, path: str, seed: int) -> None:
-    """Start from the weights in ``path``: as they are, or widened when they are a narrower network's."""
+def load_onnx(model: TinyDetector, path: str, calibration: torch.Tensor) -> None:
+    """Load the weights of an exported model (``path``, written by :func:`export`) into ``model``.
+
+    The export folds each batch norm into the convolution before it, so the ONNX file holds one
+    weight and one bias per convolution. Each is copied into its convolution, and the batch norm
+    after it is set so that it computes the same thing in evaluation *and* normalises as it did in
+    training: its running mean and variance become the statistics of the convolution's output on
+    ``calibration`` (a batch of input images), and its scale and shift undo them exactly. The model
+    then computes what the ONNX file computes, and training can go on from it.
+    """
+    import onnx
+    from onnx import numpy_helper
+
+    proto = onnx.load(path)
+    arrays = {i.name: numpy_helper.to_array(i) for i in proto.graph.initializer}
+    for node in proto.graph.node:  # the exporter shares equal tensors through Identity nodes
+        if node.op_type == "Identity" and node.input[0] in arrays:
+            arrays[node.output[0]] = arrays[node.input[0]]
+    nodes = [n for n in proto.graph.node if n.op_type == "Conv"]
+    order: list[nn.Conv2d] = []
+    hooks = [m.register_forward_hook(lambda m, i, o: order.append(m))
+             for m in model.modules() if isinstance(m, nn.Conv2d)]
+    model.eval()
+    with torch.no_grad():
+        model(calibration[:1])
+    for hook in hooks:
+        hook.remove()
+    if len(order) != len(nodes):
+        raise ValueError(f"{path}: {len(nodes)} convolutions, the network has {len(order)}")
+    norm_of = {id(conv): bn for conv, bn, _, _ in _layers(model)}
+    eps = 1e-5
+    with torch.no_grad():
+        for conv, node in zip(order, nodes, strict=True):
+            weight = torch.from_numpy(arrays[node.input[1]].copy())
+            bias = torch.from_numpy(arrays[node.input[2]].copy())
+            if weight.shape != conv.weight.shape:
+                raise ValueError(f"{path}: a convolution of shape {list(weight.shape)} where the network "
+                                 f"has {list(conv.weight.shape)} (other --widths?)")
+            conv.weight.copy_(weight)
+            bn = norm_of.get(id(conv))
+            if bn is None:
+                conv.bias.copy_(bias)
+                continue
+            bn.weight.fill_(1.0)
+            bn.bias.copy_(bias)
+            bn.running_mean.zero_()
+            bn.running_var.fill_(1.0 - eps)
+        # Now exact in evaluation; measure each convolution's raw output and re-express its norm.
+        stats: dict[int, torch.Tensor] = {}
+
+        def measure(m: nn.Module, i: tuple[torch.Tensor, ...], o: torch.Tensor) -> None:
+            stats[id(m)] = torch.stack([o.mean((0, 2, 3)), o.var((0, 2, 3), unbiased=False)])
+
+        hooks = [conv.register_forward_hook(measure) for conv in order if id(conv) in norm_of]
+        model(calibration)
+        for hook in hooks:
+            hook.remove()
+        for conv in order:
+            bn = norm_of.get(id(conv))
+            if bn is None:
+                continue
+            mean, var = stats[id(conv)]
+            bn.running_mean.copy_(mean)
+            bn.running_var.copy_(var)
+            bn.weight.copy_((var + eps).sqrt())
+            bn.bias.add_(mean)
+
+
+def load_init(model: TinyDetector, path: str, seed: int, calibration: torch.Tensor | None = None) -> None:
+    """Start from the weights in ``path``: as they are, or widened when they are a narrower network's.
+
+    ``path`` is a ``.pt`` written by a run, or an exported ``.onnx`` (the shipped model), whose
+    batch norms are recovered on ``calibration`` images (see :func:`load_onnx`). Weights without
+    refiners start a model with refiners whose refiners compute no correction yet.
+    """
+    if path.endswith(".onnx"):
+        if calibration is None:
+            raise ValueError("starting from an .onnx model needs calibration images")
+        try:
+            load_onnx(model, path, calibration)
+            return
+        except ValueError:
+            if model.refiners is None:
+                raise
+        plain = TinyDetector(model.num_classes, widths=_widths(model))
+        load_onnx(plain, path, calibration)
+        _add_refiners(model, plain)
+        return
     state = torch.load(path)
-    old = tuple(int(state[k].shape[0]) for k in ("stem.0.0.weight", "down3.0.0.weight", "down4.0.0.weight",
-                                                 "down5.0.0.weight"))
-    if _widths(model) == old:
+    if any(k.startswith("refiners.") for k in state):
         model.load_state_dict(state)
         return
-    narrow = TinyDetector(model.num_classes, widths=old)
-    narrow.load_state_dict(state)
-    widen(narrow, model, seed)
-    print(f"widened {path} from widths {list(old)} to {list(_widths(model))}", flush=True)
+    plain = model if model.refiners is None else TinyDetector(model.num_classes, widths=_widths(model))
+    old = tuple(int(state[k].shape[0]) for k in ("stem.0.0.weight", "down3.0.0.weight", "down4.0.0.weight",
+                                                 "down5.0.0.weight"))
+    if _widths(plain) == old:
+        plain.load_state_dict(state)
+    else:
+        narrow = TinyDetector(model.num_classes, widths=old)
+        narrow.load_state_dict(state)
+        widen(narrow, plain, seed)
+        print(f"widened {path} from widths {list(old)} to {list(_widths(model))}", flush=True)
+    if plain is not model:
+        _add_refiners(model, plain)
+
+
+def _add_refiners(model: TinyDetector, plain: TinyDetector) -> None:
+    """Copy ``plain``'s weights into ``model``, whose refiners keep their fresh (no-correction) start."""
+    missing, unexpected = model.load_state_dict(plain.state_dict(), strict=False)
+    if unexpected or not all(k.startswith("refiners.") for k in missing):
+        raise ValueError(f"weights do not fit the network: missing {missing}, unexpected {unexpected}")
 
 
 def _widths(model: TinyDetector) -> tuple[int, ...]:
@@ -404,20 +559,29 @@ def train(args: argparse.Namespace) -> None:
           + f"; ignored (under {MIN_PIXELS} px): {sum(len(i) for i in ignored)}", flush=True)
     input_hw = (args.input_hw[0], args.input_hw[1])
     images, labels = to_input(images, labels, input_hw)
-    model = TinyDetector(len(CLASSES), widths=tuple(args.widths))
+    model = TinyDetector(len(CLASSES), widths=tuple(args.widths), refine=args.refine)
     if args.init:
-        load_init(model, args.init, args.seed)
+        calibration = torch.from_numpy(images[:64].transpose(0, 3, 1, 2).astype(np.float32) / 255.0)
+        load_init(model, args.init, args.seed, calibration)
         print(f"starting from {args.init}", flush=True)
     params = sum(p.numel() for p in model.parameters())
     print(f"model: {params} parameters", flush=True)
     centres, strides = make_grid(*input_hw)
     steps_per_epoch = math.ceil(len(images) / args.batch)
     total_steps = steps_per_epoch * args.epochs
-    optimiser = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=5e-4)
+    if args.train == "refiners":
+        if model.refiners is None:
+            sys.exit("--train refiners needs --refine")
+        for name, p in model.named_parameters():
+            p.requires_grad_(name.startswith("refiners."))
+    trainable = [p for p in model.parameters() if p.requires_grad]
+    print(f"training {sum(p.numel() for p in trainable)} of them", flush=True)
+    optimiser = torch.optim.AdamW(trainable, lr=args.lr, weight_decay=5e-4)
     schedule = torch.optim.lr_scheduler.OneCycleLR(
         optimiser, max_lr=args.lr, total_steps=total_steps, pct_start=0.1
     )
-    model.train()
+    # With only the refiners trained, the frozen network's batch norms keep their statistics.
+    model.train(args.train == "all")
     deadline = started + args.max_minutes * 60.0
     for epoch in range(args.epochs):
         if args.stop_epoch is not None and epoch >= args.stop_epoch:
@@ -437,7 +601,7 @@ def train(args: argparse.Namespace) -> None:
                                          iou_targets=args.cls_target == "iou")
             optimiser.zero_grad()
             loss.backward()
-            torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
+            torch.nn.utils.clip_grad_norm_(trainable, 10.0)
             optimiser.step()
             schedule.step()
             sums["loss"] += float(loss.detach())
@@ -477,7 +641,8 @@ def export(model: TinyDetector, out: Path, args: argparse.Namespace) -> None:
         "description": "missiontree simulator detector (scripts/train_detector.py)",
         "training": f"seed={args.seed} images={args.images} epochs={args.epochs} "
         f"first_world={args.first_world} widths={args.widths} lr={args.lr} init={args.init} "
-        f"cls_target={args.cls_target} assign={args.assign} input_hw={list(input_hw)}",
+        f"cls_target={args.cls_target} assign={args.assign} input_hw={list(input_hw)} refine={args.refine} "
+        f"train={args.train}",
     }
     onnx.helper.set_model_props(proto, metadata)
     onnx.save(proto, str(out))
@@ -506,6 +671,11 @@ def main(argv: list[str] | None = None) -> None:
                         help="stop at the end of the epoch that passes this much wall time")
     parser.add_argument("--widths", type=int, nargs=4, default=[16, 48, 96, 160],
                         help="channels at strides 4, 8, 16, 32")
+    parser.add_argument("--refine", action="store_true",
+                        help="give each level a refiner that re-scores classes from the box's place in the "
+                        "frame (see Refiner)")
+    parser.add_argument("--train", choices=["all", "refiners"], default="all",
+                        help="train every weight, or only the refiners (the rest frozen as --init left it)")
     parser.add_argument("--input-hw", type=int, nargs=2, default=list(INPUT_HW), metavar=("H", "W"),
                         help="network input (height, width), multiples of 32: 128 160 is half scale, "
                         "256 320 full scale")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -66,3 +67,41 @@ def test_widening_to_a_narrower_network_is_refused() -> None:
     with pytest.raises(ValueError, match="cannot widen"):
         narrower = train_detector.TinyDetector(5, (8, 8, 24, 32))
         train_detector.widen(_trained_like((8, 16, 24, 32)), narrower, 0)
+
+
+def test_refiners_start_with_no_correction_and_then_depend_on_the_box_place() -> None:
+    plain = _trained_like((8, 16, 24, 32))
+    refined = train_detector.TinyDetector(5, widths=(8, 16, 24, 32), refine=True)
+    train_detector._add_refiners(refined, plain)
+    x = torch.rand(2, 3, 64, 96)
+    with torch.no_grad():
+        before = train_detector.flatten_maps(plain(x))
+        after = train_detector.flatten_maps(refined.eval()(x))
+        assert torch.equal(before, after)  # a fresh refiner's last layer is zero
+        for refiner in refined.refiners:
+            torch.nn.init.normal_(refiner.body[-1].weight, std=0.1)
+        changed = train_detector.flatten_maps(refined(x))
+    assert torch.equal(changed[..., :4], before[..., :4])  # boxes are never touched
+    assert not torch.allclose(changed[..., 4:], before[..., 4:])
+
+
+def test_an_exported_model_loads_back_with_its_batch_norms_recovered(tmp_path: Path) -> None:
+    pytest.importorskip("onnx", reason="the train extra (onnx) is not installed")
+    model = _trained_like((8, 16, 24, 32))
+    out = tmp_path / "model.onnx"
+    args = SimpleNamespace(input_hw=[64, 96], seed=0, images=0, epochs=0, first_world=0,
+                           widths=[8, 16, 24, 32], lr=0.0, init=None, cls_target="iou", assign="inside",
+                           refine=False, train="all")
+    train_detector.export(model, out, args)  # folds each batch norm into its convolution
+    loaded = train_detector.TinyDetector(5, widths=(8, 16, 24, 32))
+    calibration = torch.rand(16, 3, 64, 96)
+    train_detector.load_init(loaded, str(out), seed=0, calibration=calibration)
+    with torch.no_grad():
+        expected = train_detector.flatten_maps(model.eval()(calibration))
+        assert torch.allclose(train_detector.flatten_maps(loaded.eval()(calibration)), expected, atol=1e-4)
+        # In training mode the batch norms normalise with the batch's own statistics; on the
+        # calibration batch those are the recovered ones, so the output is the same too.
+        assert torch.allclose(train_detector.flatten_maps(loaded.train()(calibration)), expected, atol=1e-3)
+    with pytest.raises(ValueError, match="other --widths"):
+        other = train_detector.TinyDetector(5, widths=(8, 16, 24, 40))
+        train_detector.load_init(other, str(out), 0, calibration)
