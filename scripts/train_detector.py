@@ -40,7 +40,7 @@ except ImportError:  # pragma: no cover - depends on the extra
     sys.exit("training needs the train extra: .venv/bin/pip install -e '.[train]' (pins the CPU torch)")
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from detector_data import CLASSES, MIN_PIXELS, render_dataset  # noqa: E402
+from detector_data import CLASSES, EVAL_FIRST_WORLD, MIN_PIXELS, render_dataset  # noqa: E402
 
 from missiontree.perception.detectors import letterbox  # noqa: E402
 
@@ -50,6 +50,8 @@ STRIDES = (8, 16, 32)
 #: shared 2-core CPU; objects smaller than MIN_PIXELS at full scale are not demanded. ``--input-hw
 #: 256 320`` trains at full scale (8 grey rows above and below), which small and narrow objects need.
 INPUT_HW = (128, 160)
+#: Views rendered of each generated world.
+VIEWS_PER_WORLD = 25
 
 
 # -- the network ----------------------------------------------------------------------------------
@@ -542,23 +544,41 @@ def batch_tensors(
 # -- training and export --------------------------------------------------------------------------
 
 
+def training_views(
+    count: int, seed: int, first_world: int, input_hw: tuple[int, int]
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Render ``count`` labelled views from worlds ``first_world``... and letterbox them for the network.
+
+    Objects too small to demand keep their boxes with class -1 (ignored cells).
+    """
+    started = time.perf_counter()
+    images, kept, ignored = render_dataset(count, seed=seed, first_world=first_world,
+                                           views_per_world=VIEWS_PER_WORLD)
+    counts = np.bincount(np.concatenate([obj[:, 0].astype(int) for obj in kept]), minlength=len(CLASSES))
+    for small in ignored:
+        small[:, 0] = -1
+    labels = [np.concatenate([k, i]) for k, i in zip(kept, ignored, strict=True)]
+    render_s = time.perf_counter() - started
+    print(f"rendered {len(images)} views of worlds {first_world}... in {render_s:.0f} s; objects per class: "
+          + ", ".join(f"{c}={n}" for c, n in zip(CLASSES, counts, strict=True))
+          + f"; ignored (under {MIN_PIXELS} px): {sum(len(i) for i in ignored)}", flush=True)
+    return to_input(images, labels, input_hw)
+
+
 def train(args: argparse.Namespace) -> None:
     """Render, train, export; print progress and a JSON summary line."""
     torch.manual_seed(args.seed)
     torch.set_num_threads(args.threads)
     rng = np.random.default_rng(args.seed)
     started = time.perf_counter()
-    images, kept, ignored = render_dataset(args.images, seed=args.seed, first_world=args.first_world)
-    render_s = time.perf_counter() - started
-    counts = np.bincount(np.concatenate([obj[:, 0].astype(int) for obj in kept]), minlength=len(CLASSES))
-    for small in ignored:
-        small[:, 0] = -1
-    labels = [np.concatenate([k, i]) for k, i in zip(kept, ignored, strict=True)]
-    print(f"rendered {len(images)} views in {render_s:.0f} s; objects per class: "
-          + ", ".join(f"{c}={n}" for c, n in zip(CLASSES, counts, strict=True))
-          + f"; ignored (under {MIN_PIXELS} px): {sum(len(i) for i in ignored)}", flush=True)
     input_hw = (args.input_hw[0], args.input_hw[1])
-    images, labels = to_input(images, labels, input_hw)
+    worlds_per_set = math.ceil(args.images / VIEWS_PER_WORLD)
+    sets = args.epochs if args.fresh_views else 1
+    if args.first_world + sets * worlds_per_set > EVAL_FIRST_WORLD:
+        sys.exit(f"worlds {args.first_world}..{args.first_world + sets * worlds_per_set - 1} would reach the "
+                 f"benchmark's (from {EVAL_FIRST_WORLD}); give a lower --first-world")
+    images, labels = training_views(args.images, args.seed, args.first_world, input_hw)
+    render_s = time.perf_counter() - started
     model = TinyDetector(len(CLASSES), widths=tuple(args.widths), refine=args.refine)
     if args.init:
         calibration = torch.from_numpy(images[:64].transpose(0, 3, 1, 2).astype(np.float32) / 255.0)
@@ -591,6 +611,10 @@ def train(args: argparse.Namespace) -> None:
             print(f"stopping after {epoch} epochs: --max-minutes {args.max_minutes} reached (the result "
                   f"then depends on the machine's speed, not only on the seed)", flush=True)
             break
+        if args.fresh_views and epoch > 0:
+            del images, labels
+            first = args.first_world + epoch * worlds_per_set
+            images, labels = training_views(args.images, args.seed + epoch, first, input_hw)
         order = rng.permutation(len(images))
         sums = {"loss": 0.0, "cls": 0.0, "box": 0.0}
         for step in range(steps_per_epoch):
@@ -642,7 +666,7 @@ def export(model: TinyDetector, out: Path, args: argparse.Namespace) -> None:
         "training": f"seed={args.seed} images={args.images} epochs={args.epochs} "
         f"first_world={args.first_world} widths={args.widths} lr={args.lr} init={args.init} "
         f"cls_target={args.cls_target} assign={args.assign} input_hw={list(input_hw)} refine={args.refine} "
-        f"train={args.train}",
+        f"train={args.train} fresh_views={args.fresh_views}",
     }
     onnx.helper.set_model_props(proto, metadata)
     onnx.save(proto, str(out))
@@ -671,6 +695,9 @@ def main(argv: list[str] | None = None) -> None:
                         help="stop at the end of the epoch that passes this much wall time")
     parser.add_argument("--widths", type=int, nargs=4, default=[16, 48, 96, 160],
                         help="channels at strides 4, 8, 16, 32")
+    parser.add_argument("--fresh-views", action="store_true",
+                        help="render --images new views of new worlds for every epoch instead of reusing "
+                        "one set (the network memorises a set it sees several times)")
     parser.add_argument("--refine", action="store_true",
                         help="give each level a refiner that re-scores classes from the box's place in the "
                         "frame (see Refiner)")
