@@ -114,13 +114,11 @@ class Refiner(nn.Module):
         h, w = out.shape[2], out.shape[3]
         height, width = float(h * stride), float(w * stride)
         raw = out.detach()
-        xs = (torch.arange(w, dtype=raw.dtype) + 0.5) * stride
-        ys = (torch.arange(h, dtype=raw.dtype) + 0.5) * stride
-        cx = xs.view(1, 1, 1, w) + torch.tanh(raw[:, 0:1]) * (2.0 * stride)
-        cy = ys.view(1, 1, h, 1) + torch.tanh(raw[:, 1:2]) * (2.0 * stride)
-        bw = torch.exp(raw[:, 2:3].clamp(-6.0, 6.0)) * (2.0 * stride)
-        bh = torch.exp(raw[:, 3:4].clamp(-6.0, 6.0)) * (2.0 * stride)
-        geometry = torch.cat([
+        rows, cols = torch.arange(h, dtype=raw.dtype), torch.arange(w, dtype=raw.dtype)
+        ys, xs = torch.meshgrid(rows, cols, indexing="ij")
+        centres = torch.stack([(xs + 0.5) * stride, (ys + 0.5) * stride], dim=-1)
+        cx, cy, bw, bh = decode_cells(raw[:, :4].permute(0, 2, 3, 1), centres, float(stride)).unbind(-1)
+        geometry = torch.stack([
             (cx - bw / 2 - width / 2) / width, (cx + bw / 2 - width / 2) / width,
             (cy - bh / 2 - height / 2) / height, (cy + bh / 2 - height / 2) / height,
             torch.log(bw / height), torch.log(bh / height),
@@ -189,12 +187,20 @@ def flatten_maps(maps: list[torch.Tensor]) -> torch.Tensor:
     return torch.cat([m.flatten(2) for m in maps], dim=2).transpose(1, 2)
 
 
-def decode_boxes(raw: torch.Tensor, centres: torch.Tensor, strides: torch.Tensor) -> torch.Tensor:
-    """Box (cx, cy, w, h in input pixels) from raw outputs: centre offset in cells, log size in cells."""
-    s = strides[None, :, None]
-    cxy = centres[None] + torch.tanh(raw[..., 0:2]) * 2.0 * s
-    wh = torch.exp(raw[..., 2:4].clamp(-6.0, 6.0)) * 2.0 * s
+def decode_cells(raw: torch.Tensor, centres: torch.Tensor, strides: torch.Tensor | float) -> torch.Tensor:
+    """Box (cx, cy, w, h in input pixels) from raw outputs, box channels last.
+
+    The raw values are a centre offset and a log size, in cells; ``centres`` (..., 2) and ``strides``
+    broadcast against ``raw[..., :2]``.
+    """
+    cxy = centres + torch.tanh(raw[..., 0:2]) * 2.0 * strides
+    wh = torch.exp(raw[..., 2:4].clamp(-6.0, 6.0)) * 2.0 * strides
     return torch.cat([cxy, wh], dim=-1)
+
+
+def decode_boxes(raw: torch.Tensor, centres: torch.Tensor, strides: torch.Tensor) -> torch.Tensor:
+    """Boxes of flattened outputs [B, N, 4 + C] with the cells of :func:`make_grid`."""
+    return decode_cells(raw, centres[None], strides[None, :, None])
 
 
 class ExportWrapper(nn.Module):
