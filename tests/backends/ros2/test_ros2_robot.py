@@ -209,8 +209,12 @@ def test_drive_repeats_and_stop_sends_zero_as_twist_stamped(domain_id: int, peer
     robot.drive(0.2, -0.5)
     wait_until(lambda: len(peer.velocities) >= 3, 5.0, "the command to be repeated")
     assert peer.velocities[0] == pytest.approx((0.2, -0.5))
+    before = len(peer.velocities)
     robot.stop()
-    wait_until(lambda: peer.velocities[-1] == (0.0, 0.0), 5.0, "zero velocity")
+    try:
+        wait_until(lambda: peer.velocities[-1] == (0.0, 0.0), 5.0, "zero velocity")
+    except pytest.fail.Exception:  # say whether the zero was lost or overtaken (seen once in a CI run)
+        pytest.fail(f"zero velocity not last 5 s after stop(); received since: {peer.velocities[before:]}")
     count = len(peer.velocities)
     time.sleep(0.3)
     assert len(peer.velocities) == count  # after stop() nothing is repeated
