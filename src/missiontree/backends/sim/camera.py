@@ -6,7 +6,8 @@ is the column's horizontal ray climbing or falling linearly: with ``a = (cx - u)
 ``C + t * (forward + a * left)`` at height ``h + t * b``. Per column the ``k`` nearest prisms
 are found once (:func:`raycast.k_hits`); per pixel the first prism whose front face, top or
 bottom the ray meets wins, else the floor (``b < 0``) or the ceiling. Depth is ``t``, the
-distance along the optical axis that a registered depth image holds.
+distance along the optical axis that a registered depth image holds. Objects' side faces then
+get their surface patterns (:mod:`missiontree.backends.sim.patterns`).
 
 The instance mask (which prism each pixel shows) is returned separately and stays with the
 simulator's ground truth; :class:`~missiontree.types.RGBDFrame` carries only colour and depth.
@@ -19,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from missiontree.backends.sim.patterns import paint
 from missiontree.backends.sim.raycast import HAVE_NUMBA, Primitives, column_hits
 from missiontree.backends.sim.schema import CameraSpec
 from missiontree.types import CameraIntrinsics, Pose2D
@@ -99,6 +101,7 @@ class Camera:
                 floor.resolution, floor.ceiling, spec.depth_min, spec.depth_max,
                 int(prims.inst.max(initial=1)) + 1, k.fy, k.cy)
         color, depth, inst, counts = (_fill_jit if self.accelerate else _fill_numpy)(*args)
+        paint(color, depth, inst, (cam.x, cam.y, height), args[3], args[4], self._b, prims, self.accelerate)
         return Rendering(color, depth, inst, counts)
 
     def add_noise(self, image: Rendering) -> Rendering:

@@ -30,8 +30,9 @@ except ImportError:  # pragma: no cover - exercised only without numba
     HAVE_NUMBA = False
 
 
-#: One prism as a row: (kind, geometry, z0, z1, rgb, instance id).
-Row = tuple[int, tuple[float, ...], float, float, tuple[int, int, int], int]
+#: One prism as a row: (kind, geometry, z0, z1, rgb, instance id), optionally a pattern id after them.
+Row = tuple[int, tuple[float, ...], float, float, tuple[int, int, int], int] | tuple[
+    int, tuple[float, ...], float, float, tuple[int, int, int], int, int]
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,8 @@ class Primitives:
         z: (P, 2) float64 bottom and top height.
         rgb: (P, 3) float64 colour 0-255.
         inst: (P,) int64 instance id (ground truth).
+        pattern: (P,) int64 surface pattern the camera paints on side faces
+            (:mod:`missiontree.backends.sim.patterns`), or None when every prism is plain.
     """
 
     kind: np.ndarray
@@ -52,6 +55,7 @@ class Primitives:
     z: np.ndarray
     rgb: np.ndarray
     inst: np.ndarray
+    pattern: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -64,14 +68,16 @@ class Primitives:
 
     @staticmethod
     def build(rows: list[Row]) -> Primitives:
-        """Make a table from rows ``(kind, geom, z0, z1, rgb, inst)``."""
+        """Make a table from rows ``(kind, geom, z0, z1, rgb, inst[, pattern])``."""
         if not rows:
             return Primitives.empty()
         pad = (0.0,) * 6
-        table = np.array([(r[0], *(tuple(r[1]) + pad)[:6], r[2], r[3], *r[4], r[5]) for r in rows],
-                         np.float64)
+        table = np.array([(r[0], *(tuple(r[1]) + pad)[:6], r[2], r[3], *r[4], r[5],
+                           r[6] if len(r) > 6 else 0) for r in rows], np.float64)  # type: ignore[misc]
+        pattern = table[:, 13].astype(np.int64)
         return Primitives(table[:, 0].astype(np.int64), table[:, 1:7].copy(), table[:, 7:9].copy(),
-                          table[:, 9:12].copy(), table[:, 12].astype(np.int64))
+                          table[:, 9:12].copy(), table[:, 12].astype(np.int64),
+                          pattern if pattern.any() else None)
 
     def concat(self, other: Primitives) -> Primitives:
         """Rows of both tables."""
@@ -79,13 +85,21 @@ class Primitives:
             return self
         if len(self) == 0:
             return other
+        pattern = None
+        if self.pattern is not None or other.pattern is not None:
+            pattern = np.concatenate([self.patterns(), other.patterns()])
         return Primitives(*(np.concatenate([a, b]) for a, b in zip(
             (self.kind, self.geom, self.z, self.rgb, self.inst),
-            (other.kind, other.geom, other.z, other.rgb, other.inst), strict=True)))
+            (other.kind, other.geom, other.z, other.rgb, other.inst), strict=True)), pattern)
+
+    def patterns(self) -> np.ndarray:
+        """(P,) pattern id per row, zeros when the table has none."""
+        return self.pattern if self.pattern is not None else np.zeros(len(self.kind), np.int64)
 
     def select(self, mask: np.ndarray) -> Primitives:
         """The rows where ``mask`` is true."""
-        return Primitives(self.kind[mask], self.geom[mask], self.z[mask], self.rgb[mask], self.inst[mask])
+        return Primitives(self.kind[mask], self.geom[mask], self.z[mask], self.rgb[mask], self.inst[mask],
+                          None if self.pattern is None else self.pattern[mask])
 
     def crossing(self, height: float) -> Primitives:
         """The rows whose height range contains ``height`` (what a planar sensor there sees)."""

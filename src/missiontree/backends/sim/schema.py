@@ -109,6 +109,9 @@ class ObjectSpec(_Strict):
     elevation: float = Field(0.0, ge=0)
     movable: bool = True
     obstacle: bool | None = Field(None, description="blocks the robot; default: if it reaches below 0.3 m")
+    pattern: Literal["plain", "shelves", "fridge", "doors", "screen", "legs", "chair", "cushions", "bottle",
+                     "umbrella", "plant", "rim"] | None = Field(
+        None, description="what the camera paints on the side faces; default: what the label suggests")
 
     @field_validator("size")
     @classmethod

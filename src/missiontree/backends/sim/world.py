@@ -21,6 +21,7 @@ import numpy as np
 import pydantic
 import yaml
 
+from missiontree.backends.sim.patterns import pattern_for
 from missiontree.backends.sim.people import Crowd, Person
 from missiontree.backends.sim.raycast import BOX, CYLINDER, SEGMENT, Primitives
 from missiontree.backends.sim.schema import (
@@ -70,6 +71,7 @@ class WorldObject:
     movable: bool
     obstacle: bool
     inst: int
+    pattern: int = 0
 
     @property
     def top(self) -> float:
@@ -346,10 +348,11 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]) -
         instances[inst] = InstanceInfo(inst, "object", oid, obj.label)
         if obj.shape == "cylinder":
             rows.append((CYLINDER, (obj.pose.x, obj.pose.y, obj.size[0] / 2), obj.elevation, obj.top, obj.rgb,
-                         inst))
+                         inst, obj.pattern))
         else:
             rows.append((BOX, (obj.pose.x, obj.pose.y, math.cos(obj.pose.yaw), math.sin(obj.pose.yaw),
-                               obj.size[0] / 2, obj.size[1] / 2), obj.elevation, obj.top, obj.rgb, inst))
+                               obj.size[0] / 2, obj.size[1] / 2), obj.elevation, obj.top, obj.rgb, inst,
+                         obj.pattern))
     ids = [o.id for o in objects]
     for i, oid in enumerate(ids):
         if oid in ids[:i]:
@@ -386,6 +389,7 @@ def _make_object(ospec: ObjectSpec, oid: str, inst: int) -> WorldObject:
         attributes=tuple(ospec.attributes), description=ospec.description, shape=ospec.shape,
         size=size, pose=Pose2D(ospec.pose.x, ospec.pose.y, ospec.pose.heading),
         elevation=ospec.elevation, movable=ospec.movable, obstacle=obstacle, inst=inst,
+        pattern=pattern_for(ospec.label, ospec.pattern),
     )
 
 
