@@ -195,10 +195,16 @@ def world_spec(seed: int) -> dict[str, Any]:
     }
 
 
-def generated_world(seed: int) -> World:
-    """Load the world of ``seed``; a seed whose world the loader refuses moves on to the next seed."""
+def generated_world(seed: int, empty: bool = False) -> World:
+    """Load the world of ``seed``; a seed whose world the loader refuses moves on to the next seed.
+
+    ``empty`` leaves out its objects and people: bare rooms, whose floors and walls a detector must
+    learn to leave alone.
+    """
     for attempt in range(20):
         spec = world_spec(seed * 100 + attempt)
+        if empty:
+            spec["objects"], spec["people"] = [], []
         with tempfile.TemporaryDirectory() as folder:
             path = Path(folder) / f"generated_{seed}.yaml"
             path.write_text(yaml.safe_dump(spec, sort_keys=False))
@@ -304,9 +310,11 @@ def unoccluded_share(world: World, view: View) -> np.ndarray:
 
 
 def render_dataset(
-    images: int, seed: int = 0, first_world: int = 0, views_per_world: int = 25
+    images: int, seed: int = 0, first_world: int = 0, views_per_world: int = 25, empty_share: float = 0.0
 ) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray]]:
     """``images`` labelled views from worlds ``first_world``, ``first_world + 1``, ...
+
+    A share ``empty_share`` of the worlds (drawn per world from ``seed``) are bare rooms.
 
     Returns:
         (N x 240 x 320 x 3 uint8 images, kept labels per image, ignored labels per image).
@@ -316,8 +324,9 @@ def render_dataset(
     kept: list[np.ndarray] = []
     ignored: list[np.ndarray] = []
     world_seed = first_world
+    bare = np.random.default_rng([seed, 3])  # its own stream: without empty rooms nothing changes
     while len(kept) < images:
-        world = generated_world(world_seed)
+        world = generated_world(world_seed, empty=empty_share > 0 and bare.random() < empty_share)
         world_seed += 1
         for view in render_views(world, min(views_per_world, images - len(kept)), rng):
             colours[len(kept)] = view.color

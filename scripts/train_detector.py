@@ -551,7 +551,7 @@ def batch_tensors(
 
 
 def training_views(
-    count: int, seed: int, first_world: int, input_hw: tuple[int, int]
+    count: int, seed: int, first_world: int, input_hw: tuple[int, int], empty_share: float = 0.0
 ) -> tuple[np.ndarray, list[np.ndarray]]:
     """Render ``count`` labelled views from worlds ``first_world``... and letterbox them for the network.
 
@@ -559,7 +559,7 @@ def training_views(
     """
     started = time.perf_counter()
     images, kept, ignored = render_dataset(count, seed=seed, first_world=first_world,
-                                           views_per_world=VIEWS_PER_WORLD)
+                                           views_per_world=VIEWS_PER_WORLD, empty_share=empty_share)
     counts = np.bincount(np.concatenate([obj[:, 0].astype(int) for obj in kept]), minlength=len(CLASSES))
     for small in ignored:
         small[:, 0] = -1
@@ -583,7 +583,7 @@ def train(args: argparse.Namespace) -> None:
     if args.first_world + sets * worlds_per_set > EVAL_FIRST_WORLD:
         sys.exit(f"worlds {args.first_world}..{args.first_world + sets * worlds_per_set - 1} would reach the "
                  f"benchmark's (from {EVAL_FIRST_WORLD}); give a lower --first-world")
-    images, labels = training_views(args.images, args.seed, args.first_world, input_hw)
+    images, labels = training_views(args.images, args.seed, args.first_world, input_hw, args.empty_rooms)
     render_s = time.perf_counter() - started
     model = TinyDetector(len(CLASSES), widths=tuple(args.widths), refine=args.refine)
     if args.init:
@@ -620,7 +620,7 @@ def train(args: argparse.Namespace) -> None:
         if args.fresh_views and epoch > 0:
             del images, labels
             first = args.first_world + epoch * worlds_per_set
-            images, labels = training_views(args.images, args.seed + epoch, first, input_hw)
+            images, labels = training_views(args.images, args.seed + epoch, first, input_hw, args.empty_rooms)
         order = rng.permutation(len(images))
         sums = {"loss": 0.0, "cls": 0.0, "box": 0.0}
         for step in range(steps_per_epoch):
@@ -672,7 +672,7 @@ def export(model: TinyDetector, out: Path, args: argparse.Namespace) -> None:
         "training": f"seed={args.seed} images={args.images} epochs={args.epochs} "
         f"first_world={args.first_world} widths={args.widths} lr={args.lr} init={args.init} "
         f"cls_target={args.cls_target} assign={args.assign} input_hw={list(input_hw)} refine={args.refine} "
-        f"train={args.train} fresh_views={args.fresh_views}",
+        f"train={args.train} fresh_views={args.fresh_views} empty_rooms={args.empty_rooms}",
     }
     onnx.helper.set_model_props(proto, metadata)
     onnx.save(proto, str(out))
@@ -704,6 +704,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--fresh-views", action="store_true",
                         help="render --images new views of new worlds for every epoch instead of reusing "
                         "one set (the network memorises a set it sees several times)")
+    parser.add_argument("--empty-rooms", type=float, default=0.0, metavar="SHARE",
+                        help="share of the worlds rendered bare (no objects, no people), so that floors and "
+                        "walls stay negatives")
     parser.add_argument("--refine", action="store_true",
                         help="give each level a refiner that re-scores classes from the box's place in the "
                         "frame (see Refiner)")

@@ -73,3 +73,16 @@ def test_an_object_behind_another_counts_as_partly_hidden(tmp_path: Path) -> Non
     assert share["chair"] == 1.0   # nearest: nothing in front of it
     assert share["bottle"] == 1.0  # off to the side, in full view
     assert 0.3 < share["sofa"] < 0.95  # the chair hides part of it
+
+
+def test_empty_rooms_share_renders_bare_worlds_and_zero_changes_nothing() -> None:
+    """``empty_share`` 1.0 gives views with nothing to find; 0.0, the default, renders furnished worlds."""
+    bare = generated_world(3, empty=True)
+    assert bare.objects == [] and bare.crowd.people == []
+    images, kept, ignored = detector_data.render_dataset(6, seed=2, first_world=3, views_per_world=3,
+                                                         empty_share=1.0)
+    assert all(len(k) == 0 and len(i) == 0 for k, i in zip(kept, ignored, strict=True))
+    plain = detector_data.render_dataset(6, seed=2, first_world=3, views_per_world=3)
+    default = detector_data.render_dataset(6, seed=2, first_world=3, views_per_world=3, empty_share=0.0)
+    assert np.array_equal(plain[0], default[0])
+    assert sum(len(k) for k in plain[1]) > 0

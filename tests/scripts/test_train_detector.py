@@ -91,7 +91,7 @@ def test_an_exported_model_loads_back_with_its_batch_norms_recovered(tmp_path: P
     out = tmp_path / "model.onnx"
     args = SimpleNamespace(input_hw=[64, 96], seed=0, images=0, epochs=0, first_world=0,
                            widths=[8, 16, 24, 32], lr=0.0, init=None, cls_target="iou", assign="inside",
-                           refine=False, train="all", fresh_views=False)
+                           refine=False, train="all", fresh_views=False, empty_rooms=0.0)
     train_detector.export(model, out, args)  # folds each batch norm into its convolution
     loaded = train_detector.TinyDetector(5, widths=(8, 16, 24, 32))
     calibration = torch.rand(16, 3, 64, 96)
