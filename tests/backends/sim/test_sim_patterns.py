@@ -71,7 +71,7 @@ def test_patterns_change_colour_only(write_world):
     robot, frame, mask = _frame(write_world, ROW)
     plain = ROW.replace("label:", "pattern: plain, label:")
     assert plain.count("pattern: plain") == 9
-    robot2, frame2, mask2 = _frame(write_world, plain)
+    _, frame2, mask2 = _frame(write_world, plain)
     assert np.array_equal(mask, mask2)
     assert np.allclose(frame.depth, frame2.depth, equal_nan=True)
     differs = (frame.color != frame2.color).any(axis=2)

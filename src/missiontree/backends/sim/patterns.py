@@ -9,9 +9,9 @@ a bottle's cap and label. Only colour changes: depth, the instance mask, the lid
 still see the whole prism.
 
 An object's pattern is its world file's ``pattern`` or, when that is not given, the one its label
-suggests (:data:`LABEL_PATTERNS`); anything else is drawn plain. The painting is one vectorised
-pass over the pixels of patterned objects after the frame is rendered (:func:`paint`), the same
-whichever renderer (numba or numpy) drew the frame.
+suggests (:data:`LABEL_PATTERNS`); anything else is drawn plain. The painting is one pass over
+the pixels of patterned objects after the frame is rendered (:func:`paint`): a numba pixel loop
+when numba is installed, else the vectorised numpy reference.
 """
 
 from __future__ import annotations
@@ -23,10 +23,11 @@ from missiontree.backends.sim.raycast import BOX, CYLINDER, HAVE_NUMBA, Primitiv
 if HAVE_NUMBA:
     import numba
 
+PLAIN, SHELVES, FRIDGE, DOORS, SCREEN, LEGS, CHAIR, CUSHIONS, BOTTLE, UMBRELLA, PLANT, RIM = range(12)
 #: Pattern names and their ids in :attr:`Primitives.pattern` (0 = plain).
 PATTERNS: dict[str, int] = {
-    "plain": 0, "shelves": 1, "fridge": 2, "doors": 3, "screen": 4, "legs": 5, "chair": 6,
-    "cushions": 7, "bottle": 8, "umbrella": 9, "plant": 10, "rim": 11,
+    "plain": PLAIN, "shelves": SHELVES, "fridge": FRIDGE, "doors": DOORS, "screen": SCREEN, "legs": LEGS,
+    "chair": CHAIR, "cushions": CUSHIONS, "bottle": BOTTLE, "umbrella": UMBRELLA, "plant": PLANT, "rim": RIM,
 }
 #: The pattern a label gets when its object names none.
 LABEL_PATTERNS: dict[str, str] = {
@@ -43,6 +44,7 @@ LABEL_PATTERNS: dict[str, str] = {
 }
 
 _SCREEN = np.array([18.0, 22.0, 32.0])
+_GLOW = np.array([10.0, 14.0, 26.0])       # added to the screen towards its top
 _HANDLE = np.array([150.0, 150.0, 156.0])
 _POT = np.array([165.0, 88.0, 58.0])
 _LABEL = np.array([232.0, 228.0, 214.0])
@@ -138,12 +140,9 @@ def paint(color: np.ndarray, depth: np.ndarray, instances: np.ndarray, origin: t
     return color
 
 
-def _hash(*keys: np.ndarray) -> np.ndarray:
-    """A repeatable pseudo-random number in [0, 1) per element of integer ``keys``."""
-    h = np.zeros(np.broadcast(*keys).shape, np.float64)
-    for i, k in enumerate(keys):
-        h = h + np.asarray(k, np.float64) * (12.9898 + 65.233 * i)
-    return np.mod(np.sin(h) * 43758.5453, 1.0)
+def _hash(a, c):  # noqa: ANN001, ANN202 - arrays (numpy reference) or floats (numba loop)
+    """A repeatable pseudo-random number in [0, 1) per pair of whole numbers ``a``, ``c``."""
+    return (np.sin(a * 12.9898 + c * (12.9898 + 65.233)) * 43758.5453) % 1.0
 
 
 def _pattern_rgb(pattern: np.ndarray, base: np.ndarray, s: np.ndarray, w: np.ndarray, z: np.ndarray,
@@ -161,7 +160,7 @@ def _pattern_rgb(pattern: np.ndarray, base: np.ndarray, s: np.ndarray, w: np.nda
 
     edge = np.minimum(s, w - s)
     # shelves: a frame, boards every ~36 cm, books in the compartments (long faces only)
-    q = (pattern == PATTERNS["shelves"]) & long
+    q = (pattern == SHELVES) & long
     if q.any():
         frame = 0.035
         n = np.maximum(2, np.round((h - 2 * frame) / 0.36))
@@ -172,12 +171,12 @@ def _pattern_rgb(pattern: np.ndarray, base: np.ndarray, s: np.ndarray, w: np.nda
         inside = q & (edge > frame) & (z > frame) & (z < h - frame) & ~board
         mult(inside, 0.42)
         book = np.floor((s - frame) / 0.045).astype(np.int64)
-        chance = _hash(book, level.astype(np.int64))
-        tall = 0.6 + 0.3 * _hash(book + 7, level.astype(np.int64))
+        chance = _hash(book.astype(np.float64), level)
+        tall = 0.6 + 0.3 * _hash(book + 7.0, level)
         books = inside & (chance > 0.18) & (inner_z < tall * pitch) & (np.mod(s - frame, 0.045) > 0.004)
         over(books, _BOOKS[(chance * 1000).astype(np.int64) % len(_BOOKS)] * (0.7 + 0.3 * tall[:, None]))
     # refrigerator: a freezer door gap and two handles
-    q = pattern == PATTERNS["fridge"]
+    q = pattern == FRIDGE
     if q.any():
         split = 0.68 * h
         mult(q & (np.abs(z - split) < 0.008), 0.5)
@@ -186,35 +185,35 @@ def _pattern_rgb(pattern: np.ndarray, base: np.ndarray, s: np.ndarray, w: np.nda
         over(bar & (z < split - 0.06) & (z > split - 0.06 - np.minimum(0.45, 0.5 * split)), _HANDLE)
         mult(q & (z < 0.05), 0.55)
     # wardrobe, cabinet: two doors, two knobs, a plinth
-    q = pattern == PATTERNS["doors"]
+    q = pattern == DOORS
     if q.any():
         ql = q & long
         mult(ql & (np.abs(s - w / 2) < 0.006), 0.5)
         mult(ql & (np.abs(np.abs(s - w / 2) - 0.06) < 0.015) & (np.abs(z - 0.5 * h) < 0.015), 0.45)
         mult(q & (z < 0.06), 0.55)
     # tv, monitor: a bezel round a dark screen, brighter towards its top (long faces only)
-    q = (pattern == PATTERNS["screen"]) & long
+    q = (pattern == SCREEN) & long
     if q.any():
         bezel = np.minimum(0.035, 0.1 * w)
         screen = q & (edge > bezel) & (z > bezel) & (z < h - bezel)
-        glow = (z / np.maximum(h, 1e-6))[:, None] * np.array([10.0, 14.0, 26.0])
+        glow = (z / np.maximum(h, 1e-6))[:, None] * _GLOW
         over(screen, _SCREEN + glow)
     # table, desk, bench: a top, legs at the ends, shadow between them under the top
-    q = pattern == PATTERNS["legs"]
+    q = pattern == LEGS
     if q.any():
         top = np.minimum(0.05, 0.15 * h)
         under = q & (z < h - top) & (edge > 0.05)
         mult(under, 0.3)
         mult(under & (z > h - top - 0.06) & long, 0.75)   # the apron below the top
     # chair: legs under a seat, a gap, a backrest
-    q = pattern == PATTERNS["chair"]
+    q = pattern == CHAIR
     if q.any():
         seat = 0.45 * h
         mult(q & (z < seat - 0.04) & (edge > 0.045), 0.3)
         mult(q & (z > seat) & (z < seat + 0.1) & (edge > 0.04), 0.45)
         mult(q & (z >= seat + 0.1) & (edge > 0.04), 0.85)
     # sofa: a dark plinth, the seat's front, a seam, back cushions between the armrests
-    q = pattern == PATTERNS["cushions"]
+    q = pattern == CUSHIONS
     if q.any():
         arm = np.minimum(0.2, 0.12 * w)
         seat = 0.45 * h
@@ -226,27 +225,26 @@ def _pattern_rgb(pattern: np.ndarray, base: np.ndarray, s: np.ndarray, w: np.nda
         seams = (np.minimum(cushion, (w - 2 * arm) / n - cushion) < 0.01) | (np.abs(edge - arm) < 0.01)
         mult(q & long & (z > seat) & (edge >= arm - 0.01) & seams, 0.55)
     # bottle: a dark cap, a lighter neck, a paper label
-    q = pattern == PATTERNS["bottle"]
+    q = pattern == BOTTLE
     if q.any():
         mult(q & (z > 0.92 * h), 0.45)
         mult(q & (z > 0.72 * h) & (z <= 0.92 * h), 0.8)
         over(q & (z > 0.3 * h) & (z < 0.58 * h), _LABEL)
     # umbrella, furled: a wooden handle, a metal tip, panel seams, a strap
-    q = pattern == PATTERNS["umbrella"]
+    q = pattern == UMBRELLA
     if q.any():
         mult(q & (np.mod(s, w / 8) < 0.006), 0.6)
         mult(q & (np.abs(z - 0.5 * h) < 0.02), 0.7)
         over(q & (z < 0.12 * h), _UMBRELLA_HANDLE)
         over(q & (z > 0.95 * h), _HANDLE)
     # potted plant: a terracotta pot, leaves of varying light
-    q = pattern == PATTERNS["plant"]
+    q = pattern == PLANT
     if q.any():
         leaves = q & (z >= 0.38 * h)
-        cell_s, cell_z = np.floor(s / 0.05).astype(np.int64), np.floor(z / 0.05).astype(np.int64)
-        mult(leaves, 0.7 + 0.55 * _hash(cell_s, cell_z))
+        mult(leaves, 0.7 + 0.55 * _hash(np.floor(s / 0.05), np.floor(z / 0.05)))
         over(q & (z < 0.38 * h), _POT)
     # cup, bin: a rim
-    q = pattern == PATTERNS["rim"]
+    q = pattern == RIM
     if q.any():
         mult(q & (z > h - np.minimum(0.02, 0.12 * h)), 0.7)
     return out * m[:, None]
@@ -254,11 +252,7 @@ def _pattern_rgb(pattern: np.ndarray, base: np.ndarray, s: np.ndarray, w: np.nda
 
 # -- numba ---------------------------------------------------------------------------------------
 # The same painting pixel by pixel, compiled by numba when it is installed (extra `accel`); the
-# numpy version above is the reference (tests/backends/sim/test_patterns.py keeps them equal).
-
-
-def _hash2(a, c):  # noqa: ANN001, ANN202
-    return (np.sin(a * 12.9898 + c * (12.9898 + 65.233)) * 43758.5453) % 1.0
+# numpy version above is the reference (tests/backends/sim/test_sim_patterns.py keeps them equal).
 
 
 def _pixel_rgb(pattern, base, s, w, z, h, long, books):  # noqa: ANN001, ANN202, C901, PLR0912, PLR0915
@@ -266,7 +260,7 @@ def _pixel_rgb(pattern, base, s, w, z, h, long, books):  # noqa: ANN001, ANN202,
     r, g, bl = base[0], base[1], base[2]
     m = 1.0
     edge = min(s, w - s)
-    if pattern == 1 and long:  # shelves
+    if pattern == SHELVES and long:
         frame = 0.035
         n = max(2.0, np.round((h - 2 * frame) / 0.36))
         pitch = (h - 2 * frame) / n
@@ -275,40 +269,40 @@ def _pixel_rgb(pattern, base, s, w, z, h, long, books):  # noqa: ANN001, ANN202,
         if edge > frame and frame < z < h - frame and not inner_z < 0.025:
             m = 0.42
             book = np.floor((s - frame) / 0.045)
-            chance = _hash2(book, level)
-            tall = 0.6 + 0.3 * _hash2(book + 7, level)
+            chance = _hash_one(book, level)
+            tall = 0.6 + 0.3 * _hash_one(book + 7, level)
             if chance > 0.18 and inner_z < tall * pitch and (s - frame) % 0.045 > 0.004:
                 k = int(chance * 1000) % len(books)
                 r, g, bl = books[k, 0] * (0.7 + 0.3 * tall), books[k, 1] * (0.7 + 0.3 * tall), books[k, 2] * (
                     0.7 + 0.3 * tall)
                 m = 1.0
-    elif pattern == 2:  # fridge
+    elif pattern == FRIDGE:
         split = 0.68 * h
         if abs(z - split) < 0.008:
             m = 0.5
         if w - 0.085 < s < w - 0.055 and (
                 split + 0.05 < z < split + 0.05 + min(0.25, 0.5 * (h - split))
                 or split - 0.06 - min(0.45, 0.5 * split) < z < split - 0.06):
-            r, g, bl, m = 150.0, 150.0, 156.0, 1.0
+            r, g, bl, m = _HANDLE[0], _HANDLE[1], _HANDLE[2], 1.0
         if z < 0.05:
             m = 0.55
-    elif pattern == 3:  # doors
+    elif pattern == DOORS:
         if long and abs(s - w / 2) < 0.006:
             m = 0.5
         if long and abs(abs(s - w / 2) - 0.06) < 0.015 and abs(z - 0.5 * h) < 0.015:
             m = 0.45
         if z < 0.06:
             m = 0.55
-    elif pattern == 4 and long:  # screen
+    elif pattern == SCREEN and long:
         bezel = min(0.035, 0.1 * w)
         if edge > bezel and bezel < z < h - bezel:
             f = z / max(h, 1e-6)
-            r, g, bl, m = 18.0 + 10.0 * f, 22.0 + 14.0 * f, 32.0 + 26.0 * f, 1.0
-    elif pattern == 5:  # legs
+            r, g, bl, m = _SCREEN[0] + _GLOW[0] * f, _SCREEN[1] + _GLOW[1] * f, _SCREEN[2] + _GLOW[2] * f, 1.0
+    elif pattern == LEGS:
         top = min(0.05, 0.15 * h)
         if z < h - top and edge > 0.05:
             m = 0.75 if z > h - top - 0.06 and long else 0.3
-    elif pattern == 6:  # chair
+    elif pattern == CHAIR:
         seat = 0.45 * h
         if z < seat - 0.04 and edge > 0.045:
             m = 0.3
@@ -316,7 +310,7 @@ def _pixel_rgb(pattern, base, s, w, z, h, long, books):  # noqa: ANN001, ANN202,
             m = 0.45
         if z >= seat + 0.1 and edge > 0.04:
             m = 0.85
-    elif pattern == 7:  # cushions
+    elif pattern == CUSHIONS:
         arm = min(0.2, 0.12 * w)
         seat = 0.45 * h
         if z < 0.06:
@@ -331,28 +325,28 @@ def _pixel_rgb(pattern, base, s, w, z, h, long, books):  # noqa: ANN001, ANN202,
         seam = min(cushion, width - cushion) < 0.01 or abs(edge - arm) < 0.01
         if long and z > seat and edge >= arm - 0.01 and seam:
             m = 0.55
-    elif pattern == 8:  # bottle
+    elif pattern == BOTTLE:
         if z > 0.92 * h:
             m = 0.45
         if 0.72 * h < z <= 0.92 * h:
             m = 0.8
         if 0.3 * h < z < 0.58 * h:
-            r, g, bl, m = 232.0, 228.0, 214.0, 1.0
-    elif pattern == 9:  # umbrella
+            r, g, bl, m = _LABEL[0], _LABEL[1], _LABEL[2], 1.0
+    elif pattern == UMBRELLA:
         if s % (w / 8) < 0.006:
             m = 0.6
         if abs(z - 0.5 * h) < 0.02:
             m = 0.7
         if z < 0.12 * h:
-            r, g, bl, m = 62.0, 42.0, 30.0, 1.0
+            r, g, bl, m = _UMBRELLA_HANDLE[0], _UMBRELLA_HANDLE[1], _UMBRELLA_HANDLE[2], 1.0
         if z > 0.95 * h:
-            r, g, bl, m = 150.0, 150.0, 156.0, 1.0
-    elif pattern == 10:  # plant
+            r, g, bl, m = _HANDLE[0], _HANDLE[1], _HANDLE[2], 1.0
+    elif pattern == PLANT:
         if z >= 0.38 * h:
-            m = 0.7 + 0.55 * _hash2(np.floor(s / 0.05), np.floor(z / 0.05))
+            m = 0.7 + 0.55 * _hash_one(np.floor(s / 0.05), np.floor(z / 0.05))
         else:
-            r, g, bl, m = 165.0, 88.0, 58.0, 1.0
-    elif pattern == 11:  # rim
+            r, g, bl, m = _POT[0], _POT[1], _POT[2], 1.0
+    elif pattern == RIM:
         if z > h - min(0.02, 0.12 * h):
             m = 0.7
     return r * m, g * m, bl * m
@@ -409,8 +403,9 @@ def _paint_loops(color, depth, inst, ox, oy, hc, dx, dy, b, lut, kind, geom, pz,
 
 
 if HAVE_NUMBA:
-    _hash2 = numba.njit(cache=True)(_hash2)
+    _hash_one = numba.njit(cache=True)(_hash)
     _pixel_rgb = numba.njit(cache=True)(_pixel_rgb)
     _paint_jit = numba.njit(cache=True, nogil=True)(_paint_loops)
 else:  # pragma: no cover - exercised only without numba
+    _hash_one = _hash
     _paint_jit = _paint_loops

@@ -12,7 +12,11 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from missiontree.backends.sim.patterns import PATTERNS
+
 Point = tuple[float, float]
+#: A surface pattern's name (see :mod:`missiontree.backends.sim.patterns`).
+PatternName = Literal[tuple(PATTERNS)]  # type: ignore[valid-type]
 RGB = tuple[Annotated[int, Field(ge=0, le=255)], Annotated[int, Field(ge=0, le=255)],
             Annotated[int, Field(ge=0, le=255)]]
 
@@ -109,8 +113,7 @@ class ObjectSpec(_Strict):
     elevation: float = Field(0.0, ge=0)
     movable: bool = True
     obstacle: bool | None = Field(None, description="blocks the robot; default: if it reaches below 0.3 m")
-    pattern: Literal["plain", "shelves", "fridge", "doors", "screen", "legs", "chair", "cushions", "bottle",
-                     "umbrella", "plant", "rim"] | None = Field(
+    pattern: PatternName | None = Field(
         None, description="what the camera paints on the side faces; default: what the label suggests")
 
     @field_validator("size")
