@@ -293,6 +293,15 @@ def widen(narrow: TinyDetector, wide: TinyDetector, seed: int, noise: float = 0.
                 for name in ("weight", "bias", "running_mean", "running_var"):
                     getattr(bn_new, name).copy_(getattr(bn_old, name)[out_pick])
                 bn_new.num_batches_tracked.copy_(bn_old.num_batches_tracked)
+        if narrow.refiners is None or wide.refiners is None:
+            return
+        for r_old, r_new, space in zip(narrow.refiners, wide.refiners, (1, 2, 3), strict=True):
+            # A refiner reads its head's features (widened like the head), then geometry and scores.
+            first, width = r_old.body[0].weight, old_widths[space]
+            features = first[:, :width][:, pick[space]] / copies[space][pick[space]][None, :, None, None]
+            r_new.body[0].weight.copy_(torch.cat([features, first[:, width:]], dim=1))
+            r_new.body[0].bias.copy_(r_old.body[0].bias)
+            r_new.body[2].load_state_dict(r_old.body[2].state_dict())
 
 
 def load_onnx(model: TinyDetector, path: str, calibration: torch.Tensor) -> None:
@@ -384,12 +393,18 @@ def load_init(model: TinyDetector, path: str, seed: int, calibration: torch.Tens
         _add_refiners(model, plain)
         return
     state = torch.load(path)
-    if any(k.startswith("refiners.") for k in state):
-        model.load_state_dict(state)
-        return
-    plain = model if model.refiners is None else TinyDetector(model.num_classes, widths=_widths(model))
     old = tuple(int(state[k].shape[0]) for k in ("stem.0.0.weight", "down3.0.0.weight", "down4.0.0.weight",
                                                  "down5.0.0.weight"))
+    if any(k.startswith("refiners.") for k in state):
+        if old == _widths(model) or model.refiners is None:
+            model.load_state_dict(state)  # a clear error when the widths or the refiners do not fit
+            return
+        narrow = TinyDetector(model.num_classes, widths=old, refine=True)
+        narrow.load_state_dict(state)
+        widen(narrow, model, seed)
+        print(f"widened {path} and its refiners from {list(old)} to {list(_widths(model))}", flush=True)
+        return
+    plain = model if model.refiners is None else TinyDetector(model.num_classes, widths=_widths(model))
     if _widths(plain) == old:
         plain.load_state_dict(state)
     else:

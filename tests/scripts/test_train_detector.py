@@ -63,6 +63,29 @@ def test_load_init_widens_a_narrower_checkpoint_and_loads_a_matching_one(tmp_pat
     assert wide.down3[0][0].weight.shape[0] == 32
 
 
+def test_a_checkpoint_with_refiners_widens_with_them(tmp_path: Path) -> None:
+    torch.manual_seed(5)
+    narrow = train_detector.TinyDetector(5, widths=(8, 16, 24, 32), refine=True)
+    narrow.load_state_dict(_trained_like((8, 16, 24, 32)).state_dict(), strict=False)
+    for refiner in narrow.refiners:  # trained refiners correct the scores
+        torch.nn.init.normal_(refiner.body[-1].weight, std=0.1)
+    narrow.eval()
+    wide = train_detector.TinyDetector(5, widths=(8, 16, 40, 48), refine=True)
+    train_detector.widen(narrow, wide, seed=0, noise=0.0)
+    x = torch.rand(2, 3, 64, 96)
+    with torch.no_grad():
+        before = train_detector.flatten_maps(narrow(x))
+        after = train_detector.flatten_maps(wide.eval()(x))
+    assert torch.allclose(before, after, atol=1e-4)
+    path = tmp_path / "refined.pt"
+    torch.save(narrow.state_dict(), path)
+    loaded = train_detector.TinyDetector(5, widths=(8, 16, 40, 48), refine=True)
+    train_detector.load_init(loaded, str(path), seed=0)  # widened with a little noise
+    assert loaded.refiners[2].body[0].weight.shape[1] == 48 + train_detector.Refiner.GEOMETRY + 5
+    with torch.no_grad():
+        assert torch.allclose(before, train_detector.flatten_maps(loaded.eval()(x)), atol=0.5)
+
+
 def test_widening_to_a_narrower_network_is_refused() -> None:
     with pytest.raises(ValueError, match="cannot widen"):
         narrower = train_detector.TinyDetector(5, (8, 8, 24, 32))
