@@ -623,6 +623,7 @@ def train(args: argparse.Namespace) -> None:
     )
     # With only the refiners trained, the frozen network's batch norms keep their statistics.
     model.train(args.train == "all")
+    average = weight_average(model, args.ema) if args.ema else None
     deadline = started + args.max_minutes * 60.0
     for epoch in range(args.epochs):
         if args.stop_epoch is not None and epoch >= args.stop_epoch:
@@ -649,6 +650,8 @@ def train(args: argparse.Namespace) -> None:
             torch.nn.utils.clip_grad_norm_(trainable, 10.0)
             optimiser.step()
             schedule.step()
+            if average is not None:
+                average.update_parameters(model)
             sums["loss"] += float(loss.detach())
             sums["cls"] += parts["cls"]
             sums["box"] += parts["box"]
@@ -659,11 +662,25 @@ def train(args: argparse.Namespace) -> None:
         means = {k: v / steps_per_epoch for k, v in sums.items()}
         print(f"epoch {epoch + 1}/{args.epochs} loss {means['loss']:.3f} cls {means['cls']:.3f} "
               f"box {means['box']:.3f} ({time.perf_counter() - started:.0f} s)", flush=True)
-    torch.save(model.state_dict(), Path(args.out).with_suffix(".pt"))
-    export(model, Path(args.out), args)
+    final = model if average is None else average.module
+    torch.save(final.state_dict(), Path(args.out).with_suffix(".pt"))
+    export(final, Path(args.out), args)
     print(json.dumps({"parameters": params, "images": len(images), "epochs": args.epochs, "seed": args.seed,
                       "render_s": round(render_s, 1), "total_s": round(time.perf_counter() - started, 1),
                       "out": args.out}))
+
+
+def weight_average(model: TinyDetector, decay: float) -> torch.optim.swa_utils.AveragedModel:
+    """An exponential moving average of ``model``'s weights and batch-norm statistics (``--ema``).
+
+    Updated after every optimiser step, it is what the run saves and exports: the average of the
+    last ~1 / (1 - decay) steps' weights scores better than the last step's alone, which carries
+    that step's noise (Ultralytics' ModelEMA, torch's ``AveragedModel``). Its first update copies
+    the model, so a run from ``--init`` averages from those weights on.
+    """
+    from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
+
+    return AveragedModel(model, multi_avg_fn=get_ema_multi_avg_fn(decay), use_buffers=True)
 
 
 def export(model: TinyDetector, out: Path, args: argparse.Namespace) -> None:
@@ -687,7 +704,7 @@ def export(model: TinyDetector, out: Path, args: argparse.Namespace) -> None:
         "training": f"seed={args.seed} images={args.images} epochs={args.epochs} "
         f"first_world={args.first_world} widths={args.widths} lr={args.lr} init={args.init} "
         f"cls_target={args.cls_target} assign={args.assign} input_hw={list(input_hw)} refine={args.refine} "
-        f"train={args.train} fresh_views={args.fresh_views} empty_rooms={args.empty_rooms}",
+        f"train={args.train} fresh_views={args.fresh_views} empty_rooms={args.empty_rooms} ema={args.ema}",
     }
     onnx.helper.set_model_props(proto, metadata)
     onnx.save(proto, str(out))
@@ -727,6 +744,9 @@ def main(argv: list[str] | None = None) -> None:
                         "frame (see Refiner)")
     parser.add_argument("--train", choices=["all", "refiners"], default="all",
                         help="train every weight, or only the refiners (the rest frozen as --init left it)")
+    parser.add_argument("--ema", type=float, default=0.0, metavar="DECAY",
+                        help="save and export an exponential moving average of the weights with this decay "
+                        "per step (0.999: about the last 1000 steps) instead of the last step's (0: off)")
     parser.add_argument("--input-hw", type=int, nargs=2, default=list(INPUT_HW), metavar=("H", "W"),
                         help="network input (height, width), multiples of 32: 128 160 is half scale, "
                         "256 320 full scale")

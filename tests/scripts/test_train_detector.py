@@ -114,7 +114,7 @@ def test_an_exported_model_loads_back_with_its_batch_norms_recovered(tmp_path: P
     out = tmp_path / "model.onnx"
     args = SimpleNamespace(input_hw=[64, 96], seed=0, images=0, epochs=0, first_world=0,
                            widths=[8, 16, 24, 32], lr=0.0, init=None, cls_target="iou", assign="inside",
-                           refine=False, train="all", fresh_views=False, empty_rooms=0.0)
+                           refine=False, train="all", fresh_views=False, empty_rooms=0.0, ema=0.0)
     train_detector.export(model, out, args)  # folds each batch norm into its convolution
     loaded = train_detector.TinyDetector(5, widths=(8, 16, 24, 32))
     calibration = torch.rand(16, 3, 64, 96)
@@ -128,3 +128,19 @@ def test_an_exported_model_loads_back_with_its_batch_norms_recovered(tmp_path: P
     with pytest.raises(ValueError, match="other --widths"):
         other = train_detector.TinyDetector(5, widths=(8, 16, 24, 40))
         train_detector.load_init(other, str(out), 0, calibration)
+
+
+def test_the_weight_average_starts_at_the_model_and_follows_it_by_its_decay() -> None:
+    model = _trained_like((8, 16, 24, 32)).train()
+    average = train_detector.weight_average(model, decay=0.75)
+    average.update_parameters(model)  # the first update copies the model
+    start = {k: v.clone() for k, v in average.module.state_dict().items()}
+    norm = next(m for m in model.modules() if isinstance(m, torch.nn.BatchNorm2d))
+    with torch.no_grad():
+        model.stem[0][0].weight.add_(1.0)
+        norm.running_mean.add_(2.0)  # batch-norm statistics are averaged too
+    average.update_parameters(model)
+    state = average.module.state_dict()
+    assert torch.allclose(state["stem.0.0.weight"], start["stem.0.0.weight"] + 0.25)
+    assert torch.allclose(state["stem.0.1.running_mean"], start["stem.0.1.running_mean"] + 0.5)
+    assert torch.equal(state["down5.0.0.weight"], start["down5.0.0.weight"])  # unchanged weights stay
