@@ -17,7 +17,9 @@ all-point AP); objects showing fewer than MIN_PIXELS pixels are *ignored* (neith
 held against a detection). ``map50_medium_large`` also ignores COCO's "small" objects (box under
 32x32 pixels of the 320x240 frame); ``map50_mostly_unoccluded`` ignores objects more than half
 hidden behind other things (each object rendered alone from the same pose gives its unhidden
-share), which says how much of the gap is occlusion. ``map50_class_agnostic`` scores boxes whatever
+share), which says how much of the gap is occlusion, and ``recall_by_visibility`` gives the share
+found (above ``SCORE_THRESHOLD``) of objects more than half hidden, cut by the frame's edge, small,
+and the rest (VISIBILITY), which says where the misses are. ``map50_class_agnostic`` scores boxes whatever
 their label (how much of the gap is finding objects rather than naming them), and
 ``map50_look_alike_merged`` merges the classes the simulator drew as the same prism in shared
 colours before it painted surface patterns (LOOK_ALIKE). All are diagnostics beside ``map50``,
@@ -53,6 +55,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 from detector_data import (  # noqa: E402
     CLASSES,
     EVAL_FIRST_WORLD,
+    IMAGE_HW,
     MIN_PIXELS,
     generated_world,
     render_views,
@@ -72,6 +75,8 @@ SMALL_AREA = 32 * 32
 #: Share of an object's in-frame pixels that must be unhidden for the "mostly unoccluded" figure
 #: (more hidden objects are ignored there, as KITTI's easier levels ignore occluded ones).
 MOSTLY_VISIBLE = 0.5
+#: How much of an object shows, for ``recall_by_visibility``: the first of these that applies.
+VISIBILITY = ("more_than_half_hidden", "cut_by_frame_edge", "small", "whole_medium_or_large")
 #: The shipped worlds the missions run in, scored apart (training never saw them either).
 SHIPPED_WORLDS = ("office", "combined", "entrance_hall", "corridor")
 #: Classes the simulator draws as the same prism in shared colours (a white bookshelf and a white
@@ -84,19 +89,36 @@ ALL_SCORES_THRESHOLD = 0.001
 
 
 def truth_of(
-    kept: np.ndarray, ignored: np.ndarray, min_area: float = 0.0, hidden: np.ndarray | None = None
+    kept: np.ndarray, ignored: np.ndarray, min_area: float = 0.0, skip: np.ndarray | None = None
 ) -> list[GroundTruth]:
     """Ground truth of one view from its label arrays (class, x1, y1, x2, y2).
 
     Objects in ``ignored``, those whose box is smaller than ``min_area`` and those flagged in
-    ``hidden`` are marked ignored.
+    ``skip`` are marked ignored.
     """
-    skip = [(r[3] - r[1]) * (r[4] - r[2]) < min_area for r in kept]
-    if hidden is not None:
-        skip = [a or bool(b) for a, b in zip(skip, hidden, strict=True)]
-    rows = [(r, bool(s)) for r, s in zip(kept, skip, strict=True)] + [(r, True) for r in ignored]
+    small = [(r[3] - r[1]) * (r[4] - r[2]) < min_area for r in kept]
+    if skip is not None:
+        small = [a or bool(b) for a, b in zip(small, skip, strict=True)]
+    rows = [(r, bool(s)) for r, s in zip(kept, small, strict=True)] + [(r, True) for r in ignored]
     return [GroundTruth(CLASSES[int(r[0])], (float(r[1]), float(r[2]), float(r[3]), float(r[4])), flag)
             for r, flag in rows]
+
+
+def visibility_of(kept: np.ndarray, hidden: np.ndarray) -> np.ndarray:
+    """The VISIBILITY kind of each object in ``kept`` (class, x1, y1, x2, y2), given which are hidden."""
+    height, width = IMAGE_HW
+    kinds = []
+    for row, more_hidden in zip(kept, hidden, strict=True):
+        x1, y1, x2, y2 = row[1:5]
+        if more_hidden:
+            kinds.append(VISIBILITY[0])
+        elif x1 <= 0 or y1 <= 0 or x2 >= width or y2 >= height:
+            kinds.append(VISIBILITY[1])
+        elif (x2 - x1) * (y2 - y1) < SMALL_AREA:
+            kinds.append(VISIBILITY[2])
+        else:
+            kinds.append(VISIBILITY[3])
+    return np.array(kinds, dtype=object)
 
 
 class FrameTruth:
@@ -191,6 +213,7 @@ def main(argv: list[str] | None = None) -> None:
     ours, reference, ours_ml = APAccumulator(0.5), APAccumulator(0.5), APAccumulator(0.5)
     ours_all_scores = APAccumulator(0.5)
     ours_visible, ours_agnostic, ours_look_alike = APAccumulator(0.5), APAccumulator(0.5), APAccumulator(0.5)
+    by_visibility = {kind: APAccumulator(0.5) for kind in VISIBILITY}
     hidden_count = 0
     ms_ours: list[float] = []
     ms_ref: list[float] = []
@@ -219,7 +242,10 @@ def main(argv: list[str] | None = None) -> None:
             ours_all_scores.add(detector_all_scores.detect(color), truth)  # untimed
             ours_ml.add(found, truth_of(kept, ignored, min_area=SMALL_AREA))
             hidden = unoccluded_share(world, view) < MOSTLY_VISIBLE
-            ours_visible.add(found, truth_of(kept, ignored, hidden=hidden))
+            ours_visible.add(found, truth_of(kept, ignored, skip=hidden))
+            kinds = visibility_of(kept, hidden)
+            for kind, scores in by_visibility.items():
+                scores.add(found, truth_of(kept, ignored, skip=kinds != kind))
             hidden_count += int(hidden.sum())
             ours_agnostic.add(*merged(found, truth, lambda _: "object", detector.iou_threshold))
             ours_look_alike.add(*merged(found, truth, lambda k: LOOK_ALIKE.get(k, k), detector.iou_threshold))
@@ -246,6 +272,9 @@ def main(argv: list[str] | None = None) -> None:
     print(f"mAP@0.5 on medium and large objects (box >= 32x32 px) sim_detector {ours_ml.mean_ap():.3f}")
     print(f"mAP@0.5 on objects at least {MOSTLY_VISIBLE:.0%} unoccluded ({hidden_count} of "
           f"{sum(counts.values())} objects more hidden, ignored) sim_detector {ours_visible.mean_ap():.3f}")
+    print("recall (score above " + str(SCORE_THRESHOLD) + ") by visibility: " + ", ".join(
+        f"{kind} {scores.recall():.3f} of {sum(scores.truth_counts().values())}"
+        for kind, scores in by_visibility.items()))
     pairs = ", ".join(f"{a}->{b}" for a, b in LOOK_ALIKE.items())
     print(f"mAP@0.5 class-agnostic (any label) sim_detector {ours_agnostic.mean_ap():.3f}; with look-alike "
           f"classes merged ({pairs}) {ours_look_alike.mean_ap():.3f}")
@@ -270,6 +299,9 @@ def main(argv: list[str] | None = None) -> None:
         "map50_mostly_unoccluded": round(ours_visible.mean_ap(), 4),
         "ap50_mostly_unoccluded_per_class": {k: round(v, 4) for k, v in ours_visible.per_class().items()},
         "objects_more_than_half_hidden": hidden_count,
+        "recall_by_visibility": {kind: {"recall": round(scores.recall(), 4),
+                                        "objects": sum(scores.truth_counts().values())}
+                                 for kind, scores in by_visibility.items()},
         "map50_class_agnostic": round(ours_agnostic.mean_ap(), 4),
         "map50_look_alike_merged": round(ours_look_alike.mean_ap(), 4),
         "objects_per_class": counts,

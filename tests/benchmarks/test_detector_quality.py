@@ -1,9 +1,11 @@
-"""benchmarks/detector_quality.py: the merged-label diagnostics count one object once."""
+"""benchmarks/detector_quality.py: merged-label diagnostics count one object once; visibility kinds."""
 
 from __future__ import annotations
 
 import sys
 from pathlib import Path
+
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import detector_quality  # noqa: E402
@@ -32,3 +34,14 @@ def test_class_agnostic_merge_keeps_separate_objects() -> None:
     truth = [GroundTruth("sofa", (60, 0, 120, 30))]
     dets, gts = detector_quality.merged(found, truth, lambda _: "object", 0.45)
     assert len(dets) == 2 and {d.label for d in dets} == {"object"} and gts[0].label == "object"
+
+
+def test_visibility_kinds_take_hidden_first_then_the_frame_edge_then_size() -> None:
+    kept = np.array([[0, 100, 50, 200, 150],    # large, whole, but more than half hidden
+                     [0, 0, 50, 60, 150],       # touches the left edge
+                     [4, 150, 100, 170, 120],   # 20x20 px: small
+                     [1, 100, 100, 150, 160],   # 50x60 px, whole and unhidden
+                     [2, 200, 120, 320, 180]])  # touches the right edge (x2 is the frame's width)
+    hidden = np.array([True, False, False, False, False])
+    assert list(detector_quality.visibility_of(kept, hidden)) == [
+        "more_than_half_hidden", "cut_by_frame_edge", "small", "whole_medium_or_large", "cut_by_frame_edge"]

@@ -28,6 +28,18 @@ def test_missed_object_halves_recall_and_ap() -> None:
     assert acc.per_class()["cup"] == pytest.approx(0.5)
 
 
+def test_recall_counts_found_objects_over_every_class_and_skips_ignored_ones() -> None:
+    """Two of four demanded objects found (a wrong box and an ignored object aside): recall 0.5."""
+    acc = APAccumulator()
+    acc.add([_det("cup", 0.9, (0, 0, 10, 10)), _det("person", 0.3, (20, 20, 40, 60)),
+             _det("person", 0.8, (200, 200, 220, 240)), _det("chair", 0.7, (70, 70, 90, 90))],
+            [GroundTruth("cup", (0, 0, 10, 10)), GroundTruth("cup", (50, 50, 60, 60)),
+             GroundTruth("person", (20, 20, 40, 60)), GroundTruth("chair", (100, 0, 130, 40)),
+             GroundTruth("chair", (70, 70, 90, 90), ignored=True)])
+    assert acc.recall() == pytest.approx(0.5)
+    assert APAccumulator().recall() == 0.0
+
+
 def test_false_positive_ranked_first_costs_precision() -> None:
     """A wrong box scored above the right one: precision 1/2 at full recall, AP 0.5."""
     acc = APAccumulator()

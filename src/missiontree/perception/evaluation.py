@@ -108,6 +108,12 @@ class APAccumulator:
         aps = self.per_class()
         return float(np.mean(list(aps.values()))) if aps else 0.0
 
+    def recall(self) -> float:
+        """Share of the demanded ground-truth boxes, all classes together, that some detection found."""
+        demanded = sum(self._truth_count.values())
+        found = sum(hit for scored in self._scored.values() for _, hit in scored)
+        return found / demanded if demanded else 0.0
+
     def truth_counts(self) -> dict[str, int]:
         """How many ground-truth boxes of each class were seen."""
         return dict(sorted(self._truth_count.items()))
