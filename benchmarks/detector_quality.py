@@ -96,10 +96,10 @@ def truth_of(
     Objects in ``ignored``, those whose box is smaller than ``min_area`` and those flagged in
     ``skip`` are marked ignored.
     """
-    small = [(r[3] - r[1]) * (r[4] - r[2]) < min_area for r in kept]
+    flagged = [(r[3] - r[1]) * (r[4] - r[2]) < min_area for r in kept]
     if skip is not None:
-        small = [a or bool(b) for a, b in zip(small, skip, strict=True)]
-    rows = [(r, bool(s)) for r, s in zip(kept, small, strict=True)] + [(r, True) for r in ignored]
+        flagged = [a or bool(b) for a, b in zip(flagged, skip, strict=True)]
+    rows = [(r, bool(f)) for r, f in zip(kept, flagged, strict=True)] + [(r, True) for r in ignored]
     return [GroundTruth(CLASSES[int(r[0])], (float(r[1]), float(r[2]), float(r[3]), float(r[4])), flag)
             for r, flag in rows]
 
@@ -272,7 +272,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"mAP@0.5 on medium and large objects (box >= 32x32 px) sim_detector {ours_ml.mean_ap():.3f}")
     print(f"mAP@0.5 on objects at least {MOSTLY_VISIBLE:.0%} unoccluded ({hidden_count} of "
           f"{sum(counts.values())} objects more hidden, ignored) sim_detector {ours_visible.mean_ap():.3f}")
-    print("recall (score above " + str(SCORE_THRESHOLD) + ") by visibility: " + ", ".join(
+    print(f"recall (score above {SCORE_THRESHOLD}) by visibility: " + ", ".join(
         f"{kind} {scores.recall():.3f} of {sum(scores.truth_counts().values())}"
         for kind, scores in by_visibility.items()))
     pairs = ", ".join(f"{a}->{b}" for a, b in LOOK_ALIKE.items())

@@ -673,10 +673,11 @@ def train(args: argparse.Namespace) -> None:
 def weight_average(model: TinyDetector, decay: float) -> torch.optim.swa_utils.AveragedModel:
     """An exponential moving average of ``model``'s weights and batch-norm statistics (``--ema``).
 
-    Updated after every optimiser step, it is what the run saves and exports: the average of the
-    last ~1 / (1 - decay) steps' weights scores better than the last step's alone, which carries
-    that step's noise (Ultralytics' ModelEMA, torch's ``AveragedModel``). Its first update copies
-    the model, so a run from ``--init`` averages from those weights on.
+    Updated after every optimiser step, it is what the run saves and exports: the average of about
+    the last 1 / (1 - decay) steps' weights, which smooths out the single steps' noise (as
+    Ultralytics' ModelEMA does; torch's ``AveragedModel``). Its first update copies the model, so a
+    run from ``--init`` averages from those weights on. On the simulator detector after stage 15 it
+    scored as the plain stage did (src/missiontree/data/models/README.md).
     """
     from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
