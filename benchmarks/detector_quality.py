@@ -197,6 +197,9 @@ def main(argv: list[str] | None = None) -> None:
     """Render, detect alternately, score, print; last line JSON."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--worlds", type=int, default=20, help="fresh worlds to render")
+    parser.add_argument("--first-world", type=int, default=EVAL_FIRST_WORLD,
+                        help="seed of the first world (training uses seeds below 10000; a lower one scores "
+                        "worlds of the training range that a model's stages did not use)")
     parser.add_argument("--views", type=int, default=25, help="views per world")
     parser.add_argument("--seed", type=int, default=12345, help="seed of the camera poses")
     parser.add_argument("--model", default=None, help="another model to score (default: the shipped one)")
@@ -221,7 +224,7 @@ def main(argv: list[str] | None = None) -> None:
     detector.detect(np.zeros((240, 320, 3), np.uint8))  # load and warm the session once
     frames = 0
     for w in range(args.worlds):
-        world = generated_world(EVAL_FIRST_WORLD + w)
+        world = generated_world(args.first_world + w)
         truth_api = FrameTruth(world)
         oracle = make_oracle(truth_api)
         for view in render_views(world, args.views, rng):
@@ -259,8 +262,8 @@ def main(argv: list[str] | None = None) -> None:
         if args.shipped_views > 0 else (APAccumulator(0.5), 0)
     per_class = ours.per_class()
     counts = ours.truth_counts()
-    print(f"{frames} views of {args.worlds} fresh worlds (seeds {EVAL_FIRST_WORLD}..."
-          f"{EVAL_FIRST_WORLD + args.worlds - 1}); model {args.model or SIM_DETECTOR_MODEL}")
+    print(f"{frames} views of {args.worlds} fresh worlds (seeds {args.first_world}..."
+          f"{args.first_world + args.worlds - 1}); model {args.model or SIM_DETECTOR_MODEL}")
     print(f"{'class':<14} {'objects':>7} {'AP@0.5':>7}")
     for label in CLASSES:
         if label in per_class:
@@ -313,6 +316,7 @@ def main(argv: list[str] | None = None) -> None:
                                "max": round(max(ratios), 2)},
         "views": frames,
         "worlds": args.worlds,
+        "first_world": args.first_world,
         "threads": 2,
     }))
 
