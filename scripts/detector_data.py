@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -309,6 +310,25 @@ def unoccluded_share(world: World, view: View) -> np.ndarray:
     return shares
 
 
+def dataset_views(
+    images: int, seed: int = 0, first_world: int = 0, views_per_world: int = 25, empty_share: float = 0.0
+) -> Iterator[View]:
+    """``images`` labelled views from worlds ``first_world``, ``first_world + 1``, ..., one at a time.
+
+    A share ``empty_share`` of the worlds (drawn per world from ``seed``) are bare rooms.
+    """
+    rng = np.random.default_rng(seed)
+    made = 0
+    world_seed = first_world
+    bare = np.random.default_rng([seed, 3])  # its own stream: without empty rooms nothing changes
+    while made < images:
+        world = generated_world(world_seed, empty=empty_share > 0 and bare.random() < empty_share)
+        world_seed += 1
+        for view in render_views(world, min(views_per_world, images - made), rng):
+            made += 1
+            yield view
+
+
 def render_dataset(
     images: int, seed: int = 0, first_world: int = 0, views_per_world: int = 25, empty_share: float = 0.0
 ) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray]]:
@@ -319,17 +339,11 @@ def render_dataset(
     Returns:
         (N x 240 x 320 x 3 uint8 images, kept labels per image, ignored labels per image).
     """
-    rng = np.random.default_rng(seed)
     colours = np.zeros((images, *IMAGE_HW, 3), np.uint8)
     kept: list[np.ndarray] = []
     ignored: list[np.ndarray] = []
-    world_seed = first_world
-    bare = np.random.default_rng([seed, 3])  # its own stream: without empty rooms nothing changes
-    while len(kept) < images:
-        world = generated_world(world_seed, empty=empty_share > 0 and bare.random() < empty_share)
-        world_seed += 1
-        for view in render_views(world, min(views_per_world, images - len(kept)), rng):
-            colours[len(kept)] = view.color
-            kept.append(view.kept)
-            ignored.append(view.ignored)
+    for k, view in enumerate(dataset_views(images, seed, first_world, views_per_world, empty_share)):
+        colours[k] = view.color
+        kept.append(view.kept)
+        ignored.append(view.ignored)
     return colours, kept, ignored

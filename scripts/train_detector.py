@@ -30,6 +30,7 @@ import sys
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 try:
@@ -40,7 +41,7 @@ except ImportError:  # pragma: no cover - depends on the extra
     sys.exit("training needs the train extra: .venv/bin/pip install -e '.[train]' (pins the CPU torch)")
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from detector_data import CLASSES, EVAL_FIRST_WORLD, MIN_PIXELS, render_dataset  # noqa: E402
+from detector_data import CLASSES, EVAL_FIRST_WORLD, MIN_PIXELS, View, dataset_views  # noqa: E402
 
 from missiontree.perception.detectors import letterbox  # noqa: E402
 
@@ -52,6 +53,9 @@ STRIDES = (8, 16, 32)
 INPUT_HW = (128, 160)
 #: Views rendered of each generated world.
 VIEWS_PER_WORLD = 25
+#: Share of a cell an object's visible pixels must cover for the cell to be taught that object
+#: (``--assign visible``).
+VISIBLE_CELL = 0.25
 
 
 # -- the network ----------------------------------------------------------------------------------
@@ -449,7 +453,11 @@ def giou(a: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
 
 
 def assign(
-    targets: list[np.ndarray], centres: torch.Tensor, strides: torch.Tensor, inside: bool = False
+    targets: list[np.ndarray],
+    centres: torch.Tensor,
+    strides: torch.Tensor,
+    inside: bool = False,
+    coverage: list[np.ndarray] | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """Positive cells of each image and what they should predict.
 
@@ -461,6 +469,14 @@ def assign(
     it. A cell claimed twice goes to the smaller object. An object with class -1 (too small to
     label) makes its cells *ignored*: no loss there either way.
 
+    With ``coverage`` (per image, the share of each cell that each object's visible pixels cover,
+    [objects, N] in 0-255, from :func:`cell_coverage`), an object partly hidden behind another
+    claims only those of its cells that show it (a quarter of the cell or more; failing that, the
+    ones showing the most of it), not cells that show the thing in front; a cell claimed twice
+    goes to the object covering more of it, then to the smaller. Objects in full view claim the
+    cells they did. Without it, a chair whose box centre lies on the table in front is taught from
+    the table's pixels, and the chair's own visible part is taught as background.
+
     Returns:
         (positive mask [B, N], ignored mask [B, N], class id [B, N], target box xyxy [B, N, 4]).
     """
@@ -470,9 +486,11 @@ def assign(
     cls = torch.zeros(batch, n, dtype=torch.long)
     boxes = torch.zeros(batch, n, 4)
     best_area = torch.full((batch, n), float("inf"))
+    best_cover = torch.zeros(batch, n)
     log_strides = np.log2(np.array(STRIDES, float))
     for b, objects in enumerate(targets):
-        for c, x1, y1, x2, y2 in objects.tolist():
+        covers = None if coverage is None else torch.from_numpy(coverage[b].astype(np.float32) / 255.0)
+        for k, (c, x1, y1, x2, y2) in enumerate(objects.tolist()):
             size = max(x2 - x1, y2 - y1)
             ideal = math.log2(max(size, 1.0) / 4.0)
             levels = np.argsort(np.abs(log_strides - ideal))[:2]
@@ -493,7 +511,18 @@ def assign(
                 if c < 0:
                     ignored[b, near] = True
                     continue
-                claim = near & (area < best_area[b])
+                if covers is None:
+                    claim = near & (area < best_area[b])
+                else:
+                    cover = torch.where(near, covers[k], 0.0)
+                    if (cover >= VISIBLE_CELL).any():
+                        near = cover >= VISIBLE_CELL
+                    elif cover.max() > 0:
+                        near = cover == cover.max()
+                    cover = torch.where(near, cover, 0.0)
+                    more = (cover > best_cover[b]) | ((cover == best_cover[b]) & (area < best_area[b]))
+                    claim = near & more
+                    best_cover[b, claim] = cover[claim]
                 positive[b, claim] = True
                 cls[b, claim] = int(c)
                 boxes[b, claim] = torch.tensor([x1, y1, x2, y2], dtype=torch.float32)
@@ -508,9 +537,16 @@ def detection_loss(
     strides: torch.Tensor,
     inside: bool = False,
     iou_targets: bool = True,
+    coverage: list[np.ndarray] | None = None,
+    focus: float = 0.0,
 ) -> tuple[torch.Tensor, dict[str, float]]:
-    """Classification (BCE, IoU-valued targets) plus GIoU box loss, per positive cell."""
-    positive, ignored, cls, target_boxes = assign(targets, centres, strides, inside)
+    """Classification (BCE, IoU-valued targets) plus GIoU box loss, per positive cell.
+
+    With ``focus`` > 0 each cell's classification term is scaled by ``|target - score| ** focus``
+    (quality focal loss, Li et al. 2020, GFL): the many cells already scored right weigh little
+    and the hard ones (a look-alike class, a fragment) weigh more.
+    """
+    positive, ignored, cls, target_boxes = assign(targets, centres, strides, inside, coverage)
     logits = raw[..., 4:]
     score_target = torch.zeros_like(logits)
     num_pos = max(int(positive.sum()), 1)
@@ -521,6 +557,8 @@ def detection_loss(
         box_loss = (1.0 - g).sum() / num_pos
         score_target[positive, cls[positive]] = iou.detach().clamp(min=0.2) if iou_targets else 1.0
     weight = (~ignored).float()[..., None].expand_as(logits)
+    if focus > 0:
+        weight = weight * (score_target - torch.sigmoid(logits)).abs().detach().pow(focus)
     cls_loss = F.binary_cross_entropy_with_logits(logits, score_target, weight, reduction="sum") / num_pos
     total = cls_loss + 5.0 * box_loss
     return total, {"cls": float(cls_loss.detach()), "box": float(box_loss.detach())}
@@ -544,46 +582,115 @@ def to_input(
     return out, moved
 
 
+def cell_coverage(instances: np.ndarray, ids: np.ndarray, input_hw: tuple[int, int]) -> np.ndarray:
+    """Share of every output cell (:func:`make_grid`'s order) that each object's visible pixels cover.
+
+    Args:
+        instances: The view's instance mask (camera pixels).
+        ids: Instance ids of the objects, one row of the result each (0 for a row with no object).
+        input_hw: Network input; the mask is letterboxed into it as the image is.
+
+    Returns:
+        [len(ids), N] uint8, 255 = the object fills the cell.
+    """
+    height, width = input_hw
+    h, w = instances.shape
+    scale = min(height / h, width / w)
+    new_w, new_h = round(w * scale), round(h * scale)
+    mask = instances.astype(np.int32)
+    if (new_w, new_h) != (w, h):
+        mask = cv2.resize(mask.astype(np.float32), (new_w, new_h), interpolation=cv2.INTER_NEAREST)
+        mask = mask.astype(np.int32)
+    top, left = round((height - new_h) / 2.0 - 0.1), round((width - new_w) / 2.0 - 0.1)
+    framed = np.full((height, width), -1, np.int32)
+    framed[top : top + new_h, left : left + new_w] = mask
+    shown = (framed[None] == np.asarray(ids, np.int32)[:, None, None]).astype(np.float32)
+    shown[np.asarray(ids) == 0] = 0.0
+    levels = [shown.reshape(len(ids), height // s, s, width // s, s).mean((2, 4)).reshape(len(ids), -1)
+              if len(ids) else np.zeros((0, (height // s) * (width // s))) for s in STRIDES]
+    return np.round(np.concatenate(levels, axis=1) * 255.0).astype(np.uint8)
+
+
+def mirrored_cells(input_hw: tuple[int, int]) -> np.ndarray:
+    """For every cell of :func:`make_grid`, the index of the cell at its mirror image (horizontal flip)."""
+    index, first = [], 0
+    for s in STRIDES:
+        rows, cols = input_hw[0] // s, input_hw[1] // s
+        grid = np.arange(rows * cols).reshape(rows, cols)[:, ::-1]
+        index.append(grid.flatten() + first)
+        first += rows * cols
+    return np.concatenate(index)
+
+
 def batch_tensors(
-    images: np.ndarray, labels: list[np.ndarray], index: np.ndarray, rng: np.random.Generator
-) -> tuple[torch.Tensor, list[np.ndarray]]:
-    """A training batch: random horizontal flips and brightness/contrast jitter."""
+    images: np.ndarray,
+    labels: list[np.ndarray],
+    index: np.ndarray,
+    rng: np.random.Generator,
+    coverage: list[np.ndarray] | None = None,
+) -> tuple[torch.Tensor, list[np.ndarray], list[np.ndarray] | None]:
+    """A training batch: random horizontal flips and brightness/contrast jitter.
+
+    ``coverage`` (per image, from :func:`cell_coverage`) is flipped with its image.
+    """
     batch = images[index].astype(np.float32) / 255.0
     targets = [labels[i].copy() for i in index]
+    covers = None if coverage is None else [coverage[i] for i in index]
     width = batch.shape[2]
+    mirror = mirrored_cells(batch.shape[1:3]) if coverage is not None else None
     for k in range(len(index)):
         if rng.random() < 0.5:
             batch[k] = batch[k, :, ::-1]
             x1 = targets[k][:, 1].copy()
             targets[k][:, 1] = width - targets[k][:, 3]
             targets[k][:, 3] = width - x1
+            if covers is not None:
+                covers[k] = covers[k][:, mirror]
         gain, bias = rng.uniform(0.75, 1.25), rng.uniform(-0.08, 0.08)
         batch[k] = np.clip(batch[k] * gain + bias, 0.0, 1.0)
-    return torch.from_numpy(np.ascontiguousarray(batch.transpose(0, 3, 1, 2))), targets
+    return torch.from_numpy(np.ascontiguousarray(batch.transpose(0, 3, 1, 2))), targets, covers
 
 
 # -- training and export --------------------------------------------------------------------------
 
 
 def training_views(
-    count: int, seed: int, first_world: int, input_hw: tuple[int, int], empty_share: float = 0.0
-) -> tuple[np.ndarray, list[np.ndarray]]:
+    count: int,
+    seed: int,
+    first_world: int,
+    input_hw: tuple[int, int],
+    empty_share: float = 0.0,
+    with_coverage: bool = False,
+) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray] | None]:
     """Render ``count`` labelled views from worlds ``first_world``... and letterbox them for the network.
 
-    Objects too small to demand keep their boxes with class -1 (ignored cells).
+    Objects too small to demand keep their boxes with class -1 (ignored cells). With
+    ``with_coverage``, also each label row's :func:`cell_coverage` (zero for the ignored rows).
     """
     started = time.perf_counter()
-    images, kept, ignored = render_dataset(count, seed=seed, first_world=first_world,
-                                           views_per_world=VIEWS_PER_WORLD, empty_share=empty_share)
-    counts = np.bincount(np.concatenate([obj[:, 0].astype(int) for obj in kept]), minlength=len(CLASSES))
-    for small in ignored:
-        small[:, 0] = -1
-    labels = [np.concatenate([k, i]) for k, i in zip(kept, ignored, strict=True)]
+    images = np.empty((count, *input_hw, 3), np.uint8)
+    labels: list[np.ndarray] = []
+    coverage: list[np.ndarray] | None = [] if with_coverage else None
+    counts = np.zeros(len(CLASSES), np.int64)
+    small = 0
+    view: View
+    for k, view in enumerate(dataset_views(count, seed=seed, first_world=first_world,
+                                           views_per_world=VIEWS_PER_WORLD, empty_share=empty_share)):
+        counts += np.bincount(view.kept[:, 0].astype(int), minlength=len(CLASSES))
+        small += len(view.ignored)
+        ignored = view.ignored.copy()
+        ignored[:, 0] = -1
+        rows = np.concatenate([view.kept, ignored])
+        (images[k:k + 1], moved) = to_input(view.color[None], [rows], input_hw)
+        labels.append(moved[0])
+        if coverage is not None:
+            ids = np.concatenate([view.kept_ids, np.zeros(len(ignored), np.int64)])
+            coverage.append(cell_coverage(view.instances, ids, input_hw))
     render_s = time.perf_counter() - started
     print(f"rendered {len(images)} views of worlds {first_world}... in {render_s:.0f} s; objects per class: "
           + ", ".join(f"{c}={n}" for c, n in zip(CLASSES, counts, strict=True))
-          + f"; ignored (under {MIN_PIXELS} px): {sum(len(i) for i in ignored)}", flush=True)
-    return to_input(images, labels, input_hw)
+          + f"; ignored (under {MIN_PIXELS} px): {small}", flush=True)
+    return images, labels, coverage
 
 
 def train(args: argparse.Namespace) -> None:
@@ -598,7 +705,9 @@ def train(args: argparse.Namespace) -> None:
     if args.first_world + sets * worlds_per_set > EVAL_FIRST_WORLD:
         sys.exit(f"worlds {args.first_world}..{args.first_world + sets * worlds_per_set - 1} would reach the "
                  f"benchmark's (from {EVAL_FIRST_WORLD}); give a lower --first-world")
-    images, labels = training_views(args.images, args.seed, args.first_world, input_hw, args.empty_rooms)
+    visible = args.assign == "visible"
+    images, labels, coverage = training_views(args.images, args.seed, args.first_world, input_hw,
+                                              args.empty_rooms, visible)
     render_s = time.perf_counter() - started
     model = TinyDetector(len(CLASSES), widths=tuple(args.widths), refine=args.refine)
     if args.init:
@@ -634,17 +743,19 @@ def train(args: argparse.Namespace) -> None:
                   f"then depends on the machine's speed, not only on the seed)", flush=True)
             break
         if args.fresh_views and epoch > 0:
-            del images, labels
+            del images, labels, coverage
             first = args.first_world + epoch * worlds_per_set
-            images, labels = training_views(args.images, args.seed + epoch, first, input_hw, args.empty_rooms)
+            images, labels, coverage = training_views(args.images, args.seed + epoch, first, input_hw,
+                                                      args.empty_rooms, visible)
         order = rng.permutation(len(images))
         sums = {"loss": 0.0, "cls": 0.0, "box": 0.0}
         for step in range(steps_per_epoch):
             index = order[step * args.batch : (step + 1) * args.batch]
-            x, targets = batch_tensors(images, labels, index, rng)
+            x, targets, covers = batch_tensors(images, labels, index, rng, coverage)
             raw = flatten_maps(model(x))
-            loss, parts = detection_loss(raw, targets, centres, strides, inside=args.assign == "inside",
-                                         iou_targets=args.cls_target == "iou")
+            loss, parts = detection_loss(raw, targets, centres, strides, inside=args.assign != "centre",
+                                         iou_targets=args.cls_target == "iou", coverage=covers,
+                                         focus=args.focus)
             optimiser.zero_grad()
             loss.backward()
             torch.nn.utils.clip_grad_norm_(trainable, 10.0)
@@ -664,7 +775,7 @@ def train(args: argparse.Namespace) -> None:
               f"box {means['box']:.3f} ({time.perf_counter() - started:.0f} s)", flush=True)
     final = model if average is None else average.module
     torch.save(final.state_dict(), Path(args.out).with_suffix(".pt"))
-    export(final, Path(args.out), args)
+    export(final, Path(args.out), input_hw, training_note(args))
     print(json.dumps({"parameters": params, "images": len(images), "epochs": args.epochs, "seed": args.seed,
                       "render_s": round(render_s, 1), "total_s": round(time.perf_counter() - started, 1),
                       "out": args.out}))
@@ -684,12 +795,27 @@ def weight_average(model: TinyDetector, decay: float) -> torch.optim.swa_utils.A
     return AveragedModel(model, multi_avg_fn=get_ema_multi_avg_fn(decay), use_buffers=True)
 
 
-def export(model: TinyDetector, out: Path, args: argparse.Namespace) -> None:
-    """Write the ONNX model with Ultralytics-style metadata (names, stride, imgsz, task)."""
+def training_note(args: argparse.Namespace) -> str:
+    """The training command's settings, for the exported model's ``training`` metadata."""
+    return (f"seed={args.seed} images={args.images} epochs={args.epochs} "
+            f"first_world={args.first_world} widths={args.widths} lr={args.lr} init={args.init} "
+            f"cls_target={args.cls_target} assign={args.assign} input_hw={list(args.input_hw)} "
+            f"refine={args.refine} train={args.train} fresh_views={args.fresh_views} "
+            f"empty_rooms={args.empty_rooms} ema={args.ema} focus={args.focus}")
+
+
+def export(model: TinyDetector, out: Path, input_hw: tuple[int, int], training: str) -> None:
+    """Write the ONNX model with Ultralytics-style metadata (names, stride, imgsz, task).
+
+    Args:
+        model: The network (put in evaluation mode; its batch norms fold into the convolutions).
+        out: The ``.onnx`` file to write.
+        input_hw: Network input (height, width).
+        training: How the weights were made, kept in the ``training`` metadata.
+    """
     import onnx
 
     model.eval()
-    input_hw = (args.input_hw[0], args.input_hw[1])
     wrapper = ExportWrapper(model, *input_hw).eval()
     out.parent.mkdir(parents=True, exist_ok=True)
     dummy = torch.zeros(1, 3, *input_hw)
@@ -702,10 +828,7 @@ def export(model: TinyDetector, out: Path, args: argparse.Namespace) -> None:
         "imgsz": str(list(input_hw)),
         "task": "detect",
         "description": "missiontree simulator detector (scripts/train_detector.py)",
-        "training": f"seed={args.seed} images={args.images} epochs={args.epochs} "
-        f"first_world={args.first_world} widths={args.widths} lr={args.lr} init={args.init} "
-        f"cls_target={args.cls_target} assign={args.assign} input_hw={list(input_hw)} refine={args.refine} "
-        f"train={args.train} fresh_views={args.fresh_views} empty_rooms={args.empty_rooms} ema={args.ema}",
+        "training": training,
     }
     onnx.helper.set_model_props(proto, metadata)
     onnx.save(proto, str(out))
@@ -728,8 +851,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--init", default=None, help="start from these weights (a .pt written by a run)")
     parser.add_argument("--cls-target", choices=["iou", "one"], default="iou",
                         help="score target of an object's cells: its predicted box's IoU, or 1")
-    parser.add_argument("--assign", choices=["centre", "inside"], default="centre",
-                        help="positive cells: near the object's centre, or near it and inside its box")
+    parser.add_argument("--assign", choices=["centre", "inside", "visible"], default="centre",
+                        help="positive cells: near the object's centre, or near it and inside its box, or "
+                        "those of these that show the object (not what hides it; see assign)")
+    parser.add_argument("--focus", type=float, default=0.0, metavar="BETA",
+                        help="quality focal loss: scale each cell's class loss by |target - score|^BETA "
+                        "(GFL uses 2; 0: plain binary cross-entropy)")
     parser.add_argument("--max-minutes", type=float, default=40.0,
                         help="stop at the end of the epoch that passes this much wall time")
     parser.add_argument("--widths", type=int, nargs=4, default=[16, 48, 96, 160],

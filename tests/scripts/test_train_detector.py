@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 torch = pytest.importorskip("torch", reason="the train extra (CPU torch) is not installed")
@@ -112,10 +112,7 @@ def test_an_exported_model_loads_back_with_its_batch_norms_recovered(tmp_path: P
     pytest.importorskip("onnx", reason="the train extra (onnx) is not installed")
     model = _trained_like((8, 16, 24, 32))
     out = tmp_path / "model.onnx"
-    args = SimpleNamespace(input_hw=[64, 96], seed=0, images=0, epochs=0, first_world=0,
-                           widths=[8, 16, 24, 32], lr=0.0, init=None, cls_target="iou", assign="inside",
-                           refine=False, train="all", fresh_views=False, empty_rooms=0.0, ema=0.0)
-    train_detector.export(model, out, args)  # folds each batch norm into its convolution
+    train_detector.export(model, out, (64, 96), "test")  # folds each batch norm into its convolution
     loaded = train_detector.TinyDetector(5, widths=(8, 16, 24, 32))
     calibration = torch.rand(16, 3, 64, 96)
     train_detector.load_init(loaded, str(out), seed=0, calibration=calibration)
@@ -144,3 +141,55 @@ def test_the_weight_average_starts_at_the_model_and_follows_it_by_its_decay() ->
     assert torch.allclose(state["stem.0.0.weight"], start["stem.0.0.weight"] + 0.25)
     assert torch.allclose(state["stem.0.1.running_mean"], start["stem.0.1.running_mean"] + 0.5)
     assert torch.equal(state["down5.0.0.weight"], start["down5.0.0.weight"])  # unchanged weights stay
+
+
+def test_cell_coverage_is_the_share_of_each_cell_an_object_shows_after_the_letterbox() -> None:
+    """An object on camera rows 0-11, columns 16-31 shows 8 rows lower in the input: input rows 8-19."""
+    instances = np.zeros((240, 320), np.int32)
+    instances[0:12, 16:32] = 7
+    cover = train_detector.cell_coverage(instances, np.array([7, 0]), (256, 320))
+    level8 = cover[0, : 32 * 40].reshape(32, 40)
+    assert level8[1, 2] == 255 and level8[1, 3] == 255  # input rows 8-15: wholly the object
+    assert level8[0, 2] == 0 and level8[2, 2] == 128  # the grey band; half of rows 16-23
+    assert level8[1, 4] == 0 and level8[1, 1] == 0
+    assert not cover[1].any()  # row 0: no object (an ignored label)
+
+
+def test_mirrored_cells_flip_coverage_as_the_image_is_flipped() -> None:
+    instances = np.zeros((240, 320), np.int32)
+    instances[40:120, 10:90] = 3
+    cover = train_detector.cell_coverage(instances, np.array([3]), (256, 320))
+    flipped = train_detector.cell_coverage(instances[:, ::-1], np.array([3]), (256, 320))
+    assert np.array_equal(cover[:, train_detector.mirrored_cells((256, 320))], flipped)
+
+
+def test_visible_assignment_teaches_a_hidden_object_only_where_it_shows() -> None:
+    """A chair whose box centre lies behind a table claims its visible cells, not the table's."""
+    hw = (256, 320)
+    centres, strides = train_detector.make_grid(*hw)
+    instances = np.zeros((240, 320), np.int32)
+    instances[92:140, 80:128] = 1   # the chair: 48x48 pixels of camera (a stride-16 object)
+    instances[110:180, 60:200] = 2  # the table in front hides the chair's lower part and centre
+    labels = np.array([[1, 80, 100, 128, 148], [3, 60, 118, 200, 188]], np.float32)  # input pixels
+    cover = train_detector.cell_coverage(instances, np.array([1, 2]), hw)
+    plain, _, cls_plain, _ = train_detector.assign([labels], centres, strides, inside=True)
+    seen, _, cls_seen, _ = train_detector.assign([labels], centres, strides, inside=True, coverage=[cover])
+    chair_plain = plain[0] & (cls_plain[0] == 1)
+    chair_seen = seen[0] & (cls_seen[0] == 1)
+    assert chair_seen.any()
+    assert bool((torch.from_numpy(cover[0].astype(np.float32)) >= 0.25 * 255)[chair_seen].all())
+    assert bool((torch.from_numpy(cover[0].astype(np.float32)) < 0.25 * 255)[chair_plain].any())
+    assert chair_seen.sum() < chair_plain.sum()
+
+
+def test_visible_assignment_leaves_objects_in_full_view_as_they_were() -> None:
+    hw = (256, 320)
+    centres, strides = train_detector.make_grid(*hw)
+    instances = np.zeros((240, 320), np.int32)
+    instances[50:130, 30:90] = 4
+    instances[150:200, 200:300] = 5
+    labels = np.array([[2, 30, 58, 90, 138], [0, 200, 158, 300, 208]], np.float32)
+    cover = train_detector.cell_coverage(instances, np.array([4, 5]), hw)
+    plain = train_detector.assign([labels], centres, strides, inside=True)
+    seen = train_detector.assign([labels], centres, strides, inside=True, coverage=[cover])
+    assert all(torch.equal(a, b) for a, b in zip(plain, seen, strict=True))
