@@ -84,6 +84,17 @@ def test_decode_yolo_thresholds_and_converts_centre_boxes() -> None:
     assert classes.tolist() == [1]
 
 
+def test_decode_yolo_multi_label_reports_a_box_under_each_class_above_the_threshold() -> None:
+    """An ambiguous box comes back once per class above the threshold, each with its own score."""
+    out = yolo_output([(20, 20, 10, 4, [0.5, 0.4]), (40, 40, 8, 8, [0.2, 0.1])], 2)
+    boxes, scores, classes = decode_yolo(out, 2, 0.15, 0.45, 100, multi_label=True)
+    assert [(int(c), round(float(s), 2)) for c, s in zip(classes, scores, strict=True)] == [
+        (0, 0.5), (1, 0.4), (0, 0.2)]
+    np.testing.assert_allclose(boxes[:2], [[15, 18, 25, 22], [15, 18, 25, 22]])
+    _, _, single = decode_yolo(out, 2, 0.15, 0.45, 100)
+    assert single.tolist() == [0, 0]  # without it: each box once, under its best class
+
+
 def test_parse_names_reads_ultralytics_dict_text() -> None:
     """The names metadata Ultralytics writes (a dict as text) gives names in id order."""
     assert parse_names("{1: 'cup', 0: 'person'}") == ["person", "cup"]

@@ -38,6 +38,8 @@ def test_yolo_onnx_factory_passes_its_options(tmp_path: Path) -> None:
     assert isinstance(detector, YoloOnnxDetector)
     assert (detector.name, detector.score_threshold) == ("mine", 0.6)
     assert detector.detect(np.zeros((64, 64, 3), np.uint8)) == []
+    assert detector.multi_label is False
+    assert create_yolo_onnx({"model": str(model), "multi_label": True}).multi_label is True
 
 
 def test_yolo_onnx_without_model_says_what_to_set() -> None:

@@ -167,18 +167,28 @@ def decode_yolo(
     score_threshold: float,
     iou_threshold: float,
     max_detections: int,
+    multi_label: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Turn a raw ``[1, 4 + classes, N]`` output into kept boxes, scores and class ids.
+
+    Each candidate box is reported under its best class; with ``multi_label``, under every class
+    scoring above ``score_threshold`` (as Ultralytics' ``non_max_suppression(multi_label=True)``
+    decodes for ``val``), so that a box the model finds ambiguous (a white bookshelf seen end-on
+    or a refrigerator) yields one detection per plausible class, each with its own score.
 
     Returns:
         (boxes Kx4 xyxy in input pixels, scores K, class ids K), best score first.
     """
     preds = output[0].T  # N x (4 + C)
     class_scores = preds[:, 4 : 4 + num_classes]
-    class_ids = class_scores.argmax(axis=1)
-    scores = class_scores[np.arange(len(preds)), class_ids]
-    chosen = scores > score_threshold
-    preds, class_ids, scores = preds[chosen], class_ids[chosen], scores[chosen]
+    if multi_label:
+        rows, class_ids = np.nonzero(class_scores > score_threshold)
+        preds, scores = preds[rows], class_scores[rows, class_ids]
+    else:
+        class_ids = class_scores.argmax(axis=1)
+        scores = class_scores[np.arange(len(preds)), class_ids]
+        chosen = scores > score_threshold
+        preds, class_ids, scores = preds[chosen], class_ids[chosen], scores[chosen]
     cx, cy, w, h = preds[:, 0], preds[:, 1], preds[:, 2], preds[:, 3]
     boxes = np.stack([cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2], axis=1)
     keep = nms(boxes, scores, class_ids, iou_threshold)[:max_detections]
@@ -239,6 +249,12 @@ class YoloOnnxDetector:
         score_threshold: Candidates scoring at or below this are dropped before NMS.
         iou_threshold: Class-wise NMS overlap threshold.
         max_detections: At most this many detections a frame.
+        multi_label: Report a box under every class scoring above ``score_threshold``, not only
+            its best (see :func:`decode_yolo`).
+        test_time_flip: Also run the model on the mirror image and pool both passes' candidate
+            boxes (the mirrored ones mapped back) before NMS, as Ultralytics' ``augment`` does with
+            flips: an object one pass misses or misnames the other often gets right. Twice the
+            inference time.
         threads: onnxruntime intra-op threads (the robot's CPU is shared: default 2).
         input_size: (height, width) for a model whose input size is dynamic; ignored otherwise.
         name: Provider name used in errors and events.
@@ -254,12 +270,16 @@ class YoloOnnxDetector:
         threads: int = 2,
         input_size: tuple[int, int] = (640, 640),
         name: str = "yolo_onnx",
+        multi_label: bool = False,
+        test_time_flip: bool = False,
     ) -> None:
         self.name = name
         self.model_path = Path(model)
         self.score_threshold = float(score_threshold)
         self.iou_threshold = float(iou_threshold)
         self.max_detections = int(max_detections)
+        self.multi_label = bool(multi_label)
+        self.test_time_flip = bool(test_time_flip)
         self._session = self._open_session(int(threads))
         self._input = self._session.get_inputs()[0]
         self.input_height, self.input_width = self._input_size(input_size)
@@ -351,11 +371,14 @@ class YoloOnnxDetector:
         """Detections in ``image`` (HxWx3 uint8 RGB), boxes in its pixels, best score first."""
         image = check_image(image, self.name)
         tensor, box = self.preprocess(image)
-        output = np.asarray(self._session.run(None, {self._input.name: tensor})[0], dtype=np.float32)
-        if output.ndim != 3 or output.shape[0] != 1 or output.shape[1] != 4 + len(self._labels):
-            self._check_output_layout(found=tuple(output.shape))
+        output = self._run(tensor)
+        if self.test_time_flip:
+            mirrored = self._run(np.ascontiguousarray(tensor[..., ::-1]))
+            mirrored[:, 0] = self.input_width - mirrored[:, 0]  # box centres back in the unflipped input
+            output = np.concatenate([output, mirrored], axis=2)
         boxes, scores, class_ids = decode_yolo(
-            output, len(self._labels), self.score_threshold, self.iou_threshold, self.max_detections
+            output, len(self._labels), self.score_threshold, self.iou_threshold, self.max_detections,
+            self.multi_label,
         )
         boxes = box.to_image(boxes, image.shape[1], image.shape[0])
         return [
@@ -367,6 +390,13 @@ class YoloOnnxDetector:
             )
             for b, s, c in zip(boxes, scores, class_ids, strict=True)
         ]
+
+    def _run(self, tensor: np.ndarray) -> np.ndarray:
+        """The model's raw ``[1, 4 + classes, N]`` output for one input tensor, its layout checked."""
+        output = np.asarray(self._session.run(None, {self._input.name: tensor})[0], dtype=np.float32)
+        if output.ndim != 3 or output.shape[0] != 1 or output.shape[1] != 4 + len(self._labels):
+            self._check_output_layout(found=tuple(output.shape))
+        return output
 
     def check(self) -> str:
         """Run the model on a blank frame; return a one-line description (``missiontree models``)."""
@@ -383,4 +413,6 @@ class YoloOnnxDetector:
             "input": [self.input_height, self.input_width],
             "classes": len(self._labels),
             "score_threshold": self.score_threshold,
+            "multi_label": self.multi_label,
+            "test_time_flip": self.test_time_flip,
         }
