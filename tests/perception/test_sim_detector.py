@@ -68,3 +68,26 @@ def test_reports_nothing_at_mission_confidence_in_an_empty_room(tmp_path: Path) 
     robot = create_robot({"world": str(path)})
     assert create_sim_detector({"score_threshold": 0.7}).detect(robot.rgbd().color) == []
     robot.close()
+
+
+def test_with_the_mirror_pass_a_mirrored_frame_gives_the_mirrored_detections(frame_and_truth) -> None:  # noqa: ANN001
+    """Both passes pooled: the frame and its mirror image give the same detections, mirrored."""
+    frame, _ = frame_and_truth
+    detector = create_sim_detector({"score_threshold": 0.05})
+    assert detector.test_time_flip  # the provider's default
+    image = frame.color
+    width = image.shape[1]
+    found = detector.detect(image)
+    mirrored = detector.detect(np.ascontiguousarray(image[:, ::-1]))
+    assert len(found) >= 4
+    as_found = sorted((d.label, round(d.score, 4), *np.round(d.box, 2)) for d in found)
+    unmirror = lambda b: (width - b[2], b[1], width - b[0], b[3])  # noqa: E731
+    mirrored_back = sorted((d.label, round(d.score, 4), *np.round(unmirror(d.box), 2)) for d in mirrored)
+    assert [row[:2] for row in as_found] == [row[:2] for row in mirrored_back]
+    np.testing.assert_allclose(np.array([row[2:] for row in as_found], float),
+                               np.array([row[2:] for row in mirrored_back], float), atol=0.02)
+
+
+def test_the_mirror_pass_can_be_switched_off() -> None:
+    detector = create_sim_detector({"test_time_flip": False})
+    assert detector.test_time_flip is False and detector.describe()["test_time_flip"] is False
