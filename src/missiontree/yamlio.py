@@ -215,6 +215,15 @@ def parse_yaml(
     except _LimitExceeded as exc:
         raise error([Problem(file, exc.line, exc.col, "", exc.message, exc.hint)]) from None
     except yaml.MarkedYAMLError as exc:
+        if "maximum nesting depth" in str(exc.problem):
+            # PyYAML 6.0.4+ stops its scanner at 1,000 levels: in a flow collection it scans that
+            # far ahead before the composer's own limit (above) sees the 65th level.
+            mark = exc.problem_mark or exc.context_mark
+            raise error([Problem(
+                file, mark.line + 1 if mark else 1, mark.column + 1 if mark else 1, "",
+                f"expected nesting of at most {limits.max_depth} levels, found deeper",
+                "flatten the document or move parts into subtrees",
+            )]) from None
         raise error([_syntax_problem(file, exc)]) from None
     except yaml.YAMLError as exc:
         raise error([Problem(file, 1, 1, "", f"not valid YAML: {exc}")]) from None
