@@ -24,6 +24,7 @@ well they fit (``--cls-target one``: target 1); boxes are trained with GIoU.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import sys
@@ -594,23 +595,16 @@ def cell_coverage(instances: np.ndarray, ids: np.ndarray, input_hw: tuple[int, i
         [len(ids), N] uint8, 255 = the object fills the cell.
     """
     height, width = input_hw
-    h, w = instances.shape
-    scale = min(height / h, width / w)
-    new_w, new_h = round(w * scale), round(h * scale)
-    mask = instances.astype(np.int32)
-    if (new_w, new_h) != (w, h):
-        mask = cv2.resize(mask.astype(np.float32), (new_w, new_h), interpolation=cv2.INTER_NEAREST)
-        mask = mask.astype(np.int32)
-    top, left = round((height - new_h) / 2.0 - 0.1), round((width - new_w) / 2.0 - 0.1)
-    framed = np.full((height, width), -1, np.int32)
-    framed[top : top + new_h, left : left + new_w] = mask
-    shown = (framed[None] == np.asarray(ids, np.int32)[:, None, None]).astype(np.float32)
+    framed, _ = letterbox(instances.astype(np.float32), height, width,  # ids are exact in float32
+                          interpolation=cv2.INTER_NEAREST, pad_value=-1.0)
+    shown = (framed[None] == np.asarray(ids, np.float32)[:, None, None]).astype(np.float32)
     shown[np.asarray(ids) == 0] = 0.0
     levels = [shown.reshape(len(ids), height // s, s, width // s, s).mean((2, 4)).reshape(len(ids), -1)
               if len(ids) else np.zeros((0, (height // s) * (width // s))) for s in STRIDES]
     return np.round(np.concatenate(levels, axis=1) * 255.0).astype(np.uint8)
 
 
+@functools.lru_cache(maxsize=4)
 def mirrored_cells(input_hw: tuple[int, int]) -> np.ndarray:
     """For every cell of :func:`make_grid`, the index of the cell at its mirror image (horizontal flip)."""
     index, first = [], 0
@@ -619,7 +613,9 @@ def mirrored_cells(input_hw: tuple[int, int]) -> np.ndarray:
         grid = np.arange(rows * cols).reshape(rows, cols)[:, ::-1]
         index.append(grid.flatten() + first)
         first += rows * cols
-    return np.concatenate(index)
+    mirror = np.concatenate(index)
+    mirror.setflags(write=False)  # cached: shared by every caller
+    return mirror
 
 
 def batch_tensors(
@@ -637,7 +633,7 @@ def batch_tensors(
     targets = [labels[i].copy() for i in index]
     covers = None if coverage is None else [coverage[i] for i in index]
     width = batch.shape[2]
-    mirror = mirrored_cells(batch.shape[1:3]) if coverage is not None else None
+    mirror = mirrored_cells(tuple(batch.shape[1:3])) if coverage is not None else None
     for k in range(len(index)):
         if rng.random() < 0.5:
             batch[k] = batch[k, :, ::-1]

@@ -153,6 +153,8 @@ def test_cell_coverage_is_the_share_of_each_cell_an_object_shows_after_the_lette
     assert level8[0, 2] == 0 and level8[2, 2] == 128  # the grey band; half of rows 16-23
     assert level8[1, 4] == 0 and level8[1, 1] == 0
     assert not cover[1].any()  # row 0: no object (an ignored label)
+    half = train_detector.cell_coverage(instances, np.array([7]), (128, 160))  # half scale, 4 grey rows
+    assert half[0, : 16 * 20].reshape(16, 20)[0, 1] == 128  # input rows 4-9, columns 8-15: half the cell
 
 
 def test_mirrored_cells_flip_coverage_as_the_image_is_flipped() -> None:

@@ -95,23 +95,34 @@ class Letterbox:
         return out
 
 
-def letterbox(image: np.ndarray, height: int, width: int) -> tuple[np.ndarray, Letterbox]:
+def letterbox(
+    image: np.ndarray,
+    height: int,
+    width: int,
+    *,
+    interpolation: int | None = None,
+    pad_value: float = PAD_VALUE,
+) -> tuple[np.ndarray, Letterbox]:
     """Resize ``image`` to fit ``height`` x ``width`` keeping its aspect ratio; pad the rest with grey.
 
     The image is centred, as Ultralytics does for inference (half the padding on each side).
+    ``interpolation`` and ``pad_value`` let a label image (an instance mask: nearest neighbour,
+    padded with an id no object has) be fitted exactly as its colour image is.
 
     Returns:
-        The padded ``height`` x ``width`` x 3 image and the :class:`Letterbox` that undoes it.
+        The padded ``height`` x ``width`` image (of ``image``'s channels and dtype) and the
+        :class:`Letterbox` that undoes it.
     """
     h, w = image.shape[:2]
     scale = min(height / h, width / w)
     new_w, new_h = round(w * scale), round(h * scale)
     if (new_w, new_h) != (w, h):
-        interpolation = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
+        if interpolation is None:
+            interpolation = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
         image = cv2.resize(image, (new_w, new_h), interpolation=interpolation)
     pad_x, pad_y = (width - new_w) / 2.0, (height - new_h) / 2.0
     left, top = round(pad_x - 0.1), round(pad_y - 0.1)
-    out = np.full((height, width, 3), PAD_VALUE, dtype=np.uint8)
+    out = np.full((height, width, *image.shape[2:]), pad_value, dtype=image.dtype)
     out[top : top + new_h, left : left + new_w] = image
     return out, Letterbox(scale=scale, pad_x=float(left), pad_y=float(top))
 
