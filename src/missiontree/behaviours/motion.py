@@ -46,10 +46,18 @@ class NavigateTo(Leaf):
         self.handle: ActionHandle | None = None
         self.goal: Pose2D | None = None
         self.started = 0.0
+        self.invalid = ""
 
     def initialise(self) -> None:
-        """Send the goal."""
-        self.goal = Pose2D(float(self.value("x")), float(self.value("y")), float(self.value("yaw")))
+        """Send the goal (a goal that is not a finite pose is not sent: ``update`` fails with why)."""
+        self.handle = None
+        self.invalid = ""
+        values = {axis: self.value(axis) for axis in ("x", "y", "yaw")}
+        self.invalid = _not_finite(values)
+        if self.invalid:
+            self.goal = None
+            return
+        self.goal = Pose2D(float(values["x"]), float(values["y"]), float(values["yaw"]))
         tolerance = Tolerance(self.params.xy_tolerance, self.params.yaw_tolerance)
         robot = self.context.robot
         self.started = robot.now()
@@ -59,6 +67,8 @@ class NavigateTo(Leaf):
 
     def update(self) -> Status:
         """Poll the goal."""
+        if self.invalid:
+            return self.fail(f"goal not sent: {self.invalid}")
         assert self.handle is not None and self.goal is not None
         status = self.handle.status()
         if not status.done:
@@ -93,10 +103,15 @@ class NavigateTo(Leaf):
 
 
 class Rotate(Leaf):
-    """Turn in place by an angle with a proportional controller on the remaining angle."""
+    """Turn in place by an angle (sign = direction, any size: 6.28 is a full turn), P control on what is left.
+
+    The angle turned is integrated from the heading's change tick by tick, never read as the gap
+    between two wrapped headings: a 360° scan turns 360° and a 4 rad turn goes counter-clockwise.
+    """
 
     class Params(BaseModel):
-        angle: float = Field(description="Angle to turn (rad), positive counter-clockwise.")
+        angle: float = Field(
+            description="Angle to turn (rad), positive counter-clockwise; 6.28 is a full turn.")
         tolerance: float = Field(0.05, gt=0, description="Remaining angle that counts as done (rad).")
         gain: float = Field(2.0, gt=0, description="Angular speed per radian of remaining angle (1/s).")
         max_speed: float = Field(1.0, gt=0, description="Largest angular speed (rad/s).")
@@ -106,35 +121,64 @@ class Rotate(Leaf):
 
     def __init__(self, name: str, params: BaseModel | None = None) -> None:
         super().__init__(name, params)
-        self.target = 0.0
+        self.angle = 0.0
+        self.turned = 0.0
+        self.last_yaw = 0.0
         self.started = 0.0
+        self.invalid = ""
 
     def initialise(self) -> None:
-        """Fix the target heading."""
+        """Fix the angle to turn and start integrating the heading's change."""
         robot = self.context.robot
         stamped = robot.pose()
         if stamped is None:
             raise RuntimeError(f"{self.name}: the robot has no pose yet; wait for localisation")
-        self.target = wrap_angle(stamped.pose.yaw + float(self.value("angle")))
+        raw = self.value("angle")
+        self.invalid = _not_finite({"angle": raw})
+        self.angle = float(raw) if not self.invalid else 0.0
+        self.turned = 0.0
+        self.last_yaw = stamped.pose.yaw
         self.started = robot.now()
 
     def update(self) -> Status:
-        """Command the next angular speed, or stop when within tolerance."""
+        """Add the heading's change since the last tick; command the next speed, or stop when done."""
         robot = self.context.robot
+        if self.invalid:
+            robot.drive(0.0, 0.0)
+            return self.fail(f"not turning: {self.invalid}")
         stamped = robot.pose()
         assert stamped is not None
-        error = wrap_angle(self.target - stamped.pose.yaw)
-        if abs(error) <= self.params.tolerance:
+        yaw = stamped.pose.yaw
+        # One tick turns far less than half a turn, so the wrapped change is the true change.
+        self.turned += wrap_angle(yaw - self.last_yaw)
+        self.last_yaw = yaw
+        remaining = self.angle - self.turned
+        if abs(remaining) <= self.params.tolerance:
             robot.drive(0.0, 0.0)
-            return self.succeed(f"heading {stamped.pose.yaw:.2f} rad")
+            return self.succeed(f"turned {self.turned:.2f} rad, heading {yaw:.2f} rad")
         if robot.now() - self.started > self.params.timeout:
             robot.drive(0.0, 0.0)
-            return self.fail(f"still {error:.2f} rad from the target heading after {self.params.timeout:g} s")
-        speed = max(-self.params.max_speed, min(self.params.max_speed, self.params.gain * error))
+            return self.fail(f"turned {self.turned:.2f} of {self.angle:.2f} rad in "
+                             f"{self.params.timeout:g} s; still {remaining:.2f} rad to go")
+        speed = max(-self.params.max_speed, min(self.params.max_speed, self.params.gain * remaining))
         robot.drive(0.0, speed)
-        return self.running(f"{error:.2f} rad to turn")
+        return self.running(f"{remaining:.2f} rad to turn")
 
     def terminate(self, new_status: Status) -> None:
         """Stop turning when halted."""
         if new_status == Status.INVALID and self.ctx is not None:
             self.ctx.robot.drive(0.0, 0.0)
+
+
+def _not_finite(values: dict[str, object]) -> str:
+    """Why these values are not finite numbers ("" when they all are)."""
+    bad = []
+    for name, value in values.items():
+        try:
+            number = float(value)  # type: ignore[arg-type]
+        except (TypeError, ValueError):
+            bad.append(f"{name}={value!r} is not a number")
+            continue
+        if not math.isfinite(number):
+            bad.append(f"{name}={value!r} is not finite")
+    return "; ".join(bad) + ("; set a finite number (the blackboard key or the parameter)" if bad else "")
