@@ -42,6 +42,8 @@ class MissionContext:
         config: Free-form run configuration (from ``--config``).
         seed: The run's random seed.
         started_files: Run-directory files this run has begun (see :meth:`starts`).
+        scene: The live scene (a :class:`missiontree.semantics.live.LiveScene`: semantic map, rooms,
+            latest scene graph) once a ``BuildSceneGraph`` leaf has set it up; None before.
     """
 
     robot: Robot
@@ -52,6 +54,7 @@ class MissionContext:
     config: dict[str, Any] = field(default_factory=dict)
     seed: int = 0
     started_files: set[Path] = field(default_factory=set)
+    scene: Any = None
 
     def starts(self, path: Path) -> bool:
         """Whether ``path`` in the run directory is new to this run (True once, on the first call).

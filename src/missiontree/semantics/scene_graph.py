@@ -1,0 +1,339 @@
+"""The hierarchical scene graph in the NAIS paper's JSON shape: building → rooms → objects.
+
+The shape, exactly as the NAIS paper's scene-graph prompt (Listing 1) asks GPT-4 to return it::
+
+    {"nodes": [{"id": 0, "type": "building", "label": "Building", "description": ""},
+               {"id": "room_1", "type": "room", "label": "kitchen", "description": "..."},
+               {"id": "cup_1", "type": "object", "label": "cup", "description": "a red cup ...",
+                "coordinates": [1.2, 3.4, 0.05]}],
+     "edges": [{"source_id": 0, "source_label": "Building", "target_id": "room_1",
+                "target_label": "kitchen", "relation": "contains"}, ...]}
+
+Nodes have ``id``, ``type`` (``building``, ``room`` or ``object``), ``label``, ``description`` and,
+for objects only, ``coordinates``; edges have ``source_id``, ``source_label``, ``target_id``,
+``target_label`` and ``relation``. The building has id 0. A graph written by the paper's pipeline
+loads here (ids may be numbers or strings; coordinates a list ``[x, y, z]`` or a mapping with x, y,
+z) and ours is written in that shape with nothing added. Every edge naming a node that does not
+exist is dropped (the paper's rule — "Do NOT create edges to missing entities" — enforced here, not
+asked for).
+
+Our graphs are *computed*: :meth:`SceneGraph.build` assembles the semantic map's instances, the rooms
+and the spatial relations of :mod:`missiontree.semantics.relations`; no language model is needed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+from missiontree.errors import ConfigError
+
+#: The building node's id and label, as the NAIS prompt fixes them.
+BUILDING_ID = 0
+BUILDING_LABEL = "Building"
+NODE_TYPES = ("building", "room", "object")
+CONTAINS = "contains"
+
+_NODE_KEYS = ("id", "type", "label", "description", "coordinates")
+_EDGE_KEYS = ("source_id", "source_label", "target_id", "target_label", "relation")
+
+
+class SceneGraphError(ConfigError):
+    """A scene-graph document is not in the NAIS shape (the message says where and how)."""
+
+
+class RoomLike(Protocol):
+    """What the graph needs of a room: an id, a label (its type) and a description."""
+
+    id: str
+
+    @property
+    def label(self) -> str:
+        """The room's name in the graph (its type, e.g. ``kitchen``)."""
+        ...
+
+    def describe(self) -> str:
+        """One sentence."""
+        ...
+
+
+class ObjectLike(Protocol):
+    """What the graph needs of an object (a :class:`~missiontree.semantics.semantic_map.Instance`)."""
+
+    id: str
+    label: str
+    position: tuple[float, float, float]
+    description: str
+    room: str | None
+
+
+@dataclass(frozen=True)
+class RelationEdge:
+    """A spatial or semantic relation between two objects: ``source`` is ``relation`` ``target``."""
+
+    source_id: Any
+    target_id: Any
+    relation: str
+
+
+def _key(node_id: Any) -> str:
+    """Ids compare as text: the paper's pipeline writes numbers, ours strings."""
+    return str(node_id)
+
+
+@dataclass
+class SceneGraph:
+    """Nodes and edges in the NAIS shape (see module docstring).
+
+    Attributes:
+        nodes: Node dicts with the NAIS keys.
+        edges: Edge dicts with the NAIS keys.
+        dropped: Edges dropped because they named a missing node (for reporting).
+    """
+
+    nodes: list[dict[str, Any]] = field(default_factory=list)
+    edges: list[dict[str, Any]] = field(default_factory=list)
+    dropped: list[dict[str, Any]] = field(default_factory=list)
+
+    # -- reading ---------------------------------------------------------------------------------
+
+    @classmethod
+    def from_json(cls, source: str | bytes | Mapping[str, Any]) -> SceneGraph:
+        """Read a graph from JSON text or an already parsed dict; drop edges to missing nodes.
+
+        Raises:
+            SceneGraphError: Not JSON, or not the NAIS shape (says which node or edge and why).
+        """
+        if isinstance(source, str | bytes):
+            try:
+                data = json.loads(source)
+            except json.JSONDecodeError as exc:
+                raise SceneGraphError(f"scene graph: not JSON ({exc}); expected an object with "
+                                      "'nodes' and 'edges'") from None
+        else:
+            data = source
+        if not isinstance(data, Mapping) or not isinstance(data.get("nodes"), list):
+            keys = sorted(data) if isinstance(data, Mapping) else "-"
+            raise SceneGraphError("scene graph: expected an object with a 'nodes' list and an 'edges' list, "
+                                  f"found {type(data).__name__} with keys {keys}")
+        nodes = [_read_node(i, raw) for i, raw in enumerate(data["nodes"])]
+        raw_edges = data.get("edges", [])
+        if not isinstance(raw_edges, list):
+            raise SceneGraphError(f"scene graph: 'edges' must be a list, found {type(raw_edges).__name__}")
+        graph = cls(nodes=nodes, edges=[_read_edge(i, raw) for i, raw in enumerate(raw_edges)])
+        seen: set[str] = set()
+        for node in nodes:
+            if _key(node["id"]) in seen:
+                raise SceneGraphError(f"scene graph: two nodes have the id {node['id']!r}; "
+                                      "ids must be unique")
+            seen.add(_key(node["id"]))
+        graph.drop_dangling()
+        return graph
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> SceneGraph:
+        """Read a graph from a JSON file (``scene_graph.json`` or the paper's ``Scene_Graph.json``)."""
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+        except OSError as exc:
+            raise SceneGraphError(f"cannot read scene graph {path}: {exc.strerror or exc}") from None
+        try:
+            return cls.from_json(text)
+        except SceneGraphError as exc:
+            raise SceneGraphError(f"{path}: {exc}") from None
+
+    # -- writing ---------------------------------------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """The NAIS-shaped dict (only the NAIS keys, in their order)."""
+        return {"nodes": [{k: n[k] for k in _NODE_KEYS if k in n} for n in self.nodes],
+                "edges": [{k: e[k] for k in _EDGE_KEYS} for e in self.edges]}
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """The graph as JSON text."""
+        return json.dumps(self.to_dict(), indent=indent, ensure_ascii=False)
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the graph atomically (a reader never sees half a file); return the path."""
+        target = Path(path)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".scene_graph.", suffix=".tmp", dir=target.parent)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as handle:
+                handle.write(self.to_json() + "\n")
+            os.replace(tmp, target)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return target
+
+    # -- queries ---------------------------------------------------------------------------------
+
+    def node(self, node_id: Any) -> dict[str, Any] | None:
+        """The node with this id (numbers and strings compare as text), or None."""
+        wanted = _key(node_id)
+        for node in self.nodes:
+            if _key(node["id"]) == wanted:
+                return node
+        return None
+
+    def building(self) -> dict[str, Any] | None:
+        """The building node."""
+        return next((n for n in self.nodes if n["type"] == "building"), None)
+
+    def rooms(self) -> list[dict[str, Any]]:
+        """Every room node."""
+        return [n for n in self.nodes if n["type"] == "room"]
+
+    def objects(self) -> list[dict[str, Any]]:
+        """Every object node."""
+        return [n for n in self.nodes if n["type"] == "object"]
+
+    def relations_of(self, node_id: Any, include_contains: bool = False) -> list[dict[str, Any]]:
+        """Edges that have the node as source or target (``contains`` only when asked)."""
+        wanted = _key(node_id)
+        return [e for e in self.edges
+                if wanted in (_key(e["source_id"]), _key(e["target_id"]))
+                and (include_contains or e["relation"] != CONTAINS)]
+
+    def room_of(self, node_id: Any) -> dict[str, Any] | None:
+        """The room that (directly, or through a containing object) contains the node, or None."""
+        parents = {_key(e["target_id"]): e["source_id"] for e in self.edges if e["relation"] == CONTAINS}
+        current, visited = _key(node_id), set()
+        while current in parents and current not in visited:
+            visited.add(current)
+            parent = self.node(parents[current])
+            if parent is None:
+                return None
+            if parent["type"] == "room":
+                return parent
+            current = _key(parent["id"])
+        return None
+
+    def drop_dangling(self) -> list[dict[str, Any]]:
+        """Drop every edge whose source or target is not a node; return the dropped edges."""
+        ids = {_key(n["id"]) for n in self.nodes}
+        kept, dropped = [], []
+        for edge in self.edges:
+            whole = _key(edge["source_id"]) in ids and _key(edge["target_id"]) in ids
+            (kept if whole else dropped).append(edge)
+        self.edges = kept
+        self.dropped.extend(dropped)
+        return dropped
+
+    def add_relations(self, relations: Iterable[RelationEdge | Mapping[str, Any]]) -> int:
+        """Add relation edges (e.g. from a language model); edges naming a missing node are dropped.
+
+        Returns:
+            How many edges were dropped.
+        """
+        before = len(self.dropped)
+        existing = {(_key(e["source_id"]), _key(e["target_id"]), e["relation"]) for e in self.edges}
+        for rel in relations:
+            if isinstance(rel, RelationEdge):
+                source_id, target_id, relation = rel.source_id, rel.target_id, rel.relation
+            else:
+                source_id, target_id = rel.get("source_id"), rel.get("target_id")
+                relation = rel.get("relation")
+            source, target = self.node(source_id), self.node(target_id)
+            edge = {"source_id": source_id, "source_label": source["label"] if source else "",
+                    "target_id": target_id, "target_label": target["label"] if target else "",
+                    "relation": str(relation or "")}
+            if source is None or target is None or not edge["relation"]:
+                self.dropped.append(edge)
+                continue
+            key = (_key(source_id), _key(target_id), edge["relation"])
+            if key not in existing:
+                existing.add(key)
+                self.edges.append(edge)
+        return len(self.dropped) - before
+
+    # -- building --------------------------------------------------------------------------------
+
+    @classmethod
+    def build(cls, objects: Sequence[ObjectLike], rooms: Sequence[RoomLike],
+              relations: Iterable[RelationEdge] = (), building_label: str = BUILDING_LABEL) -> SceneGraph:
+        """Assemble building → rooms → objects with ``contains`` edges and the given relations.
+
+        An object whose ``room`` names no room in ``rooms`` hangs directly under the building.
+        """
+        nodes: list[dict[str, Any]] = [
+            {"id": BUILDING_ID, "type": "building", "label": building_label, "description": ""}]
+        edges: list[dict[str, Any]] = []
+        room_labels: dict[str, str] = {}
+        for room in rooms:
+            nodes.append({"id": room.id, "type": "room", "label": room.label, "description": room.describe()})
+            edges.append({"source_id": BUILDING_ID, "source_label": building_label, "target_id": room.id,
+                          "target_label": room.label, "relation": CONTAINS})
+            room_labels[room.id] = room.label
+        for obj in objects:
+            x, y, z = obj.position
+            nodes.append({"id": obj.id, "type": "object", "label": obj.label,
+                          "description": obj.description or f"a {obj.label}",
+                          "coordinates": [round(x, 3), round(y, 3), round(z, 3)]})
+            if obj.room is not None and obj.room in room_labels:
+                edges.append({"source_id": obj.room, "source_label": room_labels[obj.room],
+                              "target_id": obj.id, "target_label": obj.label, "relation": CONTAINS})
+            else:
+                edges.append({"source_id": BUILDING_ID, "source_label": building_label,
+                              "target_id": obj.id, "target_label": obj.label, "relation": CONTAINS})
+        graph = cls(nodes=nodes, edges=edges)
+        graph.add_relations(relations)
+        return graph
+
+    def object_coordinates(self) -> dict[str, tuple[float, float, float]]:
+        """Object id (as text) → (x, y, z)."""
+        return {_key(n["id"]): tuple(n["coordinates"]) for n in self.objects()  # type: ignore[misc]
+                if n.get("coordinates") is not None}
+
+
+def _read_node(index: int, raw: Any) -> dict[str, Any]:
+    where = f"scene graph: nodes[{index}]"
+    if not isinstance(raw, Mapping):
+        raise SceneGraphError(f"{where}: expected an object with id, type, label, found {type(raw).__name__}")
+    missing = [k for k in ("id", "type", "label") if k not in raw]
+    if missing:
+        raise SceneGraphError(f"{where}: missing {', '.join(missing)} (a node has id, type, label, "
+                              "description and, for objects, coordinates)")
+    node_type = str(raw["type"]).strip().lower()
+    if node_type not in NODE_TYPES:
+        raise SceneGraphError(f"{where}: type {raw['type']!r} is not one of {', '.join(NODE_TYPES)}")
+    node: dict[str, Any] = {"id": raw["id"], "type": node_type, "label": str(raw["label"]),
+                            "description": str(raw.get("description") or "")}
+    if node_type == "object" and raw.get("coordinates") is not None:
+        node["coordinates"] = _read_coordinates(where, raw["coordinates"])
+    return node
+
+
+def _read_coordinates(where: str, raw: Any) -> list[float]:
+    if isinstance(raw, Mapping):
+        try:
+            values = [float(raw["x"]), float(raw["y"]), float(raw.get("z", 0.0))]
+        except (KeyError, TypeError, ValueError):
+            raise SceneGraphError(f"{where}: coordinates {raw!r}: expected x, y (and z) numbers") from None
+        return values
+    if isinstance(raw, list | tuple) and len(raw) in (2, 3):
+        try:
+            values = [float(v) for v in raw]
+        except (TypeError, ValueError):
+            raise SceneGraphError(f"{where}: coordinates {raw!r}: expected numbers") from None
+        return values + [0.0] * (3 - len(values))
+    raise SceneGraphError(f"{where}: coordinates {raw!r}: expected [x, y, z] or {{x, y, z}}")
+
+
+def _read_edge(index: int, raw: Any) -> dict[str, Any]:
+    where = f"scene graph: edges[{index}]"
+    if not isinstance(raw, Mapping):
+        raise SceneGraphError(f"{where}: expected an object, found {type(raw).__name__}")
+    missing = [k for k in ("source_id", "target_id", "relation") if k not in raw]
+    if missing:
+        raise SceneGraphError(f"{where}: missing {', '.join(missing)} (an edge has source_id, source_label, "
+                              "target_id, target_label and relation)")
+    return {"source_id": raw["source_id"], "source_label": str(raw.get("source_label") or ""),
+            "target_id": raw["target_id"], "target_label": str(raw.get("target_label") or ""),
+            "relation": str(raw["relation"])}
