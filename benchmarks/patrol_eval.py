@@ -53,15 +53,12 @@ from typing import Any
 import numpy as np
 import yaml
 
-from missiontree.backends.sim import create_robot, load_world
+from missiontree.backends.sim import load_world
 from missiontree.behaviours.waypoints import load_waypoints
-from missiontree.engine.build import build_tree
-from missiontree.engine.context import MissionContext
-from missiontree.engine.loader import load_mission
-from missiontree.engine.runner import Runner
 from missiontree.paths import find_config
 from missiontree.plugins.manager import load_plugins
-from missiontree.reasoning.calls import SETTINGS_KEY, CallSettings, LatencyModel
+from missiontree.session import MissionRequest, Session
+from missiontree.session.models import BrokenProvider
 
 #: (scenario, world, route file, laps) — C and D share the combined route; D is seed_02's scenario.
 SCENARIOS = [("A", "corridor", "scenario_a", 5), ("B", "entrance_hall", "scenario_b", 3),
@@ -190,61 +187,55 @@ root:
 """
 
 
-def build_models(robot: Any, force_oracle: bool = False) -> tuple[dict[str, Any], str]:
-    """The shipped offline models (the trained detector), or the simulation oracle when asked or missing."""
-    from missiontree.errors import ConfigError
-    from missiontree.reasoning.hub import BrokenProvider
-    from missiontree.reasoning.hub import build_models as hub_models
+def models_config(detector: str) -> dict[str, Any]:
+    """A shipped models config (``offline``: the trained detector; ``oracle``) with the VLM latency pinned."""
+    data = yaml.safe_load(find_config("models", detector).read_text(encoding="utf-8"))
+    data["roles"]["vlm"].update(latency={"uniform": list(LATENCY)}, timeout=10.0)
+    return data
 
-    try:
-        if force_oracle:
-            raise ConfigError("--detector oracle")
-        models = hub_models("offline")
-        unavailable = getattr(models.get("detector"), "reason", "") \
-            if isinstance(models.get("detector"), BrokenProvider) else ""
-    except ConfigError as error:
-        models, unavailable = {}, str(error)
-    detector_note = "sim_detector (trained)"
-    if unavailable:
-        from missiontree.perception.oracle import OracleDetector
-        from missiontree.reasoning.offline_vlm import OfflineVisionModel
 
-        detector_note = f"oracle (trained detector not used: {unavailable})"
-        models["detector"] = OracleDetector(robot)
-        models["vlm"] = OfflineVisionModel(models["detector"])
-    models[SETTINGS_KEY] = CallSettings(latency={"vlm": LatencyModel(*LATENCY)}, timeouts={"vlm": 10.0})
-    return models, detector_note
+def open_session(tree: Path, world_path: Path, seed: int, oracle: bool, on_tick: Any) -> tuple[Session, str]:
+    """The run's session on the shipped trained detector, or the simulation oracle when asked or unusable."""
+    plugins = load_plugins(autoload=False)
+
+    def request(detector: str) -> MissionRequest:
+        return MissionRequest(mission=tree, backend="sim", world=str(world_path), seed=seed,
+                              models=models_config(detector), tick_hz=10, max_duration=900, quiet=True,
+                              allow_outside=True, plugins=plugins, handle_signals=False,
+                              log_stream=io.StringIO(), on_tick=on_tick)
+
+    if oracle:
+        return Session.open(request("oracle")), "oracle (trained detector not used: --detector oracle)"
+    session = Session.open(request("offline"))
+    detector = session.models.get("detector")
+    if not isinstance(detector, BrokenProvider):
+        return session, "sim_detector (trained)"
+    session.close()
+    return Session.open(request("oracle")), f"oracle (trained detector not used: {detector.reason})"
 
 
 def run_one(scenario: str, world_path: Path, route: str, laps: int, name: str,
             tmp: Path, seed: int, oracle: bool = False) -> tuple[RunScore, str]:
-    """Run one configuration on one scenario and score it against ground truth."""
-    plugins = load_plugins(autoload=False)
+    """Run one configuration on one scenario through the session and score it against ground truth."""
     tree = tmp / f"{name}.yaml"
     tree.write_text(tree_text(route, laps, CONFIGS[name]))
-    spec = load_mission(tree, plugins.nodes, allow_outside=True)
-    root = build_tree(spec, plugins.nodes)
-    robot = create_robot({"world": str(world_path), "seed": seed})
-    models, note = build_models(robot, force_oracle=oracle)
-    context = MissionContext(robot=robot, models=models, seed=seed)
     truth_poses: dict[float, Any] = {}
-    spin = robot.spin_until
 
-    def spin_and_record(t: float) -> None:  # keep the true pose of every frame for scoring
-        spin(t)
-        frame = robot.rgbd()
+    def record_truth(session: Session) -> None:  # the true pose of every frame, for scoring only
+        frame = session.robot.rgbd()
         if frame is not None and frame.stamp not in truth_poses:
-            truth_poses[frame.stamp] = robot.truth.robot_pose_at(frame.stamp)
+            truth_poses[frame.stamp] = session.robot.truth.robot_pose_at(frame.stamp)
 
-    robot.spin_until = spin_and_record  # type: ignore[method-assign]
-    stream = io.StringIO()
-    started = time.perf_counter()
-    result = Runner(root, context, tick_hz=10, max_duration=900, log_stream=stream, mission=name,
-                    handle_signals=False).run()
-    score = RunScore(scenario, name, seed, sim_seconds=robot.now(),
-                     wall_seconds=time.perf_counter() - started)
-    events = [json.loads(line) for line in stream.getvalue().splitlines()]
-    robot.close()
+    session, note = open_session(tree, world_path, seed, oracle, record_truth)
+    with session:
+        started = time.perf_counter()
+        result = session.run()
+        robot = session.robot
+        score = RunScore(scenario, name, seed, sim_seconds=robot.now(),
+                         wall_seconds=time.perf_counter() - started)
+        stream = session.request.log_stream
+        assert isinstance(stream, io.StringIO)
+        events = [json.loads(line) for line in stream.getvalue().splitlines()]
     if result.status.name != "SUCCESS":
         print(f"  note: {scenario}/{name} ended {result.status.name} ({result.stopped_by})", file=sys.stderr)
     score_events(score, events, robot.truth, truth_poses)

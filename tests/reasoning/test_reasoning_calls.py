@@ -227,8 +227,7 @@ def test_model_caller_binds_providers_that_need_the_robot() -> None:
     """model_caller(context) binds needs_robot providers once; one refusing the robot becomes broken."""
     from missiontree.engine.context import MissionContext
     from missiontree.errors import ModelConfigError
-    from missiontree.reasoning.calls import model_caller
-    from missiontree.reasoning.hub import BrokenProvider
+    from missiontree.reasoning.calls import BrokenProvider, model_caller
     from missiontree.testing import ClockRobot
 
     class NeedsRobot:

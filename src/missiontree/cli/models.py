@@ -16,7 +16,7 @@ import numpy as np
 
 from missiontree.cli import add_plugin_flag, plugins_from_args, print_json
 from missiontree.reasoning.calls import SETTINGS_KEY, CallSettings
-from missiontree.reasoning.hub import (
+from missiontree.session.models import (
     DEFAULT_MODELS,
     build_models,
     describe_source,

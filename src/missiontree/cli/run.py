@@ -1,8 +1,8 @@
-"""``missiontree run TREE``: load plugins and the mission, build the robot and models, run, report.
+"""``missiontree run MISSION``: run a mission through the session and report how it ended.
 
 Values come from, in order of precedence: the command-line flags, the mission's ``run:`` section,
-then the defaults below. Exit code 0 when the mission succeeded, 1 when it failed or hit the
-duration limit, 2 on bad input, 128+N when stopped by signal N.
+then the defaults (:mod:`missiontree.session.mission`). Exit code 0 when the mission succeeded,
+1 when it failed or hit the duration limit, 2 on bad input, 128+N when stopped by signal N.
 """
 
 from __future__ import annotations
@@ -12,14 +12,28 @@ from pathlib import Path
 from typing import Any
 
 from missiontree.cli import add_plugin_flag, plugins_from_args
-from missiontree.engine.context import MissionContext
-from missiontree.engine.runner import Runner, RunResult
-from missiontree.errors import ConfigError, ProblemsError
-from missiontree.paths import find_config
+from missiontree.engine.runner import RunResult
+from missiontree.session.mission import (
+    DEFAULT_BACKEND,
+    DEFAULT_SEED,
+    DEFAULT_TICK_HZ,
+    MissionRequest,
+    run_mission,
+)
+from missiontree.session.params import parse_assignment
 
-DEFAULT_BACKEND = "sim"
-DEFAULT_TICK_HZ = 10.0
-DEFAULT_SEED = 0
+EPILOG = """\
+Defaults: every flag left out is taken from the mission file's `run:` section (backend, world,
+robot, models, config, tick_hz, max_duration, seed, realtime, map), then from the built-in defaults
+shown above. `--set key=value` replaces a default of the mission's `params:` section; the value is
+checked against the type of that default and of every node parameter that reads it, e.g.
+
+  missiontree run trees/patrol.yaml --set laps=3 --set route=scenario_b
+  missiontree run trees/find_object.yaml --set target="red backpack" --unknown-map
+
+A progress line (robot time, real-time factor, root status, last event) goes to stderr: redrawn
+in place on a terminal, a plain line every 10 s otherwise; --quiet silences it.
+"""
 
 
 def register(subparsers: Any) -> None:
@@ -27,95 +41,57 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "run", help="run a mission on a robot backend",
         description="Run a mission file on the simulator (default) or ROS 2 and write a run directory "
-        "with ticks.jsonl, summary.json and pictures.",
+        "with ticks.jsonl, summary.json and pictures. The mission's `run:` section supplies the "
+        "defaults of every flag below.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("tree", type=Path, help="the mission file (YAML)")
-    parser.add_argument("--backend", help=f"robot backend (default: the mission's, else {DEFAULT_BACKEND})")
-    parser.add_argument("--world", help="simulator world: a shipped name or a path to a world file")
-    parser.add_argument("--robot", help="robot profile: a shipped name (turtlebot4) or a path")
-    parser.add_argument("--config", help="run configuration: a YAML file, handed to the backend and leaves")
-    parser.add_argument("--models", help="models config: a shipped name or a path")
-    parser.add_argument("--seed", type=int, help=f"random seed (default {DEFAULT_SEED})")
+    parser.add_argument("--set", dest="params", action="append", default=[], metavar="KEY=VALUE",
+                        help="set one of the mission's params: (repeatable; checked against its type)")
+    parser.add_argument("--backend", help=f"robot backend (default: run.backend, else {DEFAULT_BACKEND})")
+    parser.add_argument("--world", help="simulator world: a shipped name or a path (default: run.world)")
+    parser.add_argument("--robot", help="robot profile: a shipped name (turtlebot4) or a path "
+                        "(default: run.robot)")
+    parser.add_argument("--config", help="run configuration: a YAML file, handed to the backend and leaves "
+                        "(default: run.config)")
+    parser.add_argument("--models", help="models config: a shipped name or a path (default: run.models, "
+                        "else offline)")
+    parser.add_argument("--seed", type=int, help=f"random seed (default: run.seed, else {DEFAULT_SEED})")
     parser.add_argument("--out", type=Path, help="run directory (default: runs/<mission name>)")
-    parser.add_argument("--max-duration", type=float, metavar="S", help="stop after S seconds (robot clock)")
-    parser.add_argument("--tick-hz", type=float, metavar="H", help=f"tick rate (default {DEFAULT_TICK_HZ:g})")
+    parser.add_argument("--max-duration", type=float, metavar="S",
+                        help="stop after S seconds on the robot clock (default: run.max_duration, else none)")
+    parser.add_argument("--tick-hz", type=float, metavar="H",
+                        help=f"tick rate (default: run.tick_hz, else {DEFAULT_TICK_HZ:g})")
     parser.add_argument("--realtime", action="store_true", default=None,
-                        help="pace the ticks to wall time (the simulator then runs no faster than life)")
+                        help="pace the ticks to wall time (the simulator then runs no faster than life; "
+                        "default: run.realtime)")
+    parser.add_argument("--unknown-map", action="store_true", default=None,
+                        help="start without the world's map: the robot learns it from its lidar "
+                        "(default: run.map, else known)")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress line on stderr")
     parser.add_argument("--allow-outside", action="store_true",
                         help="let subtree includes leave the mission's folder")
     add_plugin_flag(parser)
     parser.set_defaults(func=run)
 
 
-def _pick(flag: Any, from_file: Any, default: Any) -> Any:
-    if flag is not None:
-        return flag
-    return from_file if from_file is not None else default
-
-
-def load_run_config(name: str | None) -> dict[str, Any]:
-    """Read the ``--config`` file (a path or a shipped name under config/backends/) into a dict."""
-    if name is None:
-        return {}
-    from missiontree.yamlio import load_yaml
-
-    if Path(name).suffix in {".yaml", ".yml"} and not Path(name).is_file():
-        raise ConfigError(f"--config file {name!r} does not exist; give a YAML file of run options")
-    path = find_config("backends", name)
-    document = load_yaml(path, error=ProblemsError)
-    if not isinstance(document.data, dict):
-        raise ConfigError(f"{path}: a run configuration must be a mapping of options, "
-                          f"found {type(document.data).__name__}")
-    return dict(document.data)
-
-
-def robot_options(
-    args: argparse.Namespace, defaults: Any, seed: int, config: dict[str, Any],
-) -> dict[str, Any]:
-    """The backend factory's options: ``world``, ``robot``, ``seed``, ``config`` (only those given)."""
-    options: dict[str, Any] = {"seed": seed}
-    world = _pick(args.world, defaults.world, None)
-    robot = _pick(args.robot, defaults.robot, None)
-    if world is not None:
-        options["world"] = world
-    if robot is not None:
-        options["robot"] = robot
-    if config:
-        options["config"] = config
-    return options
+def request_from_args(args: argparse.Namespace) -> MissionRequest:
+    """The session request the flags describe (``None`` where a flag was left out)."""
+    params: dict[str, str] = {}
+    for item in args.params or []:
+        key, value = parse_assignment(item)
+        params[key] = value
+    return MissionRequest(
+        mission=args.tree, backend=args.backend, world=args.world, robot=args.robot, models=args.models,
+        config=args.config, seed=args.seed, out=args.out, max_duration=args.max_duration,
+        tick_hz=args.tick_hz,
+        realtime=args.realtime, params=params, unknown_map=args.unknown_map, quiet=bool(args.quiet),
+        allow_outside=bool(args.allow_outside), plugins=plugins_from_args(args))
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the mission; print a one-line result and where the run directory is."""
-    from missiontree.engine.build import build_tree
-    from missiontree.engine.loader import load_mission
-    from missiontree.reasoning.hub import build_models
-
-    plugins = plugins_from_args(args)
-    spec = load_mission(args.tree, plugins.nodes, allow_outside=args.allow_outside)
-    defaults = spec.run
-    backend = _pick(args.backend, defaults.backend, DEFAULT_BACKEND)
-    seed = int(_pick(args.seed, defaults.seed, DEFAULT_SEED))
-    tick_hz = float(_pick(args.tick_hz, defaults.tick_hz, DEFAULT_TICK_HZ))
-    max_duration = _pick(args.max_duration, defaults.max_duration, None)
-    config_name = _pick(args.config, defaults.config, None)
-    config = load_run_config(config_name)
-    mission = args.tree.stem
-    run_dir = args.out if args.out is not None else Path("runs") / mission
-
-    root = build_tree(spec, plugins.nodes)
-    factory = plugins.backend(backend)
-    robot = factory(robot_options(args, defaults, seed, config))
-    try:
-        models_config = _pick(args.models, defaults.models, None)
-        models = build_models(models_config, providers=plugins.providers, seed=seed)
-        context = MissionContext(robot=robot, models=models, config=config, seed=seed)
-        runner = Runner(root, context, tick_hz=tick_hz, max_duration=max_duration, run_dir=run_dir,
-                        mission=mission, hook=plugins.hook, spec=spec, blackboard=spec.blackboard,
-                        realtime=bool(_pick(args.realtime, defaults.realtime, False)))
-        result = runner.run()
-    finally:
-        robot.close()
+    result = run_mission(request_from_args(args))
     print(describe(result))
     return result.exit_code
 

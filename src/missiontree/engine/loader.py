@@ -61,7 +61,8 @@ def trusted_tree_dirs() -> list[Path]:
     return dirs
 
 
-def load_mission(path: str | Path, registry: NodeRegistry, *, allow_outside: bool = False) -> MissionSpec:
+def load_mission(path: str | Path, registry: NodeRegistry, *, allow_outside: bool = False,
+                 params: dict[str, Any] | None = None) -> MissionSpec:
     """Read, expand and check a mission file.
 
     Args:
@@ -69,6 +70,8 @@ def load_mission(path: str | Path, registry: NodeRegistry, *, allow_outside: boo
         registry: The node types the mission may use.
         allow_outside: Allow includes that resolve outside the mission's folder and the trusted
             tree folders.
+        params: Values that replace the mission's ``params:`` defaults (``run --set``; the names
+            must be declared, see :func:`missiontree.session.params.parse_overrides`).
 
     Returns:
         The checked mission, every node's ``params`` validated.
@@ -77,6 +80,7 @@ def load_mission(path: str | Path, registry: NodeRegistry, *, allow_outside: boo
         MissionFileError: With every problem found in the file and the subtrees it includes.
     """
     loader = _Loader(Path(path), registry, allow_outside)
+    loader.overrides = dict(params or {})
     spec = loader.load()
     problems = list(loader.problems)
     if spec is not None:
@@ -122,6 +126,7 @@ class _Loader:
         self.node_count = 0
         self.mission_dir = path.resolve().parent
         self._parsed: dict[Path, Located | None] = {}
+        self.overrides: dict[str, Any] = {}
 
     # -- top level --------------------------------------------------------------------------
 
@@ -135,6 +140,7 @@ class _Loader:
         if not self._check_top(doc, is_subtree=False):
             return None
         values = self._declared_params(doc, given=None, include_site=None)
+        values.update(self.overrides)
         file = _File(self.path, doc, values, (), (self.path.resolve(),))
         blackboard = self._blackboard(file)
         run = self._run_section(doc)

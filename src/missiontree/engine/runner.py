@@ -179,6 +179,10 @@ class Runner:
         realtime: Pace the ticks to wall time as well (a simulator then runs no faster than life;
             a backend on wall time is unaffected). Wall time never reaches the tick log.
         handle_signals: Install SIGINT/SIGTERM handlers while running (main thread only).
+        on_tick: Called with the runner after every tick (progress lines, scoring that needs the
+            robot between ticks); it must return at once.
+        final_state: Called once as the run ends (after the robot stopped); its mapping is added to
+            the summary (the session adds the simulator's true pose this way).
     """
 
     def __init__(
@@ -186,6 +190,8 @@ class Runner:
         max_duration: float | None = None, run_dir: Path | None = None, mission: str = "mission",
         hook: Any = None, spec: Any = None, log_stream: TextIO | None = None, handle_signals: bool = True,
         blackboard: dict[str, Any] | None = None, realtime: bool = False,
+        on_tick: Callable[[Runner], None] | None = None,
+        final_state: Callable[[], dict[str, Any]] | None = None,
     ) -> None:
         if not (tick_hz > 0 and math.isfinite(tick_hz)):
             raise ConfigError(f"tick rate must be a positive number of ticks per second, found {tick_hz!r}")
@@ -204,6 +210,8 @@ class Runner:
         self.handle_signals = handle_signals
         self.blackboard = dict(blackboard or {})
         self.realtime = realtime
+        self.on_tick = on_tick
+        self.final_state = final_state
         self._own_stream = log_stream is None and self.run_dir is not None
         self._stream: TextIO = log_stream if log_stream is not None else io.StringIO()
         self._signal = 0
@@ -326,6 +334,8 @@ class Runner:
             if self.max_duration is not None and self.robot.now() - start >= self.max_duration - 1e-9:
                 return self.root.status, STOPPED_BY_LIMIT
             status = self.tick()
+            if self.on_tick is not None:
+                self.on_tick(self)
             if status in _FINAL:
                 return status, STOPPED_BY_STATUS
             index += 1
@@ -368,6 +378,7 @@ class Runner:
         }
         if self.recorder is not None:
             summary.update(self.recorder.summary())
+        summary.update(self._final_pose())
         summary = plain(summary)
         if self.log is not None:
             self.log.line("mission_finished", status=status.name, stopped_by=stopped_by,
@@ -383,6 +394,23 @@ class Runner:
             self._stream.flush()
         return RunResult(status=status, stopped_by=stopped_by, ticks=summary["ticks"], duration=duration,
                          run_dir=self.run_dir, summary=summary, signal=self._signal)
+
+    def _final_pose(self) -> dict[str, Any]:
+        """The robot's own final pose estimate, plus what ``final_state`` adds (never raises)."""
+        found: dict[str, Any] = {}
+        try:
+            stamped = self.robot.pose()
+            if stamped is not None:
+                pose = stamped.pose
+                found["final_pose"] = {"x": pose.x, "y": pose.y, "yaw": pose.yaw, "stamp": stamped.stamp}
+        except Exception as error:  # noqa: BLE001 - a pose that cannot be read must not lose the summary
+            found["final_pose_error"] = f"{type(error).__name__}: {error}"
+        if self.final_state is not None:
+            try:
+                found.update(self.final_state())
+            except Exception as error:  # noqa: BLE001 - same
+                found["final_state_error"] = f"{type(error).__name__}: {error}"
+        return found
 
     def _call_hook(self, name: str, **kwargs: Any) -> None:
         if self.hook is None:

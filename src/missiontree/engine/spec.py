@@ -39,6 +39,9 @@ class RunSection(BaseModel):
     max_duration: float | None = Field(None, gt=0, description="Stop after this many seconds (robot clock).")
     seed: int | None = Field(None, description="Random seed of the run.")
     realtime: bool | None = Field(None, description="Pace the simulator to wall time.")
+    map: Literal["known", "unknown"] | None = Field(
+        None, description="known: the robot is given the world's map; unknown: it starts without one and "
+        "learns it from its own lidar (as --unknown-map).")
 
 
 @dataclass(frozen=True)

@@ -137,6 +137,8 @@ class TickLog:
         self.clock = clock
         self.simulated = simulated
         self.event_counts: dict[str, int] = {}
+        #: The kind (and node) of the last event a leaf emitted, for progress lines.
+        self.last_event = ""
         writer = _LineWriter(stream, flush_each_line=not simulated)
         render = structlog.processors.JSONRenderer(serializer=_dumps)  # keys sorted by _ENCODE
         stamp = [] if simulated else [_add_wall_time]
@@ -191,6 +193,8 @@ class TickLog:
 
     def _write(self, event: str, fields: dict[str, Any]) -> None:
         self.event_counts[event] = self.event_counts.get(event, 0) + 1
+        node = fields.get("node")
+        self.last_event = f"{event} ({node})" if node else event
         if "event" in fields:  # structlog's own key: keep the leaf's value under another name
             fields["event_field"] = fields.pop("event")
         fields.setdefault("t", self.clock())

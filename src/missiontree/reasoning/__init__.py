@@ -6,5 +6,5 @@
 - :mod:`~missiontree.reasoning.checks` — validation, retry-once, grounding of object ids.
 - :mod:`~missiontree.reasoning.prompts` — the prompts missions send.
 - providers: :mod:`~missiontree.reasoning.openai_provider`, :mod:`~missiontree.reasoning.offline`,
-  :mod:`~missiontree.reasoning.embedder`; :mod:`~missiontree.reasoning.hub` builds them from config.
+  :mod:`~missiontree.reasoning.embedder`; :mod:`missiontree.session.models` builds them from config.
 """

@@ -43,15 +43,15 @@ import threading
 from collections.abc import Callable, Collection, Mapping, Sequence
 from concurrent.futures import CancelledError, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from pydantic import BaseModel
 
-from missiontree.errors import ConfigError, MissionTreeError, ModelConfigError, ModelTimeoutError
+from missiontree.errors import ConfigError, MissionTreeError, ModelConfigError, ModelError, ModelTimeoutError
 from missiontree.reasoning.protocols import provider_name
 
 if TYPE_CHECKING:
-    from missiontree.engine.context import EventSink, MissionContext
+    from missiontree.robot.interface import Robot
 
 #: Key under which a mission's ModelCaller is kept in ``MissionContext.models``.
 CALLER_KEY = "_caller"
@@ -60,6 +60,58 @@ SETTINGS_KEY = "_calls"
 
 #: Wall-clock seconds the simulator waits for a worker that has not finished at its due time.
 DEFAULT_WALL_TIMEOUT = 300.0
+
+
+class EventSink(Protocol):
+    """Where ``model_call`` events go (the engine's tick log is one)."""
+
+    def emit(self, event: str, /, **fields: Any) -> None:
+        """Record one event of kind ``event``."""
+        ...
+
+
+class _NullEvents:
+    """Drops every event (a caller used outside a run)."""
+
+    def emit(self, event: str, /, **fields: Any) -> None:
+        """Drop the event."""
+
+
+class CallContext(Protocol):
+    """What a caller needs from the running mission (the engine's ``MissionContext`` provides it).
+
+    Declared here so that this layer does not import the engine (ARCHITECTURE §1).
+    """
+
+    robot: Robot
+    models: dict[str, Any]
+    events: EventSink
+    seed: int
+
+
+class BrokenProvider:
+    """Stands in for a provider that could not be built; every use raises the reason.
+
+    Attributes:
+        role: The role it was configured for.
+        name: The provider name from the config.
+        reason: Why it could not be built (names the provider and the fix).
+    """
+
+    labels: list[str] = []
+
+    def __init__(self, role: str, name: str, reason: str) -> None:
+        self.role = role
+        self.name = name
+        self.reason = reason
+
+    def _fail(self, *args: Any, **kwargs: Any) -> Any:
+        raise ModelError(f"model role {self.role!r} (provider {self.name!r}) is unusable: {self.reason}")
+
+    ask = chat = embed = detect = detect_frame = check = _fail
+
+    def __repr__(self) -> str:
+        return f"BrokenProvider(role={self.role!r}, name={self.name!r})"
 
 
 class CallStatus(enum.Enum):
@@ -333,10 +385,8 @@ class ModelCaller:
         default_timeout: float | None = 30.0,
         wall_timeout: float = DEFAULT_WALL_TIMEOUT,
     ) -> None:
-        from missiontree.engine.context import NullEvents
-
         self.clock = clock
-        self.events: EventSink = events if events is not None else NullEvents()
+        self.events: EventSink = events if events is not None else _NullEvents()
         self.simulated = simulated
         self.latency = dict(latency or {})
         self.timeouts = dict(timeouts or {})
@@ -350,7 +400,7 @@ class ModelCaller:
         self._lock = threading.Lock()
 
     @classmethod
-    def for_context(cls, context: MissionContext, settings: CallSettings | None = None) -> ModelCaller:
+    def for_context(cls, context: CallContext, settings: CallSettings | None = None) -> ModelCaller:
         """A caller on the context's robot clock, events, models and seed, with ``settings``."""
         robot = context.robot
         settings = settings or CallSettings()
@@ -469,18 +519,16 @@ class ModelCaller:
         return self._rngs[role]
 
 
-def model_caller(context: MissionContext) -> ModelCaller:
+def model_caller(context: CallContext) -> ModelCaller:
     """The mission's ModelCaller, made on first use from the context and the models config's settings.
 
     On first use it also binds the providers marked ``needs_robot`` (the simulation oracle detector)
     to ``context.robot``; one that refuses the robot is replaced by a
-    :class:`~missiontree.reasoning.hub.BrokenProvider` carrying the reason, so the leaves that use it
+    :class:`BrokenProvider` carrying the reason, so the leaves that use it
     fail with that reason.
     """
     caller = context.models.get(CALLER_KEY)
     if not isinstance(caller, ModelCaller):
-        from missiontree.reasoning.hub import BrokenProvider
-
         settings = context.models.get(SETTINGS_KEY)
         caller = ModelCaller.for_context(context, settings if isinstance(settings, CallSettings) else None)
         for role, provider in list(context.models.items()):

@@ -1,4 +1,4 @@
-"""The models hub: a models config (config/models/*.yaml) → model providers by role.
+"""Model wiring: a models config (config/models/*.yaml) → model providers by role.
 
 A models config names, for each role a mission uses, the provider and its options, and optionally
 the role's simulated latency and timeout::
@@ -36,9 +36,9 @@ import os
 from collections.abc import Mapping
 from typing import Any
 
-from missiontree.errors import ConfigError, MissionTreeError, ModelError, Problem, ProblemsError
+from missiontree.errors import ConfigError, MissionTreeError, Problem, ProblemsError
 from missiontree.paths import find_config
-from missiontree.reasoning.calls import SETTINGS_KEY, CallSettings, LatencyModel
+from missiontree.reasoning.calls import SETTINGS_KEY, BrokenProvider, CallSettings, LatencyModel
 from missiontree.yamlio import Located, load_yaml, parse_yaml
 
 #: The models config used when none is given.
@@ -46,32 +46,10 @@ DEFAULT_MODELS = "offline"
 
 _ROLE_KEYS = {"provider", "latency", "timeout"}
 _CALLS_KEYS = {"timeout", "workers"}
+__all__ = ["DEFAULT_MODELS", "BrokenProvider", "build_models", "check_models_config", "describe_source",
+           "load_models_config", "model_roles"]
+
 _TIMEOUT_EXPECTED = "expected a positive number of seconds or null, found {!r}"
-
-
-class BrokenProvider:
-    """Stands in for a provider that could not be built; every use raises the reason.
-
-    Attributes:
-        role: The role it was configured for.
-        name: The provider name from the config.
-        reason: Why it could not be built (names the provider and the fix).
-    """
-
-    labels: list[str] = []
-
-    def __init__(self, role: str, name: str, reason: str) -> None:
-        self.role = role
-        self.name = name
-        self.reason = reason
-
-    def _fail(self, *args: Any, **kwargs: Any) -> Any:
-        raise ModelError(f"model role {self.role!r} (provider {self.name!r}) is unusable: {self.reason}")
-
-    ask = chat = embed = detect = detect_frame = check = _fail
-
-    def __repr__(self) -> str:
-        return f"BrokenProvider(role={self.role!r}, name={self.name!r})"
 
 
 def load_models_config(models: str | os.PathLike[str] | Mapping[str, Any] | None) -> Located:

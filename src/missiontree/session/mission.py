@@ -1,0 +1,290 @@
+"""One mission run, wired in one place: load → check → robot → models → context → runner.
+
+The CLI, every benchmark and the batch runner call this; nothing else wires a backend to model
+providers::
+
+    request = MissionRequest(mission=Path("trees/patrol.yaml"), params={"laps": "3"})
+    with Session.open(request) as session:
+        session.robot            # the backend's robot (the simulator's .truth is for scoring only)
+        result = session.run()   # engine.runner.RunResult
+    result = run_mission(request)
+
+Every value comes from the request (the command-line flags) first, then the mission's ``run:``
+section, then the defaults below (:data:`DEFAULT_BACKEND`, :data:`DEFAULT_TICK_HZ`,
+:data:`DEFAULT_SEED`; the run directory ``runs/<mission file stem>``).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Any, TextIO
+
+from missiontree.engine.build import build_tree
+from missiontree.engine.context import MissionContext
+from missiontree.engine.loader import load_mission
+from missiontree.engine.runner import Runner, RunResult
+from missiontree.engine.spec import MissionSpec
+from missiontree.errors import ConfigError, ProblemsError
+from missiontree.paths import find_config
+from missiontree.plugins.manager import Plugins, load_plugins
+from missiontree.reasoning.calls import CALLER_KEY
+from missiontree.session.models import build_models
+from missiontree.session.params import parse_overrides
+from missiontree.session.progress import ProgressLine
+
+__all__ = ["DEFAULT_BACKEND", "DEFAULT_SEED", "DEFAULT_TICK_HZ", "MissionRequest", "Session",
+           "load_run_config", "run_mission"]
+
+DEFAULT_BACKEND = "sim"
+DEFAULT_TICK_HZ = 10.0
+DEFAULT_SEED = 0
+
+
+@dataclass
+class MissionRequest:
+    """What to run and how; ``None`` means: the mission's ``run:`` section, else the default.
+
+    Attributes:
+        mission: The mission file.
+        backend: Robot backend name (``sim``, ``ros2`` or a plugin's).
+        world: Simulator world: a shipped name or a path.
+        robot: Robot profile: a shipped name or a path.
+        models: Models config: a shipped name, a path, or the config itself as a mapping.
+        config: Run configuration: a YAML file (a path or a config/backends name) or a mapping.
+        seed: Random seed.
+        out: Run directory (default ``runs/<mission file stem>``).
+        max_duration: Stop after this many robot-clock seconds.
+        tick_hz: Tick rate.
+        realtime: Pace the ticks to wall time.
+        params: Values for the mission's ``params:`` (text is read as YAML, as ``--set`` gives it).
+        unknown_map: Start without the map (the backend learns it); the ``run:`` section's ``map:``.
+        quiet: No progress line.
+        allow_outside: Let subtree includes leave the mission's folder.
+        plugins: Already loaded plugins (default: load them, autoloading as the environment says).
+        handle_signals: Stop cleanly on SIGINT/SIGTERM (main thread only).
+        on_tick: Called with the session after every tick (scoring that reads the robot between
+            ticks); it must return at once.
+        progress_stream: Where the progress line goes (default stderr).
+        log_stream: Write the tick log here instead of ``<out>/ticks.jsonl``.
+    """
+
+    mission: Path
+    backend: str | None = None
+    world: str | None = None
+    robot: str | None = None
+    models: str | os.PathLike[str] | Mapping[str, Any] | None = None
+    config: str | Mapping[str, Any] | None = None
+    seed: int | None = None
+    out: Path | None = None
+    max_duration: float | None = None
+    tick_hz: float | None = None
+    realtime: bool | None = None
+    params: Mapping[str, Any] | None = None
+    unknown_map: bool | None = None
+    quiet: bool = True
+    allow_outside: bool = False
+    plugins: Plugins | None = None
+    handle_signals: bool = True
+    on_tick: Callable[[Session], None] | None = None
+    progress_stream: TextIO | None = None
+    log_stream: TextIO | None = None
+
+
+def _pick(flag: Any, from_file: Any, default: Any) -> Any:
+    if flag is not None:
+        return flag
+    return from_file if from_file is not None else default
+
+
+def load_run_config(name: str | Mapping[str, Any] | None) -> dict[str, Any]:
+    """Read a run configuration (``--config``: a path or a shipped name under config/backends/)."""
+    if name is None:
+        return {}
+    if isinstance(name, Mapping):
+        return dict(name)
+    from missiontree.yamlio import load_yaml
+
+    if Path(name).suffix in {".yaml", ".yml"} and not Path(name).is_file():
+        raise ConfigError(f"--config file {name!r} does not exist; give a YAML file of run options")
+    path = find_config("backends", name)
+    document = load_yaml(path, error=ProblemsError)
+    if not isinstance(document.data, dict):
+        raise ConfigError(f"{path}: a run configuration must be a mapping of options, "
+                          f"found {type(document.data).__name__}")
+    return dict(document.data)
+
+
+class Session:
+    """A loaded, checked and wired mission, ready to run once. Open with :meth:`open`.
+
+    Attributes:
+        request: What was asked.
+        plugins: The loaded plugins.
+        spec: The checked mission.
+        root: The built tree's root.
+        robot: The backend's robot.
+        models: Providers by role (plus the call settings).
+        context: What the leaves get.
+        runner: The runner that will tick the tree.
+        run_dir: Where the log, summary and pictures go (None when writing nothing).
+        options: The backend factory's options.
+        settings: The resolved run settings (backend, seed, tick_hz, ...), for reports.
+    """
+
+    def __init__(self, request: MissionRequest) -> None:
+        self.request = request
+        self.plugins: Plugins = request.plugins if request.plugins is not None else load_plugins()
+        self.robot: Any = None
+        self.models: dict[str, Any] = {}
+        self.result: RunResult | None = None
+        self.progress: ProgressLine | None = None
+        self._closed = False
+
+    @classmethod
+    def open(cls, request: MissionRequest) -> Session:
+        """Load and check the mission, then build the tree, the robot, the models and the runner.
+
+        Raises:
+            ProblemsError: The mission, a config or a models file is broken (every problem located).
+            ConfigError: A bad value (``params`` included) or an unknown backend.
+        """
+        session = cls(request)
+        try:
+            session._wire()
+        except BaseException:
+            session.close()
+            raise
+        return session
+
+    # -- wiring ----------------------------------------------------------------------------------
+
+    def _wire(self) -> None:
+        request = self.request
+        mission = Path(request.mission)
+        overrides = parse_overrides(mission, request.params)
+        self.spec: MissionSpec = load_mission(
+            mission, self.plugins.nodes, allow_outside=request.allow_outside, params=overrides)
+        run = self.spec.run
+        seed = _pick(request.seed, run.seed, DEFAULT_SEED)
+        if isinstance(seed, bool) or not isinstance(seed, int):
+            raise ConfigError(f"seed: expected a whole number, found {seed!r}")
+        backend = str(_pick(request.backend, run.backend, DEFAULT_BACKEND))
+        tick_hz = float(_pick(request.tick_hz, run.tick_hz, DEFAULT_TICK_HZ))
+        max_duration = _pick(request.max_duration, run.max_duration, None)
+        realtime = bool(_pick(request.realtime, run.realtime, False))
+        map_from_file = None if run.map is None else run.map == "unknown"
+        unknown_map = bool(_pick(request.unknown_map, map_from_file, False))
+        config = load_run_config(_pick(request.config, run.config, None))
+        models_config = _pick(request.models, run.models, None)
+        self.mission_name = mission.stem
+        self.run_dir: Path | None = None
+        if request.log_stream is None:
+            self.run_dir = Path(request.out) if request.out is not None else Path("runs") / self.mission_name
+        elif request.out is not None:
+            self.run_dir = Path(request.out)
+        self.settings: dict[str, Any] = {
+            "backend": backend, "seed": seed, "tick_hz": tick_hz, "max_duration": max_duration,
+            "realtime": realtime, "unknown_map": unknown_map, "models": models_config, "params": overrides,
+        }
+
+        self.root = build_tree(self.spec, self.plugins.nodes)
+        self.options = self._robot_options(seed, config, unknown_map)
+        factory = self.plugins.backend(backend)
+        self.robot = factory(self.options)
+        self.models = build_models(models_config, providers=self.plugins.providers, seed=seed)
+        self.context = MissionContext(robot=self.robot, models=self.models, config=config, seed=seed)
+        if not request.quiet:
+            self.progress = ProgressLine(self.mission_name, request.progress_stream)
+        self.runner = Runner(
+            self.root, self.context, tick_hz=tick_hz, max_duration=max_duration, run_dir=self.run_dir,
+            mission=self.mission_name, hook=self.plugins.hook, spec=self.spec,
+            blackboard=self.spec.blackboard,
+            realtime=realtime, handle_signals=request.handle_signals, log_stream=request.log_stream,
+            on_tick=self._on_tick if (self.progress is not None or request.on_tick is not None) else None,
+            final_state=self._final_state)
+
+    def _robot_options(self, seed: int, config: dict[str, Any], unknown_map: bool) -> dict[str, Any]:
+        """The backend factory's options: ``seed``, and ``world``, ``robot``, ``config`` when given.
+
+        ``unknown_map`` is passed only when true, so a backend without it runs known maps as before.
+        """
+        run = self.spec.run
+        options: dict[str, Any] = {"seed": seed}
+        world = _pick(self.request.world, run.world, None)
+        robot = _pick(self.request.robot, run.robot, None)
+        if world is not None:
+            options["world"] = self._resolve_world(world, from_file=self.request.world is None)
+        if robot is not None:
+            options["robot"] = robot
+        if config:
+            options["config"] = config
+        if unknown_map:
+            options["unknown_map"] = True
+        return options
+
+    def _resolve_world(self, world: str, from_file: bool) -> str:
+        """A world path written in the mission resolves relative to the mission file (as includes do)."""
+        if not from_file or not world.endswith((".yaml", ".yml")) or Path(world).is_absolute():
+            return world
+        beside = Path(self.request.mission).resolve().parent / world
+        return str(beside) if beside.is_file() else world
+
+    def _on_tick(self, runner: Runner) -> None:
+        if self.progress is not None:
+            self.progress.update(runner)
+        if self.request.on_tick is not None:
+            self.request.on_tick(self)
+
+    def _final_state(self) -> dict[str, Any]:
+        """The simulator's true final pose, for the summary (scoring only; never seen by leaves)."""
+        truth = getattr(self.robot, "truth", None)
+        true_pose = getattr(truth, "robot_pose", None)
+        if not callable(true_pose):
+            return {}
+        pose = true_pose()
+        return {"true_final_pose": {"x": pose.x, "y": pose.y, "yaw": pose.yaw}}
+
+    # -- running ---------------------------------------------------------------------------------
+
+    def run(self) -> RunResult:
+        """Run the mission to its end (status, limit or signal); the robot is stopped afterwards.
+
+        Raises:
+            ConfigError: A node failed to set up, or the session already ran.
+        """
+        if self.result is not None:
+            raise ConfigError("a session runs its mission once; open a new session to run it again")
+        try:
+            self.result = self.runner.run()
+        finally:
+            if self.progress is not None:
+                self.progress.close()
+        return self.result
+
+    def close(self) -> None:
+        """Stop model calls and close the robot (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        caller = self.models.get(CALLER_KEY)
+        if caller is not None and hasattr(caller, "close"):
+            caller.close()
+        if self.robot is not None:
+            self.robot.close()
+
+    def __enter__(self) -> Session:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 trace: TracebackType | None) -> None:
+        self.close()
+
+
+def run_mission(request: MissionRequest) -> RunResult:
+    """Open a session, run it and close it: ``Session.open(request).run()`` with cleanup."""
+    with Session.open(request) as session:
+        return session.run()
