@@ -377,3 +377,26 @@ class LogOddsGrid:
 def numba_available() -> bool:
     """Whether the compiled kernel can be used."""
     return HAVE_NUMBA
+
+
+# -- reading any OccupancyGrid (trinary or scaled 0..100) ------------------------------------------
+
+#: Cell values at or above this read as occupied, values 0 up to FREE_BELOW as free (map_server's
+#: thresholds on the 0..100 scale); the rest, and -1, is unknown.
+OCCUPIED_FROM = int(round(OCCUPIED_THRESH * 100))
+FREE_BELOW = int(round(FREE_THRESH * 100))
+
+
+def free_mask(grid: OccupancyGrid) -> np.ndarray:
+    """Bool mask of the cells known to be free."""
+    return (grid.data >= 0) & (grid.data < FREE_BELOW)
+
+
+def occupied_mask(grid: OccupancyGrid) -> np.ndarray:
+    """Bool mask of the cells known to be occupied."""
+    return grid.data >= OCCUPIED_FROM
+
+
+def unknown_mask(grid: OccupancyGrid) -> np.ndarray:
+    """Bool mask of the cells neither known free nor known occupied."""
+    return ~(free_mask(grid) | occupied_mask(grid))

@@ -1,0 +1,116 @@
+"""Frontiers: the edges between known free space and the unknown, where exploring pays.
+
+A *frontier cell* is a free cell with an unknown cell among its four neighbours (cells beyond
+the grid's border count as unknown: a map that is still growing has more to see there). Frontier
+cells that touch each other (eight-connected) form one :class:`Frontier`, described as
+explore_lite describes it: its cells, its size in cells and its centroid, plus the frontier
+cell nearest that centroid (``goal``) -- the centroid of a curved frontier can lie in unknown
+or occupied space, while ``goal`` is always a free cell on the frontier.
+
+Long frontiers (a whole unexplored corridor side) can be split into pieces of at most
+``max_size_cells`` so that a goal is never far from the part of the frontier it stands for.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from missiontree.mapping.grid import free_mask, unknown_mask
+from missiontree.types import OccupancyGrid
+
+_CROSS = ndimage.generate_binary_structure(2, 1)
+_SQUARE = ndimage.generate_binary_structure(2, 2)
+
+
+@dataclass(frozen=True)
+class Frontier:
+    """One cluster of frontier cells.
+
+    Attributes:
+        cells: (N, 2) int array of (row, col) of its cells.
+        size: Number of cells (N).
+        centroid: Mean position (x, y) of its cells in the map frame.
+        goal: Position (x, y) of the frontier cell nearest the centroid (a free cell).
+    """
+
+    cells: np.ndarray
+    size: int
+    centroid: tuple[float, float]
+    goal: tuple[float, float]
+
+    def length_m(self, resolution: float) -> float:
+        """Rough length of the frontier in metres (cells times cell size)."""
+        return self.size * resolution
+
+    def distance_to(self, x: float, y: float) -> float:
+        """Distance (m) from (x, y) to the frontier's goal point."""
+        return float(np.hypot(self.goal[0] - x, self.goal[1] - y))
+
+
+def frontier_mask(grid: OccupancyGrid) -> np.ndarray:
+    """Bool mask of the frontier cells: free cells with an unknown four-neighbour (or at the border)."""
+    unknown = np.pad(unknown_mask(grid), 1, constant_values=True)
+    near_unknown = ndimage.binary_dilation(unknown, structure=_CROSS)[1:-1, 1:-1]
+    return free_mask(grid) & near_unknown
+
+
+def find_frontiers(grid: OccupancyGrid, min_size_cells: int = 5,
+                   max_size_cells: int | None = None) -> list[Frontier]:
+    """The frontiers of ``grid``, largest first.
+
+    Args:
+        grid: The map (trinary or scaled values; -1 unknown).
+        min_size_cells: Clusters with fewer cells are dropped (noise, gaps between wall cells).
+        max_size_cells: Split clusters longer than this into pieces along their main axis
+            (None: never split).
+
+    Returns:
+        The frontiers, sorted by size (largest first), ties by position.
+    """
+    if min_size_cells < 1:
+        raise ValueError(f"min_size_cells must be >= 1, found {min_size_cells}")
+    if max_size_cells is not None and max_size_cells < min_size_cells:
+        raise ValueError(f"max_size_cells ({max_size_cells}) must be >= min_size_cells ({min_size_cells})")
+    mask = frontier_mask(grid)
+    labels, count = ndimage.label(mask, structure=_SQUARE)
+    if count == 0:
+        return []
+    rows, cols = np.nonzero(labels)
+    ids = labels[rows, cols]
+    order = np.argsort(ids, kind="stable")
+    rows, cols, ids = rows[order], cols[order], ids[order]
+    bounds = np.searchsorted(ids, np.arange(1, count + 2))
+    frontiers: list[Frontier] = []
+    for k in range(count):
+        cells = np.stack([rows[bounds[k]:bounds[k + 1]], cols[bounds[k]:bounds[k + 1]]], axis=1)
+        for piece in _split(cells, max_size_cells):
+            if len(piece) >= min_size_cells:
+                frontiers.append(_make(piece, grid))
+    frontiers.sort(key=lambda f: (-f.size, f.centroid))
+    return frontiers
+
+
+def _split(cells: np.ndarray, max_size: int | None) -> list[np.ndarray]:
+    """Cut a cluster into consecutive pieces of at most ``max_size`` cells along its main axis."""
+    if max_size is None or len(cells) <= max_size:
+        return [cells]
+    pts = cells.astype(np.float64)
+    centred = pts - pts.mean(axis=0)
+    _, _, vt = np.linalg.svd(centred, full_matrices=False)
+    along = centred @ vt[0]
+    order = np.argsort(along, kind="stable")
+    pieces = int(np.ceil(len(cells) / max_size))
+    return [cells[chunk] for chunk in np.array_split(order, pieces)]
+
+
+def _make(cells: np.ndarray, grid: OccupancyGrid) -> Frontier:
+    res, ox, oy = grid.resolution, grid.origin.x, grid.origin.y
+    xs = ox + (cells[:, 1] + 0.5) * res
+    ys = oy + (cells[:, 0] + 0.5) * res
+    cx, cy = float(xs.mean()), float(ys.mean())
+    nearest = int(np.argmin((xs - cx) ** 2 + (ys - cy) ** 2))
+    goal = (float(xs[nearest]), float(ys[nearest]))
+    return Frontier(cells=cells, size=len(cells), centroid=(cx, cy), goal=goal)
