@@ -35,7 +35,7 @@ from missiontree.engine.spec import (
     RunSection,
     Source,
 )
-from missiontree.engine.validate import check_tree
+from missiontree.engine.validate import check_tree, non_finite_issues
 from missiontree.errors import MissionFileError, Problem
 from missiontree.paths import REPO_ROOT
 from missiontree.yamlio import Located, load_yaml
@@ -252,6 +252,9 @@ class _Loader:
                 self.problems.append(file.doc.problem_at(
                     ("blackboard", key), f"expected a blackboard key (letters, digits, _ and / for "
                     f"namespaces), found {key!r}", "rename the key", key=True, where="blackboard"))
+        for issue in non_finite_issues(values):
+            self.problems.append(file.doc.problem_at(
+                ("blackboard", *issue.loc), issue.message, issue.hint, where="blackboard"))
         return values
 
     def _run_section(self, doc: Located) -> RunSection:

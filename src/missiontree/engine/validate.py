@@ -13,6 +13,7 @@ Each problem reads ``file:line:col: node path: expected …, found … (hint: �
 from __future__ import annotations
 
 import difflib
+import math
 import re
 import types
 import typing
@@ -25,7 +26,7 @@ from missiontree.engine.ports import BlackboardRef, ports_of
 from missiontree.engine.registry import NodeRegistry, NodeType
 from missiontree.engine.spec import CHILD_KEY, CHILDREN_KEY, MissionSpec, NodeSpec
 from missiontree.errors import Problem
-from missiontree.yamlio import format_path
+from missiontree.yamlio import format_path, short_repr
 
 _UNRESOLVED = re.compile(r"(?<!\$)\$\{[^}]*\}")
 
@@ -64,7 +65,7 @@ def validate_params(
     Returns:
         (instance or None, issues): the instance is None when there are issues.
     """
-    issues: list[ParamIssue] = []
+    issues: list[ParamIssue] = list(non_finite_issues(raw))
     fields = model.model_fields
     by_name = {(info.alias or name): name for name, info in fields.items()}
     ports = ports_of(model)
@@ -133,6 +134,18 @@ def validate_params(
         elif (info.alias or name) in plain:
             values[name] = TypeAdapter(info.annotation).validate_python(plain[info.alias or name])
     return model.model_construct(_fields_set={*refs, *(by_name[k] for k in plain)}, **values), []
+
+
+def non_finite_issues(value: Any, loc: tuple[str | int, ...] = ()) -> list[ParamIssue]:
+    """Every NaN or infinite number in a written value (YAML's ``.nan``, ``.inf``), where it is."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return [ParamIssue(loc, f"{format_path(loc) + ': ' if loc else ''}expected a finite number, "
+                           f"found {value!r}", "write a real number; NaN and infinity are never valid")]
+    if isinstance(value, dict):
+        return [i for k, v in value.items() for i in non_finite_issues(v, (*loc, k))]
+    if isinstance(value, list):
+        return [i for n, v in enumerate(value) for i in non_finite_issues(v, (*loc, n))]
+    return []
 
 
 def _issue(model: type[BaseModel], err: Any) -> ParamIssue:
@@ -220,6 +233,7 @@ def check_tree(spec: MissionSpec, registry: NodeRegistry) -> list[Problem]:
     for node in spec.nodes():
         problems += check_node(node, registry)
     problems += _dangling_refs(spec)
+    problems += _default_types(spec)
     return problems
 
 
@@ -360,6 +374,32 @@ def _dangling_refs(spec: MissionSpec) -> list[Problem]:
                 message = (f"{field_name}: expected a blackboard key that the mission sets or a node writes, "
                            f"found {{bb: {value.key}}} which nothing writes")
                 problems.append(_locate(node, ParamIssue((field_name,), message, hint)))
+    return problems
+
+
+def _default_types(spec: MissionSpec) -> list[Problem]:
+    """Blackboard defaults checked against the type of every parameter that reads them ({bb: key}).
+
+    ``goal_x: "six"`` under ``blackboard:`` read by ``NavigateTo: {x: {bb: goal_x}}`` is reported at
+    the ``{bb: goal_x}`` with the default's value, before the run rather than when the leaf starts.
+    """
+    problems: list[Problem] = []
+    for node in spec.nodes():
+        if node.params is None:
+            continue
+        for field_name, info in type(node.params).model_fields.items():
+            value = getattr(node.params, field_name, None)
+            if not isinstance(value, BlackboardRef) or value.key not in spec.blackboard:
+                continue
+            default = spec.blackboard[value.key]
+            try:
+                TypeAdapter(info.annotation).validate_python(default)
+            except (ValidationError, TypeError, ValueError):
+                expected = type_label(info.annotation)
+                message = (f"{field_name}: expected {expected} in the blackboard default {value.key!r} "
+                           f"(this parameter reads it), found {short_repr(default)}")
+                problems.append(_locate(node, ParamIssue(
+                    (field_name,), message, f"fix `{value.key}:` under `blackboard:`")))
     return problems
 
 

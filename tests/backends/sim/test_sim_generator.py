@@ -42,5 +42,5 @@ def test_generated_world_drives_a_robot():
 
 def test_bad_generated_name():
     """generated: needs an integer seed."""
-    with pytest.raises(WorldFileError, match="integer seed"):
+    with pytest.raises(WorldFileError, match="whole number"):
         load_world("generated:many")

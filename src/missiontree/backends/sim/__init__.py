@@ -7,8 +7,11 @@ file. Nothing outside the CLI and tests should import this package (imports poin
 from __future__ import annotations
 
 from collections.abc import Mapping
+from os import PathLike
 from typing import Any
 
+# importing the generator registers the `generated:` world source (MAX_SEED is its seed bound)
+from missiontree.backends.sim.generator import MAX_SEED
 from missiontree.backends.sim.robot import SimRobot
 from missiontree.backends.sim.world import World, load_robot_profile, load_world
 from missiontree.errors import ConfigError
@@ -24,8 +27,8 @@ def create_robot(options: Mapping[str, Any] | None = None) -> SimRobot:
     Args:
         options: ``world`` (a shipped name such as ``office`` or a path; default ``office``),
             ``robot`` (profile name or path; default: the world's profile, normally
-            ``turtlebot4``), ``seed`` (int, default 0), ``config`` (a dict merged over the robot
-            profile, e.g. ``{"lidar": {"rate": 20}, "camera": {"width": 640, "height": 480},
+            ``turtlebot4``), ``seed`` (a whole number from 0, default 0), ``config`` (a dict merged
+            over the robot profile, e.g. ``{"lidar": {"rate": 20}, "camera": {"width": 640, "height": 480},
             "odometry": {"noise_v": 0.02}, "accelerate": False}``), ``name``.
 
     Raises:
@@ -37,9 +40,17 @@ def create_robot(options: Mapping[str, Any] | None = None) -> SimRobot:
     if unknown:
         raise ConfigError(f"unknown simulator option(s) {', '.join(unknown)}; "
                           f"expected: {', '.join(sorted(_OPTIONS))}")
-    world = load_world(opts.get("world", "office"))
-    profile = load_robot_profile(opts.get("robot") or world.profile_name, opts.get("config") or None)
     seed = opts.get("seed", 0)
-    if not isinstance(seed, int) or isinstance(seed, bool):
-        raise ConfigError(f"simulator option seed: expected an integer, found {seed!r}")
-    return SimRobot(world, profile, seed=seed, name=str(opts.get("name", "sim")))
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise ConfigError(f"simulator option seed: expected a whole number from 0 to {MAX_SEED}, "
+                          f"found {seed!r}")
+    for key in ("world", "robot", "name"):
+        if key in opts and opts[key] is not None and not isinstance(opts[key], str | PathLike):
+            raise ConfigError(f"simulator option {key}: expected a name or a path, found {opts[key]!r}")
+    config = opts.get("config") or None
+    if config is not None and not isinstance(config, Mapping):
+        raise ConfigError(f"simulator option config: expected a mapping of robot profile overrides, "
+                          f"found {type(config).__name__}")
+    world = load_world(opts.get("world") or "office")
+    profile = load_robot_profile(opts.get("robot") or world.profile_name, dict(config) if config else None)
+    return SimRobot(world, profile, seed=seed, name=str(opts.get("name") or "sim"))

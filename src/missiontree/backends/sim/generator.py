@@ -20,6 +20,17 @@ from typing import Any
 import numpy as np
 import yaml
 
+from missiontree.backends.sim.navigation import INSCRIBED, Costmap, plan
+from missiontree.backends.sim.world import build_world, load_robot_profile, register_world_source
+from missiontree.errors import WorldFileError
+from missiontree.types import Pose2D
+from missiontree.yamlio import Located, parse_yaml
+
+#: World names of this form are generated apartments: ``generated:42``.
+GENERATED_PREFIX = "generated:"
+#: Largest seed accepted (numpy seeds are non-negative; this keeps names short).
+MAX_SEED = 2**63 - 1
+
 #: Room types in the order they are handed out, and what furnishes each.
 ROOM_TYPES = ["kitchen", "living room", "office", "bedroom", "bathroom", "hall"]
 _FURNITURE: dict[str, list[tuple[str, str, tuple[float, float, float]]]] = {
@@ -111,6 +122,8 @@ def generate_world(
         people: How many people walk between rooms.
         size: (width, height) of the apartment in metres; drawn from the seed when None.
     """
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed <= MAX_SEED:
+        raise WorldFileError([_seed_problem(f"{GENERATED_PREFIX}{seed}", seed)])
     rng = np.random.default_rng(seed)
     data: dict[str, Any] = {}
     for _ in range(_ATTEMPTS):
@@ -122,14 +135,8 @@ def generate_world(
 
 def _all_rooms_reachable(data: dict[str, Any]) -> bool:
     """Plan from the start to a free point of every room on the world's costmap."""
-    from missiontree.backends.sim.navigation import INSCRIBED, Costmap, plan
-    from missiontree.backends.sim.world import _load_doc, load_robot_profile
-    from missiontree.errors import WorldFileError
-    from missiontree.types import Pose2D
-    from missiontree.yamlio import parse_yaml
-
     try:
-        world = _load_doc(
+        world = build_world(
             parse_yaml(yaml.safe_dump(data), "<generated>", error=WorldFileError),
             Path.cwd() / "generated.yaml",
         )
@@ -211,6 +218,29 @@ def _draw(
         "objects": objects,
         "people": walkers,
     }
+
+
+def _seed_problem(name: str, found: Any) -> Any:
+    from missiontree.errors import Problem
+
+    return Problem(name, 0, 0, "", f"expected `{GENERATED_PREFIX}<seed>` with a whole number from 0 to "
+                   f"{MAX_SEED}, found {found!r}", "write e.g. generated:42")
+
+
+def generated_document(argument: str) -> tuple[Located, Path]:
+    """The world source behind ``generated:<seed>``: the generated world as a located document.
+
+    Raises:
+        WorldFileError: The seed is not a whole number from 0 to :data:`MAX_SEED`.
+    """
+    name = f"{GENERATED_PREFIX}{argument}"
+    if not argument.isdigit() or len(argument) > 19 or int(argument) > MAX_SEED:
+        raise WorldFileError([_seed_problem(name, argument)])
+    text = yaml.safe_dump(generate_world(int(argument)), sort_keys=False)
+    return parse_yaml(text, f"<{name}>", error=WorldFileError), Path.cwd() / "generated.yaml"
+
+
+register_world_source(GENERATED_PREFIX, generated_document)
 
 
 def write_world_file(seed: int, path: str | Path, **kwargs: Any) -> Path:

@@ -14,7 +14,18 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from missiontree.backends.sim.patterns import PATTERNS
 
-Point = tuple[float, float]
+#: Largest world a file may describe: every coordinate within this many metres of the origin, and
+#: (checked when the grid is made) at most ``mapimage.MAX_MAP_CELLS`` grid cells.
+COORD_LIMIT = 10_000.0
+#: Largest side of a world or map, in metres.
+MAX_EXTENT = 500.0
+#: A coordinate in metres: finite (every model refuses NaN and infinity) and within COORD_LIMIT.
+Coord = Annotated[float, Field(ge=-COORD_LIMIT, le=COORD_LIMIT)]
+#: A length in metres (sizes, heights): positive and at most MAX_EXTENT.
+Length = Annotated[float, Field(gt=0, le=MAX_EXTENT)]
+#: An angle in radians, bounded so a typo (1e9) is caught.
+Angle = Annotated[float, Field(ge=-1000.0, le=1000.0)]
+Point = tuple[Coord, Coord]
 #: A surface pattern's name (see :mod:`missiontree.backends.sim.patterns`).
 PatternName = Literal[tuple(PATTERNS)]  # type: ignore[valid-type]
 RGB = tuple[Annotated[int, Field(ge=0, le=255)], Annotated[int, Field(ge=0, le=255)],
@@ -31,16 +42,17 @@ COLOR_NAMES: dict[str, tuple[int, int, int]] = {
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # allow_inf_nan=False: NaN and infinity are refused in every number of every file format
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class PoseSpec(_Strict):
     """A planar pose; ``yaw`` in radians, or ``yaw_deg`` in degrees."""
 
-    x: float
-    y: float
-    yaw: float = 0.0
-    yaw_deg: float | None = None
+    x: Coord
+    y: Coord
+    yaw: Angle = 0.0
+    yaw_deg: Annotated[float, Field(ge=-36000.0, le=36000.0)] | None = None
 
     @property
     def heading(self) -> float:
@@ -51,8 +63,8 @@ class PoseSpec(_Strict):
 class WallGroup(_Strict):
     """Walls as segments and polylines (closed polylines are polygons)."""
 
-    height: float = Field(2.5, gt=0)
-    thickness: float = Field(0.1, gt=0, description="drawn into the occupancy grid")
+    height: float = Field(2.5, gt=0, le=100)
+    thickness: float = Field(0.1, gt=0, le=10, description="drawn into the occupancy grid")
     rgb: RGB = (214, 210, 200)
     segments: list[tuple[Point, Point]] = []
     polylines: list[list[Point]] = []
@@ -70,22 +82,22 @@ class WallGroup(_Strict):
 class MapSpec(_Strict):
     """A Nav2 map_server map: ``yaml`` names the map yaml (relative to the world file)."""
 
-    yaml: str
-    height: float = Field(2.5, gt=0, description="height given to occupied cells")
+    yaml: str = Field(max_length=1024)
+    height: float = Field(2.5, gt=0, le=100, description="height given to occupied cells")
     rgb: RGB = (214, 210, 200)
 
 
 class NavMapYaml(BaseModel):
     """The keys of a Nav2 map_server yaml that the simulator reads."""
 
-    model_config = ConfigDict(extra="allow")
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
 
-    image: str
-    resolution: float = Field(gt=0)
-    origin: tuple[float, float, float]
-    negate: int = 0
-    occupied_thresh: float = 0.65
-    free_thresh: float = 0.25
+    image: str = Field(max_length=1024)
+    resolution: float = Field(gt=0.001, le=10)
+    origin: tuple[Coord, Coord, Angle]
+    negate: int = Field(0, ge=0, le=1)
+    occupied_thresh: float = Field(0.65, ge=0, le=1)
+    free_thresh: float = Field(0.25, ge=0, le=1)
     mode: Literal["trinary", "scale", "raw"] = "trinary"
 
 
@@ -108,9 +120,10 @@ class ObjectSpec(_Strict):
     attributes: list[str] = []
     description: str = ""
     shape: Literal["box", "cylinder"] = "box"
-    size: tuple[float, float, float] = Field(description="x, y, z extent in metres; cylinder: x = diameter")
+    size: tuple[Length, Length, Length] = Field(
+        description="x, y, z extent in metres; cylinder: x = diameter")
     pose: PoseSpec
-    elevation: float = Field(0.0, ge=0)
+    elevation: float = Field(0.0, ge=0, le=100)
     movable: bool = True
     obstacle: bool | None = Field(None, description="blocks the robot; default: if it reaches below 0.3 m")
     pattern: PatternName | None = Field(
@@ -143,10 +156,10 @@ class PersonSpec(_Strict):
 
     id: str
     route: list[Point] = Field(min_length=1)
-    speed: float = Field(1.0, ge=0)
-    start_time: float = Field(0.0, ge=0)
+    speed: float = Field(1.0, ge=0, le=10, description="walking speed (m/s)")
+    start_time: float = Field(0.0, ge=0, le=1e6)
     loop: bool = True
-    pause: float = Field(0.0, ge=0, description="seconds standing at each route point")
+    pause: float = Field(0.0, ge=0, le=1e6, description="seconds standing at each route point")
     vanish_at_end: bool = False
     shirt_rgb: RGB = (60, 90, 160)
     trousers_rgb: RGB = (40, 40, 50)
@@ -199,8 +212,8 @@ class LidarSpec(_Strict):
     beams: int = Field(360, ge=4, le=4096)
     angle_min_deg: float = -180.0
     range_min: float = Field(0.15, ge=0)
-    range_max: float = Field(12.0, gt=0)
-    rate: float = Field(10.0, gt=0)
+    range_max: float = Field(12.0, gt=0, le=100)
+    rate: float = Field(10.0, gt=0, le=1000)
     noise: float = Field(0.01, ge=0, description="range standard deviation in metres")
     frame_id: str = "rplidar_link"
 
@@ -212,9 +225,9 @@ class CameraSpec(_Strict):
     width: int = Field(320, ge=8, le=4096)
     height: int = Field(240, ge=8, le=4096)
     hfov_deg: float = Field(70.0, gt=1, lt=179)
-    rate: float = Field(5.0, gt=0)
+    rate: float = Field(5.0, gt=0, le=1000)
     depth_min: float = Field(0.2, ge=0)
-    depth_max: float = Field(10.0, gt=0)
+    depth_max: float = Field(10.0, gt=0, le=100)
     depth_noise: float = Field(0.0, ge=0, description="std of depth noise at 1 m; grows with depth squared")
     color_noise: float = Field(0.0, ge=0, description="std of colour noise in 0-255 units")
 
@@ -222,7 +235,7 @@ class CameraSpec(_Strict):
 class BodySpec(_Strict):
     """The robot's body: a cylinder."""
 
-    radius: float = Field(0.17, gt=0)
+    radius: float = Field(0.17, gt=0, le=5)
     height: float = Field(0.35, gt=0)
     rgb: RGB = (50, 50, 55)
 
@@ -230,8 +243,8 @@ class BodySpec(_Strict):
 class LimitsSpec(_Strict):
     """Velocity and acceleration limits."""
 
-    max_v: float = Field(0.31, gt=0)
-    max_w: float = Field(1.9, gt=0)
+    max_v: float = Field(0.31, gt=0, le=20)
+    max_w: float = Field(1.9, gt=0, le=50)
     max_acc: float = Field(1.0, gt=0)
     max_alpha: float = Field(4.0, gt=0)
 
@@ -253,7 +266,7 @@ class OdometrySpec(_Strict):
 class NavigationSpec(_Strict):
     """The NavigateToPose equivalent: costmap, planner, follower and abort rules."""
 
-    inflation_radius: float = Field(0.45, ge=0)
+    inflation_radius: float = Field(0.45, ge=0, le=10)
     cost_scaling: float = Field(3.0, ge=0, description="how fast inflation cost decays with distance")
     lookahead: float = Field(0.45, gt=0)
     heading_gain: float = Field(2.5, gt=0)
@@ -276,7 +289,7 @@ class RobotProfile(_Strict):
     camera: CameraSpec = CameraSpec()
     navigation: NavigationSpec = NavigationSpec()
     physics_dt: float = Field(0.05, gt=0, le=0.2)
-    history_horizon: float = Field(10.0, gt=0)
+    history_horizon: float = Field(10.0, gt=0, le=600)
     accelerate: bool = Field(True, description="use numba kernels when numba is installed")
     camera_thread: bool = Field(False, description="render camera frames on a worker thread (numba); "
                                 "pays off when frames are read less often than they are made")

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import copy
 import math
+import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,12 +21,13 @@ from typing import Any
 import cv2
 import numpy as np
 import pydantic
-import yaml
 
+from missiontree.backends.sim.mapimage import MAX_MAP_CELLS, MapImageError, read_map_image
 from missiontree.backends.sim.patterns import pattern_for
 from missiontree.backends.sim.people import Crowd, Person
 from missiontree.backends.sim.raycast import BOX, CYLINDER, SEGMENT, Primitives
 from missiontree.backends.sim.schema import (
+    MAX_EXTENT,
     NavMapYaml,
     ObjectSpec,
     RobotProfile,
@@ -33,15 +36,32 @@ from missiontree.backends.sim.schema import (
 from missiontree.errors import ConfigError, Problem, WorldFileError
 from missiontree.paths import find_config
 from missiontree.types import OccupancyGrid, Pose2D
-from missiontree.yamlio import Located, load_yaml, parse_yaml
+from missiontree.yamlio import Located, YamlLimits, error_message, load_yaml, validation_problems
 
 #: Instance ids: 0 is floor and ceiling, 1 every wall; objects and people follow.
 FLOOR_INSTANCE, WALL_INSTANCE = 0, 1
 #: Objects reaching below this height block the robot unless the file says otherwise.
 OBSTACLE_BELOW = 0.3
 _CONTACT_SLACK = 0.02
-#: World names of this form are generated apartments: ``generated:42``.
-GENERATED_PREFIX = "generated:"
+#: Folders (besides the world file's own) that a world's ``map: {yaml: ...}`` may name, from
+#: ``$MISSIONTREE_MAP_PATH`` (``os.pathsep``-separated), read when a world is loaded.
+MAP_PATH_ENV = "MISSIONTREE_MAP_PATH"
+#: A Nav2 map yaml is a few lines; anything bigger is not one.
+MAP_YAML_LIMITS = YamlLimits(max_bytes=16 * 1024, max_depth=8, max_nodes=1_000)
+
+#: A world source: turns the text after its prefix (``42`` of ``generated:42``) into a located
+#: world document and the path its relative references resolve against.
+WorldSource = Callable[[str], tuple[Located, Path]]
+_SOURCES: dict[str, WorldSource] = {}
+
+
+def register_world_source(prefix: str, source: WorldSource) -> None:
+    """Let :func:`load_world` build worlds named ``<prefix><argument>`` (e.g. ``generated:42``).
+
+    The generator registers ``generated:`` this way, so this module never imports it (a world
+    source sits above the loader, not beside it).
+    """
+    _SOURCES[prefix] = source
 
 
 @dataclass(frozen=True)
@@ -157,45 +177,57 @@ class World:
 
 
 def load_world(name_or_path: str | Path) -> World:
-    """Load and check a world file; a shipped name (``office``) or a path.
+    """Load and check a world file; a shipped name (``office``), a path, or a registered source.
 
     Raises:
         WorldFileError: Every problem found, each with file:line:col.
     """
     text = str(name_or_path)
-    if text.startswith(GENERATED_PREFIX):
-        return _load_generated(text)
+    for prefix, source in _SOURCES.items():
+        if text.startswith(prefix):
+            doc, path = source(text[len(prefix):])
+            return build_world(doc, path)
     try:
         path = find_config("worlds", name_or_path)
     except ConfigError as exc:
-        raise WorldFileError([Problem(str(name_or_path), 0, 0, "", str(exc))]) from None
-    return _load_doc(load_yaml(path, error=WorldFileError), path)
+        raise WorldFileError([Problem(text, 0, 0, "", str(exc))]) from None
+    return build_world(load_yaml(path, error=WorldFileError), path)
 
 
-def _load_generated(name: str) -> World:
-    """``generated:<seed>`` — an apartment from :mod:`missiontree.backends.sim.generator`."""
-    from missiontree.backends.sim.generator import generate_world
+def build_world(doc: Located, path: Path) -> World:
+    """Check a located world document whole and build the world.
 
-    seed = name[len(GENERATED_PREFIX):]
-    if not seed.lstrip("-").isdigit():
-        raise WorldFileError([Problem(name, 0, 0, "", f"expected `generated:<integer seed>`, "
-                                              f"found {name!r}")])
-    text = yaml.safe_dump(generate_world(int(seed)), sort_keys=False)
-    return _load_doc(parse_yaml(text, f"<{name}>", error=WorldFileError), Path.cwd() / "generated.yaml")
+    Args:
+        doc: The world file as read by :func:`missiontree.yamlio.load_yaml`.
+        path: The world file; ``map: {yaml: ...}`` resolves against its folder.
 
-
-def _load_doc(doc: Located, path: Path) -> World:
+    Raises:
+        WorldFileError: Every problem found, each with file:line:col.
+    """
     try:
         spec = _validate(doc, WorldSpec)
     except WorldFileError as exc:
-        # report an unknown profile together with the schema problems (the rest needs a valid file)
-        raise WorldFileError(exc.problems + _profile_problems(doc)) from None
+        # report what can be checked without a valid file together with the schema problems
+        raise WorldFileError(exc.problems + _profile_problems(doc) + _map_reference_problems(doc, path)) \
+            from None
     problems = _profile_problems(doc)
     world = _build(spec, doc, path, problems)
     if problems:
         raise WorldFileError(problems)
     assert world is not None
     return world
+
+
+def _map_reference_problems(doc: Located, path: Path) -> list[Problem]:
+    """A world's map reference checked on its own (when the rest of the file is broken)."""
+    data = doc.data if isinstance(doc.data, dict) else {}
+    section = data.get("map")
+    target = section.get("yaml") if isinstance(section, dict) else None
+    if not isinstance(target, str):
+        return []
+    problems: list[Problem] = []
+    _resolve_reference(doc, ("map", "yaml"), target, path.parent, "map yaml", problems)
+    return problems
 
 
 def _profile_problems(doc: Located) -> list[Problem]:
@@ -227,8 +259,8 @@ def load_robot_profile(name: str | Path, overrides: dict[str, Any] | None = None
             return RobotProfile.model_validate(merged)
         except pydantic.ValidationError as exc:
             raise WorldFileError([
-                Problem("<config overrides>", 0, 0, _loc(e["loc"]), _message(e, RobotProfile), _hint(e))
-                for e in exc.errors()
+                Problem("<config overrides>", 0, 0, ".".join(str(p) for p in e["loc"]),
+                        error_message(e, RobotProfile)) for e in exc.errors()
             ]) from None
     return _validate(doc, RobotProfile)
 
@@ -250,61 +282,7 @@ def _validate(doc: Located, model: type[pydantic.BaseModel]) -> Any:
     try:
         return model.model_validate(doc.data)
     except pydantic.ValidationError as exc:
-        problems = []
-        for err in exc.errors():
-            loc = tuple(p for p in err["loc"] if isinstance(p, str | int))
-            problems.append(doc.problem_at(loc, _message(err, model), _hint(err),
-                                           key=err["type"] == "extra_forbidden"))
-        raise WorldFileError(problems) from None
-
-
-def _loc(loc: tuple[Any, ...]) -> str:
-    return ".".join(str(p) for p in loc)
-
-
-def _message(err: Any, model: type[pydantic.BaseModel]) -> str:
-    loc = tuple(err["loc"])
-    if err["type"] == "extra_forbidden":
-        allowed = _allowed_keys(model, loc[:-1])
-        known = f"; expected one of: {', '.join(allowed)}" if allowed else ""
-        return f"unknown key {loc[-1]!r}{known}"
-    if err["type"] == "missing":
-        return f"missing required key {loc[-1]!r}"
-    found = err.get("input")
-    short = not isinstance(found, dict | list) or len(repr(found)) < 60
-    shown = repr(found) if short else type(found).__name__
-    return f"{err['msg']}, found {shown}"
-
-
-def _hint(err: Any) -> str:
-    if err["type"] == "extra_forbidden":
-        return "check the spelling (docs/worlds.md lists every key)"
-    if err["type"] == "missing":
-        return "add the key (docs/worlds.md describes it)"
-    return ""
-
-
-def _allowed_keys(model: Any, loc: tuple[Any, ...]) -> list[str]:
-    """Field names of the model reached by following ``loc`` through nested models and lists."""
-    import types
-    import typing
-
-    current: Any = model
-    for part in loc:
-        if isinstance(part, int):
-            continue
-        fields = getattr(current, "model_fields", None)
-        if not fields or part not in fields:
-            return []
-        current = fields[part].annotation
-        # unwrap Optional[...] / list[...] down to a model
-        for _ in range(3):
-            origin = typing.get_origin(current)
-            if origin in (list, typing.Union, types.UnionType):
-                args = [a for a in typing.get_args(current) if a is not type(None)]
-                current = args[0] if args else current
-    fields = getattr(current, "model_fields", None)
-    return list(fields) if fields else []
+        raise WorldFileError(validation_problems(exc, doc, model, docs="docs/worlds.md")) from None
 
 
 # -- building ----------------------------------------------------------------------------------
@@ -364,7 +342,13 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]) -
         people.append(Person(pspec, inst))
         instances[inst] = InstanceInfo(inst, "person", pspec.id, "person")
 
-    grid, walls_grid = _rasterise(spec, seg_array, objects, map_grid)
+    try:
+        grid, walls_grid = _rasterise(spec, seg_array, objects, map_grid)
+    except WorldTooLargeError as exc:
+        problems.append(doc.problem_at((), str(exc), "a world may span at most "
+                                       f"{MAX_MAP_CELLS:,} grid cells; raise `resolution:` or shrink it",
+                                       where=""))
+        return None
     _check_objects(doc, objects, seg_array, walls_grid, grid, problems)
     _check_routes(doc, spec, seg_array, problems)
     clearance = cv2.distanceTransform((grid.data < 50).astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
@@ -393,26 +377,73 @@ def _make_object(ospec: ObjectSpec, oid: str, inst: int) -> WorldObject:
     )
 
 
+_MAP_YAML_HINT = "point at the .yaml that map_server wrote (image, resolution, origin)"
+
+
+def map_dirs() -> list[Path]:
+    """The folders ``$MISSIONTREE_MAP_PATH`` allows map files in, besides each world's own folder."""
+    return [Path(p).resolve() for p in os.environ.get(MAP_PATH_ENV, "").split(os.pathsep) if p]
+
+
+def _resolve_reference(doc: Located, key: tuple[str | int, ...], target: str, base: Path, what: str,
+                       problems: list[Problem]) -> Path | None:
+    """A file a world (or its map yaml) names: inside ``base`` or an allowed map folder, and present.
+
+    The problem never shows the file's content, and names the resolved path only when it is allowed.
+    """
+    resolved = (base / target).resolve()
+    allowed = [base.resolve(), *map_dirs()]
+    if not any(resolved.is_relative_to(d) for d in allowed):
+        problems.append(doc.problem_at(
+            key, f"expected a {what} inside the world's folder {base.resolve()}, found {target!r} outside it",
+            f"copy the map next to the world file, or add its folder to ${MAP_PATH_ENV}"))
+        return None
+    if not resolved.is_file():
+        problems.append(doc.problem_at(key, f"{what} {target!r} does not exist (looked at {resolved})",
+                                       "give a path relative to the file that names it"))
+        return None
+    return resolved
+
+
 def _read_nav2_map(spec: WorldSpec, doc: Located, path: Path,
                    problems: list[Problem]) -> tuple[np.ndarray, float, Pose2D] | None:
     assert spec.map is not None
-    map_yaml = (path.parent / spec.map.yaml).resolve()
-    if not map_yaml.is_file():
-        problems.append(doc.problem_at(("map", "yaml"), f"map yaml {spec.map.yaml!r} does not exist "
-                                       f"(looked at {map_yaml})", "give a path relative to the world file"))
+    map_yaml = _resolve_reference(doc, ("map", "yaml"), spec.map.yaml, path.parent, "map yaml", problems)
+    if map_yaml is None:
         return None
-    mdoc = load_yaml(map_yaml, error=WorldFileError)
+    try:
+        mdoc = load_yaml(map_yaml, error=WorldFileError, limits=MAP_YAML_LIMITS)
+    except WorldFileError as exc:
+        # say where, never what: a file named by mistake may hold anything
+        first = exc.problems[0]
+        problems.append(doc.problem_at(("map", "yaml"), f"map yaml {spec.map.yaml!r} is not a Nav2 map yaml "
+                                       f"({len(exc.problems)} problem(s), the first at line {first.line})",
+                                       _MAP_YAML_HINT))
+        return None
+    if not isinstance(mdoc.data, dict):
+        problems.append(doc.problem_at(("map", "yaml"), f"map yaml {spec.map.yaml!r} is not a Nav2 map yaml "
+                                       f"(expected a mapping, found {type(mdoc.data).__name__})",
+                                       _MAP_YAML_HINT))
+        return None
     try:
         meta = NavMapYaml.model_validate(mdoc.data)
     except pydantic.ValidationError as exc:
-        for err in exc.errors():
-            problems.append(mdoc.problem_at(tuple(err["loc"]), _message(err, NavMapYaml), _hint(err)))
+        problems.extend(validation_problems(exc, mdoc, NavMapYaml, docs="docs/worlds.md"))
         return None
-    image_path = (map_yaml.parent / meta.image).resolve()
-    image = cv2.imread(str(image_path), cv2.IMREAD_GRAYSCALE) if image_path.is_file() else None
-    if image is None:
-        problems.append(mdoc.problem_at(("image",), f"map image {meta.image!r} does not exist or is not an "
-                                        f"image (looked at {image_path})", "fix the `image:` path"))
+    image_path = _resolve_reference(mdoc, ("image",), meta.image, map_yaml.parent, "map image", problems)
+    if image_path is None:
+        return None
+    try:
+        image = read_map_image(image_path)
+    except MapImageError as exc:
+        problems.append(mdoc.problem_at(("image",), f"map image {meta.image!r}: {exc}", exc.hint))
+        return None
+    extent = max(image.shape) * meta.resolution
+    if extent > MAX_EXTENT:
+        problems.append(mdoc.problem_at(
+            ("resolution",), f"expected a map of at most {MAX_EXTENT:g} m a side, found "
+            f"{image.shape[1]} x {image.shape[0]} cells of {meta.resolution:g} m ({extent:,.0f} m)",
+            "check the resolution (metres per pixel)"))
         return None
     return _map_cells(image, meta), meta.resolution, Pose2D(meta.origin[0], meta.origin[1], 0.0)
 
@@ -478,6 +509,8 @@ def _rasterise(spec: WorldSpec, segs: np.ndarray, objects: list[WorldObject],
         origin = Pose2D(math.floor(lo[0] / res) * res, math.floor(lo[1] / res) * res, 0.0)
         cols = int(math.ceil((hi[0] - origin.x) / res))
         rows = int(math.ceil((hi[1] - origin.y) / res))
+        if rows * cols > MAX_MAP_CELLS:
+            raise WorldTooLargeError(rows, cols, res)
         walls = np.zeros((rows, cols), bool)
     thickness = spec.walls.thickness if spec.walls is not None else res
     canvas = walls.astype(np.uint8)
@@ -495,6 +528,14 @@ def _rasterise(spec: WorldSpec, segs: np.ndarray, objects: list[WorldObject],
     if unknown is not None:
         data[unknown & (canvas == 0)] = -1
     return OccupancyGrid(0.0, res, origin, data), walls_grid
+
+
+class WorldTooLargeError(ValueError):
+    """Internal: the occupancy grid a world needs is larger than :data:`MAX_MAP_CELLS`."""
+
+    def __init__(self, rows: int, cols: int, res: float) -> None:
+        super().__init__(f"expected a world of at most {MAX_MAP_CELLS:,} grid cells, found "
+                         f"{cols} x {rows} cells of {res:g} m ({cols * res:,.0f} x {rows * res:,.0f} m)")
 
 
 def _floor_colours(grid: OccupancyGrid, rooms: list[Room]) -> np.ndarray:
