@@ -1,0 +1,668 @@
+"""A global planner whose cost follows the path, not the map: A* and Dijkstra on a lazily inflated costmap.
+
+The costmap follows Nav2's conventions: lethal cells (occupancy >= 50) cost 254, the inscribed zone
+as wide as the robot's radius around them 253 (a robot centred there touches the obstacle), and an
+inflation cost decaying as ``252 * exp(-cost_scaling * (d - radius))`` out to ``inflation_radius``.
+Unknown cells (-1) are free when ``allow_unknown`` (as Nav2's planner with a SLAM map) and do not
+inflate; otherwise they are blocked (255, Nav2's NO_INFORMATION).
+
+Nothing here is whole-grid. The map is cut into tiles of 64 x 64 cells; a tile's costs are computed
+the first time a search reaches it (a distance transform of the tile and a margin around it) and
+kept until the map changes there (:meth:`Costmap.update` invalidates only the tiles within the
+inflation radius of the changed cells). A search keeps its state (cost so far, length so far, the
+step that reached a cell) in tiles allocated as it reaches them, and its open list grows on demand,
+so a plan's time and memory grow with the area it explores. The search runs in a numba kernel (a
+plain-Python fallback when numba is missing) that hands back to Python whenever it needs a cost
+tile or more room, then resumes where it stopped.
+
+Use :class:`Costmap` (kept between plans, updated in place) for repeated planning, or the one-shot
+functions :func:`plan` and :func:`path_lengths` on an :class:`~missiontree.types.OccupancyGrid`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from missiontree.types import OccupancyGrid, Pose2D
+
+try:  # numba is the ``accel`` extra; the loops below also run as plain Python
+    import numba
+
+    HAVE_NUMBA = True
+except ImportError:  # pragma: no cover - exercised where numba is absent
+    numba = None
+    HAVE_NUMBA = False
+
+LETHAL = 254
+INSCRIBED = 253
+NO_INFORMATION = 255
+#: Highest cost a cell can have and still be entered.
+MAX_FREE = 252
+TILE_BITS = 6
+TILE = 1 << TILE_BITS
+_TILE_MASK = TILE - 1
+
+# search kernel return codes
+_FOUND, _NONE, _NEED_COST, _NEED_STATE, _NEED_HEAP = 0, 1, 2, 3, 4
+# state vector slots
+_S_HEAP, _S_SLOTS, _S_TILE, _S_LEFT, _S_EXPANDED, _S_REACHED = 0, 1, 2, 3, 4, 5
+_CLOSED = 16
+_BLOCK_BITS = 3
+_BLOCK = 1 << _BLOCK_BITS
+#: Weighted A*: the heuristic counts this much (1.0 is optimal; 1.2 expands ~20x fewer cells on a
+#: warehouse map for paths within a few per cent of the optimum's length, never worse than 1.2x its cost).
+HEURISTIC_WEIGHT = 1.2
+_NO_COARSE = np.full((1, 1), np.inf, np.float32)
+_START = 8
+
+
+@dataclass(frozen=True)
+class Path:
+    """A planned path.
+
+    Attributes:
+        points: (N, 2) map points from the start to the goal (cell centres in between).
+        length: Length of the polyline in metres.
+        cost: The search's cost (length weighted by the inflation cost crossed).
+        expanded: Cells the search expanded (how much of the map it touched).
+    """
+
+    points: np.ndarray
+    length: float
+    cost: float
+    expanded: int
+
+
+def _search_loops(cost_slot, cost_pool, g_slot, g_pool, l_pool, par_pool, heap_k, heap_v,  # noqa: ANN001, ANN201, PLR0912, PLR0913, PLR0915
+                  state, h, w, ntc, sr, sc, escape2, goals, weight, heuristic, hweight, coarse, cfar):
+    """Resumable A* (``heuristic``) or Dijkstra to every cell in sorted ``goals`` (flat indices).
+
+    Returns a code: found, none, or a request (cost tile ``state[_S_TILE]``, more state tiles,
+    a bigger heap) after which Python provides what was asked and calls again with the same state.
+    """
+    drs = (-1, -1, -1, 0, 0, 1, 1, 1)
+    dcs = (-1, 0, 1, -1, 1, -1, 0, 1)
+    n_goals = goals.shape[0]
+    gr = goals[0] // w
+    gc = goals[0] % w
+    while state[_S_HEAP] > 0:
+        cur = heap_v[0]
+        r = cur // w
+        c = cur % w
+        tile = (r >> TILE_BITS) * ntc + (c >> TILE_BITS)
+        slot = g_slot[tile]
+        off = (r & _TILE_MASK) * TILE + (c & _TILE_MASK)
+        closed = par_pool[slot, off] >= _CLOSED
+        if not closed:
+            # everything the expansion will need, before popping (so a request can resume here)
+            for tr in range(max(r - 1, 0) >> TILE_BITS, (min(r + 1, h - 1) >> TILE_BITS) + 1):
+                for tc in range(max(c - 1, 0) >> TILE_BITS, (min(c + 1, w - 1) >> TILE_BITS) + 1):
+                    if cost_slot[tr * ntc + tc] < 0:
+                        state[_S_TILE] = tr * ntc + tc
+                        return _NEED_COST
+            if g_pool.shape[0] - state[_S_SLOTS] < 4:
+                return _NEED_STATE
+            if heap_k.shape[0] - state[_S_HEAP] < 9:
+                return _NEED_HEAP
+        # pop
+        size = state[_S_HEAP] - 1
+        state[_S_HEAP] = size
+        heap_k[0] = heap_k[size]
+        heap_v[0] = heap_v[size]
+        i = 0
+        while True:
+            left = 2 * i + 1
+            if left >= size:
+                break
+            child = left
+            if left + 1 < size and heap_k[left + 1] < heap_k[left]:
+                child = left + 1
+            if heap_k[child] < heap_k[i]:
+                tk = heap_k[i]
+                heap_k[i] = heap_k[child]
+                heap_k[child] = tk
+                tv = heap_v[i]
+                heap_v[i] = heap_v[child]
+                heap_v[child] = tv
+                i = child
+            else:
+                break
+        if closed:
+            continue
+        par_pool[slot, off] += _CLOSED
+        state[_S_EXPANDED] += 1
+        g_cur = g_pool[slot, off]
+        l_cur = l_pool[slot, off]
+        # goal test: binary search in the sorted goals
+        lo = 0
+        hi = n_goals
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if goals[mid] < cur:
+                lo = mid + 1
+            else:
+                hi = mid
+        if lo < n_goals and goals[lo] == cur:
+            state[_S_REACHED] += 1
+            state[_S_LEFT] -= 1
+            if state[_S_LEFT] <= 0:
+                return _FOUND
+        for k in range(8):
+            nr = r + drs[k]
+            nc = c + dcs[k]
+            if nr < 0 or nr >= h or nc < 0 or nc >= w:
+                continue
+            ntile = (nr >> TILE_BITS) * ntc + (nc >> TILE_BITS)
+            noff = (nr & _TILE_MASK) * TILE + (nc & _TILE_MASK)
+            cost = cost_pool[cost_slot[ntile], nr & _TILE_MASK, nc & _TILE_MASK]
+            if cost == INSCRIBED and (nr - sr) * (nr - sr) + (nc - sc) * (nc - sc) <= escape2:
+                cost = MAX_FREE  # the robot may leave the inscribed zone it stands in
+            if cost > MAX_FREE:
+                continue
+            nslot = g_slot[ntile]
+            if nslot < 0:
+                nslot = state[_S_SLOTS]
+                state[_S_SLOTS] = nslot + 1
+                g_slot[ntile] = nslot
+                for j in range(TILE * TILE):
+                    g_pool[nslot, j] = np.inf
+                    par_pool[nslot, j] = -1
+            elif par_pool[nslot, noff] >= _CLOSED:
+                continue
+            diagonal = drs[k] != 0 and dcs[k] != 0
+            step = 1.4142135623730951 if diagonal else 1.0
+            ng = g_cur + step * (1.0 + weight * cost / 252.0)
+            if ng < g_pool[nslot, noff]:
+                g_pool[nslot, noff] = ng
+                l_pool[nslot, noff] = l_cur + step
+                par_pool[nslot, noff] = k
+                f = ng
+                if heuristic:
+                    # octile distance (exact on an empty 8-connected grid) or, when larger, the
+                    # coarse distance around obstacles less a block's slack; a hair heavier to
+                    # break ties toward deeper cells instead of flooding plateaus of equal cost
+                    ar = abs(nr - gr)
+                    ac = abs(nc - gc)
+                    est = max(ar, ac) + 0.41421356237309515 * min(ar, ac)
+                    hc = coarse[nr >> _BLOCK_BITS, nc >> _BLOCK_BITS]
+                    if hc == np.inf:
+                        hc = cfar
+                    hc = (hc - 1.5) * _BLOCK
+                    if hc > est:
+                        est = hc
+                    f = ng + est * hweight
+                j = state[_S_HEAP]
+                heap_k[j] = f
+                heap_v[j] = nr * w + nc
+                state[_S_HEAP] = j + 1
+                while j > 0:
+                    up = (j - 1) // 2
+                    if heap_k[up] > heap_k[j]:
+                        tk = heap_k[up]
+                        heap_k[up] = heap_k[j]
+                        heap_k[j] = tk
+                        tv = heap_v[up]
+                        heap_v[up] = heap_v[j]
+                        heap_v[j] = tv
+                        j = up
+                    else:
+                        break
+    return _NONE
+
+
+def _coarse_loops(blocked, goal, start, dist, heap_k, heap_v):  # noqa: ANN001, ANN201
+    """Dijkstra in blocks from ``goal`` over the coarse grid until ``start`` is settled; its distance.
+
+    ``dist`` (inf on entry) receives the settled distances in blocks; returns inf when the start
+    cannot be reached at this scale (the fine search then uses the octile distance alone).
+    """
+    h, w = blocked.shape
+    drs = (-1, -1, -1, 0, 0, 1, 1, 1)
+    dcs = (-1, 0, 1, -1, 1, -1, 0, 1)
+    tent = np.full(h * w, np.inf, np.float32)
+    size = 1
+    heap_k[0] = 0.0
+    heap_v[0] = goal
+    tent[goal] = 0.0
+    while size > 0:
+        key = heap_k[0]
+        cur = heap_v[0]
+        size -= 1
+        heap_k[0] = heap_k[size]
+        heap_v[0] = heap_v[size]
+        i = 0
+        while True:
+            left = 2 * i + 1
+            if left >= size:
+                break
+            child = left
+            if left + 1 < size and heap_k[left + 1] < heap_k[left]:
+                child = left + 1
+            if heap_k[child] < heap_k[i]:
+                tk = heap_k[i]
+                heap_k[i] = heap_k[child]
+                heap_k[child] = tk
+                tv = heap_v[i]
+                heap_v[i] = heap_v[child]
+                heap_v[child] = tv
+                i = child
+            else:
+                break
+        r = cur // w
+        c = cur % w
+        if dist[r, c] != np.inf:
+            continue
+        dist[r, c] = key
+        if cur == start:
+            return key
+        for k in range(8):
+            nr = r + drs[k]
+            nc = c + dcs[k]
+            if nr < 0 or nr >= h or nc < 0 or nc >= w or blocked[nr, nc] or dist[nr, nc] != np.inf:
+                continue
+            nk = key + (1.4142135623730951 if drs[k] != 0 and dcs[k] != 0 else 1.0)
+            nxt = nr * w + nc
+            if nk >= tent[nxt]:
+                continue
+            tent[nxt] = nk
+            if size >= heap_k.shape[0]:
+                return np.inf  # out of room: fall back to the octile distance
+            j = size
+            heap_k[j] = nk
+            heap_v[j] = nxt
+            size += 1
+            while j > 0:
+                up = (j - 1) // 2
+                if heap_k[up] > heap_k[j]:
+                    tk = heap_k[up]
+                    heap_k[up] = heap_k[j]
+                    heap_k[j] = tk
+                    tv = heap_v[up]
+                    heap_v[up] = heap_v[j]
+                    heap_v[j] = tv
+                    j = up
+                else:
+                    break
+    return np.inf
+
+
+def _trace_loops(g_slot, par_pool, w, ntc, start, goal):  # noqa: ANN001, ANN201
+    """The cells from ``goal`` back to ``start`` (goal first), following the steps stored in the search."""
+    drs = (-1, -1, -1, 0, 0, 1, 1, 1)
+    dcs = (-1, 0, 1, -1, 1, -1, 0, 1)
+    n = 0
+    cur = goal
+    out = np.empty(1024, np.int64)
+    while True:
+        if n >= out.shape[0]:
+            bigger = np.empty(out.shape[0] * 2, np.int64)
+            bigger[:n] = out[:n]
+            out = bigger
+        out[n] = cur
+        n += 1
+        if cur == start:
+            break
+        r = cur // w
+        c = cur % w
+        k = par_pool[g_slot[(r >> TILE_BITS) * ntc + (c >> TILE_BITS)],
+                     (r & _TILE_MASK) * TILE + (c & _TILE_MASK)] % _CLOSED
+        cur = (r - drs[k]) * w + (c - dcs[k])
+    return out[:n]
+
+
+if HAVE_NUMBA:
+    _search_jit = numba.njit(cache=True, nogil=True)(_search_loops)
+    _trace_jit = numba.njit(cache=True, nogil=True)(_trace_loops)
+    _coarse_jit = numba.njit(cache=True, nogil=True)(_coarse_loops)
+else:  # pragma: no cover
+    _search_jit, _trace_jit, _coarse_jit = _search_loops, _trace_loops, _coarse_loops
+
+
+class Costmap:
+    """A Nav2-style inflated costmap computed tile by tile when first needed, updated in place.
+
+    Args:
+        grid: The occupancy grid (-1 unknown, 0 free .. 100 occupied). Its ``data`` is read, not
+            copied: after changing it, call :meth:`update` with the changed region (or the new grid).
+        robot_radius: Footprint radius in metres (the inscribed zone).
+        inflation_radius: How far inflation cost reaches from an obstacle, metres.
+        cost_scaling: How fast inflation cost decays with distance.
+        allow_unknown: Unknown cells are free (True, as with a SLAM map) or blocked.
+        accelerate: Use the numba kernel when numba is installed.
+        extra_lethal: (N, 2) map points made lethal as discs of ``extra_radius`` (people seen by
+            the lidar, obstacles not in the map); see :meth:`with_points`.
+    """
+
+    def __init__(self, grid: OccupancyGrid, robot_radius: float, inflation_radius: float = 0.45,
+                 cost_scaling: float = 3.0, allow_unknown: bool = True, accelerate: bool = True,
+                 extra_lethal: np.ndarray | None = None, extra_radius: float = 0.08) -> None:
+        self.grid = grid
+        self.radius = float(robot_radius)
+        self.inflation_radius = float(inflation_radius)
+        self.cost_scaling = float(cost_scaling)
+        self.allow_unknown = allow_unknown
+        self.accelerate = accelerate and HAVE_NUMBA
+        self.extra_lethal = np.zeros((0, 2)) if extra_lethal is None else np.asarray(extra_lethal, float)
+        self.extra_radius = extra_radius
+        self.heuristic_weight = HEURISTIC_WEIGHT
+        self._reset_tiles()
+
+    def _reset_tiles(self) -> None:
+        h, w = self.grid.data.shape
+        self.shape = (h, w)
+        self.ntr, self.ntc = (h + TILE - 1) >> TILE_BITS, (w + TILE - 1) >> TILE_BITS
+        self._pad = int(math.ceil(max(self.inflation_radius, self.radius) / self.grid.resolution)) + 2
+        self.cost_slot = np.full(self.ntr * self.ntc, -1, np.int32)
+        self.cost_pool = np.zeros((8, TILE, TILE), np.uint8)
+        self._free_slots: list[int] = list(range(7, -1, -1))
+        self.tiles_computed = 0
+        self._blocks: np.ndarray | None = None  # per 8 x 8 block: holds a lethal cell (A*'s guide)
+
+    def _coarse(self) -> np.ndarray:
+        """Blocks of 8 x 8 cells that hold an obstacle (computed once, then kept up to date)."""
+        if self._blocks is None:
+            h, w = self.shape
+            self._blocks = np.zeros(((h + _BLOCK - 1) >> _BLOCK_BITS, (w + _BLOCK - 1) >> _BLOCK_BITS), np.bool_)
+            for r0 in range(0, h, 64 * _BLOCK):  # in stripes: no whole-grid temporaries
+                self._refresh_blocks(r0, min(r0 + 64 * _BLOCK, h), 0, w)
+        return self._blocks
+
+    def _refresh_blocks(self, r0: int, r1: int, c0: int, c1: int) -> None:
+        assert self._blocks is not None
+        h, w = self.shape
+        br0, bc0 = max(r0, 0) >> _BLOCK_BITS, max(c0, 0) >> _BLOCK_BITS
+        br1, bc1 = (min(r1, h) + _BLOCK - 1) >> _BLOCK_BITS, (min(c1, w) + _BLOCK - 1) >> _BLOCK_BITS
+        if br1 <= br0 or bc1 <= bc0:
+            return
+        window = self.grid.data[br0 * _BLOCK: br1 * _BLOCK, bc0 * _BLOCK: bc1 * _BLOCK]
+        bad = window >= 50
+        if not self.allow_unknown:
+            bad |= window < 0
+        ph, pw = (br1 - br0) * _BLOCK, (bc1 - bc0) * _BLOCK
+        if bad.shape != (ph, pw):
+            bad = np.pad(bad, ((0, ph - bad.shape[0]), (0, pw - bad.shape[1])))
+        self._blocks[br0:br1, bc0:bc1] = bad.reshape(br1 - br0, _BLOCK, bc1 - bc0, _BLOCK).any(axis=(1, 3))
+
+    # -- the map -----------------------------------------------------------------------------------
+
+    def update(self, grid: OccupancyGrid, region: tuple[int, int, int, int] | None = None) -> None:
+        """Take a changed map: recompute only the tiles near ``region`` (row0, row1, col0, col1; exclusive ends).
+
+        A grid of another shape, resolution or origin starts over. Without ``region`` every tile
+        is invalidated (computed again when next needed).
+        """
+        old = self.grid
+        self.grid = grid
+        if (grid.data.shape != old.data.shape or grid.resolution != old.resolution
+                or grid.origin.x != old.origin.x or grid.origin.y != old.origin.y):
+            self._reset_tiles()
+            return
+        if region is None:
+            self._invalidate(0, self.shape[0], 0, self.shape[1])
+            self._blocks = None
+            return
+        r0, r1, c0, c1 = region
+        self._invalidate(r0 - self._pad, r1 + self._pad, c0 - self._pad, c1 + self._pad)
+        if self._blocks is not None:
+            self._refresh_blocks(r0, r1, c0, c1)
+
+    def _invalidate(self, r0: int, r1: int, c0: int, c1: int) -> None:
+        tr0, tr1 = max(r0, 0) >> TILE_BITS, (min(r1, self.shape[0]) - 1) >> TILE_BITS
+        tc0, tc1 = max(c0, 0) >> TILE_BITS, (min(c1, self.shape[1]) - 1) >> TILE_BITS
+        if tr1 < tr0 or tc1 < tc0:
+            return
+        block = self.cost_slot.reshape(self.ntr, self.ntc)[tr0:tr1 + 1, tc0:tc1 + 1]
+        for slot in block[block >= 0].tolist():
+            self._free_slots.append(slot)
+        block[...] = -1
+
+    def with_points(self, points: np.ndarray, radius: float = 0.08) -> Costmap:
+        """A costmap of the same map with extra lethal discs at ``points`` (N, 2); its own tile cache."""
+        return Costmap(self.grid, self.radius, self.inflation_radius, self.cost_scaling, self.allow_unknown,
+                       self.accelerate, np.asarray(points, float).reshape(-1, 2), radius)
+
+    def ensure_tile(self, tile: int) -> None:
+        """Compute the costs of tile ``tile`` (row-major tile index) if not yet known."""
+        if self.cost_slot[tile] >= 0:
+            return
+        if not self._free_slots:
+            n = self.cost_pool.shape[0]
+            self.cost_pool = np.concatenate([self.cost_pool, np.zeros((n, TILE, TILE), np.uint8)])
+            self._free_slots = list(range(2 * n - 1, n - 1, -1))
+        slot = self._free_slots.pop()
+        self.cost_pool[slot] = self._tile_costs(tile)
+        self.cost_slot[tile] = slot
+        self.tiles_computed += 1
+
+    def _tile_costs(self, tile: int) -> np.ndarray:
+        tr, tc = divmod(tile, self.ntc)
+        h, w = self.shape
+        res, pad = self.grid.resolution, self._pad
+        r0, c0 = tr * TILE, tc * TILE
+        r1, c1 = min(r0 + TILE, h), min(c0 + TILE, w)
+        wr0, wc0, wr1, wc1 = max(r0 - pad, 0), max(c0 - pad, 0), min(r1 + pad, h), min(c1 + pad, w)
+        window = self.grid.data[wr0:wr1, wc0:wc1]
+        lethal = window >= 50
+        if len(self.extra_lethal):
+            lethal = lethal.copy()
+            self._stamp_points(lethal, wr0, wc0)
+        out = np.zeros((TILE, TILE), np.uint8)
+        inner = (slice(r0 - wr0, r1 - wr0), slice(c0 - wc0, c1 - wc0))
+        if lethal.any():
+            dist = cv2.distanceTransform((~lethal).view(np.uint8), cv2.DIST_L2, 5)[inner] * res
+            cost = np.zeros(dist.shape, np.uint8)
+            band = (dist <= self.inflation_radius) & (dist >= self.radius)
+            cost[band] = (252.0 * np.exp(-self.cost_scaling * (dist[band] - self.radius))).astype(np.uint8)
+            cost[dist < self.radius] = INSCRIBED
+            cost[lethal[inner]] = LETHAL
+        else:
+            cost = np.zeros((r1 - r0, c1 - c0), np.uint8)
+        if not self.allow_unknown:
+            cost[(window[inner] < 0) & (cost < LETHAL)] = NO_INFORMATION
+        out[: r1 - r0, : c1 - c0] = cost
+        return out
+
+    def _stamp_points(self, lethal: np.ndarray, wr0: int, wc0: int) -> None:
+        res = self.grid.resolution
+        r_cells = max(1, int(round(self.extra_radius / res)))
+        rows = np.floor((self.extra_lethal[:, 1] - self.grid.origin.y) / res).astype(int) - wr0
+        cols = np.floor((self.extra_lethal[:, 0] - self.grid.origin.x) / res).astype(int) - wc0
+        hh, ww = lethal.shape
+        near = (rows >= -r_cells) & (rows < hh + r_cells) & (cols >= -r_cells) & (cols < ww + r_cells)
+        if not near.any():
+            return
+        view = lethal.view(np.uint8)
+        for row, col in zip(rows[near].tolist(), cols[near].tolist(), strict=True):
+            cv2.circle(view, (col, row), r_cells, 1, -1)
+
+    def cell_cost(self, row: int, col: int) -> int:
+        """Cost of a cell; LETHAL outside the map."""
+        h, w = self.shape
+        if not (0 <= row < h and 0 <= col < w):
+            return LETHAL
+        tile = (row >> TILE_BITS) * self.ntc + (col >> TILE_BITS)
+        self.ensure_tile(tile)
+        return int(self.cost_pool[self.cost_slot[tile], row & _TILE_MASK, col & _TILE_MASK])
+
+    def cost_at(self, x: float, y: float) -> int:
+        """Cost at a map point; LETHAL outside the map."""
+        return self.cell_cost(*self.grid.world_to_cell(x, y))
+
+    def contains(self, x: float, y: float) -> bool:
+        """Whether a map point lies on the grid."""
+        row, col = self.grid.world_to_cell(x, y)
+        return 0 <= row < self.shape[0] and 0 <= col < self.shape[1]
+
+    def blocked_along(self, points: np.ndarray) -> bool:
+        """Whether any of the map ``points`` (N, 2) now lies on a cell the robot cannot enter."""
+        return any(self.cost_at(float(x), float(y)) > MAX_FREE for x, y in points)
+
+    def dense(self) -> np.ndarray:
+        """The whole cost array (every tile computed): for pictures and tests, not for planning."""
+        for tile in range(self.ntr * self.ntc):
+            self.ensure_tile(tile)
+        h, w = self.shape
+        tiles = self.cost_pool[self.cost_slot].reshape(self.ntr, self.ntc, TILE, TILE)
+        return tiles.transpose(0, 2, 1, 3).reshape(self.ntr * TILE, self.ntc * TILE)[:h, :w].copy()
+
+    # -- searching ---------------------------------------------------------------------------------
+
+    def _run(self, start_cell: tuple[int, int], goal_cells: np.ndarray, heuristic: bool,
+             weight: float) -> tuple[_SearchState, int]:
+        h, w = self.shape
+        sr, sc = start_cell
+        s = _SearchState(self.ntr * self.ntc)
+        start = sr * w + sc
+        tile = (sr >> TILE_BITS) * self.ntc + (sc >> TILE_BITS)
+        s.g_slot[tile] = 0
+        s.state[_S_SLOTS] = 1
+        s.g_pool[0] = np.inf
+        s.par_pool[0] = -1
+        off = (sr & _TILE_MASK) * TILE + (sc & _TILE_MASK)
+        s.g_pool[0, off], s.l_pool[0, off], s.par_pool[0, off] = 0.0, 0.0, _START
+        s.heap_k[0], s.heap_v[0], s.state[_S_HEAP] = 0.0, start, 1
+        s.state[_S_LEFT] = len(goal_cells)
+        escape = int(math.ceil((self.radius + 0.1) / self.grid.resolution))
+        escape2 = escape * escape if self.cell_cost(sr, sc) >= INSCRIBED else -1
+        fn = _search_jit if self.accelerate else _search_loops
+        coarse, cfar = _NO_COARSE, 0.0
+        if heuristic:
+            blocks = self._coarse()
+            coarse = np.full(blocks.shape, np.inf, np.float32)
+            n = blocks.size
+            gb = (int(goal_cells[0]) // w >> _BLOCK_BITS) * blocks.shape[1] + (int(goal_cells[0]) % w >> _BLOCK_BITS)
+            sb = (sr >> _BLOCK_BITS) * blocks.shape[1] + (sc >> _BLOCK_BITS)
+            cfn = _coarse_jit if self.accelerate else _coarse_loops
+            cfar = float(cfn(blocks, gb, sb, coarse, np.empty(4 * n + 16, np.float32), np.empty(4 * n + 16, np.int64)))
+            if not math.isfinite(cfar):  # no way around at block scale (narrow door): octile only
+                coarse.fill(np.inf)
+                cfar = 0.0
+        while True:
+            code = fn(self.cost_slot, self.cost_pool, s.g_slot, s.g_pool, s.l_pool, s.par_pool, s.heap_k,
+                      s.heap_v, s.state, h, w, self.ntc, sr, sc, escape2, goal_cells, weight, heuristic,
+                      self.heuristic_weight, coarse, cfar)
+            if code == _NEED_COST:
+                self.ensure_tile(int(s.state[_S_TILE]))
+            elif code == _NEED_STATE:
+                s.grow_state()
+            elif code == _NEED_HEAP:
+                s.grow_heap()
+            else:
+                return s, code
+
+    def plan(self, start: Pose2D | tuple[float, float], goal: Pose2D | tuple[float, float],
+             cost_weight: float = 3.0) -> Path | None:
+        """A* from ``start`` to ``goal`` (map points); None when no path exists or either is off the map.
+
+        The start may lie in the inscribed zone (the robot leaves it); the goal must be enterable.
+        """
+        sx, sy = _xy(start)
+        gx, gy = _xy(goal)
+        sr, sc = self.grid.world_to_cell(sx, sy)
+        gr, gc = self.grid.world_to_cell(gx, gy)
+        h, w = self.shape
+        if not (0 <= sr < h and 0 <= sc < w and 0 <= gr < h and 0 <= gc < w):
+            return None
+        if self.cell_cost(sr, sc) >= LETHAL or self.cell_cost(gr, gc) > MAX_FREE:
+            return None
+        goal_cell = gr * w + gc
+        s, code = self._run((sr, sc), np.array([goal_cell], np.int64), True, cost_weight)
+        if code != _FOUND:
+            return None
+        trace = _trace_jit if self.accelerate else _trace_loops
+        cells = trace(s.g_slot, s.par_pool, w, self.ntc, sr * w + sc, goal_cell)[::-1]
+        rows, cols = cells // w, cells % w
+        res, origin = self.grid.resolution, self.grid.origin
+        pts = np.stack([origin.x + (cols + 0.5) * res, origin.y + (rows + 0.5) * res], axis=1)
+        pts[0] = (sx, sy)
+        pts[-1] = (gx, gy)
+        length = float(np.hypot(*np.diff(pts, axis=0).T).sum()) if len(pts) > 1 else 0.0
+        slot, off = s.lookup(gr, gc, self.ntc)
+        return Path(pts, length, float(s.g_pool[slot, off]), int(s.state[_S_EXPANDED]))
+
+    def path_lengths(self, start: Pose2D | tuple[float, float],
+                     goals: Sequence[Pose2D | tuple[float, float]], cost_weight: float = 3.0) -> list[float | None]:
+        """Length in metres of the best path from ``start`` to each goal (None: unreachable); one search."""
+        sx, sy = _xy(start)
+        sr, sc = self.grid.world_to_cell(sx, sy)
+        h, w = self.shape
+        out: list[float | None] = [None] * len(goals)
+        if not (0 <= sr < h and 0 <= sc < w) or self.cell_cost(sr, sc) >= LETHAL:
+            return out
+        cells: dict[int, list[int]] = {}
+        for i, goal in enumerate(goals):
+            gr, gc = self.grid.world_to_cell(*_xy(goal))
+            if 0 <= gr < h and 0 <= gc < w and self.cell_cost(gr, gc) <= MAX_FREE:
+                cells.setdefault(gr * w + gc, []).append(i)
+        if not cells:
+            return out
+        goal_cells = np.array(sorted(cells), np.int64)
+        s, _ = self._run((sr, sc), goal_cells, False, cost_weight)
+        res = self.grid.resolution
+        for cell, idx in cells.items():
+            slot, off = s.lookup(cell // w, cell % w, self.ntc)
+            if slot >= 0 and s.par_pool[slot, off] >= _CLOSED:
+                cx, cy = self.grid.cell_to_world(cell // w, cell % w)
+                for i in idx:
+                    # cell steps in metres, plus the goal point's offset from its cell centre
+                    gx, gy = _xy(goals[i])
+                    out[i] = float(s.l_pool[slot, off]) * res + math.hypot(gx - cx, gy - cy)
+        return out
+
+
+class _SearchState:
+    """The per-search arrays, in tiles allocated as the search reaches them."""
+
+    def __init__(self, n_tiles: int, slots: int = 16, heap: int = 1 << 14) -> None:
+        self.g_slot = np.full(n_tiles, -1, np.int32)
+        self.g_pool = np.empty((slots, TILE * TILE), np.float32)
+        self.l_pool = np.empty((slots, TILE * TILE), np.float32)
+        self.par_pool = np.empty((slots, TILE * TILE), np.int8)
+        self.heap_k = np.empty(heap, np.float32)
+        self.heap_v = np.empty(heap, np.int64)
+        self.state = np.zeros(8, np.int64)
+
+    def grow_state(self) -> None:
+        n = self.g_pool.shape[0]
+        self.g_pool = np.concatenate([self.g_pool, np.empty_like(self.g_pool)])
+        self.l_pool = np.concatenate([self.l_pool, np.empty_like(self.l_pool)])
+        self.par_pool = np.concatenate([self.par_pool, np.empty_like(self.par_pool)])
+        assert self.g_pool.shape[0] == 2 * n
+
+    def grow_heap(self) -> None:
+        self.heap_k = np.concatenate([self.heap_k, np.empty_like(self.heap_k)])
+        self.heap_v = np.concatenate([self.heap_v, np.empty_like(self.heap_v)])
+
+    def lookup(self, row: int, col: int, ntc: int) -> tuple[int, int]:
+        return (int(self.g_slot[(row >> TILE_BITS) * ntc + (col >> TILE_BITS)]),
+                (row & _TILE_MASK) * TILE + (col & _TILE_MASK))
+
+
+def _xy(p: Pose2D | tuple[float, float]) -> tuple[float, float]:
+    if isinstance(p, Pose2D):
+        return p.x, p.y
+    return float(p[0]), float(p[1])
+
+
+def plan(grid: OccupancyGrid | Costmap, start: Pose2D | tuple[float, float], goal: Pose2D | tuple[float, float],
+         footprint_radius: float = 0.17, allow_unknown: bool = True, inflation_radius: float = 0.45,
+         cost_scaling: float = 3.0) -> Path | None:
+    """Plan once on ``grid`` (or on a kept :class:`Costmap`, whose settings then apply); None when no path."""
+    costmap = grid if isinstance(grid, Costmap) else Costmap(
+        grid, footprint_radius, inflation_radius, cost_scaling, allow_unknown)
+    return costmap.plan(start, goal)
+
+
+def path_lengths(grid: OccupancyGrid | Costmap, start: Pose2D | tuple[float, float],
+                 goals: Sequence[Pose2D | tuple[float, float]], footprint_radius: float = 0.17,
+                 allow_unknown: bool = True, inflation_radius: float = 0.45,
+                 cost_scaling: float = 3.0) -> list[float | None]:
+    """Path length in metres from ``start`` to every goal (None where unreachable), in one Dijkstra search."""
+    costmap = grid if isinstance(grid, Costmap) else Costmap(
+        grid, footprint_radius, inflation_radius, cost_scaling, allow_unknown)
+    return costmap.path_lengths(start, goals)
