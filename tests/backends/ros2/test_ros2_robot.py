@@ -282,8 +282,12 @@ def test_sigint_sends_zero_velocity_before_the_process_stops(domain_id: int, pee
                                                              wait_until: Callable) -> None:
     """A process driving the robot that receives SIGINT publishes zero velocity on its way out."""
     peer.record_velocity(stamped=True)
+    # The child handles SIGINT as an interactive Python program does, whatever it inherited (a test
+    # suite started as a background job passes SIGINT on ignored, and the child would then not stop).
     script = textwrap.dedent(f"""
+        import signal
         import time
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         from missiontree.backends.ros2 import create_robot
         robot = create_robot({{"domain_id": {domain_id}, "node_name": "sigint_test",
                               "config": {{"ros2": {{"startup_timeout": 0.0}}}}}})
