@@ -356,3 +356,58 @@ def test_realtime_paces_ticks_to_wall_time() -> None:
     start = time.monotonic()
     _runner(ScriptedLeaf("a", script="RRRRS"), tick_hz=20, realtime=True).run()
     assert time.monotonic() - start >= 0.19
+
+
+class _SlowModelLeaf(Leaf):
+    """Asks a model that takes ``seconds`` of wall time (simulated latency 0.1 s) and waits for it."""
+
+    seconds = 1.0
+
+    def initialise(self) -> None:
+        import time
+
+        from missiontree.reasoning.calls import model_caller
+
+        self.call = model_caller(self.context).submit("vlm", time.sleep, self.seconds, node=self.name)
+
+    def update(self) -> Status:
+        status = self.call.status()
+        if not status.done:
+            return self.running("waiting for the model")
+        return Status.SUCCESS if status.value == "succeeded" else self.fail(self.call.error())
+
+    def terminate(self, new_status: Status) -> None:
+        if getattr(self, "call", None) is not None:
+            self.call.cancel()
+
+
+def _slow_model_context(robot: ClockRobot) -> MissionContext:
+    from missiontree.reasoning.calls import SETTINGS_KEY, CallSettings, LatencyModel
+
+    settings = CallSettings(latency={"vlm": LatencyModel(0.1, 0.1)}, timeouts={"vlm": 10.0})
+    return MissionContext(robot=robot, models={SETTINGS_KEY: settings})
+
+
+def test_realtime_run_is_not_stalled_by_a_slow_model_call() -> None:
+    """Paced to wall time, a 1 s model call leaves the 20 Hz ticks on time; the answer arrives later."""
+    import time
+
+    robot = ClockRobot()
+    stamps: list[float] = []
+    runner = Runner(_SlowModelLeaf("ask"), _slow_model_context(robot), tick_hz=20, realtime=True,
+                    handle_signals=False, on_tick=lambda r: stamps.append(time.monotonic()))
+    result = runner.run()
+    assert result.status == Status.SUCCESS
+    gaps = [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
+    assert max(gaps) < 0.4, f"a tick waited {max(gaps):.2f} s for the model"
+    assert result.duration >= 0.9  # the answer showed when the worker finished, not at 0.1 s
+
+
+def test_fast_run_still_waits_for_the_model_deterministically() -> None:
+    """As fast as possible, the answer shows at exactly submit + simulated latency (robot clock)."""
+    robot = ClockRobot()
+    leaf = _SlowModelLeaf("ask")
+    leaf.seconds = 0.2
+    result = Runner(leaf, _slow_model_context(robot), tick_hz=20, handle_signals=False).run()
+    assert result.status == Status.SUCCESS
+    assert result.ticks == 3  # submitted at t=0, due at t=0.1: seen on the tick at t=0.1

@@ -42,6 +42,8 @@ class MissionContext:
         config: Free-form run configuration (from ``--config``).
         seed: The run's random seed.
         started_files: Run-directory files this run has begun (see :meth:`starts`).
+        realtime: The run is paced to wall time (set by the runner): model calls then never wait
+            for a worker on the tick thread, even in the simulator.
         scene: The live scene (a :class:`missiontree.semantics.live.LiveScene`: semantic map, rooms,
             latest scene graph) once a ``BuildSceneGraph`` leaf has set it up; None before.
     """
@@ -54,6 +56,7 @@ class MissionContext:
     config: dict[str, Any] = field(default_factory=dict)
     seed: int = 0
     started_files: set[Path] = field(default_factory=set)
+    realtime: bool = False
     scene: Any = None
 
     def starts(self, path: Path) -> bool:

@@ -210,6 +210,7 @@ class Runner:
         self.handle_signals = handle_signals
         self.blackboard = dict(blackboard or {})
         self.realtime = realtime
+        context.realtime = realtime
         self.on_tick = on_tick
         self.final_state = final_state
         self._own_stream = log_stream is None and self.run_dir is not None

@@ -31,8 +31,12 @@ measured on the robot clock. In the simulator (``simulated=True``) a role may ca
 the run seed and the role — and the result becomes visible exactly at ``submit time + latency``
 on the simulated clock, waiting for the worker if it has not finished by then. A call whose drawn
 latency exceeds its timeout times out exactly at ``submit time + timeout``. Runs therefore stay
-deterministic byte for byte whatever the machine's speed. A role without a latency model in the
-simulator answers at the first poll (the simulated clock stands still while the worker runs).
+deterministic byte for byte whatever the machine's speed. That waiting belongs to runs as fast as
+possible only: when the simulator is paced to wall time (``realtime``), a poll never waits — a
+result shows at ``submit time + latency`` or when the worker finishes, whichever is later, and a
+call still running at ``submit time + timeout`` times out, as on a real robot. A role without a
+latency model in the simulator answers at the first poll (the simulated clock stands still while
+the worker runs).
 """
 
 from __future__ import annotations
@@ -254,6 +258,13 @@ class ModelCall:
             return self._set_running()
         if now < self.submitted_at + latency:
             return self._set_running()
+        if self._caller.realtime:  # paced to wall time: never wait on the tick thread
+            if self._future.done():
+                return self._finish_from_future(max(latency, now - self.submitted_at))
+            if self.timeout is not None and now >= self.submitted_at + self.timeout:
+                self._future.cancel()
+                return self._finish(CallStatus.TIMED_OUT, self.timeout, error=self._timeout_reason())
+            return self._set_running()
         # wait() rather than result(): a provider's own TimeoutError must not pass for the wall limit.
         wait([self._future], timeout=self._caller.wall_timeout)
         if not self._future.done():
@@ -369,6 +380,8 @@ class ModelCaller:
         workers: Worker threads.
         default_timeout: Timeout for roles without their own.
         wall_timeout: Wall-clock seconds the simulator waits for a worker past its due time.
+        realtime: The simulated clock follows wall time: polls never wait for a worker (a slow
+            model must not stall the tick); runs are then not reproducible byte for byte.
     """
 
     def __init__(
@@ -384,6 +397,7 @@ class ModelCaller:
         workers: int = 2,
         default_timeout: float | None = 30.0,
         wall_timeout: float = DEFAULT_WALL_TIMEOUT,
+        realtime: bool = False,
     ) -> None:
         self.clock = clock
         self.events: EventSink = events if events is not None else _NullEvents()
@@ -394,6 +408,7 @@ class ModelCaller:
         self.seed = seed
         self.default_timeout = default_timeout
         self.wall_timeout = wall_timeout
+        self.realtime = realtime
         self._workers = workers
         self._pool: ThreadPoolExecutor | None = None
         self._rngs: dict[str, random.Random] = {}
@@ -406,7 +421,8 @@ class ModelCaller:
         settings = settings or CallSettings()
         return cls(robot.now, context.events, simulated=bool(getattr(robot, "simulated", False)),
                    latency=settings.latency, timeouts=settings.timeouts, models=context.models,
-                   seed=context.seed, workers=settings.workers, default_timeout=settings.default_timeout)
+                   seed=context.seed, workers=settings.workers, default_timeout=settings.default_timeout,
+                   realtime=bool(getattr(context, "realtime", False)))
 
     def submit(
         self,
