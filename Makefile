@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
 EXAMPLE_PLUGIN := plugins/missiontree-example
 
-.PHONY: setup setup-ros2 demo test lint bench clean
+.PHONY: setup setup-ros2 setup-browser demo test lint bench clean
 
 setup: $(VENV)/.installed
 
@@ -19,15 +19,19 @@ $(VENV)/.installed: pyproject.toml $(wildcard $(EXAMPLE_PLUGIN)/pyproject.toml)
 setup-ros2: setup
 	if [ -f scripts/setup-ros2.sh ]; then VENV=$(VENV) bash scripts/setup-ros2.sh; fi
 
+# Debian's chromium for the viewer's browser tests (Playwright drives it; no browser download).
+setup-browser:
+	command -v chromium >/dev/null || { [ "$$(id -u)" = 0 ] && apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium; } || echo "chromium missing and not root: the browser tests will fail"
+
 demo: setup
 	$(VENV)/bin/missiontree run trees/patrol.yaml --out runs/demo
 
 lint: setup
 	$(VENV)/bin/ruff check src tests examples benchmarks scripts plugins
 
-test: setup setup-ros2
+test: setup setup-ros2 setup-browser
 	$(VENV)/bin/ruff check src tests examples benchmarks scripts plugins
-	MISSIONTREE_REQUIRE_ROS2=1 $(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests)
+	MISSIONTREE_REQUIRE_ROS2=1 MISSIONTREE_REQUIRE_BROWSER=1 $(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests)
 
 bench: setup
 	for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

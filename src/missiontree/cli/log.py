@@ -36,6 +36,9 @@ def register(subparsers: Any) -> None:
     summarize.add_argument("run_path", metavar="RUN", type=Path, help="a run directory or its ticks.jsonl")
     summarize.add_argument("--json", action="store_true", help="print the summary as JSON")
     summarize.set_defaults(func=run)
+    from missiontree.cli import export  # `log export`: Groot2 .btlog and MCAP (owned by the viewer)
+
+    export.add_to(actions)
 
 
 def log_file(run_path: Path) -> Path:

@@ -27,6 +27,7 @@ SUBCOMMANDS: list[str] = [
     "missiontree.cli.schema",
     "missiontree.cli.models",
     "missiontree.cli.sim_ros",
+    "missiontree.cli.view",
 ]
 
 EXIT_BAD_INPUT = 2

@@ -49,6 +49,7 @@ BACKENDS: dict[str, str] = {
 #: Modules with mission started/finished hooks of built-in backends (cheap to import: no rclpy).
 MISSION_HOOK_MODULES: list[str] = [
     "missiontree.backends.ros2.plugin",
+    "missiontree.runlog.record",  # runview.json: the declared tree, map and trajectory for the viewer
 ]
 
 #: What to install when a backend's module cannot be imported.

@@ -1,0 +1,76 @@
+"""``missiontree view RUN``: the run as one self-contained HTML page, or served live with ``--follow``.
+
+``view RUN [--out report.html]`` writes a page that opens from ``file://`` with no network: the
+tree as declared, coloured by status at the selected tick, a timeline with event marks, the node's
+feedback and the blackboard, and the map with the robot's path. ``view --follow RUN`` serves the
+same page on 127.0.0.1 and updates it as the tick log grows (Ctrl-C stops it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from missiontree.errors import ConfigError
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``view`` subcommand."""
+    parser = subparsers.add_parser(
+        "view",
+        help="see a run: an HTML replay of its tick log",
+        description="Write a self-contained HTML replay of a run (tree coloured by status per tick, "
+        "timeline, blackboard, map with the robot's path), or serve it live with --follow.",
+    )
+    parser.add_argument("run_path", metavar="RUN", type=Path, help="a run directory or its ticks.jsonl")
+    parser.add_argument("--out", type=Path, help="where to write the page (default: RUN/report.html)")
+    parser.add_argument(
+        "--mission", type=Path, help="the mission file, for runs that did not record their tree"
+    )
+    parser.add_argument(
+        "--follow",
+        action="store_true",
+        help="serve the page on 127.0.0.1 and update it as the run writes its log",
+    )
+    parser.add_argument(
+        "--port", type=int, default=8765, help="port for --follow (default 8765; 0 picks one)"
+    )
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Write the page, or serve it until interrupted."""
+    if args.follow:
+        from missiontree.runlog.follow import make_server
+
+        run_dir = args.run_path if args.run_path.suffix != ".jsonl" else args.run_path.parent
+        if not run_dir.is_dir():
+            raise ConfigError(
+                f"run directory {str(run_dir)!r} does not exist; --follow watches a run directory "
+                f"(it may be empty until the run starts writing)"
+            )
+        try:
+            server = make_server(run_dir, args.port, args.mission)
+        except OSError as error:
+            raise ConfigError(
+                f"cannot serve on 127.0.0.1:{args.port}: {error.strerror}; pick another --port"
+            ) from error
+        host, port = server.server_address[:2]
+        print(f"viewing {run_dir} live at http://{host}:{port}/ (Ctrl-C stops)", flush=True)
+        try:
+            server.serve_forever()
+        except KeyboardInterrupt:
+            pass
+        finally:
+            server.server_close()
+        return 0
+    from missiontree.runlog.html import write_page
+
+    if args.out is not None and args.out.is_dir():
+        raise ConfigError(f"--out {args.out} is a directory; give a file name such as report.html")
+    path = write_page(args.run_path, args.out, args.mission)
+    size = path.stat().st_size
+    print(f"wrote {path} ({size / 1e6:.2f} MB); open it in a browser", file=sys.stdout)
+    return 0

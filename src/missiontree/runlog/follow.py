@@ -1,0 +1,112 @@
+"""``view --follow``: serve the viewer on 127.0.0.1 and keep it current as the tick log grows.
+
+A stdlib :class:`http.server.ThreadingHTTPServer` serves ``/`` (the page, with the data as it is
+now) and ``/data.json`` (the data again, which the page polls once a second). The tick log is read
+incrementally: each request reads only the bytes written since the last one, and the data is
+rebuilt only when new lines arrived. A line still being written (no newline yet) waits for the
+next read.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+from typing import Any
+
+from missiontree.runlog.html import page_data, render_page
+from missiontree.runlog.replay import RUNVIEW_FILE, Replay, load_tree, read_records, read_runview
+
+
+class LiveRun:
+    """A run directory whose tick log may still be growing.
+
+    Args:
+        run_dir: The run directory (``ticks.jsonl`` may not exist yet).
+        mission: The mission file, when the run records no tree.
+    """
+
+    def __init__(self, run_dir: Path, mission: Path | None = None) -> None:
+        self.run_dir = Path(run_dir)
+        self.mission = mission
+        self._lock = threading.Lock()
+        self._offset = 0
+        self._replay: Replay | None = None
+        self._data: dict[str, Any] | None = None
+        self._runview_stamp: float | None = None
+
+    def _tree_known(self) -> bool:
+        return self.mission is not None or (self.run_dir / RUNVIEW_FILE).is_file()
+
+    def data(self) -> dict[str, Any]:
+        """The viewer data as of now (rebuilt only when the log or the run view changed)."""
+        with self._lock:
+            if self._replay is None or (
+                self._replay.lines == 0 and not self._replay.nodes and self._tree_known()
+            ):
+                self._replay = Replay(load_tree(self.mission, self.run_dir))
+                self._offset = 0
+            log = self.run_dir / "ticks.jsonl"
+            changed = False
+            if log.is_file():
+                if log.stat().st_size < self._offset:  # a new run replaced the log: start over
+                    self._replay = Replay(load_tree(self.mission, self.run_dir))
+                    self._offset = 0
+                records, self._offset = read_records(log, self._offset)
+                for record in records:
+                    self._replay.feed(record)
+                self._replay.flush_events()
+                changed = bool(records)
+            runview = self.run_dir / RUNVIEW_FILE
+            stamp = runview.stat().st_mtime if runview.is_file() else None
+            if stamp != self._runview_stamp:
+                self._runview_stamp = stamp
+                poses = read_runview(self.run_dir).get("poses")
+                if isinstance(poses, list) and poses:
+                    self._replay.set_poses(
+                        [tuple(p[:3]) for p in poses if isinstance(p, list) and len(p) >= 3]
+                    )
+                changed = True
+            if changed or self._data is None:
+                self._data = page_data(self._replay, self.run_dir, follow=True)
+            return self._data
+
+
+def make_server(run_dir: Path, port: int = 0, mission: Path | None = None) -> ThreadingHTTPServer:
+    """A server for ``run_dir`` on 127.0.0.1 (``port`` 0 picks a free one: see ``server.server_address``)."""
+    live = LiveRun(run_dir, mission)
+
+    class Handler(BaseHTTPRequestHandler):
+        def do_GET(self) -> None:  # noqa: N802 - http.server's naming
+            route = self.path.split("?", 1)[0]
+            if route in ("/", "/index.html"):
+                body = render_page(live.data()).encode("utf-8")
+                kind = "text/html; charset=utf-8"
+            elif route == "/data.json":
+                body = json.dumps(live.data(), separators=(",", ":")).encode("utf-8")
+                kind = "application/json"
+            else:
+                self.send_error(404, "the viewer serves / and /data.json")
+                return
+            self.send_response(200)
+            self.send_header("Content-Type", kind)
+            self.send_header("Content-Length", str(len(body)))
+            self.send_header("Cache-Control", "no-store")
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - http.server's signature
+            """Keep polls off the terminal."""
+
+    server = ThreadingHTTPServer(("127.0.0.1", port), Handler)
+    server.daemon_threads = True
+    return server
+
+
+def serve_in_background(run_dir: Path, port: int = 0, mission: Path | None = None) -> ThreadingHTTPServer:
+    """Start a server on a daemon thread (for ``run --view``); call ``shutdown()`` to stop it."""
+    server = make_server(run_dir, port, mission)
+    thread = threading.Thread(target=server.serve_forever, name="missiontree-view", daemon=True)
+    thread.start()
+    return server

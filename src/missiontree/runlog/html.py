@@ -1,0 +1,268 @@
+"""The run viewer: one self-contained HTML file (no network, no CDN) built from a run directory.
+
+The page is the viewer's script and style (``assets/viewer.js``, ``assets/viewer.css``) with the
+run's data inlined as one JSON document, encoded compactly so that an hour of ticks (36,000)
+stays a few megabytes and opens in about a second:
+
+- strings (feedback, reasons, blackboard values, event fields) are interned in one table;
+- node status changes are a flat integer list (tick delta, node, status, feedback, reason), from
+  which the page builds keyframes (a full snapshot every 256 ticks) when it opens, so seeking to
+  any tick applies at most 255 ticks of changes;
+- root status per tick is one character a tick; times are milliseconds, delta-coded;
+- the map is a PNG, alarm frames are small JPEGs (capped in number and bytes).
+
+:func:`page_data` is the payload (also what ``view --follow`` serves as ``data.json``);
+:func:`render_page` wraps it in the page; :func:`write_page` does both for a run directory.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from missiontree.runlog.replay import (
+    STATUSES,
+    UNSET,
+    Replay,
+    event_category,
+    event_position,
+    open_run,
+    read_runview,
+)
+
+#: Alarm and detection frames embedded at most (the rest are listed without a picture).
+MAX_FRAMES = 200
+#: Bytes of embedded frames at most.
+MAX_FRAME_BYTES = 3_000_000
+#: Event categories, in the order the page colours them.
+CATEGORIES = ("goal", "alarm", "model", "failure", "detection", "other")
+
+
+class _Strings:
+    """A string table: each distinct string stored once, referred to by index (0 is "")."""
+
+    def __init__(self) -> None:
+        self.items: list[str] = [""]
+        self._index: dict[str, int] = {"": 0}
+
+    def __call__(self, text: str) -> int:
+        found = self._index.get(text)
+        if found is None:
+            found = self._index[text] = len(self.items)
+            self.items.append(text)
+        return found
+
+
+def _json(value: Any) -> str:
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+
+
+def _map_of(run_dir: Path | None, runview: dict[str, Any]) -> dict[str, Any] | None:
+    """The map to draw: a learned ``map.pgm`` + ``map.yaml`` in the run directory, else the recorded one."""
+    if run_dir is not None and (run_dir / "map.yaml").is_file():
+        learned = _read_map_server(run_dir / "map.yaml")
+        if learned is not None:
+            return learned
+    found = runview.get("map")
+    return found if isinstance(found, dict) and "png" in found else None
+
+
+def _read_map_server(yaml_path: Path) -> dict[str, Any] | None:
+    """A map_server map (YAML + image) as the page's map, or None when it cannot be read."""
+    import cv2
+    import numpy as np
+
+    from missiontree.runlog.record import encode_map
+    from missiontree.yamlio import load_yaml
+
+    try:
+        meta = load_yaml(yaml_path).data
+        image = cv2.imread(str(yaml_path.parent / str(meta["image"])), cv2.IMREAD_GRAYSCALE)
+        resolution = float(meta["resolution"])
+        origin = [float(v) for v in meta.get("origin", [0.0, 0.0, 0.0])[:2]]
+    except Exception:  # noqa: BLE001 - an unreadable map: fall back to the recorded one
+        return None
+    if image is None:
+        return None
+    negate = int(meta.get("negate", 0))
+    occupied_at = float(meta.get("occupied_thresh", 0.65))
+    free_at = float(meta.get("free_thresh", 0.25))
+    p = image.astype(np.float32) / 255.0 if negate else (255.0 - image.astype(np.float32)) / 255.0
+    data = np.full(image.shape, -1, dtype=np.int8)
+    data[p > occupied_at] = 100
+    data[p < free_at] = 0
+    return encode_map(np.flipud(data), resolution, (origin[0], origin[1]), f"learned map ({yaml_path.name})")
+
+
+def _frame(run_dir: Path | None, name: Any, budget: list[int]) -> str | None:
+    """An event's picture as a small JPEG data URL, within the frame budget."""
+    if run_dir is None or not isinstance(name, str) or budget[0] >= MAX_FRAMES:
+        return None
+    path = (run_dir / name).resolve()
+    try:
+        path.relative_to(run_dir.resolve())
+    except ValueError:  # a path leaving the run directory is not ours to embed
+        return None
+    if not path.is_file():
+        return None
+    import cv2
+
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if image is None:
+        return None
+    scale = min(1.0, 320.0 / max(image.shape[1], 1))
+    if scale < 1.0:
+        image = cv2.resize(
+            image, (int(image.shape[1] * scale), int(image.shape[0] * scale)), interpolation=cv2.INTER_AREA
+        )
+    ok, jpeg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 75])
+    if not ok or budget[1] + len(jpeg) > MAX_FRAME_BYTES:
+        return None
+    budget[0] += 1
+    budget[1] += len(jpeg)
+    return "data:image/jpeg;base64," + base64.b64encode(jpeg.tobytes()).decode("ascii")
+
+
+def page_data(replay: Replay, run_dir: Path | None = None, *, follow: bool = False) -> dict[str, Any]:
+    """The viewer's data for one replayed run (JSON-ready, compact)."""
+    strings = _Strings()
+    runview = read_runview(run_dir) if run_dir is not None else {}
+    nodes = [
+        [
+            n.parent,
+            strings(n.name),
+            strings(n.type),
+            strings(n.category),
+            strings(_json(n.params)),
+            strings(n.source),
+        ]
+        for n in replay.nodes
+    ]
+    changes: list[int] = []
+    previous = 0
+    for change in replay.changes:
+        changes += [
+            change.tick - previous,
+            change.node,
+            change.status,
+            strings(change.feedback),
+            strings(change.reason),
+        ]
+        previous = change.tick
+    board: list[int] = []
+    previous = 0
+    for at, key, value in replay.blackboard:
+        board += [at - previous, strings(key), -1 if value is UNSET else strings(_json(value))]
+        previous = at
+    times: list[int] = []
+    last_ms = 0
+    for t in replay.times:
+        ms = round(t * 1000)
+        times.append(ms - last_ms)
+        last_ms = ms
+    numbers = replay.tick_numbers
+    consecutive = not numbers or numbers[-1] - numbers[0] == len(numbers) - 1
+    budget = [0, 0]
+    events: list[Any] = []
+    frames: dict[str, str] = {}
+    for event in replay.events:
+        category = event_category(event)
+        where = event_position(event)
+        image = event.fields.get("image")
+        if category in ("alarm", "detection") and isinstance(image, str) and image not in frames:
+            data_url = _frame(run_dir, image, budget)
+            if data_url is not None:
+                frames[image] = data_url
+        events.append(
+            [
+                event.tick,
+                strings(event.kind),
+                CATEGORIES.index(category),
+                strings(_json(event.fields)),
+                None if where is None else round(where[0], 3),
+                None if where is None else round(where[1], 3),
+            ]
+        )
+    poses: list[float] = []
+    for t, x, y in replay.poses:
+        poses += [round(t, 3), round(x, 3), round(y, 3)]
+    summary: dict[str, Any] = {}
+    if run_dir is not None and (run_dir / "summary.json").is_file():
+        try:
+            summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError):
+            summary = {}
+    finished = replay.finished
+    status = finished.get("status") or (STATUSES[replay.root_status[-1]] if replay.root_status else "INVALID")
+    meta = {
+        "mission": replay.started.get("mission") or summary.get("mission") or "",
+        "description": runview.get("description", ""),
+        "mission_file": runview.get("mission_file", ""),
+        "status": status,
+        "stopped_by": finished.get("stopped_by", "" if follow else "unknown (no mission_finished line)"),
+        "running": not finished,
+        "tick_hz": replay.started.get("tick_hz") or summary.get("tick_hz") or 10.0,
+        "robot": replay.started.get("robot", ""),
+        "seed": replay.started.get("seed"),
+        "declared": bool(runview.get("tree")) or any(n.type != "?" for n in replay.nodes),
+    }
+    return {
+        "v": 1,
+        "follow": follow,
+        "lines": replay.lines,
+        "meta": meta,
+        "statuses": list(STATUSES),
+        "categories": list(CATEGORIES),
+        "s": strings.items,
+        "nodes": nodes,
+        "first_tick": numbers[0] if numbers else 0,
+        "tick_numbers": None if consecutive else numbers,
+        "times": times,
+        "root": "".join(str(code) for code in replay.root_status),
+        "changes": changes,
+        "bb": board,
+        "events": events,
+        "poses": poses,
+        "map": _map_of(run_dir, runview),
+        "frames": frames,
+        "ending": replay.ending(),
+    }
+
+
+def _asset(name: str) -> str:
+    return resources.files("missiontree.runlog").joinpath("assets", name).read_text(encoding="utf-8")
+
+
+def render_page(data: dict[str, Any], title: str = "") -> str:
+    """The whole HTML page with ``data`` inlined (``</`` escaped so the JSON cannot end the script)."""
+    payload = json.dumps(data, separators=(",", ":"), ensure_ascii=False).replace("</", "<\\/")
+    heading = title or f"missiontree run: {data['meta'].get('mission') or 'mission'}"
+    escaped = heading.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    return (
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        '<meta name="viewport" content="width=device-width, initial-scale=1">'
+        f"<title>{escaped}</title><style>{_asset('viewer.css')}</style></head>\n"
+        f"<body>{_asset('viewer.html')}"
+        f'<script type="application/json" id="mt-data">{payload}</script>\n'
+        f"<script>{_asset('viewer.js')}</script></body></html>\n"
+    )
+
+
+def write_page(run: Path, out: Path | None = None, mission: Path | None = None) -> Path:
+    """Build the viewer page of a run directory (or ticks.jsonl) and write it; return its path.
+
+    Args:
+        run: The run directory or its ticks.jsonl.
+        out: Where to write (default: ``<run>/report.html``).
+        mission: The mission file, when the run did not record its tree.
+    """
+    replay = open_run(run, mission)
+    run_dir = Path(run) if Path(run).is_dir() else Path(run).parent
+    page = render_page(page_data(replay, run_dir))
+    target = Path(out) if out is not None else run_dir / "report.html"
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_text(page, encoding="utf-8")
+    return target

@@ -1,0 +1,518 @@
+"""Replay a tick log: every node's status, feedback and reason, and the blackboard, at any tick.
+
+One reader for the viewer and the exports. A :class:`Replay` is fed tick-log records (dicts, as
+:func:`missiontree.engine.tick_log.read_log` returns them, or lines as a growing file yields them
+in ``--follow`` mode) and keeps compact lists: the tick numbers and times, the root status of each
+tick, the status changes in order (node, status, feedback, reason), blackboard writes, and the
+leaves' events. The state at a tick is rebuilt from the nearest keyframe (a full snapshot every
+:data:`KEYFRAME_EVERY` ticks) plus the changes after it.
+
+The tree comes from the mission as declared (:func:`declared_tree`, or the ``runview.json`` the
+run wrote, see :mod:`missiontree.runlog.record`); nodes the log names that the declaration lacks
+are added under their parent path, so a log alone still replays.
+"""
+
+from __future__ import annotations
+
+import json
+from bisect import bisect_right
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from missiontree.errors import ConfigError
+
+#: Status names in the order of their codes (py_trees' INVALID is Groot's IDLE).
+STATUSES = ("INVALID", "RUNNING", "SUCCESS", "FAILURE")
+STATUS_CODE = {name: code for code, name in enumerate(STATUSES)}
+#: A full snapshot of the state every this many ticks.
+KEYFRAME_EVERY = 256
+#: Runner lines that are not leaf events.
+RUNNER_LINES = frozenset({"tick", "halted", "mission_started", "mission_finished"})
+#: Fields every line carries that say nothing about the event itself.
+_COMMON = ("event", "mission", "tick", "t")
+
+
+@dataclass
+class TreeNode:
+    """One node of the tree as declared.
+
+    Attributes:
+        path: The node's path as the tick log writes it (``root/child/leaf``).
+        name: Its name.
+        type: The node type as the mission file names it (``?`` when only the log knew it).
+        category: ``leaf``, ``decorator``, ``composite`` or ``""`` when unknown.
+        params: Its parameters as written.
+        source: ``file:line:col`` of its declaration, or ``""``.
+        parent: Index of its parent, -1 for the root.
+        children: Indices of its children, in order.
+    """
+
+    path: str
+    name: str
+    type: str = "?"
+    category: str = ""
+    params: dict[str, Any] = field(default_factory=dict)
+    source: str = ""
+    parent: int = -1
+    children: list[int] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Change:
+    """A node's status change in one tick (``tick`` is the tick's index in the replay)."""
+
+    tick: int
+    node: int
+    status: int
+    was: int
+    feedback: str = ""
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class Event:
+    """A leaf's event: its kind, the tick index it belongs to, its time and its own fields."""
+
+    tick: int
+    kind: str
+    t: float
+    fields: dict[str, Any]
+
+
+@dataclass
+class NodeState:
+    """A node's status at a tick, with the feedback and reason of its last change."""
+
+    status: str
+    feedback: str
+    reason: str
+
+
+def declared_tree(spec: Any) -> dict[str, Any]:
+    """The tree of a checked mission spec as plain data (names, types, parameters, sources).
+
+    Paths follow :func:`missiontree.engine.tick_log.node_paths` (``[i]`` added to repeated names).
+    """
+    from missiontree.engine.tick_log import plain
+
+    def convert(node: Any, path: str) -> dict[str, Any]:
+        names = [child.name for child in node.children]
+        children = []
+        for index, child in enumerate(node.children):
+            suffix = f"[{index}]" if names.count(child.name) > 1 else ""
+            children.append(convert(child, f"{path}/{child.name}{suffix}"))
+        return {
+            "path": path,
+            "name": node.name,
+            "type": node.type,
+            "category": node.category or "",
+            "params": plain(node.raw),
+            "source": str(node.source),
+            "children": children,
+        }
+
+    return convert(spec.root, spec.root.name)
+
+
+class Replay:
+    """The replayable content of one tick log.
+
+    Args:
+        tree: A declared tree (:func:`declared_tree`'s form), or None to learn nodes from the log.
+    """
+
+    def __init__(self, tree: dict[str, Any] | None = None) -> None:
+        self.nodes: list[TreeNode] = []
+        self.index: dict[str, int] = {}
+        self.tick_numbers: list[int] = []
+        self.times: list[float] = []
+        self.root_status: list[int] = []
+        self.changes: list[Change] = []
+        #: ``change_start[i]``: index of tick i's first change (one more entry than ticks).
+        self.change_start: list[int] = [0]
+        #: (tick index, key, value) — value is :data:`UNSET` when the key was removed.
+        self.blackboard: list[tuple[int, str, Any]] = []
+        self.events: list[Event] = []
+        self.halted: list[Change] = []
+        self.started: dict[str, Any] = {}
+        self.finished: dict[str, Any] = {}
+        #: (t, x, y) of the robot, from the run's trajectory or events that carry a robot pose.
+        self.poses: list[tuple[float, float, float]] = []
+        self.lines = 0
+        self._pending_events: list[dict[str, Any]] = []
+        self._keyframes: list[tuple[list[int], list[str], list[str], dict[str, Any]]] = []
+        if tree is not None:
+            self._add_declared(tree, -1)
+
+    # -- building --------------------------------------------------------------------------------
+
+    def _add_declared(self, node: dict[str, Any], parent: int) -> None:
+        index = len(self.nodes)
+        self.nodes.append(
+            TreeNode(
+                path=node["path"],
+                name=node.get("name", node["path"].rsplit("/", 1)[-1]),
+                type=node.get("type", "?"),
+                category=node.get("category", ""),
+                params=dict(node.get("params") or {}),
+                source=node.get("source", ""),
+                parent=parent,
+            )
+        )
+        self.index[node["path"]] = index
+        if parent >= 0:
+            self.nodes[parent].children.append(index)
+        for child in node.get("children", []):
+            self._add_declared(child, index)
+
+    def node_id(self, path: str) -> int:
+        """The index of the node at ``path``, adding it (and missing ancestors) when new."""
+        found = self.index.get(path)
+        if found is not None:
+            return found
+        parent = -1
+        if "/" in path:
+            parent = self.node_id(path.rsplit("/", 1)[0])
+        index = len(self.nodes)
+        self.nodes.append(TreeNode(path=path, name=path.rsplit("/", 1)[-1], parent=parent))
+        self.index[path] = index
+        if parent >= 0:
+            self.nodes[parent].children.append(index)
+        return index
+
+    def feed(self, record: dict[str, Any]) -> None:
+        """Take one tick-log record."""
+        self.lines += 1
+        kind = record.get("event")
+        if kind == "tick":
+            self._tick(record)
+        elif kind == "halted":
+            at = max(len(self.tick_numbers) - 1, 0)
+            self.halted.extend(self._changes(record, at))
+        elif kind == "mission_started":
+            self.started = record
+        elif kind == "mission_finished":
+            self.finished = record
+        elif isinstance(kind, str):
+            self._event(record)
+
+    def feed_all(self, records: list[dict[str, Any]]) -> Replay:
+        """Take every record; return self."""
+        for record in records:
+            self.feed(record)
+        self.flush_events()
+        return self
+
+    def _tick(self, record: dict[str, Any]) -> None:
+        at = len(self.tick_numbers)
+        self.tick_numbers.append(int(record.get("tick", at + 1)))
+        self.times.append(float(record.get("t", 0.0)))
+        self.root_status.append(STATUS_CODE.get(str(record.get("status")), 0))
+        self.changes.extend(self._changes(record, at))
+        self.change_start.append(len(self.changes))
+        for key, value in (record.get("bb") or {}).items():
+            self.blackboard.append((at, str(key), value))
+        for key in record.get("bb_unset") or []:
+            self.blackboard.append((at, str(key), UNSET))
+        pose = record.get("pose")
+        if isinstance(pose, list) and len(pose) >= 2:
+            self.poses.append((self.times[-1], float(pose[0]), float(pose[1])))
+        self.flush_events()
+        self._keyframes = self._keyframes[: (at // KEYFRAME_EVERY) + 1]  # later ones are stale
+
+    def _changes(self, record: dict[str, Any], at: int) -> list[Change]:
+        out = []
+        for entry in record.get("changed") or []:
+            if not isinstance(entry, dict) or "node" not in entry:
+                continue
+            out.append(
+                Change(
+                    at,
+                    self.node_id(str(entry["node"])),
+                    STATUS_CODE.get(str(entry.get("status")), 0),
+                    STATUS_CODE.get(str(entry.get("was")), 0),
+                    str(entry.get("feedback", "")),
+                    str(entry.get("reason", "")),
+                )
+            )
+        return out
+
+    def _event(self, record: dict[str, Any]) -> None:
+        self._pending_events.append(record)
+
+    def flush_events(self) -> None:
+        """Place the events read so far on their ticks (an event may precede its tick's line)."""
+        if not self._pending_events:
+            return
+        pending, self._pending_events = self._pending_events, []
+        for record in pending:
+            number = record.get("tick")
+            at = self.tick_index(int(number)) if isinstance(number, int) else len(self.tick_numbers) - 1
+            fields = {k: v for k, v in record.items() if k not in _COMMON}
+            event = Event(max(at, 0), str(record["event"]), float(record.get("t", 0.0)), fields)
+            self.events.append(event)
+            pose = fields.get("robot_pose")
+            if (
+                isinstance(pose, list)
+                and len(pose) >= 2
+                and all(isinstance(v, int | float) for v in pose[:2])
+            ):
+                self.poses.append((event.t, float(pose[0]), float(pose[1])))
+
+    def set_poses(self, poses: list[tuple[float, float, float]]) -> None:
+        """Replace the robot's path (a recorded trajectory is better than poses taken from events)."""
+        self.poses = sorted((float(t), float(x), float(y)) for t, x, y in poses)
+
+    # -- queries --------------------------------------------------------------------------------
+
+    def __len__(self) -> int:
+        return len(self.tick_numbers)
+
+    def tick_index(self, number: int) -> int:
+        """The index of tick ``number`` (the last tick at or before it; 0 before the first)."""
+        numbers = self.tick_numbers
+        if numbers and numbers[-1] - numbers[0] == len(numbers) - 1:  # consecutive: no search
+            return min(max(number - numbers[0], 0), len(numbers) - 1)
+        return max(bisect_right(numbers, number) - 1, 0)
+
+    def _keyframe(self, k: int) -> tuple[list[int], list[str], list[str], dict[str, Any]]:
+        """The state at the end of tick ``k * KEYFRAME_EVERY - 1`` (k = 0: before any tick)."""
+        while len(self._keyframes) <= k:
+            j = len(self._keyframes)
+            if j == 0:
+                count = len(self.nodes)
+                self._keyframes.append(([0] * count, [""] * count, [""] * count, {}))
+                continue
+            status, feedback, reason, board = self._keyframe(j - 1)
+            status, feedback, reason, board = list(status), list(feedback), list(reason), dict(board)
+            self._apply(status, feedback, reason, board, (j - 1) * KEYFRAME_EVERY, j * KEYFRAME_EVERY)
+            self._keyframes.append((status, feedback, reason, board))
+        return self._keyframes[k]
+
+    def _apply(
+        self,
+        status: list[int],
+        feedback: list[str],
+        reason: list[str],
+        board: dict[str, Any],
+        first: int,
+        end: int,
+    ) -> None:
+        end = min(end, len(self.tick_numbers))
+        grow = len(self.nodes) - len(status)
+        if grow > 0:
+            status.extend([0] * grow)
+            feedback.extend([""] * grow)
+            reason.extend([""] * grow)
+        if first >= end:
+            return
+        for change in self.changes[self.change_start[first] : self.change_start[end]]:
+            status[change.node] = change.status
+            feedback[change.node] = change.feedback
+            reason[change.node] = change.reason
+        lo = bisect_right(self.blackboard, first - 1, key=lambda b: b[0])
+        for at, key, value in self.blackboard[lo:]:
+            if at >= end:
+                break
+            if value is UNSET:
+                board.pop(key, None)
+            else:
+                board[key] = value
+
+    def state_at(self, at: int) -> tuple[dict[str, NodeState], dict[str, Any]]:
+        """Every node's state and the blackboard at the end of tick index ``at``."""
+        if not self.tick_numbers:
+            return {n.path: NodeState("INVALID", "", "") for n in self.nodes}, {}
+        at = min(max(at, 0), len(self.tick_numbers) - 1)
+        k = (at + 1) // KEYFRAME_EVERY
+        status, feedback, reason, board = self._keyframe(k)
+        status, feedback, reason, board = list(status), list(feedback), list(reason), dict(board)
+        self._apply(status, feedback, reason, board, k * KEYFRAME_EVERY, at + 1)
+        states = {
+            node.path: NodeState(STATUSES[status[i]], feedback[i], reason[i])
+            for i, node in enumerate(self.nodes)
+        }
+        return states, board
+
+    def ending(self) -> dict[str, Any]:
+        """The chain of nodes that decided how the run ended, and the tick to look at.
+
+        From the root down, each step takes the child that holds the root's final status and
+        changed to it last; the chain stops at a node with no such child (for a failure, the leaf
+        whose reason ended the run). Returns ``{"tick": index, "status", "chain": [node indices],
+        "reason", "text"}``.
+        """
+        if not self.tick_numbers or not self.nodes:
+            return {"tick": 0, "status": "INVALID", "chain": [], "reason": "", "text": "the log has no ticks"}
+        last = len(self.tick_numbers) - 1
+        states, _ = self.state_at(last)
+        final = STATUSES[self.root_status[last]]
+        last_change: dict[int, int] = {}
+        for index, change in enumerate(self.changes):
+            last_change[change.node] = index
+        chain = [0]
+        while True:
+            node = self.nodes[chain[-1]]
+            held = [c for c in node.children if states[self.nodes[c].path].status == final]
+            if not held:
+                break
+            chain.append(max(held, key=lambda c: last_change.get(c, -1)))
+        deciding = chain[-1]
+        change_at = last_change.get(deciding)
+        tick = self.changes[change_at].tick if change_at is not None else last
+        state = states[self.nodes[deciding].path]
+        reason = state.reason or state.feedback
+        stopped_by = self.finished.get("stopped_by", "")
+        if final in ("SUCCESS", "FAILURE"):
+            text = f"{final}: {self.nodes[deciding].path}" + (f": {reason}" if reason else "")
+        else:
+            text = f"stopped by {stopped_by or 'the end of the log'} while {final}"
+            tick = last
+        return {"tick": tick, "status": final, "chain": chain, "reason": reason, "text": text}
+
+
+class _Unset:
+    """Marks a blackboard key that was removed."""
+
+    def __repr__(self) -> str:
+        return "UNSET"
+
+
+UNSET: Any = _Unset()
+
+
+def event_category(event: Event) -> str:
+    """The event's mark: ``goal``, ``alarm``, ``model``, ``failure``, ``detection`` or ``other``."""
+    kind = event.kind
+    if kind == "error" or "fail" in kind or kind.endswith("_lost") or "abort" in kind:
+        return "failure"
+    if "alarm" in kind:
+        return "alarm"
+    if "goal" in kind:
+        return "goal"
+    if kind.startswith("model") or "verdict" in kind or "answer" in kind:
+        return "model"
+    if "detect" in kind or "confirm" in kind or "found" in kind:
+        return "detection"
+    return "other"
+
+
+def event_position(event: Event) -> tuple[float, float] | None:
+    """Where on the map an event happened, when it says (``position`` [x, y] or ``x``/``y``)."""
+    fields = event.fields
+    position = fields.get("position")
+    if (
+        isinstance(position, list | tuple)
+        and len(position) >= 2
+        and all(isinstance(v, int | float) for v in position[:2])
+    ):
+        return float(position[0]), float(position[1])
+    x, y = fields.get("x"), fields.get("y")
+    if isinstance(x, int | float) and isinstance(y, int | float) and not isinstance(x, bool):
+        return float(x), float(y)
+    return None
+
+
+# -- run directories ---------------------------------------------------------------------------------
+
+RUNVIEW_FILE = "runview.json"
+
+
+def log_path(run: Path) -> Path:
+    """The tick log of a run directory (or ``run`` itself when it is a file)."""
+    run = Path(run)
+    if run.is_dir():
+        candidate = run / "ticks.jsonl"
+        if not candidate.is_file():
+            raise ConfigError(
+                f"{run} has no ticks.jsonl; give a run directory written by `missiontree run` "
+                f"(see its --out) or the log file itself"
+            )
+        return candidate
+    if not run.exists():
+        raise ConfigError(f"run {str(run)!r} does not exist; give a run directory or a ticks.jsonl")
+    return run
+
+
+def read_records(path: Path, start: int = 0) -> tuple[list[dict[str, Any]], int]:
+    """Complete JSON lines of ``path`` from byte ``start``; returns them and where the next read starts.
+
+    A last line without its newline (a run still writing) is left for the next read.
+
+    Raises:
+        ConfigError: The file cannot be read or a line is not a JSON object (names the line).
+    """
+    try:
+        with path.open("rb") as stream:
+            stream.seek(start)
+            data = stream.read()
+    except OSError as error:
+        raise ConfigError(f"cannot read tick log {str(path)!r}: {error.strerror}") from error
+    end = data.rfind(b"\n") + 1
+    records: list[dict[str, Any]] = []
+    for number, line in enumerate(data[:end].split(b"\n"), start=1):
+        if not line.strip():
+            continue
+        try:
+            record = json.loads(line)
+        except json.JSONDecodeError as error:
+            raise ConfigError(
+                f"{path}: line {number} after byte {start}: not a tick log line (expected one "
+                f"JSON object): {error.msg}"
+            ) from error
+        if not isinstance(record, dict):
+            raise ConfigError(
+                f"{path}: line {number} after byte {start}: expected a JSON object, "
+                f"found {type(record).__name__}"
+            )
+        records.append(record)
+    return records, start + end
+
+
+def read_runview(run_dir: Path) -> dict[str, Any]:
+    """What the run recorded for viewing (tree, map, trajectory), or {} when it recorded nothing."""
+    path = Path(run_dir) / RUNVIEW_FILE
+    if not path.is_file():
+        return {}
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as error:
+        raise ConfigError(
+            f"{path}: not a readable run view file ({error}); delete it to view the log alone"
+        ) from error
+    return data if isinstance(data, dict) else {}
+
+
+def load_tree(mission: Path | None, run_dir: Path | None) -> dict[str, Any] | None:
+    """The declared tree: from ``mission`` (a mission file, checked), else the run's ``runview.json``."""
+    if mission is not None:
+        from missiontree.engine.loader import load_mission
+        from missiontree.plugins.manager import load_plugins
+
+        spec = load_mission(Path(mission), load_plugins().nodes)
+        return declared_tree(spec)
+    if run_dir is not None:
+        tree = read_runview(run_dir).get("tree")
+        if isinstance(tree, dict):
+            return tree
+    return None
+
+
+def open_run(run: Path, mission: Path | None = None) -> Replay:
+    """Replay a run directory (or a ticks.jsonl): its tree, its log and its recorded trajectory.
+
+    Raises:
+        ConfigError: No tick log, an unreadable line, or an empty log.
+    """
+    path = log_path(run)
+    run_dir = path.parent
+    replay = Replay(load_tree(mission, run_dir))
+    records, _ = read_records(path)
+    if not records:
+        raise ConfigError(f"{path} is empty: the run wrote no tick log lines")
+    replay.feed_all(records)
+    poses = read_runview(run_dir).get("poses")
+    if isinstance(poses, list) and poses:
+        replay.set_poses([tuple(p[:3]) for p in poses if isinstance(p, list) and len(p) >= 3])
+    return replay
