@@ -4,17 +4,19 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
-from patrol_doubles import Events, FakeRobot, ScriptedVLM, SlabDetector, person_frame, wall_scan
+from patrol_doubles import Events, FakeRobot, K, ScriptedVLM, SlabDetector, person_frame, wall_scan
 
 from missiontree.behaviours.surveillance import Surveillance
 from missiontree.behaviours.tracks import CallBudget, PersonTracks
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Status
 from missiontree.reasoning.calls import CALLER_KEY, LatencyModel, ModelCaller
-from missiontree.types import Pose2D
+from missiontree.types import Detection, Pose2D, RGBDFrame
 
 
 def setup_leaf(robot: FakeRobot, latency: float = 1.0, vlm: ScriptedVLM | None = None,
@@ -44,6 +46,7 @@ def test_detect_mode_asks_the_vlm_only_about_frames_with_people() -> None:
     leaf, _, models = setup_leaf(robot)
     for _ in range(10):
         step(robot, leaf, None)
+    leaf.tick_once()  # the last frame's detections are read on the tick after it was submitted
     assert models["detector"].calls == 10
     assert models["vlm"].asked == 0
 
@@ -62,14 +65,15 @@ def test_model_call_does_not_block_the_tick() -> None:
     """While the VLM's 1 s answer is pending the leaf keeps returning RUNNING and raises no alarm yet."""
     robot = FakeRobot()
     leaf, events, _ = setup_leaf(robot, latency=1.0)
-    step(robot, leaf, math.radians(10))
+    step(robot, leaf, math.radians(10))  # t=0.2: the frame goes to the detector
+    step(robot, leaf, math.radians(10))  # t=0.4: its detections are read; the VLM is asked
     assert leaf.status == Status.RUNNING
     assert "1 waiting" in leaf.feedback_message
-    for _ in range(3):
+    for _ in range(2):
         step(robot, leaf, math.radians(10))
     assert events.of("alarm") == []
     for _ in range(3):
-        step(robot, leaf, math.radians(10))
+        step(robot, leaf, math.radians(10))  # the answer is due at t=1.4
     assert len(events.of("alarm")) == 1
 
 
@@ -216,4 +220,170 @@ def test_a_one_frame_detection_is_not_asked_about_with_min_hits_two() -> None:
     assert models["vlm"].asked == 0
     step(robot, leaf, 0.0)
     step(robot, leaf, 0.0)
+    step(robot, leaf, None)  # the second sighting's detections are read here; the VLM is asked
+    step(robot, leaf, None)
     assert models["vlm"].asked == 1
+
+
+# -- which person an alarm is about -----------------------------------------------------------------
+
+class TwoPeopleDetector:
+    """A false 'person' (a pillar cut by the left edge: big box, low score) and a real person on the right."""
+
+    name = "two"
+    labels = ["person"]
+    PILLAR = (0.0, 0.0, 45.0, 216.0)
+    PERSON = (244.0, 40.0, 277.0, 200.0)
+
+    def __init__(self) -> None:
+        self.threads: list[int] = []
+
+    def detect(self, image: np.ndarray) -> list[Detection]:
+        self.threads.append(threading.get_ident())
+        return [Detection("person", 0.54, self.PILLAR), Detection("person", 0.93, self.PERSON)]
+
+
+def two_people_frame(stamp: float, camera: Pose2D) -> RGBDFrame:
+    """The pillar at 1.4 m on the left edge, the person 3 m away on the right."""
+    color = np.full((240, 320, 3), 90, np.uint8)
+    depth = np.full((240, 320), 6.0, np.float32)
+    depth[0:216, 0:45] = 1.4
+    depth[40:200, 244:277] = 3.0
+    return RGBDFrame(stamp, color, depth, K, camera)
+
+
+def watch_two(vlm_boxes: list[tuple[tuple[float, ...], float]], **params: object) -> tuple[Events, dict]:
+    answer = json.dumps({"verdict": "ALARM", "description": "people",
+                         "people": [{"box": list(b), "score": s} for b, s in vlm_boxes]})
+    robot = FakeRobot()
+    events = Events()
+    models: dict = {"detector": TwoPeopleDetector(), "vlm": ScriptedVLM(lambda image: answer)}
+    models[CALLER_KEY] = ModelCaller(robot.now, events, simulated=True, models=models,
+                                     latency={"vlm": LatencyModel(0.2, 0.2)})
+    leaf = Surveillance("watch", Surveillance.Params(lidar_check=False, **params))
+    leaf.setup(context=MissionContext(robot=robot, models=models, events=events))
+    for _ in range(6):
+        robot.advance(0.2)
+        robot.frame = two_people_frame(robot.time, robot.current)
+        leaf.tick_once()
+    return events, models
+
+
+def test_alarm_goes_to_the_person_the_vlm_confirmed_not_the_bigger_box() -> None:
+    """The VLM boxes only the real person: the alarm's box and position are theirs, not the pillar's."""
+    events, _ = watch_two([(TwoPeopleDetector.PERSON, 0.9)])
+    alarms = events.of("alarm")
+    assert len(alarms) == 1
+    assert alarms[0]["box"] == list(TwoPeopleDetector.PERSON)
+    assert alarms[0]["bearing"] < 0  # on the right
+    assert alarms[0]["distance"] == pytest.approx(3.0 / math.cos(alarms[0]["bearing"]) + 0.1, abs=0.15)
+
+
+def test_alarm_cooldown_keeps_the_best_confirmed_person() -> None:
+    """Both boxes confirmed with a cooldown: the one alarm is the better-confirmed person, not the pillar."""
+    events, _ = watch_two([(TwoPeopleDetector.PILLAR, 0.54), (TwoPeopleDetector.PERSON, 0.93)],
+                          alarm_cooldown=5.0)
+    alarms = events.of("alarm")
+    assert len(alarms) == 1 and alarms[0]["box"] == list(TwoPeopleDetector.PERSON)
+
+
+def test_detector_runs_on_a_worker_and_is_read_a_tick_later() -> None:
+    """The detector is a model call: never run on the tick thread; its detections arrive on the next tick."""
+    events, models = watch_two([(TwoPeopleDetector.PERSON, 0.9)])
+    threads = models["detector"].threads
+    assert threads and threading.get_ident() not in threads
+    detector_calls = [e for e in events.of("model_call") if e["role"] == "detector"]
+    assert detector_calls and all(e["node"] == "watch" for e in detector_calls)
+
+
+# -- faults that must not pass quietly --------------------------------------------------------------
+
+def test_a_stale_frame_is_never_looked_at_and_a_quiet_camera_fails_the_leaf() -> None:
+    """A frame older than max_frame_age raises no alarm; no fresh frame for camera_timeout fails with why."""
+    robot = FakeRobot()
+    leaf, events, models = setup_leaf(robot, latency=0.2, max_frame_age=1.0, camera_timeout=3.0)
+    robot.frame = person_frame(0.0, robot.current, 0.0)
+    robot.advance(1.5)  # the camera went quiet 1.5 s ago: its last frame shows a person
+    for _ in range(5):
+        robot.advance(0.2)
+        leaf.tick_once()
+    assert models["detector"].calls == 0 and events.of("alarm") == []
+    assert leaf.status == Status.RUNNING and "camera quiet" in leaf.feedback_message
+    for _ in range(20):
+        robot.advance(0.2)
+        leaf.tick_once()
+        if leaf.status != Status.RUNNING:
+            break
+    assert leaf.status == Status.FAILURE and "camera quiet" in leaf.feedback_message
+
+
+def test_every_model_call_failing_fails_the_leaf_with_the_last_error() -> None:
+    """Malformed answers every time: after max_failed_calls failures in a row the leaf fails, saying why."""
+    robot = FakeRobot()
+    vlm = ScriptedVLM(lambda image: "not json at all")
+    leaf, events, _ = setup_leaf(robot, latency=0.1, vlm=vlm, max_failed_calls=3, period=0.2)
+    for _ in range(60):
+        step(robot, leaf, 0.0)
+        if leaf.status != Status.RUNNING:
+            break
+    assert leaf.status == Status.FAILURE
+    assert "3 vlm calls in a row failed" in leaf.feedback_message
+    assert "SurveillanceVerdict" in leaf.feedback_message
+    assert events.of("alarm") == []
+
+
+def test_one_good_answer_resets_the_failure_count() -> None:
+    """Failures that are not in a row (every other answer good) do not fail the leaf."""
+    robot = FakeRobot()
+    answers = iter(["garbage", "garbage", ScriptedVLM.by_detector] * 100)
+
+    def flaky(image: np.ndarray) -> str:
+        answer = next(answers)
+        return answer(image) if callable(answer) else answer
+
+    leaf, _, _ = setup_leaf(robot, latency=0.1, vlm=ScriptedVLM(flaky), max_failed_calls=2, period=0.2,
+                            recheck=0.2)
+    for _ in range(60):
+        step(robot, leaf, 0.0)
+    assert leaf.status == Status.RUNNING
+
+
+class BrokenBoxDetector:
+    """A detector whose answer holds non-finite and impossible boxes beside one good one."""
+
+    name = "broken-boxes"
+    labels = ["person"]
+
+    def detect(self, image: np.ndarray) -> list[Detection]:
+        good = SlabDetector().detect(image)
+        return [Detection("person", 0.9, (math.nan, 0.0, 10.0, 10.0)),
+                Detection("person", math.inf, (0.0, 0.0, 10.0, 10.0)),
+                Detection("person", 0.9, (90000.0, 90000.0, 90010.0, 90010.0)),
+                Detection("person", 0.9, (50.0, 40.0, -math.inf, 100.0)), *good]
+
+
+def test_non_finite_and_impossible_detector_boxes_are_dropped_not_fatal() -> None:
+    """NaN/inf boxes and a box far outside the image are dropped where they enter; the real person alarms."""
+    robot = FakeRobot()
+    leaf, events, models = setup_leaf(robot, latency=0.2)
+    models["detector"] = BrokenBoxDetector()
+    for _ in range(6):
+        step(robot, leaf, math.radians(10))
+    assert leaf.status == Status.RUNNING and events.of("error") == []
+    alarms = events.of("alarm")
+    assert len(alarms) == 1 and all(math.isfinite(v) for v in alarms[0]["box"])
+    assert abs(alarms[0]["bearing"] - math.radians(10)) < math.radians(3)
+
+
+def test_a_vlm_box_outside_the_image_gives_no_alarm_at_an_impossible_bearing() -> None:
+    """Poll mode: a VLM box at (90000, 90000) in a 320x240 frame is rejected (retried, then failed)."""
+    robot = FakeRobot()
+    answer = json.dumps({"verdict": "ALARM", "description": "someone",
+                         "people": [{"box": [90000, 90000, 90050, 90100], "score": 0.9}]})
+    vlm = ScriptedVLM(lambda image: answer)
+    leaf, events, _ = setup_leaf(robot, latency=0.1, vlm=vlm, mode="poll", period=0.5)
+    for _ in range(5):
+        step(robot, leaf, 0.0)
+    assert events.of("alarm") == []
+    failed = events.of("surveillance_check_failed")
+    assert failed and "outside the 320x240 image" in failed[0]["error"]

@@ -16,6 +16,10 @@ hands control back to the patrol::
       └── Parallel ─ Patrol, Surveillance  halted (goal cancelled, place kept) while servoing
 
 With no new alarm on the blackboard it fails at once, so the Selector ticks the patrol.
+
+The detector is a model call like any other: a new frame is submitted on one tick and its
+detections are read on a later one (one frame in flight; the control step in between steers by
+the last known bearing). A frame older than ``max_frame_age`` is not looked at.
 """
 
 from __future__ import annotations
@@ -30,8 +34,9 @@ from missiontree.behaviours.measure import Method, measure
 from missiontree.behaviours.surveillance import alarm_from
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Input, Output
+from missiontree.perception.detectors import detection_job
 from missiontree.perception.lidar import box_bearings
-from missiontree.reasoning.calls import model_caller
+from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
 from missiontree.types import Detection, Pose2D, RGBDFrame, wrap_angle
 
 
@@ -57,6 +62,9 @@ class ServoToTarget(Leaf):
         ignore_radius: float = Field(
             1.5, ge=0, description="Skip an alarm this close (m) to a person served within ignore_for.")
         ignore_for: float = Field(20.0, ge=0, description="Seconds a served person is not served again.")
+        max_frame_age: float = Field(
+            1.0, gt=0, description="A frame older than this (s, robot clock) is not looked at.")
+        detector_timeout: float = Field(2.0, gt=0, description="Seconds to wait for the detector's answer.")
         alarm: Annotated[str, Input("the alarm to serve", type="dict")] = "alarm"
         result: Annotated[str, Output("the servoed alarm record", type="dict")] = "servo_result"
 
@@ -74,6 +82,8 @@ class ServoToTarget(Leaf):
         self.seen_once = False
         self.active = False
         self.served: list[tuple[float, float, float]] = []  # (time, x, y) of people served
+        self.detecting: tuple[ModelCall, RGBDFrame] | None = None
+        self.detector_error = ""
 
     def on_setup(self) -> None:
         """Check that a detector is configured (it tracks the person while turning)."""
@@ -116,11 +126,15 @@ class ServoToTarget(Leaf):
         robot = self.context.robot
         now = robot.now()
         pose = self._pose()
+        seen = self._collect(pose)
         frame = robot.rgbd()
-        seen: tuple[RGBDFrame, Detection, float] | None = None
-        if frame is not None and frame.stamp > self.last_frame:
+        fresh = frame is not None and now - frame.stamp <= self.params.max_frame_age
+        if frame is not None and fresh and frame.stamp > self.last_frame and self.detecting is None:
             self.last_frame = frame.stamp
-            seen = self._find(frame, pose)
+            call = model_caller(self.context).submit(
+                "detector", detection_job(self.context.model("detector"), frame),
+                timeout=self.params.detector_timeout, node=self.name)
+            self.detecting = (call, frame)
         if seen is not None:
             frame, person, bearing_then = seen
             self.last_seen = now
@@ -132,7 +146,8 @@ class ServoToTarget(Leaf):
                 return self._finish(frame, person)
         else:
             if now - self.last_seen > self.params.lost_timeout:
-                return self._give_up(f"target lost: not seen for {self.params.lost_timeout:g} s")
+                why = f"; the detector failed: {self.detector_error}" if self.detector_error else ""
+                return self._give_up(f"target lost: not seen for {self.params.lost_timeout:g} s{why}")
             error = self._expected_bearing(pose)
         if now - self.started > self.params.timeout:
             return self._give_up(f"not centred within {self.params.timeout:g} s")
@@ -141,10 +156,13 @@ class ServoToTarget(Leaf):
         return self.running(f"turning to alarm {self.alarm.id}: {math.degrees(error):.1f}° off")
 
     def terminate(self, new_status: Status) -> None:
-        """Stop turning (also when halted)."""
+        """Stop turning (also when halted) and cancel the detection in flight."""
         if self.active and self.ctx is not None:
             self.ctx.robot.drive(0.0, 0.0)
         self.active = False
+        if self.detecting is not None:
+            self.detecting[0].cancel()
+            self.detecting = None
 
     # -- helpers ---------------------------------------------------------------------------------
 
@@ -170,7 +188,23 @@ class ServoToTarget(Leaf):
             return pose.bearing_to(*self.target)
         return wrap_angle(self.bearing_hint - pose.yaw)
 
-    def _find(self, frame: RGBDFrame, pose: Pose2D) -> tuple[RGBDFrame, Detection, float] | None:
+    def _collect(self, pose: Pose2D) -> tuple[RGBDFrame, Detection, float] | None:
+        """The target in the frame whose detections just arrived, if they did and show it."""
+        if self.detecting is None:
+            return None
+        call, frame = self.detecting
+        status = call.status()
+        if not status.done:
+            return None
+        self.detecting = None
+        if status is not CallStatus.SUCCEEDED:
+            self.detector_error = call.error() if status is not CallStatus.CANCELLED else ""
+            return None
+        self.detector_error = ""
+        return self._find(frame, pose, call.result())
+
+    def _find(self, frame: RGBDFrame, pose: Pose2D,
+              detections: list[Detection]) -> tuple[RGBDFrame, Detection, float] | None:
         """The person in ``frame`` nearest the expected bearing, with their bearing at the frame's time."""
         frame_pose = self.context.robot.pose_at(frame.stamp) or pose
         expected = wrap_angle(self.bearing_hint - frame_pose.yaw)
@@ -178,7 +212,7 @@ class ServoToTarget(Leaf):
             expected = frame_pose.bearing_to(*self.target)
         k = frame.intrinsics
         best: tuple[float, Detection, float] | None = None
-        for det in self.context.model("detector").detect(frame.color):
+        for det in detections:
             if det.label != "person" or det.score < self.params.min_score:
                 continue
             bearing, _ = box_bearings(frame.camera_pose, frame_pose, det.box[0], det.box[2], k.fx, k.cx)

@@ -14,12 +14,29 @@ Runs beside the patrol (a Parallel) and never finishes by itself. Two modes:
   two newcomers are both asked at once) and ``max_in_flight`` at once. Each person costs one call.
 
 Model calls never block the tick: they are submitted through the mission's
-:class:`~missiontree.reasoning.calls.ModelCaller` and polled. The answer is read through the
-:class:`~missiontree.reasoning.schemas.SurveillanceVerdict` schema (checked, retried once), never
-by searching its text. The person's bearing, distance and map position come from the sensor data
-of the instant the frame was taken (``fuse_at: frame``), by the chosen ``method`` (seed | cone |
-depth, :mod:`missiontree.behaviours.measure`); ``fuse_at: answer`` reproduces the seed, which read
-the latest scan once the answer came back.
+:class:`~missiontree.reasoning.calls.ModelCaller` and polled — the VLM's and the detector's alike
+(a frame's detections are read on a later tick than the one that submitted it; one detection is in
+flight at a time, newer frames wait). Detector boxes are checked where they enter
+(:func:`~missiontree.perception.detectors.detection_job`): non-finite boxes are dropped, boxes are
+clipped to the image.
+
+**Which person an alarm is about.** A frame may show several people, some of them false detections
+(a white pillar at the frame's edge). When the VLM answers ALARM with people's boxes, only the
+detector's people whose boxes overlap one of them are confirmed; the others are marked safe. The
+alarms go out best-confirmed first (the VLM's score, then the detector's), so an alarm cooldown
+never lets a doubtful box take the place of the person the model saw. When the VLM gives no
+boxes, every person sent is confirmed, highest detector score first.
+
+**Faults are not quiet.** A frame older than ``max_frame_age`` is never looked at (a camera that
+went quiet shows a stale stamp); with no fresh frame for ``camera_timeout`` seconds the leaf fails
+saying so. ``max_failed_calls`` model calls failing in a row (malformed answers, timeouts, a dead
+server) fail it too, with the last error: a patrol whose every check failed did not watch.
+
+The answer is read through the :class:`~missiontree.reasoning.schemas.SurveillanceVerdict` schema
+(checked, retried once), never by searching its text. The person's bearing, distance and map
+position come from the sensor data of the instant the frame was taken (``fuse_at: frame``), by the
+chosen ``method`` (seed | cone | depth, :mod:`missiontree.behaviours.measure`); ``fuse_at: answer``
+reproduces the seed, which read the latest scan once the answer came back.
 """
 
 from __future__ import annotations
@@ -28,6 +45,7 @@ import math
 from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, Field
 
 from missiontree.behaviours.alarms import Alarm, record_alarm
@@ -36,12 +54,16 @@ from missiontree.behaviours.tracks import CallBudget, PersonTracks, Track, Track
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Output
 from missiontree.perception.depth import centre_region
+from missiontree.perception.detectors import checked_detections, detection_job, iou_matrix, share_frame
 from missiontree.perception.lidar import legs_at
 from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
 from missiontree.reasoning.checks import ask_checked
 from missiontree.reasoning.prompts import surveillance_prompt
 from missiontree.reasoning.schemas import SurveillanceVerdict
 from missiontree.types import Detection, RGBDFrame, wrap_angle
+
+#: Overlap (IoU) above which a detector's box is the person a VLM box shows.
+CONFIRM_IOU = 0.3
 
 
 @dataclass
@@ -95,6 +117,12 @@ class Surveillance(Leaf):
         alarm_cooldown: float = Field(
             0.0, ge=0, description="Seconds after an alarm with no new alarm (0: every sighting).")
         timeout: float = Field(10.0, gt=0, description="Seconds to wait for a VLM answer.")
+        max_frame_age: float = Field(
+            1.0, gt=0, description="A frame older than this (s, robot clock) is never looked at.")
+        camera_timeout: float = Field(
+            5.0, gt=0, description="Fail when no frame younger than max_frame_age came for this long (s).")
+        max_failed_calls: int = Field(
+            10, ge=0, description="Fail after this many model calls failed in a row (0: never).")
         prompt: str | None = Field(None, description="Question for the VLM; default: seed 001's prompt.")
         alarm: Annotated[str, Output("the last alarm raised", type="dict")] = "alarm"
 
@@ -112,6 +140,11 @@ class Surveillance(Leaf):
         self.rejected = 0
         self.tracks = PersonTracks(forget_after=self.params.forget_after)
         self.budget = CallBudget(1.0 / self.params.period)
+        self.detecting: tuple[ModelCall, RGBDFrame] | None = None
+        self.last_fresh = 0.0
+        self.failed_in_row: dict[str, int] = {}  # per role: a working detector does not hide a broken VLM
+        self.last_error = ""
+        self.stale_frames = 0
 
     def on_setup(self) -> None:
         """Check that the models this mode needs are configured."""
@@ -125,17 +158,37 @@ class Surveillance(Leaf):
 
     # -- lifecycle -------------------------------------------------------------------------------
 
+    def initialise(self) -> None:
+        """Start the camera's staleness clock (again after a halt: servoing, for example)."""
+        self.last_fresh = self.context.robot.now()
+
     def update(self) -> Status:
-        """Collect answers that arrived, then look at the newest frame."""
+        """Collect answers and detections that arrived, then look at the newest frame."""
         for pending in list(self.pending):
             if self._settle(pending):
                 self.pending.remove(pending)
-        frame = self.context.robot.rgbd()
-        if frame is not None and self.params.mode == "poll":
+        self._collect_detections()
+        limit = self.params.max_failed_calls
+        worst = max(self.failed_in_row.items(), key=lambda item: item[1], default=("", 0))
+        if limit and worst[1] >= limit:
+            return self.fail(f"{worst[1]} {worst[0]} calls in a row failed; the last: {self.last_error}")
+        robot = self.context.robot
+        now = robot.now()
+        frame = robot.rgbd()
+        if frame is None or now - frame.stamp > self.params.max_frame_age:
+            self.stale_frames += 1
+            quiet = now - self.last_fresh
+            if quiet > self.params.camera_timeout:
+                age = ("no frame at all" if frame is None
+                       else f"the latest frame is {now - frame.stamp:.1f} s old")
+                return self.fail(f"camera quiet for {quiet:.1f} s ({age}); surveillance cannot watch")
+            return self.running(f"camera quiet for {quiet:.1f} s; {self.alarm_count} alarms")
+        self.last_fresh = now
+        if self.params.mode == "poll":
             self._poll(frame)  # the seed sends the latest frame when the period is up, new or not
-        elif frame is not None and frame.stamp > self.last_frame_stamp:
+        elif frame.stamp > self.last_frame_stamp and self.detecting is None:
             self.last_frame_stamp = frame.stamp
-            self._detect(frame)
+            self._submit_detection(frame)
         return self.running(f"{self.checks} frames checked, {len(self.pending)} waiting, "
                             f"{self.alarm_count} alarms")
 
@@ -146,6 +199,9 @@ class Surveillance(Leaf):
             pending.call.cancel()
             self._set_tracks(pending, "new", now)  # never answered: ask again when seen again
         self.pending.clear()
+        if self.detecting is not None:
+            self.detecting[0].cancel()
+            self.detecting = None
 
     # -- frames ----------------------------------------------------------------------------------
 
@@ -159,10 +215,38 @@ class Surveillance(Leaf):
                                   surface_offset=self.params.surface_offset)
         self._submit(frame, [_Sighting(None, measurement)])
 
-    def _detect(self, frame: RGBDFrame) -> None:
+    def _submit_detection(self, frame: RGBDFrame) -> None:
+        """Send ``frame`` to the detector; the answer is read on a later tick (``_collect_detections``)."""
         detector = self.context.model("detector")
-        people = [d for d in detector.detect(frame.color)
-                  if d.label == self.params.label and d.score >= self.params.min_score]
+        call = model_caller(self.context).submit(
+            "detector", detection_job(detector, frame), timeout=self.params.timeout, node=self.name)
+        self.detecting = (call, frame)
+
+    def _collect_detections(self) -> None:
+        """Act on the detector's answer once it is there."""
+        if self.detecting is None:
+            return
+        call, frame = self.detecting
+        status = call.status()
+        if not status.done:
+            return
+        self.detecting = None
+        if status is CallStatus.SUCCEEDED:
+            self._called("detector", True)
+            self._detect(frame, call.result())
+        elif status is not CallStatus.CANCELLED:
+            self._called("detector", False, call.error())
+
+    def _called(self, role: str, ok: bool, error: str = "") -> None:
+        """Count a model call's outcome towards its role's consecutive-failure limit."""
+        if ok:
+            self.failed_in_row[role] = 0
+        else:
+            self.failed_in_row[role] = self.failed_in_row.get(role, 0) + 1
+            self.last_error = error
+
+    def _detect(self, frame: RGBDFrame, detections: list[Detection]) -> None:
+        people = [d for d in detections if d.label == self.params.label and d.score >= self.params.min_score]
         self.checks += 1
         now = self.context.robot.now()
         self.tracks.expire(now)
@@ -223,6 +307,7 @@ class Surveillance(Leaf):
         caller = model_caller(self.context)
         vlm = self.context.model("vlm")
         prompt = self.params.prompt or surveillance_prompt()
+        share_frame(self.context.models, frame)  # an oracle behind the VLM reads the frame's mask now
         call = caller.submit("vlm", ask_checked, vlm, [frame.color], prompt, SurveillanceVerdict,
                              timeout=self.params.timeout, node=self.name)
         self.last_submit = self.context.robot.now()
@@ -239,28 +324,66 @@ class Surveillance(Leaf):
             return False
         now = self.context.robot.now()
         if status is not CallStatus.SUCCEEDED:
+            if status is not CallStatus.CANCELLED:
+                self._called("vlm", False, pending.call.error())
             self.emit("surveillance_check_failed", frame_stamp=pending.frame.stamp,
                       error=pending.call.error())
             self._set_tracks(pending, "new", now)  # ask again on a later frame
             return True
+        self._called("vlm", True)
         verdict: SurveillanceVerdict = pending.call.result().value
         self.emit("surveillance_verdict", frame_stamp=pending.frame.stamp, verdict=verdict.verdict,
                   latency=pending.call.latency)
         if not verdict.alarm:
             self._set_tracks(pending, "safe", now)
             return True
-        self._set_tracks(pending, "confirmed", now)
-        for sighting in pending.sightings:
-            detection, measurement = sighting.detection, sighting.measurement
-            if detection is None and verdict.people:  # poll mode: the VLM's own box, if it gave one
-                best = max(verdict.people, key=lambda p: p.score)
-                detection = Detection("person", best.score, best.box)
-            if measurement is None or (sighting.detection is None and detection is not None
-                                       and self.params.fuse_at == "frame"):
-                measurement = measure(self.context.robot, pending.frame, detection, self.params.method,
-                                      fuse_at=self.params.fuse_at, surface_offset=self.params.surface_offset)
-            self._raise(pending.frame, _Sighting(detection, measurement), verdict.as_text())
+        for sighting in self._confirmed(pending, verdict, now):
+            self._raise(pending.frame, sighting, verdict.as_text())
         return True
+
+    def _confirmed(self, pending: _Pending, verdict: SurveillanceVerdict, now: float) -> list[_Sighting]:
+        """The people of an ALARM answer to raise alarms for, best-confirmed first (see module docstring).
+
+        Each comes with its box and the measurement of the frame's instant; sightings the VLM's
+        boxes do not cover are marked safe.
+        """
+        frame = pending.frame
+        height, width = frame.color.shape[:2]
+        boxes, _ = checked_detections([Detection("person", p.score, p.box) for p in verdict.people],
+                                      width, height, "vlm")
+        sent = [s for s in pending.sightings if s.detection is not None]
+        ranked: list[tuple[float, float, _Sighting]] = []
+        if sent and boxes:
+            overlap = iou_matrix(np.array([s.detection.box for s in sent if s.detection is not None]),
+                                 np.array([b.box for b in boxes]))
+            for i, sighting in enumerate(sent):
+                assert sighting.detection is not None
+                j = int(np.argmax(overlap[i]))
+                inside = _centre_inside(sighting.detection, boxes[j])
+                if overlap[i, j] >= CONFIRM_IOU or inside:
+                    ranked.append((boxes[j].score, sighting.detection.score, sighting))
+                    if sighting.track is not None:
+                        sighting.track.set("confirmed", now)
+                elif sighting.track is not None:
+                    sighting.track.set("safe", now)  # the model did not see a person there
+            if not ranked:  # the model saw someone the detector did not send: its own best box
+                ranked.append((0.0, 0.0, self._measured(frame, max(boxes, key=lambda b: b.score))))
+        elif sent:  # no boxes in the answer: every person sent is confirmed
+            self._set_tracks(pending, "confirmed", now)
+            ranked = [(0.0, s.detection.score, s) for s in sent if s.detection is not None]
+        else:  # poll mode: the VLM's own best box, if it gave one
+            best = max(boxes, key=lambda b: b.score) if boxes else None
+            sighting = pending.sightings[0] if pending.sightings else _Sighting(None, None)
+            if best is not None or sighting.measurement is None:
+                sighting = self._measured(frame, best)
+            ranked.append((0.0, 0.0, sighting))
+        ranked.sort(key=lambda r: (-r[0], -r[1]))
+        return [r[2] for r in ranked]
+
+    def _measured(self, frame: RGBDFrame, detection: Detection | None) -> _Sighting:
+        measurement = measure(self.context.robot, frame, detection, self.params.method,
+                              fuse_at=self.params.fuse_at, surface_offset=self.params.surface_offset)
+        return _Sighting(detection, measurement)
 
     @staticmethod
     def _set_tracks(pending: _Pending, state: TrackState, now: float) -> None:
@@ -283,6 +406,12 @@ class Surveillance(Leaf):
                            self.params.method, now, text, **extra)
         alarm = record_alarm(self.context, alarm, self.name, frame.color)
         self.write("alarm", alarm.to_dict())
+
+
+def _centre_inside(detection: Detection, box: Detection) -> bool:
+    """True when ``detection``'s centre lies inside ``box`` (a loose VLM box around a tight one)."""
+    u, v = detection.center
+    return box.box[0] <= u <= box.box[2] and box.box[1] <= v <= box.box[3]
 
 
 def appearance_of(frame: RGBDFrame, person: Detection) -> tuple[float, float, float] | None:

@@ -17,7 +17,9 @@ from __future__ import annotations
 
 import ast
 import json
-from dataclasses import dataclass
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -26,7 +28,7 @@ import numpy as np
 import yaml
 
 from missiontree.errors import ModelConfigError
-from missiontree.types import Detection
+from missiontree.types import Detection, RGBDFrame
 
 #: Grey used for letterbox padding, as in Ultralytics' LetterBox.
 PAD_VALUE = 114
@@ -75,6 +77,115 @@ def check_image(image: Any, provider: str) -> np.ndarray:
             f"detector {provider!r}: expected a uint8 image, found dtype {image.dtype}; {fix}"
         )
     return image
+
+
+def checked_detections(
+    detections: Any, width: int, height: int, provider: str = "detector",
+) -> tuple[list[Detection], list[str]]:
+    """Keep the detections that are usable in a ``width`` x ``height`` image; say why the others are not.
+
+    A detector is a model: its answer is checked where it enters, like any model's. A detection is
+    dropped when it is not a :class:`Detection`, its score or a box coordinate is not a finite
+    number, its box is inverted, or the box lies wholly outside the image; a box that reaches
+    past the border is clipped to it (a person cut by the frame's edge keeps the part in view).
+    Scores are clamped to [0, 1].
+
+    Returns:
+        (kept detections, one short reason per dropped detection).
+    """
+    kept: list[Detection] = []
+    dropped: list[str] = []
+    if not isinstance(detections, Sequence) or isinstance(detections, str | bytes):
+        return [], [f"{provider}: expected a list of detections, found {type(detections).__name__}"]
+    for det in detections:
+        reason = _unusable(det, width, height)
+        if reason:
+            dropped.append(f"{provider}: {reason}")
+            continue
+        x1, y1, x2, y2 = (float(v) for v in det.box)
+        box = (min(max(x1, 0.0), width), min(max(y1, 0.0), height),
+               min(max(x2, 0.0), width), min(max(y2, 0.0), height))
+        score = min(max(float(det.score), 0.0), 1.0)
+        if box != det.box or score != det.score:
+            det = replace(det, box=box, score=score)
+        kept.append(det)
+    return kept, dropped
+
+
+def _unusable(det: Any, width: int, height: int) -> str:
+    """Why ``det`` cannot be used in a ``width`` x ``height`` image ("" when it can)."""
+    if not isinstance(det, Detection):
+        return f"expected a Detection, found {type(det).__name__}"
+    try:
+        box = [float(v) for v in det.box]
+        score = float(det.score)
+    except (TypeError, ValueError):
+        return f"box {det.box!r} or score {det.score!r} is not numbers"
+    if len(box) != 4:
+        return f"box {det.box!r} does not have 4 numbers (x1, y1, x2, y2)"
+    if not all(math.isfinite(v) for v in [*box, score]):
+        return f"{det.label!r}: box {det.box!r} or score {det.score!r} is not finite"
+    x1, y1, x2, y2 = box
+    if x2 < x1 or y2 < y1:
+        return f"{det.label!r}: box {det.box!r} is inverted (expected x1 <= x2, y1 <= y2)"
+    if x2 <= 0 or y2 <= 0 or x1 >= width or y1 >= height or x2 - x1 <= 0 or y2 - y1 <= 0:
+        return f"{det.label!r}: box {det.box!r} is empty or outside the {width}x{height} image"
+    return ""
+
+
+def detect_checked(detector: Any, image: np.ndarray) -> list[Detection]:
+    """``detector.detect(image)`` with its answer checked (:func:`checked_detections`).
+
+    Dropped detections are not an error (one bad box must not hide the good ones); they are logged.
+    """
+    name = getattr(detector, "name", type(detector).__name__)
+    kept, dropped = checked_detections(detector.detect(image), image.shape[1], image.shape[0], str(name))
+    if dropped:
+        _log_dropped(dropped)
+    return kept
+
+
+def detection_job(detector: Any, frame: RGBDFrame) -> Callable[[], list[Detection]]:
+    """The blocking work of detecting in ``frame``, to be submitted as a model call.
+
+    Call this on the tick thread: a detector that must read state the tick thread owns (the
+    simulation oracle reads the simulator's instance mask) does so here, through its
+    ``prepare_frame(frame)``; the returned function does the rest on a worker and checks the answer.
+    """
+    prepare = getattr(detector, "prepare_frame", None)
+    work: Callable[[], Any] = prepare(frame) if callable(prepare) else (lambda: detector.detect(frame.color))
+    name = str(getattr(detector, "name", type(detector).__name__))
+    height, width = frame.color.shape[:2]
+
+    def run() -> list[Detection]:
+        kept, dropped = checked_detections(work(), width, height, name)
+        if dropped:
+            _log_dropped(dropped)
+        return kept
+
+    return run
+
+
+def share_frame(models: Any, frame: RGBDFrame) -> None:
+    """Show ``frame`` to the providers that read state at a frame's instant (call on the tick thread).
+
+    A model call about ``frame`` runs on a worker; a provider that must read what the tick thread
+    owns to answer it (the simulation oracle reads the simulator's instance mask, also when the
+    offline VLM asks it) fetches it here first. Other providers are not touched.
+    """
+    seen: set[int] = set()
+    for provider in list(models.values()):
+        prepare = getattr(provider, "prepare_frame", None)
+        if callable(prepare) and id(provider) not in seen:
+            seen.add(id(provider))
+            prepare(frame)
+
+
+def _log_dropped(dropped: list[str]) -> None:
+    import structlog
+
+    structlog.get_logger("missiontree.perception").warning(
+        "detections_dropped", count=len(dropped), first=dropped[0])
 
 
 @dataclass(frozen=True, slots=True)
@@ -191,6 +302,9 @@ def decode_yolo(
         (boxes Kx4 xyxy in input pixels, scores K, class ids K), best score first.
     """
     preds = output[0].T  # N x (4 + C)
+    # A candidate with a non-finite number (a broken export, an fp16 overflow) is no candidate: NMS
+    # on a NaN box would suppress or keep others at random.
+    preds = preds[np.isfinite(preds[:, : 4 + num_classes]).all(axis=1)]
     class_scores = preds[:, 4 : 4 + num_classes]
     if multi_label:
         rows, class_ids = np.nonzero(class_scores > score_threshold)
@@ -396,7 +510,7 @@ class YoloOnnxDetector:
             self.multi_label,
         )
         boxes = box.to_image(boxes, image.shape[1], image.shape[0])
-        return [
+        found = [
             Detection(
                 label=self._labels[int(c)],
                 score=float(s),
@@ -405,6 +519,10 @@ class YoloOnnxDetector:
             )
             for b, s, c in zip(boxes, scores, class_ids, strict=True)
         ]
+        kept, dropped = checked_detections(found, image.shape[1], image.shape[0], self.name)
+        if dropped:
+            _log_dropped(dropped)
+        return kept
 
     def _run(self, tensor: np.ndarray) -> np.ndarray:
         """The model's raw ``[1, 4 + classes, N]`` output for one input tensor, its layout checked."""

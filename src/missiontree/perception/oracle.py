@@ -12,11 +12,22 @@ It answers ``detect(image)`` for whole camera frames the robot produced: the ima
 to the frame it came from (the robot's latest frame, or one the oracle saw recently), and that
 frame's stamp selects the instance mask. ``detect_frame(frame)`` takes the stamp from the frame
 itself and works for any frame the simulator still keeps.
+
+**Threads.** Detections are model calls that run on worker threads while the simulator steps on
+the tick thread. The simulator's state is read only on the thread the oracle was bound on:
+:meth:`OracleDetector.prepare_frame` (called there by
+:func:`~missiontree.perception.detectors.detection_job`) fetches the frame's mask and keeps it, and
+a ``detect(image)`` from a worker (the offline VLM asking about that frame) finds the kept mask.
+Misses and made-up boxes are drawn from a generator seeded by the seed and the frame's stamp, so
+a frame gets the same answer whichever thread asks first.
 """
 
 from __future__ import annotations
 
+import threading
 from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -27,6 +38,15 @@ from missiontree.types import Detection, RGBDFrame
 
 #: Instance kinds the oracle reports (walls, floor and ceiling are never detections).
 DETECTABLE_KINDS = ("object", "person")
+
+
+@dataclass(frozen=True)
+class _Seen:
+    """A frame the oracle was shown, with its instance mask once fetched."""
+
+    stamp: float
+    color: np.ndarray
+    mask: np.ndarray | None = None
 
 
 class OracleDetector:
@@ -72,10 +92,12 @@ class OracleDetector:
         self.min_pixels = int(min_pixels)
         self.score = float(score)
         self._wanted = list(labels) if labels is not None else None
-        self._rng = np.random.default_rng(seed)
+        self.seed = int(seed)
         self._robot: Any = None
         self._truth: Any = None
-        self._seen: deque[tuple[float, np.ndarray]] = deque(maxlen=16)
+        self._owner: int | None = None  # the thread that may read the simulator (the one that bound it)
+        self._seen: deque[_Seen] = deque(maxlen=16)
+        self._lock = threading.Lock()
         if robot is not None:
             self.bind(robot)
 
@@ -96,6 +118,7 @@ class OracleDetector:
                 f"'yolo_onnx' in config/models/*.yaml)"
             )
         self._robot, self._truth = robot, truth
+        self._owner = threading.get_ident()
 
     def _bound_truth(self) -> Any:
         if self._truth is None:
@@ -119,12 +142,20 @@ class OracleDetector:
     def detect(self, image: np.ndarray) -> list[Detection]:
         """Detections in a camera frame the robot produced (matched to it by content)."""
         check_image(image, self.name)
-        return self._detect_at(self._stamp_of(image), image.shape[:2])
+        stamp, mask = self._mask_of(image)
+        return self._detect_in(stamp, mask, image.shape[:2])
 
     def detect_frame(self, frame: RGBDFrame) -> list[Detection]:
         """Detections in ``frame``, whose stamp selects the instance mask."""
+        return self.prepare_frame(frame)()
+
+    def prepare_frame(self, frame: RGBDFrame) -> Callable[[], list[Detection]]:
+        """Fetch ``frame``'s mask now (on the simulator's thread); the returned function finds the boxes."""
         check_image(frame.color, self.name)
-        return self._detect_at(frame.stamp, frame.color.shape[:2])
+        mask = self._fetch_mask(frame.stamp)
+        self._remember(_Seen(frame.stamp, frame.color, mask))
+        shape = frame.color.shape[:2]
+        return lambda: self._detect_in(frame.stamp, mask, shape)
 
     def check(self) -> str:
         """One-line description for ``missiontree models``; usable once bound to the simulated robot."""
@@ -140,37 +171,75 @@ class OracleDetector:
 
     # -- internals -----------------------------------------------------------------------------
 
-    def _stamp_of(self, image: np.ndarray) -> float:
-        self._bound_truth()
-        latest = self._robot.rgbd()
-        if latest is not None and not any(stamp == latest.stamp for stamp, _ in self._seen):
-            self._seen.append((latest.stamp, latest.color))
-        for stamp, color in reversed(self._seen):
-            if color is image:
-                return stamp
-        for stamp, color in reversed(self._seen):
-            if color.shape == image.shape and np.array_equal(color, image):
-                return stamp
-        raise ModelError(
-            f"detector {self.name!r}: the image is not a recent camera frame of robot "
-            f"{getattr(self._robot, 'name', '?')!r}; the oracle labels whole frames the simulator "
-            f"rendered (pass frame.color of robot.rgbd(), or call detect_frame(frame))"
-        )
+    def _remember(self, seen: _Seen) -> None:
+        with self._lock:
+            self._seen = deque((s for s in self._seen if s.stamp != seen.stamp), maxlen=self._seen.maxlen)
+            self._seen.append(seen)
 
-    def _detect_at(self, stamp: float, shape: tuple[int, int]) -> list[Detection]:
+    def _on_owner_thread(self) -> bool:
+        return self._owner is None or threading.get_ident() == self._owner
+
+    def _mask_of(self, image: np.ndarray) -> tuple[float, np.ndarray]:
+        """The stamp and instance mask of the recent camera frame that ``image`` is."""
+        self._bound_truth()
+        if self._on_owner_thread():
+            latest = self._robot.rgbd()
+            if latest is not None:
+                with self._lock:
+                    known = any(s.stamp == latest.stamp for s in self._seen)
+                if not known:
+                    self._remember(_Seen(latest.stamp, latest.color))
+        with self._lock:
+            seen = list(self._seen)
+        match = next((s for s in reversed(seen) if s.color is image), None)
+        if match is None:
+            match = next((s for s in reversed(seen)
+                          if s.color.shape == image.shape and np.array_equal(s.color, image)), None)
+        if match is None:
+            raise ModelError(
+                f"detector {self.name!r}: the image is not a recent camera frame of robot "
+                f"{getattr(self._robot, 'name', '?')!r}; the oracle labels whole frames the simulator "
+                f"rendered (pass frame.color of robot.rgbd(), or call detect_frame(frame))"
+            )
+        if match.mask is not None:
+            return match.stamp, match.mask
+        mask = self._fetch_mask(match.stamp)
+        self._remember(_Seen(match.stamp, match.color, mask))
+        return match.stamp, mask
+
+    def _fetch_mask(self, stamp: float) -> np.ndarray:
         truth = self._bound_truth()
+        if not self._on_owner_thread():
+            with self._lock:
+                kept = next((s.mask for s in self._seen if s.stamp == stamp and s.mask is not None), None)
+            if kept is not None:
+                return kept
+            raise ModelError(
+                f"detector {self.name!r}: the frame at t={stamp:.3f} was not prepared on the simulator's "
+                f"thread (its state is read there only); submit detections through "
+                f"detection_job(detector, frame)"
+            )
         mask = truth.instance_mask(stamp)
         if mask is None:
             raise ModelError(
                 f"detector {self.name!r}: the simulator keeps no instance mask for the frame at "
                 f"t={stamp:.3f} (too old); detect frames while they are recent"
             )
+        return mask
+
+    def _rng_for(self, stamp: float) -> np.random.Generator:
+        """The generator of one frame's misses and made-up boxes (same frame, same answer)."""
+        return np.random.default_rng(np.random.SeedSequence(
+            [self.seed % (1 << 63), int(round(stamp * 1e6)) % (1 << 63)]))
+
+    def _detect_in(self, stamp: float, mask: np.ndarray, shape: tuple[int, int]) -> list[Detection]:
         if mask.shape != shape:
             raise ModelError(
                 f"detector {self.name!r}: the instance mask at t={stamp:.3f} is {mask.shape}, the image "
                 f"{shape}; pass the frame's own colour image"
             )
-        instances = truth.instances
+        rng = self._rng_for(stamp)
+        instances = self._bound_truth().instances
         wanted = set(self.labels)
         ids, counts = np.unique(mask, return_counts=True)
         found: list[Detection] = []
@@ -180,7 +249,7 @@ class OracleDetector:
                 continue
             if count < self.min_pixels:
                 continue
-            if self.miss_rate > 0.0 and self._rng.random() < self.miss_rate:
+            if self.miss_rate > 0.0 and rng.random() < self.miss_rate:
                 continue
             pixels = mask == inst
             rows = np.flatnonzero(pixels.any(axis=1))
@@ -188,17 +257,17 @@ class OracleDetector:
             box = (float(cols[0]), float(rows[0]), float(cols[-1] + 1), float(rows[-1] + 1))
             found.append(Detection(info.label, self.score, box, mask=pixels,
                                    attributes={"instance": info.name, "kind": info.kind, "oracle": True}))
-        if self.false_positive_rate > 0.0 and wanted and self._rng.random() < self.false_positive_rate:
-            found.append(self._made_up(sorted(wanted), shape))
+        if self.false_positive_rate > 0.0 and wanted and rng.random() < self.false_positive_rate:
+            found.append(self._made_up(rng, sorted(wanted), shape))
         return found
 
-    def _made_up(self, labels: list[str], shape: tuple[int, int]) -> Detection:
+    def _made_up(self, rng: np.random.Generator, labels: list[str], shape: tuple[int, int]) -> Detection:
         """A box of a random label at a random place: what a hallucinating detector reports."""
         height, width = shape
-        w = float(self._rng.uniform(0.05, 0.3) * width)
-        h = float(self._rng.uniform(0.05, 0.4) * height)
-        x1 = float(self._rng.uniform(0, width - w))
-        y1 = float(self._rng.uniform(0, height - h))
-        label = labels[int(self._rng.integers(len(labels)))]
+        w = float(rng.uniform(0.05, 0.3) * width)
+        h = float(rng.uniform(0.05, 0.4) * height)
+        x1 = float(rng.uniform(0, width - w))
+        y1 = float(rng.uniform(0, height - h))
+        label = labels[int(rng.integers(len(labels)))]
         return Detection(label, self.score, (x1, y1, x1 + w, y1 + h),
                          attributes={"instance": None, "kind": "false_positive", "oracle": True})

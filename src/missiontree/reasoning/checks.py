@@ -6,7 +6,10 @@ A model's structured answer steers a robot, so it is checked before use (seed 00
 1. The text must be JSON (a fenced ```json block is accepted) of the pydantic schema asked for.
 2. Every object id the answer names (``schema.named_ids()``) must exist in the caller's map or
    scene graph (``valid_ids``); an answer naming anything else is rejected.
-3. A rejected answer is retried once, with the reason fed back to the model; if the second answer
+3. Its numbers are finite (the schemas refuse NaN and infinity) and, for a question about an
+   image, its boxes lie in that image (``image_problems``): a box at (90000, 90000) in a 320x240
+   frame is rejected; one reaching past the border is clipped (``fit_to_image``).
+4. A rejected answer is retried once, with the reason fed back to the model; if the second answer
    fails too, :class:`~missiontree.errors.ModelAnswerError` is raised with the reason, which the
    call handle reports and the leaf turns into FAILURE.
 
@@ -40,6 +43,8 @@ log = structlog.get_logger("missiontree.reasoning")
 _FENCE = re.compile(r"```(?:json|JSON)?\s*(.*?)```", re.DOTALL)
 _MAX_IDS_SHOWN = 20
 _MAX_ANSWER_ECHO = 600
+#: Longest answer read (characters); a longer one is rejected unread.
+MAX_ANSWER_CHARS = 200_000
 
 
 @dataclass(frozen=True)
@@ -74,6 +79,10 @@ def extract_json(text: str) -> Any:
     Raises:
         ValueError: No JSON could be parsed; the message quotes the parser's complaint.
     """
+    if not isinstance(text, str):
+        raise ValueError(f"expected the answer as text, found {type(text).__name__}")
+    if len(text) > MAX_ANSWER_CHARS:
+        raise ValueError(f"expected a short JSON object, found an answer of {len(text)} characters")
     stripped = text.strip()
     match = _FENCE.search(stripped)
     if match:
@@ -82,19 +91,29 @@ def extract_json(text: str) -> Any:
         raise ValueError("expected a JSON object, found an empty answer")
     try:
         return json.loads(stripped)
+    except RecursionError:
+        raise ValueError("expected a JSON object, found JSON nested too deeply to read") from None
     except json.JSONDecodeError as exc:
         start, end = stripped.find("{"), stripped.rfind("}")
         if 0 <= start < end:
             try:
                 return json.loads(stripped[start:end + 1])
-            except json.JSONDecodeError:
+            except (json.JSONDecodeError, RecursionError):
                 pass
         raise ValueError(f"expected a JSON object, found text that is not JSON ({exc.msg} at "
                          f"line {exc.lineno} column {exc.colno})") from None
 
 
-def validate_answer(text: str, schema: type[T], valid_ids: Collection[str] | None = None) -> T:
+def validate_answer(text: str, schema: type[T], valid_ids: Collection[str] | None = None,
+                    image_size: tuple[int, int] | None = None) -> T:
     """Check one answer: JSON of ``schema`` naming only ids in ``valid_ids`` (when given).
+
+    Args:
+        text: The model's answer.
+        schema: The pydantic schema it must match.
+        valid_ids: The object ids it may name (None: not checked).
+        image_size: (width, height) of the image the question was about: boxes must lie in it
+            and are clipped to it.
 
     Raises:
         ValueError: The reason the answer is rejected, ready to be fed back to the model.
@@ -106,6 +125,15 @@ def validate_answer(text: str, schema: type[T], valid_ids: Collection[str] | Non
         problems = "; ".join(
             f"{'.'.join(str(p) for p in err['loc']) or '<root>'}: {err['msg']}" for err in exc.errors()[:8])
         raise ValueError(f"the JSON does not match the {schema.__name__} schema: {problems}") from None
+    except RecursionError:
+        raise ValueError(f"the JSON is nested too deeply for the {schema.__name__} schema") from None
+    if image_size is not None:
+        check = getattr(value, "image_problems", None)
+        outside = check(*image_size) if callable(check) else []
+        if outside:
+            raise ValueError("; ".join(outside[:4]) + "; give boxes in pixels of the image asked about")
+        fit = getattr(value, "fit_to_image", None)
+        value = fit(*image_size) if callable(fit) else value
     if valid_ids is not None:
         known = set(valid_ids)
         unknown = [i for i in _named_ids(value) if i not in known]
@@ -140,10 +168,12 @@ def ask_checked(
     """
     current = prompt
     rejected: list[str] = []
+    size = _size_of(images)
     for attempt in range(1, retries + 2):
         text = vlm.ask(images, current, schema)
         try:
-            return CheckedAnswer(validate_answer(text, schema, valid_ids), text, attempt, tuple(rejected))
+            value = validate_answer(text, schema, valid_ids, size)
+            return CheckedAnswer(value, text, attempt, tuple(rejected))
         except ValueError as exc:
             rejected.append(_reject(vlm, schema, str(exc), text, attempt))
             current = f"{prompt}\n\n{_feedback(str(exc), text)}"
@@ -178,15 +208,24 @@ def chat_checked(
     raise _exhausted(llm, schema, rejected)
 
 
+def _size_of(images: Sequence[np.ndarray]) -> tuple[int, int] | None:
+    """(width, height) of the first image, the one boxes refer to; None when there is none."""
+    first = images[0] if isinstance(images, Sequence) and len(images) else images
+    shape = getattr(first, "shape", None)
+    if shape is None or len(shape) < 2:
+        return None
+    return int(shape[1]), int(shape[0])
+
+
 def _feedback(reason: str, previous: str | None) -> str:
-    echo = f"\nYour previous answer was: {previous[:_MAX_ANSWER_ECHO]}" if previous is not None else ""
+    echo = f"\nYour previous answer was: {str(previous)[:_MAX_ANSWER_ECHO]}" if previous is not None else ""
     return (f"Your previous answer was rejected: {reason}.{echo}\n"
             "Answer again with only a JSON object that matches the schema.")
 
 
 def _reject(provider: object, schema: type[BaseModel], reason: str, text: str, attempt: int) -> str:
     log.warning("model_answer_rejected", provider=provider_name(provider), schema=schema.__name__,
-                attempt=attempt, reason=reason, answer=text[:_MAX_ANSWER_ECHO])
+                attempt=attempt, reason=reason, answer=str(text)[:_MAX_ANSWER_ECHO])
     return reason
 
 

@@ -10,11 +10,18 @@ scene objects implements ``named_ids()``; the checks reject ids the caller's map
 - :class:`ObjectDescription` — colour, size and shape of an object crop (seed 000, NAIS node 3).
 - :class:`ReferenceParse` — a referential phrase as label + attributes + spatial relation.
 - :class:`IntentResolution` — the scene objects that satisfy a request, by id (seed 000, node 5).
+
+Model answers are trusted no further than they are checked: every number must be finite (NaN and
+infinity, which Python's JSON reader accepts, are refused), free text is cut to
+:data:`MAX_TEXT` characters, lists are bounded, and an answer with boxes is checked against the
+image it is about (:meth:`_Answer.image_problems`, :meth:`_Answer.fit_to_image`): a box wholly
+outside the image is a wrong answer; one reaching past the border is clipped to it.
 """
 
 from __future__ import annotations
 
-from typing import Literal
+import math
+from typing import Literal, Self
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -25,15 +32,32 @@ ROOM_TYPES = ("kitchen", "office", "corridor", "hall", "living_room", "bedroom",
 #: Spatial relations a reference may use (seed 000: "the laptop in front of the sofa").
 RELATIONS = ("near", "next_to", "in_front_of", "behind", "left_of", "right_of", "on", "in")
 
+#: Longest free text kept from an answer (longer text is cut: it only travels to logs and alarms).
+MAX_TEXT = 500
+#: Most people, candidates or evidence items an answer may list.
+MAX_ITEMS = 50
+
+
+def _cut(value: object) -> object:
+    return value[:MAX_TEXT] if isinstance(value, str) else value
+
 
 class _Answer(BaseModel):
     """Base of answers: unknown keys are refused so a wrong schema cannot pass as a right one."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     def named_ids(self) -> list[str]:
         """Scene object ids this answer names (checked against the caller's map); none by default."""
         return []
+
+    def image_problems(self, width: int, height: int) -> list[str]:
+        """Why this answer cannot be about a ``width`` x ``height`` image (boxes outside it); none here."""
+        return []
+
+    def fit_to_image(self, width: int, height: int) -> Self:
+        """This answer with its boxes clipped to a ``width`` x ``height`` image; itself by default."""
+        return self
 
 
 class PersonBox(_Answer):
@@ -46,9 +70,23 @@ class PersonBox(_Answer):
     @field_validator("box")
     @classmethod
     def _ordered(cls, box: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+        if not all(math.isfinite(v) for v in box):
+            raise ValueError(f"expected finite pixel coordinates, found {box}")
         if box[2] < box[0] or box[3] < box[1]:
             raise ValueError(f"expected x1 <= x2 and y1 <= y2, found {box}")
         return box
+
+    def outside(self, width: int, height: int) -> bool:
+        """True when the box holds no pixel of a ``width`` x ``height`` image."""
+        x1, y1, x2, y2 = self.box
+        return x2 <= 0 or y2 <= 0 or x1 >= width or y1 >= height or x2 <= x1 or y2 <= y1
+
+    def clipped(self, width: int, height: int) -> PersonBox:
+        """The box clipped to a ``width`` x ``height`` image."""
+        x1, y1, x2, y2 = self.box
+        box = (min(max(x1, 0.0), width), min(max(y1, 0.0), height),
+               min(max(x2, 0.0), width), min(max(y2, 0.0), height))
+        return self if box == self.box else PersonBox(box=box, score=self.score)
 
 
 class SurveillanceVerdict(_Answer):
@@ -57,7 +95,22 @@ class SurveillanceVerdict(_Answer):
     verdict: Literal["ALARM", "SAFE"] = Field(
         description="ALARM if a person is visible, even incompletely (legs, an arm); else SAFE.")
     description: str = Field("", description="One sentence describing what is seen.")
-    people: list[PersonBox] = Field(default_factory=list, description="Boxes of the people seen.")
+    people: list[PersonBox] = Field(default_factory=list, max_length=MAX_ITEMS,
+                                    description="Boxes of the people seen, in pixels of the image.")
+
+    _cut_description = field_validator("description", mode="before")(_cut)
+
+    def image_problems(self, width: int, height: int) -> list[str]:
+        """The people boxes that lie wholly outside a ``width`` x ``height`` image."""
+        return [f"people.{i}.box {list(p.box)} lies outside the {width}x{height} image"
+                for i, p in enumerate(self.people) if p.outside(width, height)]
+
+    def fit_to_image(self, width: int, height: int) -> SurveillanceVerdict:
+        """The verdict with its people boxes clipped to the image."""
+        people = [p.clipped(width, height) for p in self.people]
+        if all(a is b for a, b in zip(people, self.people, strict=True)):
+            return self
+        return self.model_copy(update={"people": people})
 
     @property
     def alarm(self) -> bool:
@@ -88,13 +141,16 @@ class CropMatch(_Answer):
     confidence: float = Field(ge=0.0, le=1.0, description="Confidence in [0, 1].")
     reason: str = Field("", description="Short reason, e.g. the colour and object seen.")
 
+    _cut_reason = field_validator("reason", mode="before")(_cut)
+
 
 class RoomClassification(_Answer):
     """The room type an image shows (NAIS room classification prompt)."""
 
     room_type: str = Field(description=f"One of {', '.join(ROOM_TYPES)} (or another short snake_case name).")
     confidence: float = Field(ge=0.0, le=1.0, description="Confidence in [0, 1].")
-    evidence: list[str] = Field(default_factory=list, description="Objects or cues that decided it.")
+    evidence: list[str] = Field(default_factory=list, max_length=MAX_ITEMS,
+                                description="Objects or cues that decided it.")
 
     @field_validator("room_type")
     @classmethod
@@ -114,6 +170,8 @@ class ObjectDescription(_Answer):
     shape: str = Field(description="Shape in a word or two, e.g. boxy, round, tall.")
     description: str = Field("", description="One sentence description.")
 
+    _cut_description = field_validator("description", mode="before")(_cut)
+
 
 class ReferenceParse(_Answer):
     """A referential phrase parsed: "the grey backpack in front of the sofa"."""
@@ -128,8 +186,11 @@ class ReferenceParse(_Answer):
 class IntentResolution(_Answer):
     """The scene objects that satisfy a request, best first (NAIS interpretation node)."""
 
-    candidates: list[str] = Field(description="Ids of scene objects that satisfy the request, best first.")
+    candidates: list[str] = Field(max_length=MAX_ITEMS,
+                                  description="Ids of scene objects that satisfy the request, best first.")
     reason: str = Field("", description="Why these objects satisfy the request.")
+
+    _cut_reason = field_validator("reason", mode="before")(_cut)
     reference: ReferenceParse | None = Field(
         None, description="The parsed reference, for referential requests.")
 
