@@ -34,6 +34,13 @@ class ActionStatus(enum.Enum):
 _DONE = {ActionStatus.SUCCEEDED, ActionStatus.ABORTED, ActionStatus.CANCELED, ActionStatus.REJECTED}
 
 
+#: Failure kind: the goal itself cannot be reached (blocked, inside an obstacle); a patrol skips it.
+UNREACHABLE = "unreachable"
+#: Failure kind: the machinery is gone (no action server, the robot vanished, results lost); a
+#: mission cannot go on and must fail with the reason, never skip on.
+INFRASTRUCTURE = "infrastructure"
+
+
 @dataclass(frozen=True)
 class ActionResult:
     """How an action ended.
@@ -43,12 +50,15 @@ class ActionResult:
         reason: Short human-readable reason; empty on success.
         code: Backend error code (Nav2 ``error_code``), 0 when none.
         value: Optional payload.
+        kind: Why it failed, when the backend knows: :data:`UNREACHABLE` or
+            :data:`INFRASTRUCTURE`; empty when unknown or on success.
     """
 
     status: ActionStatus
     reason: str = ""
     code: int = 0
     value: Any = None
+    kind: str = ""
 
     @property
     def succeeded(self) -> bool:

@@ -26,7 +26,7 @@ from action_msgs.msg import GoalInfo, GoalStatus, GoalStatusArray
 from action_msgs.srv import CancelGoal
 
 from missiontree.backends.ros2.conversions import pose_from_msg, sec_to_time, time_to_sec
-from missiontree.robot.actions import ActionResult, ActionStatus, NavFeedback
+from missiontree.robot.actions import INFRASTRUCTURE, ActionResult, ActionStatus, NavFeedback
 from missiontree.types import Pose2D, Tolerance
 
 #: action_msgs/GoalStatus codes → our statuses.
@@ -123,12 +123,12 @@ class NavGoal:
         """End the goal as succeeded: the robot is within the caller's tolerance (Nav2 was cancelled)."""
         self._finish(ActionStatus.SUCCEEDED)
 
-    def _finish(self, status: ActionStatus, reason: str = "", code: int = 0) -> None:
+    def _finish(self, status: ActionStatus, reason: str = "", code: int = 0, kind: str = "") -> None:
         with self._lock:
             if self._status.done:
                 return
             self._status = status
-            self._result = ActionResult(status, reason, code)
+            self._result = ActionResult(status, reason, code, kind=kind)
 
     def _set_status(self, status: ActionStatus) -> None:
         with self._lock:
@@ -178,14 +178,16 @@ class ActionGoal(NavGoal):
                 elif self._timed_out():
                     self._finish(ActionStatus.ABORTED,
                                  f"no NavigateToPose action server on {self._action_name} after "
-                                 f"{self.server_timeout:g} s (is Nav2 running, in this ROS_DOMAIN_ID?)")
+                                 f"{self.server_timeout:g} s (is Nav2 running, in this ROS_DOMAIN_ID?)",
+                                 kind=INFRASTRUCTURE)
                 return
             if self._goal_handle is None and self._timed_out():
                 self._finish(ActionStatus.ABORTED, f"the NavigateToPose server on {self._action_name} did "
-                             f"not answer the goal within {self.server_timeout:g} s")
+                             f"not answer the goal within {self.server_timeout:g} s", kind=INFRASTRUCTURE)
             elif now - self._last_seen_server > self.server_timeout:
                 self._finish(ActionStatus.ABORTED, f"the NavigateToPose server on {self._action_name} "
-                             f"went away for more than {self.server_timeout:g} s during the goal")
+                             f"went away for more than {self.server_timeout:g} s during the goal",
+                             kind=INFRASTRUCTURE)
             elif self._goal_handle is not None and self._goal_handle.status in _ACTIVE:
                 self._status = ActionStatus.RUNNING
 
@@ -239,7 +241,7 @@ class ActionGoal(NavGoal):
     def _on_result(self, future: Any) -> None:
         wrapped = future.result()
         if wrapped is None:
-            self._finish(ActionStatus.ABORTED, "the result of the goal was lost")
+            self._finish(ActionStatus.ABORTED, "the result of the goal was lost", kind=INFRASTRUCTURE)
             return
         status = _STATUS.get(wrapped.status, ActionStatus.ABORTED)
         code, message = int(wrapped.result.error_code), str(wrapped.result.error_msg)
@@ -287,7 +289,8 @@ class TopicGoal(NavGoal):
             if self._status.done or self._sent_at is not None:
                 if not self._status.done and self._goal_id is None and self._timed_out():
                     self._finish(ActionStatus.ABORTED, f"the goal sent on {self._topic} never showed on the "
-                                 f"NavigateToPose status topic within {self.server_timeout:g} s")
+                                 f"NavigateToPose status topic within {self.server_timeout:g} s",
+                                 kind=INFRASTRUCTURE)
                 return
             if self._has_subscriber():
                 self._sent_at = self._now()
@@ -295,7 +298,8 @@ class TopicGoal(NavGoal):
                 self._publish_goal()
             elif self._timed_out():
                 self._finish(ActionStatus.ABORTED, f"nobody subscribes to {self._topic} after "
-                             f"{self.server_timeout:g} s (is Nav2's bt_navigator running?)")
+                             f"{self.server_timeout:g} s (is Nav2's bt_navigator running?)",
+                             kind=INFRASTRUCTURE)
 
     def on_status(self, msg: GoalStatusArray) -> None:
         """Follow our goal in a status message of the NavigateToPose action."""
