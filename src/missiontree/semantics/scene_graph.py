@@ -233,6 +233,7 @@ class SceneGraph:
             How many edges were dropped.
         """
         before = len(self.dropped)
+        index = {_key(n["id"]): n for n in self.nodes}
         existing = {(_key(e["source_id"]), _key(e["target_id"]), e["relation"]) for e in self.edges}
         for rel in relations:
             if isinstance(rel, RelationEdge):
@@ -240,7 +241,7 @@ class SceneGraph:
             else:
                 source_id, target_id = rel.get("source_id"), rel.get("target_id")
                 relation = rel.get("relation")
-            source, target = self.node(source_id), self.node(target_id)
+            source, target = index.get(_key(source_id)), index.get(_key(target_id))
             edge = {"source_id": source_id, "source_label": source["label"] if source else "",
                     "target_id": target_id, "target_label": target["label"] if target else "",
                     "relation": str(relation or "")}

@@ -1,0 +1,289 @@
+"""Fusing projected detections into the semantic map, and keeping it true when things move.
+
+:class:`InstanceFusion` takes each frame's detections in the map frame
+(:mod:`missiontree.perception.projection`) and:
+
+1. drops what the NAIS paper's single-frame filters drop (confidence, dynamic classes, range;
+   :mod:`missiontree.perception.tracking`);
+2. associates each projection with an instance of its label within ``associate_radius`` (or half
+   the instance's size, for big furniture) and refines it: running mean position (the newest
+   ``memory`` observations), size, colour votes (the box's pixels, :mod:`missiontree.perception.colour`),
+   observation count, confidence, last seen;
+3. votes the rest as candidates, accepted after ``min_frames`` frames (the paper's 10);
+4. judges every instance the frame *should* show — in the camera's field of view (away from the
+   image edges by ``edge_margin``), within ``max_range``, large enough on the image
+   (``min_pixels``), with depth showing nothing in front of it — and, when no detection of its label
+   covers it, counts a miss: it becomes ``doubtful``, loses confidence, and after ``miss_frames``
+   such frames it is removed. Where the depth reaches clearly past its place, its place is *seen
+   empty*.
+5. An object of the same label and colour confirmed elsewhere while its old place is seen empty is
+   the old object moved: the instance is moved (one ``moved`` change), not duplicated. When the new
+   place is seen first and the old place emptied later, the old instance takes the new one's place
+   when it would be removed (``moved`` for the old id, ``removed`` for the short-lived twin).
+
+Every decision changes the :class:`~missiontree.semantics.semantic_map.SemanticMap`, which records
+the changes. Nothing here reads ground truth.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from missiontree.perception.colour import dominant_colour
+from missiontree.perception.projection import Projection, centre_depth, to_camera
+from missiontree.perception.tracking import Candidate, NaisFilterParams, NaisTracker, TemporalVoting
+from missiontree.semantics.semantic_map import Instance, SemanticMap
+from missiontree.types import Detection, RGBDFrame
+
+#: Inner share of a box whose pixels name its colour (a box holds background at its edges).
+COLOUR_INNER = 0.6
+
+
+@dataclass(frozen=True)
+class FusionParams:
+    """How detections become instances and instances follow the world.
+
+    Attributes:
+        filters: The NAIS single-frame filters and voting (confidence 0.7, dynamic classes,
+            4.5 m, 10 frames).
+        associate_radius: A projection refines an instance of its label this close, metres.
+        memory: Observations averaged into an instance's position (older ones fade).
+        miss_frames: Frames that should show an instance and do not before it is removed.
+        min_pixels: An instance is only expected in a frame where it would be at least this many
+            pixels wide and high.
+        edge_margin: Share of the image width kept clear at each side when judging visibility.
+        depth_tolerance: Depth nearer than the instance's near surface by more than this means
+            something stands in front of it, metres.
+        miss_decay: Confidence kept after a miss.
+        hit_gain: Share of the remaining doubt removed by an observation.
+        move_window: Seconds within which an instance seen empty may be moved to a new sighting.
+    """
+
+    filters: NaisFilterParams = field(default_factory=NaisFilterParams)
+    associate_radius: float = 0.5
+    memory: int = 30
+    miss_frames: int = 6
+    min_pixels: float = 14.0
+    edge_margin: float = 0.06
+    depth_tolerance: float = 0.35
+    miss_decay: float = 0.7
+    hit_gain: float = 0.3
+    move_window: float = 600.0
+
+
+@dataclass
+class _Track:
+    """What the fusion remembers of an instance besides the instance itself."""
+
+    colours: Counter[str] = field(default_factory=Counter)
+    xs: list[tuple[float, float, float]] = field(default_factory=list)
+    sizes: list[tuple[float, float, float]] = field(default_factory=list)
+    empty_seen: float = -math.inf
+
+
+class InstanceFusion:
+    """Projected detections → instances of a :class:`SemanticMap` (see module docstring)."""
+
+    def __init__(self, semantic_map: SemanticMap | None = None, params: FusionParams | None = None) -> None:
+        self.map = semantic_map if semantic_map is not None else SemanticMap()
+        self.params = params or FusionParams()
+        f = self.params.filters
+        self._filters = NaisTracker(f)  # only its single-frame filters and counters are used
+        self.voting = TemporalVoting(f.min_frames, f.candidate_radius, f.candidate_timeout)
+        self.tracks: dict[str, _Track] = {}
+        self._candidate_colours: dict[int, Counter[str]] = {}
+        self.frames = 0
+
+    @property
+    def dropped(self) -> dict[str, int]:
+        """Projections each single-frame filter dropped so far."""
+        return self._filters.dropped
+
+    # -- one frame -------------------------------------------------------------------------------
+
+    def process(self, frame: RGBDFrame, projections: list[Projection],
+                detections: list[Detection] | None = None) -> None:
+        """Fuse one frame's projections and judge what it should have shown.
+
+        Args:
+            frame: The frame (pixels for colour, depth and intrinsics for visibility).
+            projections: Its detections placed in the map (:func:`~missiontree.perception.projection.project`).
+            detections: All its detections (boxes that explain an instance even without depth);
+                default: those of ``projections``.
+        """
+        self.frames += 1
+        stamp = frame.stamp
+        kept = [p for p in projections if self._filters.accept(p)]
+        seen: set[str] = set()
+        for p in sorted(kept, key=lambda q: -q.score):
+            colour = _colour(frame, p.detection)
+            instance = self._associate(p, seen)
+            if instance is not None:
+                self._refine(instance, p, colour)
+                seen.add(instance.id)
+                continue
+            cand = self.voting.vote(p)
+            votes = self._candidate_colours.setdefault(id(self._candidate_of(p, cand)), Counter())
+            if colour:
+                votes[colour] += 1
+            if cand is not None:
+                new = self._confirm(cand, self._candidate_colours.pop(id(cand), Counter()), stamp)
+                seen.add(new.id)
+        boxes = detections if detections is not None else [p.detection for p in projections]
+        self._judge_unseen(frame, seen, [d for d in boxes if d.score >= self.params.filters.min_confidence * 0.7])
+        live = {id(c) for c in self.voting.candidates}
+        for key in [k for k in self._candidate_colours if k not in live]:
+            del self._candidate_colours[key]
+
+    # -- association and refinement --------------------------------------------------------------
+
+    def _associate(self, p: Projection, taken: set[str]) -> Instance | None:
+        best, best_d = None, math.inf
+        for inst in self.map.by_label(p.label):
+            if inst.id in taken:
+                continue
+            radius = max(self.params.associate_radius, 0.5 * max(inst.size[0], inst.size[1]))
+            d = inst.distance_to(*p.xy)
+            if d <= radius and d < best_d:
+                best, best_d = inst, d
+        return best
+
+    def _refine(self, inst: Instance, p: Projection, colour: str | None) -> None:
+        track = self.tracks.setdefault(inst.id, _Track())
+        track.xs.append(p.position)
+        track.sizes.append(p.size)
+        del track.xs[:-self.params.memory]
+        del track.sizes[:-self.params.memory]
+        if colour:
+            track.colours[colour] += 1
+        position = tuple(float(v) for v in np.median(np.array(track.xs), axis=0))
+        size = tuple(float(v) for v in np.max(np.array(track.sizes), axis=0))
+        confidence = inst.confidence + self.params.hit_gain * (1.0 - inst.confidence)
+        self.map.update(inst.id, position=position, size=size, observations=inst.observations + 1,
+                        confidence=confidence, last_seen=p.stamp, misses=0, doubtful=False,
+                        colour=_majority(track.colours, inst.colour))
+        track.empty_seen = -math.inf
+
+    def _candidate_of(self, p: Projection, accepted: Candidate | None) -> Candidate:
+        if accepted is not None:
+            return accepted
+        for cand in self.voting.candidates:
+            if cand.label == p.label and cand.last_stamp == p.stamp and cand.projections[-1] is p:
+                return cand
+        raise RuntimeError("projection voted without a candidate")  # pragma: no cover - voting invariant
+
+    def _confirm(self, cand: Candidate, colours: Counter[str], stamp: float) -> Instance:
+        colour = _majority(colours, "unknown")
+        position = (cand.x, cand.y, cand.z)
+        sizes = np.array([q.size for q in cand.projections])
+        size = tuple(float(v) for v in (np.median(sizes, axis=0) if len(sizes) else (0.0, 0.0, 0.0)))
+        score = float(np.mean([q.score for q in cand.projections])) if cand.projections else 0.7
+        twin = self._seen_empty_twin(cand.label, colour, stamp)
+        if twin is not None:
+            self.map.move(twin.id, position, stamp,
+                          reason=f"its place was seen empty and a {colour} {cand.label} was seen here")
+            self.map.update(twin.id, size=size, observations=twin.observations + cand.frames,
+                            confidence=max(twin.confidence, score))
+            track = self.tracks.setdefault(twin.id, _Track())
+            track.xs = [q.position for q in cand.projections]
+            track.empty_seen = -math.inf
+            return twin
+        inst = self.map.add(cand.label, position, stamp, size=size, colour=colour, observations=cand.frames,
+                            confidence=score, first_seen=cand.projections[0].stamp if cand.projections else stamp,
+                            reason=f"seen in {cand.frames} frames")
+        self.tracks[inst.id] = _Track(colours=Counter(colours), xs=[q.position for q in cand.projections],
+                                      sizes=[q.size for q in cand.projections])
+        return inst
+
+    def _seen_empty_twin(self, label: str, colour: str, stamp: float) -> Instance | None:
+        best = None
+        for inst in self.map.by_label(label):
+            track = self.tracks.get(inst.id)
+            if (track is not None and inst.colour == colour and inst.doubtful
+                    and stamp - track.empty_seen <= self.params.move_window):
+                if best is None or inst.misses > best.misses:
+                    best = inst
+        return best
+
+    # -- negative evidence -----------------------------------------------------------------------
+
+    def expected_view(self, frame: RGBDFrame, inst: Instance) -> tuple[float, float, float] | None:
+        """Where ``inst`` would appear in ``frame``: (u, v, forward distance), None when not expected.
+
+        Expected means: in front of the camera, within the range filter, inside the image away from
+        its edges, and at least ``min_pixels`` wide and high.
+        """
+        k = frame.intrinsics
+        forward, left = to_camera(frame.camera_pose, *inst.xy)
+        if forward <= 0.2 or math.hypot(forward, left) > self.params.filters.max_range:
+            return None
+        u = k.cx - left * k.fx / forward
+        v = k.cy - (inst.position[2] - frame.camera_height) * k.fy / forward
+        margin = self.params.edge_margin * k.width
+        if not (margin <= u <= k.width - margin and 0 <= v < k.height):
+            return None
+        width_px = max(inst.size[0], inst.size[1], 0.05) * k.fx / forward
+        height_px = max(inst.size[2], 0.05) * k.fy / forward
+        if min(width_px, height_px) < self.params.min_pixels:
+            return None
+        return u, v, forward
+
+    def _judge_unseen(self, frame: RGBDFrame, seen: set[str], detections: list[Detection]) -> None:
+        depth = np.asarray(frame.depth)
+        for inst in list(self.map):
+            if inst.id in seen:
+                continue
+            view = self.expected_view(frame, inst)
+            if view is None:
+                continue
+            u, v, forward = view
+            if any(d.label == inst.label and d.box[0] - 4 <= u <= d.box[2] + 4 and d.box[1] - 4 <= v <= d.box[3] + 4
+                   for d in detections):
+                continue  # its label's box covers it: seen, if not placed precisely enough to refine
+            half = 0.5 * max(min(inst.size[0], inst.size[1]), 0.05)
+            measured = centre_depth(depth, (u, v, u, v), window=5)
+            near_surface = forward - half
+            if math.isfinite(measured) and measured < near_surface - self.params.depth_tolerance:
+                continue  # something stands in front of it: occluded, no evidence
+            track = self.tracks.setdefault(inst.id, _Track())
+            empty = not math.isfinite(measured) or measured > forward + half + self.params.depth_tolerance
+            if empty:
+                track.empty_seen = frame.stamp
+            misses = inst.misses + 1
+            self.map.update(inst.id, misses=misses, doubtful=True,
+                            confidence=inst.confidence * self.params.miss_decay)
+            if misses >= self.params.miss_frames:
+                self._retire(inst, frame.stamp, empty)
+
+    def _retire(self, inst: Instance, stamp: float, empty: bool) -> None:
+        twin = None
+        for other in self.map.by_label(inst.label):
+            if other.id != inst.id and other.colour == inst.colour and other.first_seen > inst.last_seen:
+                if twin is None or other.first_seen < twin.first_seen:
+                    twin = other
+        if twin is not None and inst.colour != "unknown":
+            position, observations = twin.position, twin.observations
+            self.map.remove(twin.id, stamp, reason=f"the same object as {inst.id}, which moved here")
+            self.map.move(inst.id, position, stamp, reason=f"not at its old place in {inst.misses + 1} frames; "
+                          f"a {inst.colour} {inst.label} was seen here")
+            self.map.update(inst.id, observations=inst.observations + observations, confidence=0.8)
+            self.tracks[inst.id] = self.tracks.pop(twin.id, _Track())
+            return
+        self.map.remove(inst.id, stamp, reason=f"not seen in {self.params.miss_frames} frames that should show it"
+                        + (" (its place seen empty)" if empty else ""))
+        self.tracks.pop(inst.id, None)
+
+
+def _colour(frame: RGBDFrame, detection: Detection) -> str | None:
+    reading = dominant_colour(frame.color, detection.box, detection.mask, inner=COLOUR_INNER)
+    return reading.name if reading is not None else None
+
+
+def _majority(votes: Counter[str], default: str) -> str:
+    if not votes:
+        return default
+    return sorted(votes.items(), key=lambda kv: (-kv[1], kv[0]))[0][0]

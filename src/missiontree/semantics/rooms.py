@@ -1,0 +1,437 @@
+"""Rooms: the occupancy map segmented at doors and narrow passages, or polygons from a file.
+
+**Segmentation** follows the distance-transform method of ROS's ``ipa_room_segmentation``: every
+free cell gets its distance to the nearest obstacle; a room's middle lies far from walls, a door or
+narrow passage near them. Thresholding that distance at a radius splits the free space where the
+passages are narrower than twice the radius. Radii from ``min_door_half`` to ``max_door_half`` are
+tried and the one giving the most room-sized pieces (between ``min_room_area`` and
+``max_room_area``) wins; the pieces then grow back over all free cells by a watershed on the
+distance map, whose ridges lie in the doorways, so each boundary falls in its door. Pieces grown to
+less than ``min_room_area`` join their largest neighbour.
+
+Unknown cells count as obstacles: on a map being explored the rooms grow as the map does.
+:class:`RoomTracker` keeps room ids stable across re-segmentations (a new region takes the id of the
+old region it overlaps most).
+
+**From a file**: a YAML or JSON list of rooms, each ``{name, type, polygon: [[x, y], ...]}`` (the
+world-file ``rooms:`` format; a mapping with a ``rooms:`` key is accepted).
+
+A :class:`RoomRegion` carries a type (``unknown`` until a classifier gives one; see
+``missiontree.reasoning.offline_scene`` for the offline one) and answers which room a point is in.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import yaml
+from scipy import ndimage
+
+from missiontree.errors import ConfigError
+from missiontree.types import OccupancyGrid
+
+
+@dataclass
+class RoomRegion:
+    """One room.
+
+    Attributes:
+        id: Stable id (``room_1``).
+        type: Room type (``kitchen``) or ``unknown``.
+        polygon: (N, 2) outline in map coordinates.
+        area: Floor area, square metres.
+        centroid: (x, y) of the free cells.
+        name: A human name (from a file), else the id.
+        type_confidence: Confidence of the type, in [0, 1].
+        evidence: What decided the type.
+    """
+
+    id: str
+    type: str = "unknown"
+    polygon: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    area: float = 0.0
+    centroid: tuple[float, float] = (0.0, 0.0)
+    name: str = ""
+    type_confidence: float = 0.0
+    evidence: list[str] = field(default_factory=list)
+
+    @property
+    def label(self) -> str:
+        """The room's name in the scene graph: its type, or ``room`` while unknown."""
+        return self.type if self.type and self.type != "unknown" else "room"
+
+    def describe(self) -> str:
+        """One sentence for the graph node."""
+        what = self.type.replace("_", " ") if self.type != "unknown" else "a room of unknown type"
+        text = f"{what} ({self.name or self.id}), about {self.area:.0f} m2"
+        if self.evidence:
+            text += f"; seen: {', '.join(self.evidence)}"
+        return text
+
+    def contains(self, x: float, y: float) -> bool:
+        """Whether (x, y) lies inside the polygon."""
+        if len(self.polygon) < 3:
+            return False
+        return cv2.pointPolygonTest(self.polygon.astype(np.float32), (float(x), float(y)), False) >= 0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict."""
+        return {"id": self.id, "name": self.name or self.id, "type": self.type,
+                "type_confidence": round(self.type_confidence, 3), "area": round(self.area, 2),
+                "centroid": [round(c, 3) for c in self.centroid],
+                "polygon": [[round(float(x), 3), round(float(y), 3)] for x, y in self.polygon]}
+
+
+@dataclass(frozen=True)
+class SegmentationParams:
+    """Parameters of the distance-transform segmentation (metres, square metres).
+
+    Attributes:
+        min_door_half: Smallest threshold radius tried (half the narrowest passage that splits).
+        max_door_half: Largest threshold radius tried.
+        step: Step between radii.
+        min_room_area: Pieces smaller than this are not rooms (they join a neighbour).
+        max_room_area: Pieces larger than this do not count as rooms when choosing the radius.
+        occupied: Occupancy value from which a cell is an obstacle.
+        max_door_width: Two regions whose shared border is wider than this, or who touch along
+            more than one stretch (around a table, on both sides of a sofa), are one room.
+    """
+
+    min_door_half: float = 0.35
+    max_door_half: float = 0.9
+    step: float = 0.05
+    min_room_area: float = 2.0
+    max_room_area: float = 80.0
+    occupied: int = 50
+    max_door_width: float = 1.5
+
+
+@dataclass
+class Segmentation:
+    """A segmented map: a label per cell (0: no room) and the rooms."""
+
+    grid: OccupancyGrid
+    labels: np.ndarray
+    rooms: list[RoomRegion]
+    _nearest: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+
+    def room_at(self, x: float, y: float, reach: float = 0.8) -> RoomRegion | None:
+        """The room of the cell at (x, y), or of the nearest room cell within ``reach`` metres."""
+        row, col = self.grid.world_to_cell(x, y)
+        h, w = self.labels.shape
+        if not (0 <= row < h and 0 <= col < w):
+            return None
+        label = int(self.labels[row, col])
+        if label == 0:
+            if self._nearest is None:
+                dist, idx = ndimage.distance_transform_edt(self.labels == 0, return_indices=True)
+                self._nearest = (dist, idx)
+            dist, idx = self._nearest
+            if dist[row, col] * self.grid.resolution > reach:
+                return None
+            label = int(self.labels[idx[0][row, col], idx[1][row, col]])
+        return self.rooms[label - 1] if 0 < label <= len(self.rooms) else None
+
+
+def segment_rooms(grid: OccupancyGrid, params: SegmentationParams | None = None,
+                  inside: tuple[float, float] | None = None) -> Segmentation:
+    """Segment ``grid`` into rooms (see module docstring); ids ``room_1``... in row-major order.
+
+    Args:
+        grid: The occupancy map.
+        params: Segmentation parameters.
+        inside: A point known to be inside the building (the robot's position): free space not
+            connected to it (the outside of a simulated building, a pocket behind a wall) is left
+            out. Without it, free space touching the map's edge is left out.
+    """
+    p = params or SegmentationParams()
+    res = grid.resolution
+    data = np.asarray(grid.data)
+    free = _building_free((data >= 0) & (data < p.occupied), grid, inside)
+    if not free.any():
+        return Segmentation(grid, np.zeros(data.shape, np.int32), [])
+    dist = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, 5) * res
+    min_cells, max_cells = p.min_room_area / res**2, p.max_room_area / res**2
+    best_markers, best_count = None, -1
+    radius = p.min_door_half
+    while radius <= p.max_door_half + 1e-9:
+        count, markers = cv2.connectedComponents((dist > radius).astype(np.uint8), connectivity=8)
+        sizes = np.bincount(markers.ravel(), minlength=count)[1:]
+        # a piece at this radius is the core of a room: its room is larger than the core itself
+        rooms = int(np.sum((sizes >= min_cells * 0.1) & (sizes <= max_cells)))
+        if rooms > best_count:
+            best_markers, best_count = markers, rooms
+        radius += p.step
+    assert best_markers is not None
+    markers = _drop_small_cores(best_markers, min_cells * 0.1)
+    labels = _grow(markers, dist, free)
+    labels = _merge_open(labels, p.max_door_width / res)
+    labels = _merge_small(labels, min_cells)
+    rooms = _regions(grid, labels)
+    return Segmentation(grid, labels, rooms)
+
+
+def _building_free(free: np.ndarray, grid: OccupancyGrid, inside: tuple[float, float] | None) -> np.ndarray:
+    count, comp = cv2.connectedComponents(free.astype(np.uint8), connectivity=4)
+    if inside is not None:
+        row, col = grid.world_to_cell(*inside)
+        h, w = free.shape
+        if 0 <= row < h and 0 <= col < w:
+            label = int(comp[row, col])
+            if label == 0:  # on an obstacle cell: the nearest free component
+                _, (rows, cols) = ndimage.distance_transform_edt(comp == 0, return_indices=True)
+                label = int(comp[rows[row, col], cols[row, col]])
+            return comp == label if label else free
+    edge = set(np.unique(np.concatenate([comp[0], comp[-1], comp[:, 0], comp[:, -1]])).tolist()) - {0}
+    return free & ~np.isin(comp, list(edge))
+
+
+def _drop_small_cores(markers: np.ndarray, min_cells: float) -> np.ndarray:
+    sizes = np.bincount(markers.ravel())
+    keep = np.flatnonzero(sizes >= max(min_cells, 1))
+    keep = keep[keep > 0]
+    out = np.zeros_like(markers)
+    for i, old in enumerate(keep, start=1):
+        out[markers == old] = i
+    return out.astype(np.int32)
+
+
+def _grow(markers: np.ndarray, dist: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Grow the cores over the free cells one cell a step (each cell to the geodesically nearest core)."""
+    del dist  # the cores already encode the distance map; growth is by geodesic distance
+    labels = markers.astype(np.int32).copy()
+    labels[~free] = 0
+    if labels.max() == 0:
+        count, comp = cv2.connectedComponents(free.astype(np.uint8), connectivity=8)
+        return comp.astype(np.int32)
+    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], bool)
+    while True:
+        todo = free & (labels == 0)
+        if not todo.any():
+            break
+        grown = ndimage.grey_dilation(labels, footprint=cross)
+        reach = todo & (grown > 0)
+        if not reach.any():
+            break  # free space cut off from every core (the outside of a building, a pocket)
+        labels[reach] = grown[reach]
+    return labels
+
+
+def _merge_open(labels: np.ndarray, max_door_cells: float) -> np.ndarray:
+    """Join neighbours that meet along a border wider than a door, or along several stretches.
+
+    A door or passage is one short stretch of border; furniture in the middle of a room splits it
+    into pieces that meet on both sides of the furniture, or along a wide open front.
+    """
+    labels = labels.copy()
+    kernel = np.ones((3, 3), np.uint8)
+    merged = True
+    while merged:
+        merged = False
+        for a in sorted(set(np.unique(labels).tolist()) - {0}):
+            grown = cv2.dilate((labels == a).astype(np.uint8), kernel).astype(bool)
+            for b in sorted(set(np.unique(labels[grown]).tolist()) - {0, a}):
+                border = (grown & (labels == b)).astype(np.uint8)
+                count, comp, stats, _ = cv2.connectedComponentsWithStats(border, connectivity=8)
+                stretches = [stats[i] for i in range(1, count)
+                             if stats[i][cv2.CC_STAT_AREA] >= 3]
+                if not stretches:
+                    continue
+                widest = max(math.hypot(s[cv2.CC_STAT_WIDTH], s[cv2.CC_STAT_HEIGHT]) for s in stretches)
+                if len(stretches) > 1 or widest > max_door_cells:
+                    labels[labels == b] = a
+                    merged = True
+                    break
+            if merged:
+                break
+    return labels
+
+
+def _merge_small(labels: np.ndarray, min_cells: float) -> np.ndarray:
+    """Join regions under ``min_cells`` to the neighbour they share most border with; renumber."""
+    labels = labels.copy()
+    changed = True
+    while changed:
+        changed = False
+        sizes = np.bincount(labels.ravel())
+        for label in np.argsort(sizes):
+            if label == 0 or sizes[label] == 0 or sizes[label] >= min_cells:
+                continue
+            region = labels == label
+            ring = cv2.dilate(region.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool) & ~region
+            around = labels[ring]
+            around = around[(around > 0) & (around != label)]
+            if around.size == 0:
+                continue
+            labels[region] = int(np.bincount(around).argmax())
+            changed = True
+            break
+    out = np.zeros_like(labels)
+    for i, old in enumerate(sorted(set(np.unique(labels).tolist()) - {0}), start=1):
+        out[labels == old] = i
+    return out
+
+
+def _regions(grid: OccupancyGrid, labels: np.ndarray) -> list[RoomRegion]:
+    res = grid.resolution
+    rooms: list[RoomRegion] = []
+    for label in range(1, int(labels.max()) + 1):
+        region = labels == label
+        cells = int(region.sum())
+        rows, cols = np.nonzero(region)
+        centroid = grid.cell_to_world(int(round(rows.mean())), int(round(cols.mean())))
+        cx = grid.origin.x + (cols.mean() + 0.5) * res
+        cy = grid.origin.y + (rows.mean() + 0.5) * res
+        closed = cv2.morphologyEx(region.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
+        contours, _ = cv2.findContours(closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        polygon = np.zeros((0, 2))
+        if contours:
+            biggest = max(contours, key=cv2.contourArea)
+            pts = biggest.reshape(-1, 2).astype(float)
+            polygon = np.stack([grid.origin.x + (pts[:, 0] + 0.5) * res, grid.origin.y + (pts[:, 1] + 0.5) * res],
+                               axis=1)
+        del centroid
+        rooms.append(RoomRegion(id=f"room_{label}", polygon=polygon, area=cells * res * res,
+                                centroid=(float(cx), float(cy))))
+    return rooms
+
+
+def rooms_from_polygons(entries: Iterable[dict[str, Any]], grid: OccupancyGrid | None = None) -> list[RoomRegion]:
+    """Rooms from ``{name, type, polygon}`` entries (the world-file ``rooms:`` format)."""
+    rooms = []
+    for i, entry in enumerate(entries, start=1):
+        try:
+            polygon = np.array(entry["polygon"], dtype=float).reshape(-1, 2)
+        except (KeyError, TypeError, ValueError):
+            raise ConfigError(f"rooms[{i - 1}]: expected a polygon [[x, y], ...] (at least 3 points), "
+                              f"found {entry.get('polygon') if isinstance(entry, dict) else entry!r}") from None
+        if len(polygon) < 3:
+            raise ConfigError(f"rooms[{i - 1}]: a polygon needs at least 3 points, found {len(polygon)}")
+        area = 0.5 * abs(float(np.dot(polygon[:, 0], np.roll(polygon[:, 1], 1))
+                               - np.dot(polygon[:, 1], np.roll(polygon[:, 0], 1))))
+        name = str(entry.get("name") or f"room_{i}")
+        room_type = str(entry.get("type") or "unknown").strip().lower().replace(" ", "_")
+        rooms.append(RoomRegion(id=f"room_{i}", type=room_type, polygon=polygon, area=area,
+                                centroid=(float(polygon[:, 0].mean()), float(polygon[:, 1].mean())), name=name,
+                                type_confidence=1.0 if room_type != "unknown" else 0.0))
+    return rooms
+
+
+def load_room_polygons(path: str | Path) -> list[RoomRegion]:
+    """Read room polygons from a YAML or JSON file (a list, or a mapping with ``rooms:``).
+
+    Raises:
+        ConfigError: The file is missing or not in that shape (says what was found).
+    """
+    target = Path(path)
+    try:
+        text = target.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"cannot read room polygons {target}: {exc.strerror or exc}") from None
+    try:
+        data = json.loads(text) if target.suffix == ".json" else yaml.safe_load(text)
+    except (json.JSONDecodeError, yaml.YAMLError) as exc:
+        raise ConfigError(f"{target}: not valid {'JSON' if target.suffix == '.json' else 'YAML'}: {exc}") from None
+    if isinstance(data, dict):
+        data = data.get("rooms")
+    if not isinstance(data, list) or not data:
+        raise ConfigError(f"{target}: expected a list of rooms ({{name, type, polygon}}) or a mapping with "
+                          "'rooms:', found none")
+    try:
+        return rooms_from_polygons(data)
+    except ConfigError as exc:
+        raise ConfigError(f"{target}: {exc}") from None
+
+
+def polygon_segmentation(grid: OccupancyGrid, rooms: Sequence[RoomRegion]) -> Segmentation:
+    """A :class:`Segmentation` of ``grid`` whose labels come from room polygons."""
+    labels = np.zeros(np.asarray(grid.data).shape, np.int32)
+    res = grid.resolution
+    for i, room in enumerate(rooms, start=1):
+        pts = ((room.polygon - [grid.origin.x, grid.origin.y]) / res * 16).astype(np.int32)
+        canvas = np.zeros_like(labels, dtype=np.uint8)
+        cv2.fillPoly(canvas, [pts], 1, cv2.LINE_8, shift=4)
+        labels[(canvas > 0) & (labels == 0)] = i
+    return Segmentation(grid, labels, list(rooms))
+
+
+class RoomTracker:
+    """Keeps room ids (and types) stable while the map grows and is segmented again."""
+
+    def __init__(self, params: SegmentationParams | None = None, min_overlap: float = 0.3) -> None:
+        self.params = params or SegmentationParams()
+        self.min_overlap = min_overlap
+        self.current: Segmentation | None = None
+        self._next = 1
+
+    def update(self, grid: OccupancyGrid) -> Segmentation:
+        """Segment ``grid``; rename its rooms after the previous segmentation's where they overlap."""
+        fresh = segment_rooms(grid, self.params)
+        old = self.current
+        renamed: dict[int, RoomRegion] = {}
+        if old is not None and old.rooms:
+            overlap = _overlaps(old, fresh)
+            used: set[int] = set()
+            for new_label, row in sorted(overlap.items(), key=lambda kv: -max(kv[1].values(), default=0)):
+                for old_label, share in sorted(row.items(), key=lambda kv: -kv[1]):
+                    if share >= self.min_overlap and old_label not in used:
+                        prev = old.rooms[old_label - 1]
+                        room = fresh.rooms[new_label - 1]
+                        room.id, room.type, room.name = prev.id, prev.type, prev.name
+                        room.type_confidence, room.evidence = prev.type_confidence, list(prev.evidence)
+                        renamed[new_label] = room
+                        used.add(old_label)
+                        break
+        for label, room in enumerate(fresh.rooms, start=1):
+            if label not in renamed:
+                while f"room_{self._next}" in {r.id for r in fresh.rooms if r is not room} | _ids(old):
+                    self._next += 1
+                room.id = f"room_{self._next}"
+                self._next += 1
+        self.current = fresh
+        return fresh
+
+
+def _ids(seg: Segmentation | None) -> set[str]:
+    return {r.id for r in seg.rooms} if seg is not None else set()
+
+
+def _overlaps(old: Segmentation, new: Segmentation) -> dict[int, dict[int, float]]:
+    """new label → {old label: share of the new region's cells that had it}, on the new grid."""
+    g_old, g_new = old.grid, new.grid
+    h, w = new.labels.shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    xs = g_new.origin.x + (cols + 0.5) * g_new.resolution
+    ys = g_new.origin.y + (rows + 0.5) * g_new.resolution
+    orow = np.floor((ys - g_old.origin.y) / g_old.resolution).astype(int)
+    ocol = np.floor((xs - g_old.origin.x) / g_old.resolution).astype(int)
+    oh, ow = old.labels.shape
+    inside = (orow >= 0) & (orow < oh) & (ocol >= 0) & (ocol < ow)
+    old_on_new = np.zeros_like(new.labels)
+    old_on_new[inside] = old.labels[orow[inside], ocol[inside]]
+    result: dict[int, dict[int, float]] = {}
+    for label in range(1, int(new.labels.max()) + 1):
+        region = new.labels == label
+        total = int(region.sum())
+        if not total:
+            continue
+        counts = np.bincount(old_on_new[region], minlength=1)
+        result[label] = {int(o): float(c) / total for o, c in enumerate(counts) if o > 0 and c > 0}
+    return result
+
+
+def room_of_point(rooms: Sequence[RoomRegion], x: float, y: float) -> RoomRegion | None:
+    """The first room whose polygon holds (x, y), else the one whose centroid is nearest within 1 m."""
+    for room in rooms:
+        if room.contains(x, y):
+            return room
+    near = [(math.hypot(r.centroid[0] - x, r.centroid[1] - y), r) for r in rooms]
+    near = [n for n in near if n[0] <= 1.0]
+    return min(near, key=lambda n: n[0])[1] if near else None
