@@ -69,6 +69,8 @@ def register(subparsers: Any) -> None:
                         help="start without the world's map: the robot learns it from its lidar "
                         "(default: run.map, else known)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress line on stderr")
+    parser.add_argument("--view", action="store_true",  # served by missiontree.cli.view (the viewer's owner)
+                        help="serve the live viewer on 127.0.0.1:8765 while the mission runs")
     parser.add_argument("--allow-outside", action="store_true",
                         help="let subtree includes leave the mission's folder")
     add_plugin_flag(parser)
@@ -91,6 +93,10 @@ def request_from_args(args: argparse.Namespace) -> MissionRequest:
 
 def run(args: argparse.Namespace) -> int:
     """Run the mission; print a one-line result and where the run directory is."""
+    if getattr(args, "view", False):
+        from missiontree.cli.view import run_with_viewer
+
+        return run_with_viewer(args, lambda: run_mission(request_from_args(args)), describe)
     result = run_mission(request_from_args(args))
     print(describe(result))
     return result.exit_code

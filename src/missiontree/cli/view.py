@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -74,3 +76,45 @@ def run(args: argparse.Namespace) -> int:
     size = path.stat().st_size
     print(f"wrote {path} ({size / 1e6:.2f} MB); open it in a browser", file=sys.stdout)
     return 0
+
+
+#: Port of the live viewer ``run --view`` starts (0 in tests: any free port).
+RUN_VIEW_PORT = 8765
+
+
+def run_with_viewer(
+    args: argparse.Namespace, start: Callable[[], Any], describe: Callable[[Any], str]
+) -> int:
+    """``run --view``: serve the live viewer of the run directory while ``start()`` runs the mission.
+
+    When the run ends the page is also written as ``report.html`` in the run directory; on a
+    terminal the viewer stays up until Ctrl-C, otherwise it stops with the run.
+    """
+    from missiontree.runlog.follow import serve_in_background
+    from missiontree.runlog.html import write_page
+
+    run_dir = args.out if args.out is not None else Path("runs") / args.tree.stem
+    run_dir.mkdir(parents=True, exist_ok=True)
+    port = int(getattr(args, "view_port", RUN_VIEW_PORT))
+    try:
+        server = serve_in_background(run_dir, port)
+    except OSError as error:
+        raise ConfigError(f"cannot serve the viewer on 127.0.0.1:{port}: {error.strerror}; "
+                          f"another viewer may be running (or run `missiontree view --follow`)") from error
+    host, bound = server.server_address[:2]
+    print(f"live viewer at http://{host}:{bound}/", file=sys.stderr, flush=True)
+    try:
+        result = start()
+        print(describe(result))
+        if (run_dir / "ticks.jsonl").is_file():
+            print(f"replay written to {write_page(run_dir)}")
+        if sys.stdin.isatty():
+            print(f"viewer still at http://{host}:{bound}/ (Ctrl-C stops)", file=sys.stderr, flush=True)
+            try:
+                threading.Event().wait()
+            except KeyboardInterrupt:
+                pass
+        return int(result.exit_code)
+    finally:
+        server.shutdown()
+        server.server_close()
