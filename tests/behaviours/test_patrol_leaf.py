@@ -7,13 +7,14 @@ from pathlib import Path
 
 import py_trees
 import pytest
-from patrol_doubles import Events, FakeRobot
+from patrol_doubles import Events, FakeHandle, FakeRobot
 
 from missiontree.behaviours.patrol import Patrol
 from missiontree.behaviours.waypoints import load_waypoints, parse_waypoints
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Status
 from missiontree.errors import ConfigError
+from missiontree.robot.actions import INFRASTRUCTURE, ActionResult, ActionStatus
 from missiontree.testing import tick_until
 
 ROUTE = [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 1.0, 1.57]]
@@ -179,3 +180,69 @@ def test_shipped_scenario_routes_load() -> None:
     assert len(load_waypoints("scenario_a")) == 2
     route = load_waypoints("scenario_c")
     assert len(route) == 22 and route[8].name == "P7"
+
+
+# -- a lost robot is not an unreachable waypoint ----------------------------------------------------
+
+class NoServerRobot(FakeRobot):
+    """Every goal aborts because no NavigateToPose server answers (as the ROS 2 backend reports it)."""
+
+    def navigate_to(self, goal, tolerance=None):  # type: ignore[no-untyped-def]
+        handle = FakeHandle(goal, tolerance, ActionStatus.ABORTED, "no NavigateToPose action server on "
+                            "/navigate_to_pose after 5 s", 1)
+        original = handle.result
+
+        def result():  # type: ignore[no-untyped-def]
+            plain = original()
+            return None if plain is None else ActionResult(plain.status, plain.reason, kind=INFRASTRUCTURE)
+
+        handle.result = result  # type: ignore[method-assign]
+        self.goals.append(handle)
+        return handle
+
+
+def test_no_navigation_server_fails_the_patrol_instead_of_skipping_every_waypoint() -> None:
+    """The first goal lost to a missing server fails the patrol with the reason; nothing is 'skipped'."""
+    route = [[float(i), 0.0, 0.0] for i in range(1, 23)]
+    robot = NoServerRobot()
+    leaf, events = make(robot, waypoints=route, laps=1)
+    tick_until(leaf, max_ticks=200)
+    assert leaf.status == Status.FAILURE
+    assert "robot lost" in leaf.feedback_message
+    assert "no NavigateToPose action server" in leaf.feedback_message
+    assert events.of("waypoint_skipped") == [] and len(events.of("patrol_lost")) == 1
+    assert len(robot.goals) == 1
+
+
+class VanishedRobot(FakeRobot):
+    """The robot stops publishing its pose at t=1 s; goals never end (nothing answers any more)."""
+
+    def pose(self):  # type: ignore[no-untyped-def]
+        stamped = super().pose()
+        assert stamped is not None
+        return type(stamped)(min(stamped.stamp, 1.0), stamped.pose)
+
+
+def test_a_stale_pose_fails_the_patrol_and_cancels_the_goal() -> None:
+    """With the pose 2 s stale the patrol cancels its goal and fails saying the robot is lost."""
+    robot = VanishedRobot()
+    robot.polls_per_goal = 10_000
+    leaf, events = make(robot, waypoints=ROUTE, laps=1, max_pose_age=2.0)
+    for _ in range(100):
+        leaf.tick_once()
+        if leaf.status != Status.RUNNING:
+            break
+        robot.advance(0.1)
+    assert leaf.status == Status.FAILURE and "pose was last updated" in leaf.feedback_message
+    assert 3.0 <= robot.time <= 3.3
+    assert robot.goals[0].cancelled and events.of("waypoint_skipped") == []
+
+
+def test_an_unreachable_waypoint_is_still_skipped_not_lost() -> None:
+    """A planner abort without the infrastructure kind is skipped as before."""
+    robot = FakeRobot()
+    robot.unreachable.add((2.0, 0.0))
+    leaf, events = make(robot, waypoints=ROUTE, laps=1)
+    tick_until(leaf, max_ticks=50)
+    assert leaf.status == Status.SUCCESS and len(events.of("waypoint_skipped")) == 1
+    assert events.of("patrol_lost") == []

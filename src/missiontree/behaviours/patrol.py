@@ -5,6 +5,13 @@ corridor) is logged and skipped, and the patrol goes on to the next one. Here th
 from the tree, a config file or a Nav2-style waypoint YAML (:mod:`missiontree.behaviours.waypoints`);
 it runs a number of laps (0 = forever).
 
+Unreachable is not lost. A waypoint the planner cannot reach is skipped; a goal that ended because
+the machinery is gone — the backend says so (:data:`~missiontree.robot.actions.INFRASTRUCTURE`:
+no NavigateToPose server, a vanished server, a lost result) or the robot's pose has not been
+updated for ``max_pose_age`` seconds (the robot vanished) — fails the patrol at once with the
+reason. Eighteen waypoints "skipped" in a row because nothing answers is a lost robot, not a
+patrol.
+
 Preemption: when a higher-priority branch (visual servoing on an alarm) halts the patrol, its
 goal is cancelled but its place is kept, so the next time it starts it drives to the waypoint
 it was interrupted on, on the same lap. Only finishing (all laps done) or failing resets it.
@@ -20,7 +27,7 @@ from missiontree.behaviours.motion import ANY_HEADING
 from missiontree.behaviours.waypoints import Waypoint, load_waypoints, parse_waypoints
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Output
-from missiontree.robot.actions import ActionHandle, ActionStatus
+from missiontree.robot.actions import INFRASTRUCTURE, ActionHandle, ActionResult, ActionStatus
 from missiontree.types import Tolerance
 
 
@@ -47,6 +54,8 @@ class Patrol(Leaf):
             None, gt=0, description="Skip a waypoint not reached within this many seconds.")
         max_consecutive_skips: int = Field(
             0, ge=0, description="Fail after this many skips in a row (0: never; a whole lap skipped fails).")
+        max_pose_age: float = Field(
+            2.0, gt=0, description="Fail when the robot's pose is older than this (s): the robot is lost.")
         waypoint: Annotated[str, Output("the waypoint being driven to", type="dict")] = "patrol_waypoint"
 
         @model_validator(mode="after")
@@ -92,6 +101,11 @@ class Patrol(Leaf):
         assert self.handle is not None
         status = self.handle.status()
         waypoint = self.route[self.index]
+        lost = self._robot_lost()
+        if lost:
+            if not status.done:
+                self.handle.cancel()
+            return self._lost(waypoint, lost)
         if not status.done:
             timeout = self.params.waypoint_timeout
             if timeout is not None and self.context.robot.now() - self.goal_started > timeout:
@@ -108,6 +122,8 @@ class Patrol(Leaf):
         else:
             result = self.handle.result()
             reason = (result.reason if result is not None and result.reason else status.value)
+            if _infrastructure(result):
+                return self._lost(waypoint, f"{status.value}: {reason}")
             outcome = self._skip(waypoint, f"{status.value}: {reason}")
         self.handle = None
         if outcome is not None:
@@ -142,6 +158,23 @@ class Patrol(Leaf):
         if self.ctx is not None:
             self.ctx.mark("goal", waypoint.pose.x, waypoint.pose.y, waypoint.name)
 
+    def _robot_lost(self) -> str:
+        """Why the robot counts as lost now ("" when it does not): no pose, or a pose gone stale."""
+        robot = self.context.robot
+        stamped = robot.pose()
+        if stamped is None:
+            return "the robot reports no pose"
+        age = robot.now() - stamped.stamp
+        if age > self.params.max_pose_age:
+            return f"the robot's pose was last updated {age:.1f} s ago (limit {self.params.max_pose_age:g} s)"
+        return ""
+
+    def _lost(self, waypoint: Waypoint, reason: str) -> Status:
+        """Fail the patrol: the machinery that drives the robot is gone (not a waypoint to skip)."""
+        self.handle = None
+        self.emit("patrol_lost", waypoint=waypoint.name, index=self.index, lap=self.lap, reason=reason)
+        return self.fail(f"robot lost on the way to {waypoint.name} (not an unreachable waypoint): {reason}")
+
     def _skip(self, waypoint: Waypoint, reason: str) -> Status | None:
         self.skipped += 1
         self.consecutive_skips += 1
@@ -169,3 +202,8 @@ class Patrol(Leaf):
     def _progress(self, waypoint: Waypoint) -> str:
         laps = f"{self.lap + 1}/{self.params.laps}" if self.params.laps else f"{self.lap + 1}"
         return f"lap {laps}, to {waypoint.name} ({waypoint.pose.x:.2f}, {waypoint.pose.y:.2f})"
+
+
+def _infrastructure(result: ActionResult | None) -> bool:
+    """True when a goal ended because the machinery is gone, as the backend reports it."""
+    return result is not None and getattr(result, "kind", "") == INFRASTRUCTURE
