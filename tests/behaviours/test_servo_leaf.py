@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import threading
 
 import py_trees
 import pytest
@@ -115,3 +116,47 @@ def test_servo_skips_a_person_served_moments_ago() -> None:
     leaf.tick_once()
     assert leaf.status == Status.FAILURE
     assert events.of("servo_skipped")[0]["alarm"] == 2
+
+
+class ThreadNotingDetector(SlabDetector):
+    """The slab detector, noting which thread each call runs on."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.threads: list[int] = []
+
+    def detect(self, image):  # type: ignore[no-untyped-def]
+        self.threads.append(threading.get_ident())
+        return super().detect(image)
+
+
+def test_servo_detects_on_a_worker_not_the_tick_thread() -> None:
+    """The servo's detector is a model call: run off the tick thread, its answer read on a later tick."""
+    robot = FakeRobot()
+    person = (1.2 * math.cos(math.radians(25)), 1.2 * math.sin(math.radians(25)))
+    post_alarm(math.radians(25))
+    events = Events()
+    detector = ThreadNotingDetector()
+    leaf = ServoToTarget("servo", ServoToTarget.Params(method="seed"))
+    leaf.setup(context=MissionContext(robot=robot, models={"detector": detector}, events=events))
+    run(robot, leaf, person, 10.0)
+    assert leaf.status == Status.SUCCESS
+    assert detector.threads and threading.get_ident() not in detector.threads
+    assert [e for e in events.of("model_call") if e["role"] == "detector" and e["node"] == "servo"]
+
+
+def test_servo_with_a_broken_detector_gives_up_with_its_error() -> None:
+    """A detector that always raises ends the servo (target lost) with the detector's error in the reason."""
+
+    class Broken(SlabDetector):
+        def detect(self, image):  # type: ignore[no-untyped-def]
+            raise RuntimeError("the model file is corrupt")
+
+    robot = FakeRobot()
+    post_alarm(math.radians(25))
+    leaf = ServoToTarget("servo", ServoToTarget.Params(method="seed", lost_timeout=1.0))
+    leaf.setup(context=MissionContext(robot=robot, models={"detector": Broken()}, events=Events()))
+    run(robot, leaf, (1.0, 0.5), 5.0)
+    assert leaf.status == Status.FAILURE
+    assert "target lost" in leaf.feedback_message and "the model file is corrupt" in leaf.feedback_message
+    assert robot.drives[-1] == (0.0, 0.0)
