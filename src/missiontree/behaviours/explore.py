@@ -1,0 +1,328 @@
+"""Explore: drive to frontiers (or scan points) until no reachable unexplored place is left.
+
+The leaf reads only the robot: its map (``occupancy()``, the map learned from the lidar in an
+unknown-map run, ``/map`` from SLAM on ROS 2), its pose, and ``navigate_to`` handles. Where to go
+next is decided by :class:`missiontree.mapping.exploration.ExplorationPlanner` with one of three
+strategies: ``gain`` (unknown area a frontier would reveal against the path to it), ``nearest``
+(the nearest frontier, as explore_lite), ``scan_points`` (the vision-language object-search
+report's scan points, largest region first).
+
+While driving it re-plans every ``replan_period`` seconds: a goal whose frontier has been seen
+meanwhile is dropped for the next one (the lidar reaches far ahead of the robot), and the
+``gain`` and ``nearest`` strategies switch when another goal is clearly better. A goal that the
+navigation stack aborts, or that the robot makes no progress toward for ``no_progress_timeout``
+seconds, is blacklisted with its reason and never offered again. With ``look_around`` the robot
+turns a full circle at each goal reached, in ``look_steps`` steps with a pause at each (the
+report's 360° scan), by ``drive`` commands.
+
+Ends SUCCESS when no reachable frontier (or unvisited scan point) remains; FAILURE with a reason
+when no map arrives within ``map_timeout`` or the robot is stuck (neither the known area grew nor
+the robot moved for ``stuck_timeout`` seconds). On every end, halts included, the learned map is
+written into the run directory as ``map.pgm`` + ``map.yaml`` (Nav2 map_server format).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import BaseModel, Field
+
+from missiontree.engine.leaf import Leaf, Status
+from missiontree.engine.ports import Output
+from missiontree.mapping.exploration import Candidate, ExplorationPlanner
+from missiontree.mapping.grid import free_mask, unknown_mask
+from missiontree.mapping.mapfile import write_map
+from missiontree.robot.actions import ActionHandle, ActionStatus
+from missiontree.types import OccupancyGrid, Pose2D, Tolerance, wrap_angle
+
+_SELECT, _DRIVE, _LOOK = "select", "drive", "look"
+#: Known area must grow by this much (m^2), or the robot move this far (m), to count as progress.
+_AREA_PROGRESS = 0.25
+_MOVE_PROGRESS = 0.25
+
+
+class Explore(Leaf):
+    """Explore an unknown place: frontiers by gain against path cost (or nearest, or scan points).
+
+    Writes the learned map as ``map.pgm`` + ``map.yaml`` into the run directory when it ends.
+    """
+
+    class Params(BaseModel):
+        strategy: Literal["gain", "nearest", "scan_points"] = Field(
+            "gain", description="gain: unknown area revealed against path cost; nearest: nearest frontier "
+            "(explore_lite); scan_points: the report's scan points, largest region first.")
+        look_around: bool = Field(False, description="Turn a full circle at each goal reached.")
+        look_steps: int = Field(4, ge=1, le=36, description="Steps of the full turn (pause after each).")
+        look_pause: float = Field(0.5, ge=0, description="Pause after each step of the turn (s).")
+        turn_speed: float = Field(1.0, gt=0, description="Angular speed of the look-around (rad/s).")
+        sensor_range: float = Field(
+            4.0, gt=0, description="Range over which a frontier's gain is counted (m).")
+        cost_rate: float = Field(
+            0.15, ge=0, description="Gain discount per metre of path (1/m), strategy gain.")
+        min_frontier_size: float = Field(0.3, gt=0, description="Ignore frontiers shorter than this (m).")
+        footprint_radius: float = Field(
+            0.2, gt=0, description="Robot radius for planning and goal clearance (m).")
+        xy_tolerance: float = Field(0.3, gt=0, description="Distance at which a goal counts as reached (m).")
+        replan_period: float = Field(
+            1.0, gt=0, description="Re-evaluate the goal this often while driving (s).")
+        no_progress_timeout: float = Field(
+            20.0, gt=0, description="Blacklist a goal the robot got no closer to for this long (s).")
+        stuck_timeout: float = Field(
+            60.0, gt=0, description="Fail when neither the map grew nor the robot moved for this long (s).")
+        map_timeout: float = Field(
+            10.0, gt=0, description="Fail when no map with free space arrives in time (s).")
+        map_name: str = Field("map", pattern=r"^[A-Za-z0-9_.-]+$",
+                              description="Base name of the map files written into the run directory.")
+        explored_area: Annotated[str, Output("known map area when the leaf ended (m^2)", type="float")] = (
+            "explored_area")
+        map_yaml: Annotated[str, Output("path of the map.yaml written", type="str")] = "map_yaml"
+
+    params: Params
+
+    def __init__(self, name: str, params: BaseModel | None = None) -> None:
+        super().__init__(name, params)
+        self.planner: ExplorationPlanner | None = None
+        self.handle: ActionHandle | None = None
+        self.target: Candidate | None = None
+        self.state = _SELECT
+        self.started = 0.0
+        self.goals = 0
+        self.last_grid: OccupancyGrid | None = None
+        self._reset_timers(0.0)
+
+    def _reset_timers(self, now: float) -> None:
+        self.next_replan = now
+        self.goal_started = now
+        self.goal_best = math.inf
+        self.goal_best_at = now
+        self.progress_at = now
+        self.progress_area = 0.0
+        self.progress_xy = (math.nan, math.nan)
+        self.look_turned = 0.0
+        self.look_yaw = 0.0
+        self.look_pause_until = -math.inf
+        self.look_started = now
+        self.look_steps_done = 0
+
+    # -- lifecycle ---------------------------------------------------------------------------------
+
+    def initialise(self) -> None:
+        """Start with an empty blacklist and no goal."""
+        p = self.params
+        self.planner = ExplorationPlanner(
+            strategy=p.strategy, footprint_radius=p.footprint_radius, sensor_range=p.sensor_range,
+            min_frontier_m=p.min_frontier_size, cost_rate=p.cost_rate)
+        self.handle = None
+        self.target = None
+        self.state = _SELECT
+        self.goals = 0
+        self.last_grid = None
+        self.started = self.context.robot.now()
+        self._reset_timers(self.started)
+
+    def update(self) -> Status:
+        """One step of select -> drive -> (look around) -> select; returns at once."""
+        robot = self.context.robot
+        now = robot.now()
+        grid = robot.occupancy()
+        stamped = robot.pose()
+        if grid is None or stamped is None or not free_mask(grid).any():
+            if now - self.started > self.params.map_timeout:
+                got = "nothing" if grid is None else "no free cell"
+                return self.fail(f"no map with free space within {self.params.map_timeout:g} s "
+                                 f"(is the robot mapping? occupancy() gave {got})")
+            return self.running("waiting for the map")
+        self.last_grid = grid
+        pose = stamped.pose
+        if self._stuck(now, grid, pose):
+            return self.fail(f"stuck: the map did not grow and the robot did not move for "
+                             f"{self.params.stuck_timeout:g} s ({self._summary(grid)})")
+        if self.state == _LOOK:
+            if not self._look(now, pose):
+                return self.running(f"looking around: {math.degrees(self.look_turned):.0f} deg")
+            self.state = _SELECT
+        if self.state == _DRIVE:
+            status = self._drive(now, grid, pose)
+            if status is not None:
+                return status
+        if self.state == _SELECT:
+            return self._select(now, grid, pose)
+        return self.running(self._feedback(pose))
+
+    def terminate(self, new_status: Status) -> None:
+        """Cancel the goal, stop turning and write the learned map into the run directory."""
+        robot = self.ctx.robot if self.ctx is not None else None
+        if self.handle is not None:
+            self.handle.cancel()
+            self.handle = None
+        if robot is not None and self.state == _LOOK:
+            robot.drive(0.0, 0.0)
+        self.state = _SELECT
+        self._save_map()
+
+    # -- states ------------------------------------------------------------------------------------
+
+    def _select(self, now: float, grid: OccupancyGrid, pose: Pose2D) -> Status:
+        assert self.planner is not None
+        candidates = self.planner.candidates(grid, (pose.x, pose.y))
+        if not candidates:
+            return self.succeed(f"explored: no reachable {self._what()} remains ({self._summary(grid)})")
+        self._send(now, candidates[0])
+        return self.running(self._feedback(pose))
+
+    def _drive(self, now: float, grid: OccupancyGrid, pose: Pose2D) -> Status | None:
+        """Poll the goal; None when the state changed to select (or look) and the caller goes on."""
+        assert self.handle is not None and self.target is not None and self.planner is not None
+        target = self.target
+        status = self.handle.status()
+        if status.done:
+            result = self.handle.result()
+            self.handle = None
+            if status is ActionStatus.SUCCEEDED:
+                self.planner.visit(target.x, target.y)
+                self.emit("explore_reached", x=target.x, y=target.y)
+                if self.params.look_around:
+                    self._start_look(now, pose)
+                    return self.running("looking around")
+            else:
+                reason = (result.reason if result is not None and result.reason else status.value)
+                self._give_up(target, f"goal {status.value}: {reason}")
+            self.state = _SELECT
+            return None
+        distance = math.hypot(target.x - pose.x, target.y - pose.y)
+        if distance < self.goal_best - 0.1:
+            self.goal_best, self.goal_best_at = distance, now
+        elif now - self.goal_best_at > self.params.no_progress_timeout:
+            self.handle.cancel()
+            self.handle = None
+            self._give_up(target, f"no progress toward it for {self.params.no_progress_timeout:g} s")
+            self.state = _SELECT
+            return None
+        if now >= self.next_replan and target.kind == "frontier":
+            self.next_replan = now + self.params.replan_period
+            candidates = self.planner.candidates(grid, (pose.x, pose.y))
+            if not candidates:
+                self.handle.cancel()
+                self.handle = None
+                self.state = _SELECT
+                return None
+            best = candidates[0]
+            current = _matching(candidates, target, radius=0.4)
+            seen = not self.planner.still_frontier(grid, target.x, target.y)
+            if seen or current is None or (best is not current and self.planner.better(best, current)):
+                self._send(now, best)
+        return self.running(self._feedback(pose))
+
+    def _send(self, now: float, candidate: Candidate) -> None:
+        robot = self.context.robot
+        if self.handle is not None:
+            self.handle.cancel()
+        self.target = candidate
+        self.handle = robot.navigate_to(Pose2D(candidate.x, candidate.y, 0.0),
+                                        Tolerance(self.params.xy_tolerance, 2.0 * math.pi))
+        self.state = _DRIVE
+        self.goals += 1
+        self.goal_started = now
+        self.goal_best, self.goal_best_at = math.inf, now
+        self.next_replan = now + self.params.replan_period
+        self.emit("explore_goal", x=candidate.x, y=candidate.y, kind=candidate.kind,
+                  strategy=self.params.strategy, gain_m2=round(candidate.gain_m2, 3),
+                  path_m=round(candidate.path_m, 3), score=round(candidate.score, 4))
+        self.context.mark("goal", candidate.x, candidate.y, candidate.kind)
+
+    def _give_up(self, target: Candidate, reason: str) -> None:
+        assert self.planner is not None
+        self.planner.give_up(target.x, target.y, reason)
+        if target.kind == "scan_point":
+            self.planner.visit(target.x, target.y)
+        self.emit("explore_blacklist", x=target.x, y=target.y, reason=reason)
+
+    def _start_look(self, now: float, pose: Pose2D) -> None:
+        self.state = _LOOK
+        self.look_turned = 0.0
+        self.look_yaw = pose.yaw
+        self.look_pause_until = -math.inf
+        self.look_started = now
+        self.look_steps_done = 0
+
+    def _look(self, now: float, pose: Pose2D) -> bool:
+        """Turn a full circle in steps with pauses; True when done (or given up after a timeout)."""
+        robot = self.context.robot
+        p = self.params
+        self.look_turned += wrap_angle(pose.yaw - self.look_yaw)
+        self.look_yaw = pose.yaw
+        step = 2.0 * math.pi / p.look_steps
+        limit = 2.0 * (2.0 * math.pi / p.turn_speed + p.look_steps * p.look_pause) + 5.0
+        if self.look_turned >= 2.0 * math.pi - 0.05 or now - self.look_started > limit:
+            robot.drive(0.0, 0.0)
+            return True
+        if now < self.look_pause_until:
+            robot.drive(0.0, 0.0)
+            return False
+        # pause when a step boundary has just been passed
+        done_steps = int((self.look_turned + 0.02) // step)
+        if done_steps > self.look_steps_done and p.look_pause > 0:
+            self.look_steps_done = done_steps
+            self.look_pause_until = now + p.look_pause
+            robot.drive(0.0, 0.0)
+            return False
+        self.look_steps_done = done_steps
+        remaining = 2.0 * math.pi - self.look_turned
+        robot.drive(0.0, min(p.turn_speed, max(0.3, 2.0 * remaining)))
+        return False
+
+    # -- progress, feedback, map -----------------------------------------------------------------
+
+    def _stuck(self, now: float, grid: OccupancyGrid, pose: Pose2D) -> bool:
+        area = _known_area(grid)
+        moved = math.hypot(pose.x - self.progress_xy[0], pose.y - self.progress_xy[1])
+        if area > self.progress_area + _AREA_PROGRESS or not moved <= _MOVE_PROGRESS:
+            self.progress_area, self.progress_xy, self.progress_at = area, (pose.x, pose.y), now
+            return False
+        return now - self.progress_at > self.params.stuck_timeout
+
+    def _what(self) -> str:
+        return "unvisited scan point" if self.params.strategy == "scan_points" else "frontier"
+
+    def _summary(self, grid: OccupancyGrid) -> str:
+        assert self.planner is not None
+        text = f"{_known_area(grid):.1f} m^2 known, {self.goals} goals"
+        if self.planner.blacklist:
+            text += f", {len(self.planner.blacklist)} unreachable"
+        return text
+
+    def _feedback(self, pose: Pose2D) -> str:
+        if self.target is None:
+            return "choosing a goal"
+        d = math.hypot(self.target.x - pose.x, self.target.y - pose.y)
+        return f"to {self.target.kind} ({self.target.x:.2f}, {self.target.y:.2f}): {d:.1f} m"
+
+    def _save_map(self) -> None:
+        grid = self.last_grid
+        if grid is None and self.ctx is not None:
+            grid = self.ctx.robot.occupancy()
+        if grid is None:
+            return
+        self.write("explored_area", round(_known_area(grid), 3))
+        run_dir = self.ctx.run_dir if self.ctx is not None else None
+        if run_dir is None:
+            return
+        _, yaml_path = write_map(grid, run_dir, self.params.map_name)
+        self.write("map_yaml", str(yaml_path))
+        self.emit("map_saved", path=str(yaml_path), known_m2=round(_known_area(grid), 3))
+
+
+def _known_area(grid: OccupancyGrid) -> float:
+    return float(np.count_nonzero(~unknown_mask(grid))) * grid.resolution ** 2
+
+
+def _matching(candidates: list[Candidate], target: Candidate, radius: float) -> Candidate | None:
+    """The candidate standing for the same place as ``target`` (nearest within ``radius``)."""
+    best, best_d = None, radius
+    for c in candidates:
+        d = math.hypot(c.x - target.x, c.y - target.y)
+        if d <= best_d:
+            best, best_d = c, d
+    return best
