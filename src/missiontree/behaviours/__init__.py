@@ -4,6 +4,7 @@
 - :mod:`~missiontree.behaviours.patrol`: Patrol (waypoint loops, skip-on-failure, resume).
 - :mod:`~missiontree.behaviours.surveillance`: Surveillance (people, alarms with positions).
 - :mod:`~missiontree.behaviours.servo`: ServoToTarget (visual servoing on an alarm).
+- :mod:`~missiontree.behaviours.intent`: ServeCommands, GoToIntent (go where the user means).
 """
 
 from __future__ import annotations
@@ -16,10 +17,12 @@ if TYPE_CHECKING:
 
 def register_nodes(registry: NodeRegistry) -> None:
     """Add the behaviour leaves to ``registry`` (listed in missiontree.plugins.builtin.NODE_MODULES)."""
+    from missiontree.behaviours.intent import SERVE_COMMANDS, GoToIntent
     from missiontree.behaviours.motion import NavigateTo, Rotate
     from missiontree.behaviours.patrol import Patrol
     from missiontree.behaviours.servo import ServoToTarget
     from missiontree.behaviours.surveillance import Surveillance
 
-    for leaf in (NavigateTo, Rotate, Patrol, Surveillance, ServoToTarget):
+    for leaf in (NavigateTo, Rotate, Patrol, Surveillance, ServoToTarget, GoToIntent):
         registry.add(leaf)
+    registry.add(SERVE_COMMANDS)

@@ -31,7 +31,7 @@ from pydantic import BaseModel
 from missiontree.errors import ModelError
 from missiontree.perception.colour import canonical_colour
 from missiontree.reasoning.embedder import similarity
-from missiontree.reasoning.phrases import fold_label, parse_reference
+from missiontree.reasoning.phrases import fold_label, parse_reference, split_relation
 from missiontree.reasoning.prompts import parse_intent_messages
 from missiontree.reasoning.protocols import Embedder, Message
 from missiontree.reasoning.schemas import IntentResolution, ReferenceParse
@@ -42,18 +42,27 @@ AFFORDANCES: dict[str, str] = {
     "cup": "a cup for drinking coffee, tea or water",
     "sink": "a sink with a tap for washing hands and dishes",
     "refrigerator": "a refrigerator full of food to eat and cold drinks",
-    "sofa": "a sofa to relax and rest on",
-    "chair": "a chair to sit down on",
-    "bed": "a bed to lie down and sleep in",
-    "tv": "a television to watch films and shows for entertainment",
-    "book": "a book to read for entertainment",
-    "laptop": "a laptop computer to work on, browse the internet or play games",
+    "sofa": "a sofa to relax, rest and nap on when tired",
+    "chair": "a chair to sit down and rest on when tired",
+    "bed": "a bed to lie down and sleep in when tired",
+    "tv": "a television to watch films and shows for entertainment when bored",
+    "book": "a book to read for entertainment when bored",
+    "laptop": "a laptop computer to work on, browse the internet or play games when bored",
     "backpack": "a backpack for carrying your things",
     "umbrella": "an umbrella that keeps you dry in the rain",
     "potted plant": "a potted plant that decorates the room",
     "table": "a table to put things on, eat or work at",
     "toilet": "a toilet in the bathroom",
     "person": "a person to talk to",
+    "counter": "a kitchen counter to prepare food on",
+    "oven": "an oven to cook and bake food",
+    "microwave": "a microwave to heat up food",
+    "stool": "a stool to sit on",
+    "trash can": "a trash can to throw rubbish away",
+    "desk": "a desk to work at",
+    "dining table": "a dining table to eat meals at",
+    "printer": "a printer to print documents",
+    "bookshelf": "a bookshelf full of books to read when bored",
 }
 
 #: Metres within which "near" / "next to" / "on" hold.
@@ -181,7 +190,10 @@ def _attributes(obj: Mapping[str, Any]) -> list[str]:
         raw = list(raw.values())
     for key in ("colour", "color", "size", "description"):
         if obj.get(key):
-            raw = [*raw, *str(obj[key]).replace(",", " ").split()]
+            text = str(obj[key])
+            if key == "description":  # the object's own words only: "a cup by the blue bottle" is not blue
+                text = split_relation(text)[0]
+            raw = [*raw, *text.replace(",", " ").split()]
     for word in raw:
         words.append(canonical_colour(str(word)))
     return words
@@ -206,6 +218,15 @@ def _relation_distance(obj: Mapping[str, Any], anchors: Sequence[Mapping[str, An
     it they fall back to nearness, which is what a listener can check from positions alone.
     """
     where = _xy(obj)
+    for edge in obj.get("relations", None) or []:  # the scene graph's own relation edges come first
+        if not isinstance(edge, Mapping) or str(edge.get("relation", "")) != relation:
+            continue
+        for anchor in anchors:
+            same_label = fold_label(str(anchor["label"])) == fold_label(str(edge.get("target")))
+            same_id = str(anchor.get("id")) == str(edge.get("target_id"))
+            if same_id or ("target_id" not in edge and same_label):
+                at = _xy(anchor)
+                return math.hypot(where[0] - at[0], where[1] - at[1]) if where and at else 0.0
     if where is None:
         return None
     best: float | None = None

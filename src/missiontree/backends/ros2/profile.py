@@ -40,6 +40,7 @@ class Topics(_Section):
     markers: str = "/missiontree/detections"
     scene_graph: str = "/scene_graph"
     alarms: str = "/missiontree/alarms"
+    command: str = "/command"
 
 
 class Frames(_Section):

@@ -39,11 +39,13 @@ from sensor_msgs.msg import CameraInfo, Image
 from sensor_msgs.msg import LaserScan as LaserScanMsg
 
 from missiontree.backends.ros2 import conversions as conv
+from missiontree.backends.ros2.commands import TopicCommands
 from missiontree.backends.ros2.navigation import ActionGoal, NavGoal, TopicGoal
 from missiontree.backends.ros2.profile import Ros2Profile
 from missiontree.backends.ros2.publish import WorldPublisher
 from missiontree.backends.ros2.tf_buffer import TransformBuffer, compose, history_at, invert
 from missiontree.robot.actions import ActionHandle
+from missiontree.robot.commands import Command
 from missiontree.robot.history import StampedHistory
 from missiontree.types import LaserScan, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
 
@@ -127,6 +129,7 @@ class Ros2Robot:
         try:
             self._subscribe()
             self._advertise()
+            self._commands = TopicCommands(self.node, self.now, profile.topics.command)
         except BaseException:
             self.node.destroy_node()
             self._context.try_shutdown()
@@ -370,6 +373,14 @@ class Ros2Robot:
         if found is not None:
             return found[1]
         return Pose2D(cam.mount_x, cam.mount_y, math.radians(cam.mount_yaw_deg))
+
+    def commands(self) -> list[Command]:
+        """User commands received on the command topic (std_msgs/String) since the last call."""
+        return self._commands.poll(self.now())
+
+    def commands_closed(self) -> bool:
+        """A topic never closes: False."""
+        return False
 
     def occupancy(self) -> OccupancyGrid | None:
         """The latest map received on the map topic."""

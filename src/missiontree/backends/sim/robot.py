@@ -25,6 +25,7 @@ from missiontree.backends.sim.raycast import HAVE_NUMBA, Primitives
 from missiontree.backends.sim.schema import RobotProfile
 from missiontree.backends.sim.truth import GroundTruth
 from missiontree.backends.sim.world import World
+from missiontree.robot.commands import Command, LineCommands
 from missiontree.robot.history import StampedHistory
 from missiontree.types import LaserScan, Marker, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
 
@@ -83,6 +84,8 @@ class SimRobot:
         self.trajectory: list[tuple[float, float, float]] = []
         self.timings: dict[str, list[float]] = {"lidar": [], "camera": [], "planner": self._nav.plan_ms}
         self._closed = False
+        #: The command channel: lines on stdin (read only once a mission asks); tests may replace it.
+        self.command_input = LineCommands()
         self._record_pose()
         self._sense()
 
@@ -161,6 +164,16 @@ class SimRobot:
         self.stop()
         self._finish_frame()
         self._closed = True
+
+    # -- command channel (missiontree.robot.commands.CommandChannel) -------------------------------
+
+    def commands(self) -> list[Command]:
+        """Commands received since the last call: lines on stdin, stamped with the simulated time."""
+        return self.command_input.poll(self._t)
+
+    def commands_closed(self) -> bool:
+        """True once stdin has ended and every line was taken."""
+        return self.command_input.closed
 
     # -- Drawable ----------------------------------------------------------------------------------
 

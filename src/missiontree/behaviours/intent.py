@@ -1,0 +1,521 @@
+"""Intent navigation: go where the user means, over the scene graph (the NAIS paper's phase 2, checked).
+
+Two node types:
+
+- :class:`ServeCommands` (decorator) takes the user's commands — the one given as a parameter
+  (``--set command="I'm thirsty"``), or one after another from the robot's command channel (stdin
+  in the simulator, ``/command`` on ROS 2, see :mod:`missiontree.robot.commands`) — writes each to
+  the blackboard and runs its child once per command.
+- :class:`GoToIntent` (leaf) serves one command: the language model answers candidate object ids
+  through a schema (a handle polled every tick); every id is checked against the graph and the map
+  and the survivors are ranked by path length (:mod:`missiontree.reasoning.intent`, run on the model
+  worker pool so the tick never waits); the robot drives to a standoff pose facing the best one and
+  looks: the detector must see the object where the graph puts it and the vision-language model must
+  confirm the asked-for attributes on a crop of it. If not, the object is marked doubtful and the
+  next candidate is tried (re-ranked from where the robot now is). No candidate left → FAILURE with
+  the reason. Goals come only from graph coordinates and the map, never from the model's text.
+
+Tick-log events: ``command_received``, ``intent_interpreted``, ``candidate_rejected``,
+``intent_ambiguous``, ``goal_sent``, ``goal_result``, ``object_verified``, ``object_doubtful``,
+``command_served``.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Annotated, Any
+
+import py_trees
+from pydantic import BaseModel, ConfigDict, Field
+
+from missiontree.engine.leaf import Leaf, Status
+from missiontree.engine.ports import Input, Output, ports_of
+from missiontree.engine.registry import NodeType
+from missiontree.perception.detectors import detection_job
+from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
+from missiontree.reasoning.intent import (
+    Candidate,
+    Ranking,
+    SceneObjects,
+    graph_objects,
+    look_crop,
+    look_for,
+    match_detection,
+    nearest_note,
+    plan_candidates,
+    prompt_objects,
+)
+from missiontree.reasoning.prompts import crop_match_prompt, intent_messages
+from missiontree.reasoning.schemas import CropMatch, IntentResolution
+from missiontree.robot.actions import ActionHandle, ActionStatus
+from missiontree.types import RGBDFrame, Tolerance
+
+Behaviour = py_trees.behaviour.Behaviour
+
+
+# -- ServeCommands -----------------------------------------------------------------------------------
+
+
+class ServeCommandsParams(BaseModel):
+    """Parameters of ServeCommands."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    command: str = Field("", description="The command to serve; empty: serve the robot's command channel "
+                         "(stdin in the simulator, /command on ROS 2) one command after another.")
+    max_commands: int = Field(0, ge=0, description="End after this many commands from the channel (0: until "
+                              "the channel closes, which stdin does at its end; a topic never does).")
+    command_key: Annotated[str, Output("the command being served", type="str")] = "intent_command"
+
+
+class ServeCommands(py_trees.decorators.Decorator):
+    """Run the child once per user command: the `command` given, or each command from the robot's channel.
+
+    With ``command`` set it ends with the child's status. Otherwise it waits for commands (RUNNING),
+    serves them in turn (one that arrives meanwhile waits its turn), and ends when the channel closes:
+    SUCCESS when every command was served, FAILURE naming those that were not.
+    """
+
+    def __init__(self, name: str, child: Behaviour, params: ServeCommandsParams) -> None:
+        super().__init__(name=name, child=child)
+        self.params = params
+        self.ctx: Any = None
+        self.bb = self.attach_blackboard_client(name=name)
+        self.bb.register_key(key=params.command_key, access=py_trees.common.Access.WRITE)
+        self.waiting: list[tuple[float, str]] = []
+        self.current: str | None = None
+        self.served: list[tuple[str, bool, str]] = []
+        self.given_done = False
+        self.failure_reason = ""
+
+    def setup(self, **kwargs: Any) -> None:
+        """Keep the mission context."""
+        self.ctx = kwargs.get("context", self.ctx)
+
+    def initialise(self) -> None:
+        """Start afresh (a given command is served again when the node is re-entered)."""
+        self.waiting.clear()
+        self.current = None
+        self.served.clear()
+        self.given_done = False
+
+    def tick(self) -> Iterator[Behaviour]:
+        """Take the next command when idle, tick the child while a command is served."""
+        if self.status != Status.RUNNING:
+            self.initialise()
+        if self.current is None:
+            self._take_next()
+        if self.current is not None:
+            yield from self.decorated.tick()
+            child = self.decorated.status
+            if child in (Status.SUCCESS, Status.FAILURE):
+                reason = (getattr(self.decorated, "failure_reason", "") or self.decorated.feedback_message
+                          if child == Status.FAILURE else self.decorated.feedback_message)
+                self.served.append((self.current, child == Status.SUCCESS, reason))
+                self._emit("command_served", command=self.current, status=child.value.lower(),
+                           reason=reason)
+                self.current = None
+        new_status = self._status_now()
+        if new_status != Status.RUNNING:
+            self.stop(new_status)
+        self.status = new_status
+        yield self
+
+    def update(self) -> Status:
+        """Not used: :meth:`tick` decides (py_trees calls update only from its own tick)."""
+        return self.status
+
+    def _take_next(self) -> None:
+        if self.params.command.strip():
+            if not self.given_done:
+                self.given_done = True
+                self._start(self.params.command, "parameter", self._now())
+            return
+        robot = self.ctx.robot if self.ctx is not None else None
+        poll = getattr(robot, "commands", None)
+        if callable(poll):
+            for command in poll():
+                self.waiting.append((command.stamp, command.text))
+                self._emit("command_received", command=command.text, stamp=command.stamp,
+                           source=command.source)
+        if self.waiting and not self._limit_reached():
+            stamp, text = self.waiting.pop(0)
+            self._start(text, "channel", stamp)
+
+    def _start(self, text: str, source: str, stamp: float) -> None:
+        self.current = text
+        self.bb.set(self.params.command_key, text, overwrite=True)
+        if source == "parameter":
+            self._emit("command_received", command=text, stamp=stamp, source=source)
+        self.feedback_message = f"serving {text!r}"
+
+    def _status_now(self) -> Status:
+        if self.current is not None:
+            return Status.RUNNING
+        if self.params.command.strip():
+            ok, reason = self.served[-1][1:] if self.served else (False, "not served")
+            return self._end(ok, reason)
+        robot = self.ctx.robot if self.ctx is not None else None
+        if not callable(getattr(robot, "commands", None)):
+            return self._end(False, "no command given and this robot has no command channel; "
+                             "give one with --set command=\"...\"")
+        closed = getattr(robot, "commands_closed", None)
+        if self._limit_reached() or (callable(closed) and closed() and not self.waiting):
+            failed = [(c, r) for c, ok, r in self.served if not ok]
+            if not self.served:
+                return self._end(False, "the command channel closed before any command came")
+            if failed:
+                shown = "; ".join(f"{c!r}: {r}" for c, r in failed[:3])
+                return self._end(False, f"{len(failed)} of {len(self.served)} commands failed: {shown}")
+            return self._end(True, f"{len(self.served)} commands served")
+        self.feedback_message = (f"waiting for a command ({len(self.served)} served)" if not self.waiting
+                                 else f"{len(self.waiting)} commands waiting")
+        return Status.RUNNING
+
+    def _limit_reached(self) -> bool:
+        return bool(self.params.max_commands) and len(self.served) >= self.params.max_commands
+
+    def _end(self, ok: bool, reason: str) -> Status:
+        self.feedback_message = reason
+        self.failure_reason = "" if ok else reason
+        return Status.SUCCESS if ok else Status.FAILURE
+
+    def _now(self) -> float:
+        return float(self.ctx.robot.now()) if self.ctx is not None else 0.0
+
+    def _emit(self, event: str, **fields: Any) -> None:
+        if self.ctx is not None:
+            self.ctx.events.emit(event, node=self.name, **fields)
+
+
+def _serve_commands(name: str, params: BaseModel, children: list[Behaviour]) -> Behaviour:
+    if len(children) != 1:
+        raise ValueError(f"ServeCommands takes exactly one child, found {len(children)}")
+    assert isinstance(params, ServeCommandsParams)
+    return ServeCommands(name, children[0], params)
+
+
+SERVE_COMMANDS = NodeType(
+    "ServeCommands", "decorator", ServeCommandsParams, _serve_commands,
+    "Run the child once per user command: the `command` given, or each from the robot's command channel.",
+    ports=ports_of(ServeCommandsParams))
+
+
+def find_scene_graph(name: str) -> Path:
+    """A graph file: ``name`` itself when it is a file, else ``config/scene_graphs/<name>.json``.
+
+    Raises:
+        ConfigError: Neither exists (lists the shipped graphs).
+    """
+    from missiontree.errors import ConfigError
+    from missiontree.paths import config_dirs
+
+    path = Path(name).expanduser()
+    if path.is_file():
+        return path
+    if path.suffix == "" and "/" not in name:
+        for folder in config_dirs():
+            candidate = folder / "scene_graphs" / f"{name}.json"
+            if candidate.is_file():
+                return candidate
+    shipped = sorted({p.stem for d in config_dirs() for p in (d / "scene_graphs").glob("*.json")})
+    raise ConfigError(f"scene graph {name!r} not found: expected a JSON file in the NAIS shape or a shipped "
+                      f"name ({', '.join(shipped) or 'none'}); give --set scene_graph=path/to/graph.json")
+
+
+# -- GoToIntent ----------------------------------------------------------------------------------------
+
+
+class _Step(enum.Enum):
+    INTERPRET = "interpreting the command"
+    PLAN = "checking and ranking candidates"
+    DRIVE = "driving to the candidate"
+    FRAME = "waiting for a fresh camera frame"
+    DETECT = "looking with the detector"
+    CONFIRM = "asking the vision-language model"
+
+
+class GoToIntent(Leaf):
+    """Serve one command over the scene graph: model candidates, checked, ranked by path, driven to and looked at.
+
+    FAILURE reasons name what went wrong: the model's answer, every candidate rejected with its reason,
+    or every candidate looked at and not confirmed. A goal is always a standoff pose computed from a
+    graph object's coordinates and the map; a graph's text is treated as data only.
+    """
+
+    class Params(BaseModel):
+        scene_graph: str = Field("", description="A scene graph file in the NAIS JSON shape; empty: the live "
+                                 "graph built earlier in the mission (context.scene).")
+        look: bool = Field(True, description="Look on arrival (detector + vision-language model) and try the "
+                           "next candidate when the object is not confirmed.")
+        max_candidates: int = Field(5, ge=1, description="Candidates to drive to before giving up.")
+        robot_radius: float = Field(0.17, gt=0, description="Footprint radius for standoff poses and paths (m).")
+        allow_unknown: bool = Field(False, description="Plan through unknown cells of the map.")
+        xy_tolerance: float = Field(0.15, gt=0, description="Distance to the standoff pose that counts as there (m).")
+        yaw_tolerance: float = Field(0.25, gt=0, description="Heading error accepted at the standoff pose (rad).")
+        goal_timeout: float = Field(180.0, gt=0, description="Give up on a candidate not reached in this many s.")
+        look_timeout: float = Field(15.0, gt=0, description="Give up looking after this many seconds.")
+        command: Annotated[str, Input("the command to serve", type="str")] = "intent_command"
+        doubtful: Annotated[str, Output("ids marked doubtful after a look (read back by later commands)",
+                                        type="list[str]")] = "intent_doubtful"
+        goal: Annotated[str, Output("the object and standoff goal being driven to", type="dict")] = "intent_goal"
+
+    params: Params
+
+    def __init__(self, name: str, params: BaseModel | None = None) -> None:
+        super().__init__(name, params)
+        self.file_graph: Any = None
+        self._reset()
+
+    def _reset(self) -> None:
+        self.step = _Step.INTERPRET
+        self.text = ""
+        self.scene: SceneObjects | None = None
+        self.call: ModelCall | None = None
+        self.handle: ActionHandle | None = None
+        self.remaining: list[str] = []
+        self.tried: list[tuple[str, str]] = []
+        self.rejected: list[str] = []
+        self.target: Candidate | None = None
+        self.wanted = ""
+        self.frame: RGBDFrame | None = None
+        self.started = 0.0
+
+    def on_setup(self) -> None:
+        """Load the graph file (a missing or malformed file fails here, before the first tick)."""
+        if self.params.scene_graph:
+            from missiontree.semantics.scene_graph import SceneGraph
+
+            self.file_graph = SceneGraph.load(find_scene_graph(self.params.scene_graph))
+        if self.ctx is not None:
+            model_caller(self.ctx)  # binds simulation-only providers to the robot
+
+    # -- lifecycle -------------------------------------------------------------------------------
+
+    def initialise(self) -> None:
+        """Read the command and the graph, and ask the language model for candidates."""
+        self._reset()
+        self.text = str(self.read("command", "") or "").strip()
+        graph = self.file_graph if self.file_graph is not None else getattr(
+            getattr(self.context, "scene", None), "graph", None)
+        if not self.text or graph is None:
+            return
+        self.scene = graph_objects(graph)
+        listing = prompt_objects(self.scene, exclude=self._doubtful())
+        self.call = model_caller(self.context).chat("llm", intent_messages(self.text, listing),
+                                                   IntentResolution, node=self.name)
+
+    def update(self) -> Status:
+        """Advance the current step; every step returns at once."""
+        if not self.text:
+            return self.fail("no command to serve (the blackboard key "
+                             f"{self.params.command!r} is empty)")
+        if self.scene is None:
+            return self.fail("no scene graph: build one earlier in the mission or give a file with "
+                             "--set scene_graph=path/to/graph.json")
+        handlers = {_Step.INTERPRET: self._interpreted, _Step.PLAN: self._ranked, _Step.DRIVE: self._driven,
+                    _Step.FRAME: self._framed, _Step.DETECT: self._detected, _Step.CONFIRM: self._confirmed}
+        return handlers[self.step]()
+
+    def terminate(self, new_status: Status) -> None:
+        """Cancel the model call and the goal in flight."""
+        if self.call is not None:
+            self.call.cancel()
+            self.call = None
+        if self.handle is not None:
+            self.handle.cancel()
+            self.handle = None
+            if self.target is not None:
+                self.emit("goal_result", status="canceled", reason="halted", object=self.target.id)
+
+    # -- steps -----------------------------------------------------------------------------------
+
+    def _interpreted(self) -> Status:
+        assert self.call is not None and self.scene is not None
+        status = self.call.status()
+        if not status.done:
+            return self.running(f"{_Step.INTERPRET.value}: {self.text!r}")
+        if status is not CallStatus.SUCCEEDED:
+            return self.fail(f"the language model did not answer for {self.text!r}: {self.call.error()}")
+        answer: IntentResolution = self.call.result().value
+        self.call = None
+        ids = [str(i) for i in answer.candidates]
+        attributes = list(answer.reference.attributes) if answer.reference is not None else []
+        self.wanted = " ".join(attributes)
+        self.emit("intent_interpreted", command=self.text, candidates=ids, reason=answer.reason,
+                  reference=answer.reference.model_dump() if answer.reference is not None else None)
+        if not ids:
+            return self.fail(f"nothing in the map satisfies {self.text!r}: {answer.reason or 'no candidate'}")
+        self.remaining = ids
+        return self._plan()
+
+    def _plan(self) -> Status:
+        assert self.scene is not None
+        robot = self.context.robot
+        stamped = robot.pose()
+        if stamped is None:
+            return self.fail("the robot has no pose yet; cannot rank candidates")
+        self.call = model_caller(self.context).submit(
+            "planner", plan_candidates, list(self.remaining), self.scene, robot.occupancy(), stamped.pose,
+            self.params.robot_radius, self._doubtful(), self.params.allow_unknown,
+            provider="intent_ranking", node=self.name)
+        self.step = _Step.PLAN
+        return self.running(_Step.PLAN.value)
+
+    def _ranked(self) -> Status:
+        assert self.call is not None and self.scene is not None
+        status = self.call.status()
+        if not status.done:
+            return self.running(_Step.PLAN.value)
+        if status is not CallStatus.SUCCEEDED:
+            return self.fail(f"ranking the candidates failed: {self.call.error()}")
+        ranking: Ranking = self.call.result()
+        self.call = None
+        for rejection in ranking.rejected:
+            if rejection.id not in self.rejected:
+                self.rejected.append(rejection.id)
+                self.tried.append((rejection.id, rejection.reason))
+                self.emit("candidate_rejected", command=self.text, object=rejection.id, reason=rejection.reason)
+        note = nearest_note(ranking, self.scene)
+        if note:
+            self.emit("intent_ambiguous", command=self.text, note=note,
+                      candidates=[c.id for c in ranking.candidates])
+        self.emit("candidates_ranked", command=self.text, by="path_length",
+                  candidates=[c.as_dict() for c in ranking.candidates])
+        driven = sum(1 for _, why in self.tried if why.startswith(("not confirmed", "not reached")))
+        if not ranking.candidates or driven >= self.params.max_candidates:
+            return self._give_up()
+        return self._drive_to(ranking.candidates[0])
+
+    def _drive_to(self, candidate: Candidate) -> Status:
+        robot = self.context.robot
+        self.target = candidate
+        self.remaining = [i for i in self.remaining if i != candidate.id]
+        goal = candidate.goal
+        self.started = robot.now()
+        self.handle = robot.navigate_to(goal, Tolerance(self.params.xy_tolerance, self.params.yaw_tolerance))
+        self.write("goal", {"object": candidate.id, "label": candidate.label, "x": goal.x, "y": goal.y,
+                            "yaw": goal.yaw})
+        self.emit("goal_sent", command=self.text, object=candidate.id, label=candidate.label,
+                  x=round(goal.x, 3), y=round(goal.y, 3), yaw=round(goal.yaw, 3),
+                  object_x=candidate.xy[0], object_y=candidate.xy[1],
+                  path_length=round(candidate.path_length, 3), straight_line=round(candidate.straight_line, 3),
+                  xy_tolerance=self.params.xy_tolerance, yaw_tolerance=self.params.yaw_tolerance)
+        if self.ctx is not None:
+            self.ctx.mark("goal", goal.x, goal.y, candidate.id)
+        self.step = _Step.DRIVE
+        return self.running(f"to {candidate.id} ({candidate.path_length:.1f} m by path)")
+
+    def _driven(self) -> Status:
+        assert self.handle is not None and self.target is not None
+        status = self.handle.status()
+        robot = self.context.robot
+        if not status.done:
+            if robot.now() - self.started > self.params.goal_timeout:
+                self.handle.cancel()
+                self.handle = None
+                self.emit("goal_result", status="aborted", reason="timeout", object=self.target.id)
+                return self._next(f"not reached within {self.params.goal_timeout:g} s")
+            feedback = self.handle.feedback()
+            left = f"{feedback.distance_remaining:.1f} m to go" if feedback is not None else status.value
+            return self.running(f"to {self.target.id}: {left}")
+        result = self.handle.result()
+        self.handle = None
+        reason = result.reason if result is not None else ""
+        self.emit("goal_result", status=status.value, reason=reason, object=self.target.id)
+        if status is not ActionStatus.SUCCEEDED:
+            return self._next(f"not reached ({status.value}: {reason or 'no reason given'})")
+        if not self.params.look:
+            return self.succeed(f"at {self.target.id} (not looked at: look is off)")
+        self.started = robot.now()
+        self.step = _Step.FRAME
+        return self.running(_Step.FRAME.value)
+
+    def _framed(self) -> Status:
+        assert self.target is not None
+        robot = self.context.robot
+        if robot.now() - self.started > self.params.look_timeout:
+            return self._doubt("no camera frame after arriving")
+        frame = robot.rgbd()
+        if frame is None or frame.stamp < self.started:
+            return self.running(_Step.FRAME.value)
+        self.frame = frame
+        self.call = model_caller(self.context).submit(
+            "detector", detection_job(self.context.model("detector"), frame), node=self.name)
+        self.step = _Step.DETECT
+        return self.running(_Step.DETECT.value)
+
+    def _detected(self) -> Status:
+        assert self.call is not None and self.target is not None and self.frame is not None
+        status = self.call.status()
+        if not status.done:
+            return self.running(_Step.DETECT.value)
+        if status is not CallStatus.SUCCEEDED:
+            return self._doubt(f"the detector failed: {self.call.error()}")
+        detections = self.call.result()
+        self.call = None
+        found, why = match_detection(detections, self.target.label, self.frame, self.target.xy)
+        if found is None:
+            return self._doubt(why)
+        wanted = look_for(self.target.label, self.wanted.split())
+        crop = look_crop(self.frame.color, found.box)
+        self.call = model_caller(self.context).ask("vlm", [crop], crop_match_prompt(wanted), CropMatch,
+                                                  node=self.name)
+        self.step = _Step.CONFIRM
+        return self.running(f"{_Step.CONFIRM.value}: is it a {wanted}?")
+
+    def _confirmed(self) -> Status:
+        assert self.call is not None and self.target is not None
+        status = self.call.status()
+        if not status.done:
+            return self.running(_Step.CONFIRM.value)
+        if status is not CallStatus.SUCCEEDED:
+            return self._doubt(f"the vision-language model failed: {self.call.error()}")
+        verdict: CropMatch = self.call.result().value
+        self.call = None
+        wanted = look_for(self.target.label, self.wanted.split())
+        if not verdict.matches:
+            return self._doubt(f"the vision-language model does not see a {wanted}: {verdict.reason}")
+        self.emit("object_verified", command=self.text, object=self.target.id, looked_for=wanted,
+                  reason=verdict.reason, confidence=verdict.confidence)
+        return self.succeed(f"at {self.target.id}: a {wanted} seen ({verdict.reason})")
+
+    # -- failing over ----------------------------------------------------------------------------
+
+    def _doubt(self, reason: str) -> Status:
+        assert self.target is not None
+        self.call = None
+        oid = self.target.id
+        marked = self._doubtful() + [oid]
+        self.write("doubtful", marked)
+        scene = getattr(self.ctx, "scene", None)
+        instances = getattr(scene, "map", None)
+        if self.file_graph is None and instances is not None and oid in instances:
+            instances.update(oid, self.context.robot.now(), announce=True, reason=reason, doubtful=True)
+        self.emit("object_doubtful", command=self.text, object=oid, reason=reason)
+        return self._next(f"not confirmed: {reason}")
+
+    def _next(self, reason: str) -> Status:
+        assert self.target is not None
+        self.tried.append((self.target.id, reason))
+        self.target = None
+        if not self.remaining:
+            return self._give_up()
+        return self._plan()
+
+    def _give_up(self) -> Status:
+        if not self.tried:
+            return self.fail(f"nothing in the map satisfies {self.text!r}")
+        shown = "; ".join(f"{oid}: {why}" for oid, why in self.tried[:6])
+        more = f" and {len(self.tried) - 6} more" if len(self.tried) > 6 else ""
+        return self.fail(f"no candidate for {self.text!r} could be reached and confirmed ({shown}{more})")
+
+    def _doubtful(self) -> list[str]:
+        try:
+            value = self.bb.get(self.params.doubtful)
+        except KeyError:
+            return []
+        return [str(v) for v in value] if isinstance(value, list) else []
+
