@@ -4,6 +4,7 @@
 - :mod:`~missiontree.behaviours.patrol`: Patrol (waypoint loops, skip-on-failure, resume).
 - :mod:`~missiontree.behaviours.surveillance`: Surveillance (people, alarms with positions).
 - :mod:`~missiontree.behaviours.servo`: ServoToTarget (visual servoing on an alarm).
+- :mod:`~missiontree.behaviours.explore`: Explore (frontiers or scan points on a learned map).
 - :mod:`~missiontree.behaviours.intent`: ServeCommands, GoToIntent (go where the user means).
 """
 
@@ -17,6 +18,7 @@ if TYPE_CHECKING:
 
 def register_nodes(registry: NodeRegistry) -> None:
     """Add the behaviour leaves to ``registry`` (listed in missiontree.plugins.builtin.NODE_MODULES)."""
+    from missiontree.behaviours.explore import Explore
     from missiontree.behaviours.intent import SERVE_COMMANDS, GoToIntent
     from missiontree.behaviours.motion import NavigateTo, Rotate
     from missiontree.behaviours.patrol import Patrol
@@ -26,3 +28,4 @@ def register_nodes(registry: NodeRegistry) -> None:
     for leaf in (NavigateTo, Rotate, Patrol, Surveillance, ServoToTarget, GoToIntent):
         registry.add(leaf)
     registry.add(SERVE_COMMANDS)
+    registry.add(Explore)
