@@ -56,9 +56,9 @@ def patrol(seconds: float, accelerate: bool, seed: int = 0) -> dict[str, Any]:
         "lidar_ms": statistics.median(t["lidar"]),
         "camera_ms": statistics.median(t["camera"]),
         "planner_ms": statistics.median(t["planner"]) if t["planner"] else float("nan"),
-        "scans": len(t["lidar"]),
-        "frames": len(t["camera"]),
-        "plans": len(t["planner"]),
+        "scans": t["lidar"].count,
+        "frames": t["camera"].count,
+        "plans": t["planner"].count,
         "goals_reached": reached,
         "bumps": robot.bumps,
     }

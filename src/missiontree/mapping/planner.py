@@ -499,8 +499,21 @@ class Costmap:
         return 0 <= row < self.shape[0] and 0 <= col < self.shape[1]
 
     def blocked_along(self, points: np.ndarray) -> bool:
-        """Whether any of the map ``points`` (N, 2) now lies on a cell the robot cannot enter."""
-        return any(self.cost_at(float(x), float(y)) > MAX_FREE for x, y in points)
+        """Whether any of the map ``points`` (N, 2) lies on a cell the robot cannot enter (or off the map)."""
+        pts = np.asarray(points, float).reshape(-1, 2)
+        if not len(pts):
+            return False
+        res, origin = self.grid.resolution, self.grid.origin
+        rows = np.floor((pts[:, 1] - origin.y) / res).astype(np.int64)
+        cols = np.floor((pts[:, 0] - origin.x) / res).astype(np.int64)
+        h, w = self.shape
+        if ((rows < 0) | (rows >= h) | (cols < 0) | (cols >= w)).any():
+            return True
+        tiles = (rows >> TILE_BITS) * self.ntc + (cols >> TILE_BITS)
+        for tile in np.unique(tiles).tolist():
+            self.ensure_tile(tile)
+        costs = self.cost_pool[self.cost_slot[tiles], rows & _TILE_MASK, cols & _TILE_MASK]
+        return bool((costs > MAX_FREE).any())
 
     def dense(self) -> np.ndarray:
         """The whole cost array (every tile computed): for pictures and tests, not for planning."""

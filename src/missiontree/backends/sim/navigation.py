@@ -3,69 +3,71 @@
 Like Nav2: a global costmap holds lethal cells (walls and obstacles), an inscribed zone as wide
 as the robot's radius around them (a goal there is unreachable, seed 001 §4.5.8) and an
 inflation cost decaying as ``252 * exp(-cost_scaling * (d - radius))`` out to
-``inflation_radius``. A* plans over it (8-connected, cost-weighted); a pure-pursuit follower
-drives the path; the goal is reached within ``tolerance.xy`` and, unless ``tolerance.yaw`` is a
-full turn (seed 001 §3.6), after turning to the goal heading. What the lidar sees ahead (people)
-stops the robot; the planner then replans around it, and the goal aborts when the way stays
-blocked for ``blocked_timeout`` seconds. Results are values with a reason, never exceptions.
+``inflation_radius`` (:mod:`missiontree.mapping.planner`: computed tile by tile as plans reach
+it, updated where the map changes). A* plans over it (8-connected, cost-weighted); a pure-pursuit
+follower drives the path; the goal is reached within ``tolerance.xy`` and, unless ``tolerance.yaw``
+is a full turn (seed 001 §3.6), after turning to the goal heading. What the lidar sees ahead
+(people) stops the robot; the planner then replans around it, and the goal aborts when the way
+stays blocked for ``blocked_timeout`` seconds.
+
+The navigator is built from what it needs -- the map, the footprint radius, the robot profile's
+limits and step, the navigation settings -- not from the robot. On a learned map
+(``allow_unknown``, as Nav2 with a SLAM map) unknown cells are traversable; :meth:`Navigator.update_map`
+takes each map update, and a path the learned map now blocks is replanned at the next step; the
+goal aborts with a reason when it proves unreachable. Results are values with a reason, never
+exceptions.
 """
 
 from __future__ import annotations
 
 import math
+import time
+from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
-from missiontree.backends.sim.raycast import HAVE_NUMBA
-from missiontree.backends.sim.schema import NavigationSpec
+from missiontree.backends.sim.schema import NavigationSpec, RobotProfile
+from missiontree.backends.sim.timing import TimingLog
+from missiontree.mapping import planner
+from missiontree.mapping.planner import INSCRIBED, LETHAL, MAX_FREE
 from missiontree.robot.actions import ActionResult, ActionStatus, NavFeedback
 from missiontree.types import LaserScan, OccupancyGrid, Pose2D, Tolerance, wrap_angle
 
-if TYPE_CHECKING:
-    from missiontree.backends.sim.robot import SimRobot
+__all__ = ["BLOCKED", "GOAL_IN_OBSTACLE", "INSCRIBED", "LETHAL", "NO_PROGRESS", "NO_VALID_PATH", "OUT_OF_MAP",
+           "Costmap", "Navigator", "SimNavHandle", "path_length", "plan"]
 
-if HAVE_NUMBA:
-    import numba
-
-LETHAL = 254
-INSCRIBED = 253
 #: Nav2-like error codes carried in ActionResult.code.
 NO_VALID_PATH, GOAL_IN_OBSTACLE, BLOCKED, NO_PROGRESS, OUT_OF_MAP = 204, 205, 206, 207, 208
 _ROTATE_FIRST = 0.7        # rad of heading error above which the follower turns in place
 _NO_PROGRESS_TIME = 30.0
+_MAX_GOALS_KEPT = 10_000   # goals remembered for pictures (the oldest are dropped on very long runs)
 
 
 class Costmap:
-    """A Nav2-style inflated costmap (0 free .. 252 inflated, 253 inscribed, 254 lethal)."""
+    """The whole-grid view of a map's costmap (for world checks and tests; planning uses the tiles).
 
-    def __init__(self, grid: OccupancyGrid, robot_radius: float, spec: NavigationSpec) -> None:
+    Args:
+        grid: The map.
+        robot_radius: Footprint radius (m).
+        spec: Inflation settings.
+    """
+
+    def __init__(self, grid: OccupancyGrid, robot_radius: float, spec: NavigationSpec,
+                 allow_unknown: bool = False) -> None:
         self.grid = grid
         self.radius = robot_radius
         self.spec = spec
-        self.static_lethal = grid.data >= 50
-        self.cost = self._inflate(self.static_lethal)
+        self.tiled = planner.Costmap(grid, robot_radius, spec.inflation_radius, spec.cost_scaling, allow_unknown)
+        self._dense: np.ndarray | None = None
 
-    def _inflate(self, lethal: np.ndarray) -> np.ndarray:
-        dist = cv2.distanceTransform((~lethal).astype(np.uint8), cv2.DIST_L2, 5) * self.grid.resolution
-        cost = np.zeros(lethal.shape, np.uint8)
-        band = (dist <= self.spec.inflation_radius) & (dist >= self.radius)
-        cost[band] = (252.0 * np.exp(-self.spec.cost_scaling * (dist[band] - self.radius))).astype(np.uint8)
-        cost[dist < self.radius] = INSCRIBED
-        cost[lethal] = LETHAL
-        return cost
-
-    def with_points(self, points: np.ndarray, radius: float = 0.08) -> np.ndarray:
-        """The cost array with extra lethal discs at ``points`` (N, 2) in the map frame."""
-        lethal = self.static_lethal.copy()
-        r_cells = max(1, int(round(radius / self.grid.resolution)))
-        for x, y in points:
-            row, col = self.grid.world_to_cell(float(x), float(y))
-            if 0 <= row < lethal.shape[0] and 0 <= col < lethal.shape[1]:
-                cv2.circle(lethal.view(np.uint8), (col, row), r_cells, 1, -1)
-        return self._inflate(lethal)
+    @property
+    def cost(self) -> np.ndarray:
+        """The whole cost array (0 free .. 252 inflated, 253 inscribed, 254 lethal), computed once."""
+        if self._dense is None:
+            self._dense = self.tiled.dense()
+        return self._dense
 
     def cell_cost(self, cost: np.ndarray, x: float, y: float) -> int:
         """Cost at a map point; LETHAL outside the map."""
@@ -75,110 +77,16 @@ class Costmap:
         return int(cost[row, col])
 
 
-def _astar_loops(cost, start, goal, weight):  # noqa: ANN001, ANN202 - compiled by numba when present
-    """A* over an 8-connected grid; returns the cell path (goal first), empty when none exists."""
-    h, w = cost.shape
-    n = h * w
-    g = np.full(n, np.inf)
-    parent = np.full(n, -1, np.int64)
-    closed = np.zeros(n, np.bool_)
-    heap_key = np.empty(8 * n + 8)
-    heap_val = np.empty(8 * n + 8, np.int64)
-    size = 0
-    gr, gc = goal // w, goal % w
-    g[start] = 0.0
-    heap_key[0], heap_val[0], size = 0.0, start, 1
-    drs = (-1, -1, -1, 0, 0, 1, 1, 1)
-    dcs = (-1, 0, 1, -1, 1, -1, 0, 1)
-    while size > 0:
-        cur = heap_val[0]
-        # pop: move last to root, sift down
-        size -= 1
-        heap_key[0], heap_val[0] = heap_key[size], heap_val[size]
-        i = 0
-        while True:
-            left = 2 * i + 1
-            if left >= size:
-                break
-            child = left
-            if left + 1 < size and heap_key[left + 1] < heap_key[left]:
-                child = left + 1
-            if heap_key[child] < heap_key[i]:
-                heap_key[i], heap_key[child] = heap_key[child], heap_key[i]
-                heap_val[i], heap_val[child] = heap_val[child], heap_val[i]
-                i = child
-            else:
-                break
-        if closed[cur]:
-            continue
-        closed[cur] = True
-        if cur == goal:
-            break
-        r, c = cur // w, cur % w
-        for k in range(8):
-            nr, nc = r + drs[k], c + dcs[k]
-            if nr < 0 or nr >= h or nc < 0 or nc >= w:
-                continue
-            nxt = nr * w + nc
-            if closed[nxt] or cost[nr, nc] >= INSCRIBED:
-                continue
-            step = 1.4142135623730951 if drs[k] != 0 and dcs[k] != 0 else 1.0
-            ng = g[cur] + step * (1.0 + weight * cost[nr, nc] / 252.0)
-            if ng < g[nxt]:
-                g[nxt] = ng
-                parent[nxt] = cur
-                f = ng + math.sqrt((nr - gr) ** 2 + (nc - gc) ** 2)
-                j = size
-                heap_key[j], heap_val[j] = f, nxt
-                size += 1
-                while j > 0:
-                    up = (j - 1) // 2
-                    if heap_key[up] > heap_key[j]:
-                        heap_key[up], heap_key[j] = heap_key[j], heap_key[up]
-                        heap_val[up], heap_val[j] = heap_val[j], heap_val[up]
-                        j = up
-                    else:
-                        break
-    if parent[goal] < 0 and goal != start:
-        return np.zeros(0, np.int64)
-    path = [goal]
-    cur = goal
-    while cur != start:
-        cur = parent[cur]
-        path.append(cur)
-    return np.array(path, dtype=np.int64)
-
-
-_astar_jit = numba.njit(cache=True)(_astar_loops) if HAVE_NUMBA else _astar_loops
-
-
 def plan(costmap: Costmap, cost: np.ndarray, start: Pose2D, goal: Pose2D, accelerate: bool = True,
          cost_weight: float = 3.0) -> np.ndarray | None:
-    """A path of map points (N, 2) from ``start`` to ``goal``, or None when there is none."""
-    grid = costmap.grid
-    h, w = cost.shape
-    sr, sc = grid.world_to_cell(start.x, start.y)
-    gr, gc = grid.world_to_cell(goal.x, goal.y)
-    if not (0 <= sr < h and 0 <= sc < w and 0 <= gr < h and 0 <= gc < w):
-        return None
-    work = cost
-    if cost[sr, sc] >= INSCRIBED:
-        # the robot stands too close to something (odometry drift, a person stepped up): let it
-        # leave through the inscribed zone, never through lethal cells
-        work = cost.copy()
-        r = int(math.ceil((costmap.radius + 0.1) / grid.resolution))
-        sub = work[max(0, sr - r): sr + r + 1, max(0, sc - r): sc + r + 1]
-        sub[sub == INSCRIBED] = 252
-    fn = _astar_jit if accelerate else _astar_loops
-    cells = fn(work, sr * w + sc, gr * w + gc, cost_weight)
-    if len(cells) == 0:
-        return None
-    rows, cols = cells[::-1] // w, cells[::-1] % w
-    pts = np.stack([grid.origin.x + (cols + 0.5) * grid.resolution,
-                    grid.origin.y + (rows + 0.5) * grid.resolution], axis=1)
-    pts[0] = (start.x, start.y)
-    pts[-1] = (goal.x, goal.y)
-    return pts
+    """A path of map points (N, 2) from ``start`` to ``goal`` on ``costmap``, or None when there is none.
+
+    ``cost`` is accepted for the old signature; the plan runs on the costmap's tiles.
+    """
+    del cost
+    costmap.tiled.accelerate = accelerate and planner.HAVE_NUMBA
+    path = costmap.tiled.plan(start, goal, cost_weight)
+    return None if path is None else path.points
 
 
 def path_length(points: np.ndarray) -> float:
@@ -252,19 +160,46 @@ class _Follow:
 
 
 class Navigator:
-    """Runs at most one goal at a time for a SimRobot; stepped by the robot's physics loop."""
+    """Runs at most one goal at a time; stepped by the simulator's physics loop.
 
-    def __init__(self, robot: SimRobot, spec: NavigationSpec) -> None:
-        self.robot = robot
+    Args:
+        grid: The map planned on (the static map, or the learned one in unknown-map runs).
+        radius: Footprint radius in metres.
+        profile: The robot profile (velocity limits, physics step, acceleration switch).
+        spec: Costmap, follower and abort settings.
+        clearance: Distance from a map point to the nearest obstacle, for abort messages (optional).
+        allow_unknown: Unknown cells are traversable (a learned map), as Nav2's ``allow_unknown``.
+    """
+
+    def __init__(self, grid: OccupancyGrid, radius: float, profile: RobotProfile, spec: NavigationSpec,
+                 clearance: Callable[[float, float], float] | None = None, allow_unknown: bool = False) -> None:
         self.spec = spec
-        self.costmap = Costmap(robot.world.grid, robot.profile.body.radius, spec)
+        self.limits = profile.limits
+        self.physics_dt = profile.physics_dt
+        self.accelerate = profile.accelerate
+        self.clearance = clearance
+        self.allow_unknown = allow_unknown
+        self.costmap = planner.Costmap(grid, radius, spec.inflation_radius, spec.cost_scaling, allow_unknown,
+                                       profile.accelerate)
         self.handle: SimNavHandle | None = None
         self._follow: _Follow | None = None
-        self.plan_ms: list[float] = []
-        self.goals: list[Pose2D] = []
+        self.plan_ms = TimingLog()
+        self.goals: deque[Pose2D] = deque(maxlen=_MAX_GOALS_KEPT)
+        self.replans = 0
+        self._map_changed = False
         self._xy_cache: tuple[LaserScan, np.ndarray, np.ndarray] | None = None
         self._trig: tuple[tuple[float, float, int, float], np.ndarray, np.ndarray] | None = None
         self._ahead_cache: tuple[LaserScan, tuple[float, float] | None] | None = None
+
+    @property
+    def radius(self) -> float:
+        """Footprint radius (m)."""
+        return self.costmap.radius
+
+    def update_map(self, grid: OccupancyGrid, region: tuple[int, int, int, int] | None = None) -> None:
+        """Take a new version of the map (``region``: the rows/cols that changed, exclusive ends)."""
+        self.costmap.update(grid, region)
+        self._map_changed = True
 
     def send(self, goal: Pose2D, tolerance: Tolerance | None, now: float) -> SimNavHandle:
         """Accept a new goal, preempting the running one."""
@@ -291,12 +226,18 @@ class Navigator:
             self.cancel()
             return 0.0, 0.0
         if self._follow is None:
+            self._map_changed = False
             if not self._start(h, now, pose):
                 self.handle = None
                 return 0.0, 0.0
         follow = self._follow
         assert follow is not None
-        gap = now - follow.last_step - self.robot.profile.physics_dt
+        if self._map_changed:
+            self._map_changed = False
+            stop = self._check_learned_map(follow, pose)
+            if stop is not None:
+                return stop
+        gap = now - follow.last_step - self.physics_dt
         if gap > 1e-6:  # drive() overrode us meanwhile: the goal's timers pause
             follow.best_time += gap
             if follow.blocked_since is not None:
@@ -319,44 +260,69 @@ class Navigator:
             err = wrap_angle(goal.yaw - pose.yaw)
             if abs(err) <= h.tolerance.yaw:
                 return self._succeed()
-            lim = self.robot.profile.limits
+            lim = self.limits
             return 0.0, float(np.clip(self.spec.heading_gain * err, -lim.max_w, lim.max_w))
         return self._drive(follow, now, pose, scan, remaining)
 
     # -- internals ---------------------------------------------------------------------------------
 
+    def _goal_problem(self, goal: Pose2D) -> tuple[str, int] | None:
+        """Why ``goal`` cannot be reached on the current map (reason, code), or None."""
+        c = self.costmap.cost_at(goal.x, goal.y)
+        if c <= MAX_FREE:
+            return None
+        if not self.costmap.contains(goal.x, goal.y):
+            return "outside the map", OUT_OF_MAP
+        if c == LETHAL:
+            return "inside an obstacle", GOAL_IN_OBSTACLE
+        if self.clearance is not None:
+            gap = self.clearance(goal.x, goal.y)
+            return (f"inside an obstacle's inscribed zone ({gap:.2f} m from it, robot radius "
+                    f"{self.radius:.2f} m)", GOAL_IN_OBSTACLE)
+        return f"within the robot radius ({self.radius:.2f} m) of an obstacle", GOAL_IN_OBSTACLE
+
     def _start(self, h: SimNavHandle, now: float, pose: Pose2D) -> bool:
         goal = h.goal
-        cost = self.costmap.cost
-        c = self.costmap.cell_cost(cost, goal.x, goal.y)
-        if c >= INSCRIBED:
-            gap = self.robot.world.clearance(goal.x, goal.y)
-            what = "outside the map" if gap == 0.0 and c == LETHAL and self._outside(goal) else (
-                "inside an obstacle" if c == LETHAL else
-                f"inside an obstacle's inscribed zone ({gap:.2f} m from it, robot radius "
-                f"{self.costmap.radius:.2f} m)")
-            h._finish(ActionStatus.ABORTED, f"goal ({goal.x:.2f}, {goal.y:.2f}) is {what}: unreachable",
-                      OUT_OF_MAP if what == "outside the map" else GOAL_IN_OBSTACLE)
+        problem = self._goal_problem(goal)
+        if problem is not None:
+            what, code = problem
+            learned = " on the learned map" if self.allow_unknown else ""
+            h._finish(ActionStatus.ABORTED, f"goal ({goal.x:.2f}, {goal.y:.2f}) is {what}{learned}: unreachable",
+                      code)
             return False
-        path = self._plan(cost, pose, goal)
+        path = self._plan(self.costmap, pose, goal)
         if path is None:
             h._finish(ActionStatus.ABORTED, f"no valid path to ({goal.x:.2f}, {goal.y:.2f})", NO_VALID_PATH)
             return False
-        self._follow = _Follow(path, best_time=now, last_step=now - self.robot.profile.physics_dt)
+        self._follow = _Follow(path, best_time=now, last_step=now - self.physics_dt)
         return True
 
-    def _outside(self, goal: Pose2D) -> bool:
-        row, col = self.costmap.grid.world_to_cell(goal.x, goal.y)
-        h, w = self.costmap.cost.shape
-        return not (0 <= row < h and 0 <= col < w)
+    def _check_learned_map(self, follow: _Follow, pose: Pose2D) -> tuple[float, float] | None:
+        """After a map update: abort when the goal proved unreachable, replan when the path is blocked."""
+        assert self.handle is not None
+        goal = self.handle.goal
+        problem = self._goal_problem(goal)
+        if problem is not None:
+            what, code = problem
+            return self._abort(ActionStatus.ABORTED, f"goal ({goal.x:.2f}, {goal.y:.2f}) proved unreachable: "
+                               f"the map now shows it {what}", code)
+        ahead = follow.path[follow.index + 1:]
+        if not len(ahead) or not self.costmap.blocked_along(ahead):
+            return None
+        path = self._plan(self.costmap, pose, goal)
+        self.replans += 1
+        if path is None:
+            return self._abort(ActionStatus.ABORTED, f"goal ({goal.x:.2f}, {goal.y:.2f}) proved unreachable: "
+                               "no path to it on the map learned so far", NO_VALID_PATH)
+        follow.set_path(path)
+        follow.best_remaining = math.inf
+        return None
 
-    def _plan(self, cost: np.ndarray, pose: Pose2D, goal: Pose2D) -> np.ndarray | None:
-        import time
-
+    def _plan(self, costmap: planner.Costmap, pose: Pose2D, goal: Pose2D) -> np.ndarray | None:
         t0 = time.perf_counter()
-        path = plan(self.costmap, cost, pose, goal, self.robot.profile.accelerate)
+        path = costmap.plan(pose, goal)
         self.plan_ms.append((time.perf_counter() - t0) * 1000.0)
-        return path
+        return None if path is None else path.points
 
     def _remaining(self, follow: _Follow, pose: Pose2D) -> float:
         """Distance along the path from the robot; moves the progress index to the nearest point ahead."""
@@ -379,7 +345,7 @@ class Navigator:
                 target = points[i]
                 break
         err = wrap_angle(math.atan2(target[1] - pose.y, target[0] - pose.x) - pose.yaw)
-        lim = self.robot.profile.limits
+        lim = self.limits
         w = max(-lim.max_w, min(lim.max_w, self.spec.heading_gain * err))
         if abs(err) > _ROTATE_FIRST:
             follow.blocked_since = None
@@ -400,6 +366,7 @@ class Navigator:
             points = self._scan_points(scan, pose)
             goal = self.handle.goal if self.handle else None
             path2 = self._plan(self.costmap.with_points(points), pose, goal) if goal else None
+            self.replans += 1
             if path2 is not None:
                 follow.set_path(path2)
         return 0.0, 0.0

@@ -5,6 +5,16 @@ checks, odometry) and produces the sensors at their own rates (lidar 10 Hz, RGB-
 default). Everything random comes from generators seeded by the run seed, so the same seed
 gives the same scans, images and trajectory. ``pose()`` is the robot's *estimate* (odometry,
 noisy when configured), never the truth; ground truth lives in ``truth`` for evaluation only.
+
+With ``unknown_map`` the robot starts knowing nothing: ``occupancy()`` is the log-odds map
+(:class:`~missiontree.mapping.grid.LogOddsGrid`) built from its own scans, each integrated at the
+pose estimate of the scan's stamp, in the world raster's frame (every cell unknown at first; the
+grid grows if a scan reaches past it), and navigation plans on that map with unknown cells
+traversable, as Nav2 does with a SLAM map.
+
+Memory stays flat on long runs: timings keep their recent samples and running totals, the
+trajectory is thinned (a point per ``_TRAJECTORY_STEP`` metres or turn, spacing doubled whenever
+it outgrows ``_TRAJECTORY_MAX`` points), the ground truth's visibility log is compact.
 """
 
 from __future__ import annotations
@@ -20,17 +30,22 @@ from missiontree.backends.sim.camera import Camera, Floor, Rendering
 from missiontree.backends.sim.kinematics import DiffDrive, Odometry
 from missiontree.backends.sim.lidar import Lidar
 from missiontree.backends.sim.navigation import Navigator, SimNavHandle
+from missiontree.backends.sim.render import Scene, SceneObject, ScenePerson, SceneRoom
 from missiontree.backends.sim.people import BODY_RADIUS
 from missiontree.backends.sim.raycast import HAVE_NUMBA, Primitives
 from missiontree.backends.sim.schema import RobotProfile
+from missiontree.backends.sim.timing import TimingLog
 from missiontree.backends.sim.truth import GroundTruth
 from missiontree.backends.sim.world import World
 from missiontree.robot.commands import Command, LineCommands
+from missiontree.mapping.grid import LogOddsGrid, logit
 from missiontree.robot.history import StampedHistory
 from missiontree.types import LaserScan, Marker, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
 
 _TIME_EPS = 1e-9
-_TRAJECTORY_PERIOD = 0.25
+_TRAJECTORY_PERIOD = 0.25   # s between trajectory points at most...
+_TRAJECTORY_STEP = 0.05     # ...and only once the robot moved this far (m) or turned 0.2 rad
+_TRAJECTORY_MAX = 20_000    # points kept; past it every other point goes and the spacing doubles
 _render_pool: ThreadPoolExecutor | None = None
 
 
@@ -48,12 +63,15 @@ class SimRobot:
     Attributes:
         truth: Ground truth for scoring and declared oracles — not part of the Robot protocol;
             behaviours must not use it.
-        timings: Per-call wall-clock milliseconds of lidar, camera and planner (for benchmarks).
+        timings: Per-call wall-clock milliseconds of lidar, camera, planner (and mapping in
+            unknown-map runs), as :class:`TimingLog` (recent samples, count and totals).
+        unknown_map: True when the robot learns its map from its lidar.
     """
 
     simulated = True
 
-    def __init__(self, world: World, profile: RobotProfile, seed: int = 0, name: str = "sim") -> None:
+    def __init__(self, world: World, profile: RobotProfile, seed: int = 0, name: str = "sim",
+                 unknown_map: bool = False) -> None:
         self.name = name
         self.world = world
         self.profile = profile
@@ -64,7 +82,23 @@ class SimRobot:
         self.camera = Camera(profile.camera, np.random.default_rng(streams[1]), accel)
         self._base = DiffDrive(world.start, profile.limits)
         self._odom = Odometry(world.start, profile.odometry, np.random.default_rng(streams[2]))
-        self._nav = Navigator(self, profile.navigation)
+        self.unknown_map = unknown_map
+        self._learned: LogOddsGrid | None = None
+        self._known: np.ndarray | None = None  # the learned map's trinary cells, kept up to date
+        self._occupancy: OccupancyGrid | None = None  # snapshot handed out by occupancy()
+        if unknown_map:
+            g = world.grid
+            rows, cols = g.data.shape
+            self._learned = LogOddsGrid(g.resolution, cols * g.resolution, rows * g.resolution, g.origin,
+                                        sensor_offset=(profile.lidar.mount.x, profile.lidar.mount.y),
+                                        accelerate=profile.accelerate)
+            self._known = self._learned.trinary()
+            start_grid = OccupancyGrid(0.0, g.resolution, g.origin, self._known)
+            self._nav = Navigator(start_grid, profile.body.radius, profile, profile.navigation,
+                                  allow_unknown=True)
+        else:
+            self._nav = Navigator(world.grid, profile.body.radius, profile, profile.navigation,
+                                  clearance=world.clearance)
         self._floor = Floor.build(world.floor_rgb, world.grid.origin.x, world.grid.origin.y,
                             world.grid.resolution, world.ceiling)
         self._steps = 0
@@ -82,7 +116,10 @@ class SimRobot:
         self._background = accel and profile.camera_thread
         self.truth = GroundTruth(world, lambda: self._base.pose, profile.history_horizon, self._finish_frame)
         self.trajectory: list[tuple[float, float, float]] = []
-        self.timings: dict[str, list[float]] = {"lidar": [], "camera": [], "planner": self._nav.plan_ms}
+        self._trajectory_step = _TRAJECTORY_STEP
+        self._last_yaw = world.start.yaw
+        self.timings: dict[str, TimingLog] = {"lidar": TimingLog(), "camera": TimingLog(),
+                                              "planner": self._nav.plan_ms, "mapping": TimingLog()}
         self._closed = False
         #: The command channel: lines on stdin (read only once a mission asks); tests may replace it.
         self.command_input = LineCommands()
@@ -114,7 +151,19 @@ class SimRobot:
         return self._frame
 
     def occupancy(self) -> OccupancyGrid | None:
-        """The static map (what map_server would serve), stamped now."""
+        """The map: the static one (what map_server would serve), or the one learned so far.
+
+        In unknown-map runs the grid is stamped with the last scan integrated (read-only; a new
+        grid after every map update), like a SLAM node's /map.
+        """
+        if self._learned is not None:
+            if self._occupancy is None:
+                assert self._known is not None
+                data = self._known.copy()
+                data.flags.writeable = False
+                stamp = self._learned.last_stamp or 0.0
+                self._occupancy = OccupancyGrid(stamp, self._learned.resolution, self._learned.origin, data)
+            return self._occupancy
         g = self.world.grid
         return OccupancyGrid(self._t, g.resolution, g.origin, g.data)
 
@@ -184,8 +233,29 @@ class SimRobot:
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
         path = out_dir / "topdown.png"
-        draw_topdown(self, markers, path)
+        draw_topdown(self.scene(), markers, path)
         return [path]
+
+    def scene(self) -> Scene:
+        """What the top-down picture shows of the run so far: a plain value (the truth, for pictures)."""
+        world, now = self.world, self._t
+        step = max(0.2, now / 5000.0)  # people's tracks: at most 5,000 points each
+        times = np.arange(0.0, now + 1e-9, step) if now > 0 else np.array([0.0])
+        people = []
+        for person in world.crowd.people:
+            states = [person.state_at(float(t)) for t in times]
+            track = np.array([(st.x, st.y) for st in states if st.present], float).reshape(-1, 2)
+            state = person.state_at(now)
+            people.append(ScenePerson(person.id, track, (state.x, state.y) if state.present else None))
+        return Scene(
+            name=world.name, bounds=world.bounds(), grid=world.grid, now=now, seed=self.seed, bumps=self.bumps,
+            robot_pose=self._base.pose, robot_radius=self.profile.body.radius,
+            rooms=[SceneRoom(r.name, r.type, r.polygon) for r in world.rooms],
+            walls=list(world.wall_segments),
+            objects=[SceneObject(o.id, tuple(int(c) for c in o.rgb), o.footprint(),
+                                 (o.pose.x, o.pose.y - o.size[1] / 2 - 0.12)) for o in world.objects],
+            people=people, trajectory=list(self.trajectory), goals=list(self._nav.goals),
+            learned=self.occupancy() if self.unknown_map else None)
 
     # -- simulator controls (not part of the Robot protocol) ---------------------------------------
 
@@ -247,10 +317,22 @@ class SimRobot:
 
     def _record_pose(self) -> None:
         self._poses.push(self._t, self._odom.pose)
-        self.truth.record_pose(self._t, self._base.pose)
-        if not self.trajectory or self._t - self.trajectory[-1][0] >= _TRAJECTORY_PERIOD - _TIME_EPS:
-            p = self._base.pose
-            self.trajectory.append((self._t, p.x, p.y))
+        p = self._base.pose
+        self.truth.record_pose(self._t, p)
+        traj = self.trajectory
+        if traj and self._t - traj[-1][0] < _TRAJECTORY_PERIOD - _TIME_EPS:
+            return
+        if traj and (math.hypot(p.x - traj[-1][1], p.y - traj[-1][2]) < self._trajectory_step
+                     and abs(math.remainder(p.yaw - self._last_yaw, 2 * math.pi)) < 0.2):
+            return  # standing or turning in place: nothing to draw
+        traj.append((self._t, p.x, p.y))
+        self._last_yaw = p.yaw
+        if len(traj) > _TRAJECTORY_MAX:  # thin out: keep every other point (the last one too)
+            last = traj[-1]
+            del traj[1::2]
+            if traj[-1] is not last:
+                traj.append(last)
+            self._trajectory_step *= 2.0
 
     def _sense(self) -> None:
         t = self._t
@@ -263,6 +345,8 @@ class SimRobot:
                 self._scan = self.lidar.scan(self._base.pose, t, self.world.static, dynamic)
                 self.timings["lidar"].append((time.perf_counter() - t0) * 1000.0)
                 self._scans.push(t, self._scan)
+                if self._learned is not None:
+                    self._learn(self._scan, self._odom.pose)
         if t >= self._next_frame - _TIME_EPS:
             self._next_frame = self._tick_after(self._next_frame, self.profile.camera.rate)
             if "camera" not in self._quiet:
@@ -315,6 +399,37 @@ class SimRobot:
         self.truth.record_frame(t, image.instances, image.counts)
         self._frame = RGBDFrame(t, image.color, image.depth, self.camera.intrinsics, estimate,
                                 self.profile.camera.mount.z)
+
+    def _learn(self, scan: LaserScan, pose: Pose2D) -> None:
+        """Integrate a scan into the learned map at ``pose`` and tell the navigator what changed."""
+        grid, known = self._learned, self._known
+        assert grid is not None and known is not None
+        t0 = time.perf_counter()
+        shape, origin = grid.shape, grid.origin
+        grid.integrate(scan, pose)
+        self._occupancy = None
+        if grid.shape != shape or grid.origin != origin:  # the grid grew: everything moves
+            self._known = grid.trinary()
+            self._nav.update_map(OccupancyGrid(scan.stamp, grid.resolution, grid.origin, self._known))
+        else:
+            reach = scan.range_max + 2 * grid.resolution
+            r0, c0 = grid.world_to_cell(pose.x - reach, pose.y - reach)
+            r1, c1 = grid.world_to_cell(pose.x + reach, pose.y + reach)
+            r0, c0 = max(r0, 0), max(c0, 0)
+            r1, c1 = min(r1 + 1, shape[0]), min(c1 + 1, shape[1])
+            window = grid.logodds[r0:r1, c0:c1]
+            fresh = np.full(window.shape, -1, np.int8)
+            fresh[window < logit(grid.free_thresh)] = 0
+            fresh[window > logit(grid.occupied_thresh)] = 100
+            old = known[r0:r1, c0:c1]
+            lethal_changed = (fresh >= 50) != (old >= 50)
+            old[...] = fresh
+            if lethal_changed.any():
+                rows = np.flatnonzero(lethal_changed.any(axis=1))
+                cols = np.flatnonzero(lethal_changed.any(axis=0))
+                region = (r0 + int(rows[0]), r0 + int(rows[-1]) + 1, c0 + int(cols[0]), c0 + int(cols[-1]) + 1)
+                self._nav.update_map(OccupancyGrid(scan.stamp, grid.resolution, grid.origin, known), region)
+        self.timings["mapping"].append((time.perf_counter() - t0) * 1000.0)
 
     def _camera_pose(self, base: Pose2D, mount_yaw: float) -> Pose2D:
         m = self.profile.camera.mount

@@ -8,8 +8,10 @@ reached for it would break on ROS 2. Behaviours must never import or use this mo
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from array import array
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from typing import overload
 
 import numpy as np
 
@@ -28,6 +30,64 @@ class Sighting:
     pixels: int
 
 
+class VisibilityLog(Sequence[tuple[float, dict[str, Sighting]]]):
+    """Every frame's sightings, stored compactly (12 bytes a sighting, 16 a frame).
+
+    Reads as a sequence of ``(stamp, {name: Sighting})``, built on access, so a whole run's log
+    costs a few MB even over hours (a list of dicts cost about 17 MiB an hour).
+    """
+
+    def __init__(self, instances: dict[int, InstanceInfo]) -> None:
+        self._instances = instances
+        self._stamps = array("d")
+        self._starts = array("q", [0])
+        self._ids = array("i")
+        self._pixels = array("i")
+
+    def append(self, stamp: float, ids: Sequence[int], pixels: Sequence[int]) -> None:
+        """Add a frame: the instance ids it shows and their pixel counts."""
+        self._stamps.append(stamp)
+        self._ids.extend(ids)
+        self._pixels.extend(pixels)
+        self._starts.append(len(self._ids))
+
+    def __len__(self) -> int:
+        return len(self._stamps)
+
+    @overload
+    def __getitem__(self, index: int) -> tuple[float, dict[str, Sighting]]: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> list[tuple[float, dict[str, Sighting]]]: ...
+
+    def __getitem__(self, index: int | slice) -> tuple[float, dict[str, Sighting]] | list[
+            tuple[float, dict[str, Sighting]]]:
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        if index < 0:
+            index += len(self)
+        if not 0 <= index < len(self):
+            raise IndexError("visibility index out of range")
+        seen = {}
+        for j in range(self._starts[index], self._starts[index + 1]):
+            info = self._instances[self._ids[j]]
+            seen[info.name] = Sighting(info.name, info.kind, info.label, self._pixels[j])
+        return self._stamps[index], seen
+
+    def __iter__(self) -> Iterator[tuple[float, dict[str, Sighting]]]:
+        for i in range(len(self)):
+            yield self[i]
+
+    def __reversed__(self) -> Iterator[tuple[float, dict[str, Sighting]]]:
+        for i in range(len(self) - 1, -1, -1):
+            yield self[i]
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held by the log's arrays."""
+        return sum(a.itemsize * len(a) for a in (self._stamps, self._starts, self._ids, self._pixels))
+
+
 class GroundTruth:
     """Read-only access to the simulator's state for evaluation."""
 
@@ -38,7 +98,7 @@ class GroundTruth:
         self._flush = flush  # publishes a camera frame still being rendered
         self._poses: StampedHistory[Pose2D] = StampedHistory(horizon=max(horizon, 60.0), maxlen=100_000)
         self._masks: StampedHistory[np.ndarray] = StampedHistory(horizon=horizon, maxlen=1000)
-        self._visibility: list[tuple[float, dict[str, Sighting]]] = []
+        self._visibility = VisibilityLog(world.instances)
 
     # -- recording (called by the simulator) -------------------------------------------------------
 
@@ -51,18 +111,19 @@ class GroundTruth:
         self._masks.push(stamp, instances)
         if counts is None:
             counts = np.bincount(instances.ravel(), minlength=len(self.world.instances))
-        seen = {}
+        ids, pixels = [], []
         for inst in np.flatnonzero(counts).tolist():
             info = self.world.instances.get(inst)
             if info is not None and info.kind in ("object", "person"):
-                seen[info.name] = Sighting(info.name, info.kind, info.label, int(counts[inst]))
-        self._visibility.append((stamp, seen))
+                ids.append(inst)
+                pixels.append(int(counts[inst]))
+        self._visibility.append(stamp, ids, pixels)
 
     # -- queries -----------------------------------------------------------------------------------
 
     @property
-    def visibility(self) -> list[tuple[float, dict[str, Sighting]]]:
-        """Every frame's sightings for the whole run: (stamp, {name: Sighting})."""
+    def visibility(self) -> VisibilityLog:
+        """Every frame's sightings for the whole run: a sequence of (stamp, {name: Sighting})."""
         self._flush()
         return self._visibility
 
