@@ -18,7 +18,7 @@ from missiontree.errors import ConfigError
 
 __all__ = ["SimRobot", "World", "create_robot", "load_robot_profile", "load_world"]
 
-_OPTIONS = {"world", "robot", "seed", "config", "name"}
+_OPTIONS = {"world", "robot", "seed", "config", "name", "unknown_map"}
 
 
 def create_robot(options: Mapping[str, Any] | None = None) -> SimRobot:
@@ -29,7 +29,8 @@ def create_robot(options: Mapping[str, Any] | None = None) -> SimRobot:
             ``robot`` (profile name or path; default: the world's profile, normally
             ``turtlebot4``), ``seed`` (a whole number from 0, default 0), ``config`` (a dict merged
             over the robot profile, e.g. ``{"lidar": {"rate": 20}, "camera": {"width": 640, "height": 480},
-            "odometry": {"noise_v": 0.02}, "accelerate": False}``), ``name``.
+            "odometry": {"noise_v": 0.02}, "accelerate": False}``), ``name``, ``unknown_map`` (bool:
+            the robot starts knowing nothing and learns its map from its lidar).
 
     Raises:
         WorldFileError: The world, the profile or an override is broken (file:line problems).
@@ -53,4 +54,7 @@ def create_robot(options: Mapping[str, Any] | None = None) -> SimRobot:
                           f"found {type(config).__name__}")
     world = load_world(opts.get("world") or "office")
     profile = load_robot_profile(opts.get("robot") or world.profile_name, dict(config) if config else None)
-    return SimRobot(world, profile, seed=seed, name=str(opts.get("name") or "sim"))
+    unknown_map = opts.get("unknown_map") or False
+    if not isinstance(unknown_map, bool):
+        raise ConfigError(f"simulator option unknown_map: expected true or false, found {unknown_map!r}")
+    return SimRobot(world, profile, seed=seed, name=str(opts.get("name") or "sim"), unknown_map=unknown_map)
