@@ -107,3 +107,30 @@ def test_servo_turns_to_a_person_at_the_edge_of_view_and_measures_them(tmp_path:
     assert detected and detected[0]["distance"] > 4.0  # the seed's cone read the wall behind
     assert servoed and servoed[0]["distance"] == pytest.approx(1.3, abs=0.2)
     assert robot.pose().pose.yaw == pytest.approx(b, abs=math.radians(6))
+
+
+def test_first_alarm_of_the_demo_is_the_person_not_the_pillar() -> None:
+    """The demo's first alarm is the person on the right, not the pillar the detector calls a person.
+
+    The first frame shows a white pillar cut by the frame's edge (a big, doubtful 'person' box) and
+    the real person on the right; the alarm's box and position must be the person's.
+    """
+    from missiontree.plugins.manager import load_plugins
+    from missiontree.session.models import build_models
+
+    plugins = load_plugins()
+    robot = create_robot({"world": "combined", "seed": 1})
+    models = build_models(None, providers=plugins.providers, seed=1)  # the shipped offline models
+    events = Events()
+    context = MissionContext(robot=robot, models=models, events=events, seed=1)
+    leaf = Surveillance("surveillance", Surveillance.Params(
+        mode="detect", period=0.5, max_in_flight=6, method="depth", fuse_at="frame", alarm_cooldown=5.0))
+    leaf.setup(context=context)
+    tick_for(leaf, robot, 4.0)  # the robot stands at its start pose, facing the pillar and the person
+    alarms = events.of("alarm")
+    assert alarms
+    first = alarms[0]
+    people = robot.truth.people_at(first["stamp"])
+    nearest = min(math.dist(first["position"], (x, y)) for _, x, y in people)
+    assert nearest <= 0.5, f"alarm at {first['position']}, people at {people}"
+    assert first["bearing"] < 0  # on the right of the frame, where the person stands
