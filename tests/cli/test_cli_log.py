@@ -50,7 +50,10 @@ def test_text_summary_from_a_run_directory(tmp_path: Path, capsys: pytest.Captur
     assert main(["log", "summarize", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert out.startswith("mission patrol: FAILURE (stopped by status)")
-    assert "patrol/retry/navigate: 2 — goal blocked by an obstacle (x2)" in out
+    decided, absorbed = out.split("failures absorbed by design")
+    assert "patrol/retry/navigate: 1 — goal blocked by an obstacle" in decided  # the second attempt
+    assert "patrol/retry/navigate: 1, absorbed by patrol/retry x1" in absorbed  # the first, retried
+    assert "patrol/check/camera_ok: 1, absorbed by patrol/check x1" in absorbed  # the Selector moved on
     assert "patrol: 1 — child 'retry' failed: goal blocked by an obstacle (from 'retry/navigate') (x1)" in out
     assert "(no reason given)" not in out
     assert "RuntimeError: camera_ok: scripted error" in out
@@ -113,7 +116,7 @@ def test_a_decorator_keeps_its_words_and_adds_the_childs_reason(tmp_path: Path) 
     reasons = summarize(_lines(tmp_path))["failures"]["patrol/retry"]["reasons"]
     [reason] = reasons
     assert reason.endswith("; child 'navigate' failed: goal blocked by an obstacle")
-    assert reason.startswith("final failure")
+    assert reason.startswith("Retry: all 2 attempts failed")  # the mission file's words, not py_trees'
 
 
 def test_the_child_that_failed_earlier_is_found_from_the_replayed_state() -> None:
@@ -148,3 +151,43 @@ def test_when_several_children_fail_in_one_tick_the_last_ticked_is_named_with_th
         {"node": "watch", "status": "FAILURE", "was": "INVALID"}]}]
     reasons = summarize(lines)["failures"]["watch"]["reasons"]
     assert reasons == {"child 'lidar' failed (as did 'camera'): no scans": 1}
+
+
+def test_summary_json_and_log_summarize_agree_on_every_failure(tmp_path: Path) -> None:
+    """Counts, decided and absorbed failures are the same in summary.json and in `log summarize`."""
+    _failed_run(tmp_path)
+    written = json.loads((tmp_path / "summary.json").read_text())["failures"]
+    replayed = summarize(_lines(tmp_path))["failures"]
+    assert set(written) == set(replayed)
+    for node, entry in written.items():
+        again = replayed[node]
+        assert (entry["count"], entry["decided"], entry["absorbed_by"]) == \
+            (again["count"], again["decided"], again["absorbed_by"]), node
+
+
+def test_a_guard_failing_every_tick_under_a_selector_is_one_absorbed_failure(tmp_path: Path) -> None:
+    """A memoryless Selector re-checking a failing guard for 20 ticks: one transition, absorbed, named."""
+    root = py_trees.composites.Selector("respond_or_patrol", memory=False, children=[
+        py_trees.decorators.SuccessIsFailure("servo_then_resume", child=ScriptedLeaf(
+            "servo", script="F", reason="no new alarm")),
+        ScriptedLeaf("patrol", script="R" * 19 + "S")])
+    Runner(root, MissionContext(robot=ClockRobot()), run_dir=tmp_path, handle_signals=False).run()
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    entry = summary["failures"]["respond_or_patrol/servo_then_resume"]
+    assert (entry["count"], entry["decided"], entry["absorbed_by"]) == (1, 0, {"respond_or_patrol": 1})
+    assert summary["nodes"]["respond_or_patrol/servo_then_resume/servo"] == {"SUCCESS": 0, "FAILURE": 1}
+    replayed = summarize(_lines(tmp_path))["failures"]["respond_or_patrol/servo_then_resume"]
+    assert (replayed["count"], replayed["absorbed_by"]) == (1, {"respond_or_patrol": 1})
+
+
+def test_force_failure_is_named_as_in_the_mission_file(tmp_path: Path) -> None:
+    """ForceFailure's forced failure reads "ForceFailure: ...", never py_trees' "success is failure"."""
+    root = py_trees.composites.Selector("root", memory=False, children=[
+        py_trees.decorators.SuccessIsFailure("serve", child=ScriptedLeaf("servo", script="S")),
+        ScriptedLeaf("patrol", script="S")])
+    Runner(root, MissionContext(robot=ClockRobot()), run_dir=tmp_path, handle_signals=False).run()
+    text = (tmp_path / "ticks.jsonl").read_text() + (tmp_path / "summary.json").read_text()
+    assert "success is failure" not in text
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    forced = "ForceFailure: the child succeeded, FAILURE by design"
+    assert summary["failure_reasons"]["root/serve"] == [forced]

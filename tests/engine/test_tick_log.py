@@ -162,16 +162,31 @@ def test_node_paths_are_unique_for_repeated_names() -> None:
 
 
 def test_recorder_counts_outcomes_and_reasons() -> None:
-    """The summary counts every SUCCESS and FAILURE per node and keeps distinct failure reasons."""
-    leaf = ScriptedLeaf("nav", script="F", reason="no path")
+    """The summary counts transitions into SUCCESS and FAILURE per node and keeps distinct reasons."""
+    leaf = ScriptedLeaf("nav", script="RF", reason="no path")
     root = py_trees.decorators.Retry("retry", child=leaf, num_failures=3)
     root.setup()
     recorder = TickRecorder(root, TickLog(io.StringIO(), "m", clock=lambda: 0.0, simulated=True))
-    for _ in range(3):
+    for _ in range(6):
         recorder.record(0.0, list(root.tick()))
     summary = recorder.summary()
     assert summary["nodes"]["retry/nav"] == {"SUCCESS": 0, "FAILURE": 3}
     assert summary["failure_reasons"]["retry/nav"] == ["no path"]
+    failures = summary["failures"]["retry/nav"]
+    assert (failures["decided"], failures["absorbed_by"]) == (1, {"retry": 2})  # two retried, the last not
+
+
+def test_a_status_held_over_many_ticks_counts_once() -> None:
+    """A leaf failing on ten ticks in a row (re-checked by a memoryless Selector) turned FAILURE once."""
+    guard = ScriptedLeaf("guard", script="F", reason="no alarm")
+    root = py_trees.composites.Selector("root", memory=False, children=[guard, ScriptedLeaf("w", script="R")])
+    root.setup()
+    recorder = TickRecorder(root, TickLog(io.StringIO(), "m", clock=lambda: 0.0, simulated=True))
+    for _ in range(10):
+        recorder.record(0.0, list(root.tick()))
+    summary = recorder.summary()
+    assert summary["nodes"]["root/guard"] == {"SUCCESS": 0, "FAILURE": 1}
+    assert summary["failures"]["root/guard"]["absorbed_by"] == {"root": 1}
 
 
 def test_read_log_names_a_broken_line(tmp_path: Path) -> None:

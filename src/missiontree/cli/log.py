@@ -7,6 +7,12 @@ with their reasons, and the errors and events leaves emitted. A composite that f
 child did has no reason of its own in the log; the summary names the child that ended it and the
 reason that failure ends in (``child 'fetch' failed: goal aborted (from 'fetch/to_fridge')``),
 found among the same tick's changes.
+
+Counts are status *transitions*, as in the run's ``summary.json``: a node failing on many ticks in
+a row turned FAILURE once. Each failure is either one that *decided the outcome* (FAILURE reached
+the root) or one an ancestor *absorbed* by design (a Selector moving on, a Retry, a ForceFailure's
+Selector parent), by the same rule as the summary (:func:`~missiontree.engine.tick_log.absorber`),
+so ``failures`` here and in ``summary.json`` agree on ``count``, ``decided`` and ``absorbed_by``.
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from missiontree.cli import print_json
-from missiontree.engine.tick_log import read_log
+from missiontree.engine.tick_log import absorber, read_log
 from missiontree.errors import ConfigError
 
 #: Runner lines that are not leaf events.
@@ -130,18 +136,27 @@ def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
     for record in ticks:
         changed = record.get("changed", [])
         explained = explain_failures(changed, latest)
+        failed_now: list[str] = []
         for change in changed:
             node = change.get("node", "?")
             entry = latest[node] = dict(change)
             if change.get("status") == "FAILURE":
+                failed_now.append(node)
                 why = explained.get(node, {"reason": "", "origin": "", "own": ""})
                 entry.update(reason=why["reason"], origin=why["origin"], own=why["own"])
-                failure = failures.setdefault(node, {"count": 0, "reasons": {}})
+                failure = failures.setdefault(
+                    node, {"count": 0, "decided": 0, "absorbed_by": {}, "reasons": {}})
                 failure.setdefault("first_tick", record.get("tick"))
                 failure["count"] += 1
                 reason = why["reason"] or "(no reason given)"
                 failure["reasons"][reason] = failure["reasons"].get(reason, 0) + 1
                 failure["last_tick"] = record.get("tick")
+        for node in failed_now:  # classified on the statuses at the end of the tick
+            by = absorber(node, lambda path: latest.get(path, {}).get("status"))
+            if by is None:
+                failures[node]["decided"] += 1
+            else:
+                failures[node]["absorbed_by"][by] = failures[node]["absorbed_by"].get(by, 0) + 1
     last = ticks[-1] if ticks else {}
     ended_by = [c["node"] for c in last.get("changed", []) if c.get("status") == "FAILURE" and "node" in c]
     ended_by.sort(key=lambda n: -_depth(n))
@@ -183,12 +198,21 @@ def format_summary(summary: dict[str, Any]) -> str:
     if summary["running_at_end"] and summary["status"] not in ("SUCCESS", "FAILURE"):
         out.append("still running when stopped:")
         out += [f"  {node}" for node in summary["running_at_end"]]
-    if summary["failures"]:
-        out.append("failures (node: times it turned FAILURE — reasons):")
-        for node, entry in summary["failures"].items():
+    decided = {n: e for n, e in summary["failures"].items() if e.get("decided")}
+    absorbed = {n: e for n, e in summary["failures"].items() if e.get("absorbed_by")}
+    if decided:
+        out.append("failures that decided the outcome (node: times — reasons):")
+        for node, entry in decided.items():
             reasons = ", ".join(f"{r} (x{n})" for r, n in entry["reasons"].items())
-            out.append(f"  {node}: {entry['count']} — {reasons}")
-    else:
+            out.append(f"  {node}: {entry['decided']} — {reasons}")
+    if absorbed:
+        out.append("failures absorbed by design (a parent moved on or retried; node: times, by whom "
+                   "— reasons):")
+        for node, entry in absorbed.items():
+            by = ", ".join(f"{path} x{n}" for path, n in entry["absorbed_by"].items())
+            reasons = ", ".join(f"{r} (x{n})" for r, n in entry["reasons"].items())
+            out.append(f"  {node}: {sum(entry['absorbed_by'].values())}, absorbed by {by} — {reasons}")
+    if not summary["failures"]:
         out.append("no node failed")
     if summary["errors"]:
         out.append("errors:")

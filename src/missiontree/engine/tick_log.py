@@ -18,6 +18,14 @@ Two pieces:
   nodes whose status changed (visited ones plus those halted since the last tick) and the
   blackboard keys written, and keeps per-node SUCCESS/FAILURE counts for the run summary.
   Its cost follows the active part of the tree, never the whole tree (ARCHITECTURE §9).
+
+**What the summary counts** (``missiontree log summarize`` counts the same from the log alone):
+status *transitions* — a node that returns FAILURE on fifty ticks in a row (a guard re-checked
+every tick) turned FAILURE once. Each failure is then classified at the end of its tick by
+:func:`absorber`: it *decided the outcome* when FAILURE reached the root, and was *absorbed*
+when an ancestor did not fail (a Selector moving on to its next child, a Retry trying again, an
+Inverter): the first such ancestor is named. The words py_trees' decorators write ("success is
+failure") are replaced by the mission file's names (:func:`feedback_of`).
 """
 
 from __future__ import annotations
@@ -26,6 +34,7 @@ import dataclasses
 import enum
 import json
 import math
+import re
 import threading
 import time
 from collections.abc import Callable
@@ -271,9 +280,88 @@ def node_paths(root: Behaviour) -> dict[Behaviour, str]:
     return paths
 
 
+_RETRY_RE = re.compile(
+    r"^(attempt failed|final failure|running|succeeded) \[status: (\d+) failure from (\d+)\]$")
+_REPEAT_RE = re.compile(r"^(failed, aborting|success|running) \[status: (\d+) success from (-?\d+)\]$")
+
+
+def _wrapped(prefix: str, message: str, words: str) -> str | None:
+    """``words`` plus the child's feedback when ``message`` is py_trees' ``prefix [child]``."""
+    if message == prefix:
+        return words
+    if message.startswith(prefix + " [") and message.endswith("]"):
+        return f"{words} [{message[len(prefix) + 2:-1]}]"
+    return None
+
+
+def _retry_words(message: str) -> str | None:
+    found = _RETRY_RE.match(message)
+    if found is None:
+        return None
+    kind, done, limit = found.groups()
+    return {"attempt failed": f"Retry: attempt {done} of {limit} failed, trying again",
+            "final failure": f"Retry: all {limit} attempts failed",
+            "running": f"Retry: attempt {int(done) + 1} of {limit} running",
+            "succeeded": f"Retry: succeeded after {done} failed attempt(s)"}[kind]
+
+
+def _repeat_words(message: str) -> str | None:
+    found = _REPEAT_RE.match(message)
+    if found is None:
+        return None
+    kind, done, limit = found.groups()
+    total = "forever" if limit == "-1" else f"of {limit}"
+    return {"failed, aborting": f"Repeat: the child failed after {done} success(es) {total}",
+            "success": f"Repeat: {done} success(es) {total}, done",
+            "running": f"Repeat: {done} success(es) {total} so far"}[kind]
+
+
+#: py_trees decorator → rewrite of its feedback into the mission file's words (None: keep it).
+_FEEDBACK_WORDS: dict[type, Callable[[str], str | None]] = {
+    py_trees.decorators.SuccessIsFailure: lambda m: _wrapped(
+        "success is failure", m, "ForceFailure: the child succeeded, FAILURE by design"),
+    py_trees.decorators.FailureIsSuccess: lambda m: _wrapped(
+        "failure is success", m, "ForceSuccess: the child failed, SUCCESS by design"),
+    py_trees.decorators.Inverter: lambda m: {"success -> failure": "Inverter: the child succeeded",
+                                             "failure -> success": "Inverter: the child failed"}.get(m),
+    py_trees.decorators.Retry: _retry_words,
+    py_trees.decorators.Repeat: _repeat_words,
+}
+
+
+def feedback_of(node: Behaviour) -> str:
+    """The node's feedback message, py_trees' own phrases put in the mission file's words."""
+    message = node.feedback_message
+    if message:
+        rewrite = _FEEDBACK_WORDS.get(type(node))
+        if rewrite is not None:
+            return rewrite(message) or message
+    return message
+
+
 def failure_reason(node: Behaviour) -> str:
     """Why ``node`` failed: a Leaf's ``failure_reason``, else its feedback message."""
-    return getattr(node, "failure_reason", "") or node.feedback_message
+    return getattr(node, "failure_reason", "") or feedback_of(node)
+
+
+def absorber(path: str, status_of: Callable[[str], str | None]) -> str | None:
+    """Which ancestor absorbed a failure of the node at ``path``, or None when it decided the outcome.
+
+    Walks up the path (``a/b/c`` → ``a/b`` → ``a``): the first ancestor whose status at the end of
+    the tick is not FAILURE absorbed it (a Selector moving on, a Retry, an Inverter); when every
+    ancestor failed too, the failure reached the root. The same rule serves the run summary (on the
+    live tree) and ``log summarize`` (on the statuses replayed from the log), so both agree.
+
+    Args:
+        path: The failed node's path.
+        status_of: Status name of a node path at the end of the tick (None: not known, taken as
+            not failed).
+    """
+    while "/" in path:
+        path = path.rsplit("/", 1)[0]
+        if status_of(path) != "FAILURE":
+            return path
+    return None
 
 
 class TickRecorder:
@@ -296,6 +384,9 @@ class TickRecorder:
         #: node -> [SUCCESS count, FAILURE count], for every node up front (no lookups that miss)
         self._counts: dict[Behaviour, list[int]] = {node: [0, 0] for node in self.paths}
         self._reasons: dict[Behaviour, list[str]] = {}
+        #: failures that reached the root, and failures absorbed: node -> {absorber path: count}
+        self._decided: dict[Behaviour, int] = {}
+        self._absorbed: dict[Behaviour, dict[str, int]] = {}
         #: Status of every node that is not INVALID, as of the end of the last tick.
         self._active: dict[Behaviour, Status] = {}
         self._bb_logged: dict[str, Any] = {}
@@ -317,9 +408,9 @@ class TickRecorder:
     def record(self, t: float, visited: list[Behaviour], event: str = "tick") -> None:
         """Write the line for a tick in which ``visited`` were ticked (or a halt when ``event`` says so)."""
         active = self._active
-        counts = self._counts
         changed: list[dict[str, Any]] = []
-        success, failure, invalid = Status.SUCCESS, Status.FAILURE, Status.INVALID
+        failed: list[Behaviour] = []
+        invalid = Status.INVALID
         for node in visited:  # the hot loop: subscripts rather than calls, a few a node
             status = node.status
             try:
@@ -332,18 +423,7 @@ class TickRecorder:
                     del active[node]
                 else:
                     active[node] = status
-            if status is success:
-                try:
-                    counts[node][0] += 1
-                except KeyError:  # a node added to the tree after the start
-                    counts[node] = [1, 0]
-            elif status is failure:
-                try:
-                    counts[node][1] += 1
-                except KeyError:
-                    counts[node] = [0, 1]
-                if node.feedback_message:  # Leaf.fail() sets it to the reason too
-                    self._keep_reason(node, failure_reason(node))
+                    self._count(node, status, failed)
         # A node not ticked can only have changed by being halted, and a composite halts a child
         # only as some ticked node changes (it finishes, or another child takes over): a tick with
         # no change among the ticked nodes skips the search. Set operations find the halted nodes
@@ -357,6 +437,9 @@ class TickRecorder:
                     del active[node]
                 else:
                     active[node] = status
+                    self._count(node, status, failed)
+        for node in failed:
+            self._classify(node)
         bb, unset = self._blackboard_changes()
         if event == "tick":
             self.ticks += 1
@@ -364,10 +447,37 @@ class TickRecorder:
         else:
             self.log.line(event, t=t, changed=changed, bb=bb, bb_unset=unset)
 
+    def _count(self, node: Behaviour, status: Status, failed: list[Behaviour]) -> None:
+        """Count a transition into SUCCESS or FAILURE (a failure is classified after the tick)."""
+        counts = self._counts.get(node)
+        if counts is None:  # a node added to the tree after the start
+            counts = self._counts[node] = [0, 0]
+        if status is Status.SUCCESS:
+            counts[0] += 1
+        elif status is Status.FAILURE:
+            counts[1] += 1
+            failed.append(node)
+            reason = failure_reason(node)
+            if reason:
+                self._keep_reason(node, reason)
+
+    def _classify(self, node: Behaviour) -> None:
+        """Decided the outcome, or absorbed by the first ancestor that did not fail (end of tick)."""
+        parent = node.parent
+        while parent is not None:
+            if parent.status is not Status.FAILURE:
+                by = self._absorbed.setdefault(node, {})
+                where = self.path(parent)
+                by[where] = by.get(where, 0) + 1
+                return
+            parent = parent.parent
+        self._decided[node] = self._decided.get(node, 0) + 1
+
     def _change(self, node: Behaviour, status: Status, was: Status) -> dict[str, Any]:
         entry: dict[str, Any] = {"node": self.path(node), "status": status.name, "was": was.name}
-        if node.feedback_message:
-            entry["feedback"] = node.feedback_message
+        feedback = feedback_of(node)
+        if feedback:
+            entry["feedback"] = feedback
         if status is Status.FAILURE:
             reason = failure_reason(node)
             if reason:
@@ -405,12 +515,23 @@ class TickRecorder:
         return changes, unset
 
     def summary(self) -> dict[str, Any]:
-        """Per-node SUCCESS/FAILURE counts and failure reasons, sorted by node path."""
+        """Per-node transitions into SUCCESS/FAILURE, failure reasons, and every failure's kind.
+
+        ``failures``: node path → ``count`` (times it turned FAILURE), ``decided`` (how many of
+        those reached the root and decided the outcome), ``absorbed_by`` (ancestor path → how many
+        it absorbed) and ``reasons``. Everything sorted by node path.
+        """
         nodes = {self.path(n): {"SUCCESS": c[0], "FAILURE": c[1]} for n, c in self._counts.items() if any(c)}
         reasons = {self.path(n): r for n, r in self._reasons.items() if r}
+        failures = {
+            self.path(n): {"count": c[1], "decided": self._decided.get(n, 0),
+                           "absorbed_by": dict(sorted(self._absorbed.get(n, {}).items())),
+                           "reasons": self._reasons.get(n, [])}
+            for n, c in self._counts.items() if c[1]}
         return {
             "nodes": dict(sorted(nodes.items())),
             "failure_reasons": dict(sorted(reasons.items())),
+            "failures": dict(sorted(failures.items())),
         }
 
 
