@@ -139,8 +139,11 @@ def to_btlog(replay: Replay) -> bytes:
     out += struct.pack("<i", len(encoded))
     out += encoded
     out += struct.pack("<q", first_us)
-    for change in [*replay.changes, *replay.halted]:
-        offset = min(max(round(replay.times[change.tick] * 1e6) - first_us, 0), _MAX_OFFSET)
+    timed = [(replay.times[c.tick], c) for c in replay.changes] + [
+        (replay.halted_t, c) for c in replay.halted
+    ]
+    for t, change in timed:
+        offset = min(max(round(t * 1e6) - first_us, 0), _MAX_OFFSET)
         out += offset.to_bytes(6, "little") + struct.pack("<HB", uids[change.node], change.status)
     return bytes(out)
 

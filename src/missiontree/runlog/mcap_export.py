@@ -254,7 +254,7 @@ def _messages(replay: Replay, mission: str) -> list[tuple[int, int, str, dict[st
                 message["value"] = value
             add(t, "/missiontree/blackboard", message)
     if replay.halted and replay.tick_numbers:
-        t = replay.finished.get("t", replay.times[-1])
+        t = replay.halted_t
         for change in replay.halted:
             add(
                 float(t),

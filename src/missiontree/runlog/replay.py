@@ -135,6 +135,8 @@ class Replay:
         self.blackboard: list[tuple[int, str, Any]] = []
         self.events: list[Event] = []
         self.halted: list[Change] = []
+        #: Robot time of the halt at the end of the run.
+        self.halted_t = 0.0
         self.started: dict[str, Any] = {}
         self.finished: dict[str, Any] = {}
         #: (t, x, y) of the robot, from the run's trajectory or events that carry a robot pose.
@@ -190,6 +192,7 @@ class Replay:
         elif kind == "halted":
             at = max(len(self.tick_numbers) - 1, 0)
             self.halted.extend(self._changes(record, at))
+            self.halted_t = float(record.get("t", self.times[-1] if self.times else 0.0))
         elif kind == "mission_started":
             self.started = record
         elif kind == "mission_finished":
