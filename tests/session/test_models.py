@@ -1,4 +1,4 @@
-"""Tests of the model wiring (session.models): config checking, building roles, broken providers failing missions cleanly."""
+"""Tests of the model wiring (session.models): config checks, building roles, broken providers."""
 
 from __future__ import annotations
 
