@@ -1,0 +1,65 @@
+"""The viewer page as a file: self-contained, compact, and built from what the run recorded."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from missiontree.runlog.html import page_data, render_page, write_page
+from missiontree.runlog.replay import open_run
+from missiontree.runlog.synthetic import synthesize_run
+
+
+def test_the_page_needs_no_network(patrol_run: Path, tmp_path: Path):
+    """No external script, style, image or font: everything is inline."""
+    html = write_page(patrol_run, tmp_path / "report.html").read_text()
+    assert not re.search(r"""<(script|link|img|iframe)[^>]+(src|href)\s*=\s*["']?(https?:)?//""", html)
+    assert "@import" not in html and "url(http" not in html
+    assert html.count("<script") == 2  # the data and the viewer, both inline
+
+
+def test_data_cannot_close_the_script_element(tmp_path: Path):
+    """Feedback text with '</script>' stays data."""
+    synthesize_run(tmp_path, 20)
+    replay = open_run(tmp_path)
+    replay.changes[0] = type(replay.changes[0])(0, 0, 1, 0, "</script><b>x", "")
+    html = render_page(page_data(replay, tmp_path))
+    assert html.count("</script>") == 2
+
+
+def test_an_hour_of_ticks_stays_under_ten_megabytes(tmp_path: Path):
+    """36,000 ticks with a patrol's event rate make a page well under the 10 MB limit."""
+    synthesize_run(tmp_path, 36_000)
+    page = write_page(tmp_path, tmp_path / "report.html")
+    assert page.stat().st_size <= 10_000_000
+    assert page.stat().st_size < (tmp_path / "ticks.jsonl").stat().st_size
+
+
+def test_a_learned_map_in_the_run_directory_is_preferred(patrol_run: Path, tmp_path: Path):
+    """A map.pgm + map.yaml (map_server format) beside the log replaces the recorded map."""
+    run = tmp_path / "run"
+    run.mkdir()
+    for name in ("ticks.jsonl", "runview.json"):
+        (run / name).write_bytes((patrol_run / name).read_bytes())
+    image = np.full((30, 50), 254, dtype=np.uint8)
+    image[10, :] = 0
+    cv2.imwrite(str(run / "map.pgm"), image)
+    (run / "map.yaml").write_text(
+        "image: map.pgm\nresolution: 0.1\norigin: [-1.0, -2.0, 0.0]\n"
+        "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.25\n"
+    )
+    data = page_data(open_run(run), run)
+    assert data["map"]["width"] == 50 and data["map"]["height"] == 30
+    assert data["map"]["origin"] == [-1.0, -2.0] and "learned map" in data["map"]["source"]
+
+
+def test_the_run_records_its_tree_map_and_trajectory(patrol_run: Path):
+    """runview.json holds the declared tree, the robot's map and the simulator's trajectory."""
+    runview = json.loads((patrol_run / "runview.json").read_text())
+    assert runview["tree"]["name"] == "respond_or_patrol" and runview["tree"]["type"] == "Selector"
+    assert runview["map"]["resolution"] > 0 and runview["map"]["png"]
+    assert len(runview["poses"]) > 10 and all(len(p) == 3 for p in runview["poses"])
