@@ -35,20 +35,26 @@ def available(kind: str) -> list[str]:
     return sorted(names)
 
 
+#: What one file of each kind is called in messages.
+_NOUNS = {"worlds": "world", "robots": "robot profile", "models": "models config",
+          "waypoints": "waypoint file", "backends": "run configuration"}
+
+
 def find_config(kind: str, name: str | os.PathLike[str]) -> Path:
     """Resolve ``name`` (a path or a shipped name) to a file of ``kind`` (``worlds``, ``robots``, ...).
 
     Raises:
         ConfigError: Nothing found; the message lists the names that exist.
     """
+    noun = _NOUNS.get(kind, kind[:-1] if kind.endswith("s") else kind)
     as_path = Path(name)
     if as_path.suffix in {".yaml", ".yml"} or as_path.is_file():
         if as_path.is_file():
             return as_path
-        raise ConfigError(f"{kind[:-1] if kind.endswith('s') else kind} file {str(name)!r} does not exist")
+        raise ConfigError(f"{noun}{'' if noun.endswith('file') else ' file'} {str(name)!r} does not exist")
     for d in config_dirs():
         candidate = d / kind / f"{name}.yaml"
         if candidate.is_file():
             return candidate
     known = ", ".join(available(kind)) or "none"
-    raise ConfigError(f"unknown {kind[:-1]} {str(name)!r}; known: {known} (or give a path to a .yaml file)")
+    raise ConfigError(f"unknown {noun} {str(name)!r}; known: {known} (or give a path to a .yaml file)")

@@ -40,3 +40,89 @@ def test_quiet_prints_nothing_for_valid_files(capsys: pytest.CaptureFixture[str]
     """--quiet suppresses the ok lines."""
     assert main(["validate", "-q", "--no-plugins", str(REPO / "trees/examples/subtree_include.yaml")]) == 0
     assert capsys.readouterr().out == ""
+
+
+def _validate(capsys: pytest.CaptureFixture[str], *files: Path | str) -> tuple[int, str, str]:
+    code = main(["validate", "--no-plugins", *map(str, files)])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_references_of_a_mission_are_checked_with_their_lines(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`world: ofice`, `waypoints_file: no_such_route` and `goal_x: "six"` are problems at their lines."""
+    mission = tmp_path / "m.yaml"
+    mission.write_text(
+        "run:\n  world: ofice\n"
+        "blackboard:\n  goal_x: six\n"
+        "root:\n  Sequence:\n    memory: true\n    children:\n"
+        "      - Patrol: {waypoints_file: no_such_route}\n"
+        "      - NavigateTo: {x: {bb: goal_x}, y: 1.0}\n")
+    code, _, err = _validate(capsys, mission)
+    assert code == 2
+    assert f"{mission}:2:10: run.world: unknown world 'ofice'" in err and "office" in err
+    assert f"{mission}:9:34: root/Sequence/Patrol[0]: unknown waypoint file 'no_such_route'" in err
+    assert f"{mission}:10:25: root/Sequence/NavigateTo[1]: x: expected number in the blackboard default " \
+           "'goal_x'" in err and "found 'six'" in err
+
+
+def test_a_waypoint_file_for_another_world_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A waypoint file that says it was written for the corridor does not validate in the office."""
+    mission = tmp_path / "m.yaml"
+    mission.write_text("run: {world: office}\nroot:\n  Patrol: {waypoints_file: scenario_a}\n")
+    code, _, err = _validate(capsys, mission)
+    assert code == 2 and "written for 'corridor'" in err and f"{mission}:3:28:" in err
+
+
+def test_waypoints_outside_the_map_or_in_obstacles_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A waypoint file (found beside the mission) whose points miss the world's free space is refused."""
+    (tmp_path / "route.yaml").write_text("waypoints:\n  - [1.0, 1.0]\n  - [500.0, 3.0]\n")
+    mission = tmp_path / "m.yaml"
+    mission.write_text("run: {world: conformance}\nroot:\n  Patrol: {waypoints_file: route.yaml}\n")
+    code, _, err = _validate(capsys, mission)
+    assert code == 2 and "P2 (500, 3) lies outside the map" in err
+    inline = tmp_path / "inline.yaml"
+    inline.write_text("run: {world: conformance}\nroot:\n  Patrol: {waypoints: [[1.0, 1.0], [-300, 0]]}\n")
+    code, _, err = _validate(capsys, inline)
+    assert code == 2 and "lies outside the map" in err
+
+
+def test_world_path_resolves_relative_to_the_mission(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`world: w.yaml` beside the mission is found from any working directory; its problems keep its lines."""
+    (tmp_path / "w.yaml").write_text((REPO / "config/worlds/conformance.yaml").read_text())
+    mission = tmp_path / "m.yaml"
+    mission.write_text("run: {world: w.yaml}\nroot: Succeed\n")
+    assert _validate(capsys, mission)[0] == 0
+    (tmp_path / "w.yaml").write_text("name: w\nrobot: {start: {x: 1, y: .nan}}\nwalls: {segmnts: []}\n")
+    code, _, err = _validate(capsys, mission)
+    assert code == 2 and "w.yaml:2:" in err and "w.yaml:3:" in err and "segmnts" in err
+
+
+def test_world_robot_models_and_waypoint_files_are_recognised(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Shipped configs validate alone naming their kind; broken ones report every problem at its line."""
+    files = [REPO / "config/worlds/office.yaml", REPO / "config/robots/turtlebot4.yaml",
+             REPO / "config/models/offline.yaml", REPO / "config/waypoints/scenario_a.yaml"]
+    code, out, _ = _validate(capsys, *files)
+    assert code == 0
+    for kind in ("(world)", "(robot)", "(models)", "(waypoints)"):
+        assert kind in out
+    world = tmp_path / "world.yaml"
+    world.write_text("name: w\nrobot: {start: {x: 1, y: 1}}\nwalls:\n  hieght: 2\n"
+                     "  segments: [[[0, 0], [5, 0]]]\n"
+                     "objects:\n  - {label: cup, size: [0.1, .inf, 0.1], pose: {x: 2, y: 2}}\n"
+                     "people:\n  - {id: p, route: [[1, 1]], speed: .nan}\n")
+    robot = tmp_path / "robot.yaml"
+    robot.write_text("name: r\nbody: {radius: -1}\nlidar: {beams: 3, rnage_max: 4}\n")
+    code, _, err = _validate(capsys, world, robot)
+    assert code == 2
+    assert f"{world}:4:3:" in err and "hieght" in err and f"{world}:7:" in err and f"{world}:9:" in err
+    assert f"{robot}:2:" in err and f"{robot}:3:" in err and "rnage_max" in err and "beams" in err

@@ -19,14 +19,19 @@ saying where, what was expected and what was found.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
-from missiontree.errors import ConfigError
+from missiontree.errors import ConfigError, ProblemsError
 from missiontree.paths import find_config
-from missiontree.types import Pose2D
-from missiontree.yamlio import load_yaml
+from missiontree.types import OccupancyGrid, Pose2D
+from missiontree.yamlio import YamlLimits, load_yaml
+
+#: A waypoint file is a list of poses: a few hundred at most, never megabytes.
+WAYPOINT_LIMITS = YamlLimits(max_bytes=256 * 1024, max_depth=16, max_nodes=50_000)
 
 
 @dataclass(frozen=True)
@@ -79,19 +84,48 @@ def _ordered(waypoints: list[Waypoint], order: Any, where: str) -> list[Waypoint
     return [by_name[str(n)] for n in order]
 
 
-def load_waypoints(name_or_path: str, route: str | None = None) -> list[Waypoint]:
-    """Read a waypoint file (a path, or a name under ``config/waypoints/``).
+@dataclass(frozen=True)
+class WaypointFile:
+    """A waypoint file as read: its route and the world it says it was written for.
 
-    Args:
-        name_or_path: ``combined`` or ``config/waypoints/combined.yaml``.
-        route: The route to use when the file holds several under ``routes:``.
+    Attributes:
+        path: The file read.
+        waypoints: The route picked (``route``, or the only one).
+        world: The file's ``world:`` (a world name), or None when it names none.
+    """
+
+    path: Path
+    waypoints: list[Waypoint]
+    world: str | None
+
+
+def resolve_waypoints_file(name_or_path: str | os.PathLike[str], base: Path | None = None) -> Path:
+    """The waypoint file a name means: beside ``base`` (the mission's folder) first, then config/.
 
     Raises:
-        ConfigError: Missing file, unknown route, or malformed waypoints.
+        ConfigError: Nothing found; the message lists the shipped names.
     """
-    path = find_config("waypoints", name_or_path)
-    data = load_yaml(path).data
+    if base is not None:
+        beside = (base / name_or_path)
+        if beside.is_file():
+            return beside.resolve()
+    return find_config("waypoints", name_or_path)
+
+
+def read_waypoint_file(name_or_path: str | os.PathLike[str], route: str | None = None,
+                       base: Path | None = None) -> WaypointFile:
+    """Read a waypoint file whole: the route and the world it was written for.
+
+    Raises:
+        ConfigError: Missing file, unknown route, or malformed waypoints (a ProblemsError with
+            file:line:col when the YAML itself is broken).
+    """
+    path = resolve_waypoints_file(name_or_path, base)
+    data = load_yaml(path, limits=WAYPOINT_LIMITS, error=ProblemsError).data
     where = str(path)
+    world = data.get("world") if isinstance(data, Mapping) else None
+    if world is not None and not isinstance(world, str):
+        raise ConfigError(f"{where}: expected `world:` to name a world, found {type(world).__name__}")
     if isinstance(data, Mapping) and "routes" in data:
         routes = data["routes"]
         if not isinstance(routes, Mapping) or not routes:
@@ -105,10 +139,47 @@ def load_waypoints(name_or_path: str, route: str | None = None) -> list[Waypoint
         if route not in routes:
             raise ConfigError(
                 f"{where}: no route {route!r}; known: {', '.join(map(str, routes))}")
-        return parse_waypoints(routes[route], f"{where}: routes.{route}")
+        return WaypointFile(path, parse_waypoints(routes[route], f"{where}: routes.{route}"), world)
     if route is not None:
         raise ConfigError(f"{where}: has no `routes:` section, so route {route!r} cannot be picked")
-    return parse_waypoints(data, where)
+    return WaypointFile(path, parse_waypoints(data, where), world)
+
+
+def load_waypoints(name_or_path: str, route: str | None = None, base: Path | None = None) -> list[Waypoint]:
+    """Read a waypoint file (a path, or a name under ``config/waypoints/``).
+
+    Args:
+        name_or_path: ``combined`` or ``config/waypoints/combined.yaml``.
+        route: The route to use when the file holds several under ``routes:``.
+        base: A folder searched first (the mission file's), as subtree includes are.
+
+    Raises:
+        ConfigError: Missing file, unknown route, or malformed waypoints.
+    """
+    return read_waypoint_file(name_or_path, route, base).waypoints
+
+
+def misfits(waypoints: Sequence[Waypoint], grid: OccupancyGrid) -> list[str]:
+    """Why waypoints cannot belong to the world of ``grid``: outside its map, or inside an obstacle.
+
+    A waypoint merely close to an obstacle is not a misfit: the patrol skips it with the planner's
+    reason at run time (seed 001 §4.5.8). Returns one sentence per misfit, empty when all fit.
+    """
+    rows, cols = grid.data.shape
+    x0, y0 = grid.origin.x, grid.origin.y
+    x1, y1 = x0 + cols * grid.resolution, y0 + rows * grid.resolution
+    found: list[str] = []
+    for w in waypoints:
+        x, y = w.pose.x, w.pose.y
+        row, col = grid.world_to_cell(x, y) if abs(x) < 1e9 and abs(y) < 1e9 else (-1, -1)
+        at = f"{w.name} ({x:g}, {y:g})"
+        if not (0 <= row < rows and 0 <= col < cols):
+            found.append(f"{at} lies outside the map ({x0:.1f}..{x1:.1f}, {y0:.1f}..{y1:.1f})")
+        elif grid.data[row, col] >= 50:
+            found.append(f"{at} lies inside an obstacle")
+        elif grid.data[row, col] < 0:
+            found.append(f"{at} lies in unknown space")
+    return found
 
 
 def _natural_key(text: str) -> tuple[str, int]:

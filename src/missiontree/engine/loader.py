@@ -79,17 +79,29 @@ def load_mission(path: str | Path, registry: NodeRegistry, *, allow_outside: boo
     Raises:
         MissionFileError: With every problem found in the file and the subtrees it includes.
     """
+    spec, problems = check_mission(path, registry, allow_outside=allow_outside, params=params)
+    if problems:
+        raise MissionFileError(problems)
+    assert spec is not None  # no problems implies the root parsed
+    return spec
+
+
+def check_mission(path: str | Path, registry: NodeRegistry, *, allow_outside: bool = False,
+                  params: dict[str, Any] | None = None) -> tuple[MissionSpec | None, list[Problem]]:
+    """Like :func:`load_mission`, but return the problems (sorted) instead of raising them.
+
+    The spec is returned even when some nodes have problems (those nodes have ``params=None``), so
+    ``missiontree validate`` can go on to check what the rest of the mission references; it is None
+    only when the file could not be read as a mission at all.
+    """
     loader = _Loader(Path(path), registry, allow_outside)
     loader.overrides = dict(params or {})
     spec = loader.load()
     problems = list(loader.problems)
     if spec is not None:
         problems += check_tree(spec, registry)
-    if problems:
-        ordered = sorted(_dedupe(problems), key=lambda p: (p.file != str(path), p.file, p.line, p.col))
-        raise MissionFileError(ordered)
-    assert spec is not None  # no problems implies the root parsed
-    return spec
+    ordered = sorted(_dedupe(problems), key=lambda p: (p.file != str(path), p.file, p.line, p.col))
+    return spec, ordered
 
 
 def _dedupe(problems: list[Problem]) -> list[Problem]:
@@ -530,4 +542,5 @@ def _expected(err: Any) -> str:
     return msg
 
 
-__all__ = ["INCLUDE", "MAX_INCLUDE_DEPTH", "MAX_TREE_NODES", "load_mission", "trusted_tree_dirs"]
+__all__ = ["INCLUDE", "MAX_INCLUDE_DEPTH", "MAX_TREE_NODES", "check_mission", "load_mission",
+           "trusted_tree_dirs"]
