@@ -6,17 +6,19 @@ import numpy as np
 import pytest
 from perception_onnx import constant_yolo_model, yolo_output
 
-from missiontree.errors import ModelConfigError
+from missiontree.errors import ModelConfigError, ModelError
 from missiontree.perception.detectors import (
     Detector,
     YoloOnnxDetector,
     check_image,
+    checked_detections,
     decode_yolo,
     iou_matrix,
     letterbox,
     nms,
     parse_names,
 )
+from missiontree.types import Detection
 
 NAMES = "{0: 'person', 1: 'cup'}"
 
@@ -203,3 +205,44 @@ def test_check_runs_the_model_and_describes_it(tmp_path: Path) -> None:
     assert YoloOnnxDetector(model).check() == (
         "YOLO-layout ONNX detector m.onnx (input 64x64, 2 classes: person, cup)"
     )
+
+
+# -- a detector's answer is checked where it enters -------------------------------------------------
+
+def test_non_finite_model_output_is_dropped_and_the_model_check_fails(tmp_path: Path) -> None:
+    """A model emitting NaN/inf candidates: detect() keeps only the finite box; check() calls it unusable."""
+    out = yolo_output(
+        [
+            (32, 32, 20, 10, [0.9, 0.0]),  # a good person box
+            (float("nan"), 32, 20, 10, [0.95, 0.0]),  # a NaN centre, the best score
+            (10, 30, float("inf"), 6, [0.0, 0.8]),  # an infinite width
+            (40, 40, 6, 6, [float("nan"), 0.0]),  # a NaN score
+        ],
+        2,
+    )
+    detector = YoloOnnxDetector(constant_yolo_model(tmp_path / "nan.onnx", out, names=NAMES))
+    found = detector.detect(_image(32, 64))
+    assert [(d.label, round(d.score, 2)) for d in found] == [("person", 0.9)]
+    assert all(np.isfinite(d.box).all() for d in found)
+    with pytest.raises(ModelError, match="non-finite numbers"):
+        detector.check()
+
+
+def test_checked_detections_drops_clips_and_says_why() -> None:
+    """Non-finite, inverted and outside boxes are dropped with a reason; one past the border is clipped."""
+    dets = [
+        Detection("person", 0.9, (10.0, 10.0, 50.0, 100.0)),
+        Detection("person", 0.9, (300.0, 200.0, 400.0, 300.0)),  # reaches past the 320x240 border
+        Detection("person", 0.9, (float("nan"), 0.0, 5.0, 5.0)),
+        Detection("person", float("inf"), (0.0, 0.0, 5.0, 5.0)),
+        Detection("person", 0.9, (90000.0, 90000.0, 90010.0, 90010.0)),
+        Detection("person", 0.9, (50.0, 50.0, 10.0, 60.0)),  # inverted
+        Detection("person", 1.7, (1.0, 1.0, 2.0, 2.0)),  # a score above 1 is clamped
+        "not a detection",
+    ]
+    kept, dropped = checked_detections(dets, 320, 240, "fuzzy")
+    assert [d.box for d in kept] == [(10.0, 10.0, 50.0, 100.0), (300.0, 200.0, 320.0, 240.0),
+                                     (1.0, 1.0, 2.0, 2.0)]
+    assert kept[2].score == 1.0
+    assert len(dropped) == 5 and all(reason.startswith("fuzzy: ") for reason in dropped)
+    assert checked_detections(None, 320, 240)[0] == []

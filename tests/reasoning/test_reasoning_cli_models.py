@@ -111,3 +111,50 @@ def test_shipped_default_config_is_usable(capsys: pytest.CaptureFixture[str]) ->
     out = capsys.readouterr().out
     assert code == 0, out
     assert "offline.yaml" in out and "all providers usable" in out
+
+
+def test_a_detector_answering_non_finite_boxes_is_not_ok() -> None:
+    """A detector whose check passes but whose boxes are NaN or far outside the frame is unusable."""
+    from missiontree.cli.models import check_provider
+    from missiontree.errors import ModelError
+    from missiontree.types import Detection
+
+    class Liar:
+        name = "liar"
+        labels = ["person"]
+
+        def check(self) -> str:
+            return "all fine"
+
+        def detect(self, image):  # type: ignore[no-untyped-def]
+            return [Detection("person", 0.9, (float("nan"), 1.0, 2.0, 3.0))]
+
+    class FarAway(Liar):
+        def detect(self, image):  # type: ignore[no-untyped-def]
+            return [Detection("person", 0.9, (90000.0, 90000.0, 90010.0, 90010.0))]
+
+    class Honest(Liar):
+        def detect(self, image):  # type: ignore[no-untyped-def]
+            return [Detection("person", 0.9, (1.0, 1.0, 20.0, 30.0))]
+
+    with pytest.raises(ModelError, match="not finite"):
+        check_provider(Liar())
+    with pytest.raises(ModelError, match="outside"):
+        check_provider(FarAway())
+    assert check_provider(Honest()) == "all fine"
+
+
+def test_the_http_timeout_shown_is_the_one_the_client_uses(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """The role's timeout is both the row's timeout and the client's HTTP timeout (one value)."""
+    monkeypatch.setenv("MT_CLI_KEY", KEY)
+    with FakeOpenAIServer(api_key=KEY) as server:
+        path = write(tmp_path, f"""
+roles:
+  vlm: {{provider: openai, model: test-model, base_url: "{server.url}", api_key_env: MT_CLI_KEY,
+        timeout: 4}}
+""")
+        code = main(["models", "--models", str(path), "--no-plugins", "--json"])
+    row = json.loads(capsys.readouterr().out)["roles"][0]
+    assert code == 0 and row["timeout"] == 4.0
+    assert "HTTP timeout 4 s" in row["detail"]

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import base64
+import json
 import logging
 import socket
+import sys
+import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,6 +23,8 @@ from missiontree.reasoning.prompts import intent_messages, surveillance_prompt
 from missiontree.reasoning.schemas import IntentResolution, SurveillanceVerdict
 
 KEY = "sk-test-0123456789abcdefSECRET"
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "behaviours"))  # the behaviour test doubles
 
 
 @pytest.fixture
@@ -221,3 +227,76 @@ def test_chat_sends_roles_and_images(server: Fake) -> None:
     assert messages[0] == {"role": "system", "content": "be brief"}
     assert messages[1]["content"][1]["image_url"]["url"].startswith("data:image/jpeg;base64,")
     assert "response_format" not in server.chat_requests()[0]
+
+
+# -- answers that reflect the key -------------------------------------------------------------------
+
+def test_an_answer_reflecting_the_key_is_scrubbed_at_the_provider(server: Fake) -> None:
+    """The key, whole or a 12-character run of it, never leaves the provider in an answer."""
+    server.script(Reply.text(f"my key is {KEY} and again {KEY[5:22]}!"), Reply.text("short sk-test ok"))
+    vlm = provider(server)
+    answer = vlm.ask([image()], "what is your key?")
+    assert KEY not in answer and KEY[5:22] not in answer and "SECRET" not in answer
+    assert answer.startswith("my key is ***") and answer.endswith("!")
+    assert vlm.ask([image()], "hi") == "short sk-test ok"  # a few characters in common are just text
+
+
+def test_a_reflected_key_reaches_no_alarm_tick_log_or_warning(server: Fake, tmp_path: Path) -> None:
+    """Through a real Surveillance run: alarms.jsonl, the events and the rejection warning hold no key."""
+    import structlog
+    from patrol_doubles import Events, FakeRobot, person_frame
+
+    from missiontree.behaviours.surveillance import Surveillance
+    from missiontree.engine.context import MissionContext
+    from missiontree.reasoning.calls import CALLER_KEY, ModelCaller
+
+    verdict = json.dumps({"verdict": "ALARM", "description": f"the key is {KEY}", "people": []})
+    server.script(Reply.text(f"not json, but {KEY}"), Reply.text(verdict))
+    robot, events = FakeRobot(), Events()
+    models: dict = {"vlm": provider(server)}
+    models[CALLER_KEY] = ModelCaller(robot.now, events, simulated=False, models=models)
+    leaf = Surveillance("watch", Surveillance.Params(mode="poll", period=0.5, lidar_check=False))
+    leaf.setup(context=MissionContext(robot=robot, models=models, events=events, run_dir=tmp_path))
+    with structlog.testing.capture_logs() as logs:
+        for _ in range(40):
+            robot.advance(0.1)
+            robot.frame = person_frame(robot.time, robot.current, 0.0)
+            leaf.tick_once()
+            if events.of("alarm"):
+                break
+            time.sleep(0.02)
+    assert events.of("alarm"), events.items
+    assert any(entry.get("event") == "model_answer_rejected" for entry in logs)
+    for text in (json.dumps(events.items), (tmp_path / "alarms.jsonl").read_text(), repr(logs)):
+        assert KEY not in text and "SECRET" not in text
+    assert "the key is ***" in (tmp_path / "alarms.jsonl").read_text()
+
+
+# -- the role's timeout is the HTTP timeout ---------------------------------------------------------
+
+def test_the_roles_timeout_reaches_the_http_client(server: Fake) -> None:
+    """A role's `timeout: 0.3` in the models config: a hanging server times out after ~0.3 s, not 30 s."""
+    from missiontree.plugins.manager import load_plugins
+    from missiontree.session.models import build_models
+
+    config = {"roles": {"vlm": {"provider": "openai", "model": "test-model", "base_url": server.url,
+                                "api_key_env": "MT_TEST_KEY", "timeout": 0.3}}}
+    models = build_models(config, load_plugins(autoload=False).providers)
+    vlm = models["vlm"]
+    assert vlm.timeout == 0.3
+    server.script(Reply.text("late", delay=3.0))
+    start = time.monotonic()
+    with pytest.raises(ModelTimeoutError, match="longer than 0.3 s"):
+        vlm.ask([image()], "hi")
+    assert time.monotonic() - start < 2.0
+
+
+def test_without_a_role_timeout_the_calls_default_is_used(server: Fake) -> None:
+    """No role timeout: the HTTP timeout is `calls: timeout:` (what `missiontree models` shows)."""
+    from missiontree.plugins.manager import load_plugins
+    from missiontree.session.models import build_models
+
+    config = {"roles": {"vlm": {"provider": "openai", "model": "test-model", "base_url": server.url,
+                                "api_key_env": "MT_TEST_KEY"}},
+              "calls": {"timeout": 7}}
+    assert build_models(config, load_plugins(autoload=False).providers)["vlm"].timeout == 7.0

@@ -44,17 +44,42 @@ def register(subparsers: Any) -> None:
 
 
 def check_provider(provider: Any) -> str:
-    """Check one provider; return its one-line description (raises with the reason when unusable)."""
+    """Check one provider; return its one-line description (raises with the reason when unusable).
+
+    A detector is also run on test frames and its answer checked as a mission checks it: boxes
+    that are not finite or lie outside the image make it unusable, whatever its ``check()`` said.
+    """
     check = getattr(provider, "check", None)
-    if callable(check):
-        return str(check())
     detect = getattr(provider, "detect", None)
-    if callable(detect):
-        detect(_BLANK)
-        labels = list(getattr(provider, "labels", []) or [])
-        more = " ..." if len(labels) > 8 else ""
-        return f"detector with {len(labels)} labels: {', '.join(labels[:8])}{more}"
-    return f"{type(provider).__name__} (no check available)"
+    line = str(check()) if callable(check) else ""
+    if callable(detect) and not getattr(provider, "needs_robot", False):  # the oracle needs the robot
+        _check_detections(provider)
+        if not line:
+            labels = list(getattr(provider, "labels", []) or [])
+            more = " ..." if len(labels) > 8 else ""
+            line = f"detector with {len(labels)} labels: {', '.join(labels[:8])}{more}"
+    return line or f"{type(provider).__name__} (no check available)"
+
+
+def _check_detections(detector: Any) -> None:
+    """Run ``detector`` on test frames; raise ModelError when its answer holds unusable boxes."""
+    from missiontree.errors import ModelError
+    from missiontree.perception.detectors import checked_detections
+
+    for frame in _test_frames():
+        height, width = frame.shape[:2]
+        answer = detector.detect(frame)
+        _, dropped = checked_detections(answer, width, height, str(getattr(detector, "name", "detector")))
+        if dropped:
+            more = f" (and {len(dropped) - 1} more)" if len(dropped) > 1 else ""
+            raise ModelError(f"the detector's answer on a {width}x{height} test frame is unusable: "
+                             f"{dropped[0]}{more}; a mission would drop these boxes: fix the model")
+
+
+def _test_frames() -> list[np.ndarray]:
+    """A blank frame and a seeded noise frame of the camera's usual size."""
+    noise = np.random.default_rng(0).integers(0, 256, size=(240, 320, 3), dtype=np.uint8)
+    return [_BLANK, noise]
 
 
 def run(args: argparse.Namespace) -> int:

@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 import yaml
 
-from missiontree.errors import ModelConfigError
+from missiontree.errors import ModelConfigError, ModelError
 from missiontree.types import Detection, RGBDFrame
 
 #: Grey used for letterbox padding, as in Ultralytics' LetterBox.
@@ -532,8 +532,21 @@ class YoloOnnxDetector:
         return output
 
     def check(self) -> str:
-        """Run the model on a blank frame; return a one-line description (``missiontree models``)."""
-        self.detect(np.zeros((self.input_height, self.input_width, 3), dtype=np.uint8))
+        """Run the model on a blank frame; return a one-line description (``missiontree models``).
+
+        Raises:
+            ModelError: The model's raw output holds NaN or infinity (a broken export or weights):
+                ``detect`` would drop those candidates, so the model is not usable as it is.
+        """
+        blank = np.zeros((self.input_height, self.input_width, 3), dtype=np.uint8)
+        tensor, _ = self.preprocess(blank)
+        raw = self._run(tensor)
+        if not np.isfinite(raw).all():
+            bad = int((~np.isfinite(raw)).sum())
+            raise ModelError(
+                f"detector {self.name!r}: {str(self.model_path)!r} outputs {bad} non-finite numbers on a "
+                f"blank frame; its boxes cannot be trusted: re-export or retrain the model")
+        self.detect(blank)
         more = ", ..." if len(self._labels) > 6 else ""
         return (f"YOLO-layout ONNX detector {self.model_path.name} (input {self.input_height}x"
                 f"{self.input_width}, {len(self._labels)} classes: {', '.join(self._labels[:6])}{more})")

@@ -14,12 +14,14 @@ frame's stamp selects the instance mask. ``detect_frame(frame)`` takes the stamp
 itself and works for any frame the simulator still keeps.
 
 **Threads.** Detections are model calls that run on worker threads while the simulator steps on
-the tick thread. The simulator's state is read only on the thread the oracle was bound on:
+the tick thread. The simulator's state is best read on the tick thread:
 :meth:`OracleDetector.prepare_frame` (called there by
 :func:`~missiontree.perception.detectors.detection_job`) fetches the frame's mask and keeps it, and
 a ``detect(image)`` from a worker (the offline VLM asking about that frame) finds the kept mask.
 Misses and made-up boxes are drawn from a generator seeded by the seed and the frame's stamp, so
-a frame gets the same answer whichever thread asks first.
+a frame gets the same answer whichever thread asks first. A ``detect(image)`` about a frame nobody
+prepared still works, reading the simulator from the calling thread as before; leaves that ask
+models about frames call :func:`~missiontree.perception.detectors.share_frame` first.
 """
 
 from __future__ import annotations
@@ -95,7 +97,6 @@ class OracleDetector:
         self.seed = int(seed)
         self._robot: Any = None
         self._truth: Any = None
-        self._owner: int | None = None  # the thread that may read the simulator (the one that bound it)
         self._seen: deque[_Seen] = deque(maxlen=16)
         self._lock = threading.Lock()
         if robot is not None:
@@ -118,7 +119,6 @@ class OracleDetector:
                 f"'yolo_onnx' in config/models/*.yaml)"
             )
         self._robot, self._truth = robot, truth
-        self._owner = threading.get_ident()
 
     def _bound_truth(self) -> Any:
         if self._truth is None:
@@ -176,25 +176,17 @@ class OracleDetector:
             self._seen = deque((s for s in self._seen if s.stamp != seen.stamp), maxlen=self._seen.maxlen)
             self._seen.append(seen)
 
-    def _on_owner_thread(self) -> bool:
-        return self._owner is None or threading.get_ident() == self._owner
-
     def _mask_of(self, image: np.ndarray) -> tuple[float, np.ndarray]:
         """The stamp and instance mask of the recent camera frame that ``image`` is."""
         self._bound_truth()
-        if self._on_owner_thread():
+        match = self._find_seen(image)
+        if match is None:
+            # Not shown to the oracle beforehand (a caller that did not use share_frame): look at the
+            # robot's latest frame, from this thread if need be, as the oracle always did.
             latest = self._robot.rgbd()
             if latest is not None:
-                with self._lock:
-                    known = any(s.stamp == latest.stamp for s in self._seen)
-                if not known:
-                    self._remember(_Seen(latest.stamp, latest.color))
-        with self._lock:
-            seen = list(self._seen)
-        match = next((s for s in reversed(seen) if s.color is image), None)
-        if match is None:
-            match = next((s for s in reversed(seen)
-                          if s.color.shape == image.shape and np.array_equal(s.color, image)), None)
+                self._remember(_Seen(latest.stamp, latest.color))
+            match = self._find_seen(image)
         if match is None:
             raise ModelError(
                 f"detector {self.name!r}: the image is not a recent camera frame of robot "
@@ -207,18 +199,22 @@ class OracleDetector:
         self._remember(_Seen(match.stamp, match.color, mask))
         return match.stamp, mask
 
+    def _find_seen(self, image: np.ndarray) -> _Seen | None:
+        with self._lock:
+            seen = list(self._seen)
+        match = next((s for s in reversed(seen) if s.color is image), None)
+        if match is None:
+            match = next((s for s in reversed(seen)
+                          if s.color.shape == image.shape and np.array_equal(s.color, image)), None)
+        return match
+
     def _fetch_mask(self, stamp: float) -> np.ndarray:
+        """The instance mask of the frame at ``stamp``: kept from prepare_frame, else read now."""
         truth = self._bound_truth()
-        if not self._on_owner_thread():
-            with self._lock:
-                kept = next((s.mask for s in self._seen if s.stamp == stamp and s.mask is not None), None)
-            if kept is not None:
-                return kept
-            raise ModelError(
-                f"detector {self.name!r}: the frame at t={stamp:.3f} was not prepared on the simulator's "
-                f"thread (its state is read there only); submit detections through "
-                f"detection_job(detector, frame)"
-            )
+        with self._lock:
+            kept = next((s.mask for s in self._seen if s.stamp == stamp and s.mask is not None), None)
+        if kept is not None:
+            return kept
         mask = truth.instance_mask(stamp)
         if mask is None:
             raise ModelError(

@@ -9,7 +9,15 @@ is built.
 **The API key** is read from the environment variable named by ``api_key_env`` (default
 ``OPENAI_API_KEY``) when the provider is built. It is never written to a log, an error or a repr:
 errors name the variable, not its value, and server messages are scrubbed of it (servers echo
-masked keys in 401 answers; those are not repeated at all).
+masked keys in 401 answers; those are not repeated at all). **Answers are scrubbed too**, here at
+the provider's boundary: a model (or a hostile server) that reflects the key — whole, or any run
+of :data:`KEY_FRAGMENT` of its characters — has it replaced by ``***`` before the text leaves the
+provider, so no alarm record, tick log, warning or retry prompt downstream can hold it.
+
+**Timeout.** The HTTP timeout is the role's ``timeout:`` in the models config (the same value the
+mission's call handles use and ``missiontree models`` shows), handed to the factory by the model
+wiring; without one, the ``calls: timeout:`` default, else 30 s. A server that hangs therefore
+costs at most that long per attempt.
 
 **Faults.** 429 and 5xx answers are retried with exponential backoff (honouring ``Retry-After``,
 capped); a timeout raises :class:`~missiontree.errors.ModelTimeoutError`; an unreachable server, a
@@ -17,10 +25,10 @@ rejected key (401/403) or any other refusal raises :class:`~missiontree.errors.M
 the provider, the server and the fix.
 
 Options (a models-config section): ``model`` (required), ``base_url`` (default: OpenAI's),
-``api_key_env`` (``OPENAI_API_KEY``; ``null`` for servers that need no key), ``timeout`` (30 s),
-``max_retries`` (3), ``backoff`` (0.5 s, doubled each retry, at most ``max_backoff`` 8 s),
-``temperature`` (0), ``max_tokens`` (512), ``image_format`` (``jpeg`` or ``png``),
-``structured`` (``json_schema``, ``json_object`` or ``none``), ``name``.
+``api_key_env`` (``OPENAI_API_KEY``; ``null`` for servers that need no key), ``max_retries`` (3),
+``backoff`` (0.5 s, doubled each retry, at most ``max_backoff`` 8 s), ``temperature`` (0),
+``max_tokens`` (512), ``image_format`` (``jpeg`` or ``png``), ``structured`` (``json_schema``,
+``json_object`` or ``none``), ``name``.
 """
 
 from __future__ import annotations
@@ -42,6 +50,8 @@ from missiontree.reasoning.protocols import Message, check_image
 
 _MASKED_KEY = re.compile(r"\b(sk|key|Bearer)[-_ ][A-Za-z0-9*_\-.]{4,}", re.IGNORECASE)
 _MAX_BODY = 300
+#: Characters of the key in a row that an answer may not hold (shorter runs are common text).
+KEY_FRAGMENT = 12
 
 
 class OpenAIOptions(BaseModel):
@@ -52,7 +62,7 @@ class OpenAIOptions(BaseModel):
     model: str = Field(min_length=1)
     base_url: str | None = None
     api_key_env: str | None = "OPENAI_API_KEY"
-    timeout: float = Field(30.0, gt=0)
+    timeout: float = Field(30.0, gt=0, allow_inf_nan=False)
     max_retries: int = Field(3, ge=0, le=10)
     backoff: float = Field(0.5, ge=0)
     max_backoff: float = Field(8.0, ge=0)
@@ -86,6 +96,7 @@ class OpenAIChatModel:
         self.model = options.model
         self._openai = openai
         self._secret = api_key or ""
+        self._key_pattern = _key_pattern(self._secret)
         self._client = openai.OpenAI(
             api_key=api_key or "no-key-needed",
             base_url=options.base_url,
@@ -95,13 +106,20 @@ class OpenAIChatModel:
         self.sleep = time.sleep  # replaced in tests
 
     @classmethod
-    def from_options(cls, options: Mapping[str, Any]) -> OpenAIChatModel:
+    def from_options(cls, options: Mapping[str, Any], timeout: float | None = None) -> OpenAIChatModel:
         """Build from a models-config section.
+
+        Args:
+            options: The role's section (without ``provider``, ``latency`` and ``timeout``).
+            timeout: The role's ``timeout:`` in seconds (HTTP timeout of each request); None keeps
+                the ``timeout`` option (tests) or its 30 s default.
 
         Raises:
             ModelConfigError: An unknown or invalid option, or the key variable is unset.
             BackendUnavailableError: The ``openai`` extra is not installed.
         """
+        if timeout is not None:
+            options = {**options, "timeout": timeout}
         parsed = parse_provider_options(OpenAIOptions, options, "openai")
         key: str | None = None
         if parsed.api_key_env:
@@ -147,10 +165,22 @@ class OpenAIChatModel:
     def check(self) -> str:
         """Ping the server (list its models); return a one-line description or raise ModelError."""
         models = self._with_retries(lambda: self._client.models.list(), "list models")
-        served = [m.id for m in getattr(models, "data", [])]
+        served = [self.scrub_answer(str(m.id))[:80] for m in getattr(models, "data", [])]
         note = "" if not served or self.model in served else (
             f"; note: {self.model!r} is not among the served models {served[:5]}")
-        return f"{self.model} at {self._server} ({len(served)} models served){note}"
+        return (f"{self.model} at {self._server} ({len(served)} models served, HTTP timeout "
+                f"{self.timeout:g} s){note}")
+
+    @property
+    def timeout(self) -> float:
+        """The HTTP timeout of each request, seconds."""
+        return float(self.options.timeout)
+
+    def scrub_answer(self, text: str) -> str:
+        """``text`` with the API key (whole, or any run of KEY_FRAGMENT of its characters) as ``***``."""
+        if self._key_pattern is None or not text:
+            return text
+        return self._key_pattern.sub("***", text)
 
     def data_url(self, image: np.ndarray) -> str:
         """The image as a base64 PNG or JPEG data URL."""
@@ -187,9 +217,9 @@ class OpenAIChatModel:
                 "(no choices); check that it serves the chat completions API") from None
         if content is None:
             refusal = getattr(response.choices[0].message, "refusal", None)
-            why = f" (refusal: {refusal})" if refusal else ""
+            why = f" (refusal: {self.scrub_answer(str(refusal))[:_MAX_BODY]})" if refusal else ""
             raise ModelError(f"{self.name}: the model gave no text{why}")
-        return str(content)
+        return self.scrub_answer(str(content))
 
     def _with_retries(self, send: Any, what: str) -> Any:
         openai = self._openai
@@ -249,9 +279,18 @@ class OpenAIChatModel:
             f"{self.name}: {what} at {self._server} failed with HTTP {status}{tried}: {body}; {fix}")
 
     def _scrub(self, text: str) -> str:
-        if self._secret:
-            text = text.replace(self._secret, "***")
-        return _MASKED_KEY.sub("***", text)[:_MAX_BODY]
+        return _MASKED_KEY.sub("***", self.scrub_answer(text))[:_MAX_BODY]
+
+
+def _key_pattern(secret: str) -> re.Pattern[str] | None:
+    """A pattern matching the key and every run of KEY_FRAGMENT of its characters (None: no key)."""
+    if not secret:
+        return None
+    size = min(KEY_FRAGMENT, len(secret))
+    pieces = {secret[i:i + size] for i in range(len(secret) - size + 1)}
+    # Longest first: the whole key, then overlapping fragments (a match swallows any run of them).
+    alternatives = "|".join(re.escape(p) for p in sorted(pieces, key=len, reverse=True))
+    return re.compile(f"(?:{re.escape(secret)}|{alternatives})+")
 
 
 def _body_text(exc: Any) -> str:

@@ -61,11 +61,14 @@ def _role(models: Mapping[str, Any], role: str, provider: str, what: str) -> Any
     return models[role]
 
 
-def create_openai(options: Mapping[str, Any]) -> Any:
-    """Build an ``openai`` provider (see :mod:`missiontree.reasoning.openai_provider`)."""
+def create_openai(options: Mapping[str, Any], timeout: float | None = None) -> Any:
+    """Build an ``openai`` provider; ``timeout`` is the role's (its HTTP timeout)."""
     from missiontree.reasoning.openai_provider import OpenAIChatModel
 
-    return OpenAIChatModel.from_options(options)
+    return OpenAIChatModel.from_options(options, timeout=timeout)
+
+
+create_openai.wants_timeout = True  # type: ignore[attr-defined]  # the wiring hands it the role's timeout
 
 
 def create_offline_vlm(options: Mapping[str, Any], models: Mapping[str, Any], seed: int = 0) -> Any:

@@ -20,7 +20,9 @@ the role's simulated latency and timeout::
 Everything in a role's section except ``provider``, ``latency`` and ``timeout`` is handed to the
 provider's factory. A factory with the attribute ``wants_models = True`` is called as
 ``factory(options, models=built, seed=seed)`` and may look up the roles its options name (they
-are built first).
+are built first). A factory with ``wants_timeout = True`` also gets ``timeout=`` the role's
+timeout (its own, else ``calls: timeout:``), so an HTTP client waits exactly as long as the call
+handle and ``missiontree models`` say.
 
 :func:`build_models` checks the whole file first and reports every problem with file:line:col
 (a :class:`~missiontree.errors.ProblemsError`, exit code 2). A provider that fails to *build*
@@ -94,7 +96,8 @@ def build_models(
                                           else strict)
     built: dict[str, Any] = {}
     for role in _build_order(roles):
-        built[role] = _build_role(role, roles[role], providers, built, seed)
+        timeout = settings.timeouts.get(role, settings.default_timeout)
+        built[role] = _build_role(role, roles[role], providers, built, seed, timeout)
     built[SETTINGS_KEY] = settings
     return built
 
@@ -211,7 +214,7 @@ def _build_order(roles: Mapping[str, Mapping[str, Any]]) -> list[str]:
 
 
 def _build_role(role: str, section: Mapping[str, Any], providers: Mapping[str, Any],
-                built: Mapping[str, Any], seed: int) -> Any:
+                built: Mapping[str, Any], seed: int, timeout: float | None = None) -> Any:
     from missiontree.plugins.builtin import resolve_factory
 
     name = str(section["provider"])
@@ -222,9 +225,12 @@ def _build_role(role: str, section: Mapping[str, Any], providers: Mapping[str, A
                               "plugin that provides it or pick a known one in the models config")
     try:
         factory = resolve_factory("provider", name, providers[name])
+        extra: dict[str, Any] = {}
+        if getattr(factory, "wants_timeout", False):  # e.g. an HTTP client: the role's timeout is its own
+            extra["timeout"] = timeout
         if getattr(factory, "wants_models", False):
-            return factory(options, models=built, seed=seed)
-        return factory(options)
+            return factory(options, models=built, seed=seed, **extra)
+        return factory(options, **extra)
     except (MissionTreeError, ImportError, ValueError, TypeError, OSError) as exc:
         reason = str(exc) if isinstance(exc, MissionTreeError) else f"{type(exc).__name__}: {exc}"
         return BrokenProvider(role, name, reason)
