@@ -3,7 +3,9 @@
 Publishes the TurtleBot 4 topics (/scan, /odom, the OAK-D images, /tf, /tf_static, /map) and
 serves NavigateToPose with the simulator's navigation, paced in real time, so that
 ``missiontree run TREE --backend ros2``, RViz and other ROS 2 tools run against it. Needs the
-``ros2`` extra (see docs/ros2.md). Exit code 0 after a signal or ``--duration``, 2 on bad input.
+``ros2`` extra (see docs/ros2.md). With ``--unknown-map`` the robot starts knowing nothing and
+/map is the map it learns from its lidar, republished as it grows. Exit code 0 after a signal or
+``--duration``, 2 on bad input or when ROS 2 support is not installed.
 """
 
 from __future__ import annotations
@@ -42,6 +44,9 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--paused", action="store_true",
                         help="hold the clock at 0 until the first goal or velocity command (or a 'resume' "
                         "on /missiontree/sim/control), so a mission starts with the world's clock")
+    parser.add_argument("--unknown-map", action="store_true",
+                        help="start knowing nothing: /map is the map the robot learns from its lidar, "
+                        "republished as it grows (as slam_toolbox does), and NavigateToPose plans on it")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S wall seconds")
     parser.add_argument("--domain-id", type=int, metavar="N",
                         help="ROS_DOMAIN_ID to serve on (default: the environment's)")
@@ -50,16 +55,21 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Serve the simulator over ROS 2 until SIGINT/SIGTERM (or ``--duration``)."""
-    from missiontree.backends.ros2 import profile_from_options, require_rclpy
+    from missiontree.backends.ros2 import INSTALL_HINT, profile_from_options, require_rclpy
     from missiontree.backends.sim import create_robot as create_sim
-    from missiontree.errors import ConfigError
+    from missiontree.errors import BackendUnavailableError, ConfigError
 
     if args.rate <= 0:
         raise ConfigError(f"--rate must be positive, found {args.rate}")
     profile = profile_from_options({"profile": args.profile, "domain_id": args.domain_id})
     require_rclpy()
-    options = {"world": args.world, "seed": args.seed, "robot": args.robot}
-    from missiontree.backends.ros2.bridge import SimBridge
+    try:  # the bridge also needs the NavigateToPose interface package, tf2_msgs and rosgraph_msgs
+        from missiontree.backends.ros2.bridge import SimBridge
+    except ImportError as error:
+        raise BackendUnavailableError(f"missiontree sim-ros needs the ros2 extra with its NavigateToPose "
+                                      f"interface package, which does not import ({error}); "
+                                      f"{INSTALL_HINT}") from None
+    options = {"world": args.world, "seed": args.seed, "robot": args.robot, "unknown_map": args.unknown_map}
 
     bridge = SimBridge(lambda: create_sim(options), profile, rate=args.rate, sim_time=args.sim_time,
                        paused=args.paused)
@@ -74,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
         for sig in (signal.SIGINT, signal.SIGTERM):
             previous[sig] = signal.signal(sig, on_signal)
     domain = profile.domain_id if profile.domain_id is not None else os.environ.get("ROS_DOMAIN_ID", "0")
-    print(f"missiontree sim-ros: serving world {args.world!r} (seed {args.seed}) as {profile.name} on "
+    mapping = "; learning /map from the lidar (unknown map)" if args.unknown_map else ""
+    print(f"missiontree sim-ros: serving world {args.world!r} (seed {args.seed}){mapping} as {profile.name} on "
           f"ROS_DOMAIN_ID={domain}; scan {profile.topics.scan}, action {profile.navigation.action}; "
           "Ctrl-C to stop", flush=True)
     try:

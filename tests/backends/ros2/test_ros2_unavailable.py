@@ -34,3 +34,23 @@ def test_importing_the_backend_package_does_not_import_rclpy() -> None:
     code = "import sys, missiontree.backends.ros2; print('rclpy' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert out.stdout.strip() == "False", out.stderr
+
+
+def _sim_ros_without(module: str) -> subprocess.CompletedProcess[str]:
+    code = textwrap.dedent(f"""
+        import sys
+        sys.modules[{module!r}] = None  # as if this part of ROS 2 were not installed
+        from missiontree.cli.main import main
+        sys.exit(main(["sim-ros", "--duration", "1"]))
+    """)
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                          env={"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "PATH": "/usr/bin:/bin"})
+
+
+def test_sim_ros_without_the_ros2_extra_exits_2_naming_it() -> None:
+    """No rclpy, or rclpy without the NavigateToPose interface package: exit 2, the extra named, no traceback."""
+    for module in ("rclpy", "nav2_msgs"):
+        out = _sim_ros_without(module)
+        assert out.returncode == 2, (module, out.stderr)
+        assert "Traceback" not in out.stderr and "ModuleNotFoundError" not in out.stderr.splitlines()[-1]
+        assert "pip install -e .[ros2]" in out.stderr and "sim-ros" in out.stderr, out.stderr

@@ -15,8 +15,10 @@ from missiontree.backends.sim.navigation import (
     NO_VALID_PATH,
     OUT_OF_MAP,
     Costmap,
+    Navigator,
 )
 from missiontree.backends.sim.schema import NavigationSpec
+from missiontree.errors import ConfigError
 from missiontree.robot.actions import ActionStatus
 from missiontree.types import Pose2D, Tolerance
 
@@ -130,3 +132,62 @@ def test_inflation_radius_is_configurable():
     assert 0 < wide.cell_cost(wide.cost, x, y) < INSCRIBED
     assert narrow.cell_cost(narrow.cost, 2.5, 4.85) == INSCRIBED
     assert np.count_nonzero(wide.cost) > np.count_nonzero(narrow.cost)
+
+
+TWO_ROOMS = """\
+name: two_rooms
+robot: {profile: turtlebot4, start: {x: 1.0, y: 1.0, yaw: 0.0}}
+walls:
+  polygons: [[[0, 0], [10, 0], [10, 6], [0, 6]]]
+  segments:
+    - [[5, 0], [5, 4.5]]
+    - [[5, 5.5], [5, 6]]
+"""
+
+
+def test_unknown_map_run_finds_a_door_it_has_not_seen(write_world):
+    """Knowing nothing, the robot plans straight through unknown space, meets the wall, replans, finds the door."""
+    robot = create_robot({"world": write_world(TWO_ROOMS), "unknown_map": True,
+                          "config": {"lidar": {"range_max": 3.0}}})
+    start_map = robot.occupancy()
+    assert start_map.data[start_map.world_to_cell(5.0, 1.0)] == -1       # the wall: not seen
+    assert start_map.data[start_map.world_to_cell(5.0, 5.0)] == -1       # the door: not seen
+    handle = robot.navigate_to(Pose2D(9.0, 1.0), ANY)
+    result = _run(robot, handle, 180.0)
+    assert result.succeeded, result
+    assert robot.truth.robot_pose().distance_to(Pose2D(9.0, 1.0)) < 0.3
+    assert robot._nav.replans >= 1
+    learned = robot.occupancy()
+    assert learned.stamp > 0 and not learned.data.flags.writeable
+    row, col = learned.world_to_cell(5.0, 2.0)
+    assert (learned.data[row, col - 3: col + 4] == 100).any()                         # the wall, learned
+    assert learned.data[learned.world_to_cell(5.0, 5.0)] == 0                          # the door, learned free
+    assert robot.world.grid.data is not learned.data
+
+
+def test_unknown_map_goal_behind_a_sealed_wall_proves_unreachable(write_world):
+    """Without the door the learned map closes the way: the goal aborts with that reason."""
+    sealed = TWO_ROOMS.replace("    - [[5, 0], [5, 4.5]]\n    - [[5, 5.5], [5, 6]]", "    - [[5, 0], [5, 6]]")
+    robot = create_robot({"world": write_world(sealed), "unknown_map": True})
+    handle = robot.navigate_to(Pose2D(9.0, 1.0), ANY)
+    result = _run(robot, handle, 120.0)
+    assert handle.status() is ActionStatus.ABORTED
+    assert "unreachable" in result.reason and result.code == NO_VALID_PATH, result
+    assert robot.true_pose.x < 5.0
+
+
+def test_unknown_map_option_is_checked():
+    """unknown_map takes true or false only."""
+    with pytest.raises(ConfigError, match="unknown_map"):
+        create_robot({"world": "office", "unknown_map": "yes"})
+
+
+def test_navigator_is_built_from_a_map_a_radius_and_a_profile():
+    """No robot needed: a Navigator steps a goal on a bare grid."""
+    robot = create_robot({"world": "conformance"})
+    nav = Navigator(robot.world.grid, robot.profile.body.radius, robot.profile, robot.profile.navigation)
+    start = robot.world.start
+    handle = nav.send(Pose2D(2.5, 3.8), ANY, 0.0)
+    command = nav.step(0.05, start, None)
+    assert command is not None and handle.status() is ActionStatus.RUNNING
+    assert nav.plan_ms.count == 1 and not hasattr(nav, "robot")

@@ -3,7 +3,8 @@
 :class:`SimBridge` steps a :class:`~missiontree.backends.sim.SimRobot` in real time and publishes
 what a TurtleBot 4 running Nav2 would: /scan, /odom, the OAK-D colour and depth images with
 camera_info, /tf (map → odom → base_link), /tf_static (lidar and camera mounts), /map (transient
-local), /amcl_pose; it drives the simulated base from /cmd_vel and serves NavigateToPose (and
+local; in unknown-map runs the map the robot learns, republished every ``MAP_PERIOD`` as a SLAM
+node does), /amcl_pose; it drives the simulated base from /cmd_vel and serves NavigateToPose (and
 /goal_pose, as bt_navigator does) with the simulator's navigation. Missions, RViz and other ROS
 tools then run against it as against the robot.
 
@@ -51,6 +52,8 @@ CONTROL_TOPIC = "/missiontree/sim/control"
 STATUS_TOPIC = "/missiontree/sim/status"
 #: Wall seconds between republications of the sensor data while paused.
 PAUSED_PERIOD = 0.25
+#: Simulated seconds between publications of the learned /map in unknown-map runs.
+MAP_PERIOD = 1.0
 #: A velocity command received this recently (s) survives the cancel of a goal.
 CMD_VEL_HOLD = 0.5
 #: Optical frame orientation relative to the camera link (z forward, x right, y down).
@@ -116,6 +119,7 @@ class SimBridge:
     def _forget_published(self) -> None:
         self._last_scan = self._last_frame = -math.inf
         self._last_odom = -math.inf
+        self._last_map = -math.inf
         self._last_pose: Pose2D | None = None
 
     # ------------------------------------------------------------------------------ wiring
@@ -357,6 +361,13 @@ class SimBridge:
             msg = conv.scan_to_msg(scan, scan_time=1.0 / sim.profile.lidar.rate)
             msg.header.stamp = conv.sec_to_time(self.stamp(scan.stamp))
             self._scan_pub.publish(msg)
+        if getattr(sim, "unknown_map", False) and now - self._last_map >= MAP_PERIOD - 1e-9:
+            grid = sim.occupancy()  # the map learned so far, republished as it grows (as slam_toolbox)
+            if grid is not None:
+                self._last_map = now
+                msg = conv.occupancy_to_msg(grid, f.map)
+                msg.header.stamp = conv.sec_to_time(self.stamp(grid.stamp))
+                self._map_pub.publish(msg)
         frame = sim.rgbd()
         if frame is not None and frame.stamp > self._last_frame:
             self._last_frame = frame.stamp

@@ -42,6 +42,8 @@ __all__ = ["BLOCKED", "GOAL_IN_OBSTACLE", "INSCRIBED", "LETHAL", "NO_PROGRESS", 
 NO_VALID_PATH, GOAL_IN_OBSTACLE, BLOCKED, NO_PROGRESS, OUT_OF_MAP = 204, 205, 206, 207, 208
 _ROTATE_FIRST = 0.7        # rad of heading error above which the follower turns in place
 _NO_PROGRESS_TIME = 30.0
+_PINNED_TIME = 1.0         # s driving forward without moving before backing up
+_BACKUP_TIME, _BACKUP_SPEED = 1.0, 0.1
 _MAX_GOALS_KEPT = 10_000   # goals remembered for pictures (the oldest are dropped on very long runs)
 
 
@@ -145,6 +147,9 @@ class _Follow:
     best_time: float = 0.0
     last_step: float = 0.0
     aligning: bool = False
+    anchor: tuple[float, float] | None = None   # where the robot was when it last moved
+    still_since: float = 0.0
+    backing_until: float | None = None
 
     def __post_init__(self) -> None:
         self.set_path(self.path)
@@ -179,13 +184,18 @@ class Navigator:
         self.accelerate = profile.accelerate
         self.clearance = clearance
         self.allow_unknown = allow_unknown
-        self.costmap = planner.Costmap(grid, radius, spec.inflation_radius, spec.cost_scaling, allow_unknown,
+        self.body_radius = radius
+        # a learned map's edges are a cell off the truth (a wall's end, its thickness): pad the
+        # footprint by a cell and a half there, as Nav2's footprint_padding
+        padded = radius + (1.5 * grid.resolution if allow_unknown else 0.0)
+        self.costmap = planner.Costmap(grid, padded, spec.inflation_radius, spec.cost_scaling, allow_unknown,
                                        profile.accelerate)
         self.handle: SimNavHandle | None = None
         self._follow: _Follow | None = None
         self.plan_ms = TimingLog()
         self.goals: deque[Pose2D] = deque(maxlen=_MAX_GOALS_KEPT)
         self.replans = 0
+        self.recoveries = 0
         self._map_changed = False
         self._xy_cache: tuple[LaserScan, np.ndarray, np.ndarray] | None = None
         self._trig: tuple[tuple[float, float, int, float], np.ndarray, np.ndarray] | None = None
@@ -194,7 +204,7 @@ class Navigator:
     @property
     def radius(self) -> float:
         """Footprint radius (m)."""
-        return self.costmap.radius
+        return self.body_radius
 
     def update_map(self, grid: OccupancyGrid, region: tuple[int, int, int, int] | None = None) -> None:
         """Take a new version of the map (``region``: the rows/cols that changed, exclusive ends)."""
@@ -245,12 +255,20 @@ class Navigator:
         follow.last_step = now
         h._status = ActionStatus.RUNNING
         remaining = self._remaining(follow, pose)
-        h._feedback = NavFeedback(pose, remaining, now - h.sent, 0)
+        h._feedback = NavFeedback(pose, remaining, now - h.sent, self.recoveries)
         if remaining + 0.05 < follow.best_remaining:
             follow.best_remaining, follow.best_time = remaining, now
         elif now - follow.best_time > _NO_PROGRESS_TIME and follow.blocked_since is None:
             return self._abort(ActionStatus.ABORTED, f"no progress for {_NO_PROGRESS_TIME:.0f} s "
                                f"({remaining:.2f} m from the goal)", NO_PROGRESS)
+        if follow.backing_until is not None:
+            if now < follow.backing_until:
+                return -_BACKUP_SPEED, 0.0
+            follow.backing_until = None
+            path = self._plan(self.costmap, pose, h.goal)
+            if path is not None:
+                follow.set_path(path)
+                remaining = self._remaining(follow, pose)
         goal = h.goal
         dist = math.hypot(goal.x - pose.x, goal.y - pose.y)
         if dist <= h.tolerance.xy or follow.aligning:
@@ -292,7 +310,8 @@ class Navigator:
             return False
         path = self._plan(self.costmap, pose, goal)
         if path is None:
-            h._finish(ActionStatus.ABORTED, f"no valid path to ({goal.x:.2f}, {goal.y:.2f})", NO_VALID_PATH)
+            learned = " on the map learned so far: unreachable" if self.allow_unknown else ""
+            h._finish(ActionStatus.ABORTED, f"no valid path to ({goal.x:.2f}, {goal.y:.2f}){learned}", NO_VALID_PATH)
             return False
         self._follow = _Follow(path, best_time=now, last_step=now - self.physics_dt)
         return True
@@ -354,6 +373,8 @@ class Navigator:
         obstacle = self._obstacle_ahead(scan, v)
         if obstacle is None:
             follow.blocked_since = None
+            if self._pinned(follow, now, pose):
+                return self._back_up(follow, now)
             return v, w
         if follow.blocked_since is None:
             follow.blocked_since = now
@@ -371,6 +392,20 @@ class Navigator:
                 follow.set_path(path2)
         return 0.0, 0.0
 
+    def _pinned(self, follow: _Follow, now: float, pose: Pose2D) -> bool:
+        """Whether the robot has been driving forward without moving for a while (in contact with something)."""
+        if follow.anchor is None or math.hypot(pose.x - follow.anchor[0], pose.y - follow.anchor[1]) > 0.02:
+            follow.anchor, follow.still_since = (pose.x, pose.y), now
+            return False
+        return now - follow.still_since > _PINNED_TIME
+
+    def _back_up(self, follow: _Follow, now: float) -> tuple[float, float]:
+        """Nav2's BackUp recovery: reverse a little, then plan again from there."""
+        follow.backing_until = now + _BACKUP_TIME
+        follow.anchor = None
+        self.recoveries += 1
+        return -_BACKUP_SPEED, 0.0
+
     def _obstacle_ahead(self, scan: LaserScan | None, v: float) -> tuple[float, float] | None:
         """The nearest scan point (robot frame) in the corridor the robot is about to sweep."""
         if scan is None:
@@ -378,14 +413,14 @@ class Navigator:
         if self._ahead_cache is None or self._ahead_cache[0] is not scan:
             # nearest point in the robot's swept corridor, once per scan
             x, y = self._scan_xy(scan)
-            hit = (x > 0.0) & (np.abs(y) < self.costmap.radius + 0.03)
+            hit = (x > 0.0) & (np.abs(y) < self.radius + 0.03)
             nearest = None
             if hit.any():
                 i = int(np.argmin(np.where(hit, x, np.inf)))
                 nearest = (float(x[i]), float(y[i]))
             self._ahead_cache = (scan, nearest)
         nearest = self._ahead_cache[1]
-        reach = self.costmap.radius + self.spec.obstacle_margin + max(v, 0.1) * 0.5
+        reach = self.radius + self.spec.obstacle_margin + max(v, 0.1) * 0.5
         return nearest if nearest is not None and nearest[0] < reach else None
 
     def _scan_xy(self, scan: LaserScan) -> tuple[np.ndarray, np.ndarray]:

@@ -45,7 +45,7 @@ from missiontree.types import LaserScan, Marker, OccupancyGrid, Pose2D, PoseStam
 _TIME_EPS = 1e-9
 _TRAJECTORY_PERIOD = 0.25   # s between trajectory points at most...
 _TRAJECTORY_STEP = 0.05     # ...and only once the robot moved this far (m) or turned 0.2 rad
-_TRAJECTORY_MAX = 20_000    # points kept; past it every other point goes and the spacing doubles
+_TRAJECTORY_MAX = 5_000     # points kept; past it every other point goes and the spacing doubles
 _render_pool: ThreadPoolExecutor | None = None
 
 
