@@ -28,12 +28,13 @@ from missiontree.engine.context import MissionContext
 from missiontree.engine.loader import load_mission
 from missiontree.engine.runner import Runner, RunResult
 from missiontree.engine.spec import MissionSpec
-from missiontree.errors import ConfigError, ProblemsError
+from missiontree.errors import ConfigError, MissionFileError, ProblemsError
 from missiontree.paths import find_config
 from missiontree.plugins.manager import Plugins, load_plugins
 from missiontree.reasoning.calls import CALLER_KEY
 from missiontree.session.models import build_models
 from missiontree.session.params import parse_overrides
+from missiontree.session.preflight import check_references
 from missiontree.session.progress import ProgressLine
 
 __all__ = ["DEFAULT_BACKEND", "DEFAULT_SEED", "DEFAULT_TICK_HZ", "MissionRequest", "Session",
@@ -168,6 +169,12 @@ class Session:
         overrides = parse_overrides(mission, request.params)
         self.spec: MissionSpec = load_mission(
             mission, self.plugins.nodes, allow_outside=request.allow_outside, params=overrides)
+        # what the mission references (world, robot, waypoint files), checked before the run; the
+        # models config is checked whole by build_models below, before the run starts
+        problems = check_references(self.spec, providers=self.plugins.providers, backend=request.backend,
+                                    world=request.world, robot=request.robot, check_models=False)
+        if problems:
+            raise MissionFileError(problems)
         run = self.spec.run
         seed = _pick(request.seed, run.seed, DEFAULT_SEED)
         if isinstance(seed, bool) or not isinstance(seed, int):

@@ -55,6 +55,7 @@ def check_references(
     world: str | None = None,
     robot: str | None = None,
     models: str | os.PathLike[str] | Mapping[str, Any] | None = None,
+    check_models: bool = True,
 ) -> list[Problem]:
     """Check what the mission references; return every problem (empty when all is well).
 
@@ -65,8 +66,10 @@ def check_references(
         world: The command line's world; None takes the mission's, then ``office``.
         robot: The command line's robot profile; None takes the mission's, then the world's.
         models: The command line's models config; None takes the mission's, then the default.
+        check_models: Check the models config too (a caller that builds the models right after,
+            which checks the config whole first, may leave it out).
     """
-    problems, loaded_world = _run_references(spec, providers, backend, world, robot, models)
+    problems, loaded_world = _run_references(spec, providers, backend, world, robot, models, check_models)
     problems += _check_waypoints(spec, loaded_world)
     return problems
 
@@ -86,11 +89,12 @@ def check_run_references(
     For a mission whose tree has problems: its references are still checked and reported with them.
     """
     spec = MissionSpec(path=mission, root=NodeSpec("", "", {}, [], Source(str(mission), 1, 1), ""), run=run)
-    return _run_references(spec, providers, backend, world, robot, models)[0]
+    return _run_references(spec, providers, backend, world, robot, models, True)[0]
 
 
 def _run_references(spec: MissionSpec, providers: Mapping[str, Any] | None, backend: str | None,
-                    world: str | None, robot: str | None, models: Any) -> tuple[list[Problem], Any]:
+                    world: str | None, robot: str | None, models: Any,
+                    check_models: bool) -> tuple[list[Problem], Any]:
     doc = _mission_doc(spec)
     run = spec.run
     problems: list[Problem] = []
@@ -102,7 +106,8 @@ def _run_references(spec: MissionSpec, providers: Mapping[str, Any] | None, back
         robot_name = robot or run.robot or (loaded_world.profile_name if loaded_world is not None else None)
         if robot_name is not None:
             problems += _check_robot(spec, doc, robot_name, from_file=robot is None and run.robot is not None)
-    problems += _check_models(spec, doc, models, providers)
+    if check_models:
+        problems += _check_models(spec, doc, models, providers)
     return problems, loaded_world
 
 

@@ -1,0 +1,64 @@
+"""What a mission references is checked before the run starts, with the mission's file:line:col."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from missiontree.cli.main import main
+from missiontree.engine.loader import load_mission
+from missiontree.errors import MissionFileError
+from missiontree.plugins.manager import load_plugins
+from missiontree.session import MissionRequest, Session
+from missiontree.session.preflight import check_references
+
+PLUGINS = load_plugins(autoload=False)
+
+
+def _mission(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "m.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_a_run_refuses_a_waypoint_file_for_another_world_before_starting(tmp_path: Path) -> None:
+    """The corridor's waypoints in the office: refused at the parameter's line, no robot is built."""
+    mission = _mission(tmp_path, "run: {world: office}\nroot:\n  Patrol: {waypoints_file: scenario_a}\n")
+    with pytest.raises(MissionFileError) as caught:
+        Session.open(MissionRequest(mission=mission, plugins=PLUGINS, out=tmp_path / "run"))
+    assert f"{mission}:3:28:" in str(caught.value) and "written for 'corridor'" in str(caught.value)
+    assert not (tmp_path / "run").exists()
+
+
+def test_run_exits_2_on_a_misspelt_world(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`world: ofice` ends `missiontree run` with exit 2 and the line, not a raw error dump."""
+    mission = _mission(tmp_path, "run: {world: ofice}\nroot: Succeed\n")
+    assert main(["run", "--no-plugins", "--quiet", str(mission), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert f"{mission}:1:14: run.world: unknown world 'ofice'" in err and "Traceback" not in err
+
+
+def test_a_flag_world_overrides_and_is_named_as_the_flag(tmp_path: Path) -> None:
+    """A bad --world is reported as the flag's problem, not at the mission's run section."""
+    spec = load_mission(_mission(tmp_path, "run: {world: office}\nroot: Succeed\n"), PLUGINS.nodes)
+    (problem,) = check_references(spec, world="atlantis")
+    assert problem.file == "--world" and "atlantis" in problem.message
+
+
+def test_a_waypoint_file_beside_the_mission_is_handed_over_as_checked(tmp_path: Path) -> None:
+    """A waypoint file found beside the mission is resolved there, and the node reads that file."""
+    (tmp_path / "route.yaml").write_text("waypoints:\n  - [1.0, 1.0]\n  - [2.0, 1.0]\n")
+    spec = load_mission(_mission(tmp_path, "run: {world: conformance}\nroot:\n"
+                                           "  Patrol: {waypoints_file: route.yaml}\n"), PLUGINS.nodes)
+    assert check_references(spec) == []
+    assert spec.root.params.waypoints_file == str((tmp_path / "route.yaml").resolve())  # type: ignore[union-attr]
+
+
+def test_models_config_problems_are_located(tmp_path: Path) -> None:
+    """A models config with an unknown provider is reported in its own file, at its line."""
+    models = tmp_path / "models.yaml"
+    models.write_text("roles:\n  vlm: {provider: gpt_magic}\n")
+    spec = load_mission(_mission(tmp_path, f"run: {{models: {models}}}\nroot: Succeed\n"), PLUGINS.nodes)
+    problems = check_references(spec, providers=PLUGINS.providers)
+    assert any(p.file == str(models) and p.line == 2 and "gpt_magic" in p.message for p in problems)
