@@ -47,6 +47,7 @@ from missiontree.reasoning.intent import (
     plan_candidates,
     prompt_objects,
 )
+from missiontree.reasoning.phrases import fold_label
 from missiontree.reasoning.prompts import crop_match_prompt, intent_messages
 from missiontree.reasoning.schemas import CropMatch, IntentResolution
 from missiontree.robot.actions import ActionHandle, ActionStatus
@@ -63,10 +64,17 @@ class ServeCommandsParams(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    command: str = Field("", description="The command to serve; empty: serve the robot's command channel "
-                         "(stdin in the simulator, /command on ROS 2) one command after another.")
-    max_commands: int = Field(0, ge=0, description="End after this many commands from the channel (0: until "
-                              "the channel closes, which stdin does at its end; a topic never does).")
+    command: str = Field(
+        "",
+        description="The command to serve; empty: serve the robot's command channel "
+        "(stdin in the simulator, /command on ROS 2) one command after another.",
+    )
+    max_commands: int = Field(
+        0,
+        ge=0,
+        description="End after this many commands from the channel (0: until "
+        "the channel closes, which stdin does at its end; a topic never does).",
+    )
     command_key: Annotated[str, Output("the command being served", type="str")] = "intent_command"
 
 
@@ -111,11 +119,13 @@ class ServeCommands(py_trees.decorators.Decorator):
             yield from self.decorated.tick()
             child = self.decorated.status
             if child in (Status.SUCCESS, Status.FAILURE):
-                reason = (getattr(self.decorated, "failure_reason", "") or self.decorated.feedback_message
-                          if child == Status.FAILURE else self.decorated.feedback_message)
+                reason = (
+                    getattr(self.decorated, "failure_reason", "") or self.decorated.feedback_message
+                    if child == Status.FAILURE
+                    else self.decorated.feedback_message
+                )
                 self.served.append((self.current, child == Status.SUCCESS, reason))
-                self._emit("command_served", command=self.current, status=child.value.lower(),
-                           reason=reason)
+                self._emit("command_served", command=self.current, status=child.value.lower(), reason=reason)
                 self.current = None
         new_status = self._status_now()
         if new_status != Status.RUNNING:
@@ -138,8 +148,9 @@ class ServeCommands(py_trees.decorators.Decorator):
         if callable(poll):
             for command in poll():
                 self.waiting.append((command.stamp, command.text))
-                self._emit("command_received", command=command.text, stamp=command.stamp,
-                           source=command.source)
+                self._emit(
+                    "command_received", command=command.text, stamp=command.stamp, source=command.source
+                )
         if self.waiting and not self._limit_reached():
             stamp, text = self.waiting.pop(0)
             self._start(text, "channel", stamp)
@@ -159,8 +170,10 @@ class ServeCommands(py_trees.decorators.Decorator):
             return self._end(ok, reason)
         robot = self.ctx.robot if self.ctx is not None else None
         if not callable(getattr(robot, "commands", None)):
-            return self._end(False, "no command given and this robot has no command channel; "
-                             "give one with --set command=\"...\"")
+            return self._end(
+                False,
+                'no command given and this robot has no command channel; give one with --set command="..."',
+            )
         closed = getattr(robot, "commands_closed", None)
         if self._limit_reached() or (callable(closed) and closed() and not self.waiting):
             failed = [(c, r) for c, ok, r in self.served if not ok]
@@ -170,8 +183,11 @@ class ServeCommands(py_trees.decorators.Decorator):
                 shown = "; ".join(f"{c!r}: {r}" for c, r in failed[:3])
                 return self._end(False, f"{len(failed)} of {len(self.served)} commands failed: {shown}")
             return self._end(True, f"{len(self.served)} commands served")
-        self.feedback_message = (f"waiting for a command ({len(self.served)} served)" if not self.waiting
-                                 else f"{len(self.waiting)} commands waiting")
+        self.feedback_message = (
+            f"waiting for a command ({len(self.served)} served)"
+            if not self.waiting
+            else f"{len(self.waiting)} commands waiting"
+        )
         return Status.RUNNING
 
     def _limit_reached(self) -> bool:
@@ -198,9 +214,13 @@ def _serve_commands(name: str, params: BaseModel, children: list[Behaviour]) -> 
 
 
 SERVE_COMMANDS = NodeType(
-    "ServeCommands", "decorator", ServeCommandsParams, _serve_commands,
+    "ServeCommands",
+    "decorator",
+    ServeCommandsParams,
+    _serve_commands,
     "Run the child once per user command: the `command` given, or each from the robot's command channel.",
-    ports=ports_of(ServeCommandsParams))
+    ports=ports_of(ServeCommandsParams),
+)
 
 
 def find_scene_graph(name: str) -> Path:
@@ -221,8 +241,10 @@ def find_scene_graph(name: str) -> Path:
             if candidate.is_file():
                 return candidate
     shipped = sorted({p.stem for d in config_dirs() for p in (d / "scene_graphs").glob("*.json")})
-    raise ConfigError(f"scene graph {name!r} not found: expected a JSON file in the NAIS shape or a shipped "
-                      f"name ({', '.join(shipped) or 'none'}); give --set scene_graph=path/to/graph.json")
+    raise ConfigError(
+        f"scene graph {name!r} not found: expected a JSON file in the NAIS shape or a shipped "
+        f"name ({', '.join(shipped) or 'none'}); give --set scene_graph=path/to/graph.json"
+    )
 
 
 # -- GoToIntent ----------------------------------------------------------------------------------------
@@ -238,7 +260,7 @@ class _Step(enum.Enum):
 
 
 class GoToIntent(Leaf):
-    """Serve one command over the scene graph: model candidates, checked, ranked by path, driven to and looked at.
+    """Serve one command over the scene graph: candidates checked, ranked by path, driven to, looked at.
 
     FAILURE reasons name what went wrong: the model's answer, every candidate rejected with its reason,
     or every candidate looked at and not confirmed. A goal is always a standoff pose computed from a
@@ -246,21 +268,38 @@ class GoToIntent(Leaf):
     """
 
     class Params(BaseModel):
-        scene_graph: str = Field("", description="A scene graph file in the NAIS JSON shape; empty: the live "
-                                 "graph built earlier in the mission (context.scene).")
-        look: bool = Field(True, description="Look on arrival (detector + vision-language model) and try the "
-                           "next candidate when the object is not confirmed.")
+        scene_graph: str = Field(
+            "",
+            description="A scene graph file in the NAIS JSON shape; empty: the live "
+            "graph built earlier in the mission (context.scene).",
+        )
+        look: bool = Field(
+            True,
+            description="Look on arrival (detector + vision-language model) and try the "
+            "next candidate when the object is not confirmed.",
+        )
         max_candidates: int = Field(5, ge=1, description="Candidates to drive to before giving up.")
-        robot_radius: float = Field(0.17, gt=0, description="Footprint radius for standoff poses and paths (m).")
+        robot_radius: float = Field(
+            0.17, gt=0, description="Footprint radius for standoff poses and paths (m)."
+        )
         allow_unknown: bool = Field(False, description="Plan through unknown cells of the map.")
-        xy_tolerance: float = Field(0.15, gt=0, description="Distance to the standoff pose that counts as there (m).")
-        yaw_tolerance: float = Field(0.25, gt=0, description="Heading error accepted at the standoff pose (rad).")
-        goal_timeout: float = Field(180.0, gt=0, description="Give up on a candidate not reached in this many s.")
+        xy_tolerance: float = Field(
+            0.15, gt=0, description="Distance to the standoff pose that counts as there (m)."
+        )
+        yaw_tolerance: float = Field(
+            0.25, gt=0, description="Heading error accepted at the standoff pose (rad)."
+        )
+        goal_timeout: float = Field(
+            180.0, gt=0, description="Give up on a candidate not reached in this many s."
+        )
         look_timeout: float = Field(15.0, gt=0, description="Give up looking after this many seconds.")
         command: Annotated[str, Input("the command to serve", type="str")] = "intent_command"
-        doubtful: Annotated[str, Output("ids marked doubtful after a look (read back by later commands)",
-                                        type="list[str]")] = "intent_doubtful"
-        goal: Annotated[str, Output("the object and standoff goal being driven to", type="dict")] = "intent_goal"
+        doubtful: Annotated[
+            str, Output("ids marked doubtful after a look (read back by later commands)", type="list[str]")
+        ] = "intent_doubtful"
+        goal: Annotated[str, Output("the object and standoff goal being driven to", type="dict")] = (
+            "intent_goal"
+        )
 
     params: Params
 
@@ -298,25 +337,36 @@ class GoToIntent(Leaf):
         """Read the command and the graph, and ask the language model for candidates."""
         self._reset()
         self.text = str(self.read("command", "") or "").strip()
-        graph = self.file_graph if self.file_graph is not None else getattr(
-            getattr(self.context, "scene", None), "graph", None)
+        graph = (
+            self.file_graph
+            if self.file_graph is not None
+            else getattr(getattr(self.context, "scene", None), "graph", None)
+        )
         if not self.text or graph is None:
             return
         self.scene = graph_objects(graph)
         listing = prompt_objects(self.scene, exclude=self._doubtful())
-        self.call = model_caller(self.context).chat("llm", intent_messages(self.text, listing),
-                                                   IntentResolution, node=self.name)
+        self.call = model_caller(self.context).chat(
+            "llm", intent_messages(self.text, listing), IntentResolution, node=self.name
+        )
 
     def update(self) -> Status:
         """Advance the current step; every step returns at once."""
         if not self.text:
-            return self.fail("no command to serve (the blackboard key "
-                             f"{self.params.command!r} is empty)")
+            return self.fail(f"no command to serve (the blackboard key {self.params.command!r} is empty)")
         if self.scene is None:
-            return self.fail("no scene graph: build one earlier in the mission or give a file with "
-                             "--set scene_graph=path/to/graph.json")
-        handlers = {_Step.INTERPRET: self._interpreted, _Step.PLAN: self._ranked, _Step.DRIVE: self._driven,
-                    _Step.FRAME: self._framed, _Step.DETECT: self._detected, _Step.CONFIRM: self._confirmed}
+            return self.fail(
+                "no scene graph: build one earlier in the mission or give a file with "
+                "--set scene_graph=path/to/graph.json"
+            )
+        handlers = {
+            _Step.INTERPRET: self._interpreted,
+            _Step.PLAN: self._ranked,
+            _Step.DRIVE: self._driven,
+            _Step.FRAME: self._framed,
+            _Step.DETECT: self._detected,
+            _Step.CONFIRM: self._confirmed,
+        }
         return handlers[self.step]()
 
     def terminate(self, new_status: Status) -> None:
@@ -344,8 +394,13 @@ class GoToIntent(Leaf):
         ids = [str(i) for i in answer.candidates]
         attributes = list(answer.reference.attributes) if answer.reference is not None else []
         self.wanted = " ".join(attributes)
-        self.emit("intent_interpreted", command=self.text, candidates=ids, reason=answer.reason,
-                  reference=answer.reference.model_dump() if answer.reference is not None else None)
+        self.emit(
+            "intent_interpreted",
+            command=self.text,
+            candidates=ids,
+            reason=answer.reason,
+            reference=answer.reference.model_dump() if answer.reference is not None else None,
+        )
         if not ids:
             return self.fail(f"nothing in the map satisfies {self.text!r}: {answer.reason or 'no candidate'}")
         self.remaining = ids
@@ -358,9 +413,18 @@ class GoToIntent(Leaf):
         if stamped is None:
             return self.fail("the robot has no pose yet; cannot rank candidates")
         self.call = model_caller(self.context).submit(
-            "planner", plan_candidates, list(self.remaining), self.scene, robot.occupancy(), stamped.pose,
-            self.params.robot_radius, self._doubtful(), self.params.allow_unknown,
-            provider="intent_ranking", node=self.name)
+            "planner",
+            plan_candidates,
+            list(self.remaining),
+            self.scene,
+            robot.occupancy(),
+            stamped.pose,
+            self.params.robot_radius,
+            self._doubtful(),
+            self.params.allow_unknown,
+            provider="intent_ranking",
+            node=self.name,
+        )
         self.step = _Step.PLAN
         return self.running(_Step.PLAN.value)
 
@@ -377,13 +441,23 @@ class GoToIntent(Leaf):
             if rejection.id not in self.rejected:
                 self.rejected.append(rejection.id)
                 self.tried.append((rejection.id, rejection.reason))
-                self.emit("candidate_rejected", command=self.text, object=rejection.id, reason=rejection.reason)
+                self.emit(
+                    "candidate_rejected", command=self.text, object=rejection.id, reason=rejection.reason
+                )
         note = nearest_note(ranking, self.scene)
         if note:
-            self.emit("intent_ambiguous", command=self.text, note=note,
-                      candidates=[c.id for c in ranking.candidates])
-        self.emit("candidates_ranked", command=self.text, by="path_length",
-                  candidates=[c.as_dict() for c in ranking.candidates])
+            self.emit(
+                "intent_ambiguous",
+                command=self.text,
+                note=note,
+                candidates=[c.id for c in ranking.candidates],
+            )
+        self.emit(
+            "candidates_ranked",
+            command=self.text,
+            by="path_length",
+            candidates=[c.as_dict() for c in ranking.candidates],
+        )
         driven = sum(1 for _, why in self.tried if why.startswith(("not confirmed", "not reached")))
         if not ranking.candidates or driven >= self.params.max_candidates:
             return self._give_up()
@@ -396,13 +470,25 @@ class GoToIntent(Leaf):
         goal = candidate.goal
         self.started = robot.now()
         self.handle = robot.navigate_to(goal, Tolerance(self.params.xy_tolerance, self.params.yaw_tolerance))
-        self.write("goal", {"object": candidate.id, "label": candidate.label, "x": goal.x, "y": goal.y,
-                            "yaw": goal.yaw})
-        self.emit("goal_sent", command=self.text, object=candidate.id, label=candidate.label,
-                  x=round(goal.x, 3), y=round(goal.y, 3), yaw=round(goal.yaw, 3),
-                  object_x=candidate.xy[0], object_y=candidate.xy[1],
-                  path_length=round(candidate.path_length, 3), straight_line=round(candidate.straight_line, 3),
-                  xy_tolerance=self.params.xy_tolerance, yaw_tolerance=self.params.yaw_tolerance)
+        self.write(
+            "goal",
+            {"object": candidate.id, "label": candidate.label, "x": goal.x, "y": goal.y, "yaw": goal.yaw},
+        )
+        self.emit(
+            "goal_sent",
+            command=self.text,
+            object=candidate.id,
+            label=candidate.label,
+            x=round(goal.x, 3),
+            y=round(goal.y, 3),
+            yaw=round(goal.yaw, 3),
+            object_x=candidate.xy[0],
+            object_y=candidate.xy[1],
+            path_length=round(candidate.path_length, 3),
+            straight_line=round(candidate.straight_line, 3),
+            xy_tolerance=self.params.xy_tolerance,
+            yaw_tolerance=self.params.yaw_tolerance,
+        )
         if self.ctx is not None:
             self.ctx.mark("goal", goal.x, goal.y, candidate.id)
         self.step = _Step.DRIVE
@@ -442,8 +528,22 @@ class GoToIntent(Leaf):
         if frame is None or frame.stamp < self.started:
             return self.running(_Step.FRAME.value)
         self.frame = frame
+        detector = self.context.model("detector")
+        known = [fold_label(str(x)) for x in (getattr(detector, "labels", None) or [])]
+        if known and fold_label(self.target.label) not in known:
+            # Nothing here can check it; say so rather than doubt an object no model can see.
+            self.emit(
+                "object_unverifiable",
+                command=self.text,
+                object=self.target.id,
+                reason=f"the detector knows no {self.target.label}",
+            )
+            return self.succeed(
+                f"at {self.target.id} (not confirmed: the detector knows no {self.target.label})"
+            )
         self.call = model_caller(self.context).submit(
-            "detector", detection_job(self.context.model("detector"), frame), node=self.name)
+            "detector", detection_job(detector, frame), node=self.name
+        )
         self.step = _Step.DETECT
         return self.running(_Step.DETECT.value)
 
@@ -461,8 +561,9 @@ class GoToIntent(Leaf):
             return self._doubt(why)
         wanted = look_for(self.target.label, self.wanted.split())
         crop = look_crop(self.frame.color, found.box)
-        self.call = model_caller(self.context).ask("vlm", [crop], crop_match_prompt(wanted), CropMatch,
-                                                  node=self.name)
+        self.call = model_caller(self.context).ask(
+            "vlm", [crop], crop_match_prompt(wanted), CropMatch, node=self.name
+        )
         self.step = _Step.CONFIRM
         return self.running(f"{_Step.CONFIRM.value}: is it a {wanted}?")
 
@@ -478,8 +579,14 @@ class GoToIntent(Leaf):
         wanted = look_for(self.target.label, self.wanted.split())
         if not verdict.matches:
             return self._doubt(f"the vision-language model does not see a {wanted}: {verdict.reason}")
-        self.emit("object_verified", command=self.text, object=self.target.id, looked_for=wanted,
-                  reason=verdict.reason, confidence=verdict.confidence)
+        self.emit(
+            "object_verified",
+            command=self.text,
+            object=self.target.id,
+            looked_for=wanted,
+            reason=verdict.reason,
+            confidence=verdict.confidence,
+        )
         return self.succeed(f"at {self.target.id}: a {wanted} seen ({verdict.reason})")
 
     # -- failing over ----------------------------------------------------------------------------
@@ -518,4 +625,3 @@ class GoToIntent(Leaf):
         except KeyError:
             return []
         return [str(v) for v in value] if isinstance(value, list) else []
-

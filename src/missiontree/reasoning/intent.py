@@ -100,7 +100,7 @@ class SceneObjects:
     """The scene graph read for intent: objects by id, and the ids of its other nodes (rooms, building)."""
 
     objects: dict[str, GraphObject]
-    others: dict[str, str] = field(default_factory=dict)   # id -> type ("room", "building")
+    others: dict[str, str] = field(default_factory=dict)  # id -> type ("room", "building")
 
     def __len__(self) -> int:
         return len(self.objects)
@@ -128,10 +128,15 @@ class Candidate:
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-friendly form (blackboard and tick log)."""
-        return {"id": self.id, "label": self.label, "x": round(self.xy[0], 3), "y": round(self.xy[1], 3),
-                "goal": {"x": round(self.goal.x, 3), "y": round(self.goal.y, 3),
-                         "yaw": round(self.goal.yaw, 3)},
-                "path_length": round(self.path_length, 3), "straight_line": round(self.straight_line, 3)}
+        return {
+            "id": self.id,
+            "label": self.label,
+            "x": round(self.xy[0], 3),
+            "y": round(self.xy[1], 3),
+            "goal": {"x": round(self.goal.x, 3), "y": round(self.goal.y, 3), "yaw": round(self.goal.yaw, 3)},
+            "path_length": round(self.path_length, 3),
+            "straight_line": round(self.straight_line, 3),
+        }
 
 
 @dataclass(frozen=True)
@@ -173,8 +178,10 @@ def graph_document(graph: Any) -> dict[str, Any]:
         except json.JSONDecodeError as exc:
             raise ValueError(f"the scene graph is not JSON ({exc.msg} at line {exc.lineno})") from None
     if not isinstance(data, Mapping) or not isinstance(data.get("nodes"), list):
-        raise ValueError("expected a scene graph in the NAIS shape: {\"nodes\": [...], \"edges\": [...]}, "
-                         f"found {type(data).__name__}")
+        raise ValueError(
+            'expected a scene graph in the NAIS shape: {"nodes": [...], "edges": [...]}, '
+            f"found {type(data).__name__}"
+        )
     return dict(data)
 
 
@@ -203,7 +210,8 @@ def graph_objects(graph: Any) -> SceneObjects:
             continue
         if types.get(source) == "object" and target in types:
             relations.setdefault(source, []).append(
-                Relation(relation, target, labels.get(target, str(edge.get("target_label", "")))))
+                Relation(relation, target, labels.get(target, str(edge.get("target_label", ""))))
+            )
     objects: dict[str, GraphObject] = {}
     others: dict[str, str] = {}
     for node in nodes:
@@ -213,9 +221,13 @@ def graph_objects(graph: Any) -> SceneObjects:
             continue
         description = node.get("description", "")
         objects[node_id] = GraphObject(
-            id=node_id, label=str(node.get("label", "")), description=str(description or ""),
-            xy=_coordinates(node.get("coordinates")), room=room_of.get(node_id, ""),
-            relations=tuple(relations.get(node_id, ())))
+            id=node_id,
+            label=str(node.get("label", "")),
+            description=str(description or ""),
+            xy=_coordinates(node.get("coordinates")),
+            room=room_of.get(node_id, ""),
+            relations=tuple(relations.get(node_id, ())),
+        )
     return SceneObjects(objects, others)
 
 
@@ -256,8 +268,10 @@ def prompt_objects(scene: SceneObjects, exclude: Iterable[str] = ()) -> list[dic
         if obj.xy is not None:
             entry["x"], entry["y"] = round(obj.xy[0], 2), round(obj.xy[1], 2)
         if obj.relations:
-            entry["relations"] = [{"relation": r.relation, "target": r.target_label, "target_id": r.target_id}
-                                  for r in obj.relations]
+            entry["relations"] = [
+                {"relation": r.relation, "target": r.target_label, "target_id": r.target_id}
+                for r in obj.relations
+            ]
         listing.append(entry)
     return listing
 
@@ -277,12 +291,12 @@ class _Space:
     """The map prepared for standoff search and path lengths (cached per map content)."""
 
     grid: OccupancyGrid
-    occupied: np.ndarray        # bool, obstacle cells
-    known: np.ndarray           # bool, cells that are not unknown
-    clearance: np.ndarray       # float, metres from each cell to the nearest obstacle
-    inside: np.ndarray          # float, metres from each obstacle cell to the nearest free cell
-    passable: np.ndarray        # bool, cells the robot's centre may occupy
-    graph: csr_matrix           # 8-connected passable cells, edge weights in metres
+    occupied: np.ndarray  # bool, obstacle cells
+    known: np.ndarray  # bool, cells that are not unknown
+    clearance: np.ndarray  # float, metres from each cell to the nearest obstacle
+    inside: np.ndarray  # float, metres from each obstacle cell to the nearest free cell
+    passable: np.ndarray  # bool, cells the robot's centre may occupy
+    graph: csr_matrix  # 8-connected passable cells, edge weights in metres
 
 
 _SPACE_CACHE: dict[tuple[Any, ...], _Space] = {}
@@ -294,8 +308,15 @@ def prepare_space(grid: OccupancyGrid, robot_radius: float, allow_unknown: bool 
     Cached by map content, so a static map is prepared once per process.
     """
     data = np.asarray(grid.data)
-    key = (data.shape, grid.resolution, grid.origin.x, grid.origin.y, round(robot_radius, 4), allow_unknown,
-           hash(data.tobytes()))
+    key = (
+        data.shape,
+        grid.resolution,
+        grid.origin.x,
+        grid.origin.y,
+        round(robot_radius, 4),
+        allow_unknown,
+        hash(data.tobytes()),
+    )
     cached = _SPACE_CACHE.get(key)
     if cached is not None:
         return cached
@@ -322,11 +343,11 @@ def _cell_graph(passable: np.ndarray, res: float) -> csr_matrix:
     for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
         r0, r1 = max(0, -dr), rows - max(0, dr)
         c0, c1 = max(0, -dc), cols - max(0, dc)
-        a = passable[r0:r1, c0:c1] & passable[r0 + dr:r1 + dr, c0 + dc:c1 + dc]
-        if dr and dc:   # no corner cutting: both side cells must be passable too
-            a &= passable[r0 + dr:r1 + dr, c0:c1] & passable[r0:r1, c0 + dc:c1 + dc]
+        a = passable[r0:r1, c0:c1] & passable[r0 + dr : r1 + dr, c0 + dc : c1 + dc]
+        if dr and dc:  # no corner cutting: both side cells must be passable too
+            a &= passable[r0 + dr : r1 + dr, c0:c1] & passable[r0:r1, c0 + dc : c1 + dc]
         src = index[r0:r1, c0:c1][a]
-        dst = index[r0 + dr:r1 + dr, c0 + dc:c1 + dc][a]
+        dst = index[r0 + dr : r1 + dr, c0 + dc : c1 + dc][a]
         w = np.full(src.shape, res * (math.sqrt(2.0) if dr and dc else 1.0))
         sources += [src, dst]
         targets += [dst, src]
@@ -371,8 +392,9 @@ def object_extent(space: _Space, xy: tuple[float, float]) -> float:
     return float(space.inside[row, col])
 
 
-def standoff_cells(space: _Space, xy: tuple[float, float],
-                   robot_radius: float) -> list[tuple[int, int, float]]:
+def standoff_cells(
+    space: _Space, xy: tuple[float, float], robot_radius: float
+) -> list[tuple[int, int, float]]:
     """Free cells near the object from which it is in sight: (row, col, distance to its position).
 
     A cell qualifies when the robot fits there with a margin, it lies between the object's edge plus
@@ -383,7 +405,8 @@ def standoff_cells(space: _Space, xy: tuple[float, float],
     res = grid.resolution
     extent = object_extent(space, xy)
     near = extent + robot_radius + 0.02
-    far = extent + robot_radius + STANDOFF_REACH
+    # close enough to reach what sits on top of something (a bottle on a table): within 0.95 m of it
+    far = max(near + 0.15, min(extent + robot_radius + STANDOFF_REACH, 0.95))
     rows, cols = space.occupied.shape
     r_c, c_c = grid.world_to_cell(*xy)
     span = int(math.ceil(far / res)) + 1
@@ -467,8 +490,13 @@ def plan_candidates(
             continue
         cells = standoff_cells(space, obj.xy, robot_radius)
         if not cells:
-            rejected.append(Rejection(obj.id, f"no free place to stand within {STANDOFF_REACH:g} m of it "
-                                      f"at ({obj.xy[0]:.2f}, {obj.xy[1]:.2f})"))
+            rejected.append(
+                Rejection(
+                    obj.id,
+                    f"no free place to stand within {STANDOFF_REACH:g} m of it "
+                    f"at ({obj.xy[0]:.2f}, {obj.xy[1]:.2f})",
+                )
+            )
             continue
         places.append((order, obj, cells))
     if not places:
@@ -481,13 +509,14 @@ def plan_candidates(
     at = 0
     for order, obj, cells in places:
         assert obj.xy is not None
-        mine = lengths[at:at + len(cells)]
+        mine = lengths[at : at + len(cells)]
         at += len(cells)
         k = min(range(len(cells)), key=lambda i: (mine[i], cells[i][2]))
         length = mine[k]
         if not math.isfinite(length):
-            rejected.append(Rejection(
-                obj.id, f"no path from the robot to it at ({obj.xy[0]:.2f}, {obj.xy[1]:.2f})"))
+            rejected.append(
+                Rejection(obj.id, f"no path from the robot to it at ({obj.xy[0]:.2f}, {obj.xy[1]:.2f})")
+            )
             continue
         gx, gy = grid.cell_to_world(cells[k][0], cells[k][1])
         goal = Pose2D(gx, gy, math.atan2(obj.xy[1] - gy, obj.xy[0] - gx))
@@ -497,8 +526,10 @@ def plan_candidates(
     return Ranking([c for _, _, c in ranked], rejected)
 
 
-def cell_path_lengths(space: _Space, robot: Pose2D, cells: Sequence[tuple[int, int, float]]) -> list[float] | None:
-    """Path length from the robot to each (row, col) cell, inf where unreachable; None when the robot is boxed in."""
+def cell_path_lengths(
+    space: _Space, robot: Pose2D, cells: Sequence[tuple[int, int, float]]
+) -> list[float] | None:
+    """Path length from the robot to each (row, col) cell (inf: unreachable); None when boxed in."""
     distances = path_distances(space, robot)
     if distances is None:
         return None
@@ -512,10 +543,12 @@ def _outside_known_map(space: _Space, xy: tuple[float, float]) -> str:
     if not (0 <= row < rows and 0 <= col < cols):
         x0, y0 = grid.origin.x, grid.origin.y
         x1, y1 = x0 + cols * grid.resolution, y0 + rows * grid.resolution
-        return (f"outside the known map: ({xy[0]:.2f}, {xy[1]:.2f}) is not in "
-                f"[{x0:.2f}, {x1:.2f}] x [{y0:.2f}, {y1:.2f}]")
+        return (
+            f"outside the known map: ({xy[0]:.2f}, {xy[1]:.2f}) is not in "
+            f"[{x0:.2f}, {x1:.2f}] x [{y0:.2f}, {y1:.2f}]"
+        )
     reach = int(math.ceil(KNOWN_RADIUS / grid.resolution))
-    window = space.known[max(0, row - reach):row + reach + 1, max(0, col - reach):col + reach + 1]
+    window = space.known[max(0, row - reach) : row + reach + 1, max(0, col - reach) : col + reach + 1]
     if not window.any():
         return f"outside the known map: ({xy[0]:.2f}, {xy[1]:.2f}) lies in unexplored space"
     return ""
@@ -527,13 +560,16 @@ def nearest_note(ranking: Ranking, scene: SceneObjects) -> str:
         return ""
     first = ranking.candidates[0]
     kind = scene.objects[first.id].attributes
-    same = [c for c in ranking.candidates
-            if c.label == first.label and scene.objects[c.id].attributes == kind]
+    same = [
+        c for c in ranking.candidates if c.label == first.label and scene.objects[c.id].attributes == kind
+    ]
     if len(same) < 2:
         return ""
     others = ", ".join(f"{c.id} {c.path_length:.1f} m" for c in same[1:4])
-    return (f"ambiguous: {len(same)} {first.label} match; going to the nearest by path, {first.id} "
-            f"({first.path_length:.1f} m; others {others})")
+    return (
+        f"ambiguous: {len(same)} {first.label} match; going to the nearest by path, {first.id} "
+        f"({first.path_length:.1f} m; others {others})"
+    )
 
 
 # -- the NAIS reference ----------------------------------------------------------------------------------
@@ -560,8 +596,12 @@ def nais_goal(ids: Sequence[str], scene: SceneObjects, robot: Pose2D) -> tuple[s
 
 
 def match_detection(
-    detections: Sequence[Detection], label: str, frame: RGBDFrame, xy: tuple[float, float],
-    bearing_slack: float = math.radians(12.0), depth_slack: float = 0.8,
+    detections: Sequence[Detection],
+    label: str,
+    frame: RGBDFrame,
+    xy: tuple[float, float],
+    bearing_slack: float = math.radians(12.0),
+    depth_slack: float = 0.8,
 ) -> tuple[Detection | None, str]:
     """The detection of ``label`` where the graph puts the object, and a reason when there is none.
 
@@ -603,13 +643,14 @@ def _depth_at(frame: RGBDFrame, det: Detection) -> float | None:
     x1, y1, x2, y2 = (int(round(v)) for v in det.box)
     cx, cy = (x1 + x2) // 2, (y1 + y2) // 2
     rx, ry = max(1, (x2 - x1) // 6), max(1, (y2 - y1) // 6)
-    patch = depth[max(0, cy - ry):min(h, cy + ry + 1), max(0, cx - rx):min(w, cx + rx + 1)]
+    patch = depth[max(0, cy - ry) : min(h, cy + ry + 1), max(0, cx - rx) : min(w, cx + rx + 1)]
     valid = patch[np.isfinite(patch) & (patch > 0)]
     return float(np.median(valid)) if valid.size else None
 
 
-def look_crop(image: np.ndarray, box: tuple[float, float, float, float], grow: float = 0.2,
-              fill: int = 128) -> np.ndarray:
+def look_crop(
+    image: np.ndarray, box: tuple[float, float, float, float], grow: float = 0.2, fill: int = 128
+) -> np.ndarray:
     """The frame with everything outside the detection's box (grown by ``grow`` a side) painted ``fill``.
 
     The object keeps its place and scale in the frame (a detector finds it as it did in the whole

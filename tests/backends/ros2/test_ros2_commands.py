@@ -1,0 +1,48 @@
+"""The ROS 2 command channel: std_msgs/String on /command arrives as stamped commands, over DDS."""
+
+from __future__ import annotations
+
+import time
+
+from conftest import next_domain_id, wait_until
+
+from missiontree.backends.ros2.commands import TopicCommands
+from missiontree.backends.ros2.testing import SpinningPeer
+
+
+class _Publisher(SpinningPeer):
+    def __init__(self, domain: int) -> None:
+        from std_msgs.msg import String
+
+        super().__init__(domain, "command_publisher")
+        self.msg_type = String
+        self.pub = self.node.create_publisher(String, "/command", 10)
+        self.start()
+
+    def say(self, text: str) -> None:
+        self.pub.publish(self.msg_type(data=text))
+
+
+class _Listener(SpinningPeer):
+    def __init__(self, domain: int) -> None:
+        super().__init__(domain, "command_listener")
+        self.commands = TopicCommands(self.node, time.monotonic)
+        self.start()
+
+
+def test_commands_published_on_the_command_topic_arrive_in_order_with_stamps() -> None:
+    """Two strings published on /command come out of poll() as two commands, oldest first."""
+    domain = next_domain_id()
+    listener, publisher = _Listener(domain), _Publisher(domain)
+    try:
+        wait_until(lambda: publisher.pub.get_subscription_count() > 0, 10.0, "the subscription to match")
+        publisher.say("I'm thirsty")
+        publisher.say("  the laptop in front of the sofa\n")
+        got: list = []
+        wait_until(lambda: got.extend(listener.commands.poll(time.monotonic())) or len(got) >= 2, 10.0,
+                   "two commands")
+        assert [c.text for c in got] == ["I'm thirsty", "the laptop in front of the sofa"]
+        assert got[0].stamp <= got[1].stamp and got[0].source == "/command"
+    finally:
+        publisher.close()
+        listener.close()

@@ -1,0 +1,81 @@
+"""trees/go_to_intent.yaml end to end on the simulator: intuitive, referential, failover, stdin."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+
+from missiontree.robot.commands import LineCommands
+from missiontree.session import MissionRequest, Session
+
+REPO = Path(__file__).resolve().parents[2]
+MISSION = REPO / "trees" / "go_to_intent.yaml"
+OFFICE_GRAPH = REPO / "config" / "scene_graphs" / "office.json"
+
+
+def run(params: dict, stdin: str | None = None) -> tuple[str, list[dict], object]:
+    log = io.StringIO()
+    request = MissionRequest(mission=MISSION, params=params, quiet=True, log_stream=log, handle_signals=False,
+                             max_duration=300)
+    with Session.open(request) as session:
+        if stdin is not None:
+            session.robot.command_input = LineCommands(io.StringIO(stdin))
+        result = session.run()
+        final = session.robot.truth.robot_pose()
+    events = [json.loads(line) for line in log.getvalue().splitlines() if line.strip()]
+    return result.status.value, events, final
+
+
+def of(events: list[dict], kind: str) -> list[dict]:
+    return [e for e in events if e.get("event") == kind]
+
+
+def test_an_intuitive_command_ends_at_a_confirmed_drink() -> None:
+    """"I'm thirsty": the nearest drink by path is driven to, seen and confirmed; the robot stands by it."""
+    status, events, final = run({"command": "I'm thirsty"})
+    assert status == "SUCCESS"
+    verified = of(events, "object_verified")
+    assert verified and verified[0]["object"] in {"bottle_pink", "cup_white"}
+    goal = of(events, "goal_sent")[0]
+    assert math.hypot(final.x - goal["object_x"], final.y - goal["object_y"]) < 1.0
+
+
+def test_a_referential_command_resolves_the_relation() -> None:
+    """"the laptop in front of the sofa" goes to laptop_1, confirmed by looking."""
+    status, events, _ = run({"command": "Find the laptop in front of the sofa"})
+    assert status == "SUCCESS"
+    assert [e["object"] for e in of(events, "goal_sent")] == ["laptop_1"]
+
+
+def test_nothing_satisfies_fails_with_the_reason_and_no_goal(tmp_path: Path) -> None:
+    """A purple backpack is not in the graph: FAILURE with the model's reason, no goal ever sent."""
+    status, events, _ = run({"command": "bring me the purple backpack"})
+    assert status == "FAILURE" and not of(events, "goal_sent")
+    assert "nothing in the map satisfies" in of(events, "command_served")[0]["reason"]
+
+
+def test_an_object_not_seen_on_arrival_is_doubted_and_the_next_candidate_tried(tmp_path: Path) -> None:
+    """The graph puts the pink bottle on empty floor: the look fails, it is marked doubtful, a cup is next."""
+    graph = json.loads(OFFICE_GRAPH.read_text())
+    for node in graph["nodes"]:
+        if node["id"] == "bottle_pink":
+            node["coordinates"] = [1.3, 5.4, 0.0]
+    path = tmp_path / "moved.json"
+    path.write_text(json.dumps(graph))
+    status, events, _ = run({"command": "I'm thirsty", "scene_graph": str(path)})
+    doubted = of(events, "object_doubtful")
+    assert doubted and doubted[0]["object"] == "bottle_pink"
+    goals = [e["object"] for e in of(events, "goal_sent")]
+    assert goals[0] == "bottle_pink" and len(goals) >= 2 and goals[1] != "bottle_pink"
+    assert status == "SUCCESS"
+
+
+def test_commands_from_stdin_are_served_in_turn() -> None:
+    """Without `command` the mission serves each stdin line, then ends when stdin ends."""
+    status, events, _ = run({"command": ""}, stdin="I want the grey backpack\nI'm searching the blue chair\n")
+    served = of(events, "command_served")
+    assert [s["command"] for s in served] == ["I want the grey backpack", "I'm searching the blue chair"]
+    assert [s["status"] for s in served] == ["success", "success"]
+    assert status == "SUCCESS"
