@@ -23,6 +23,7 @@ SUBCOMMANDS: list[str] = [
     "missiontree.cli.plugins",
     "missiontree.cli.log",
     "missiontree.cli.validate",
+    "missiontree.cli.world",
     "missiontree.cli.render",
     "missiontree.cli.schema",
     "missiontree.cli.models",
