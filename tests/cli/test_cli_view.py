@@ -65,3 +65,21 @@ def test_log_export_needs_a_known_format(run_dir: Path, tmp_path: Path):
     with pytest.raises(SystemExit) as exit_info:
         main(["log", "export", str(run_dir), "--format", "rosbag", "--out", str(tmp_path / "x")])
     assert exit_info.value.code == 2
+
+
+def test_run_with_view_serves_records_the_path_and_writes_the_replay(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+):
+    """`run --view` starts the live viewer, samples the pose each tick and leaves report.html."""
+    from missiontree.paths import REPO_ROOT
+
+    monkeypatch.setattr("missiontree.cli.view.RUN_VIEW_PORT", 0)  # any free port
+    out = tmp_path / "run"
+    code = main(["run", str(REPO_ROOT / "trees" / "patrol.yaml"), "--out", str(out), "--max-duration", "5",
+                 "--view", "--quiet"])
+    assert code == 1  # stopped by the duration limit
+    captured = capsys.readouterr()
+    assert "live viewer at http://127.0.0.1:" in captured.err
+    assert (out / "report.html").is_file()
+    rows = (out / "poses.jsonl").read_text().splitlines()
+    assert len(rows) >= 19  # 5 s at one sample each 0.25 s

@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     if getattr(args, "view", False):
         from missiontree.cli.view import run_with_viewer
 
-        return run_with_viewer(args, lambda: run_mission(request_from_args(args)), describe)
+        return run_with_viewer(args, request_from_args(args), run_mission, describe)
     result = run_mission(request_from_args(args))
     print(describe(result))
     return result.exit_code

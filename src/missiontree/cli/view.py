@@ -83,15 +83,19 @@ RUN_VIEW_PORT = 8765
 
 
 def run_with_viewer(
-    args: argparse.Namespace, start: Callable[[], Any], describe: Callable[[Any], str]
+    args: argparse.Namespace, request: Any, run_mission: Callable[[Any], Any], describe: Callable[[Any], str]
 ) -> int:
-    """``run --view``: serve the live viewer of the run directory while ``start()`` runs the mission.
+    """``run --view``: serve the live viewer of the run directory while ``run_mission(request)`` runs.
+
+    The robot's pose is sampled every tick into ``poses.jsonl`` (the request's ``on_tick``), so the
+    live map shows the path as it grows.
 
     When the run ends the page is also written as ``report.html`` in the run directory; on a
     terminal the viewer stays up until Ctrl-C, otherwise it stops with the run.
     """
     from missiontree.runlog.follow import serve_in_background
     from missiontree.runlog.html import write_page
+    from missiontree.runlog.record import PoseTrail
 
     run_dir = args.out if args.out is not None else Path("runs") / args.tree.stem
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -104,7 +108,19 @@ def run_with_viewer(
     host, bound = server.server_address[:2]
     print(f"live viewer at http://{host}:{bound}/", file=sys.stderr, flush=True)
     try:
-        result = start()
+        trail = PoseTrail(run_dir)
+        previous = request.on_tick
+
+        def on_tick(session: Any) -> None:
+            trail(session)
+            if previous is not None:
+                previous(session)
+
+        request.on_tick = on_tick
+        try:
+            result = run_mission(request)
+        finally:
+            trail.close()
         print(describe(result))
         if (run_dir / "ticks.jsonl").is_file():
             print(f"replay written to {write_page(run_dir)}")

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from missiontree.runlog.html import page_data, render_page
+from missiontree.runlog.record import POSES_FILE, read_pose_trail
 from missiontree.runlog.replay import RUNVIEW_FILE, Replay, load_tree, read_records, read_runview
 
 
@@ -34,7 +35,7 @@ class LiveRun:
         self._offset = 0
         self._replay: Replay | None = None
         self._data: dict[str, Any] | None = None
-        self._runview_stamp: float | None = None
+        self._runview_stamp: tuple[int | None, ...] | None = None
 
     def _tree_known(self) -> bool:
         return self.mission is not None or (self.run_dir / RUNVIEW_FILE).is_file()
@@ -59,9 +60,11 @@ class LiveRun:
                 self._replay.flush_events()
                 changed = bool(records)
             runview = self.run_dir / RUNVIEW_FILE
-            stamp = runview.stat().st_mtime if runview.is_file() else None
+            trail = self.run_dir / POSES_FILE
+            stamp = tuple(p.stat().st_mtime_ns if p.is_file() else None for p in (runview, trail))
             if stamp != self._runview_stamp:
                 self._runview_stamp = stamp
+                self._replay.set_poses(read_pose_trail(self.run_dir))
                 poses = read_runview(self.run_dir).get("poses")
                 if isinstance(poses, list) and poses:
                     self._replay.set_poses(

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -130,3 +131,63 @@ def missiontree_mission_finished(context: Any, summary: dict[str, Any]) -> None:
     if poses:
         data["poses"] = poses
     write_runview(run_dir, data)
+
+
+POSES_FILE = "poses.jsonl"
+
+
+class PoseTrail:
+    """An ``on_tick`` callback that appends the robot's pose to ``poses.jsonl`` as the run goes.
+
+    Used by ``run --view``, so the live viewer draws the path while the mission runs (the
+    trajectory in ``runview.json`` only arrives at the end). One ``[t, x, y]`` line per
+    ``period`` seconds of robot time, flushed at once; the file is replaced at the first tick.
+
+    Args:
+        run_dir: The run directory.
+        period: Robot seconds between samples.
+    """
+
+    def __init__(self, run_dir: Path, period: float = 0.25) -> None:
+        self.path = Path(run_dir) / POSES_FILE
+        self.period = period
+        self._next = -1.0
+        self._stream: Any = None
+
+    def __call__(self, session: Any) -> None:
+        """Sample the pose when the period has passed (never raises: the viewer must not stop a run)."""
+        try:
+            stamped = session.robot.pose()
+            if stamped is None or stamped.stamp < self._next:
+                return
+            if self._stream is None:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self._stream = self.path.open("w", encoding="utf-8")
+            slot = math.floor(stamped.stamp / self.period + 1e-9) + 1  # samples on a grid of the period
+            self._next = slot * self.period - 1e-9
+            row = [round(stamped.stamp, 3), round(stamped.pose.x, 3), round(stamped.pose.y, 3)]
+            self._stream.write(json.dumps(row) + "\n")
+            self._stream.flush()
+        except Exception:  # noqa: BLE001 - a pose that cannot be read is a gap in the drawn path
+            return
+
+    def close(self) -> None:
+        """Close the file."""
+        if self._stream is not None:
+            self._stream.close()
+            self._stream = None
+
+
+def read_pose_trail(run_dir: Path) -> list[tuple[float, float, float]]:
+    """The poses ``run --view`` recorded (``poses.jsonl``), complete lines only."""
+    path = Path(run_dir) / POSES_FILE
+    if not path.is_file():
+        return []
+    rows = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        try:
+            t, x, y = json.loads(line)[:3]
+            rows.append((float(t), float(x), float(y)))
+        except (ValueError, TypeError):
+            continue  # a line being written
+    return rows

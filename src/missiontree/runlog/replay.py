@@ -516,6 +516,10 @@ def open_run(run: Path, mission: Path | None = None) -> Replay:
         raise ConfigError(f"{path} is empty: the run wrote no tick log lines")
     replay.feed_all(records)
     poses = read_runview(run_dir).get("poses")
+    if not poses:
+        from missiontree.runlog.record import read_pose_trail
+
+        poses = [list(p) for p in read_pose_trail(run_dir)]
     if isinstance(poses, list) and poses:
         replay.set_poses([tuple(p[:3]) for p in poses if isinstance(p, list) and len(p) >= 3])
     return replay
