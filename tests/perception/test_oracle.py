@@ -125,3 +125,32 @@ def test_factory_builds_unbound_and_bind_robot_binds_it(robot) -> None:  # noqa:
 def test_check_describes_an_unbound_oracle_without_failing() -> None:
     """An oracle not yet bound is still usable (it binds at run time); check() says so."""
     assert "simulation-only oracle" in OracleDetector(miss_rate=0.2).check()
+
+
+def test_a_prepared_frame_is_answered_on_a_worker_without_touching_the_simulator(robot) -> None:  # noqa: ANN001
+    """prepare_frame reads the mask on the tick thread; the job and a later detect(image) elsewhere use it."""
+    import threading
+
+    from missiontree.perception.detectors import detection_job
+
+    oracle = OracleDetector(robot, miss_rate=0.3, seed=4)
+    frame = robot.rgbd()
+    job = detection_job(oracle, frame)
+    reads: list[str] = []
+    truth = robot.truth
+    original = truth.instance_mask
+    truth.instance_mask = lambda stamp: reads.append(threading.current_thread().name) or original(stamp)
+    try:
+        results: list[list] = []
+        worker = threading.Thread(target=lambda: results.append(job()), name="model-call-test")
+        worker.start()
+        worker.join()
+        again: list[list] = []
+        worker = threading.Thread(target=lambda: again.append(oracle.detect(frame.color)), name="vlm-test")
+        worker.start()
+        worker.join()
+    finally:
+        truth.instance_mask = original
+    assert reads == []  # the workers never read the simulator
+    assert [d.box for d in results[0]] == [d.box for d in again[0]]  # same frame, same (seeded) answer
+    assert all(np.isfinite(d.box).all() for d in results[0])
