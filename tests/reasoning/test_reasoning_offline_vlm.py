@@ -184,3 +184,15 @@ def test_class_the_detector_cannot_see_is_no_match_with_zero_confidence() -> Non
     match = CropMatch.model_validate_json(OfflineVisionModel(BoxDetector()).ask([scene()], prompt, CropMatch))
     assert not match.matches and match.confidence == 0.0
     assert "knows no class in 'red fire extinguisher'" in match.reason
+
+
+def test_non_finite_and_outside_detector_boxes_are_dropped_before_answering() -> None:
+    """A detector answering NaN/inf boxes and a box far outside the image: only the real person is boxed."""
+    vlm = OfflineVisionModel(BoxDetector(
+        Detection("person", 0.95, (float("nan"), 10.0, 50.0, 90.0)),
+        Detection("person", 0.95, (90000.0, 90000.0, 90010.0, 90010.0)),
+        Detection("person", float("inf"), (1.0, 1.0, 5.0, 5.0)),
+        Detection("person", 0.9, (80.0, 10.0, 130.0, 90.0)),  # reaches past the 120 px edge: clipped
+    ))
+    verdict = verdict_of(vlm)
+    assert verdict.alarm and [p.box for p in verdict.people] == [(80.0, 10.0, 120.0, 90.0)]

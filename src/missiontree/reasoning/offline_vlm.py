@@ -31,7 +31,7 @@ from pydantic import BaseModel
 
 from missiontree.errors import ModelError
 from missiontree.perception.colour import dominant_colour
-from missiontree.perception.detectors import Detector
+from missiontree.perception.detectors import Detector, detect_checked
 from missiontree.reasoning.phrases import colour_words, find_label, fold_label
 from missiontree.reasoning.prompts import parse_description
 from missiontree.reasoning.protocols import check_image
@@ -220,7 +220,8 @@ class OfflineVisionModel:
     # -- helpers ---------------------------------------------------------------------------------
 
     def _detections(self, image: np.ndarray) -> list[Detection]:
-        return [d for d in self.detector.detect(image) if d.score >= self.min_score]
+        # The detector is a model too: non-finite or out-of-image boxes are dropped, the rest clipped.
+        return [d for d in detect_checked(self.detector, image) if d.score >= self.min_score]
 
     def _description(self, prompt: str) -> str:
         description = parse_description(prompt)
