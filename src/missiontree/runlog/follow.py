@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import threading
+import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
@@ -36,6 +37,11 @@ class LiveRun:
         self._replay: Replay | None = None
         self._data: dict[str, Any] | None = None
         self._runview_stamp: tuple[int | None, ...] | None = None
+        self._frames: dict[str, str | None] = {}
+        self._dirty = False
+        self._built_at = 0.0
+        self._build_s = 0.0
+        self._encoded: tuple[dict[str, Any], bytes] | None = None
 
     def _tree_known(self) -> bool:
         return self.mission is not None or (self.run_dir / RUNVIEW_FILE).is_file()
@@ -71,9 +77,26 @@ class LiveRun:
                         [tuple(p[:3]) for p in poses if isinstance(p, list) and len(p) >= 3]
                     )
                 changed = True
-            if changed or self._data is None:
-                self._data = page_data(self._replay, self.run_dir, follow=True)
+            self._dirty = self._dirty or changed
+            now = time.monotonic()
+            # A long run's data takes a while to build: rebuild at most every 3 build times (>= 1 s),
+            # so a page polling each second never keeps a core busy beside the running mission.
+            if self._data is None or (self._dirty and now - self._built_at >= max(1.0, 3.0 * self._build_s)):
+                start = time.perf_counter()
+                self._data = page_data(self._replay, self.run_dir, follow=True, frame_cache=self._frames)
+                self._encoded = None
+                self._build_s = time.perf_counter() - start
+                self._built_at = now
+                self._dirty = False
             return self._data
+
+    def data_json(self) -> bytes:
+        """:meth:`data` as JSON bytes (encoded once per rebuild)."""
+        data = self.data()
+        with self._lock:
+            if self._encoded is None or self._encoded[0] is not data:
+                self._encoded = (data, json.dumps(data, separators=(",", ":")).encode("utf-8"))
+            return self._encoded[1]
 
 
 def make_server(run_dir: Path, port: int = 0, mission: Path | None = None) -> ThreadingHTTPServer:
@@ -87,7 +110,7 @@ def make_server(run_dir: Path, port: int = 0, mission: Path | None = None) -> Th
                 body = render_page(live.data()).encode("utf-8")
                 kind = "text/html; charset=utf-8"
             elif route == "/data.json":
-                body = json.dumps(live.data(), separators=(",", ":")).encode("utf-8")
+                body = live.data_json()
                 kind = "application/json"
             else:
                 self.send_error(404, "the viewer serves / and /data.json")

@@ -97,8 +97,24 @@ def _read_map_server(yaml_path: Path) -> dict[str, Any] | None:
     return encode_map(np.flipud(data), resolution, (origin[0], origin[1]), f"learned map ({yaml_path.name})")
 
 
-def _frame(run_dir: Path | None, name: Any, budget: list[int]) -> str | None:
-    """An event's picture as a small JPEG data URL, within the frame budget."""
+def _frame(
+    run_dir: Path | None, name: Any, budget: list[int], cache: dict[str, str | None] | None
+) -> str | None:
+    """An event's picture as a small JPEG data URL, within the frame budget (``cache``: by name)."""
+    if cache is not None and isinstance(name, str) and name in cache:
+        found = cache[name]
+        if found is not None and budget[0] < MAX_FRAMES and budget[1] + len(found) <= MAX_FRAME_BYTES:
+            budget[0] += 1
+            budget[1] += len(found)
+            return found
+        return None
+    found = _encode_frame(run_dir, name, budget)
+    if cache is not None and isinstance(name, str) and found is not None:
+        cache[name] = found
+    return found
+
+
+def _encode_frame(run_dir: Path | None, name: Any, budget: list[int]) -> str | None:
     if run_dir is None or not isinstance(name, str) or budget[0] >= MAX_FRAMES:
         return None
     path = (run_dir / name).resolve()
@@ -126,8 +142,18 @@ def _frame(run_dir: Path | None, name: Any, budget: list[int]) -> str | None:
     return "data:image/jpeg;base64," + base64.b64encode(jpeg.tobytes()).decode("ascii")
 
 
-def page_data(replay: Replay, run_dir: Path | None = None, *, follow: bool = False) -> dict[str, Any]:
-    """The viewer's data for one replayed run (JSON-ready, compact)."""
+def page_data(
+    replay: Replay, run_dir: Path | None = None, *, follow: bool = False,
+    frame_cache: dict[str, str | None] | None = None,
+) -> dict[str, Any]:
+    """The viewer's data for one replayed run (JSON-ready, compact).
+
+    Args:
+        replay: The replayed run.
+        run_dir: Its directory (run view, summary, alarm frames), or None.
+        follow: The page polls for updates (``view --follow``).
+        frame_cache: Encoded frames by name, kept between calls (the live server rebuilds often).
+    """
     strings = _Strings()
     runview = read_runview(run_dir) if run_dir is not None else {}
     nodes = [
@@ -173,7 +199,7 @@ def page_data(replay: Replay, run_dir: Path | None = None, *, follow: bool = Fal
         where = event_position(event)
         image = event.fields.get("image")
         if category in ("alarm", "detection") and isinstance(image, str) and image not in frames:
-            data_url = _frame(run_dir, image, budget)
+            data_url = _frame(run_dir, image, budget, frame_cache)
             if data_url is not None:
                 frames[image] = data_url
         events.append(

@@ -142,6 +142,7 @@ class Replay:
         #: (t, x, y) of the robot, from the run's trajectory or events that carry a robot pose.
         self.poses: list[tuple[float, float, float]] = []
         self.lines = 0
+        self._poses_recorded = False
         self._pending_events: list[dict[str, Any]] = []
         self._keyframes: list[tuple[list[int], list[str], list[str], dict[str, Any]]] = []
         if tree is not None:
@@ -257,7 +258,8 @@ class Replay:
             self.events.append(event)
             pose = fields.get("robot_pose")
             if (
-                isinstance(pose, list)
+                not self._poses_recorded
+                and isinstance(pose, list)
                 and len(pose) >= 2
                 and all(isinstance(v, int | float) for v in pose[:2])
             ):
@@ -266,6 +268,7 @@ class Replay:
     def set_poses(self, poses: list[tuple[float, float, float]]) -> None:
         """Replace the robot's path (a recorded trajectory is better than poses taken from events)."""
         self.poses = sorted((float(t), float(x), float(y)) for t, x, y in poses)
+        self._poses_recorded = bool(self.poses)
 
     # -- queries --------------------------------------------------------------------------------
 
