@@ -300,3 +300,39 @@ def test_without_a_role_timeout_the_calls_default_is_used(server: Fake) -> None:
                                 "api_key_env": "MT_TEST_KEY"}},
               "calls": {"timeout": 7}}
     assert build_models(config, load_plugins(autoload=False).providers)["vlm"].timeout == 7.0
+
+
+def test_a_hanging_server_does_not_freeze_a_simulated_patrol_watch(server: Fake) -> None:
+    """A server that never answers in time: each call ends at the role's timeout, then the leaf fails."""
+    from patrol_doubles import Events, FakeRobot, person_frame
+
+    from missiontree.behaviours.surveillance import Surveillance
+    from missiontree.engine.context import MissionContext
+    from missiontree.engine.leaf import Status
+    from missiontree.plugins.manager import load_plugins
+    from missiontree.reasoning.calls import CALLER_KEY, LatencyModel, ModelCaller
+    from missiontree.session.models import build_models
+
+    config = {"roles": {"vlm": {"provider": "openai", "model": "test-model", "base_url": server.url,
+                                "api_key_env": "MT_TEST_KEY", "timeout": 0.3, "max_retries": 0}}}
+    models = build_models(config, load_plugins(autoload=False).providers)
+    server.script(*[Reply.text("late", delay=30.0) for _ in range(10)])
+    robot, events = FakeRobot(), Events()
+    caller = ModelCaller(robot.now, events, simulated=True, models=models, timeouts={"vlm": 0.3},
+                         latency={"vlm": LatencyModel(0.2, 0.2)})
+    models[CALLER_KEY] = caller
+    leaf = Surveillance("watch", Surveillance.Params(mode="poll", period=0.5, max_failed_calls=3))
+    leaf.setup(context=MissionContext(robot=robot, models=models, events=events))
+    start = time.monotonic()
+    try:
+        for _ in range(100):
+            robot.advance(0.1)
+            robot.frame = person_frame(robot.time, robot.current, 0.0)
+            leaf.tick_once()
+            if leaf.status != Status.RUNNING:
+                break
+    finally:
+        caller.close()
+    assert leaf.status == Status.FAILURE and "3 vlm calls in a row failed" in leaf.feedback_message
+    assert "took longer than 0.3 s" in leaf.feedback_message
+    assert time.monotonic() - start < 5.0  # three 0.3 s timeouts, not three 30 s hangs
