@@ -156,7 +156,10 @@ if HAVE_NUMBA:
     _old_astar = numba.njit(cache=True)(_old_astar)
 
 
-def old_plan(grid: OccupancyGrid, cost: np.ndarray, a: tuple[float, float], b: tuple[float, float]) -> float | None:
+Point = tuple[float, float]
+
+
+def old_plan(grid: OccupancyGrid, cost: np.ndarray, a: Point, b: Point) -> float | None:
     """Old A* on a whole-grid cost array; the path length in metres."""
     w = cost.shape[1]
     sr, sc = grid.world_to_cell(*a)
@@ -196,7 +199,7 @@ def measure(fn: Callable[[], Any]) -> tuple[Any, float, float]:
     return out, ms, max(traced, rise)
 
 
-def pairs(grid: OccupancyGrid, costmap: Costmap, n: int, seed: int) -> list[tuple[tuple[float, float], tuple[float, float]]]:
+def pairs(grid: OccupancyGrid, costmap: Costmap, n: int, seed: int) -> list[tuple[Point, Point]]:
     """``n`` pairs of free points at least 20 m apart."""
     rng = np.random.default_rng(seed + 1000)
     out = []
@@ -212,9 +215,15 @@ def spread(values: list[float]) -> str:
     return f"min {min(values):8.2f}  median {statistics.median(values):8.2f}  max {max(values):8.2f}"
 
 
+def spread_json(values: list[float]) -> dict[str, float]:
+    return {"min": round(min(values), 2), "median": round(statistics.median(values), 2),
+            "max": round(max(values), 2)}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--pairs", type=int, default=12, help="start/goal pairs (each planned by every method)")
+    parser.add_argument("--pairs", type=int, default=12,
+                        help="start/goal pairs (each planned by every method)")
     parser.add_argument("--seed", type=int, default=1, help="map and pair seed")
     args = parser.parse_args()
     grid = warehouse(args.seed)
@@ -236,12 +245,15 @@ def main() -> None:
         person = np.array([(a[0] + 1.5 * ux + 0.1 * math.cos(t), a[1] + 1.5 * uy + 0.1 * math.sin(t))
                            for t in rng.uniform(0, 2 * math.pi, 12)])
         people = grid.data >= 50
+        def old_replan(a=a, b=b, people=people, person=person) -> float | None:  # noqa: ANN001
+            return old_plan(grid, old_inflate(grid, _with_points(grid, people, person)), a, b)
+
         runs: list[tuple[str, Callable[[], Any]]] = [
-            ("new", lambda: kept.plan(a, b)),
-            ("old", lambda: old_plan(grid, old_cost, a, b)),
-            ("new_cold", lambda: Costmap(grid, RADIUS, INFLATION, SCALING).plan(a, b)),
-            ("old_replan", lambda: old_plan(grid, old_inflate(grid, _with_points(grid, people, person)), a, b)),
-            ("new_replan", lambda: kept.with_points(person).plan(a, b)),
+            ("new", lambda a=a, b=b: kept.plan(a, b)),
+            ("old", lambda a=a, b=b: old_plan(grid, old_cost, a, b)),
+            ("new_cold", lambda a=a, b=b: Costmap(grid, RADIUS, INFLATION, SCALING).plan(a, b)),
+            ("old_replan", old_replan),
+            ("new_replan", lambda a=a, b=b, person=person: kept.with_points(person).plan(a, b)),
         ]
         found: dict[str, Any] = {}
         for name, fn in runs:
@@ -252,7 +264,8 @@ def main() -> None:
         new_len = found["new"].length if found["new"] is not None else math.nan
         old_len = found["old"] if found["old"] is not None else math.nan
         lengths.append((new_len, old_len))
-        print(f"  {math.dist(a, b):5.1f} m apart: new {times['new'][-1]:7.2f} ms ({found['new'].expanded} cells, "
+        print(f"  {math.dist(a, b):5.1f} m apart: new {times['new'][-1]:7.2f} ms "
+              f"({found['new'].expanded} cells, "
               f"{mem['new'][-1]:.1f} MB, path {new_len:.2f} m) | old {times['old'][-1]:7.2f} ms "
               f"({mem['old'][-1]:.0f} MB, path {old_len:.2f} m) | cold {times['new_cold'][-1]:.1f} ms | "
               f"replan new {times['new_replan'][-1]:.1f} ms, old {times['old_replan'][-1]:.1f} ms")
@@ -277,10 +290,8 @@ def main() -> None:
         "old_peak_alloc_mb_30x50_3cm": round(max(mem["old"]), 2),
         "old_replan_ms_median_30x50_3cm": round(statistics.median(times["old_replan"]), 3),
         "old_inflate_ms_30x50_3cm": round(old_inflate_ms, 3),
-        "ratio_old_over_new_plan_ms": {"min": round(min(speed), 2), "median": round(statistics.median(speed), 2),
-                                       "max": round(max(speed), 2)},
-        "ratio_old_over_new_replan_ms": {"min": round(min(replan), 2),
-                                         "median": round(statistics.median(replan), 2), "max": round(max(replan), 2)},
+        "ratio_old_over_new_plan_ms": spread_json(speed),
+        "ratio_old_over_new_replan_ms": spread_json(replan),
         "path_length_excess_median": round(statistics.median(excess), 4) if excess else None,
         "pairs": len(work),
         "numba": HAVE_NUMBA,

@@ -85,8 +85,8 @@ def run(args: argparse.Namespace) -> int:
             previous[sig] = signal.signal(sig, on_signal)
     domain = profile.domain_id if profile.domain_id is not None else os.environ.get("ROS_DOMAIN_ID", "0")
     mapping = "; learning /map from the lidar (unknown map)" if args.unknown_map else ""
-    print(f"missiontree sim-ros: serving world {args.world!r} (seed {args.seed}){mapping} as {profile.name} on "
-          f"ROS_DOMAIN_ID={domain}; scan {profile.topics.scan}, action {profile.navigation.action}; "
+    print(f"missiontree sim-ros: serving world {args.world!r} (seed {args.seed}){mapping} as {profile.name} "
+          f"on ROS_DOMAIN_ID={domain}; scan {profile.topics.scan}, action {profile.navigation.action}; "
           "Ctrl-C to stop", flush=True)
     try:
         bridge.run(duration=args.duration)

@@ -367,7 +367,8 @@ class Costmap:
         """Blocks of 8 x 8 cells that hold an obstacle (computed once, then kept up to date)."""
         if self._blocks is None:
             h, w = self.shape
-            self._blocks = np.zeros(((h + _BLOCK - 1) >> _BLOCK_BITS, (w + _BLOCK - 1) >> _BLOCK_BITS), np.bool_)
+            rows, cols = (h + _BLOCK - 1) >> _BLOCK_BITS, (w + _BLOCK - 1) >> _BLOCK_BITS
+            self._blocks = np.zeros((rows, cols), np.bool_)
             for r0 in range(0, h, 64 * _BLOCK):  # in stripes: no whole-grid temporaries
                 self._refresh_blocks(r0, min(r0 + 64 * _BLOCK, h), 0, w)
         return self._blocks
@@ -391,7 +392,7 @@ class Costmap:
     # -- the map -----------------------------------------------------------------------------------
 
     def update(self, grid: OccupancyGrid, region: tuple[int, int, int, int] | None = None) -> None:
-        """Take a changed map: recompute only the tiles near ``region`` (row0, row1, col0, col1; exclusive ends).
+        """Take a changed map: recompute only the tiles near ``region`` (row0, row1, col0, col1; ends out).
 
         A grid of another shape, resolution or origin starts over. Without ``region`` every tile
         is invalidated (computed again when next needed).
@@ -548,10 +549,12 @@ class Costmap:
             blocks = self._coarse()
             coarse = np.full(blocks.shape, np.inf, np.float32)
             n = blocks.size
-            gb = (int(goal_cells[0]) // w >> _BLOCK_BITS) * blocks.shape[1] + (int(goal_cells[0]) % w >> _BLOCK_BITS)
+            g_row, g_col = divmod(int(goal_cells[0]), w)
+            gb = (g_row >> _BLOCK_BITS) * blocks.shape[1] + (g_col >> _BLOCK_BITS)
             sb = (sr >> _BLOCK_BITS) * blocks.shape[1] + (sc >> _BLOCK_BITS)
             cfn = _coarse_jit if self.accelerate else _coarse_loops
-            cfar = float(cfn(blocks, gb, sb, coarse, np.empty(4 * n + 16, np.float32), np.empty(4 * n + 16, np.int64)))
+            heap_k, heap_v = np.empty(4 * n + 16, np.float32), np.empty(4 * n + 16, np.int64)
+            cfar = float(cfn(blocks, gb, sb, coarse, heap_k, heap_v))
             if not math.isfinite(cfar):  # no way around at block scale (narrow door): octile only
                 coarse.fill(np.inf)
                 cfar = 0.0
@@ -599,7 +602,8 @@ class Costmap:
         return Path(pts, length, float(s.g_pool[slot, off]), int(s.state[_S_EXPANDED]))
 
     def path_lengths(self, start: Pose2D | tuple[float, float],
-                     goals: Sequence[Pose2D | tuple[float, float]], cost_weight: float = 3.0) -> list[float | None]:
+                     goals: Sequence[Pose2D | tuple[float, float]],
+                     cost_weight: float = 3.0) -> list[float | None]:
         """Length in metres of the best path from ``start`` to each goal (None: unreachable); one search."""
         sx, sy = _xy(start)
         sr, sc = self.grid.world_to_cell(sx, sy)
@@ -662,7 +666,8 @@ def _xy(p: Pose2D | tuple[float, float]) -> tuple[float, float]:
     return float(p[0]), float(p[1])
 
 
-def plan(grid: OccupancyGrid | Costmap, start: Pose2D | tuple[float, float], goal: Pose2D | tuple[float, float],
+def plan(grid: OccupancyGrid | Costmap, start: Pose2D | tuple[float, float],
+         goal: Pose2D | tuple[float, float],
          footprint_radius: float = 0.17, allow_unknown: bool = True, inflation_radius: float = 0.45,
          cost_scaling: float = 3.0) -> Path | None:
     """Plan once on ``grid`` (or on a kept :class:`Costmap`, whose settings then apply); None when no path."""

@@ -48,7 +48,7 @@ def _sim_ros_without(module: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_sim_ros_without_the_ros2_extra_exits_2_naming_it() -> None:
-    """No rclpy, or rclpy without the NavigateToPose interface package: exit 2, the extra named, no traceback."""
+    """No rclpy, or rclpy without the NavigateToPose interface: exit 2, the extra named, no traceback."""
     for module in ("rclpy", "nav2_msgs"):
         out = _sim_ros_without(module)
         assert out.returncode == 2, (module, out.stderr)

@@ -146,7 +146,7 @@ walls:
 
 
 def test_unknown_map_run_finds_a_door_it_has_not_seen(write_world):
-    """Knowing nothing, the robot plans straight through unknown space, meets the wall, replans, finds the door."""
+    """Knowing nothing, the robot plans through unknown space, meets the wall, replans, finds the door."""
     robot = create_robot({"world": write_world(TWO_ROOMS), "unknown_map": True,
                           "config": {"lidar": {"range_max": 3.0}}})
     start_map = robot.occupancy()
@@ -161,7 +161,7 @@ def test_unknown_map_run_finds_a_door_it_has_not_seen(write_world):
     assert learned.stamp > 0 and not learned.data.flags.writeable
     row, col = learned.world_to_cell(5.0, 2.0)
     assert (learned.data[row, col - 3: col + 4] == 100).any()                         # the wall, learned
-    assert learned.data[learned.world_to_cell(5.0, 5.0)] == 0                          # the door, learned free
+    assert learned.data[learned.world_to_cell(5.0, 5.0)] == 0     # the door, learned free
     assert robot.world.grid.data is not learned.data
 
 

@@ -6,8 +6,12 @@ import math
 
 import cv2
 import numpy as np
+import pytest
 
 from missiontree.backends.sim import create_robot
+from missiontree.backends.sim import robot as robot_module
+from missiontree.backends.sim.render import PEOPLE_BGR, ROBOT_BGR, Scene, ScenePerson, draw_topdown
+from missiontree.backends.sim.timing import TimingLog
 from missiontree.robot.interface import Drawable, Robot
 from missiontree.types import Marker, Pose2D, Tolerance
 
@@ -130,3 +134,91 @@ def test_camera_thread_gives_the_same_frames():
         runs.append((frames, [sorted(seen) for _, seen in robot.truth.visibility]))
     assert all(np.array_equal(a, b) for a, b in zip(runs[0][0], runs[1][0], strict=True))
     assert runs[0][1] == runs[1][1]
+
+
+# -- memory stays flat on long runs ------------------------------------------------------------------
+
+
+def test_timing_log_keeps_recent_samples_and_counts_every_call():
+    """A TimingLog holds at most ``keep`` samples but counts and sums all of them."""
+    log = TimingLog(keep=10)
+    for i in range(25):
+        log.append(float(i))
+    assert len(log) == 10 and list(log) == [float(i) for i in range(15, 25)]
+    assert log.count == 25 and log.total_ms == sum(range(25)) and log.max_ms == 24.0
+    assert log.median() == 19.5
+
+
+def test_trajectory_is_thinned_to_a_bound_and_keeps_its_ends(monkeypatch: pytest.MonkeyPatch):
+    """Driving for a long time keeps at most the bound of points; the first and the latest stay."""
+    monkeypatch.setattr(robot_module, "_TRAJECTORY_MAX", 40)
+    robot = create_robot({"world": "conformance"})
+    start = robot.trajectory[0]
+    robot.drive(0.2, 0.4)   # circles
+    robot.spin_until(300.0)
+    assert len(robot.trajectory) <= 41
+    assert robot.trajectory[0] == start
+    last = robot.trajectory[-1]
+    assert math.hypot(last[1] - robot.true_pose.x, last[2] - robot.true_pose.y) < 0.5
+    times = [t for t, _, _ in robot.trajectory]
+    assert times == sorted(times) and times[-1] > 250.0
+    assert robot.timings["lidar"].count == 3001 and len(robot.timings["lidar"]) <= 4096
+
+
+def test_standing_still_adds_no_trajectory_points():
+    """A robot that does not move does not grow its trajectory."""
+    robot = create_robot({"world": "conformance"})
+    robot.spin_until(120.0)
+    assert len(robot.trajectory) == 1
+
+
+def test_visibility_log_is_compact_and_reads_as_frames():
+    """The ground truth's visibility log reads as (stamp, {name: Sighting}) and costs bytes, not objects."""
+    robot = create_robot({"world": "combined"})
+    robot.drive(0.0, 0.5)
+    robot.spin_until(20.0)
+    log = robot.truth.visibility
+    assert len(log) == 101   # 5 Hz for 20 s, and the first frame
+    stamp, seen = log[-1]
+    assert seen and all(s.pixels > 0 and s.kind in ("object", "person") for s in seen.values())
+    assert robot.truth.visible_at(stamp) == seen
+    assert [st for st, _ in log][:3] == [0.0, 0.2, 0.4]
+    assert log.nbytes < 200 * len(log)
+
+
+# -- the top-down picture ----------------------------------------------------------------------------
+
+
+def test_picture_draws_a_plain_scene_people_apart_from_the_robot(tmp_path):
+    """A Scene (no robot, no world) draws; people are not in the robot's blue; labels never overlap."""
+    robot = create_robot({"world": "combined"})
+    scene = robot.scene()
+    person = ScenePerson("p1", np.array([[3.0, 3.0], [3.5, 3.0]]), (3.5, 3.0))
+    scene = Scene(**{**scene.__dict__, "people": [person]})
+    markers = [Marker("alarm", 3.5, 3.0, 1.0, label="person"),
+               Marker("alarm", 3.52, 3.0, 2.0, label="person"),
+               Marker("detection", 3.6, 3.1, 1.0, label="person 0.9"), Marker("goal", 3.4, 2.9, 0.0, "wp1")]
+    path = tmp_path / "top.png"
+    boxes = draw_topdown(scene, markers, path)
+    img = cv2.imread(str(path))
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            assert a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1], (a, b)
+    assert PEOPLE_BGR != ROBOT_BGR
+    assert (np.abs(img.astype(int) - PEOPLE_BGR).sum(axis=2) == 0).any()
+
+
+def test_picture_legend_shows_only_what_is_drawn(tmp_path):
+    """No alarm, no alarm entry in the legend: the legend band holds no alarm red until an alarm is drawn."""
+    robot = create_robot({"world": "conformance"})
+    plain, alarmed = tmp_path / "plain.png", tmp_path / "alarm.png"
+    draw_topdown(robot.scene(), [], plain)
+    draw_topdown(robot.scene(), [Marker("alarm", 1.0, 1.0, 0.0, label="person")], alarmed)
+    red = np.array((30, 30, 220))
+
+    def legend_has_red(path) -> bool:
+        img = cv2.imread(str(path)).astype(int)
+        band = img[-40:]
+        return bool((np.abs(band - red).sum(axis=2) < 30).any())
+
+    assert not legend_has_red(plain) and legend_has_red(alarmed)

@@ -61,7 +61,8 @@ class Costmap:
         self.grid = grid
         self.radius = robot_radius
         self.spec = spec
-        self.tiled = planner.Costmap(grid, robot_radius, spec.inflation_radius, spec.cost_scaling, allow_unknown)
+        self.tiled = planner.Costmap(grid, robot_radius, spec.inflation_radius, spec.cost_scaling,
+                                     allow_unknown)
         self._dense: np.ndarray | None = None
 
     @property
@@ -177,7 +178,8 @@ class Navigator:
     """
 
     def __init__(self, grid: OccupancyGrid, radius: float, profile: RobotProfile, spec: NavigationSpec,
-                 clearance: Callable[[float, float], float] | None = None, allow_unknown: bool = False) -> None:
+                 clearance: Callable[[float, float], float] | None = None,
+                 allow_unknown: bool = False) -> None:
         self.spec = spec
         self.limits = profile.limits
         self.physics_dt = profile.physics_dt
@@ -305,13 +307,15 @@ class Navigator:
         if problem is not None:
             what, code = problem
             learned = " on the learned map" if self.allow_unknown else ""
-            h._finish(ActionStatus.ABORTED, f"goal ({goal.x:.2f}, {goal.y:.2f}) is {what}{learned}: unreachable",
+            h._finish(ActionStatus.ABORTED,
+                      f"goal ({goal.x:.2f}, {goal.y:.2f}) is {what}{learned}: unreachable",
                       code)
             return False
         path = self._plan(self.costmap, pose, goal)
         if path is None:
             learned = " on the map learned so far: unreachable" if self.allow_unknown else ""
-            h._finish(ActionStatus.ABORTED, f"no valid path to ({goal.x:.2f}, {goal.y:.2f}){learned}", NO_VALID_PATH)
+            h._finish(ActionStatus.ABORTED, f"no valid path to ({goal.x:.2f}, {goal.y:.2f}){learned}",
+                      NO_VALID_PATH)
             return False
         self._follow = _Follow(path, best_time=now, last_step=now - self.physics_dt)
         return True
@@ -393,7 +397,7 @@ class Navigator:
         return 0.0, 0.0
 
     def _pinned(self, follow: _Follow, now: float, pose: Pose2D) -> bool:
-        """Whether the robot has been driving forward without moving for a while (in contact with something)."""
+        """Whether the robot has been driving forward without moving (pinned against something)."""
         if follow.anchor is None or math.hypot(pose.x - follow.anchor[0], pose.y - follow.anchor[1]) > 0.02:
             follow.anchor, follow.still_since = (pose.x, pose.y), now
             return False

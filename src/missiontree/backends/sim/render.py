@@ -97,7 +97,8 @@ class _Canvas:
         w = max(int((xmax - xmin) * self.scale) + 2 * _MARGIN, 560)
         self.map_bottom = int((ymax - ymin) * self.scale) + 2 * _MARGIN + _TITLE_H
         self.image = np.full((self.map_bottom + _LEGEND_H, w, 3), 255, np.uint8)
-        self.labels: list[tuple[int, int, int, int]] = []   # boxes of labels placed so far
+        self.labels: list[tuple[int, int, int, int]] = []   # boxes of labels and symbols placed so far
+        self.texts: list[tuple[int, int, int, int]] = []    # boxes of the labels alone
 
     def px(self, x: float, y: float) -> tuple[int, int]:
         return (int(round(_MARGIN + (x - self.xmin) * self.scale)),
@@ -114,7 +115,8 @@ class _Canvas:
         """Put ``text`` near ``anchor`` where it overlaps no label placed before; False when nowhere fits."""
         (w, h), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
         ax, ay = anchor
-        candidates = [(ax + 8, ay - 6), (ax + 8, ay + h // 2), (ax + 8, ay + h + 6), (ax - w - 8, ay - 6), (ax - w - 8, ay + h + 6),
+        candidates = [(ax + 8, ay - 6), (ax + 8, ay + h // 2), (ax + 8, ay + h + 6), (ax - w - 8, ay - 6),
+                      (ax - w - 8, ay + h + 6),
                       (ax - w // 2, ay - 12), (ax - w // 2, ay + h + 12)]
         candidates += [(ax + 8, ay - 6 - k * (h + 4)) for k in (2, 3)] + [(ax + 8, ay + h + 6 + k * (h + 4))
                                                                          for k in (2, 3)]
@@ -123,16 +125,22 @@ class _Canvas:
             box = (x - 1, y - h - 1, x + w + 1, y + base + 1)
             if box[0] < 0 or box[1] < _TITLE_H or box[2] > W or box[3] > self.map_bottom:
                 continue
-            if any(not (box[2] <= b[0] or b[2] <= box[0] or box[3] <= b[1] or b[3] <= box[1]) for b in self.labels):
+            if any(not (box[2] <= b[0] or b[2] <= box[0] or box[3] <= b[1] or b[3] <= box[1])
+                   for b in self.labels):
                 continue
             self.labels.append(box)
+            self.texts.append(box)
             cv2.putText(self.image, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, scale, bgr, 1, cv2.LINE_AA)
             return True
         return False
 
 
-def draw_topdown(scene: Scene, markers: list[Marker], path: Path, metre_grid: bool = False) -> None:
-    """Draw ``scene`` and the run's ``markers`` into the PNG at ``path`` (with a metre grid when asked)."""
+def draw_topdown(scene: Scene, markers: list[Marker], path: Path,
+                 metre_grid: bool = False) -> list[tuple[int, int, int, int]]:
+    """Draw ``scene`` and the run's ``markers`` into the PNG at ``path`` (with a metre grid when asked).
+
+    Returns the pixel boxes (x0, y0, x1, y1) of the labels placed; no two overlap, nor any symbol.
+    """
     canvas = _Canvas(scene.bounds)
     img = canvas.image
     _shade_cells(canvas, scene.grid, scene.grid.data < 0, lambda region: (215, 215, 215))
@@ -142,7 +150,8 @@ def draw_topdown(scene: Scene, markers: list[Marker], path: Path, metre_grid: bo
         cv2.addWeighted(overlay, 0.5, img, 0.5, 0, dst=img)
     if metre_grid:
         _draw_metre_grid(canvas, scene.bounds)
-    _shade_cells(canvas, scene.grid, scene.grid.data >= 50, lambda region: (region * 0.55 + 60).astype(np.uint8))
+    _shade_cells(canvas, scene.grid, scene.grid.data >= 50,
+                 lambda region: (region * 0.55 + 60).astype(np.uint8))
     for x1, y1, x2, y2 in scene.walls:
         cv2.line(img, canvas.px(x1, y1), canvas.px(x2, y2), (60, 60, 60), 2, cv2.LINE_AA)
     if scene.learned is not None:
@@ -185,6 +194,7 @@ def draw_topdown(scene: Scene, markers: list[Marker], path: Path, metre_grid: bo
     path.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(path), img):
         raise OSError(f"could not write {path}")
+    return list(canvas.texts)
 
 
 def _marker_symbol(img: np.ndarray, kind: str, p: tuple[int, int], colour: tuple[int, ...]) -> None:

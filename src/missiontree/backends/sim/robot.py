@@ -30,15 +30,15 @@ from missiontree.backends.sim.camera import Camera, Floor, Rendering
 from missiontree.backends.sim.kinematics import DiffDrive, Odometry
 from missiontree.backends.sim.lidar import Lidar
 from missiontree.backends.sim.navigation import Navigator, SimNavHandle
-from missiontree.backends.sim.render import Scene, SceneObject, ScenePerson, SceneRoom
 from missiontree.backends.sim.people import BODY_RADIUS
 from missiontree.backends.sim.raycast import HAVE_NUMBA, Primitives
+from missiontree.backends.sim.render import Scene, SceneObject, ScenePerson, SceneRoom
 from missiontree.backends.sim.schema import RobotProfile
 from missiontree.backends.sim.timing import TimingLog
 from missiontree.backends.sim.truth import GroundTruth
 from missiontree.backends.sim.world import World
-from missiontree.robot.commands import Command, LineCommands
 from missiontree.mapping.grid import LogOddsGrid, logit
+from missiontree.robot.commands import Command, LineCommands
 from missiontree.robot.history import StampedHistory
 from missiontree.types import LaserScan, Marker, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
 
@@ -248,7 +248,8 @@ class SimRobot:
             state = person.state_at(now)
             people.append(ScenePerson(person.id, track, (state.x, state.y) if state.present else None))
         return Scene(
-            name=world.name, bounds=world.bounds(), grid=world.grid, now=now, seed=self.seed, bumps=self.bumps,
+            name=world.name, bounds=world.bounds(), grid=world.grid, now=now, seed=self.seed,
+            bumps=self.bumps,
             robot_pose=self._base.pose, robot_radius=self.profile.body.radius,
             rooms=[SceneRoom(r.name, r.type, r.polygon) for r in world.rooms],
             walls=list(world.wall_segments),
@@ -427,7 +428,8 @@ class SimRobot:
             if lethal_changed.any():
                 rows = np.flatnonzero(lethal_changed.any(axis=1))
                 cols = np.flatnonzero(lethal_changed.any(axis=0))
-                region = (r0 + int(rows[0]), r0 + int(rows[-1]) + 1, c0 + int(cols[0]), c0 + int(cols[-1]) + 1)
+                region = (r0 + int(rows[0]), r0 + int(rows[-1]) + 1,
+                          c0 + int(cols[0]), c0 + int(cols[-1]) + 1)
                 self._nav.update_map(OccupancyGrid(scan.stamp, grid.resolution, grid.origin, known), region)
         self.timings["mapping"].append((time.perf_counter() - t0) * 1000.0)
 
