@@ -17,8 +17,15 @@ from pathlib import Path
 from typing import Any
 
 from missiontree.runlog.html import page_data, render_page
-from missiontree.runlog.record import POSES_FILE, read_pose_trail
-from missiontree.runlog.replay import RUNVIEW_FILE, Replay, load_tree, read_records, read_runview
+from missiontree.runlog.replay import (
+    POSES_FILE,
+    RUNVIEW_FILE,
+    Replay,
+    load_tree,
+    read_pose_trail,
+    read_records,
+    read_runview,
+)
 
 
 class LiveRun:

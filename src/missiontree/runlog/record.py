@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from missiontree.plugins.hookspecs import hookimpl
-from missiontree.runlog.replay import RUNVIEW_FILE, declared_tree
+from missiontree.runlog.replay import POSES_FILE, RUNVIEW_FILE, declared_tree
 
 #: map_server's trinary colours: free, occupied, unknown (grey levels of a .pgm).
 FREE, OCCUPIED, UNKNOWN = 254, 0, 205
@@ -133,8 +133,6 @@ def missiontree_mission_finished(context: Any, summary: dict[str, Any]) -> None:
     write_runview(run_dir, data)
 
 
-POSES_FILE = "poses.jsonl"
-
 
 class PoseTrail:
     """An ``on_tick`` callback that appends the robot's pose to ``poses.jsonl`` as the run goes.
@@ -176,18 +174,3 @@ class PoseTrail:
         if self._stream is not None:
             self._stream.close()
             self._stream = None
-
-
-def read_pose_trail(run_dir: Path) -> list[tuple[float, float, float]]:
-    """The poses ``run --view`` recorded (``poses.jsonl``), complete lines only."""
-    path = Path(run_dir) / POSES_FILE
-    if not path.is_file():
-        return []
-    rows = []
-    for line in path.read_text(encoding="utf-8").splitlines():
-        try:
-            t, x, y = json.loads(line)[:3]
-            rows.append((float(t), float(x), float(y)))
-        except (ValueError, TypeError):
-            continue  # a line being written
-    return rows

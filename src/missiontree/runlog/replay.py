@@ -423,6 +423,8 @@ def event_position(event: Event) -> tuple[float, float] | None:
 # -- run directories ---------------------------------------------------------------------------------
 
 RUNVIEW_FILE = "runview.json"
+#: The poses ``run --view`` samples while the mission runs.
+POSES_FILE = "poses.jsonl"
 
 
 def log_path(run: Path) -> Path:
@@ -520,9 +522,22 @@ def open_run(run: Path, mission: Path | None = None) -> Replay:
     replay.feed_all(records)
     poses = read_runview(run_dir).get("poses")
     if not poses:
-        from missiontree.runlog.record import read_pose_trail
-
         poses = [list(p) for p in read_pose_trail(run_dir)]
     if isinstance(poses, list) and poses:
         replay.set_poses([tuple(p[:3]) for p in poses if isinstance(p, list) and len(p) >= 3])
     return replay
+
+
+def read_pose_trail(run_dir: Path) -> list[tuple[float, float, float]]:
+    """The poses ``run --view`` recorded (``poses.jsonl``), complete lines only."""
+    path = Path(run_dir) / POSES_FILE
+    if not path.is_file():
+        return []
+    rows = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        try:
+            t, x, y = json.loads(line)[:3]
+            rows.append((float(t), float(x), float(y)))
+        except (ValueError, TypeError):
+            continue  # a line being written
+    return rows
