@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -39,3 +40,15 @@ def test_alarms_of_one_run_are_appended_in_order(tmp_path: Path) -> None:
     lines = [json.loads(line) for line in (tmp_path / "alarms.jsonl").read_text().splitlines()]
     assert [a["id"] for a in lines] == [1, 2, 3, 4]
     assert lines[0]["image"] == "alarms/0001-detected.png"
+
+
+def test_an_alarm_with_a_non_finite_box_or_position_is_recorded_without_drawing_it(tmp_path: Path) -> None:
+    """NaN in a box or a position never crashes the record: the frame is saved, no marker is placed."""
+    context = MissionContext(robot=SimpleNamespace(now=lambda: 1.0), run_dir=tmp_path)  # type: ignore[arg-type]
+    alarm = Alarm(1, 0.0, 0.5, (0.0, 0.0, 0.0), 0.1, math.inf, "depth", (math.nan, 1.0),
+                  box=(math.nan, 0.0, 10.0, 10.0))
+    recorded = record_alarm(context, alarm, "watch", np.zeros((24, 32, 3), dtype=np.uint8))
+    assert (tmp_path / recorded.image).is_file()
+    line = json.loads((tmp_path / "alarms.jsonl").read_text())
+    assert line["position"] == [None, 1.0] and line["box"][0] is None
+    assert context.markers == []

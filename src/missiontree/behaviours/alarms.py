@@ -124,7 +124,7 @@ def record_alarm(context: MissionContext, alarm: Alarm, node: str, image: np.nda
         path.parent.mkdir(parents=True, exist_ok=True)
         with path.open("w" if context.starts(path) else "a", encoding="utf-8") as handle:
             handle.write(json.dumps(record, sort_keys=True) + "\n")
-    if alarm.position is not None:
+    if alarm.position is not None and all(math.isfinite(v) for v in alarm.position):
         context.mark("alarm", alarm.position[0], alarm.position[1], f"alarm {alarm.id} ({alarm.phase})")
     return alarm
 
@@ -139,7 +139,7 @@ def _save_frame(run_dir: Path, alarm: Alarm, image: np.ndarray) -> str:
     folder = run_dir / "alarms"
     folder.mkdir(parents=True, exist_ok=True)
     picture = cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2BGR)
-    if alarm.box is not None:
+    if alarm.box is not None and all(math.isfinite(v) for v in alarm.box):
         x1, y1, x2, y2 = (int(round(v)) for v in alarm.box)
         cv2.rectangle(picture, (x1, y1), (x2, y2), (0, 0, 255), 2)
         label = "person" if not math.isfinite(alarm.distance) else f"person {alarm.distance:.2f} m"

@@ -120,7 +120,7 @@ class Surveillance(Leaf):
         max_frame_age: float = Field(
             1.0, gt=0, description="A frame older than this (s, robot clock) is never looked at.")
         camera_timeout: float = Field(
-            5.0, gt=0, description="Fail when no frame younger than max_frame_age came for this long (s).")
+            10.0, gt=0, description="Fail when no frame younger than max_frame_age came for this long (s).")
         max_failed_calls: int = Field(
             10, ge=0, description="Fail after this many model calls failed in a row (0: never).")
         prompt: str | None = Field(None, description="Question for the VLM; default: seed 001's prompt.")
