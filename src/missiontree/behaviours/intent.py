@@ -23,6 +23,7 @@ Tick-log events: ``command_received``, ``intent_interpreted``, ``candidate_rejec
 from __future__ import annotations
 
 import enum
+import math
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any
@@ -54,6 +55,13 @@ from missiontree.robot.actions import ActionHandle, ActionStatus
 from missiontree.types import RGBDFrame, Tolerance
 
 Behaviour = py_trees.behaviour.Behaviour
+
+#: A goal aborted with the robot this close to it (m) counts as reached: the stack stopped just short.
+NEAR_ENOUGH = 0.4
+#: Heading error (rad) at which the robot counts as facing the object, and the time allowed to turn (s).
+FACING, FACE_TIMEOUT = 0.12, 8.0
+#: Frames the detector gets to find the object before it is doubted.
+LOOK_FRAMES = 3
 
 
 # -- ServeCommands -----------------------------------------------------------------------------------
@@ -252,6 +260,7 @@ def find_scene_graph(name: str) -> Path:
 
 class _Step(enum.Enum):
     INTERPRET = "interpreting the command"
+    FACE = "turning to face the object"
     PLAN = "checking and ranking candidates"
     DRIVE = "driving to the candidate"
     FRAME = "waiting for a fresh camera frame"
@@ -320,6 +329,7 @@ class GoToIntent(Leaf):
         self.target: Candidate | None = None
         self.wanted = ""
         self.frame: RGBDFrame | None = None
+        self.looks = 0
         self.started = 0.0
 
     def on_setup(self) -> None:
@@ -360,6 +370,7 @@ class GoToIntent(Leaf):
                 "--set scene_graph=path/to/graph.json"
             )
         handlers = {
+            _Step.FACE: self._faced,
             _Step.INTERPRET: self._interpreted,
             _Step.PLAN: self._ranked,
             _Step.DRIVE: self._driven,
@@ -374,6 +385,8 @@ class GoToIntent(Leaf):
         if self.call is not None:
             self.call.cancel()
             self.call = None
+        if self.step is _Step.FACE and self.ctx is not None:
+            self.ctx.robot.stop()
         if self.handle is not None:
             self.handle.cancel()
             self.handle = None
@@ -511,10 +524,29 @@ class GoToIntent(Leaf):
         self.handle = None
         reason = result.reason if result is not None else ""
         self.emit("goal_result", status=status.value, reason=reason, object=self.target.id)
-        if status is not ActionStatus.SUCCEEDED:
+        stamped = robot.pose()
+        off = stamped.pose.distance_to(self.target.goal) if stamped is not None else math.inf
+        if status is not ActionStatus.SUCCEEDED and not (
+            status is ActionStatus.ABORTED and off <= NEAR_ENOUGH
+        ):
             return self._next(f"not reached ({status.value}: {reason or 'no reason given'})")
         if not self.params.look:
             return self.succeed(f"at {self.target.id} (not looked at: look is off)")
+        self.started = robot.now()
+        self.looks = 0
+        self.step = _Step.FACE
+        return self._faced()
+
+    def _faced(self) -> Status:
+        """Turn in place until the object is straight ahead (the navigation stack may stop short)."""
+        assert self.target is not None
+        robot = self.context.robot
+        stamped = robot.pose()
+        error = stamped.pose.bearing_to(*self.target.xy) if stamped is not None else 0.0
+        if abs(error) > FACING and robot.now() - self.started < FACE_TIMEOUT:
+            robot.drive(0.0, max(-1.0, min(1.0, 2.0 * error)))
+            return self.running(f"turning to face {self.target.id} ({math.degrees(error):.0f} deg)")
+        robot.stop()
         self.started = robot.now()
         self.step = _Step.FRAME
         return self.running(_Step.FRAME.value)
@@ -529,18 +561,11 @@ class GoToIntent(Leaf):
             return self.running(_Step.FRAME.value)
         self.frame = frame
         detector = self.context.model("detector")
-        known = [fold_label(str(x)) for x in (getattr(detector, "labels", None) or [])]
-        if known and fold_label(self.target.label) not in known:
-            # Nothing here can check it; say so rather than doubt an object no model can see.
-            self.emit(
-                "object_unverifiable",
-                command=self.text,
-                object=self.target.id,
-                reason=f"the detector knows no {self.target.label}",
-            )
-            return self.succeed(
-                f"at {self.target.id} (not confirmed: the detector knows no {self.target.label})"
-            )
+        unseen = self._unverifiable(detector, frame)
+        if unseen:
+            # Nothing here can check it; say so rather than doubt an object no model could see.
+            self.emit("object_unverifiable", command=self.text, object=self.target.id, reason=unseen)
+            return self.succeed(f"at {self.target.id} (not confirmed: {unseen})")
         self.call = model_caller(self.context).submit(
             "detector", detection_job(detector, frame), node=self.name
         )
@@ -557,8 +582,13 @@ class GoToIntent(Leaf):
         detections = self.call.result()
         self.call = None
         found, why = match_detection(detections, self.target.label, self.frame, self.target.xy)
+        self.looks += 1
+        if found is None and self.looks < LOOK_FRAMES:
+            self.started = self.frame.stamp + 1e-6  # a newer frame: detectors miss now and then
+            self.step = _Step.FRAME
+            return self.running(f"{_Step.FRAME.value} (look {self.looks + 1} of {LOOK_FRAMES})")
         if found is None:
-            return self._doubt(why)
+            return self._doubt(f"{why} (in {self.looks} frames)")
         wanted = look_for(self.target.label, self.wanted.split())
         crop = look_crop(self.frame.color, found.box)
         self.call = model_caller(self.context).ask(
@@ -618,6 +648,22 @@ class GoToIntent(Leaf):
         shown = "; ".join(f"{oid}: {why}" for oid, why in self.tried[:6])
         more = f" and {len(self.tried) - 6} more" if len(self.tried) > 6 else ""
         return self.fail(f"no candidate for {self.text!r} could be reached and confirmed ({shown}{more})")
+
+    def _unverifiable(self, detector: Any, frame: RGBDFrame) -> str:
+        """Why nothing could confirm the target from here ("" when a look can)."""
+        assert self.target is not None and self.scene is not None
+        label = self.target.label
+        known = [fold_label(str(x)) for x in (getattr(detector, "labels", None) or [])]
+        if known and fold_label(label) not in known:
+            return f"the detector knows no {label}"
+        z = self.scene.objects[self.target.id].z
+        cam = frame.camera_pose
+        distance = math.hypot(self.target.xy[0] - cam.x, self.target.xy[1] - cam.y)
+        top = frame.camera_height + distance * frame.intrinsics.cy / frame.intrinsics.fy
+        if z > top:
+            return (f"the {label} is {z:.2f} m up, above what the camera sees from "
+                    f"{distance:.1f} m ({top:.2f} m)")
+        return ""
 
     def _doubtful(self) -> list[str]:
         try:

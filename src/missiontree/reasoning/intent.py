@@ -50,6 +50,11 @@ STANDOFF_MARGIN = 0.08
 STANDOFF_REACH = 0.5
 #: A ray from a standoff pose must reach this close to the object's edge before hitting anything (m).
 SIGHT_SLACK = 0.15
+#: Metres of path a standoff pose may cost for each metre closer to the object.
+NEAR_WEIGHT = 2.0
+#: Clearance from other obstacles a standoff pose should have beyond the robot's radius (m), and the
+#: metres of path each missing metre of it costs.
+CLEAR_WANTED, CLEAR_WEIGHT = 0.25, 4.0
 #: An object whose cell and surroundings (this radius, m) are all unknown is outside the known map.
 KNOWN_RADIUS = 0.5
 
@@ -72,6 +77,7 @@ class GraphObject:
         label: The class label.
         description: The graph's free text (data, never instructions).
         xy: Map-frame position, None when the node has no usable coordinates.
+        z: Height of the object's point above the floor (0 when the graph gives none).
         room: The label of the room that contains it, "" when none.
         relations: Spatial relations from this object to others (not ``contains``).
         kind: The node type (``object``; rooms and the building are kept apart).
@@ -81,6 +87,7 @@ class GraphObject:
     label: str
     description: str = ""
     xy: tuple[float, float] | None = None
+    z: float = 0.0
     room: str = ""
     relations: tuple[Relation, ...] = ()
     kind: str = "object"
@@ -225,6 +232,7 @@ def graph_objects(graph: Any) -> SceneObjects:
             label=str(node.get("label", "")),
             description=str(description or ""),
             xy=_coordinates(node.get("coordinates")),
+            z=_height(node.get("coordinates")),
             room=room_of.get(node_id, ""),
             relations=tuple(relations.get(node_id, ())),
         )
@@ -246,6 +254,15 @@ def _coordinates(value: Any) -> tuple[float, float] | None:
     except (KeyError, IndexError, TypeError, ValueError):
         return None
     return (x, y) if math.isfinite(x) and math.isfinite(y) else None
+
+
+def _height(value: Any) -> float:
+    """The height from ``[x, y, z]`` or ``{"z": ...}``; 0 when absent or unusable."""
+    try:
+        z = float(value["z"]) if isinstance(value, Mapping) else float(value[2])
+    except (KeyError, IndexError, TypeError, ValueError):
+        return 0.0
+    return z if math.isfinite(z) else 0.0
 
 
 def prompt_objects(scene: SceneObjects, exclude: Iterable[str] = ()) -> list[dict[str, Any]]:
@@ -395,18 +412,20 @@ def object_extent(space: _Space, xy: tuple[float, float]) -> float:
 def standoff_cells(
     space: _Space, xy: tuple[float, float], robot_radius: float
 ) -> list[tuple[int, int, float]]:
-    """Free cells near the object from which it is in sight: (row, col, distance to its position).
+    """Free cells near the object from which it is in sight: (row, col, penalty in metres).
 
     A cell qualifies when the robot fits there with a margin, it lies between the object's edge plus
     the robot's radius and :data:`STANDOFF_REACH` beyond, and a ray from it towards the object meets
     no obstacle before coming within :data:`SIGHT_SLACK` of the object's edge (no wall between).
+    The penalty, added to the path length when choosing among them, prefers cells close to the
+    object (what sits on a table is reached across its edge) and clear of other obstacles (a goal
+    hugging a wall makes the navigation stack stop short).
     """
     grid = space.grid
     res = grid.resolution
     extent = object_extent(space, xy)
     near = extent + robot_radius + 0.02
-    # close enough to reach what sits on top of something (a bottle on a table): within 0.95 m of it
-    far = max(near + 0.15, min(extent + robot_radius + STANDOFF_REACH, 0.95))
+    far = extent + robot_radius + STANDOFF_REACH
     rows, cols = space.occupied.shape
     r_c, c_c = grid.world_to_cell(*xy)
     span = int(math.ceil(far / res)) + 1
@@ -418,11 +437,13 @@ def standoff_cells(
     cx = grid.origin.x + (cc + 0.5) * res
     cy = grid.origin.y + (rr + 0.5) * res
     d = np.hypot(cx - xy[0], cy - xy[1])
-    ok = (d >= near) & (d <= far) & (space.clearance[r0:r1, c0:c1] >= robot_radius + STANDOFF_MARGIN)
+    clear = space.clearance[r0:r1, c0:c1]
+    ok = (d >= near) & (d <= far) & (clear >= robot_radius + STANDOFF_MARGIN)
+    penalty = NEAR_WEIGHT * (d - near) + CLEAR_WEIGHT * np.maximum(0.0, robot_radius + CLEAR_WANTED - clear)
     found: list[tuple[int, int, float]] = []
-    for row, col, dist in zip(rr[ok], cc[ok], d[ok], strict=True):
+    for row, col, cost in zip(rr[ok], cc[ok], penalty[ok], strict=True):
         if _in_sight(space, int(row), int(col), xy, extent):
-            found.append((int(row), int(col), float(dist)))
+            found.append((int(row), int(col), float(cost)))
     return found
 
 
@@ -511,7 +532,7 @@ def plan_candidates(
         assert obj.xy is not None
         mine = lengths[at : at + len(cells)]
         at += len(cells)
-        k = min(range(len(cells)), key=lambda i: (mine[i], cells[i][2]))
+        k = min(range(len(cells)), key=lambda i: mine[i] + cells[i][2])
         length = mine[k]
         if not math.isfinite(length):
             rejected.append(

@@ -17,7 +17,7 @@ Which object is nearest, and so the goal, is the caller's choice (NAIS node 5).
 
 Provider name ``offline_llm``; options: ``embedder`` (role of the embedder, default ``embedder``),
 ``affordances`` (label → description, added to the defaults), ``margin`` (0.05),
-``min_score`` (0.2).
+``min_score`` (0.25: at 0.2 "I want to fly to the moon" still found a laptop).
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ class OfflineLanguageModel:
         embedder: Embedder,
         affordances: Mapping[str, str] | None = None,
         margin: float = 0.05,
-        min_score: float = 0.2,
+        min_score: float = 0.25,
         name: str = "offline_llm",
     ) -> None:
         self.name = name

@@ -35,6 +35,10 @@ RELATION_PHRASES: tuple[tuple[str, str], ...] = (
 SIZE_WORDS: dict[str, str] = {"small": "small", "little": "small", "tiny": "small", "big": "large",
                               "large": "large", "huge": "large", "tall": "tall", "medium": "medium"}
 
+#: Places a relation may name that are not things to find ("the backpack on the floor").
+GENERIC_PLACES = frozenset({"floor", "ground", "here", "there", "room", "house", "building", "left", "right",
+                            "me", "you", "it", "way", "moment", "morning", "evening", "minute"})
+_FILLER = frozenset({"the", "a", "an", "my", "this", "that", "your", "our", "please", "now"})
 _WORD = re.compile(r"[a-z]+")
 
 
@@ -132,7 +136,12 @@ def parse_reference(text: str, labels: Iterable[str], places: Iterable[str] = ()
     anchor: str | None = None
     if relation is not None:
         anchor_found = find_label(anchor_part, labels) or find_label(anchor_part, places)
-        if anchor_found is None:
+        named = [w for w in anchor_part.split() if w not in _FILLER]
+        if anchor_found is None and named and named[-1] not in GENERIC_PLACES:
+            # "the umbrella in the bedroom" where there is no bedroom: the relation names something
+            # unknown, so nothing can satisfy it (dropping it would answer "any umbrella").
+            anchor = named[-1]
+        elif anchor_found is None:
             relation = None
         else:
             anchor = anchor_found[0]

@@ -47,7 +47,7 @@ class OfflineLanguageOptions(BaseModel):
     embedder: str = "embedder"
     affordances: dict[str, str] | None = None
     margin: float = Field(0.05, ge=0, le=1)
-    min_score: float = Field(0.2, ge=-1, le=1)
+    min_score: float = Field(0.25, ge=-1, le=1)
     name: str = "offline_llm"
 
 
