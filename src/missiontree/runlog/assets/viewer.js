@@ -148,7 +148,9 @@
     let f; try { f = JSON.parse(S[e[3]]); } catch (x) { f = {}; }
     const node = f.node ? f.node + ": " : "";
     delete f.node;
-    const parts = Object.keys(f).filter((k) => k !== "image").map((k) => k + "=" + (typeof f[k] === "object" ? JSON.stringify(f[k]) : f[k]));
+    const first = ["verdict", "reason", "error", "id", "phase", "waypoint", "outcome"];
+    const keys = Object.keys(f).filter((k) => k !== "image").sort((a, b) => (first.indexOf(a) + 1 || 99) - (first.indexOf(b) + 1 || 99));
+    const parts = keys.map((k) => k + "=" + (typeof f[k] === "object" ? JSON.stringify(f[k]) : f[k]));
     const text = parts.join(" ");
     return node + (text.length > 160 ? text.slice(0, 157) + "…" : text);
   }
@@ -165,7 +167,7 @@
     let shownCount = 0, total = 0;
     for (let j = end; j >= 0; j--) {
       const e = D.events[j];
-      if (filter && S[e[1]] !== filter) continue;
+      if (filter === "*key" ? e[2] === 2 || e[2] === 5 : filter && S[e[1]] !== filter) continue;
       total++;
       if (shownCount >= 100) continue;
       const li = document.createElement("li");
@@ -232,7 +234,11 @@
       const e = D.events[j]; if (e[4] === null) continue;
       const cat = D.categories[e[2]];
       if (cat === "goal") { counts.goal++; lastGoal = j; marker(g, X(e[4]), Y(e[5]), "#1f9d55", "circle", 4); }
-      else if (cat === "alarm") { counts.alarm++; marker(g, X(e[4]), Y(e[5]), "#d93025", "triangle", 6); }
+      else if (cat === "alarm") {
+        counts.alarm++; marker(g, X(e[4]), Y(e[5]), "#d93025", "triangle", 6);
+        let f = {}; try { f = JSON.parse(S[e[3]]); } catch (x) { /* no fields */ }
+        if (f.id !== undefined) { g.fillStyle = "#7a1010"; g.font = "10px sans-serif"; g.fillText(String(f.id), X(e[4]) + 7, Y(e[5]) - 4); }
+      }
       else if (cat === "detection") { counts.detection++; marker(g, X(e[4]), Y(e[5]), "#e67e00", "square", 4); }
     }
     if (lastGoal >= 0) { const e = D.events[lastGoal]; g.strokeStyle = "#1f9d55"; g.lineWidth = 2; g.beginPath(); g.arc(X(e[4]), Y(e[5]), 8, 0, 7); g.stroke(); }
@@ -342,7 +348,7 @@
     $("mapnote").textContent = D.map ? D.map.source : "no map recorded";
     $("scrub").max = String(Math.max(N - 1, 0));
     const kinds = new Set(D.events.map((e) => S[e[1]])), sel = $("evfilter"), keep = sel.value;
-    sel.innerHTML = '<option value="">all</option>';
+    sel.innerHTML = '<option value="">all</option><option value="*key">goals, alarms, failures, detections</option>';
     for (const k of Array.from(kinds).sort()) { const o = document.createElement("option"); o.value = k; o.textContent = k; sel.appendChild(o); }
     sel.value = keep;
   }
