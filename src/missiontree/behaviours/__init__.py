@@ -22,6 +22,7 @@ def register_nodes(registry: NodeRegistry) -> None:
     from missiontree.behaviours.intent import SERVE_COMMANDS, GoToIntent
     from missiontree.behaviours.motion import NavigateTo, Rotate
     from missiontree.behaviours.patrol import Patrol
+    from missiontree.behaviours.scene import BuildSceneGraph
     from missiontree.behaviours.servo import ServoToTarget
     from missiontree.behaviours.surveillance import Surveillance
 
@@ -29,3 +30,4 @@ def register_nodes(registry: NodeRegistry) -> None:
         registry.add(leaf)
     registry.add(SERVE_COMMANDS)
     registry.add(Explore)
+    registry.add(BuildSceneGraph)

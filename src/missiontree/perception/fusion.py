@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from missiontree.perception.colour import dominant_colour
-from missiontree.perception.projection import Projection, centre_depth, to_camera
+from missiontree.perception.projection import Projection, to_camera
 from missiontree.perception.tracking import Candidate, NaisFilterParams, NaisTracker, TemporalVoting
 from missiontree.semantics.semantic_map import Instance, SemanticMap
 from missiontree.types import Detection, RGBDFrame
@@ -61,6 +61,8 @@ class FusionParams:
         miss_decay: Confidence kept after a miss.
         hit_gain: Share of the remaining doubt removed by an observation.
         move_window: Seconds within which an instance seen empty may be moved to a new sighting.
+        min_elevation: A box whose centre's depth point lies lower than this above the floor shows
+            the floor, not an object standing on it (tiles taken for a laptop), metres.
     """
 
     filters: NaisFilterParams = field(default_factory=NaisFilterParams)
@@ -73,6 +75,7 @@ class FusionParams:
     miss_decay: float = 0.7
     hit_gain: float = 0.3
     move_window: float = 600.0
+    min_elevation: float = 0.03
 
 
 @dataclass
@@ -97,6 +100,8 @@ class InstanceFusion:
         self.tracks: dict[str, _Track] = {}
         self._candidate_colours: dict[int, Counter[str]] = {}
         self.frames = 0
+        #: Instance id → the detection that showed it in the latest frame (for crops to describe).
+        self.observed: dict[str, Detection] = {}
 
     @property
     def dropped(self) -> dict[str, int]:
@@ -105,19 +110,21 @@ class InstanceFusion:
 
     # -- one frame -------------------------------------------------------------------------------
 
-    def process(self, frame: RGBDFrame, projections: list[Projection],
-                detections: list[Detection] | None = None) -> None:
+    def process(
+        self, frame: RGBDFrame, projections: list[Projection], detections: list[Detection] | None = None
+    ) -> None:
         """Fuse one frame's projections and judge what it should have shown.
 
         Args:
             frame: The frame (pixels for colour, depth and intrinsics for visibility).
-            projections: Its detections placed in the map (:func:`~missiontree.perception.projection.project`).
+            projections: Its detections placed in the map (:func:`~.projection.project`).
             detections: All its detections (boxes that explain an instance even without depth);
                 default: those of ``projections``.
         """
         self.frames += 1
+        self.observed = {}
         stamp = frame.stamp
-        kept = [p for p in projections if self._filters.accept(p)]
+        kept = [p for p in projections if self._filters.accept(p) and self._off_floor(p)]
         seen: set[str] = set()
         for p in sorted(kept, key=lambda q: -q.score):
             colour = _colour(frame, p.detection)
@@ -125,6 +132,7 @@ class InstanceFusion:
             if instance is not None:
                 self._refine(instance, p, colour)
                 seen.add(instance.id)
+                self.observed[instance.id] = p.detection
                 continue
             cand = self.voting.vote(p)
             votes = self._candidate_colours.setdefault(id(self._candidate_of(p, cand)), Counter())
@@ -133,11 +141,21 @@ class InstanceFusion:
             if cand is not None:
                 new = self._confirm(cand, self._candidate_colours.pop(id(cand), Counter()), stamp)
                 seen.add(new.id)
+                self.observed[new.id] = p.detection
         boxes = detections if detections is not None else [p.detection for p in projections]
-        self._judge_unseen(frame, seen, [d for d in boxes if d.score >= self.params.filters.min_confidence * 0.7])
+        floor_score = self.params.filters.min_confidence * 0.7
+        self._judge_unseen(frame, seen, [d for d in boxes if d.score >= floor_score])
+        if self.frames % 5 == 0:
+            self.merge_overlapping(stamp)
         live = {id(c) for c in self.voting.candidates}
         for key in [k for k in self._candidate_colours if k not in live]:
             del self._candidate_colours[key]
+
+    def _off_floor(self, p: Projection) -> bool:
+        if p.position[2] >= self.params.min_elevation:
+            return True
+        self.dropped["floor"] = self.dropped.get("floor", 0) + 1
+        return False
 
     # -- association and refinement --------------------------------------------------------------
 
@@ -156,16 +174,24 @@ class InstanceFusion:
         track = self.tracks.setdefault(inst.id, _Track())
         track.xs.append(p.position)
         track.sizes.append(p.size)
-        del track.xs[:-self.params.memory]
-        del track.sizes[:-self.params.memory]
+        del track.xs[: -self.params.memory]
+        del track.sizes[: -self.params.memory]
         if colour:
             track.colours[colour] += 1
         position = tuple(float(v) for v in np.median(np.array(track.xs), axis=0))
         size = tuple(float(v) for v in np.max(np.array(track.sizes), axis=0))
         confidence = inst.confidence + self.params.hit_gain * (1.0 - inst.confidence)
-        self.map.update(inst.id, position=position, size=size, observations=inst.observations + 1,
-                        confidence=confidence, last_seen=p.stamp, misses=0, doubtful=False,
-                        colour=_majority(track.colours, inst.colour))
+        self.map.update(
+            inst.id,
+            position=position,
+            size=size,
+            observations=inst.observations + 1,
+            confidence=confidence,
+            last_seen=p.stamp,
+            misses=0,
+            doubtful=False,
+            colour=_majority(track.colours, inst.colour),
+        )
         track.empty_seen = -math.inf
 
     def _candidate_of(self, p: Projection, accepted: Candidate | None) -> Candidate:
@@ -184,27 +210,50 @@ class InstanceFusion:
         score = float(np.mean([q.score for q in cand.projections])) if cand.projections else 0.7
         twin = self._seen_empty_twin(cand.label, colour, stamp)
         if twin is not None:
-            self.map.move(twin.id, position, stamp,
-                          reason=f"its place was seen empty and a {colour} {cand.label} was seen here")
-            self.map.update(twin.id, size=size, observations=twin.observations + cand.frames,
-                            confidence=max(twin.confidence, score))
+            self.map.move(
+                twin.id,
+                position,
+                stamp,
+                reason=f"its place was seen empty and a {colour} {cand.label} was seen here",
+            )
+            self.map.update(
+                twin.id,
+                size=size,
+                observations=twin.observations + cand.frames,
+                confidence=max(twin.confidence, score),
+            )
             track = self.tracks.setdefault(twin.id, _Track())
             track.xs = [q.position for q in cand.projections]
             track.empty_seen = -math.inf
             return twin
-        inst = self.map.add(cand.label, position, stamp, size=size, colour=colour, observations=cand.frames,
-                            confidence=score, first_seen=cand.projections[0].stamp if cand.projections else stamp,
-                            reason=f"seen in {cand.frames} frames")
-        self.tracks[inst.id] = _Track(colours=Counter(colours), xs=[q.position for q in cand.projections],
-                                      sizes=[q.size for q in cand.projections])
+        inst = self.map.add(
+            cand.label,
+            position,
+            stamp,
+            size=size,
+            colour=colour,
+            observations=cand.frames,
+            confidence=score,
+            first_seen=cand.projections[0].stamp if cand.projections else stamp,
+            reason=f"seen in {cand.frames} frames",
+        )
+        self.tracks[inst.id] = _Track(
+            colours=Counter(colours),
+            xs=[q.position for q in cand.projections],
+            sizes=[q.size for q in cand.projections],
+        )
         return inst
 
     def _seen_empty_twin(self, label: str, colour: str, stamp: float) -> Instance | None:
         best = None
         for inst in self.map.by_label(label):
             track = self.tracks.get(inst.id)
-            if (track is not None and inst.colour == colour and inst.doubtful
-                    and stamp - track.empty_seen <= self.params.move_window):
+            if (
+                track is not None
+                and inst.colour == colour
+                and inst.doubtful
+                and stamp - track.empty_seen <= self.params.move_window
+            ):
                 if best is None or inst.misses > best.misses:
                     best = inst
         return best
@@ -233,7 +282,6 @@ class InstanceFusion:
         return u, v, forward
 
     def _judge_unseen(self, frame: RGBDFrame, seen: set[str], detections: list[Detection]) -> None:
-        depth = np.asarray(frame.depth)
         for inst in list(self.map):
             if inst.id in seen:
                 continue
@@ -241,23 +289,88 @@ class InstanceFusion:
             if view is None:
                 continue
             u, v, forward = view
-            if any(d.label == inst.label and d.box[0] - 4 <= u <= d.box[2] + 4 and d.box[1] - 4 <= v <= d.box[3] + 4
-                   for d in detections):
+            if any(
+                d.label == inst.label
+                and d.box[0] - 4 <= u <= d.box[2] + 4
+                and d.box[1] - 4 <= v <= d.box[3] + 4
+                for d in detections
+            ):
                 continue  # its label's box covers it: seen, if not placed precisely enough to refine
-            half = 0.5 * max(min(inst.size[0], inst.size[1]), 0.05)
-            measured = centre_depth(depth, (u, v, u, v), window=5)
-            near_surface = forward - half
-            if math.isfinite(measured) and measured < near_surface - self.params.depth_tolerance:
-                continue  # something stands in front of it: occluded, no evidence
+            verdict = self._place_seen(frame, inst, u, v, forward)
+            if verdict == "occluded":
+                continue  # something stands in front of it: no evidence either way
             track = self.tracks.setdefault(inst.id, _Track())
-            empty = not math.isfinite(measured) or measured > forward + half + self.params.depth_tolerance
-            if empty:
-                track.empty_seen = frame.stamp
+            confidence = inst.confidence * self.params.miss_decay
+            if verdict == "present":
+                # depth shows something where it should be, the detector did not name it: doubt, no removal
+                self.map.update(inst.id, doubtful=True, confidence=max(confidence, 0.2))
+                continue
+            track.empty_seen = frame.stamp
             misses = inst.misses + 1
-            self.map.update(inst.id, misses=misses, doubtful=True,
-                            confidence=inst.confidence * self.params.miss_decay)
+            self.map.update(inst.id, misses=misses, doubtful=True, confidence=confidence)
             if misses >= self.params.miss_frames:
-                self._retire(inst, frame.stamp, empty)
+                self._retire(inst, frame.stamp, True)
+
+    def _place_seen(self, frame: RGBDFrame, inst: Instance, u: float, v: float, forward: float) -> str:
+        """What the depth image shows where ``inst`` should be: ``empty``, ``present`` or ``occluded``.
+
+        The depths of the box the instance would fill are compared with its near and far sides: a
+        share of them at its distance means something is there; most beyond its far side means the
+        camera sees through its place (``empty``); most nearer than its near side means something
+        stands in front (``occluded``).
+        """
+        k = frame.intrinsics
+        half_w = 0.5 * max(inst.size[0], inst.size[1], 0.05)
+        half_h = 0.5 * max(inst.size[2], 0.05)
+        du = max(2.0, 0.5 * half_w * k.fx / forward)
+        dv_top = (inst.position[2] + half_h * 0.5 - frame.camera_height) * k.fy / forward
+        dv_bottom = (inst.position[2] - half_h * 0.5 - frame.camera_height) * k.fy / forward
+        x1, x2 = int(max(0, u - du)), int(min(k.width, u + du + 1))
+        y1, y2 = int(max(0, k.cy - dv_top)), int(min(k.height, k.cy - dv_bottom + 1))
+        patch = np.asarray(frame.depth)[y1 : max(y2, y1 + 1), x1 : max(x2, x1 + 1)].astype(float)
+        values = patch[np.isfinite(patch) & (patch > 0)]
+        near_side = forward - half_w - self.params.depth_tolerance
+        far_side = forward + half_w + self.params.depth_tolerance
+        if values.size == 0:
+            return "empty"  # no return at all: nothing within the sensor's range there
+        there = float(np.mean((values >= near_side) & (values <= far_side)))
+        beyond = float(np.mean(values > far_side))
+        if there >= 0.2:
+            return "present"
+        if beyond >= 0.6:
+            return "empty"
+        return "occluded"
+
+    def merge_overlapping(self, stamp: float) -> None:
+        """Join instances of one label whose footprints overlap (seen from two sides of a big object)."""
+        items = list(self.map)
+        gone: set[str] = set()
+        for i, a in enumerate(items):
+            if a.id in gone:
+                continue
+            for b in items[i + 1 :]:
+                if b.id in gone or b.label != a.label or b.colour != a.colour:
+                    continue
+                reach = max(
+                    self.params.associate_radius,
+                    0.5 * max(a.size[0], a.size[1]),
+                    0.5 * max(b.size[0], b.size[1]),
+                )
+                if a.distance_to(*b.xy) > reach * 0.9:
+                    continue
+                keep, drop = (a, b) if a.observations >= b.observations else (b, a)
+                self.map.remove(drop.id, stamp, reason=f"the same {drop.label} as {keep.id}")
+                total = keep.observations + drop.observations
+                position = tuple(
+                    (keep.position[k] * keep.observations + drop.position[k] * drop.observations) / total
+                    for k in range(3)
+                )
+                self.map.update(keep.id, position=position, observations=total)
+                track = self.tracks.setdefault(keep.id, _Track())
+                track.xs.extend(self.tracks.pop(drop.id, _Track()).xs)
+                gone.add(drop.id)
+                if drop is a:
+                    break
 
     def _retire(self, inst: Instance, stamp: float, empty: bool) -> None:
         twin = None
@@ -268,13 +381,22 @@ class InstanceFusion:
         if twin is not None and inst.colour != "unknown":
             position, observations = twin.position, twin.observations
             self.map.remove(twin.id, stamp, reason=f"the same object as {inst.id}, which moved here")
-            self.map.move(inst.id, position, stamp, reason=f"not at its old place in {inst.misses + 1} frames; "
-                          f"a {inst.colour} {inst.label} was seen here")
+            self.map.move(
+                inst.id,
+                position,
+                stamp,
+                reason=f"not at its old place in {inst.misses + 1} frames; "
+                f"a {inst.colour} {inst.label} was seen here",
+            )
             self.map.update(inst.id, observations=inst.observations + observations, confidence=0.8)
             self.tracks[inst.id] = self.tracks.pop(twin.id, _Track())
             return
-        self.map.remove(inst.id, stamp, reason=f"not seen in {self.params.miss_frames} frames that should show it"
-                        + (" (its place seen empty)" if empty else ""))
+        self.map.remove(
+            inst.id,
+            stamp,
+            reason=f"not seen in {self.params.miss_frames} frames that should show it"
+            + (" (its place seen empty)" if empty else ""),
+        )
         self.tracks.pop(inst.id, None)
 
 

@@ -96,8 +96,12 @@ def camera_pose_at(frame: RGBDFrame, robot: PoseHistory | None = None, mount: Po
     return frame.camera_pose
 
 
-def centre_depth(depth: np.ndarray, box: tuple[float, float, float, float], window: int = DEFAULT_WINDOW,
-                 max_depth: float = 12.0) -> float:
+def centre_depth(
+    depth: np.ndarray,
+    box: tuple[float, float, float, float],
+    window: int = DEFAULT_WINDOW,
+    max_depth: float = 12.0,
+) -> float:
     """Median of the valid depths in a ``window`` x ``window`` square at the box centre (NAIS).
 
     Returns:
@@ -163,9 +167,16 @@ def project(
     x, y = camera.transform(z * scale, lateral * scale)
     elevation = frame.camera_height - (v - k.cy) * z / k.fy
     return Projection(
-        label=detection.label, score=float(detection.score), box=tuple(float(b) for b in detection.box),  # type: ignore[arg-type]
-        position=(x, y, max(0.0, elevation)), range=ray, depth=z, size=(width, width, height),
-        stamp=frame.stamp, camera_pose=camera, detection=detection,
+        label=detection.label,
+        score=float(detection.score),
+        box=tuple(float(b) for b in detection.box),  # type: ignore[arg-type]
+        position=(x, y, max(0.0, elevation)),
+        range=ray,
+        depth=z,
+        size=(width, width, height),
+        stamp=frame.stamp,
+        camera_pose=camera,
+        detection=detection,
     )
 
 

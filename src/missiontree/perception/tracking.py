@@ -34,10 +34,29 @@ from dataclasses import dataclass, field
 from missiontree.perception.projection import Projection
 
 #: Classes the paper calls dynamic ("people, vehicles, or animals"), in COCO's names.
-DYNAMIC_CLASSES: frozenset[str] = frozenset({
-    "person", "bicycle", "car", "motorcycle", "airplane", "bus", "train", "truck", "boat",
-    "bird", "cat", "dog", "horse", "sheep", "cow", "elephant", "bear", "zebra", "giraffe",
-})
+DYNAMIC_CLASSES: frozenset[str] = frozenset(
+    {
+        "person",
+        "bicycle",
+        "car",
+        "motorcycle",
+        "airplane",
+        "bus",
+        "train",
+        "truck",
+        "boat",
+        "bird",
+        "cat",
+        "dog",
+        "horse",
+        "sheep",
+        "cow",
+        "elephant",
+        "bear",
+        "zebra",
+        "giraffe",
+    }
+)
 
 
 @dataclass(frozen=True)

@@ -37,12 +37,25 @@ from missiontree.semantics.scene_graph import RelationEdge
 RELATIONS = ("on", "next_to", "near", "in_front_of", "behind", "left_of", "right_of")
 
 _SYNONYMS = {
-    "on top of": "on", "on_top_of": "on", "atop": "on", "on": "on",
-    "next to": "next_to", "beside": "next_to", "by": "next_to", "adjacent to": "next_to",
-    "in front of": "in_front_of", "before": "in_front_of",
-    "behind": "behind", "in back of": "behind",
-    "left of": "left_of", "to the left of": "left_of", "right of": "right_of", "to the right of": "right_of",
-    "near": "near", "close to": "near", "nearby": "near",
+    "on top of": "on",
+    "on_top_of": "on",
+    "atop": "on",
+    "on": "on",
+    "next to": "next_to",
+    "beside": "next_to",
+    "by": "next_to",
+    "adjacent to": "next_to",
+    "in front of": "in_front_of",
+    "before": "in_front_of",
+    "behind": "behind",
+    "in back of": "behind",
+    "left of": "left_of",
+    "to the left of": "left_of",
+    "right of": "right_of",
+    "to the right of": "right_of",
+    "near": "near",
+    "close to": "near",
+    "nearby": "near",
 }
 
 
@@ -95,8 +108,18 @@ def bodies_of(objects: Sequence[object]) -> list[Body]:
     for o in objects:
         x, y, z = o.position  # type: ignore[attr-defined]
         w, d, h = getattr(o, "size", (0.0, 0.0, 0.0))
-        out.append(Body(str(o.id), float(x), float(y), float(z), max(float(w), 0.05), max(float(d), 0.05),  # type: ignore[attr-defined]
-                        max(float(h), 0.05), getattr(o, "room", None)))
+        out.append(
+            Body(
+                str(o.id),
+                float(x),
+                float(y),
+                float(z),
+                max(float(w), 0.05),
+                max(float(d), 0.05),  # type: ignore[attr-defined]
+                max(float(h), 0.05),
+                getattr(o, "room", None),
+            )
+        )
     return out
 
 
@@ -130,12 +153,20 @@ def compute_relations(
     gap = dist - radius[:, None] - radius[None, :]
     # i is the smaller (source), j the anchor: by area, ties by id order (index order)
     idx = np.arange(n)
-    smaller = (area[:, None] < area[None, :]) | ((area[:, None] == area[None, :]) & (idx[:, None] > idx[None, :]))
+    smaller = (area[:, None] < area[None, :]) | (
+        (area[:, None] == area[None, :]) & (idx[:, None] > idx[None, :])
+    )
     candidate = smaller & (gap <= p.near_gap)
     np.fill_diagonal(candidate, False)
-    over = (np.abs(diff[..., 0]) <= half[None, :, 0].repeat(n, 0) + p.on_margin) & \
-           (np.abs(diff[..., 1]) <= half[None, :, 1].repeat(n, 0) + p.on_margin)
-    on = candidate & over & (np.abs(bottom[:, None] - top[None, :]) <= p.on_tolerance) & (bottom[:, None] > 0.05)
+    over = (np.abs(diff[..., 0]) <= half[None, :, 0].repeat(n, 0) + p.on_margin) & (
+        np.abs(diff[..., 1]) <= half[None, :, 1].repeat(n, 0) + p.on_margin
+    )
+    on = (
+        candidate
+        & over
+        & (np.abs(bottom[:, None] - top[None, :]) <= p.on_tolerance)
+        & (bottom[:, None] > 0.05)
+    )
     facing = np.zeros((n, 2))
     has_facing = np.zeros(n, bool)
     for j, o in enumerate(b):

@@ -83,10 +83,15 @@ class RoomRegion:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict."""
-        return {"id": self.id, "name": self.name or self.id, "type": self.type,
-                "type_confidence": round(self.type_confidence, 3), "area": round(self.area, 2),
-                "centroid": [round(c, 3) for c in self.centroid],
-                "polygon": [[round(float(x), 3), round(float(y), 3)] for x, y in self.polygon]}
+        return {
+            "id": self.id,
+            "name": self.name or self.id,
+            "type": self.type,
+            "type_confidence": round(self.type_confidence, 3),
+            "area": round(self.area, 2),
+            "centroid": [round(c, 3) for c in self.centroid],
+            "polygon": [[round(float(x), 3), round(float(y), 3)] for x, y in self.polygon],
+        }
 
 
 @dataclass(frozen=True)
@@ -100,17 +105,21 @@ class SegmentationParams:
         min_room_area: Pieces smaller than this are not rooms (they join a neighbour).
         max_room_area: Pieces larger than this do not count as rooms when choosing the radius.
         occupied: Occupancy value from which a cell is an obstacle.
-        max_door_width: Two regions whose shared border is wider than this, or who touch along
-            more than one stretch (around a table, on both sides of a sofa), are one room.
+        max_door_width: Two regions whose shared border has a cell farther than half this from any
+            obstacle (they meet on open floor, not in a door), or who touch along more than one
+            stretch (around a table, on both sides of a sofa), are one room.
+        close_gaps: Gaps in walls narrower than this are closed first (a learned map's walls have
+            holes where the lidar grazed them), metres.
     """
 
     min_door_half: float = 0.35
     max_door_half: float = 0.9
     step: float = 0.05
-    min_room_area: float = 2.0
+    min_room_area: float = 3.0
     max_room_area: float = 80.0
     occupied: int = 50
     max_door_width: float = 1.5
+    close_gaps: float = 0.5
 
 
 @dataclass
@@ -140,8 +149,9 @@ class Segmentation:
         return self.rooms[label - 1] if 0 < label <= len(self.rooms) else None
 
 
-def segment_rooms(grid: OccupancyGrid, params: SegmentationParams | None = None,
-                  inside: tuple[float, float] | None = None) -> Segmentation:
+def segment_rooms(
+    grid: OccupancyGrid, params: SegmentationParams | None = None, inside: tuple[float, float] | None = None
+) -> Segmentation:
     """Segment ``grid`` into rooms (see module docstring); ids ``room_1``... in row-major order.
 
     Args:
@@ -154,7 +164,13 @@ def segment_rooms(grid: OccupancyGrid, params: SegmentationParams | None = None,
     p = params or SegmentationParams()
     res = grid.resolution
     data = np.asarray(grid.data)
-    free = _building_free((data >= 0) & (data < p.occupied), grid, inside)
+    free = (data >= 0) & (data < p.occupied)
+    side = int(round(p.close_gaps / res))
+    if side > 1:
+        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (side | 1, side | 1))
+        walls = cv2.morphologyEx((data >= p.occupied).astype(np.uint8), cv2.MORPH_CLOSE, kernel)
+        free &= walls == 0
+    free = _building_free(free, grid, inside)
     if not free.any():
         return Segmentation(grid, np.zeros(data.shape, np.int32), [])
     dist = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, 5) * res
@@ -172,7 +188,7 @@ def segment_rooms(grid: OccupancyGrid, params: SegmentationParams | None = None,
     assert best_markers is not None
     markers = _drop_small_cores(best_markers, min_cells * 0.1)
     labels = _grow(markers, dist, free)
-    labels = _merge_open(labels, p.max_door_width / res)
+    labels = _merge_open(labels, dist, p.max_door_width)
     labels = _merge_small(labels, min_cells)
     rooms = _regions(grid, labels)
     return Segmentation(grid, labels, rooms)
@@ -224,11 +240,13 @@ def _grow(markers: np.ndarray, dist: np.ndarray, free: np.ndarray) -> np.ndarray
     return labels
 
 
-def _merge_open(labels: np.ndarray, max_door_cells: float) -> np.ndarray:
-    """Join neighbours that meet along a border wider than a door, or along several stretches.
+def _merge_open(labels: np.ndarray, clearance: np.ndarray, max_door_width: float) -> np.ndarray:
+    """Join neighbours that meet in the open rather than in a door.
 
-    A door or passage is one short stretch of border; furniture in the middle of a room splits it
-    into pieces that meet on both sides of the furniture, or along a wide open front.
+    A door or narrow passage has walls on both sides: along the border between two rooms no free
+    cell is farther than half a door's width from an obstacle. Furniture in the middle of a room
+    splits it into pieces that meet on open floor (far from any obstacle), or along several
+    stretches (on both sides of a table).
     """
     labels = labels.copy()
     kernel = np.ones((3, 3), np.uint8)
@@ -238,14 +256,15 @@ def _merge_open(labels: np.ndarray, max_door_cells: float) -> np.ndarray:
         for a in sorted(set(np.unique(labels).tolist()) - {0}):
             grown = cv2.dilate((labels == a).astype(np.uint8), kernel).astype(bool)
             for b in sorted(set(np.unique(labels[grown]).tolist()) - {0, a}):
-                border = (grown & (labels == b)).astype(np.uint8)
-                count, comp, stats, _ = cv2.connectedComponentsWithStats(border, connectivity=8)
-                stretches = [stats[i] for i in range(1, count)
-                             if stats[i][cv2.CC_STAT_AREA] >= 3]
+                border = grown & (labels == b)
+                count, comp, stats, _ = cv2.connectedComponentsWithStats(
+                    border.astype(np.uint8), connectivity=8
+                )
+                stretches = [i for i in range(1, count) if stats[i][cv2.CC_STAT_AREA] >= 5]
                 if not stretches:
                     continue
-                widest = max(math.hypot(s[cv2.CC_STAT_WIDTH], s[cv2.CC_STAT_HEIGHT]) for s in stretches)
-                if len(stretches) > 1 or widest > max_door_cells:
+                open_floor = float(clearance[border].max()) > max_door_width / 2.0
+                if len(stretches) > 1 or open_floor:
                     labels[labels == b] = a
                     merged = True
                     break
@@ -295,32 +314,52 @@ def _regions(grid: OccupancyGrid, labels: np.ndarray) -> list[RoomRegion]:
         if contours:
             biggest = max(contours, key=cv2.contourArea)
             pts = biggest.reshape(-1, 2).astype(float)
-            polygon = np.stack([grid.origin.x + (pts[:, 0] + 0.5) * res, grid.origin.y + (pts[:, 1] + 0.5) * res],
-                               axis=1)
+            polygon = np.stack(
+                [grid.origin.x + (pts[:, 0] + 0.5) * res, grid.origin.y + (pts[:, 1] + 0.5) * res], axis=1
+            )
         del centroid
-        rooms.append(RoomRegion(id=f"room_{label}", polygon=polygon, area=cells * res * res,
-                                centroid=(float(cx), float(cy))))
+        rooms.append(
+            RoomRegion(
+                id=f"room_{label}", polygon=polygon, area=cells * res * res, centroid=(float(cx), float(cy))
+            )
+        )
     return rooms
 
 
-def rooms_from_polygons(entries: Iterable[dict[str, Any]], grid: OccupancyGrid | None = None) -> list[RoomRegion]:
+def rooms_from_polygons(
+    entries: Iterable[dict[str, Any]], grid: OccupancyGrid | None = None
+) -> list[RoomRegion]:
     """Rooms from ``{name, type, polygon}`` entries (the world-file ``rooms:`` format)."""
     rooms = []
     for i, entry in enumerate(entries, start=1):
         try:
             polygon = np.array(entry["polygon"], dtype=float).reshape(-1, 2)
         except (KeyError, TypeError, ValueError):
-            raise ConfigError(f"rooms[{i - 1}]: expected a polygon [[x, y], ...] (at least 3 points), "
-                              f"found {entry.get('polygon') if isinstance(entry, dict) else entry!r}") from None
+            raise ConfigError(
+                f"rooms[{i - 1}]: expected a polygon [[x, y], ...] (at least 3 points), "
+                f"found {entry.get('polygon') if isinstance(entry, dict) else entry!r}"
+            ) from None
         if len(polygon) < 3:
             raise ConfigError(f"rooms[{i - 1}]: a polygon needs at least 3 points, found {len(polygon)}")
-        area = 0.5 * abs(float(np.dot(polygon[:, 0], np.roll(polygon[:, 1], 1))
-                               - np.dot(polygon[:, 1], np.roll(polygon[:, 0], 1))))
+        area = 0.5 * abs(
+            float(
+                np.dot(polygon[:, 0], np.roll(polygon[:, 1], 1))
+                - np.dot(polygon[:, 1], np.roll(polygon[:, 0], 1))
+            )
+        )
         name = str(entry.get("name") or f"room_{i}")
         room_type = str(entry.get("type") or "unknown").strip().lower().replace(" ", "_")
-        rooms.append(RoomRegion(id=f"room_{i}", type=room_type, polygon=polygon, area=area,
-                                centroid=(float(polygon[:, 0].mean()), float(polygon[:, 1].mean())), name=name,
-                                type_confidence=1.0 if room_type != "unknown" else 0.0))
+        rooms.append(
+            RoomRegion(
+                id=f"room_{i}",
+                type=room_type,
+                polygon=polygon,
+                area=area,
+                centroid=(float(polygon[:, 0].mean()), float(polygon[:, 1].mean())),
+                name=name,
+                type_confidence=1.0 if room_type != "unknown" else 0.0,
+            )
+        )
     return rooms
 
 
@@ -338,12 +377,16 @@ def load_room_polygons(path: str | Path) -> list[RoomRegion]:
     try:
         data = json.loads(text) if target.suffix == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError) as exc:
-        raise ConfigError(f"{target}: not valid {'JSON' if target.suffix == '.json' else 'YAML'}: {exc}") from None
+        raise ConfigError(
+            f"{target}: not valid {'JSON' if target.suffix == '.json' else 'YAML'}: {exc}"
+        ) from None
     if isinstance(data, dict):
         data = data.get("rooms")
     if not isinstance(data, list) or not data:
-        raise ConfigError(f"{target}: expected a list of rooms ({{name, type, polygon}}) or a mapping with "
-                          "'rooms:', found none")
+        raise ConfigError(
+            f"{target}: expected a list of rooms ({{name, type, polygon}}) or a mapping with "
+            "'rooms:', found none"
+        )
     try:
         return rooms_from_polygons(data)
     except ConfigError as exc:
@@ -371,9 +414,12 @@ class RoomTracker:
         self.current: Segmentation | None = None
         self._next = 1
 
-    def update(self, grid: OccupancyGrid) -> Segmentation:
+    def update(self, grid: OccupancyGrid, inside: tuple[float, float] | None = None) -> Segmentation:
         """Segment ``grid``; rename its rooms after the previous segmentation's where they overlap."""
-        fresh = segment_rooms(grid, self.params)
+        return self.adopt(segment_rooms(grid, self.params, inside=inside))
+
+    def adopt(self, fresh: Segmentation) -> Segmentation:
+        """Take a new segmentation, its rooms renamed after the previous one's where they overlap."""
         old = self.current
         renamed: dict[int, RoomRegion] = {}
         if old is not None and old.rooms:
@@ -404,7 +450,7 @@ def _ids(seg: Segmentation | None) -> set[str]:
 
 
 def _overlaps(old: Segmentation, new: Segmentation) -> dict[int, dict[int, float]]:
-    """new label → {old label: share of the new region's cells that had it}, on the new grid."""
+    """New label → {old label: share of the new region's cells that had it}, on the new grid."""
     g_old, g_new = old.grid, new.grid
     h, w = new.labels.shape
     rows, cols = np.mgrid[0:h, 0:w]

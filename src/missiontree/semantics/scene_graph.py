@@ -113,14 +113,17 @@ class SceneGraph:
             try:
                 data = json.loads(source)
             except json.JSONDecodeError as exc:
-                raise SceneGraphError(f"scene graph: not JSON ({exc}); expected an object with "
-                                      "'nodes' and 'edges'") from None
+                raise SceneGraphError(
+                    f"scene graph: not JSON ({exc}); expected an object with 'nodes' and 'edges'"
+                ) from None
         else:
             data = source
         if not isinstance(data, Mapping) or not isinstance(data.get("nodes"), list):
             keys = sorted(data) if isinstance(data, Mapping) else "-"
-            raise SceneGraphError("scene graph: expected an object with a 'nodes' list and an 'edges' list, "
-                                  f"found {type(data).__name__} with keys {keys}")
+            raise SceneGraphError(
+                "scene graph: expected an object with a 'nodes' list and an 'edges' list, "
+                f"found {type(data).__name__} with keys {keys}"
+            )
         nodes = [_read_node(i, raw) for i, raw in enumerate(data["nodes"])]
         raw_edges = data.get("edges", [])
         if not isinstance(raw_edges, list):
@@ -129,8 +132,9 @@ class SceneGraph:
         seen: set[str] = set()
         for node in nodes:
             if _key(node["id"]) in seen:
-                raise SceneGraphError(f"scene graph: two nodes have the id {node['id']!r}; "
-                                      "ids must be unique")
+                raise SceneGraphError(
+                    f"scene graph: two nodes have the id {node['id']!r}; ids must be unique"
+                )
             seen.add(_key(node["id"]))
         graph.drop_dangling()
         return graph
@@ -151,8 +155,10 @@ class SceneGraph:
 
     def to_dict(self) -> dict[str, Any]:
         """The NAIS-shaped dict (only the NAIS keys, in their order)."""
-        return {"nodes": [{k: n[k] for k in _NODE_KEYS if k in n} for n in self.nodes],
-                "edges": [{k: e[k] for k in _EDGE_KEYS} for e in self.edges]}
+        return {
+            "nodes": [{k: n[k] for k in _NODE_KEYS if k in n} for n in self.nodes],
+            "edges": [{k: e[k] for k in _EDGE_KEYS} for e in self.edges],
+        }
 
     def to_json(self, indent: int | None = 2) -> str:
         """The graph as JSON text."""
@@ -197,9 +203,12 @@ class SceneGraph:
     def relations_of(self, node_id: Any, include_contains: bool = False) -> list[dict[str, Any]]:
         """Edges that have the node as source or target (``contains`` only when asked)."""
         wanted = _key(node_id)
-        return [e for e in self.edges
-                if wanted in (_key(e["source_id"]), _key(e["target_id"]))
-                and (include_contains or e["relation"] != CONTAINS)]
+        return [
+            e
+            for e in self.edges
+            if wanted in (_key(e["source_id"]), _key(e["target_id"]))
+            and (include_contains or e["relation"] != CONTAINS)
+        ]
 
     def room_of(self, node_id: Any) -> dict[str, Any] | None:
         """The room that (directly, or through a containing object) contains the node, or None."""
@@ -242,9 +251,13 @@ class SceneGraph:
                 source_id, target_id = rel.get("source_id"), rel.get("target_id")
                 relation = rel.get("relation")
             source, target = index.get(_key(source_id)), index.get(_key(target_id))
-            edge = {"source_id": source_id, "source_label": source["label"] if source else "",
-                    "target_id": target_id, "target_label": target["label"] if target else "",
-                    "relation": str(relation or "")}
+            edge = {
+                "source_id": source_id,
+                "source_label": source["label"] if source else "",
+                "target_id": target_id,
+                "target_label": target["label"] if target else "",
+                "relation": str(relation or ""),
+            }
             if source is None or target is None or not edge["relation"]:
                 self.dropped.append(edge)
                 continue
@@ -257,40 +270,76 @@ class SceneGraph:
     # -- building --------------------------------------------------------------------------------
 
     @classmethod
-    def build(cls, objects: Sequence[ObjectLike], rooms: Sequence[RoomLike],
-              relations: Iterable[RelationEdge] = (), building_label: str = BUILDING_LABEL) -> SceneGraph:
+    def build(
+        cls,
+        objects: Sequence[ObjectLike],
+        rooms: Sequence[RoomLike],
+        relations: Iterable[RelationEdge] = (),
+        building_label: str = BUILDING_LABEL,
+    ) -> SceneGraph:
         """Assemble building → rooms → objects with ``contains`` edges and the given relations.
 
         An object whose ``room`` names no room in ``rooms`` hangs directly under the building.
         """
         nodes: list[dict[str, Any]] = [
-            {"id": BUILDING_ID, "type": "building", "label": building_label, "description": ""}]
+            {"id": BUILDING_ID, "type": "building", "label": building_label, "description": ""}
+        ]
         edges: list[dict[str, Any]] = []
         room_labels: dict[str, str] = {}
         for room in rooms:
             nodes.append({"id": room.id, "type": "room", "label": room.label, "description": room.describe()})
-            edges.append({"source_id": BUILDING_ID, "source_label": building_label, "target_id": room.id,
-                          "target_label": room.label, "relation": CONTAINS})
+            edges.append(
+                {
+                    "source_id": BUILDING_ID,
+                    "source_label": building_label,
+                    "target_id": room.id,
+                    "target_label": room.label,
+                    "relation": CONTAINS,
+                }
+            )
             room_labels[room.id] = room.label
         for obj in objects:
             x, y, z = obj.position
-            nodes.append({"id": obj.id, "type": "object", "label": obj.label,
-                          "description": obj.description or f"a {obj.label}",
-                          "coordinates": [round(x, 3), round(y, 3), round(z, 3)]})
+            nodes.append(
+                {
+                    "id": obj.id,
+                    "type": "object",
+                    "label": obj.label,
+                    "description": obj.description or f"a {obj.label}",
+                    "coordinates": [round(x, 3), round(y, 3), round(z, 3)],
+                }
+            )
             if obj.room is not None and obj.room in room_labels:
-                edges.append({"source_id": obj.room, "source_label": room_labels[obj.room],
-                              "target_id": obj.id, "target_label": obj.label, "relation": CONTAINS})
+                edges.append(
+                    {
+                        "source_id": obj.room,
+                        "source_label": room_labels[obj.room],
+                        "target_id": obj.id,
+                        "target_label": obj.label,
+                        "relation": CONTAINS,
+                    }
+                )
             else:
-                edges.append({"source_id": BUILDING_ID, "source_label": building_label,
-                              "target_id": obj.id, "target_label": obj.label, "relation": CONTAINS})
+                edges.append(
+                    {
+                        "source_id": BUILDING_ID,
+                        "source_label": building_label,
+                        "target_id": obj.id,
+                        "target_label": obj.label,
+                        "relation": CONTAINS,
+                    }
+                )
         graph = cls(nodes=nodes, edges=edges)
         graph.add_relations(relations)
         return graph
 
     def object_coordinates(self) -> dict[str, tuple[float, float, float]]:
         """Object id (as text) → (x, y, z)."""
-        return {_key(n["id"]): tuple(n["coordinates"]) for n in self.objects()  # type: ignore[misc]
-                if n.get("coordinates") is not None}
+        return {
+            _key(n["id"]): tuple(n["coordinates"])
+            for n in self.objects()  # type: ignore[misc]
+            if n.get("coordinates") is not None
+        }
 
 
 def _read_node(index: int, raw: Any) -> dict[str, Any]:
@@ -299,13 +348,19 @@ def _read_node(index: int, raw: Any) -> dict[str, Any]:
         raise SceneGraphError(f"{where}: expected an object with id, type, label, found {type(raw).__name__}")
     missing = [k for k in ("id", "type", "label") if k not in raw]
     if missing:
-        raise SceneGraphError(f"{where}: missing {', '.join(missing)} (a node has id, type, label, "
-                              "description and, for objects, coordinates)")
+        raise SceneGraphError(
+            f"{where}: missing {', '.join(missing)} (a node has id, type, label, "
+            "description and, for objects, coordinates)"
+        )
     node_type = str(raw["type"]).strip().lower()
     if node_type not in NODE_TYPES:
         raise SceneGraphError(f"{where}: type {raw['type']!r} is not one of {', '.join(NODE_TYPES)}")
-    node: dict[str, Any] = {"id": raw["id"], "type": node_type, "label": str(raw["label"]),
-                            "description": str(raw.get("description") or "")}
+    node: dict[str, Any] = {
+        "id": raw["id"],
+        "type": node_type,
+        "label": str(raw["label"]),
+        "description": str(raw.get("description") or ""),
+    }
     if node_type == "object" and raw.get("coordinates") is not None:
         node["coordinates"] = _read_coordinates(where, raw["coordinates"])
     return node
@@ -333,8 +388,14 @@ def _read_edge(index: int, raw: Any) -> dict[str, Any]:
         raise SceneGraphError(f"{where}: expected an object, found {type(raw).__name__}")
     missing = [k for k in ("source_id", "target_id", "relation") if k not in raw]
     if missing:
-        raise SceneGraphError(f"{where}: missing {', '.join(missing)} (an edge has source_id, source_label, "
-                              "target_id, target_label and relation)")
-    return {"source_id": raw["source_id"], "source_label": str(raw.get("source_label") or ""),
-            "target_id": raw["target_id"], "target_label": str(raw.get("target_label") or ""),
-            "relation": str(raw["relation"])}
+        raise SceneGraphError(
+            f"{where}: missing {', '.join(missing)} (an edge has source_id, source_label, "
+            "target_id, target_label and relation)"
+        )
+    return {
+        "source_id": raw["source_id"],
+        "source_label": str(raw.get("source_label") or ""),
+        "target_id": raw["target_id"],
+        "target_label": str(raw.get("target_label") or ""),
+        "relation": str(raw["relation"]),
+    }

@@ -114,8 +114,11 @@ class Change:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict for the tick log."""
-        data: dict[str, Any] = {"id": self.id, "label": self.label,
-                                "position": [round(v, 3) for v in self.position]}
+        data: dict[str, Any] = {
+            "id": self.id,
+            "label": self.label,
+            "position": [round(v, 3) for v in self.position],
+        }
         if self.previous is not None:
             data["previous"] = [round(v, 3) for v in self.previous]
         if self.reason:
@@ -158,8 +161,11 @@ class SemanticMap:
 
     def near(self, x: float, y: float, radius: float, label: str | None = None) -> list[Instance]:
         """Instances within ``radius`` of (x, y) (of ``label`` when given), nearest first."""
-        found = [i for i in self.instances.values()
-                 if (label is None or i.label == label) and i.distance_to(x, y) <= radius]
+        found = [
+            i
+            for i in self.instances.values()
+            if (label is None or i.label == label) and i.distance_to(x, y) <= radius
+        ]
         return sorted(found, key=lambda i: i.distance_to(x, y))
 
     # -- changing --------------------------------------------------------------------------------
@@ -197,8 +203,15 @@ class SemanticMap:
         self._record(Change("added", instance_id, label, instance.position, stamp, reason=reason))
         return instance
 
-    def update(self, instance_id: str, stamp: float | None = None, *, announce: bool = False,
-               reason: str = "", **fields: Any) -> Instance:
+    def update(
+        self,
+        instance_id: str,
+        stamp: float | None = None,
+        *,
+        announce: bool = False,
+        reason: str = "",
+        **fields: Any,
+    ) -> Instance:
         """Set attributes of an instance; record an ``updated`` change when ``announce`` is true.
 
         Raises:
@@ -210,8 +223,16 @@ class SemanticMap:
                 raise ValueError(f"cannot update {name!r} of an instance")
             setattr(instance, name, _vec(value) if name in ("position", "size") else value)
         if announce:
-            self._record(Change("updated", instance_id, instance.label, instance.position,
-                                stamp if stamp is not None else instance.last_seen, reason=reason))
+            self._record(
+                Change(
+                    "updated",
+                    instance_id,
+                    instance.label,
+                    instance.position,
+                    stamp if stamp is not None else instance.last_seen,
+                    reason=reason,
+                )
+            )
         return instance
 
     def move(self, instance_id: str, position: Vec3, stamp: float, reason: str = "") -> Change:

@@ -1,0 +1,340 @@
+"""BuildSceneGraph: build the scene graph while the robot explores or patrols, and keep it true.
+
+Runs beside exploration or a patrol (a Parallel) and never finishes by itself. On every new camera
+frame it runs the detector and the :class:`~missiontree.semantics.builder.SceneBuilder` (NAIS
+filters, projection from depth at the frame's instant, fusion that removes what has gone and
+moves what has moved); it segments the occupancy map into rooms (or takes the user's polygons),
+types the rooms and describes the objects, and rebuilds the graph when it changes.
+
+Where it shows:
+
+- ``context.scene`` — the :class:`~missiontree.semantics.live.LiveScene` (semantic map, rooms,
+  latest graph) for later leaves of the same run (intent, search);
+- ``<run_dir>/scene_graph.json`` (the NAIS paper's JSON shape), rewritten on every change, and
+  ``scene_graph.png`` (the map with rooms, their names and the instances) when the leaf stops;
+- tick-log events: ``scene_graph_changed`` with ``added``, ``moved``, ``removed`` (and ``updated``)
+  for every change, and ``scene_graph`` carrying the whole graph on change and at least every
+  ``publish_every`` seconds, which the ROS 2 backend mirrors to ``/scene_graph`` and a MarkerArray.
+
+Room types and descriptions come from the vision-language model (``room_types: vlm``,
+``describe: vlm``: frames taken in the room with the NAIS room prompt; crops 20 % larger than the
+box with the description prompt, both as JSON schemas, never blocking the tick) or from the offline
+stand-ins (``objects``: the room type the objects seen in it point to; ``measure``: colour from the
+pixels, size from depth), which use only what the robot saw.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, Field
+
+from missiontree.engine.leaf import Leaf, Status
+from missiontree.engine.ports import Output
+from missiontree.perception.fusion import FusionParams
+from missiontree.perception.tracking import NaisFilterParams
+from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
+from missiontree.reasoning.offline_scene import measured_description, room_type_from_objects
+from missiontree.reasoning.prompts import object_description_prompt, room_prompt
+from missiontree.reasoning.scene_prompts import SemanticRelations, expanded_crop, semantic_relations_messages
+from missiontree.reasoning.schemas import ObjectDescription, RoomClassification
+from missiontree.semantics.builder import BuilderParams, SceneBuilder
+from missiontree.semantics.rooms import RoomRegion, SegmentationParams, load_room_polygons
+from missiontree.semantics.semantic_map import Change, Instance
+
+SCENE_GRAPH_FILE = "scene_graph.json"
+SCENE_PICTURE_FILE = "scene_graph.png"
+
+
+class BuildSceneGraph(Leaf):
+    """Build the live scene graph (rooms, objects, relations) from the camera; keep it true. Always RUNNING.
+
+    Puts the live scene on ``context.scene``, writes ``scene_graph.json`` in the run directory on
+    every change and emits ``scene_graph_changed`` events (added / moved / removed).
+    """
+
+    class Params(BaseModel):
+        rooms: str = Field(
+            "segment",
+            description="'segment' the occupancy map at doors and narrow passages, "
+            "or a YAML/JSON file of room polygons ({name, type, polygon}).",
+        )
+        room_types: Literal["objects", "vlm"] = Field(
+            "objects", description="Room types from the objects seen in each room (offline) or the VLM."
+        )
+        describe: Literal["measure", "vlm"] = Field(
+            "measure", description="Object descriptions measured (colour, size) or asked of the VLM."
+        )
+        min_confidence: float = Field(0.7, ge=0, le=1, description="Detector confidence filter (NAIS: 0.7).")
+        max_range: float = Field(4.5, gt=0, description="Farthest accepted detection, m (NAIS: 4.5).")
+        min_frames: int = Field(10, ge=1, description="Frames before a new object is accepted (NAIS: 10).")
+        dedup_radius: float = Field(
+            0.5, gt=0, description="Same-label sightings this close are one object, m (NAIS: 0.5)."
+        )
+        miss_frames: int = Field(
+            6, ge=1, description="Frames that should show an object and do not before it is removed."
+        )
+        depth_method: Literal["centre", "robust"] = Field(
+            "centre", description="Depth at the box centre (NAIS) or the box's nearest depth cluster."
+        )
+        segment_every: float = Field(
+            5.0, gt=0, description="Seconds between room segmentations of a changing map."
+        )
+        refresh: float = Field(5.0, gt=0, description="Seconds between rebuilds while positions are refined.")
+        publish_every: float = Field(
+            30.0, gt=0, description="Seconds between scene_graph events at most (also sent on every change)."
+        )
+        room_query_every: float = Field(
+            10.0, gt=0, description="room_types vlm: seconds between room questions."
+        )
+        semantic_relations: bool = Field(
+            False, description="Ask the language model (role llm) for semantic relations after each rebuild."
+        )
+        detector: str = Field("detector", description="Model role of the detector.")
+        vlm: str = Field("vlm", description="Model role of the vision-language model.")
+        llm: str = Field("llm", description="Model role of the language model.")
+        timeout: float = Field(20.0, gt=0, description="Seconds to wait for a model answer.")
+        objects: Annotated[str, Output("number of objects in the scene graph", type="int")] = "scene_objects"
+
+    params: Params
+
+    def __init__(self, name: str, params: BaseModel | None = None) -> None:
+        super().__init__(name, params)
+        self.builder: SceneBuilder | None = None
+        self.last_frame = -math.inf
+        self.last_publish = -math.inf
+        self.changes = 0
+        self.frames = 0
+        self.pending: list[tuple[str, str, ModelCall]] = []
+        self.room_votes: dict[str, dict[str, float]] = {}
+        self.described: set[str] = set()
+        self.asked: set[str] = set()
+        self.last_room_query = -math.inf
+        self.semantic_edges: list[dict[str, Any]] = []
+
+    # -- lifecycle -------------------------------------------------------------------------------
+
+    def on_setup(self) -> None:
+        """Check the models this configuration needs; read the room polygons file if one is given."""
+        if self.ctx is None:
+            return
+        self.ctx.model(self.params.detector)
+        if "vlm" in (self.params.room_types, self.params.describe):
+            self.ctx.model(self.params.vlm)
+        if self.params.semantic_relations:
+            self.ctx.model(self.params.llm)
+        self._polygons()
+
+    def initialise(self) -> None:
+        """Start a fresh builder and put its live scene on the context."""
+        p = self.params
+        filters = NaisFilterParams(
+            min_confidence=p.min_confidence,
+            max_range=p.max_range,
+            min_frames=p.min_frames,
+            candidate_radius=p.dedup_radius,
+            dedup_radius=p.dedup_radius,
+        )
+        params = BuilderParams(
+            fusion=FusionParams(filters=filters, associate_radius=p.dedup_radius, miss_frames=p.miss_frames),
+            depth_method=p.depth_method,
+            segmentation=SegmentationParams(),
+            segment_every=p.segment_every,
+            refresh=p.refresh,
+        )
+        self.builder = SceneBuilder(
+            params, rooms=self._polygons(), room_typer=self._type_room, describer=self._describe
+        )
+        self.context.scene = self.builder.scene
+        self.last_frame = -math.inf
+        self.last_publish = -math.inf
+        if p.room_types == "vlm" or p.describe == "vlm" or p.semantic_relations:
+            model_caller(self.context)
+
+    def update(self) -> Status:
+        """Take the newest frame, refresh rooms, rebuild and record what changed."""
+        assert self.builder is not None
+        robot = self.context.robot
+        now = robot.now()
+        self._settle(now)
+        frame = robot.rgbd()
+        if frame is not None and frame.stamp > self.last_frame:
+            self.last_frame = frame.stamp
+            self.frames += 1
+            detections = self.context.model(self.params.detector).detect(frame.color)
+            self.builder.add_frame(frame, detections)
+            self._ask_about(frame, now)
+        pose = robot.pose()
+        inside = (pose.pose.x, pose.pose.y) if pose is not None else None
+        self.builder.update_rooms(robot.occupancy(), inside, now)
+        changes = self.builder.step(now)
+        if changes is not None:
+            self._record(changes, now)
+        if now - self.last_publish >= self.params.publish_every:
+            self._publish(now)
+        scene = self.builder.scene
+        return self.running(
+            f"{len(scene.map)} objects in {len(scene.rooms)} rooms, {self.changes} changes, "
+            f"{self.frames} frames"
+        )
+
+    def terminate(self, new_status: Status) -> None:
+        """Cancel model calls; write the final graph and its picture."""
+        for _, _, call in self.pending:
+            call.cancel()
+        self.pending.clear()
+        if self.builder is None or self.ctx is None:
+            return
+        self.builder.rebuild(self.context.robot.now())
+        self._save()
+        run_dir = self.context.run_dir
+        grid = self.context.robot.occupancy()
+        if run_dir is not None and grid is not None:
+            from missiontree.semantics.draw import draw_scene
+
+            draw_scene(grid, self.builder.scene, Path(run_dir) / SCENE_PICTURE_FILE)
+
+    # -- outputs ---------------------------------------------------------------------------------
+
+    def _record(self, changes: list[Change], now: float) -> None:
+        assert self.builder is not None
+        scene = self.builder.scene
+        if self.semantic_edges:
+            scene.graph.add_relations(self.semantic_edges)
+        kinds: dict[str, list[dict[str, Any]]] = {"added": [], "moved": [], "removed": [], "updated": []}
+        for change in changes:
+            kinds[change.kind].append(change.to_dict())
+        structural = any(kinds[k] for k in ("added", "moved", "removed", "updated"))
+        self.write("objects", len(scene.graph.objects()))
+        self._save()
+        if structural:
+            self.changes += len(changes)
+            self.emit(
+                "scene_graph_changed",
+                version=scene.version,
+                objects=len(scene.map),
+                rooms=len(scene.graph.rooms()),
+                **kinds,
+            )
+            self._publish(now)
+            if self.params.semantic_relations:
+                self._ask_relations(now)
+
+    def _publish(self, now: float) -> None:
+        assert self.builder is not None
+        self.last_publish = now
+        self.emit("scene_graph", version=self.builder.scene.version, graph=self.builder.scene.graph.to_dict())
+
+    def _save(self) -> None:
+        run_dir = self.context.run_dir
+        if run_dir is None or self.builder is None:
+            return
+        self.builder.scene.graph.save(Path(run_dir) / SCENE_GRAPH_FILE)
+
+    # -- rooms and descriptions ------------------------------------------------------------------
+
+    def _polygons(self) -> list[RoomRegion] | None:
+        if self.params.rooms == "segment":
+            return None
+        return load_room_polygons(self.params.rooms)
+
+    def _type_room(self, room: RoomRegion, labels: list[str]) -> tuple[str, float, list[str]]:
+        if self.params.room_types == "vlm":
+            votes = self.room_votes.get(room.id, {})
+            if not votes:
+                return room.type, room.type_confidence, room.evidence
+            best = max(sorted(votes), key=lambda t: votes[t])
+            return best, votes[best] / sum(votes.values()), [f"{n:g} VLM votes" for n in [votes[best]]]
+        answer = room_type_from_objects(labels)
+        return answer.room_type, answer.confidence, answer.evidence
+
+    def _describe(self, inst: Instance) -> tuple[str, str, str] | None:
+        if self.params.describe == "vlm" and inst.id in self.described:
+            return None  # the VLM's description stands
+        measured = measured_description(inst.label, inst.colour, inst.size)
+        return measured.description, measured.shape, measured.size
+
+    def _ask_about(self, frame: Any, now: float) -> None:
+        """Submit the VLM questions this frame can answer (never waits for them)."""
+        assert self.builder is not None
+        caller = None
+        if self.params.describe == "vlm":
+            for inst_id, detection in self.builder.fusion.observed.items():
+                if inst_id in self.asked or len(self.pending) >= 2:
+                    continue
+                inst = self.builder.scene.map.get(inst_id)
+                if inst is None:
+                    continue
+                caller = caller or model_caller(self.context)
+                crop = expanded_crop(frame.color, detection.box)
+                call = caller.ask(
+                    self.params.vlm,
+                    [crop],
+                    object_description_prompt(inst.label),
+                    ObjectDescription,
+                    timeout=self.params.timeout,
+                    node=self.name,
+                )
+                self.asked.add(inst_id)
+                self.pending.append(("describe", inst_id, call))
+        if self.params.room_types == "vlm" and now - self.last_room_query >= self.params.room_query_every:
+            seg = self.builder.segmentation
+            pose = self.context.robot.pose_at(frame.stamp)
+            room = seg.room_at(pose.x, pose.y) if seg is not None and pose is not None else None
+            if room is not None:
+                caller = caller or model_caller(self.context)
+                call = caller.ask(
+                    self.params.vlm,
+                    [frame.color],
+                    room_prompt(),
+                    RoomClassification,
+                    timeout=self.params.timeout,
+                    node=self.name,
+                )
+                self.last_room_query = now
+                self.pending.append(("room", room.id, call))
+
+    def _ask_relations(self, now: float) -> None:
+        assert self.builder is not None
+        if any(kind == "relations" for kind, _, _ in self.pending):
+            return
+        caller = model_caller(self.context)
+        messages = semantic_relations_messages(self.builder.scene.graph.to_dict())
+        call = caller.chat(
+            self.params.llm, messages, SemanticRelations, timeout=self.params.timeout, node=self.name
+        )
+        self.pending.append(("relations", "", call))
+
+    def _settle(self, now: float) -> None:
+        """Use the answers that arrived; a failed question is logged and asked again later."""
+        assert self.builder is not None
+        for entry in list(self.pending):
+            kind, key, call = entry
+            status = call.status()
+            if not status.done:
+                continue
+            self.pending.remove(entry)
+            if status is not CallStatus.SUCCEEDED:
+                self.emit("scene_question_failed", question=kind, subject=key, error=call.error())
+                self.asked.discard(key)
+                continue
+            value = call.result().value
+            if kind == "describe" and isinstance(value, ObjectDescription) and key in self.builder.scene.map:
+                self.described.add(key)
+                self.builder.scene.map.update(
+                    key,
+                    description=value.description
+                    or f"a {value.colour} {value.label}, {value.size}, {value.shape}",
+                    shape=value.shape,
+                    relative_size=value.size,
+                )
+            elif kind == "room" and isinstance(value, RoomClassification) and value.room_type != "unknown":
+                votes = self.room_votes.setdefault(key, {})
+                votes[value.room_type] = votes.get(value.room_type, 0.0) + max(value.confidence, 0.1)
+            elif kind == "relations" and isinstance(value, SemanticRelations):
+                self.semantic_edges = [e.model_dump() for e in value.edges]
+                dropped = self.builder.scene.graph.add_relations(self.semantic_edges)
+                self.emit("scene_relations_added", edges=len(value.edges) - dropped, dropped=dropped)
+                self._save()

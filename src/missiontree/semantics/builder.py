@@ -1,0 +1,221 @@
+"""From frames to the live scene graph: projection, fusion, rooms, relations, graph.
+
+:class:`SceneBuilder` is the pipeline the ``BuildSceneGraph`` leaf runs and the scene-graph
+benchmark measures. Each camera frame with its detections goes through
+:func:`~missiontree.perception.projection.project` (depth at the box centre, the camera pose of
+the frame's instant) and :class:`~missiontree.perception.fusion.InstanceFusion` (the NAIS filters,
+association, removal and moves). Rooms come from segmenting the occupancy map every
+``segment_every`` seconds (or from fixed polygons); each instance is placed in the room holding it,
+rooms are typed by an injected ``room_typer`` (the vision-language model's votes, or the offline
+stand-in's reasoning over the objects seen there) and instances described by an injected
+``describer``. The graph is rebuilt at once when something was added, moved, removed or changed
+room, and every ``refresh`` seconds while positions are being refined.
+
+It reads nothing but what it is given: frames, detections, the occupancy map, the robot's
+position. This module imports no reasoning (the layers allow only the reverse): model-backed
+typing and descriptions are passed in as functions.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+from missiontree.perception.fusion import FusionParams, InstanceFusion
+from missiontree.perception.projection import DepthMethod, project
+from missiontree.semantics.live import LiveScene
+from missiontree.semantics.relations import RelationParams, bodies_of, compute_relations
+from missiontree.semantics.rooms import (
+    RoomRegion,
+    RoomTracker,
+    Segmentation,
+    SegmentationParams,
+    polygon_segmentation,
+)
+from missiontree.semantics.scene_graph import SceneGraph
+from missiontree.semantics.semantic_map import Change, Instance
+from missiontree.types import Detection, OccupancyGrid, RGBDFrame
+
+#: Room typer: a room and the labels of the objects seen in it → (type, confidence, evidence).
+RoomTyper = Callable[[RoomRegion, list[str]], tuple[str, float, list[str]]]
+#: Describer: an instance → (description, shape, relative size), or None to leave it.
+Describer = Callable[[Instance], "tuple[str, str, str] | None"]
+
+
+@dataclass(frozen=True)
+class BuilderParams:
+    """Parameters of the pipeline.
+
+    Attributes:
+        fusion: Filters, association and removal (:class:`~missiontree.perception.fusion.FusionParams`).
+        depth_method: ``centre`` (the NAIS paper's median at the box centre) or ``robust``.
+        window: Side of the centre square, pixels.
+        segmentation: Room segmentation parameters.
+        segment_every: Seconds between re-segmentations of a changing map.
+        relations: Relation thresholds.
+        refresh: Seconds between rebuilds while only positions are refined.
+    """
+
+    fusion: FusionParams = field(default_factory=FusionParams)
+    depth_method: DepthMethod = "centre"
+    window: int = 7
+    segmentation: SegmentationParams = field(default_factory=SegmentationParams)
+    segment_every: float = 5.0
+    relations: RelationParams = field(default_factory=RelationParams)
+    refresh: float = 5.0
+
+
+@dataclass
+class BuildTimes:
+    """Wall-clock milliseconds spent, per stage (for benchmarks and the run summary)."""
+
+    fusion: list[float] = field(default_factory=list)
+    rooms: list[float] = field(default_factory=list)
+    rebuild: list[float] = field(default_factory=list)
+
+
+class SceneBuilder:
+    """Frames and detections → the live scene (see module docstring)."""
+
+    def __init__(
+        self,
+        params: BuilderParams | None = None,
+        *,
+        rooms: Sequence[RoomRegion] | None = None,
+        room_typer: RoomTyper | None = None,
+        describer: Describer | None = None,
+    ) -> None:
+        self.params = params or BuilderParams()
+        self.scene = LiveScene()
+        self.fusion = InstanceFusion(self.scene.map, self.params.fusion)
+        self.fixed_rooms = list(rooms) if rooms is not None else None
+        self.tracker = RoomTracker(self.params.segmentation)
+        self.segmentation: Segmentation | None = None
+        self.room_typer = room_typer
+        self.describer = describer
+        self.times = BuildTimes()
+        self._grid_stamp = -math.inf
+        self._last_segment = -math.inf
+        self._last_rebuild = -math.inf
+        self._dirty = False
+        self._pending: list[Change] = []
+        if self.fixed_rooms is not None:
+            self.scene.rooms = list(self.fixed_rooms)
+
+    # -- inputs ----------------------------------------------------------------------------------
+
+    def add_frame(self, frame: RGBDFrame, detections: list[Detection]) -> None:
+        """Project a frame's detections and fuse them into the semantic map."""
+        t0 = time.perf_counter()
+        opts = {"method": self.params.depth_method, "window": self.params.window}
+        projections = [p for p in (project(frame, d, **opts) for d in detections) if p is not None]  # type: ignore[arg-type]
+        self.fusion.process(frame, projections, detections)
+        self._dirty = self._dirty or bool(projections)
+        self.times.fusion.append((time.perf_counter() - t0) * 1000.0)
+
+    def update_rooms(
+        self, grid: OccupancyGrid | None, inside: tuple[float, float] | None, now: float
+    ) -> bool:
+        """Segment the map again if it is new and ``segment_every`` has passed; return True if done."""
+        if grid is None:
+            return False
+        if self.fixed_rooms is not None:
+            if self.segmentation is None:
+                self.segmentation = polygon_segmentation(grid, self.fixed_rooms)
+                return True
+            return False
+        if grid.stamp == self._grid_stamp and self.segmentation is not None:
+            return False
+        if now - self._last_segment < self.params.segment_every and self.segmentation is not None:
+            return False
+        t0 = time.perf_counter()
+        self.tracker.params = self.params.segmentation
+        self.segmentation = _segment(self.tracker, grid, inside)
+        self.scene.rooms = list(self.segmentation.rooms)
+        self._grid_stamp = grid.stamp
+        self._last_segment = now
+        self._dirty = True
+        self.times.rooms.append((time.perf_counter() - t0) * 1000.0)
+        return True
+
+    # -- outputs ---------------------------------------------------------------------------------
+
+    def step(self, now: float) -> list[Change] | None:
+        """Place instances in rooms, type rooms, describe, rebuild if due; return the changes rebuilt for.
+
+        Returns:
+            The changes since the last rebuild when the graph was rebuilt now (possibly empty, for a
+            refresh), None when it was not.
+        """
+        self._pending.extend(self.scene.map.drain_changes())
+        self._assign_rooms(now)
+        self._pending.extend(self.scene.map.drain_changes())
+        structural = any(c.kind in ("added", "moved", "removed", "updated") for c in self._pending)
+        due = self._dirty and now - self._last_rebuild >= self.params.refresh
+        if not (structural or due):
+            return None
+        self._type_rooms()
+        self._describe()
+        self.rebuild(now)
+        changes, self._pending = self._pending, []
+        return changes
+
+    def rebuild(self, now: float) -> SceneGraph:
+        """Recompute the relations and the graph from the map and the rooms."""
+        t0 = time.perf_counter()
+        rooms = self.scene.rooms
+        centres = {r.id: r.centroid for r in rooms}
+        objects = list(self.scene.map)
+        relations = compute_relations(bodies_of(objects), centres, self.params.relations)
+        used = {o.room for o in objects}
+        shown = [r for r in rooms if r.id in used or r.type != "unknown"]
+        self.scene.graph = SceneGraph.build(objects, shown, relations)
+        self.scene.version += 1
+        self.scene.stamp = now
+        self._last_rebuild = now
+        self._dirty = False
+        self.times.rebuild.append((time.perf_counter() - t0) * 1000.0)
+        return self.scene.graph
+
+    # -- internals -------------------------------------------------------------------------------
+
+    def _assign_rooms(self, now: float) -> None:
+        if self.segmentation is None:
+            return
+        for inst in self.scene.map:
+            room = self.segmentation.room_at(*inst.xy)
+            room_id = room.id if room is not None else None
+            if room_id != inst.room:
+                announce = inst.room is not None  # a first room is part of being added
+                self.scene.map.update(
+                    inst.id, now, announce=announce, room=room_id, reason=f"now in {room_id or 'no room'}"
+                )
+
+    def _type_rooms(self) -> None:
+        if self.room_typer is None:
+            return
+        by_room: dict[str, list[str]] = {}
+        for inst in self.scene.map:
+            if inst.room is not None:
+                by_room.setdefault(inst.room, []).append(inst.label)
+        for room in self.scene.rooms:
+            if self.fixed_rooms is not None and room.type_confidence >= 1.0:
+                continue  # typed by the user's file
+            room_type, confidence, evidence = self.room_typer(room, by_room.get(room.id, []))
+            room.type, room.type_confidence, room.evidence = room_type, confidence, list(evidence)
+
+    def _describe(self) -> None:
+        if self.describer is None:
+            return
+        for inst in self.scene.map:
+            answer = self.describer(inst)
+            if answer is not None:
+                description, shape, size = answer
+                self.scene.map.update(inst.id, description=description, shape=shape, relative_size=size)
+
+
+def _segment(tracker: RoomTracker, grid: OccupancyGrid, inside: tuple[float, float] | None) -> Segmentation:
+    """Segment with the tracker (stable ids), passing the point inside the building."""
+    return tracker.update(grid, inside)

@@ -1,0 +1,123 @@
+"""The scene on a top-down picture: the map, rooms tinted with their names, instances with labels.
+
+:func:`draw_scene` writes ``scene_graph.png`` beside a run's ``scene_graph.json``: the occupancy map
+(free white, unknown grey, occupied black), each room tinted and named (type and id), each instance
+as a dot in its measured colour with its id, a ring for doubtful ones, and the ``next_to``/``on``
+relations as thin lines. +y points up. Pure OpenCV; it draws what the robot believes, not the truth.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from missiontree.semantics.live import LiveScene
+from missiontree.types import OccupancyGrid
+
+#: Display colours (BGR) of colour names.
+_BGR = {
+    "black": (30, 30, 30),
+    "grey": (150, 150, 150),
+    "white": (235, 235, 235),
+    "red": (40, 40, 220),
+    "orange": (0, 140, 255),
+    "brown": (40, 80, 140),
+    "yellow": (0, 220, 230),
+    "green": (50, 170, 50),
+    "cyan": (210, 200, 0),
+    "blue": (220, 90, 30),
+    "purple": (160, 50, 140),
+    "pink": (180, 120, 250),
+    "beige": (170, 210, 230),
+}
+_SCALE_MAX = 1600
+
+
+def _tint(name: str) -> tuple[int, int, int]:
+    h = zlib.crc32(name.encode())
+    return 170 + h % 70, 170 + (h >> 8) % 70, 170 + (h >> 16) % 70
+
+
+def draw_scene(
+    grid: OccupancyGrid, scene: LiveScene, path: str | Path, trajectory: Sequence[tuple[float, float]] = ()
+) -> Path:
+    """Draw the scene over ``grid`` into the PNG at ``path``; return the path."""
+    data = np.asarray(grid.data)
+    h, w = data.shape
+    scale = max(1, min(8, _SCALE_MAX // max(h, w, 1)))
+    img = np.full((h, w, 3), 255, np.uint8)
+    img[data < 0] = (200, 200, 200)
+    img[data >= 50] = (0, 0, 0)
+    img = cv2.resize(img[::-1], (w * scale, h * scale), interpolation=cv2.INTER_NEAREST)
+    res = grid.resolution
+
+    def px(x: float, y: float) -> tuple[int, int]:
+        col = (x - grid.origin.x) / res
+        row = h - (y - grid.origin.y) / res
+        return int(round(col * scale)), int(round(row * scale))
+
+    overlay = img.copy()
+    for room in scene.rooms:
+        if len(room.polygon) >= 3:
+            pts = np.array([px(float(x), float(y)) for x, y in room.polygon], np.int32)
+            cv2.fillPoly(overlay, [pts], _tint(room.id))
+    img = cv2.addWeighted(overlay, 0.45, img, 0.55, 0)
+    img[
+        np.all(
+            cv2.resize(
+                np.repeat((data >= 50)[::-1, :, None], 3, 2).astype(np.uint8),
+                (w * scale, h * scale),
+                interpolation=cv2.INTER_NEAREST,
+            )
+            > 0,
+            axis=2,
+        )
+    ] = (0, 0, 0)
+    for a, b in zip(trajectory[:-1], trajectory[1:], strict=False):
+        cv2.line(img, px(*a), px(*b), (200, 160, 120), 1, cv2.LINE_AA)
+    positions = {inst.id: inst.xy for inst in scene.map}
+    for edge in scene.graph.edges:
+        if (
+            edge["relation"] in ("on", "next_to")
+            and str(edge["source_id"]) in positions
+            and str(edge["target_id"]) in positions
+        ):
+            cv2.line(
+                img,
+                px(*positions[str(edge["source_id"])]),
+                px(*positions[str(edge["target_id"])]),
+                (120, 120, 120),
+                1,
+                cv2.LINE_AA,
+            )
+    radius = max(3, scale * 2)
+    for inst in scene.map:
+        centre = px(*inst.xy)
+        cv2.circle(img, centre, radius, _BGR.get(inst.colour, (0, 0, 255)), -1, cv2.LINE_AA)
+        cv2.circle(img, centre, radius, (0, 0, 0), 1, cv2.LINE_AA)
+        if inst.doubtful:
+            cv2.circle(img, centre, radius + 3, (0, 0, 255), 1, cv2.LINE_AA)
+        cv2.putText(
+            img,
+            inst.id,
+            (centre[0] + radius + 2, centre[1] + 4),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.35,
+            (20, 20, 20),
+            1,
+            cv2.LINE_AA,
+        )
+    for room in scene.rooms:
+        cx, cy = px(*room.centroid)
+        text = f"{room.label} ({room.id})"
+        cv2.putText(
+            img, text, (cx - 4 * len(text), cy), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (90, 20, 20), 1, cv2.LINE_AA
+        )
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(target), img)
+    return target
