@@ -540,9 +540,12 @@ def error_message(err: Any, model: Any = None) -> str:
     msg = str(err.get("msg", "invalid value"))
     for prefix in ("Value error, ", "Assertion failed, "):
         msg = msg.removeprefix(prefix)
-    if err["type"] in ("finite_number",):
+    found = err.get("input")
+    if err["type"] == "finite_number" or (isinstance(found, float) and found != found):  # NaN
         msg = "expected a finite number"
-    return f"{msg}, found {short_repr(err.get('input'))}"
+    elif msg.startswith("Input should be "):
+        msg = "expected " + msg.removeprefix("Input should be ")
+    return f"{msg}, found {short_repr(found)}"
 
 
 def short_repr(value: Any, limit: int = 60) -> str:

@@ -62,3 +62,17 @@ def test_models_config_problems_are_located(tmp_path: Path) -> None:
     spec = load_mission(_mission(tmp_path, f"run: {{models: {models}}}\nroot: Succeed\n"), PLUGINS.nodes)
     problems = check_references(spec, providers=PLUGINS.providers)
     assert any(p.file == str(models) and p.line == 2 and "gpt_magic" in p.message for p in problems)
+
+
+def test_provider_options_are_checked_at_their_lines(tmp_path: Path) -> None:
+    """A misspelt or out-of-range provider option is a problem at its line, before anything is built."""
+    from missiontree.session.preflight import check_models_file
+
+    models = tmp_path / "models.yaml"
+    models.write_text("roles:\n  detector:\n    provider: sim_detector\n    score_threshold: 1.5\n"
+                      "    thredas: 2\n  vlm:\n    provider: offline_vlm\n    detector: detector\n"
+                      "    min_score: .nan\n")
+    problems = [str(p) for p in check_models_file(models, PLUGINS.providers)]
+    assert any(p.startswith(f"{models}:4:22: roles.detector.score_threshold") for p in problems), problems
+    assert any(p.startswith(f"{models}:5:5:") and "'thredas'" in p and "threads" in p for p in problems)
+    assert any(p.startswith(f"{models}:9:16:") and "finite" in p for p in problems)

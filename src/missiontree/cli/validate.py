@@ -94,9 +94,9 @@ def check_file(
 
             load_robot_profile(path)
         elif kind == "models":
-            from missiontree.session.models import check_models_config, load_models_config
+            from missiontree.session.preflight import check_models_file
 
-            check_models_config(load_models_config(path), providers or {}, strict=providers is not None)
+            return kind, check_models_file(path, providers or {})
         else:
             from missiontree.behaviours.waypoints import read_waypoint_file
 

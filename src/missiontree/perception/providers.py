@@ -115,6 +115,11 @@ def create_sim_detector(options: Mapping[str, Any]) -> Any:
     return _yolo(parsed, parsed.model or SIM_DETECTOR_MODEL, "sim_detector")
 
 
+# the options each factory takes, so a models config is checked (file:line:col) before anything is built
+create_yolo_onnx.options_model = YoloOptions  # type: ignore[attr-defined]
+create_sim_detector.options_model = YoloOptions  # type: ignore[attr-defined]
+
+
 def create_oracle(options: Mapping[str, Any]) -> Any:
     """Build ``oracle``, bound now if ``options["robot"]`` holds the simulated robot."""
     from missiontree.perception.oracle import OracleDetector

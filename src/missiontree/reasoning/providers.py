@@ -92,6 +92,11 @@ def create_offline_llm(options: Mapping[str, Any], models: Mapping[str, Any], se
                                 min_score=parsed.min_score, name=parsed.name)
 
 
+# the options each factory takes, so a models config is checked (file:line:col) before anything is built
+create_offline_vlm.options_model = OfflineVisionOptions  # type: ignore[attr-defined]
+create_offline_llm.options_model = OfflineLanguageOptions  # type: ignore[attr-defined]
+
+
 def create_minilm(options: Mapping[str, Any]) -> Any:
     """Build the ``minilm`` embedder."""
     from missiontree.reasoning.embedder import MiniLMEmbedder

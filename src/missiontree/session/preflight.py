@@ -27,8 +27,8 @@ from typing import Any
 from missiontree.behaviours.waypoints import misfits, parse_waypoints, read_waypoint_file
 from missiontree.engine.ports import BlackboardRef
 from missiontree.engine.spec import MissionSpec, NodeSpec, RunSection, Source
-from missiontree.errors import ConfigError, Problem, ProblemsError
-from missiontree.yamlio import Located, load_yaml
+from missiontree.errors import ConfigError, MissionTreeError, Problem, ProblemsError
+from missiontree.yamlio import Located, load_yaml, validation_problems
 
 #: The backend used when neither a flag nor the mission names one.
 DEFAULT_BACKEND = "sim"
@@ -37,6 +37,8 @@ DEFAULT_WORLD = "office"
 #: Parameters that name a waypoint file (with ``route``), and inline routes, on any node type.
 WAYPOINTS_FILE_PARAM = "waypoints_file"
 WAYPOINTS_PARAM = "waypoints"
+#: Keys of a models config's role section that are the wiring's, not the provider's options.
+MODEL_ROLE_KEYS = frozenset({"provider", "latency", "timeout"})
 
 
 def resolve_mission_path(mission: Path, value: str) -> str:
@@ -168,16 +170,16 @@ def _check_robot(spec: MissionSpec, doc: Located | None, name: str, from_file: b
 
 def _check_models(spec: MissionSpec, doc: Located | None, flag: Any, providers: Mapping[str, Any] | None
                   ) -> list[Problem]:
-    from missiontree.session.models import check_models_config, load_models_config
+    from missiontree.session.models import load_models_config
 
     from_file = flag is None and spec.run.models is not None
     name = flag if flag is not None else spec.run.models
     if from_file and isinstance(name, str):
         name = resolve_mission_path(spec.path, name)
     try:
-        document = load_models_config(name)
         if providers is not None:
-            check_models_config(document, providers, strict=name is not None)
+            return check_models_file(name, providers)
+        load_models_config(name)
     except ProblemsError as exc:
         return list(exc.problems)
     except ConfigError as exc:
@@ -185,6 +187,50 @@ def _check_models(spec: MissionSpec, doc: Located | None, flag: Any, providers: 
             return [_at_run(spec, doc, "models", str(exc), "fix `models:` in the run section")]
         return [Problem("--models", 0, 0, "", str(exc))]
     return []
+
+
+def check_models_file(models: str | os.PathLike[str] | Mapping[str, Any] | None,
+                      providers: Mapping[str, Any]) -> list[Problem]:
+    """A models config checked whole, each role's provider options included; every problem, located.
+
+    Raises:
+        ConfigError: The config cannot be found (the message lists the shipped ones).
+    """
+    from missiontree.session.models import check_models_config, load_models_config
+
+    document = load_models_config(models)
+    try:
+        roles, _ = check_models_config(document, providers, strict=models is not None)
+    except ProblemsError as exc:
+        return list(exc.problems)
+    return _provider_options(document, roles, providers)
+
+
+def _provider_options(document: Located, roles: Mapping[str, Mapping[str, Any]],
+                      providers: Mapping[str, Any]) -> list[Problem]:
+    """Each role's options against the options model its provider's factory declares (``options_model``)."""
+    from pydantic import ValidationError
+
+    from missiontree.plugins.builtin import resolve_factory
+
+    problems: list[Problem] = []
+    for role, section in roles.items():
+        name = section.get("provider")
+        if name not in providers:
+            continue
+        try:
+            factory = resolve_factory("provider", str(name), providers[name])
+        except (ImportError, MissionTreeError):
+            continue  # reported when the models are built (the role is unusable, with the reason)
+        model = getattr(factory, "options_model", None)
+        if model is None:
+            continue
+        options = {k: v for k, v in section.items() if k not in MODEL_ROLE_KEYS}
+        try:
+            model.model_validate(options)
+        except ValidationError as exc:
+            problems += validation_problems(exc, document, model, prefix=("roles", role))
+    return problems
 
 
 def _check_waypoints(spec: MissionSpec, world: Any) -> list[Problem]:
