@@ -292,8 +292,27 @@ def test_detector_runs_on_a_worker_and_is_read_a_tick_later() -> None:
     events, models = watch_two([(TwoPeopleDetector.PERSON, 0.9)])
     threads = models["detector"].threads
     assert threads and threading.get_ident() not in threads
-    detector_calls = [e for e in events.of("model_call") if e["role"] == "detector"]
-    assert detector_calls and all(e["node"] == "watch" for e in detector_calls)
+    # Per-frame detections that succeed are not logged one by one (they would be most of the log).
+    assert [e for e in events.of("model_call") if e["role"] == "detector"] == []
+
+
+def test_a_failing_detector_is_logged_and_fails_the_leaf_after_the_limit() -> None:
+    """Detector calls that fail are model_call events with the error; N in a row fail the leaf."""
+    class Broken(SlabDetector):
+        def detect(self, image: np.ndarray) -> list[Detection]:
+            raise RuntimeError("onnxruntime: cannot allocate")
+
+    robot = FakeRobot()
+    leaf, events, models = setup_leaf(robot, latency=0.2, max_failed_calls=4)
+    models["detector"] = Broken()
+    for _ in range(10):
+        step(robot, leaf, 0.0)
+        if leaf.status != Status.RUNNING:
+            break
+    failed = [e for e in events.of("model_call") if e["role"] == "detector"]
+    assert len(failed) == 4 and all(e["outcome"] == "failed" and e["node"] == "watch" for e in failed)
+    assert leaf.status == Status.FAILURE and "4 detector calls in a row failed" in leaf.feedback_message
+    assert "cannot allocate" in leaf.feedback_message
 
 
 # -- faults that must not pass quietly --------------------------------------------------------------

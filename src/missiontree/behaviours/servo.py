@@ -64,7 +64,6 @@ class ServoToTarget(Leaf):
         ignore_for: float = Field(20.0, ge=0, description="Seconds a served person is not served again.")
         max_frame_age: float = Field(
             1.0, gt=0, description="A frame older than this (s, robot clock) is not looked at.")
-        detector_timeout: float = Field(2.0, gt=0, description="Seconds to wait for the detector's answer.")
         alarm: Annotated[str, Input("the alarm to serve", type="dict")] = "alarm"
         result: Annotated[str, Output("the servoed alarm record", type="dict")] = "servo_result"
 
@@ -131,9 +130,9 @@ class ServoToTarget(Leaf):
         fresh = frame is not None and now - frame.stamp <= self.params.max_frame_age
         if frame is not None and fresh and frame.stamp > self.last_frame and self.detecting is None:
             self.last_frame = frame.stamp
-            call = model_caller(self.context).submit(
-                "detector", detection_job(self.context.model("detector"), frame),
-                timeout=self.params.detector_timeout, node=self.name)
+            call = model_caller(self.context).submit(  # the role's timeout; only failures are logged
+                "detector", detection_job(self.context.model("detector"), frame), node=self.name,
+                log_success=False)
             self.detecting = (call, frame)
         if seen is not None:
             frame, person, bearing_then = seen

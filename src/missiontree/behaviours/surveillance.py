@@ -218,8 +218,8 @@ class Surveillance(Leaf):
     def _submit_detection(self, frame: RGBDFrame) -> None:
         """Send ``frame`` to the detector; the answer is read on a later tick (``_collect_detections``)."""
         detector = self.context.model("detector")
-        call = model_caller(self.context).submit(
-            "detector", detection_job(detector, frame), timeout=self.params.timeout, node=self.name)
+        call = model_caller(self.context).submit(  # the role's timeout; only failures are logged
+            "detector", detection_job(detector, frame), node=self.name, log_success=False)
         self.detecting = (call, frame)
 
     def _collect_detections(self) -> None:

@@ -23,7 +23,9 @@ A leaf never waits for a model on the tick thread (ARCHITECTURE §3). It submits
             self.call.cancel()
 
 Every call ends in one ``model_call`` tick-log event (role, provider, node, latency, outcome,
-error), emitted on the thread that polls it, so events keep their order in the log.
+error), emitted on the thread that polls it, so events keep their order in the log — except the
+successes of calls submitted with ``log_success=False`` (a detector on every camera frame: five
+events a second would be most of the log; its failures are still logged).
 
 **Time.** On a real robot a result is visible as soon as the worker finishes, and a timeout is
 measured on the robot clock. In the simulator (``simulated=True``) a role may carry a
@@ -237,6 +239,7 @@ class ModelCall:
         self._error = ""
         self._latency: float | None = None
         self.finished_at: float | None = None  # robot-clock time the worker finished (real robots)
+        self.log_success = True  # False: a success ends without a model_call event (see submit)
 
     # -- polling ---------------------------------------------------------------------------------
 
@@ -325,7 +328,8 @@ class ModelCall:
             rejected = getattr(source, "rejected", None)
             if rejected:
                 fields["rejected"] = list(rejected)
-        self._caller.events.emit("model_call", **fields)
+        if status is not CallStatus.SUCCEEDED or self.log_success:
+            self._caller.events.emit("model_call", **fields)
         return status
 
     # -- results ---------------------------------------------------------------------------------
@@ -432,6 +436,7 @@ class ModelCaller:
         timeout: float | None | str = "default",
         provider: str | None = None,
         node: str = "",
+        log_success: bool = True,
         **kwargs: Any,
     ) -> ModelCall:
         """Run ``fn(*args, **kwargs)`` on a worker and return its handle at once.
@@ -443,6 +448,7 @@ class ModelCaller:
             timeout: Seconds until TIMED_OUT; ``None`` for none; default: the role's or the caller's.
             provider: Name shown in events; default: the name of the provider configured for ``role``.
             node: The submitting node's name, for the event.
+            log_success: False: a success ends without a ``model_call`` event (per-frame calls).
             **kwargs: Its keyword arguments.
         """
         limit = self.timeouts.get(role, self.default_timeout) if timeout == "default" else timeout
@@ -465,6 +471,7 @@ class ModelCaller:
 
         future = self._executor().submit(run)
         call = ModelCall(self, role, name, node, future, submitted, limit, simulated_latency)
+        call.log_success = log_success
         holder.append(call)
         return call
 
