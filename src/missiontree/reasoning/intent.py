@@ -33,9 +33,8 @@ from typing import Any
 
 import cv2
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
+from missiontree.mapping.planner import Costmap, path_lengths
 from missiontree.perception.colour import ALIASES, COLOUR_NAMES, canonical_colour
 from missiontree.reasoning.phrases import colour_words, fold_label, size_words, split_relation
 from missiontree.types import Detection, OccupancyGrid, Pose2D, RGBDFrame, wrap_angle
@@ -312,15 +311,14 @@ class _Space:
     known: np.ndarray  # bool, cells that are not unknown
     clearance: np.ndarray  # float, metres from each cell to the nearest obstacle
     inside: np.ndarray  # float, metres from each obstacle cell to the nearest free cell
-    passable: np.ndarray  # bool, cells the robot's centre may occupy
-    graph: csr_matrix  # 8-connected passable cells, edge weights in metres
+    costmap: Costmap  # the planner's inflated costmap (path lengths as the navigation stack drives)
 
 
 _SPACE_CACHE: dict[tuple[Any, ...], _Space] = {}
 
 
 def prepare_space(grid: OccupancyGrid, robot_radius: float, allow_unknown: bool = False) -> _Space:
-    """Obstacles, clearance and the passable-cell graph of ``grid`` for a robot of ``robot_radius``.
+    """Obstacles, clearance and the planner's costmap of ``grid`` for a robot of ``robot_radius``.
 
     Cached by map content, so a static map is prepared once per process.
     """
@@ -343,61 +341,12 @@ def prepare_space(grid: OccupancyGrid, robot_radius: float, allow_unknown: bool 
     blocked = occupied | (~known if not allow_unknown else np.zeros_like(occupied))
     clearance = cv2.distanceTransform((~blocked).astype(np.uint8), cv2.DIST_L2, 5) * res
     inside = cv2.distanceTransform(occupied.astype(np.uint8), cv2.DIST_L2, 5) * res
-    passable = clearance >= robot_radius
-    space = _Space(grid, occupied, known, clearance, inside, passable, _cell_graph(passable, res))
+    costmap = Costmap(grid, robot_radius, allow_unknown=allow_unknown)
+    space = _Space(grid, occupied, known, clearance, inside, costmap)
     if len(_SPACE_CACHE) > 16:
         _SPACE_CACHE.clear()
     _SPACE_CACHE[key] = space
     return space
-
-
-def _cell_graph(passable: np.ndarray, res: float) -> csr_matrix:
-    rows, cols = passable.shape
-    index = np.arange(rows * cols).reshape(rows, cols)
-    sources: list[np.ndarray] = []
-    targets: list[np.ndarray] = []
-    weights: list[np.ndarray] = []
-    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        r0, r1 = max(0, -dr), rows - max(0, dr)
-        c0, c1 = max(0, -dc), cols - max(0, dc)
-        a = passable[r0:r1, c0:c1] & passable[r0 + dr : r1 + dr, c0 + dc : c1 + dc]
-        if dr and dc:  # no corner cutting: both side cells must be passable too
-            a &= passable[r0 + dr : r1 + dr, c0:c1] & passable[r0:r1, c0 + dc : c1 + dc]
-        src = index[r0:r1, c0:c1][a]
-        dst = index[r0 + dr : r1 + dr, c0 + dc : c1 + dc][a]
-        w = np.full(src.shape, res * (math.sqrt(2.0) if dr and dc else 1.0))
-        sources += [src, dst]
-        targets += [dst, src]
-        weights += [w, w]
-    n = rows * cols
-    edges = (np.concatenate(sources), np.concatenate(targets))
-    return csr_matrix((np.concatenate(weights), edges), shape=(n, n))
-
-
-def path_distances(space: _Space, start: Pose2D) -> np.ndarray | None:
-    """Path length (m) from ``start`` to every cell (inf where unreachable); None when the start is boxed in.
-
-    A start inside the inscribed zone (the robot pressed against something) starts from the nearest
-    passable cell within 0.3 m.
-    """
-    grid = space.grid
-    rows, cols = space.passable.shape
-    row, col = grid.world_to_cell(start.x, start.y)
-    if not (0 <= row < rows and 0 <= col < cols):
-        return None
-    offset = 0.0
-    if not space.passable[row, col]:
-        reach = int(math.ceil(0.3 / grid.resolution))
-        r0, r1 = max(0, row - reach), min(rows, row + reach + 1)
-        c0, c1 = max(0, col - reach), min(cols, col + reach + 1)
-        rr, cc = np.nonzero(space.passable[r0:r1, c0:c1])
-        if rr.size == 0:
-            return None
-        d = np.hypot(rr + r0 - row, cc + c0 - col)
-        k = int(np.argmin(d))
-        row, col, offset = int(rr[k] + r0), int(cc[k] + c0), float(d[k]) * grid.resolution
-    dist = dijkstra(space.graph, directed=False, indices=row * cols + col)
-    return dist.reshape(rows, cols) + offset
 
 
 def object_extent(space: _Space, xy: tuple[float, float]) -> float:
@@ -444,7 +393,8 @@ def standoff_cells(
     for row, col, cost in zip(rr[ok], cc[ok], penalty[ok], strict=True):
         if _in_sight(space, int(row), int(col), xy, extent):
             found.append((int(row), int(col), float(cost)))
-    return found
+    # every other cell each way is enough choice (10 cm at 5 cm cells) and a quarter of the goals to search
+    return [c for c in found if c[0] % 2 == 0 and c[1] % 2 == 0] or found
 
 
 def _in_sight(space: _Space, row: int, col: int, xy: tuple[float, float], extent: float) -> bool:
@@ -550,11 +500,16 @@ def plan_candidates(
 def cell_path_lengths(
     space: _Space, robot: Pose2D, cells: Sequence[tuple[int, int, float]]
 ) -> list[float] | None:
-    """Path length from the robot to each (row, col) cell (inf: unreachable); None when boxed in."""
-    distances = path_distances(space, robot)
-    if distances is None:
+    """Path length from the robot to each (row, col) cell (inf: unreachable); None when boxed in.
+
+    One Dijkstra search of :func:`missiontree.mapping.planner.path_lengths` on the planner's costmap,
+    so a length is that of the path the navigation stack would plan.
+    """
+    goals = [space.grid.cell_to_world(r, c) for r, c, _ in cells]
+    lengths = path_lengths(space.costmap, robot, goals)
+    if goals and all(v is None for v in lengths):
         return None
-    return [float(distances[r, c]) for r, c, _ in cells]
+    return [math.inf if v is None else float(v) for v in lengths]
 
 
 def _outside_known_map(space: _Space, xy: tuple[float, float]) -> str:
