@@ -72,3 +72,19 @@ def test_the_same_run_gives_the_same_bytes(patrol_run: Path, tmp_path: Path):
     a = write_mcap(open_run(patrol_run), tmp_path / "a.mcap").read_bytes()
     b = write_mcap(open_run(patrol_run), tmp_path / "b.mcap").read_bytes()
     assert a == b
+
+
+def test_the_map_goes_on_map_as_a_foxglove_grid(patrol_run: Path, tmp_path: Path):
+    """The run's map is one foxglove.Grid message of int8 occupancy, as wide as the map."""
+    import base64
+
+    from missiontree.runlog.html import run_map
+
+    grid_map = run_map(patrol_run)
+    path = write_mcap(open_run(patrol_run), tmp_path / "run.mcap", grid_map=grid_map)
+    _, messages = read_back(path)
+    (grid,) = messages["/map"]
+    cells = base64.b64decode(grid["data"])
+    assert grid["column_count"] == grid_map["width"] and len(cells) == grid_map["width"] * grid_map["height"]
+    assert set(cells) <= {0, 100, 255}  # free, occupied, unknown (-1 as a byte)
+    assert grid["cell_size"]["x"] == grid_map["resolution"]

@@ -49,8 +49,10 @@ def run(args: argparse.Namespace) -> int:
 
         path = write_btlog(replay, args.out)
     else:
+        from missiontree.runlog.html import run_map
         from missiontree.runlog.mcap_export import write_mcap
 
-        path = write_mcap(replay, args.out)
+        run_dir = args.run_path if args.run_path.is_dir() else args.run_path.parent
+        path = write_mcap(replay, args.out, grid_map=run_map(run_dir))
     print(f"wrote {path} ({path.stat().st_size} bytes, {len(replay)} ticks)")
     return 0

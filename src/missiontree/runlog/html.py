@@ -60,6 +60,11 @@ def _json(value: Any) -> str:
     return json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
 
 
+def run_map(run_dir: Path | None) -> dict[str, Any] | None:
+    """The map a run directory offers: a learned ``map.pgm`` + ``map.yaml``, else the recorded one."""
+    return _map_of(run_dir, read_runview(run_dir) if run_dir is not None else {})
+
+
 def _map_of(run_dir: Path | None, runview: dict[str, Any]) -> dict[str, Any] | None:
     """The map to draw: a learned ``map.pgm`` + ``map.yaml`` in the run directory, else the recorded one."""
     if run_dir is not None and (run_dir / "map.yaml").is_file():

@@ -156,6 +156,46 @@ SCHEMAS: dict[str, dict[str, Any]] = {
     },
 }
 
+SCHEMAS["foxglove.Grid"] = {
+    "title": "foxglove.Grid",
+    "description": "A 2D grid of data",
+    "type": "object",
+    "properties": {
+        "timestamp": {**_TIME, "description": "Timestamp of grid"},
+        "frame_id": {"type": "string", "description": "Frame of reference"},
+        "pose": SCHEMAS["foxglove.PoseInFrame"]["properties"]["pose"],
+        "column_count": {"type": "integer", "minimum": 0, "description": "Number of grid columns"},
+        "cell_size": {
+            "title": "foxglove.Vector2",
+            "type": "object",
+            "properties": {"x": {"type": "number"}, "y": {"type": "number"}},
+        },
+        "row_stride": {
+            "type": "integer",
+            "minimum": 0,
+            "description": "Number of bytes between rows in data",
+        },
+        "cell_stride": {
+            "type": "integer",
+            "minimum": 0,
+            "description": "Number of bytes between cells in data",
+        },
+        "fields": {
+            "type": "array",
+            "items": {
+                "title": "foxglove.PackedElementField",
+                "type": "object",
+                "properties": {
+                    "name": {"type": "string"},
+                    "offset": {"type": "integer", "minimum": 0},
+                    "type": {"type": "integer"},
+                },
+            },
+        },
+        "data": {"type": "string", "contentEncoding": "base64", "description": "Grid cell data, row-major"},
+    },
+}
+
 TOPICS: dict[str, str] = {
     "/missiontree/ticks": "missiontree.Tick",
     "/missiontree/transitions": "missiontree.NodeTransition",
@@ -163,7 +203,10 @@ TOPICS: dict[str, str] = {
     "/missiontree/events": "missiontree.Event",
     "/missiontree/log": "foxglove.Log",
     "/robot/pose": "foxglove.PoseInFrame",
+    "/map": "foxglove.Grid",
 }
+#: foxglove.NumericType of an int8 cell.
+_INT8 = 2
 
 _LEVEL = {"failure": 4, "alarm": 3}
 
@@ -306,8 +349,40 @@ def _transition(number: int, t: float, path: str, change: Any, halt: bool) -> di
     return message
 
 
-def write_mcap(replay: Replay, path: Path, mission: str = "") -> Path:
+def grid_message(grid_map: dict[str, Any], t: float) -> dict[str, Any]:
+    """The viewer's map (a PNG with resolution and origin) as a ``foxglove.Grid`` of occupancy (-1/0/100)."""
+    import base64
+
+    import cv2
+    import numpy as np
+
+    image = cv2.imdecode(np.frombuffer(base64.b64decode(grid_map["png"]), np.uint8), cv2.IMREAD_GRAYSCALE)
+    rows = np.flipud(image)  # the PNG's top row is the highest y; the grid's first row is the lowest
+    cells = np.full(rows.shape, -1, dtype=np.int8)
+    cells[rows >= 250] = 0
+    cells[rows <= 50] = 100
+    resolution = float(grid_map["resolution"])
+    return {
+        "timestamp": _stamp(t),
+        "frame_id": "map",
+        "pose": {
+            "position": {"x": float(grid_map["origin"][0]), "y": float(grid_map["origin"][1]), "z": 0.0},
+            "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+        },
+        "column_count": int(cells.shape[1]),
+        "cell_size": {"x": resolution, "y": resolution},
+        "row_stride": int(cells.shape[1]),
+        "cell_stride": 1,
+        "fields": [{"name": "occupancy", "offset": 0, "type": _INT8}],
+        "data": base64.b64encode(cells.tobytes()).decode("ascii"),
+    }
+
+
+def write_mcap(replay: Replay, path: Path, mission: str = "", grid_map: dict[str, Any] | None = None) -> Path:
     """Write the run as an MCAP file (deterministic: the same run gives the same bytes).
+
+    ``grid_map`` (the viewer's map, see :func:`missiontree.runlog.html.run_map`) goes on ``/map``
+    once, at the first tick's time.
 
     Raises:
         BackendUnavailableError: The ``mcap`` library is not installed (names the extra).
@@ -339,7 +414,11 @@ def write_mcap(replay: Replay, path: Path, mission: str = "") -> Path:
             for topic, schema in TOPICS.items()
         }
         sequence: dict[str, int] = {}
-        for log_time, _, topic, message in _messages(replay, mission):
+        messages = _messages(replay, mission)
+        if grid_map is not None:
+            first = replay.times[0] if replay.times else 0.0
+            messages.insert(0, (_ns(first), -1, "/map", grid_message(grid_map, first)))
+        for log_time, _, topic, message in messages:
             sequence[topic] = sequence.get(topic, 0) + 1
             writer.add_message(
                 channel_id=channels[topic],
