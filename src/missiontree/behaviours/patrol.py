@@ -55,7 +55,8 @@ class Patrol(Leaf):
         max_consecutive_skips: int = Field(
             0, ge=0, description="Fail after this many skips in a row (0: never; a whole lap skipped fails).")
         max_pose_age: float = Field(
-            2.0, gt=0, description="Fail when the robot's pose is older than this (s): the robot is lost.")
+            10.0, gt=0, description="Fail when the robot's pose is older than this (s): the robot is lost "
+            "(generous: a loaded machine delays pose messages by seconds).")
         waypoint: Annotated[str, Output("the waypoint being driven to", type="dict")] = "patrol_waypoint"
 
         @model_validator(mode="after")
