@@ -85,3 +85,13 @@ def test_models_config_with_a_missing_model_leaves_a_broken_role_with_the_reason
     models = build_models(config, providers)
     with pytest.raises(ModelError, match=r"'yolo_onnx'.*does not exist.*models config"):
         models["detector"].detect(np.zeros((8, 8, 3), np.uint8))
+
+
+def test_non_finite_detector_options_are_config_errors() -> None:
+    """NaN or infinite thresholds and rates are refused with the option named, not taken as numbers."""
+    from missiontree.perception.providers import create_oracle, create_sim_detector
+
+    with pytest.raises(ModelConfigError, match="score_threshold: Input should be a finite number"):
+        create_sim_detector({"score_threshold": float("nan")})
+    with pytest.raises(ModelConfigError, match="miss_rate: Input should be a finite number"):
+        create_oracle({"miss_rate": float("inf")})

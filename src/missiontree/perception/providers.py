@@ -43,9 +43,9 @@ SIM_DETECTOR_MODEL = Path(__file__).resolve().parents[1] / "data" / "models" / "
 
 
 class YoloOptions(BaseModel):
-    """Options of ``yolo_onnx`` and ``sim_detector``."""
+    """Options of ``yolo_onnx`` and ``sim_detector`` (numbers must be finite)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     model: str | None = None
     labels_file: str | None = None
@@ -60,9 +60,9 @@ class YoloOptions(BaseModel):
 
 
 class OracleOptions(BaseModel):
-    """Options of ``oracle``."""
+    """Options of ``oracle`` (numbers must be finite)."""
 
-    model_config = ConfigDict(extra="forbid", arbitrary_types_allowed=True)
+    model_config = ConfigDict(extra="forbid", arbitrary_types_allowed=True, allow_inf_nan=False)
 
     robot: Any = None
     miss_rate: float = Field(0.0, ge=0, le=1)
