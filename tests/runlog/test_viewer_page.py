@@ -63,3 +63,25 @@ def test_the_run_records_its_tree_map_and_trajectory(patrol_run: Path):
     assert runview["tree"]["name"] == "respond_or_patrol" and runview["tree"]["type"] == "Selector"
     assert runview["map"]["resolution"] > 0 and runview["map"]["png"]
     assert len(runview["poses"]) > 10 and all(len(p) == 3 for p in runview["poses"])
+
+
+def test_live_data_picks_up_the_tree_recorded_after_the_first_lines(tmp_path: Path):
+    """A server polled before runview.json exists restarts with the declared tree once it appears."""
+    from missiontree.runlog.follow import LiveRun
+
+    source = tmp_path / "source"
+    synthesize_run(source, 50)
+    live_dir = tmp_path / "live"
+    live_dir.mkdir()
+    lines = (source / "ticks.jsonl").read_text().splitlines(keepends=True)
+    (live_dir / "ticks.jsonl").write_text("".join(lines[:5]))
+    live = LiveRun(live_dir)
+    first = live.data()
+    assert all(node[2] == first["s"].index("?") for node in first["nodes"])  # types unknown so far
+    (live_dir / "runview.json").write_bytes((source / "runview.json").read_bytes())
+    with (live_dir / "ticks.jsonl").open("a") as stream:
+        stream.write("".join(lines[5:]))
+    live._built_at = -10.0  # past the rebuild throttle
+    data = live.data()
+    assert data["lines"] == len(lines) and len(data["times"]) == 50
+    assert data["s"][data["nodes"][0][2]] == "Selector"

@@ -45,27 +45,38 @@ class LiveRun:
         self._data: dict[str, Any] | None = None
         self._runview_stamp: tuple[int | None, ...] | None = None
         self._frames: dict[str, str | None] = {}
+        self._declared = False
+        self._tree_tried: int | None = None
         self._dirty = False
         self._built_at = 0.0
         self._build_s = 0.0
         self._encoded: tuple[dict[str, Any], bytes] | None = None
 
-    def _tree_known(self) -> bool:
-        return self.mission is not None or (self.run_dir / RUNVIEW_FILE).is_file()
+    def _tree_may_have_come(self) -> bool:
+        """Whether the tree may be readable now that was not before (a new runview.json, once each)."""
+        path = self.run_dir / RUNVIEW_FILE
+        stamp = path.stat().st_mtime_ns if path.is_file() else None
+        if stamp is None or stamp == self._tree_tried:
+            return False
+        self._tree_tried = stamp
+        return True
 
     def data(self) -> dict[str, Any]:
         """The viewer data as of now (rebuilt only when the log or the run view changed)."""
         with self._lock:
-            if self._replay is None or (
-                self._replay.lines == 0 and not self._replay.nodes and self._tree_known()
-            ):
-                self._replay = Replay(load_tree(self.mission, self.run_dir))
+            if self._replay is None or (not self._declared and self._tree_may_have_come()):
+                # (re)start once the run has recorded its tree: nodes then carry types and parameters
+                tree = load_tree(self.mission, self.run_dir)
+                self._declared = tree is not None
+                self._replay = Replay(tree)
                 self._offset = 0
             log = self.run_dir / "ticks.jsonl"
             changed = False
             if log.is_file():
                 if log.stat().st_size < self._offset:  # a new run replaced the log: start over
-                    self._replay = Replay(load_tree(self.mission, self.run_dir))
+                    tree = load_tree(self.mission, self.run_dir)
+                    self._declared = tree is not None
+                    self._replay = Replay(tree)
                     self._offset = 0
                 records, self._offset = read_records(log, self._offset)
                 for record in records:
