@@ -15,7 +15,26 @@ first; the ratios are taken per round, so machine load affects both sides alike.
 process's CPU time (``time.process_time``): on a shared machine wall time also counts the time spent
 waiting for a core, which has nothing to do with the engine. The last line is one JSON object.
 
-Run: ``.venv/bin/python benchmarks/engine_overhead.py [--rounds N] [--ticks N]``.
+Then, per tree *shape* and *size* (10 to 10,000 nodes), the runner against raw ``tick_once()``:
+
+- ``selector``: a memoryless Selector over failing leaves and one leaf that keeps RUNNING: every
+  tick walks every child (the whole tree is the active part);
+- ``memseq``: a memory Sequence of leaves that each run for one tick and succeed on the next: the
+  active part is two leaves, while the finished children pile up behind it (the tick log's cost
+  must not grow with them). Ticked at least once through (small ones several times over).
+
+Here the runner side is the runner's own tick (``Runner.tick()``: the tree's tick, the recorder, the
+tick-log line written to ``ticks.jsonl``) after its setup, so that a run's fixed costs (summary,
+files) do not swamp small trees; raw is ``tick_once()`` on a set-up tree. Each shape/size alternates
+the two (A B B A, rotating) for ``--shape-rounds`` rounds; the ratio per round gives min/median/max.
+``setup_ms`` is the runner's setup (guards, paths, stop watching, node setup);
+``overhead_us_per_tick`` the runner's time per tick beyond raw's (py_trees' own memory Sequence
+finds its current child with ``list.index``, so raw's tick there grows with the finished children;
+this figure shows the tick log's own cost staying flat).
+``ratio_memseq_10k_vs_selector_10k`` is the memory Sequence's median runner/raw ratio over the
+Selector's, both at 10,000 nodes (target <= 2).
+
+Run: ``.venv/bin/python benchmarks/engine_overhead.py [--rounds N] [--ticks N] [--shape-rounds N]``.
 """
 
 from __future__ import annotations
@@ -147,6 +166,124 @@ def time_pytrees_logging(root: py_trees.behaviour.Behaviour, ticks: int, out: io
     return time.process_time() - start
 
 
+class Blink(Leaf):
+    """RUNNING on its first tick, SUCCESS on the next."""
+
+    def initialise(self) -> None:
+        """Start."""
+        self.ticked = False
+
+    def update(self) -> Status:
+        """Run once, then succeed."""
+        if self.ticked:
+            return Status.SUCCESS
+        self.ticked = True
+        return Status.RUNNING
+
+
+def selector_tree(nodes: int) -> tuple[py_trees.behaviour.Behaviour, int | None]:
+    """A memoryless Selector: ``nodes - 2`` failing leaves, then one leaf RUNNING forever."""
+    children: list[py_trees.behaviour.Behaviour] = [py_trees.behaviours.Failure(f"check{i}")
+                                                    for i in range(nodes - 2)]
+    children.append(Periodic("work", Periodic.Params(period=10**9)))
+    return py_trees.composites.Selector("root", memory=False, children=children), None
+
+
+def memseq_tree(nodes: int) -> tuple[py_trees.behaviour.Behaviour, int | None]:
+    """A memory Sequence of ``nodes - 1`` leaves RUNNING for one tick each; ticks until it succeeds.
+
+    A leaf's success hands over to the next leaf in the same tick, so it takes ``nodes`` ticks.
+    """
+    children = [Blink(f"step{i}") for i in range(nodes - 1)]
+    return py_trees.composites.Sequence("root", memory=True, children=children), nodes
+
+
+SHAPES: dict[str, Callable[[int], tuple[py_trees.behaviour.Behaviour, int | None]]] = {
+    "selector": selector_tree, "memseq": memseq_tree,
+}
+SIZES = (10, 100, 1000, 10000)
+#: Node-ticks per measured run of the Selector (its every tick walks the whole tree).
+SELECTOR_WORK = 200_000
+
+
+#: Fewest ticks of a memory Sequence measurement (small ones go through several times).
+MEMSEQ_MIN_TICKS = 2000
+
+
+def shape_ticks(shape: str, nodes: int, finish: int | None) -> int:
+    """Ticks per measured run: once through the memory Sequence at least, fixed work otherwise."""
+    return max(finish, MEMSEQ_MIN_TICKS) if finish is not None else max(20, SELECTOR_WORK // nodes)
+
+
+def time_shape_runner(shape: str, nodes: int, ticks: int, run_dir: Path) -> tuple[float, float]:
+    """(seconds ticking, seconds in setup) for the runner on a fresh tree of ``shape``."""
+    clean_state()
+    root, _ = SHAPES[shape](nodes)
+    runner = Runner(root, MissionContext(robot=ClockRobot()), tick_hz=TICK_HZ, max_duration=ticks / TICK_HZ,
+                    run_dir=run_dir, mission="bench", handle_signals=False)
+    start = time.process_time()
+    runner.setup()
+    setup = time.process_time() - start
+    robot = runner.robot
+    start = time.process_time()
+    for index in range(ticks):
+        runner.tick()
+        robot.spin_until((index + 1) / TICK_HZ)
+    elapsed = time.process_time() - start
+    runner.max_duration = 1e-9  # run() now ends at once: it halts, writes the summary, closes the log
+    result = runner.run()
+    assert runner.recorder is not None and runner.recorder.ticks >= ticks, (shape, nodes, result.ticks)
+    return elapsed, setup
+
+
+def time_shape_raw(shape: str, nodes: int, ticks: int) -> float:
+    """Seconds for ``ticks`` bare ``tick_once()`` calls on a fresh, set-up tree of ``shape``."""
+    clean_state()
+    root, _ = SHAPES[shape](nodes)
+    root.setup_with_descendants()
+    start = time.process_time()
+    for _ in range(ticks):
+        root.tick_once()
+    root.stop(Status.INVALID)
+    return time.process_time() - start
+
+
+def measure_shapes(rounds: int, sizes: tuple[int, ...], tmp: Path) -> dict[str, dict[str, Any]]:
+    """Runner/raw ratio (min/median/max over rounds) and setup time per shape and size."""
+    found: dict[str, dict[str, Any]] = {}
+    for shape in SHAPES:
+        for nodes in sizes:
+            _, finish = SHAPES[shape](nodes)
+            ticks = shape_ticks(shape, nodes, finish)
+            ratios: list[float] = []
+            overheads: list[float] = []
+            setups: list[float] = []
+            run_dir = tmp / f"{shape}_{nodes}"
+            for index in range(rounds + 1):  # the first round warms up and is not counted
+                gc.collect()
+                runner_t = raw_t = 0.0
+                order = ["runner", "raw"] if index % 2 == 0 else ["raw", "runner"]
+                for name in order + order[::-1]:  # A B B A
+                    if name == "runner":
+                        elapsed, setup = time_shape_runner(shape, nodes, ticks, run_dir)
+                        runner_t += elapsed
+                        setups.append(setup)
+                    else:
+                        raw_t += time_shape_raw(shape, nodes, ticks)
+                if index:
+                    ratios.append(runner_t / raw_t)
+                    overheads.append((runner_t - raw_t) / (2 * ticks) * 1e6)
+            s = spread(ratios)
+            key = f"{shape}_{nodes}"
+            found[key] = {"ratio_median": s["median"], "ratio_min": s["min"], "ratio_max": s["max"],
+                          "ticks": ticks, "setup_ms": round(1000 * statistics.median(setups), 2),
+                          "overhead_us_per_tick": round(statistics.median(overheads), 2)}
+            print(f"  {key:15s} runner/raw  min {s['min']:6.3f}  median {s['median']:6.3f}  "
+                  f"max {s['max']:6.3f}   runner - raw {found[key]['overhead_us_per_tick']:7.1f} µs/tick   "
+                  f"({ticks} ticks, setup {found[key]['setup_ms']:.1f} ms)", flush=True)
+    return found
+
+
 def spread(values: list[float]) -> dict[str, float]:
     """Min / median / max, rounded."""
     return {"min": round(min(values), 3), "median": round(statistics.median(values), 3),
@@ -158,6 +295,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=11)
     parser.add_argument("--ticks", type=int, default=600, help="ticks per variant per round (60 s at 10 Hz)")
+    parser.add_argument("--shape-rounds", type=int, default=3, help="rounds per shape and size")
+    parser.add_argument("--sizes", type=int, nargs="+", default=list(SIZES), help="tree sizes (nodes)")
     args = parser.parse_args()
 
     clean_state()
@@ -210,6 +349,15 @@ def main() -> None:
         "ratio_vs_pytrees_logging_max": p["max"],
         "us_per_tick_median": {name: s["median"] for name, s in per_tick.items()},
     }
+    print(f"shapes: runner / raw tick_once per shape and size ({args.shape_rounds} rounds, A B B A):")
+    with tempfile.TemporaryDirectory() as tmp:
+        shapes = measure_shapes(args.shape_rounds, tuple(args.sizes), Path(tmp))
+    result["shapes"] = shapes
+    result.update({f"ratio_{key}_median": entry["ratio_median"] for key, entry in shapes.items()})
+    if "memseq_10000" in shapes and "selector_10000" in shapes:
+        ratio = shapes["memseq_10000"]["ratio_median"] / shapes["selector_10000"]["ratio_median"]
+        result["ratio_memseq_10k_vs_selector_10k"] = round(ratio, 3)
+        print(f"memory Sequence / Selector runner-raw ratio at 10,000 nodes: {ratio:.3f} (target <= 2)")
     print(json.dumps(result, sort_keys=True))
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import dataclasses
 import enum
 import io
+import json
+import time
 from pathlib import Path
 from typing import Annotated
 
@@ -238,3 +240,59 @@ def test_events_after_the_run_are_dropped() -> None:
     log.unbind()
     log.emit("late", x=1)
     assert stream.getvalue() == ""
+
+
+class _Blink(Leaf):
+    """RUNNING on its first tick, SUCCESS on the next."""
+
+    def initialise(self) -> None:
+        self.ticked = False
+
+    def update(self) -> Status:
+        if self.ticked:
+            return Status.SUCCESS
+        self.ticked = True
+        return Status.RUNNING
+
+
+def test_the_recorders_work_does_not_grow_with_finished_children() -> None:
+    """In a memory Sequence of 3,000 steps, the last ticks look at as few nodes as the first ones."""
+    from missiontree.engine.runner import Runner
+
+    root = py_trees.composites.Sequence("plan", memory=True, children=[_Blink(f"s{i}") for i in range(3000)])
+    runner = Runner(root, MissionContext(robot=ClockRobot()), log_stream=io.StringIO(), handle_signals=False)
+    runner.setup()
+    assert runner.recorder is not None
+    examined = []
+    for _ in range(2990):
+        runner.tick()
+        examined.append(runner.recorder.examined)
+    assert max(examined[-100:]) <= max(examined[1:100]) <= 6  # the Sequence and two steps, not 2,990
+
+
+def test_halted_nodes_are_still_found_when_only_stops_are_watched() -> None:
+    """A running branch halted by a higher-priority one is found through its stop(), untouched."""
+    from missiontree.engine.runner import Runner
+
+    guard = ScriptedLeaf("guard", script="FFS", restart=False)
+    work = py_trees.composites.Sequence("work", memory=True, children=[ScriptedLeaf("step", script="R")])
+    root = py_trees.composites.Selector("root", memory=False, children=[guard, work])
+    stream = io.StringIO()
+    Runner(root, MissionContext(robot=ClockRobot()), log_stream=stream, handle_signals=False,
+           max_duration=0.5).run()
+    ticks = [json.loads(line) for line in stream.getvalue().splitlines() if '"event":"tick"' in line]
+    third = {c["node"]: (c["was"], c["status"]) for c in ticks[2]["changed"]}
+    assert third["root/work"] == ("RUNNING", "INVALID") and third["root/work/step"] == ("RUNNING", "INVALID")
+    assert "stop" not in vars(work) and "stop" not in vars(guard)  # the watch is removed after the run
+
+
+def test_setup_is_linear_in_a_composites_child_count() -> None:
+    """Paths of 20,000 children with repeated names are found without comparing every pair."""
+    names = [f"step{i % 100}" for i in range(20000)]
+    root = py_trees.composites.Sequence("plan", memory=True,
+                                        children=[py_trees.behaviours.Success(n) for n in names])
+    start = time.process_time()
+    paths = node_paths(root)
+    elapsed = time.process_time() - start
+    assert paths[root.children[150]] == "plan/step50[150]"
+    assert elapsed < 1.0  # comparing every pair took seconds

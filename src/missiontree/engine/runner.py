@@ -249,6 +249,7 @@ class Runner:
                 raise ConfigError(f"node {paths.get(node, node.name)} failed to set up: "
                                   f"{type(error).__name__}: {error}") from error
         self.recorder = TickRecorder(self.root, self.log)
+        self.recorder.watch_stops()
         for key, value in self.blackboard.items():
             py_trees.blackboard.Blackboard.set(key if key.startswith("/") else f"/{key}", value)
         self._set_up = True
@@ -381,6 +382,8 @@ class Runner:
             summary.update(self.recorder.summary())
         summary.update(self._final_pose())
         summary = plain(summary)
+        if self.recorder is not None:
+            self.recorder.close()
         if self.log is not None:
             self.log.line("mission_finished", status=status.name, stopped_by=stopped_by,
                           ticks=summary["ticks"], duration=duration)

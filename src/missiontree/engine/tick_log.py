@@ -37,6 +37,7 @@ import math
 import re
 import threading
 import time
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO
@@ -267,14 +268,17 @@ class _RecordingStorage(dict[str, Any]):
 
 
 def node_paths(root: Behaviour) -> dict[Behaviour, str]:
-    """Readable, unique paths of every node: ``Root/Patrol/GoTo``, ``[i]`` added to repeated names."""
+    """Readable, unique paths of every node: ``Root/Patrol/GoTo``, ``[i]`` added to repeated names.
+
+    Linear in the number of nodes (a composite's repeated names are counted once, not per child).
+    """
     paths: dict[Behaviour, str] = {root: root.name}
     stack = [root]
     while stack:
         node = stack.pop()
-        names = [child.name for child in node.children]
+        names = Counter(child.name for child in node.children)
         for index, child in enumerate(node.children):
-            suffix = f"[{index}]" if names.count(child.name) > 1 else ""
+            suffix = f"[{index}]" if names[child.name] > 1 else ""
             paths[child] = f"{paths[node]}/{child.name}{suffix}"
             stack.append(child)
     return paths
@@ -339,6 +343,17 @@ def feedback_of(node: Behaviour) -> str:
     return message
 
 
+def _watched_stop(node: Behaviour, original: Callable[..., None],
+                  stopped: list[Behaviour]) -> Callable[..., None]:
+    def stop(new_status: Status = Status.INVALID) -> None:
+        try:
+            original(new_status)
+        finally:
+            stopped.append(node)
+
+    return stop
+
+
 def failure_reason(node: Behaviour) -> str:
     """Why ``node`` failed: a Leaf's ``failure_reason``, else its feedback message."""
     return getattr(node, "failure_reason", "") or feedback_of(node)
@@ -390,12 +405,42 @@ class TickRecorder:
         #: Status of every node that is not INVALID, as of the end of the last tick.
         self._active: dict[Behaviour, Status] = {}
         self._bb_logged: dict[str, Any] = {}
+        #: Nodes whose stop() ran since the last record (filled by the wrappers of watch_stops).
+        self._stopped: list[Behaviour] = []
+        self._watching: dict[Behaviour, Any] = {}
+        #: Nodes looked at by the last record (those ticked plus those stopped): the recorder's work.
+        self.examined = 0
         storage = py_trees.blackboard.Blackboard.storage
         if not isinstance(storage, _RecordingStorage):
             storage = _RecordingStorage(storage)
             py_trees.blackboard.Blackboard.storage = storage
         self._storage = storage
         storage.written.clear()
+
+    def watch_stops(self) -> None:
+        """Note every node's ``stop()`` so that halted nodes are found without scanning the tree.
+
+        Wraps ``stop`` on each node instance (once; :meth:`close` puts the previous one back). Nodes
+        added to the tree later are found when ticked; the halt at the end of a run checks all.
+        """
+        stopped = self._stopped
+        missing = object()
+        for node in self.paths:
+            if node in self._watching:
+                continue
+            self._watching[node] = node.__dict__.get("stop", missing)
+            node.stop = _watched_stop(node, node.stop, stopped)  # type: ignore[method-assign]
+        self._missing = missing
+
+    def close(self) -> None:
+        """Remove the stop() wrappers (the tree can be ticked again without this recorder)."""
+        for node, previous in self._watching.items():
+            if previous is self._missing:
+                node.__dict__.pop("stop", None)
+            else:
+                node.stop = previous  # type: ignore[method-assign]
+        self._watching.clear()
+        self._stopped.clear()
 
     def path(self, node: Behaviour) -> str:
         """The node's path (computed and kept for nodes added after the start)."""
@@ -424,13 +469,23 @@ class TickRecorder:
                 else:
                     active[node] = status
                     self._count(node, status, failed)
-        # A node not ticked can only have changed by being halted, and a composite halts a child
-        # only as some ticked node changes (it finishes, or another child takes over): a tick with
-        # no change among the ticked nodes skips the search. Set operations find the halted nodes
-        # cheaply; sorting by path keeps the line independent of memory addresses.
-        if changed or event != "tick":
-            halted = [n for n in active.keys() - set(visited) if n.status is not active[n]]
-            for node in sorted(halted, key=self.path):
+        # A node not ticked can only have changed by being stopped (halted): every node's stop() is
+        # watched (:meth:`watch_stops`), so the nodes to look at are the ones stopped this tick —
+        # never the whole set of active nodes, which holds every finished child of a memory
+        # Sequence. A halt line (or a tree not watched) looks at every active node once.
+        stopped = self._stopped
+        if event != "tick" or not self._watching:
+            candidates: Any = list(active)
+            stopped.clear()
+        elif stopped:
+            candidates = set(stopped)
+            stopped.clear()
+        else:
+            candidates = ()
+        self.examined = len(visited) + len(candidates)
+        if candidates:
+            halted = [n for n in candidates if n in active and n.status is not active[n]]
+            for node in sorted(halted, key=self.path):  # by path: independent of memory addresses
                 status = node.status
                 changed.append(self._change(node, status, active[node]))
                 if status is invalid:
