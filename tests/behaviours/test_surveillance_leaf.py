@@ -406,3 +406,39 @@ def test_a_vlm_box_outside_the_image_gives_no_alarm_at_an_impossible_bearing() -
     assert events.of("alarm") == []
     failed = events.of("surveillance_check_failed")
     assert failed and "outside the 320x240 image" in failed[0]["error"]
+
+
+class PillarThenBoth(TwoPeopleDetector):
+    """The person is seen first (and confirmed); from the fourth frame on the pillar shows too."""
+
+    def detect(self, image: np.ndarray) -> list[Detection]:
+        self.threads.append(threading.get_ident())
+        person = Detection("person", 0.93, self.PERSON)
+        return [person] if len(self.threads) < 4 else [Detection("person", 0.54, self.PILLAR), person]
+
+
+def test_a_vlm_box_over_a_person_already_alarmed_raises_nothing_for_the_newcomer() -> None:
+    """Only the pillar is new; the VLM boxes the known person: no alarm for the pillar, none repeated."""
+    answer = json.dumps({"verdict": "ALARM", "description": "a person",
+                         "people": [{"box": list(TwoPeopleDetector.PERSON), "score": 0.9}]})
+    robot, events = FakeRobot(), Events()
+    models: dict = {"detector": PillarThenBoth(), "vlm": ScriptedVLM(lambda image: answer)}
+    models[CALLER_KEY] = ModelCaller(robot.now, events, simulated=True, models=models,
+                                     latency={"vlm": LatencyModel(0.2, 0.2)})
+    leaf = Surveillance("watch", Surveillance.Params(lidar_check=False))
+    leaf.setup(context=MissionContext(robot=robot, models=models, events=events))
+    for _ in range(12):
+        robot.advance(0.2)
+        robot.frame = two_people_frame(robot.time, robot.current)
+        leaf.tick_once()
+    assert models["vlm"].asked == 2  # the person, then the pillar
+    alarms = events.of("alarm")
+    assert len(alarms) == 1 and alarms[0]["box"] == list(TwoPeopleDetector.PERSON)
+
+
+def test_a_person_the_detector_missed_gets_the_vlms_box() -> None:
+    """The VLM boxes someone where the detector saw nobody: the alarm takes the VLM's box."""
+    elsewhere = (120.0, 30.0, 150.0, 200.0)
+    events, _ = watch_two([(elsewhere, 0.8)])
+    alarms = events.of("alarm")
+    assert alarms and alarms[0]["box"] == list(elsewhere)

@@ -24,8 +24,11 @@ clipped to the image.
 (a white pillar at the frame's edge). When the VLM answers ALARM with people's boxes, only the
 detector's people whose boxes overlap one of them are confirmed; the others are marked safe. The
 alarms go out best-confirmed first (the VLM's score, then the detector's), so an alarm cooldown
-never lets a doubtful box take the place of the person the model saw. When the VLM gives no
-boxes, every person sent is confirmed, highest detector score first.
+never lets a doubtful box take the place of the person the model saw. A VLM box over none of
+the people sent is about someone else: over a person seen before it raises nothing (they had
+their alarm), over nobody the detector saw it is a person the detector missed, and the alarm
+takes the VLM's box. When the VLM gives no boxes, every person sent is confirmed, highest
+detector score first.
 
 **Faults are not quiet.** A frame older than ``max_frame_age`` is never looked at (a camera that
 went quiet shows a stale stamp); with no fresh frame for ``camera_timeout`` seconds the leaf fails
@@ -82,6 +85,7 @@ class _Pending:
     call: ModelCall
     frame: RGBDFrame
     sightings: list[_Sighting]
+    known: tuple[Detection, ...] = ()  # the frame's other people, seen before (not asked about)
 
 
 class Surveillance(Leaf):
@@ -272,7 +276,8 @@ class Surveillance(Leaf):
             for sighting in newcomers:
                 assert sighting.track is not None
                 sighting.track.set("pending", now)
-            self._submit(frame, newcomers)
+            asked = {id(s.detection) for s in newcomers}
+            self._submit(frame, newcomers, tuple(d for d in people if id(d) not in asked))
 
     def _sighting(self, frame: RGBDFrame, person: Detection, taken: set[int]) -> _Sighting | None:
         """Measure a person at the frame's instant and find their track (None: the lidar saw no legs)."""
@@ -303,7 +308,8 @@ class Surveillance(Leaf):
         waited = now - self.last_submit >= self.params.period - 1e-9
         return waited and len(self.pending) < self.params.max_in_flight
 
-    def _submit(self, frame: RGBDFrame, sightings: list[_Sighting]) -> None:
+    def _submit(self, frame: RGBDFrame, sightings: list[_Sighting],
+                known: tuple[Detection, ...] = ()) -> None:
         caller = model_caller(self.context)
         vlm = self.context.model("vlm")
         prompt = self.params.prompt or surveillance_prompt()
@@ -313,7 +319,7 @@ class Surveillance(Leaf):
         self.last_submit = self.context.robot.now()
         if self.params.mode == "poll":
             self.checks += 1
-        self.pending.append(_Pending(call, frame, sightings))
+        self.pending.append(_Pending(call, frame, sightings, known))
 
     # -- answers ---------------------------------------------------------------------------------
 
@@ -366,8 +372,10 @@ class Surveillance(Leaf):
                         sighting.track.set("confirmed", now)
                 elif sighting.track is not None:
                     sighting.track.set("safe", now)  # the model did not see a person there
-            if not ranked:  # the model saw someone the detector did not send: its own best box
-                ranked.append((0.0, 0.0, self._measured(frame, max(boxes, key=lambda b: b.score))))
+            if not ranked:  # the model saw someone else: a person the detector missed gets its own box
+                missed = [b for b in boxes if not any(_same_person(k, b) for k in pending.known)]
+                if missed:
+                    ranked.append((0.0, 0.0, self._measured(frame, max(missed, key=lambda b: b.score))))
         elif sent:  # no boxes in the answer: every person sent is confirmed
             self._set_tracks(pending, "confirmed", now)
             ranked = [(0.0, s.detection.score, s) for s in sent if s.detection is not None]
@@ -406,6 +414,12 @@ class Surveillance(Leaf):
                            self.params.method, now, text, **extra)
         alarm = record_alarm(self.context, alarm, self.name, frame.color)
         self.write("alarm", alarm.to_dict())
+
+
+def _same_person(detection: Detection, box: Detection) -> bool:
+    """True when ``box`` (the VLM's) shows the person of ``detection`` (the detector's)."""
+    overlap = float(iou_matrix(np.array([detection.box]), np.array([box.box]))[0, 0])
+    return overlap >= CONFIRM_IOU or _centre_inside(detection, box)
 
 
 def _centre_inside(detection: Detection, box: Detection) -> bool:
