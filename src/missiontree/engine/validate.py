@@ -377,8 +377,24 @@ def _dangling_refs(spec: MissionSpec) -> list[Problem]:
     return problems
 
 
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+#: Checks of a blackboard value against a port's declared type (types not listed are not checked).
+PORT_TYPES: dict[str, Any] = {
+    "str": lambda v: isinstance(v, str),
+    "int": lambda v: isinstance(v, int) and not isinstance(v, bool),
+    "float": _is_number,
+    "bool": lambda v: isinstance(v, bool),
+    "dict": lambda v: isinstance(v, dict),
+    "list": lambda v: isinstance(v, list),
+    "list[str]": lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v),
+}
+
+
 def _default_types(spec: MissionSpec) -> list[Problem]:
-    """Blackboard defaults checked against the type of every parameter that reads them ({bb: key}).
+    """Blackboard defaults checked against the type of every parameter or input port that reads them.
 
     ``goal_x: "six"`` under ``blackboard:`` read by ``NavigateTo: {x: {bb: goal_x}}`` is reported at
     the ``{bb: goal_x}`` with the default's value, before the run rather than when the leaf starts.
@@ -387,6 +403,16 @@ def _default_types(spec: MissionSpec) -> list[Problem]:
     for node in spec.nodes():
         if node.params is None:
             continue
+        for field_name, port in ports_of(type(node.params)).items():
+            key = getattr(node.params, field_name, None)
+            if port.direction != "in" or not isinstance(key, str) or key not in spec.blackboard:
+                continue
+            check = PORT_TYPES.get(port.type)
+            if check is not None and not check(spec.blackboard[key]):
+                problems.append(_locate(node, ParamIssue(
+                    (field_name,), f"{field_name}: expected the blackboard default {key!r} to be {port.type} "
+                    f"(the type of the port that reads it), found {short_repr(spec.blackboard[key])}",
+                    f"fix `{key}:` under `blackboard:`")))
         for field_name, info in type(node.params).model_fields.items():
             value = getattr(node.params, field_name, None)
             if not isinstance(value, BlackboardRef) or value.key not in spec.blackboard:
