@@ -79,7 +79,9 @@ def world_scene_graph(world: Any, injected: dict[str, str] | None = None) -> dic
         if obj.id in injected:
             description = f"{description}. {injected[obj.id]}"
         nodes.append({"id": obj.id, "type": "object", "label": obj.label, "description": description,
-                      "coordinates": [round(obj.pose.x, 3), round(obj.pose.y, 3), round(obj.elevation, 3)]})
+                      # NAIS's point: the middle of what the camera sees of it
+                      "coordinates": [round(obj.pose.x, 3), round(obj.pose.y, 3),
+                                      round(obj.elevation + obj.size[2] / 2, 3)]})
         room = world.room_at(obj.pose.x, obj.pose.y)
         if room is not None:
             edges.append({"source_id": room_ids[room.name], "source_label": room.type.replace("_", " "),

@@ -60,8 +60,18 @@ Behaviour = py_trees.behaviour.Behaviour
 NEAR_ENOUGH = 0.4
 #: Heading error (rad) at which the robot counts as facing the object, and the time allowed to turn (s).
 FACING, FACE_TIMEOUT = 0.12, 8.0
-#: Frames the detector gets to find the object before it is doubted.
+#: Frames a look may take (detector and vision-language model) before the object is doubted.
 LOOK_FRAMES = 3
+#: How much of the surroundings the vision-language model sees around the detection (share of the box a side).
+LOOK_GROW = 0.5
+
+
+def _camera_view(frame: RGBDFrame | None) -> tuple[float, float] | None:
+    """(camera height, tangent of the view below its axis) from a frame, None before the first frame."""
+    if frame is None:
+        return None
+    k = frame.intrinsics
+    return frame.camera_height, (k.height - k.cy) / k.fy
 
 
 # -- ServeCommands -----------------------------------------------------------------------------------
@@ -435,6 +445,7 @@ class GoToIntent(Leaf):
             self.params.robot_radius,
             self._doubtful(),
             self.params.allow_unknown,
+            _camera_view(robot.rgbd()),
             provider="intent_ranking",
             node=self.name,
         )
@@ -590,7 +601,7 @@ class GoToIntent(Leaf):
         if found is None:
             return self._doubt(f"{why} (in {self.looks} frames)")
         wanted = look_for(self.target.label, self.wanted.split())
-        crop = look_crop(self.frame.color, found.box)
+        crop = look_crop(self.frame.color, found.box, grow=LOOK_GROW)
         self.call = model_caller(self.context).ask(
             "vlm", [crop], crop_match_prompt(wanted), CropMatch, node=self.name
         )
@@ -607,8 +618,14 @@ class GoToIntent(Leaf):
         verdict: CropMatch = self.call.result().value
         self.call = None
         wanted = look_for(self.target.label, self.wanted.split())
+        if not verdict.matches and self.looks < LOOK_FRAMES:
+            assert self.frame is not None
+            self.started = self.frame.stamp + 1e-6  # look again at a newer frame
+            self.step = _Step.FRAME
+            return self.running(f"{_Step.FRAME.value} (look {self.looks + 1} of {LOOK_FRAMES})")
         if not verdict.matches:
-            return self._doubt(f"the vision-language model does not see a {wanted}: {verdict.reason}")
+            return self._doubt(f"the vision-language model does not see a {wanted}: {verdict.reason} "
+                               f"(in {self.looks} frames)")
         self.emit(
             "object_verified",
             command=self.text,

@@ -54,6 +54,8 @@ NEAR_WEIGHT = 2.0
 #: Clearance from other obstacles a standoff pose should have beyond the robot's radius (m), and the
 #: metres of path each missing metre of it costs.
 CLEAR_WANTED, CLEAR_WEIGHT = 0.25, 4.0
+#: Extra distance beyond the camera's lower view limit (m): the camera sits ahead of the base's centre.
+VIEW_MARGIN = 0.12
 #: An object whose cell and surroundings (this radius, m) are all unknown is outside the known map.
 KNOWN_RADIUS = 0.5
 
@@ -359,7 +361,7 @@ def object_extent(space: _Space, xy: tuple[float, float]) -> float:
 
 
 def standoff_cells(
-    space: _Space, xy: tuple[float, float], robot_radius: float
+    space: _Space, xy: tuple[float, float], robot_radius: float, min_distance: float = 0.0
 ) -> list[tuple[int, int, float]]:
     """Free cells near the object from which it is in sight: (row, col, penalty in metres).
 
@@ -368,13 +370,14 @@ def standoff_cells(
     no obstacle before coming within :data:`SIGHT_SLACK` of the object's edge (no wall between).
     The penalty, added to the path length when choosing among them, prefers cells close to the
     object (what sits on a table is reached across its edge) and clear of other obstacles (a goal
-    hugging a wall makes the navigation stack stop short).
+    hugging a wall makes the navigation stack stop short). ``min_distance`` keeps the robot at
+    least that far from the object's position (so that the camera sees down to it).
     """
     grid = space.grid
     res = grid.resolution
     extent = object_extent(space, xy)
-    near = extent + robot_radius + 0.02
-    far = extent + robot_radius + STANDOFF_REACH
+    near = max(extent + robot_radius + 0.02, min_distance)
+    far = max(extent + robot_radius + STANDOFF_REACH, near + 0.3)
     rows, cols = space.occupied.shape
     r_c, c_c = grid.world_to_cell(*xy)
     span = int(math.ceil(far / res)) + 1
@@ -419,8 +422,13 @@ def plan_candidates(
     robot_radius: float = 0.17,
     doubtful: Iterable[str] = (),
     allow_unknown: bool = False,
+    camera: tuple[float, float] | None = None,
 ) -> Ranking:
     """Check every id the model named and rank the survivors by path length from the robot.
+
+    ``camera`` is (height of the camera, tangent of its view below the optical axis): standoff poses
+    are then far enough for the camera to see the object's point (its graph height) on arrival — a
+    cup on the floor is out of view right in front of a TurtleBot 4's camera.
 
     Rejected, each with its reason: ids not in the graph, rooms and the building, objects marked
     doubtful, objects without coordinates, objects outside the known map, objects with no free place
@@ -459,7 +467,7 @@ def plan_candidates(
         if where:
             rejected.append(Rejection(obj.id, where))
             continue
-        cells = standoff_cells(space, obj.xy, robot_radius)
+        cells = standoff_cells(space, obj.xy, robot_radius, _view_distance(camera, obj.z))
         if not cells:
             rejected.append(
                 Rejection(
@@ -495,6 +503,14 @@ def plan_candidates(
         ranked.append((length, order, Candidate(obj.id, obj.label, obj.xy, goal, length, straight)))
     ranked.sort(key=lambda item: (item[0], item[1]))
     return Ranking([c for _, _, c in ranked], rejected)
+
+
+def _view_distance(camera: tuple[float, float] | None, z: float) -> float:
+    """How far the camera must stand for a point ``z`` high to be in view (0: no camera given)."""
+    if camera is None or camera[1] <= 0:
+        return 0.0
+    height, tan_down = camera
+    return max(0.0, (height - z) / tan_down) + VIEW_MARGIN
 
 
 def cell_path_lengths(
