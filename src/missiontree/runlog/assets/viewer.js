@@ -116,7 +116,7 @@
   // ---- panels ---------------------------------------------------------------------------------
   function details() {
     const box = $("details");
-    if (selected < 0) { box.className = "muted"; box.textContent = "click a node"; return; }
+    if (selected < 0 || !shown) { box.className = "muted"; box.textContent = "click a node"; return; }
     const n = nodes[selected], s = shown, status = D.statuses[s.st[selected]];
     let last = -1, count = 0;
     for (let j = 0; j < chStart[Math.min(cur + 1, N)]; j++) if (changes.node[j] === selected) { last = j; count++; }
@@ -285,7 +285,7 @@
     i = Math.max(0, Math.min(N - 1, Math.round(i)));
     const s = stateAt(i);
     for (let n = 0; n < nodes.length; n++) {
-      if (shown && shown.st[n] === s.st[n] && shown.fb[n] === s.fb[n]) continue;
+      if (shown && shown.st[n] === s.st[n] && shown.fb[n] === s.fb[n] && shown.rs[n] === s.rs[n]) continue;
       const el = rows[n]; if (!el) continue;
       el.dataset.status = D.statuses[s.st[n]];
       el.firstChild.lastChild.textContent = s.st[n] ? (S[s.rs[n]] || S[s.fb[n]]) : "";
