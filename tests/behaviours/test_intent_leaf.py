@@ -1,0 +1,117 @@
+"""GoToIntent and ServeCommands as leaves: what the model says is checked; the channel is served in turn."""
+
+from __future__ import annotations
+
+import io
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import py_trees
+from pydantic import BaseModel
+
+from missiontree.backends.sim import create_robot
+from missiontree.behaviours.intent import GoToIntent, ServeCommands, ServeCommandsParams
+from missiontree.engine.context import MissionContext
+from missiontree.reasoning.protocols import Message
+from missiontree.reasoning.schemas import IntentResolution
+from missiontree.robot.commands import LineCommands
+from missiontree.session.models import build_models
+from missiontree.testing import ClockRobot, capture_tick_log, fresh_plugins
+
+REPO = Path(__file__).resolve().parents[2]
+OFFICE_GRAPH = str(REPO / "config" / "scene_graphs" / "office.json")
+
+
+class ScriptedLanguageModel:
+    """A language model that answers every intent question with the same ids (a stand-in for a wrong LLM)."""
+
+    name = "scripted_llm"
+
+    def __init__(self, ids: list[str]) -> None:
+        self.ids = ids
+        self.asked: list[str] = []
+
+    def chat(self, messages: Sequence[Message], schema: type[BaseModel] | None = None) -> str:
+        self.asked.append(messages[-1].content)
+        return IntentResolution(candidates=self.ids, reason="scripted").model_dump_json()
+
+    def check(self) -> str:
+        return "scripted"
+
+
+def run_leaf(ids: list[str], command: str = "I am thirsty", look: bool = False) -> tuple[str, list[dict]]:
+    models = build_models("offline", providers=fresh_plugins().providers)
+    models["llm"] = ScriptedLanguageModel(ids)
+    robot = create_robot({"world": "office", "seed": 1})
+    context = MissionContext(robot=robot, models=models)
+    leaf = GoToIntent("go", GoToIntent.Params(scene_graph=OFFICE_GRAPH, look=look))
+    root = ServeCommands("serve", leaf, ServeCommandsParams(command=command))
+    try:
+        result, log = capture_tick_log(root, context, max_duration=300.0)
+    finally:
+        robot.close()
+    return result.status.value, log
+
+
+def of(log: list[dict], kind: str) -> list[dict]:
+    return [e for e in log if e.get("event") == kind]
+
+
+def test_ids_the_graph_lacks_are_rejected_in_the_log_and_never_driven_to() -> None:
+    """The model names a made-up id and a room: both rejected with reasons; the real cup is the goal."""
+    status, log = run_leaf(["exit_door_9", "room_1", "cup_white"])
+    rejected = {e["object"]: e["reason"] for e in of(log, "candidate_rejected")}
+    assert rejected == {"exit_door_9": "not in the scene graph", "room_1": "is a room, not an object"}
+    assert [e["object"] for e in of(log, "goal_sent")] == ["cup_white"]
+    assert status == "SUCCESS"
+
+
+def test_only_made_up_ids_fail_with_the_reasons_and_no_goal() -> None:
+    """Nothing the model named exists: FAILURE naming each id and why; never a goal."""
+    status, log = run_leaf(["exit_door_9", "kitchen_exit"])
+    assert status == "FAILURE" and not of(log, "goal_sent")
+    reason = of(log, "command_served")[0]["reason"]
+    assert "exit_door_9: not in the scene graph" in reason and "kitchen_exit" in reason
+
+
+def test_goals_come_from_the_graph_not_from_the_prompt() -> None:
+    """The goal sent for a candidate is a standoff pose near the graph's coordinates of that object."""
+    _, log = run_leaf(["backpack_red"], command="the red backpack")
+    goal = of(log, "goal_sent")[0]
+    assert (goal["object_x"], goal["object_y"]) == (11.3, 1.2)
+    assert 0.3 < ((goal["x"] - 11.3) ** 2 + (goal["y"] - 1.2) ** 2) ** 0.5 < 1.3
+
+
+def test_serve_commands_without_a_channel_fails_with_the_reason() -> None:
+    """No command given and a robot with no command channel: FAILURE saying how to give one."""
+    root = ServeCommands("serve", py_trees.behaviours.Success("ok"), ServeCommandsParams(command=""))
+    result, log = capture_tick_log(root, MissionContext(robot=ClockRobot()))
+    assert result.status.value == "FAILURE"
+    assert "no command channel" in json.dumps(log)
+
+
+def test_serve_commands_takes_stdin_lines_in_turn_and_ends_with_the_stream() -> None:
+    """Each stdin line is written to the blackboard and its child run once; the end of stdin ends it."""
+    robot = create_robot({"world": "office", "seed": 1})
+    robot.command_input = LineCommands(io.StringIO("first\n\n  second  \n"))
+    seen: list[str] = []
+
+    class Record(py_trees.behaviour.Behaviour):
+        def __init__(self) -> None:
+            super().__init__("record")
+            self.bb = self.attach_blackboard_client("record")
+            self.bb.register_key("intent_command", access=py_trees.common.Access.READ)
+
+        def update(self) -> py_trees.common.Status:
+            seen.append(self.bb.get("intent_command"))
+            return py_trees.common.Status.SUCCESS
+
+    root = ServeCommands("serve", Record(), ServeCommandsParams(command=""))
+    try:
+        result, log = capture_tick_log(root, MissionContext(robot=robot), max_duration=30.0)
+    finally:
+        robot.close()
+    assert seen == ["first", "second"]
+    assert [e["command"] for e in of(log, "command_served")] == ["first", "second"]
+    assert result.status.value == "SUCCESS"
