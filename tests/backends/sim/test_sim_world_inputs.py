@@ -177,3 +177,18 @@ def test_factory_options_are_type_checked(option):
     """A factory option of the wrong type is a ConfigError, not an AttributeError."""
     with pytest.raises(ConfigError):
         create_robot(option)
+
+
+def test_four_mistakes_are_reported_in_one_run(write_world):
+    """A misspelt key, an object in a wall, a route through a wall and a blocked start: one report."""
+    path = write_world(ROOM.replace("{x: 2.0, y: 1.5, yaw: 0.0}", "{x: 0.05, y: 1.5}") + (
+        "objects:\n"
+        "  - {label: cup, size: [0.1, 0.1, 0.1], pose: {x: 1, y: 1}, colour: red}\n"
+        "  - {id: shelf, label: shelf, size: [1, 0.5, 1], pose: {x: 6.0, y: 2}}\n"
+        "people:\n  - {id: p, route: [[1, 1], [8, 1]], loop: false}\n"))
+    problems = _problems(path)
+    assert len(problems) == 4, problems
+    assert any(":10:" in p and "'colour'" in p for p in problems)
+    assert any(":11:" in p and "'shelf'" in p and "overlaps a wall" in p for p in problems)
+    assert any(":13:" in p and "walks through a wall" in p for p in problems)
+    assert any(":4:" in p and "robot start" in p for p in problems)

@@ -207,15 +207,65 @@ def build_world(doc: Located, path: Path) -> World:
     try:
         spec = _validate(doc, WorldSpec)
     except WorldFileError as exc:
-        # report what can be checked without a valid file together with the schema problems
-        raise WorldFileError(exc.problems + _profile_problems(doc) + _map_reference_problems(doc, path)) \
-            from None
+        # report what can be checked without a valid file together with the schema problems: the
+        # profile, the map reference, and the geometry of everything that is valid on its own
+        raise WorldFileError(exc.problems + _profile_problems(doc) + _lenient_geometry(doc, path)) from None
     problems = _profile_problems(doc)
     world = _build(spec, doc, path, problems)
     if problems:
         raise WorldFileError(problems)
     assert world is not None
     return world
+
+
+def _lenient_geometry(doc: Located, path: Path) -> list[Problem]:
+    """Geometric problems of a world whose schema failed, found on the file without its broken parts.
+
+    Unknown keys are left out and broken objects, people and rooms dropped; if the rest is a valid
+    world, it is built so objects in walls, routes through walls and a blocked start are reported
+    in the same run as the schema mistakes. Otherwise only the map reference is checked.
+    """
+    if not isinstance(doc.data, dict):
+        return []
+    data = copy.deepcopy(doc.data)
+    dropped: dict[str, set[int]] = {"objects": set(), "people": set(), "rooms": set()}
+    try:
+        WorldSpec.model_validate(data)
+        return []
+    except pydantic.ValidationError as exc:
+        for err in exc.errors():
+            loc = err["loc"]
+            if len(loc) >= 2 and loc[0] in dropped and isinstance(loc[1], int):
+                dropped[str(loc[0])].add(loc[1])
+            elif err["type"] == "extra_forbidden" and not _remove_key(data, loc):
+                return _map_reference_problems(doc, path)
+            elif err["type"] != "extra_forbidden":
+                return _map_reference_problems(doc, path)
+    kept: dict[str, list[int]] = {}
+    for key, bad in dropped.items():
+        items = data.get(key)
+        if isinstance(items, list):
+            kept[key] = [i for i in range(len(items)) if i not in bad]
+            data[key] = [items[i] for i in kept[key]]
+    try:
+        spec = WorldSpec.model_validate(data)
+    except pydantic.ValidationError:
+        return _map_reference_problems(doc, path)
+    problems: list[Problem] = []
+    _build(spec, doc, path, problems, kept)
+    return problems
+
+
+def _remove_key(data: Any, loc: tuple[Any, ...]) -> bool:
+    for part in loc[:-1]:
+        try:
+            data = data[part]
+        except (KeyError, IndexError, TypeError):
+            return False
+    if isinstance(data, dict) and loc[-1] in data:
+        del data[loc[-1]]
+        return True
+    return False
 
 
 def _map_reference_problems(doc: Located, path: Path) -> list[Problem]:
@@ -288,7 +338,12 @@ def _validate(doc: Located, model: type[pydantic.BaseModel]) -> Any:
 # -- building ----------------------------------------------------------------------------------
 
 
-def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]) -> World | None:
+def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem],
+           kept: dict[str, list[int]] | None = None) -> World | None:
+    """Build the world, adding geometric problems; ``kept`` maps list positions to the file's (lenient)."""
+    kept = kept or {}
+    object_at = kept.get("objects") or list(range(len(spec.objects)))
+    person_at = kept.get("people") or list(range(len(spec.people)))
     segments: list[tuple[float, float, float, float]] = []
     rows: list[tuple[int, tuple[float, ...], float, float, tuple[int, int, int], int]] = []
     ceiling = 2.5
@@ -334,7 +389,7 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]) -
     ids = [o.id for o in objects]
     for i, oid in enumerate(ids):
         if oid in ids[:i]:
-            problems.append(doc.problem_at(("objects", i, "id"), f"duplicate object id {oid!r}",
+            problems.append(doc.problem_at(("objects", object_at[i], "id"), f"duplicate object id {oid!r}",
                                            "give every object a unique id"))
     people = []
     for j, pspec in enumerate(spec.people):
@@ -349,8 +404,8 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]) -
                                        f"{MAX_MAP_CELLS:,} grid cells; raise `resolution:` or shrink it",
                                        where=""))
         return None
-    _check_objects(doc, objects, seg_array, walls_grid, grid, problems)
-    _check_routes(doc, spec, seg_array, problems)
+    _check_objects(doc, objects, seg_array, walls_grid, grid, problems, object_at)
+    _check_routes(doc, spec, seg_array, problems, person_at)
     clearance = cv2.distanceTransform((grid.data < 50).astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
     start = Pose2D(spec.robot.start.x, spec.robot.start.y, spec.robot.start.heading)
     rooms = [Room(r.name, r.type, np.array(r.polygon, float), r.floor_rgb) for r in spec.rooms]
@@ -360,7 +415,7 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]) -
         rooms=rooms, objects=objects, crowd=Crowd(people), instances=instances, ceiling=ceiling,
         floor_rgb=_floor_colours(grid, rooms), _clearance=clearance,
     )
-    if not problems:
+    if spec.map is None or map_grid is not None:  # without its map the start cannot be judged
         _check_start(doc, world, problems)
     return world
 
@@ -558,21 +613,22 @@ _ROOM_FLOORS = {
 
 
 def _check_objects(doc: Located, objects: list[WorldObject], segs: np.ndarray, walls_grid: np.ndarray,
-                   grid: OccupancyGrid, problems: list[Problem]) -> None:
+                   grid: OccupancyGrid, problems: list[Problem], object_at: list[int]) -> None:
     for i, obj in enumerate(objects):
         hit = _footprint_hits_walls(obj, segs) if len(segs) else False
         if not hit and walls_grid.any():
             hit = _footprint_hits_grid(obj, walls_grid, grid) and not len(segs)
         if hit:
             problems.append(doc.problem_at(
-                ("objects", i, "pose"),
+                ("objects", object_at[i], "pose"),
                 f"object {obj.id!r} ({obj.label}, {obj.size[0]:.2f} x {obj.size[1]:.2f} m at "
                 f"{obj.pose.x:.2f}, {obj.pose.y:.2f}) overlaps a wall",
                 "move it off the wall or make it smaller",
             ))
 
 
-def _check_routes(doc: Located, spec: WorldSpec, segs: np.ndarray, problems: list[Problem]) -> None:
+def _check_routes(doc: Located, spec: WorldSpec, segs: np.ndarray, problems: list[Problem],
+                  person_at: list[int]) -> None:
     """People must not walk through walls (their route legs may not cross a wall segment)."""
     if not len(segs):
         return
@@ -584,7 +640,7 @@ def _check_routes(doc: Located, spec: WorldSpec, segs: np.ndarray, problems: lis
             if _crosses_any(a, b, segs):
                 k = min(j + 1, len(person.route) - 1)
                 problems.append(doc.problem_at(
-                    ("people", i, "route", k),
+                    ("people", person_at[i], "route", k),
                     f"person {person.id!r} walks through a wall between ({a[0]:g}, {a[1]:g}) and "
                     f"({b[0]:g}, {b[1]:g})" + (" (the loop closes back to the first point)"
                                                if j == len(person.route) - 1 else ""),
