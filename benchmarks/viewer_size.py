@@ -65,40 +65,54 @@ def open_seconds(browser: Any, path: Path) -> float:
     return elapsed
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--ticks", type=int, default=36_000)
-    parser.add_argument("--rounds", type=int, default=5)
-    args = parser.parse_args()
-    from playwright.sync_api import sync_playwright
+def scrub_ms(browser: Any, path: Path, moves: int = 40) -> list[float]:
+    """Milliseconds per timeline move to a random tick (state, tree, events, map redrawn)."""
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    page = context.new_page()
+    page.goto(path.as_uri())
+    page.wait_for_selector("body[data-ready='1']", state="attached", timeout=60_000)
+    times = page.evaluate(
+        """(moves) => { const out = []; let seed = 7; const n = MT.count();
+        for (let k = 0; k < moves; k++) { seed = (seed * 16807) % 2147483647;
+          const t0 = performance.now(); MT.setTick(seed % n); out.push(performance.now() - t0); }
+        return out; }""",
+        moves,
+    )
+    context.close()
+    return [float(t) for t in times]
 
-    with tempfile.TemporaryDirectory() as tmp:
-        run = Path(tmp) / "run"
-        start = time.perf_counter()
-        log = synthesize_run(run, args.ticks)
-        synth_s = time.perf_counter() - start
-        start = time.perf_counter()
-        page = write_page(run, run / "report.html")
-        build_s = time.perf_counter() - start
-        reference = reference_page(log, run / "reference.html")
-        html_mb = page.stat().st_size / 1e6
-        jsonl_mb = log.stat().st_size / 1e6
-        print(
-            f"{args.ticks} ticks: ticks.jsonl {jsonl_mb:.2f} MB, page {html_mb:.2f} MB "
-            f"({html_mb / jsonl_mb:.2f} of the log), built in {build_s:.2f} s"
-            f" (synthesized in {synth_s:.2f} s)"
-        )
-        viewer_s: list[float] = []
-        reference_s: list[float] = []
-        with sync_playwright() as playwright:
-            browser = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=FLAGS)
-            open_seconds(browser, reference)  # warm the browser's caches once, off the record
-            for _ in range(args.rounds):  # alternate: the same browser state for both
-                viewer_s.append(open_seconds(browser, page))
-                reference_s.append(open_seconds(browser, reference))
-            browser.close()
+
+def measure(browser: Any, run: Path, rounds: int) -> dict[str, Any]:
+    """Size, build time, open time against the reference (alternating) and scrub time of one run."""
+    log = run / "ticks.jsonl"
+    start = time.perf_counter()
+    page = write_page(run, run / "report.html")
+    build_s = time.perf_counter() - start
+    reference = reference_page(log, run / "reference.html")
+    open_seconds(browser, reference)  # warm the browser's caches once, off the record
+    viewer_s: list[float] = []
+    reference_s: list[float] = []
+    for _ in range(rounds):  # alternate: the same browser state for both
+        viewer_s.append(open_seconds(browser, page))
+        reference_s.append(open_seconds(browser, reference))
     ratios = [v / r for v, r in zip(viewer_s, reference_s, strict=True)]
-    v, r, q = spread(viewer_s), spread(reference_s), spread(ratios)
+    return {
+        "html_mb": page.stat().st_size / 1e6,
+        "jsonl_mb": log.stat().st_size / 1e6,
+        "build_s": build_s,
+        "open": spread(viewer_s),
+        "reference": spread(reference_s),
+        "ratio": spread(ratios),
+        "scrub_ms": spread(scrub_ms(browser, page)),
+    }
+
+
+def report(name: str, ticks: int, m: dict[str, Any]) -> None:
+    v, r, q, s = m["open"], m["reference"], m["ratio"], m["scrub_ms"]
+    print(
+        f"== {name}: {ticks} ticks, ticks.jsonl {m['jsonl_mb']:.2f} MB, page {m['html_mb']:.2f} MB "
+        f"({m['html_mb'] / m['jsonl_mb']:.2f} of the log), built in {m['build_s']:.2f} s"
+    )
     print(
         f"open viewer    s  min {v['min']:.3f}  median {v['median']:.3f}  max {v['max']:.3f}  (target <= 3)"
     )
@@ -107,23 +121,52 @@ def main() -> None:
         "  (raw log, parse only)"
     )
     print(f"viewer / reference  min {q['min']:.2f}  median {q['median']:.2f}  max {q['max']:.2f}")
+    print(f"timeline move  ms  min {s['min']:.1f}  median {s['median']:.1f}  max {s['max']:.1f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--ticks", type=int, default=36_000)
+    parser.add_argument("--rounds", type=int, default=5)
+    args = parser.parse_args()
+    from playwright.sync_api import sync_playwright
+
+    shapes = {
+        "patrol-sized tree (8 nodes)": {"leaves": 4, "groups": 1},
+        "1,023 nodes, 20 leaves running at once": {"leaves": 50, "groups": 20},
+    }
+    results: dict[str, dict[str, Any]] = {}
+    with tempfile.TemporaryDirectory() as tmp, sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=FLAGS)
+        for index, (name, shape) in enumerate(shapes.items()):
+            run = Path(tmp) / f"run{index}"
+            synthesize_run(run, args.ticks, **shape)
+            results[name] = measure(browser, run, args.rounds)
+            report(name, args.ticks, results[name])
+        browser.close()
+    small, big = results.values()
     print(
         json.dumps(
             {
                 "benchmark": "viewer_size",
                 "ticks": args.ticks,
                 "rounds": args.rounds,
-                "html_mb_36k": round(html_mb, 3),
-                "jsonl_mb_36k": round(jsonl_mb, 3),
-                "html_vs_jsonl_size": round(html_mb / jsonl_mb, 3),
-                "build_s": round(build_s, 3),
-                "open_s_36k": round(v["median"], 3),
-                "open_s_min": round(v["min"], 3),
-                "open_s_max": round(v["max"], 3),
-                "reference_open_s_median": round(r["median"], 3),
-                "open_vs_reference_median": round(q["median"], 3),
-                "open_vs_reference_min": round(q["min"], 3),
-                "open_vs_reference_max": round(q["max"], 3),
+                "html_mb_36k": round(small["html_mb"], 3),
+                "jsonl_mb_36k": round(small["jsonl_mb"], 3),
+                "html_vs_jsonl_size": round(small["html_mb"] / small["jsonl_mb"], 3),
+                "build_s": round(small["build_s"], 3),
+                "open_s_36k": round(small["open"]["median"], 3),
+                "open_s_min": round(small["open"]["min"], 3),
+                "open_s_max": round(small["open"]["max"], 3),
+                "reference_open_s_median": round(small["reference"]["median"], 3),
+                "open_vs_reference_median": round(small["ratio"]["median"], 3),
+                "open_vs_reference_min": round(small["ratio"]["min"], 3),
+                "open_vs_reference_max": round(small["ratio"]["max"], 3),
+                "scrub_ms_median": round(small["scrub_ms"]["median"], 2),
+                "html_mb_36k_1000_nodes": round(big["html_mb"], 3),
+                "open_s_36k_1000_nodes": round(big["open"]["median"], 3),
+                "open_vs_reference_1000_nodes_median": round(big["ratio"]["median"], 3),
+                "scrub_ms_1000_nodes_median": round(big["scrub_ms"]["median"], 2),
             },
             sort_keys=True,
         )
