@@ -46,3 +46,19 @@ def test_commands_published_on_the_command_topic_arrive_in_order_with_stamps() -
     finally:
         publisher.close()
         listener.close()
+
+
+def test_a_ros2_robot_hears_commands_on_its_command_topic(make_robot) -> None:  # noqa: ANN001 - fixture
+    """Ros2Robot.commands() returns what another node published on /command; the topic never closes."""
+    domain = next_domain_id()
+    robot = make_robot(domain)
+    publisher = _Publisher(domain)
+    try:
+        wait_until(lambda: publisher.pub.get_subscription_count() > 0, 10.0, "the robot's subscription")
+        publisher.say("I am bored")
+        got: list = []
+        wait_until(lambda: got.extend(robot.commands()) or got, 10.0, "the command")
+        assert [c.text for c in got] == ["I am bored"] and got[0].source == "/command"
+        assert robot.commands_closed() is False
+    finally:
+        publisher.close()
