@@ -30,6 +30,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from missiontree.semantics.scene_graph import RelationEdge
 
@@ -128,7 +129,7 @@ def compute_relations(
     room_centres: Mapping[str, tuple[float, float]] | None = None,
     params: RelationParams | None = None,
 ) -> list[RelationEdge]:
-    """Relations between ``bodies`` (see module docstring), sorted by source and target id.
+    """Relations between ``bodies`` (see module docstring), sorted by source id, then nearest anchor.
 
     Args:
         bodies: The objects.
@@ -140,33 +141,40 @@ def compute_relations(
     if n < 2:
         return []
     centres = room_centres or {}
-    order = sorted(range(n), key=lambda i: bodies[i].id)
-    b = [bodies[i] for i in order]
-    xy = np.array([(o.x, o.y) for o in b])
-    half = np.array([(o.w, o.d) for o in b]) / 2.0
+    b = sorted(bodies, key=lambda o: o.id)
+    table = np.array([(o.x, o.y, o.z, o.w, o.d, o.h) for o in b], dtype=float)
+    xy = table[:, :2]
+    half = table[:, 3:5] / 2.0
     radius = half.max(axis=1)  # footprints as discs of the larger half-size: orientation is unknown
-    bottom = np.array([o.z - o.h / 2.0 for o in b])
-    top = np.array([o.z + o.h / 2.0 for o in b])
-    area = np.array([o.w * o.d for o in b])
-    diff = xy[:, None, :] - xy[None, :, :]
-    dist = np.hypot(diff[..., 0], diff[..., 1])
-    gap = dist - radius[:, None] - radius[None, :]
-    # i is the smaller (source), j the anchor: by area, ties by id order (index order)
-    idx = np.arange(n)
-    smaller = (area[:, None] < area[None, :]) | (
-        (area[:, None] == area[None, :]) & (idx[:, None] > idx[None, :])
+    bottom = table[:, 2] - table[:, 5] / 2.0
+    top = table[:, 2] + table[:, 5] / 2.0
+    area = table[:, 3] * table[:, 4]
+    # candidate pairs: centres closer than the largest possible gap allows (a k-d tree, not n x n)
+    tree = cKDTree(xy)
+    pairs = tree.query_pairs(p.near_gap + 2.0 * float(radius.max()), output_type="ndarray")
+    if not len(pairs):
+        return []
+    a, c = pairs[:, 0], pairs[:, 1]
+    # the smaller (by area, ties: the later id) is the source, the other its anchor
+    a_small = (area[a] < area[c]) | ((area[a] == area[c]) & (a > c))
+    src = np.where(a_small, a, c)
+    anc = np.where(a_small, c, a)
+    offset = xy[src] - xy[anc]
+    dist = np.hypot(offset[:, 0], offset[:, 1])
+    gap = dist - radius[src] - radius[anc]
+    keep = gap <= p.near_gap
+    src, anc, offset, gap = src[keep], anc[keep], offset[keep], gap[keep]
+    # each source keeps its max_per_object nearest anchors
+    order = np.lexsort((anc, gap, src))
+    src, anc, offset, gap = src[order], anc[order], offset[order], gap[order]
+    first = np.r_[0, np.flatnonzero(np.diff(src)) + 1]
+    rank = np.arange(len(src)) - np.repeat(first, np.diff(np.r_[first, len(src)]))
+    keep = rank < p.max_per_object
+    src, anc, offset, gap = src[keep], anc[keep], offset[keep], gap[keep]
+    over = (np.abs(offset[:, 0]) <= half[anc, 0] + p.on_margin) & (
+        np.abs(offset[:, 1]) <= half[anc, 1] + p.on_margin
     )
-    candidate = smaller & (gap <= p.near_gap)
-    np.fill_diagonal(candidate, False)
-    over = (np.abs(diff[..., 0]) <= half[None, :, 0].repeat(n, 0) + p.on_margin) & (
-        np.abs(diff[..., 1]) <= half[None, :, 1].repeat(n, 0) + p.on_margin
-    )
-    on = (
-        candidate
-        & over
-        & (np.abs(bottom[:, None] - top[None, :]) <= p.on_tolerance)
-        & (bottom[:, None] > 0.05)
-    )
+    on = over & (np.abs(bottom[src] - top[anc]) <= p.on_tolerance) & (bottom[src] > 0.05)
     facing = np.zeros((n, 2))
     has_facing = np.zeros(n, bool)
     for j, o in enumerate(b):
@@ -178,29 +186,19 @@ def compute_relations(
         if norm >= p.min_facing_distance:
             facing[j] = (fx / norm, fy / norm)
             has_facing[j] = True
-    edges: list[RelationEdge] = []
-    for i in range(n):
-        anchors = np.flatnonzero(candidate[i])
-        if anchors.size == 0:
-            continue
-        anchors = anchors[np.lexsort((anchors, gap[i, anchors]))][: p.max_per_object]
-        for j in anchors.tolist():
-            if on[i, j]:
-                relation = "on"
-            else:
-                relation = "next_to" if gap[i, j] <= p.next_gap else "near"
-                if has_facing[j]:
-                    relation = _side(diff[i, j], facing[j], p.side_ratio) or relation
-            edges.append(RelationEdge(b[i].id, b[j].id, relation))
-    return edges
-
-
-def _side(offset: np.ndarray, facing: np.ndarray, ratio: float) -> str | None:
-    along = float(offset @ facing)
+    f = facing[anc]
+    along = offset[:, 0] * f[:, 0] + offset[:, 1] * f[:, 1]
     # the anchor's own left is (-fy, fx); a viewer in front of it sees that side on their right
-    own_left = float(offset @ np.array([-facing[1], facing[0]]))
-    if abs(along) >= ratio * abs(own_left):
-        return "in_front_of" if along > 0 else "behind"
-    if abs(own_left) >= ratio * abs(along):
-        return "right_of" if own_left > 0 else "left_of"
-    return None
+    own_left = -offset[:, 0] * f[:, 1] + offset[:, 1] * f[:, 0]
+    relation = np.where(gap <= p.next_gap, "next_to", "near").astype(object)
+    sided = has_facing[anc]
+    front_back = sided & (np.abs(along) >= p.side_ratio * np.abs(own_left))
+    left_right = sided & ~front_back & (np.abs(own_left) >= p.side_ratio * np.abs(along))
+    relation[front_back] = np.where(along[front_back] > 0, "in_front_of", "behind")
+    relation[left_right] = np.where(own_left[left_right] > 0, "right_of", "left_of")
+    relation[on] = "on"
+    ids = [o.id for o in b]
+    return [
+        RelationEdge(ids[i], ids[j], str(r))
+        for i, j, r in zip(src.tolist(), anc.tolist(), relation, strict=True)
+    ]
