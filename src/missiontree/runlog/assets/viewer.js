@@ -5,7 +5,7 @@
   const $ = (id) => document.getElementById(id);
   let D, S, N, nodes, times, changes, chStart, bbAt, kf, cur = -1, selected = -1, shown = null, evIndex = [];
   let poses, mapImg = null, mapReady = false, playing = false, lastFrame = 0, carry = 0, matches = [], matchAt = -1;
-  let rows = [];
+  let rows = [], mapSize = null;
 
   function load(data) {
     D = data; S = D.s;
@@ -205,8 +205,9 @@
   }
 
   function drawMap(i) {
-    const cv = $("map"), r = cv.getBoundingClientRect();
-    const w = Math.max(200, Math.round(r.width)), h = Math.max(150, Math.round(r.height));
+    const cv = $("map");
+    if (!mapSize) { const r = cv.getBoundingClientRect(); mapSize = [Math.max(200, Math.round(r.width)), Math.max(150, Math.round(r.height))]; }
+    const [w, h] = mapSize;  // measured once (and on resize): reading layout each tick forces a reflow
     if (cv.width !== w || cv.height !== h) { cv.width = w; cv.height = h; }
     const g = cv.getContext("2d"); g.fillStyle = "#f4f4f4"; g.fillRect(0, 0, w, h);
     const [x0, y0, x1, y1] = mapBounds(), scale = Math.min(w / (x1 - x0), h / (y1 - y0));
@@ -401,7 +402,7 @@
     else if (ev.key === "ArrowRight") setTick(cur + (ev.shiftKey ? 10 : 1));
     else if (ev.key === "ArrowLeft") setTick(cur - (ev.shiftKey ? 10 : 1));
   });
-  window.addEventListener("resize", () => { drawMarks(); if (cur >= 0) drawMap(cur); });
+  window.addEventListener("resize", () => { mapSize = null; drawMarks(); if (cur >= 0) drawMap(cur); });
 
   start(JSON.parse($("mt-data").textContent));
   if (D.follow) follow();
