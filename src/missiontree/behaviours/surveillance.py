@@ -126,7 +126,7 @@ class Surveillance(Leaf):
         camera_timeout: float = Field(
             10.0, gt=0, description="Fail when no frame younger than max_frame_age came for this long (s).")
         max_failed_calls: int = Field(
-            10, ge=0, description="Fail after this many model calls failed in a row (0: never).")
+            10, ge=0, description="Fail after this many calls of one model role failed in a row (0: never).")
         prompt: str | None = Field(None, description="Question for the VLM; default: seed 001's prompt.")
         alarm: Annotated[str, Output("the last alarm raised", type="dict")] = "alarm"
 
