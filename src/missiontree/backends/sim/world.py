@@ -6,6 +6,13 @@ whole and raises :class:`~missiontree.errors.WorldFileError` with every problem 
 inside a wall, an unknown robot profile, a map image that does not exist. The result is a
 :class:`World`: walls and objects as prisms for the sensors, a static occupancy grid for the
 planner, rooms, people and the instance table ground truth uses.
+
+Inputs are checked where they enter (docs/worlds.md lists the limits): every number finite and in
+range (the schema), the grid a world needs no larger than ``MAX_MAP_CELLS`` (computed before it is
+allocated), a map yaml and image inside the world's folder or ``$MISSIONTREE_MAP_PATH``, read with
+size bounds and never echoed. Names such as ``generated:42`` come from world sources registered
+with :func:`register_world_source` (the generator registers itself), so this module imports no
+generator.
 """
 
 from __future__ import annotations
