@@ -221,10 +221,13 @@
     const t = N ? times[i] : 0;
     // path up to the selected tick
     g.strokeStyle = "#2a6fdb"; g.lineWidth = 2; g.beginPath();
-    let points = 0, rx = null, ry = null;
+    let points = 0, rx = null, ry = null, lx = 0, ly = 0, drawn = 0;
     for (let j = 0; j < poses.length; j += 3) {
       if (poses[j] > t + 1e-9) break;
-      if (points === 0) g.moveTo(X(poses[j + 1]), Y(poses[j + 2])); else g.lineTo(X(poses[j + 1]), Y(poses[j + 2]));
+      const px = X(poses[j + 1]), py = Y(poses[j + 2]);
+      if (points === 0) { g.moveTo(px, py); lx = px; ly = py; }
+      else if (Math.abs(px - lx) + Math.abs(py - ly) >= 1.5) { g.lineTo(px, py); lx = px; ly = py; drawn++; }  // sub-pixel steps add nothing
+      if (drawn === 400) { g.stroke(); g.beginPath(); g.moveTo(lx, ly); drawn = 0; }  // short paths stroke faster
       rx = poses[j + 1]; ry = poses[j + 2]; points++;
     }
     g.stroke();
