@@ -233,7 +233,7 @@ def check_tree(spec: MissionSpec, registry: NodeRegistry) -> list[Problem]:
     for node in spec.nodes():
         problems += check_node(node, registry)
     problems += _dangling_refs(spec)
-    problems += _default_types(spec)
+    problems += _default_types(spec, registry)
     return problems
 
 
@@ -393,7 +393,7 @@ PORT_TYPES: dict[str, Any] = {
 }
 
 
-def _default_types(spec: MissionSpec) -> list[Problem]:
+def _default_types(spec: MissionSpec, registry: NodeRegistry | None = None) -> list[Problem]:
     """Blackboard defaults checked against the type of every parameter or input port that reads them.
 
     ``goal_x: "six"`` under ``blackboard:`` read by ``NavigateTo: {x: {bb: goal_x}}`` is reported at
@@ -401,9 +401,7 @@ def _default_types(spec: MissionSpec) -> list[Problem]:
     """
     problems: list[Problem] = []
     for node in spec.nodes():
-        if node.params is None:
-            continue
-        for field_name, port in ports_of(type(node.params)).items():
+        for field_name, port in ports_of(type(node.params)).items() if node.params is not None else ():
             key = getattr(node.params, field_name, None)
             if port.direction != "in" or not isinstance(key, str) or key not in spec.blackboard:
                 continue
@@ -413,9 +411,8 @@ def _default_types(spec: MissionSpec) -> list[Problem]:
                     (field_name,), f"{field_name}: expected the blackboard default {key!r} to be {port.type} "
                     f"(the type of the port that reads it), found {short_repr(spec.blackboard[key])}",
                     f"fix `{key}:` under `blackboard:`")))
-        for field_name, info in type(node.params).model_fields.items():
-            value = getattr(node.params, field_name, None)
-            if not isinstance(value, BlackboardRef) or value.key not in spec.blackboard:
+        for field_name, info, value in _refs_of(node, registry):
+            if value.key not in spec.blackboard:
                 continue
             default = spec.blackboard[value.key]
             try:
@@ -427,6 +424,24 @@ def _default_types(spec: MissionSpec) -> list[Problem]:
                 problems.append(_locate(node, ParamIssue(
                     (field_name,), message, f"fix `{value.key}:` under `blackboard:`")))
     return problems
+
+
+def _refs_of(node: NodeSpec, registry: NodeRegistry | None) -> list[tuple[str, Any, BlackboardRef]]:
+    """(field, field info, reference) for every ``{bb: key}`` of a node.
+
+    Also for a node whose other parameters have problems (read from what was written), so every
+    problem is reported at once.
+    """
+    if node.params is not None:
+        return [(name, info, value) for name, info in type(node.params).model_fields.items()
+                if isinstance(value := getattr(node.params, name, None), BlackboardRef)]
+    node_type = registry.get(node.type) if registry is not None else None
+    if node_type is None:
+        return []
+    fields = node_type.params.model_fields
+    by_name = {(info.alias or name): name for name, info in fields.items()}
+    return [(by_name[key], fields[by_name[key]], BlackboardRef(value["bb"]))
+            for key, value in node.raw.items() if key in by_name and is_ref(value)]
 
 
 def _root_key(key: str) -> str:
