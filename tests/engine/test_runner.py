@@ -411,3 +411,49 @@ def test_fast_run_still_waits_for_the_model_deterministically() -> None:
     result = Runner(leaf, _slow_model_context(robot), tick_hz=20, handle_signals=False).run()
     assert result.status == Status.SUCCESS
     assert result.ticks == 3  # submitted at t=0, due at t=0.1: seen on the tick at t=0.1
+
+
+class _QuietClock(ClockRobot):
+    """A clock robot that keeps no list of its spins (so only the engine's memory is measured)."""
+
+    def spin_until(self, t: float) -> None:
+        self.time = max(self.time, t)
+
+
+class _Blink(Leaf):
+    """RUNNING on its first tick, SUCCESS on the next; writes the blackboard as it goes."""
+
+    def initialise(self) -> None:
+        self.ticked = False
+
+    def update(self) -> Status:
+        py_trees.blackboard.Blackboard.set("/step", self.name)
+        if self.ticked:
+            return Status.SUCCESS
+        self.ticked = True
+        return Status.RUNNING
+
+
+def test_runner_and_tick_log_memory_stays_flat_on_a_long_run() -> None:
+    """3,000 ticks of a looping plan (changes and blackboard writes every tick) keep memory flat."""
+    import gc
+    import tracemalloc
+
+    plan = py_trees.composites.Sequence("plan", memory=True, children=[_Blink(f"s{i}") for i in range(20)])
+    root = py_trees.decorators.Repeat("loop", plan, num_success=-1)
+    robot = _QuietClock()
+    with open(os.devnull, "w", encoding="utf-8") as sink:
+        runner = Runner(root, MissionContext(robot=robot), log_stream=sink, handle_signals=False)
+        runner.setup()
+        tracemalloc.start()
+        try:
+            sizes = []
+            for index in range(3000):
+                runner.tick()
+                robot.spin_until((index + 1) * 0.1)
+                if index + 1 in (500, 3000):
+                    gc.collect()
+                    sizes.append(tracemalloc.get_traced_memory()[0])
+        finally:
+            tracemalloc.stop()
+    assert sizes[1] - sizes[0] < 32 * 1024, f"grew {sizes[1] - sizes[0]} bytes over 2,500 ticks"
