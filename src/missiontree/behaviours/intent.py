@@ -63,7 +63,7 @@ FACING, FACE_TIMEOUT = 0.12, 8.0
 #: Frames a look may take (detector and vision-language model) before the object is doubted.
 LOOK_FRAMES = 3
 #: How much of the surroundings the vision-language model sees around the detection (share of the box a side).
-LOOK_GROW = 0.5
+LOOK_GROW = 1.0
 
 
 def _camera_view(frame: RGBDFrame | None) -> tuple[float, float] | None:
@@ -350,6 +350,9 @@ class GoToIntent(Leaf):
             self.file_graph = SceneGraph.load(find_scene_graph(self.params.scene_graph))
         if self.ctx is not None:
             model_caller(self.ctx)  # binds simulation-only providers to the robot
+        # py_trees' blackboard outlives a mission in the same process (batch runs, benchmarks): doubt
+        # starts empty with each mission, never inherited from another one.
+        self.write("doubtful", [])
 
     # -- lifecycle -------------------------------------------------------------------------------
 

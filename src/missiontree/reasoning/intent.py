@@ -594,14 +594,16 @@ def match_detection(
     xy: tuple[float, float],
     bearing_slack: float = math.radians(12.0),
     depth_slack: float = 0.8,
+    min_score: float = 0.5,
 ) -> tuple[Detection | None, str]:
     """The detection of ``label`` where the graph puts the object, and a reason when there is none.
 
-    It must lie within the object's angular half-width plus ``bearing_slack`` of the bearing of
-    ``xy`` from the camera, and where the depth image has a reading at its centre, that depth must
-    be within ``depth_slack`` of the object's distance.
+    It must score at least ``min_score``, lie within the object's angular half-width plus
+    ``bearing_slack`` of the bearing of ``xy`` from the camera, and where the depth image has a
+    reading at its centre, that depth must be within ``depth_slack`` of the object's distance.
     """
     want = fold_label(label)
+    detections = [d for d in detections if d.score >= min_score]
     same = [d for d in detections if fold_label(d.label) == want]
     if not same:
         seen = sorted({d.label for d in detections})
