@@ -126,3 +126,14 @@ def test_world_robot_models_and_waypoint_files_are_recognised(
     assert code == 2
     assert f"{world}:4:3:" in err and "hieght" in err and f"{world}:7:" in err and f"{world}:9:" in err
     assert f"{robot}:2:" in err and f"{robot}:3:" in err and "rnage_max" in err and "beams" in err
+
+
+def test_a_waypoint_file_alone_is_checked_against_the_world_it_names(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The corridor's route relabelled `world: office` is refused: its points lie outside the office."""
+    text = (REPO / "config/waypoints/scenario_a.yaml").read_text().replace("world: corridor", "world: office")
+    path = tmp_path / "route.yaml"
+    path.write_text(text)
+    code, _, err = _validate(capsys, path)
+    assert code == 2 and "expected waypoints in the world 'office'" in err and "outside the map" in err

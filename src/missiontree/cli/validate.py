@@ -98,14 +98,33 @@ def check_file(
 
             return kind, check_models_file(path, providers or {})
         else:
-            from missiontree.behaviours.waypoints import read_waypoint_file
-
-            read_waypoint_file(path)
+            return kind, _check_waypoint_file(path)
     except ProblemsError as error:
         return kind, error.problems
     except ConfigError as error:
         return kind, [Problem(str(path), 0, 0, "", str(error))]
     return kind, []
+
+
+def _check_waypoint_file(path: Path) -> list[Problem]:
+    """A waypoint file alone: valid, and (when it names its world) inside that world's free space."""
+    from missiontree.behaviours.waypoints import misfits, read_waypoint_file
+
+    found = read_waypoint_file(path)
+    if found.world is None:
+        return []
+    from missiontree.backends.sim import load_world
+    from missiontree.errors import WorldFileError
+
+    doc = load_yaml(path, error=ProblemsError)
+    try:
+        world = load_world(found.world)
+    except WorldFileError as error:
+        return [doc.problem_at(("world",), f"expected a world that loads, found {found.world!r}: "
+                               f"{error.problems[0].message}", "fix `world:`")]
+    return [doc.problem_at(("waypoints",), f"expected waypoints in the world {world.name!r}, found {reason}",
+                           "move the waypoint into free space, or fix `world:`")
+            for reason in misfits(found.waypoints, world.grid)]
 
 
 def _check_mission(path: Path, registry: NodeRegistry, allow_outside: bool,
