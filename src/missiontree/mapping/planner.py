@@ -423,9 +423,41 @@ class Costmap:
         block[...] = -1
 
     def with_points(self, points: np.ndarray, radius: float = 0.08) -> Costmap:
-        """A costmap of the same map with extra lethal discs at ``points`` (N, 2); its own tile cache."""
+        """A costmap of the same map with extra lethal discs at ``points`` (N, 2); its own tile cache.
+
+        Lethal points already added to this costmap (:meth:`add_lethal`) stay lethal in it.
+        """
+        extra = np.concatenate([self.extra_lethal, np.asarray(points, float).reshape(-1, 2)])
         return Costmap(self.grid, self.radius, self.inflation_radius, self.cost_scaling, self.allow_unknown,
-                       self.accelerate, np.asarray(points, float).reshape(-1, 2), radius)
+                       self.accelerate, extra, max(radius, self.extra_radius))
+
+    def add_lethal(self, points: np.ndarray) -> None:
+        """Make discs of ``extra_radius`` at ``points`` (N, 2) lethal from now on (e.g. bumper hits)."""
+        pts = np.asarray(points, float).reshape(-1, 2)
+        if not len(pts):
+            return
+        self.extra_lethal = np.concatenate([self.extra_lethal, pts])
+        self._invalidate_points(pts)
+
+    def set_lethal(self, points: np.ndarray) -> None:
+        """Replace the extra lethal points (those dropped stop costing at once)."""
+        old = self.extra_lethal
+        self.extra_lethal = np.asarray(points, float).reshape(-1, 2)
+        self._invalidate_points(old)
+        if self._blocks is not None and len(old):
+            self._blocks = None  # recomputed from the map when next needed
+        self._invalidate_points(self.extra_lethal)
+
+    def _invalidate_points(self, pts: np.ndarray) -> None:
+        res = self.grid.resolution
+        reach = int(math.ceil(self.extra_radius / res)) + 1
+        for x, y in pts.tolist():
+            row, col = self.grid.world_to_cell(x, y)
+            self._invalidate(row - reach - self._pad, row + reach + self._pad + 1,
+                             col - reach - self._pad, col + reach + self._pad + 1)
+            if self._blocks is not None:
+                self._blocks[max(row, 0) >> _BLOCK_BITS: (max(row, 0) >> _BLOCK_BITS) + 1,
+                             max(col, 0) >> _BLOCK_BITS: (max(col, 0) >> _BLOCK_BITS) + 1] = True
 
     def ensure_tile(self, tile: int) -> None:
         """Compute the costs of tile ``tile`` (row-major tile index) if not yet known."""

@@ -44,6 +44,10 @@ _ROTATE_FIRST = 0.7        # rad of heading error above which the follower turns
 _NO_PROGRESS_TIME = 30.0
 _PINNED_TIME = 1.0         # s driving forward without moving before backing up
 _BACKUP_TIME, _BACKUP_SPEED = 1.0, 0.1
+_HAZARD_LIFETIME = 60.0   # s a bumper hit stays in the costmap
+_MAX_HAZARDS = 2_000
+_SHORT_LOOKAHEAD = 0.12    # m: the follower's target when the lookahead line would cut a corner
+_CORNER_SAMPLES = np.linspace(0.2, 1.0, 5)
 _MAX_GOALS_KEPT = 10_000   # goals remembered for pictures (the oldest are dropped on very long runs)
 
 
@@ -151,6 +155,8 @@ class _Follow:
     anchor: tuple[float, float] | None = None   # where the robot was when it last moved
     still_since: float = 0.0
     backing_until: float | None = None
+    unreachable_since: float | None = None   # learned map: no way to the goal since (waiting for one)
+    why: tuple[str, int] = ("", 0)
 
     def __post_init__(self) -> None:
         self.set_path(self.path)
@@ -188,8 +194,8 @@ class Navigator:
         self.allow_unknown = allow_unknown
         self.body_radius = radius
         # a learned map's edges are a cell off the truth (a wall's end, its thickness): pad the
-        # footprint by a cell and a half there, as Nav2's footprint_padding
-        padded = radius + (1.5 * grid.resolution if allow_unknown else 0.0)
+        # footprint by two cells there, as Nav2's footprint_padding
+        padded = radius + (2.0 * grid.resolution if allow_unknown else 0.0)
         self.costmap = planner.Costmap(grid, padded, spec.inflation_radius, spec.cost_scaling, allow_unknown,
                                        profile.accelerate)
         self.handle: SimNavHandle | None = None
@@ -198,6 +204,7 @@ class Navigator:
         self.goals: deque[Pose2D] = deque(maxlen=_MAX_GOALS_KEPT)
         self.replans = 0
         self.recoveries = 0
+        self._hazards: deque[tuple[float, float, float]] = deque(maxlen=_MAX_HAZARDS)
         self._map_changed = False
         self._xy_cache: tuple[LaserScan, np.ndarray, np.ndarray] | None = None
         self._trig: tuple[tuple[float, float, int, float], np.ndarray, np.ndarray] | None = None
@@ -211,6 +218,31 @@ class Navigator:
     def update_map(self, grid: OccupancyGrid, region: tuple[int, int, int, int] | None = None) -> None:
         """Take a new version of the map (``region``: the rows/cols that changed, exclusive ends)."""
         self.costmap.update(grid, region)
+        self._map_changed = True
+
+    def mark_hazard(self, x: float, y: float, now: float) -> None:
+        """An obstacle the robot touched (a bumper hit): lethal for a while, the path checked again.
+
+        Low things under the lidar's plane never reach a learned map; like a hazard layer fed by
+        the TurtleBot 4's bumper, the costmap keeps them for ``_HAZARD_LIFETIME`` seconds (what
+        was touched may have been a person, who moves on).
+        """
+        follow = self._follow
+        if follow is not None and follow.backing_until is None:
+            follow.backing_until = now + _BACKUP_TIME   # the base's bump reflex: back off first
+            self.recoveries += 1
+        if any(math.hypot(x - hx, y - hy) < 0.05 for _, hx, hy in self._hazards):
+            return
+        self._hazards.append((now, x, y))
+        self.costmap.add_lethal(np.array([[x, y]]))
+        self._map_changed = True
+
+    def _expire_hazards(self, now: float) -> None:
+        if not self._hazards or now - self._hazards[0][0] < _HAZARD_LIFETIME:
+            return
+        while self._hazards and now - self._hazards[0][0] >= _HAZARD_LIFETIME:
+            self._hazards.popleft()
+        self.costmap.set_lethal(np.array([(x, y) for _, x, y in self._hazards]).reshape(-1, 2))
         self._map_changed = True
 
     def send(self, goal: Pose2D, tolerance: Tolerance | None, now: float) -> SimNavHandle:
@@ -231,6 +263,7 @@ class Navigator:
 
     def step(self, now: float, pose: Pose2D, scan: LaserScan | None) -> tuple[float, float] | None:
         """Advance the running goal; the velocity command, or None when no goal runs."""
+        self._expire_hazards(now)
         h = self.handle
         if h is None:
             return None
@@ -244,11 +277,18 @@ class Navigator:
                 return 0.0, 0.0
         follow = self._follow
         assert follow is not None
-        if self._map_changed:
+        waiting = follow.unreachable_since is not None
+        if self._map_changed or (waiting and now - follow.last_replan >= self.spec.replan_period):
             self._map_changed = False
-            stop = self._check_learned_map(follow, pose)
+            stop = self._check_learned_map(follow, pose, now)
             if stop is not None:
                 return stop
+        if follow.unreachable_since is not None:
+            h._status = ActionStatus.RUNNING
+            h._feedback = NavFeedback(pose, math.hypot(h.goal.x - pose.x, h.goal.y - pose.y), now - h.sent,
+                                      self.recoveries)
+            follow.last_step = now
+            return 0.0, 0.0   # no way on the map learned so far: wait for one (people move on)
         gap = now - follow.last_step - self.physics_dt
         if gap > 1e-6:  # drive() overrode us meanwhile: the goal's timers pause
             follow.best_time += gap
@@ -304,6 +344,8 @@ class Navigator:
     def _start(self, h: SimNavHandle, now: float, pose: Pose2D) -> bool:
         goal = h.goal
         problem = self._goal_problem(goal)
+        if problem is not None and self.allow_unknown and problem[1] != OUT_OF_MAP:
+            return self._wait_for_way(now, pose, problem)
         if problem is not None:
             what, code = problem
             learned = " on the learned map" if self.allow_unknown else ""
@@ -312,34 +354,55 @@ class Navigator:
                       code)
             return False
         path = self._plan(self.costmap, pose, goal)
+        if path is None and self.allow_unknown:
+            return self._wait_for_way(now, pose, ("no path to it on the map learned so far", NO_VALID_PATH))
         if path is None:
-            learned = " on the map learned so far: unreachable" if self.allow_unknown else ""
-            h._finish(ActionStatus.ABORTED, f"no valid path to ({goal.x:.2f}, {goal.y:.2f}){learned}",
-                      NO_VALID_PATH)
+            h._finish(ActionStatus.ABORTED, f"no valid path to ({goal.x:.2f}, {goal.y:.2f})", NO_VALID_PATH)
             return False
         self._follow = _Follow(path, best_time=now, last_step=now - self.physics_dt)
         return True
 
-    def _check_learned_map(self, follow: _Follow, pose: Pose2D) -> tuple[float, float] | None:
-        """After a map update: abort when the goal proved unreachable, replan when the path is blocked."""
+    def _wait_for_way(self, now: float, pose: Pose2D, why: tuple[str, int]) -> bool:
+        """Start a learned-map goal with no way yet: hold still and look again (see _check_learned_map)."""
+        self._follow = _Follow(np.array([[pose.x, pose.y]]), best_time=now, last_step=now - self.physics_dt,
+                               last_replan=now, unreachable_since=now, why=why)
+        return True
+
+    def _check_learned_map(self, follow: _Follow, pose: Pose2D, now: float) -> tuple[float, float] | None:
+        """After a map update: replan when the path is blocked; abort when the goal proved unreachable.
+
+        The goal proves unreachable when, for ``blocked_timeout`` seconds, the learned map shows it
+        inside an obstacle or offers no path to it (a person standing in a door closes it for a while).
+        """
         assert self.handle is not None
         goal = self.handle.goal
         problem = self._goal_problem(goal)
-        if problem is not None:
-            what, code = problem
-            return self._abort(ActionStatus.ABORTED, f"goal ({goal.x:.2f}, {goal.y:.2f}) proved unreachable: "
-                               f"the map now shows it {what}", code)
-        ahead = follow.path[follow.index + 1:]
-        if not len(ahead) or not self.costmap.blocked_along(ahead):
-            return None
-        path = self._plan(self.costmap, pose, goal)
+        if problem is not None and problem[1] == OUT_OF_MAP:
+            return self._abort(ActionStatus.ABORTED, f"goal ({goal.x:.2f}, {goal.y:.2f}) is outside the "
+                               "learned map: unreachable", OUT_OF_MAP)
+        if problem is None and follow.unreachable_since is None:
+            ahead = follow.path[follow.index + 1:]
+            if not len(ahead) or not self.costmap.blocked_along(ahead):
+                return None
+        path = None if problem is not None else self._plan(self.costmap, pose, goal)
+        follow.last_replan = now
         self.replans += 1
-        if path is None:
+        if path is not None:
+            follow.set_path(path)
+            follow.best_remaining, follow.best_time = math.inf, now
+            follow.unreachable_since = None
+            return None
+        if problem is not None:
+            follow.why = (f"the map shows it {problem[0]}", problem[1])
+        else:
+            follow.why = ("no path to it on the map learned so far", NO_VALID_PATH)
+        if follow.unreachable_since is None:
+            follow.unreachable_since = now
+        if now - follow.unreachable_since >= self.spec.blocked_timeout:
+            what, code = follow.why
             return self._abort(ActionStatus.ABORTED, f"goal ({goal.x:.2f}, {goal.y:.2f}) proved unreachable: "
-                               "no path to it on the map learned so far", NO_VALID_PATH)
-        follow.set_path(path)
-        follow.best_remaining = math.inf
-        return None
+                               f"{what} (for {self.spec.blocked_timeout:.0f} s)", code)
+        return 0.0, 0.0
 
     def _plan(self, costmap: planner.Costmap, pose: Pose2D, goal: Pose2D) -> np.ndarray | None:
         t0 = time.perf_counter()
@@ -367,6 +430,14 @@ class Navigator:
             if math.hypot(px - pose.x, py - pose.y) >= self.spec.lookahead:
                 target = points[i]
                 break
+        if self._cuts_corner(pose, target):
+            # the straight line to the lookahead point crosses the inscribed zone (a corner, a door
+            # post): steer for a nearer point of the path instead, as a collision-checking controller
+            for i in range(follow.index, len(points)):
+                px, py = points[i]
+                if math.hypot(px - pose.x, py - pose.y) >= _SHORT_LOOKAHEAD:
+                    target = points[i]
+                    break
         err = wrap_angle(math.atan2(target[1] - pose.y, target[0] - pose.x) - pose.yaw)
         lim = self.limits
         w = max(-lim.max_w, min(lim.max_w, self.spec.heading_gain * err))
@@ -395,6 +466,14 @@ class Navigator:
             if path2 is not None:
                 follow.set_path(path2)
         return 0.0, 0.0
+
+    def _cuts_corner(self, pose: Pose2D, target: tuple[float, float]) -> bool:
+        """Whether the straight line from ``pose`` to ``target`` crosses a cell the robot cannot enter."""
+        if self.costmap.cost_at(pose.x, pose.y) > MAX_FREE:
+            return False  # leaving the inscribed zone: the path itself leads out
+        t = _CORNER_SAMPLES
+        line = np.stack([pose.x + t * (target[0] - pose.x), pose.y + t * (target[1] - pose.y)], axis=1)
+        return self.costmap.blocked_along(line)
 
     def _pinned(self, follow: _Follow, now: float, pose: Pose2D) -> bool:
         """Whether the robot has been driving forward without moving (pinned against something)."""

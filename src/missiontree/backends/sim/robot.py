@@ -292,6 +292,17 @@ class SimRobot:
             self._base.command(*command)
         proposed, v, w = self._base.propose(dt)
         if self._collides(proposed):
+            if self.unknown_map:  # the bumper tells the navigator what the lidar could not see
+                here = self._base.pose
+                dx, dy = proposed.x - here.x, proposed.y - here.y
+                step = math.hypot(dx, dy)
+                if step > 1e-9:
+                    reach = self.profile.body.radius + 0.04
+                    est = self._odom.pose
+                    c, s = math.cos(est.yaw - here.yaw), math.sin(est.yaw - here.yaw)
+                    ux, uy = dx / step, dy / step
+                    self._nav.mark_hazard(est.x + reach * (c * ux - s * uy), est.y + reach * (s * ux + c * uy),
+                                          self._t)
             self._base.halt()
             self.bumps += 1
             v = w = 0.0
