@@ -191,3 +191,23 @@ def test_navigator_is_built_from_a_map_a_radius_and_a_profile():
     command = nav.step(0.05, start, None)
     assert command is not None and handle.status() is ActionStatus.RUNNING
     assert nav.plan_ms.count == 1 and not hasattr(nav, "robot")
+
+
+def test_unknown_map_box_under_the_lidar_is_learned_by_bumping_into_it(write_world):
+    """A box under the lidar never reaches the learned map; the bumper marks it, the robot goes round."""
+    text = """\
+    name: low_box
+    robot: {profile: turtlebot4, start: {x: 1.0, y: 2.0, yaw: 0.0}}
+    walls:
+      polygons: [[[0, 0], [7, 0], [7, 4], [0, 4]]]
+    objects:
+      - {id: box_1, label: box, color: red, size: [0.6, 0.6, 0.1], pose: {x: 3.5, y: 2.0}}
+    """
+    robot = create_robot({"world": write_world(text), "unknown_map": True})
+    handle = robot.navigate_to(Pose2D(6.0, 2.0), ANY)
+    result = _run(robot, handle, 120.0)
+    assert result.succeeded, result
+    learned = robot.occupancy()
+    assert learned.data[learned.world_to_cell(3.5, 2.0)] != 100   # the lidar never saw it
+    assert 1 <= robot.bumps <= 10 and robot._nav.recoveries >= 1
+    assert robot._nav.costmap.cost_at(3.2, 2.0) > 252            # the hazard it touched blocks its side
