@@ -300,9 +300,9 @@ class SimRobot:
                     reach = self.profile.body.radius + 0.04
                     est = self._odom.pose
                     c, s = math.cos(est.yaw - here.yaw), math.sin(est.yaw - here.yaw)
-                    ux, uy = dx / step, dy / step
-                    self._nav.mark_hazard(est.x + reach * (c * ux - s * uy), est.y + reach * (s * ux + c * uy),
-                                          self._t)
+                    ux, uy = dx / step, dy / step   # the push direction, turned into the estimate's frame
+                    hx, hy = est.x + reach * (c * ux - s * uy), est.y + reach * (s * ux + c * uy)
+                    self._nav.mark_hazard(hx, hy, self._t)
             self._base.halt()
             self.bumps += 1
             v = w = 0.0
