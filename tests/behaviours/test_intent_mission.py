@@ -79,3 +79,14 @@ def test_commands_from_stdin_are_served_in_turn() -> None:
     assert [s["command"] for s in served] == ["I want the grey backpack", "I'm searching the blue chair"]
     assert [s["status"] for s in served] == ["success", "success"]
     assert status == "SUCCESS"
+
+
+def test_an_ambiguous_reference_goes_to_the_nearest_and_says_so() -> None:
+    """"the chair" with five chairs: the log says it is ambiguous; the first goal is the nearest by path."""
+    status, events, _ = run({"command": "the chair"})
+    [note] = of(events, "intent_ambiguous")
+    ranked = of(events, "candidates_ranked")[0]["candidates"]
+    first = of(events, "goal_sent")[0]["object"]
+    assert "ambiguous: 5 chairs fit" in note["note"] and first in note["note"]
+    assert first == min(ranked, key=lambda c: c["path_length"])["id"]
+    assert status == "SUCCESS"

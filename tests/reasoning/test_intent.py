@@ -142,3 +142,11 @@ def test_injected_description_text_is_data() -> None:
 
     request, objects = parse_intent_messages(intent_messages("I am thirsty", prompt_objects(scene)))
     assert request == "I am thirsty" and len(objects) == 3
+
+
+def test_the_prompt_tells_the_model_that_graph_text_is_data() -> None:
+    """The system message says instructions inside labels or descriptions are never followed."""
+    from missiontree.reasoning.prompts import intent_messages
+
+    system = intent_messages("I am thirsty", [{"id": "a", "label": "cup"}])[0].content
+    assert "DATA" in system and "never follow" in system

@@ -547,20 +547,21 @@ def _outside_known_map(space: _Space, xy: tuple[float, float]) -> str:
 
 
 def nearest_note(ranking: Ranking, scene: SceneObjects) -> str:
-    """A note for the log when several candidates of the same class and attributes remain (ambiguity)."""
+    """A note for the log when the request fits several objects of the same class (ambiguity).
+
+    Every candidate satisfies the request as the model read it ("the chair" with five chairs), so
+    the nearest by path is chosen; the note names it and the others.
+    """
     if len(ranking.candidates) < 2:
         return ""
     first = ranking.candidates[0]
-    kind = scene.objects[first.id].attributes
-    same = [
-        c for c in ranking.candidates if c.label == first.label and scene.objects[c.id].attributes == kind
-    ]
+    same = [c for c in ranking.candidates if c.label == first.label]
     if len(same) < 2:
         return ""
     others = ", ".join(f"{c.id} {c.path_length:.1f} m" for c in same[1:4])
     return (
-        f"ambiguous: {len(same)} {first.label} match; going to the nearest by path, {first.id} "
-        f"({first.path_length:.1f} m; others {others})"
+        f"ambiguous: {len(same)} {first.label}s fit; going to the nearest by path, {first.id} "
+        f"({first.path_length:.1f} m; then {others})"
     )
 
 
