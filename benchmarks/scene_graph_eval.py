@@ -560,6 +560,10 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
     ours.rebuild(robot.now())
     after = {"ours": ours_predictions(ours), "nais": nais.predictions()}
     reflected = {m: sum(change_reflected(after[m], c) for c in changes) for m in after}
+    if DEBUG:
+        for c in changes:
+            print(f"  change {c['kind']} {c['id']} {c['label']} from {c.get('from')} to {c.get('to')}: "
+                  f"ours {change_reflected(after['ours'], c)} nais {change_reflected(after['nais'], c)}")
     robot.close()
     out = {
         "world": name,

@@ -23,6 +23,8 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from missiontree.perception.fusion import FusionParams, InstanceFusion
 from missiontree.perception.projection import DepthMethod, project
 from missiontree.semantics.live import LiveScene
@@ -129,6 +131,15 @@ class SceneBuilder:
         if grid.stamp == self._grid_stamp and self.segmentation is not None:
             return False
         if now - self._last_segment < self.params.segment_every and self.segmentation is not None:
+            return False
+        previous = self.segmentation.grid if self.segmentation is not None else None
+        if (
+            previous is not None
+            and previous.origin == grid.origin
+            and np.array_equal(previous.data, grid.data)
+        ):
+            self._grid_stamp = grid.stamp  # the same map, stamped anew (a known map): nothing to redo
+            self._last_segment = now
             return False
         t0 = time.perf_counter()
         self.tracker.params = self.params.segmentation

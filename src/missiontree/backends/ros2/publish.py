@@ -131,8 +131,15 @@ class WorldPublisher:
         self._markers.publish(detection_markers(objects, self._stamp()))
 
     def scene_graph(self, graph: Mapping[str, Any]) -> None:
-        """Publish the scene graph as a JSON string (NAIS's /scene_graph)."""
+        """Publish the scene graph as a JSON string (NAIS's /scene_graph); a NAIS-shaped one also as markers.
+
+        The markers (:mod:`missiontree.backends.ros2.scene`) go on the detections topic.
+        """
         self._scene_graph.publish(String(data=json.dumps(graph, sort_keys=True, default=str)))
+        if isinstance(graph.get("nodes"), list):
+            from missiontree.backends.ros2.scene import scene_markers
+
+            self._markers.publish(scene_markers(graph, self._stamp()))
 
     def alarm(self, message: str, **fields: Any) -> None:
         """Publish an alarm as JSON: ``{"stamp": ..., "message": ..., **fields}``."""
