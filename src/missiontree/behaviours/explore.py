@@ -66,7 +66,7 @@ class Explore(Leaf):
             0.2, gt=0, description="Robot radius for planning and goal clearance (m).")
         xy_tolerance: float = Field(0.3, gt=0, description="Distance at which a goal counts as reached (m).")
         replan_period: float = Field(
-            1.0, gt=0, description="Re-evaluate the goal this often while driving (s).")
+            2.0, gt=0, description="Re-evaluate the goal this often while driving (s).")
         no_progress_timeout: float = Field(
             20.0, gt=0, description="Blacklist a goal the robot got no closer to for this long (s).")
         stuck_timeout: float = Field(
@@ -183,6 +183,10 @@ class Explore(Leaf):
             if status is ActionStatus.SUCCEEDED:
                 self.planner.visit(target.x, target.y)
                 self.emit("explore_reached", x=target.x, y=target.y)
+                if target.kind == "frontier" and not self.params.look_around \
+                        and self.planner.still_frontier(grid, *target.target):
+                    # standing there did not reveal it (a gap the lidar cannot look into): never again
+                    self._give_up(target, "reached, but its frontier stays unknown from there")
                 if self.params.look_around:
                     self._start_look(now, pose)
                     return self.running("looking around")
@@ -202,17 +206,21 @@ class Explore(Leaf):
             return None
         if now >= self.next_replan and target.kind == "frontier":
             self.next_replan = now + self.params.replan_period
-            candidates = self.planner.candidates(grid, (pose.x, pose.y))
-            if not candidates:
-                self.handle.cancel()
-                self.handle = None
-                self.state = _SELECT
-                return None
-            best = candidates[0]
-            current = _matching(candidates, target, radius=0.4)
-            seen = not self.planner.still_frontier(grid, target.x, target.y)
-            if seen or current is None or (best is not current and self.planner.better(best, current)):
-                self._send(now, best)
+            seen = not self.planner.still_frontier(grid, *target.target)
+            if seen or self.params.strategy == "gain":
+                candidates = self.planner.candidates(grid, (pose.x, pose.y))
+                if not candidates:
+                    self.handle.cancel()
+                    self.handle = None
+                    self.state = _SELECT
+                    return None
+                best = candidates[0]
+                if seen:
+                    self._send(now, best)  # its frontier has been seen meanwhile: on to the next
+                else:
+                    current = _matching(candidates, target, radius=0.5)
+                    if current is not None and best is not current and self.planner.better(best, current):
+                        self._send(now, best)
         return self.running(self._feedback(pose))
 
     def _send(self, now: float, candidate: Candidate) -> None:
@@ -319,10 +327,10 @@ def _known_area(grid: OccupancyGrid) -> float:
 
 
 def _matching(candidates: list[Candidate], target: Candidate, radius: float) -> Candidate | None:
-    """The candidate standing for the same place as ``target`` (nearest within ``radius``)."""
+    """The candidate standing for the same frontier as ``target`` (nearest within ``radius``)."""
     best, best_d = None, radius
     for c in candidates:
-        d = math.hypot(c.x - target.x, c.y - target.y)
+        d = math.hypot(c.target[0] - target.target[0], c.target[1] - target.target[1])
         if d <= best_d:
             best, best_d = c, d
     return best

@@ -29,6 +29,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 from scipy import ndimage
 
@@ -70,6 +71,8 @@ class Candidate:
         y: Goal y (m).
         kind: ``frontier`` or ``scan_point``.
         size: Cells of the frontier piece or of the scan point's region.
+        target: The place the goal is meant to see: the frontier cell nearest the frontier's
+            centroid (for a scan point, the goal itself).
         gain_m2: Unknown area visible from the goal within sensor range (0 when not computed).
         path_m: Length of the path from the robot.
         score: Higher is better (the strategy's rule).
@@ -82,6 +85,7 @@ class Candidate:
     gain_m2: float
     path_m: float
     score: float
+    target: tuple[float, float] = (math.nan, math.nan)
 
 
 @dataclass(frozen=True)
@@ -100,14 +104,18 @@ class ExplorationPlanner:
     Attributes:
         strategy: ``gain``, ``nearest`` or ``scan_points``.
         footprint_radius: Robot radius (m); goals keep at least this (plus ``goal_margin``) from
-            obstacles where the frontier allows.
+            every cell not known to be free, where the frontier allows.
         sensor_range: Range (m) over which a goal's gain is counted.
         min_frontier_m: Frontiers shorter than this (m) are ignored.
+        min_unknown_m2: Unknown patches enclosed by known cells and smaller than this (m^2) are
+            no frontier (specks between far-apart beams).
         frontier_piece_m: Long frontiers are cut into pieces of at most this length (m).
         cost_rate: Gain discount per metre of path (1/m), for ``gain``.
         blacklist_radius: Candidates this close (m) to a blacklisted goal are not offered.
         visit_radius: A scan point this close (m) to one already visited is not offered again.
         erosion_m: Erosion radius of the scan points (m).
+        goal_margin: Extra clearance of a goal (m).
+        approach_m: How far from a frontier's centroid its goal may stand (m).
         gain_beams: Rays cast per goal to measure its gain.
         path_lengths: How path lengths are measured (default: the planner).
     """
@@ -116,12 +124,14 @@ class ExplorationPlanner:
     footprint_radius: float = 0.2
     sensor_range: float = 4.0
     min_frontier_m: float = 0.3
+    min_unknown_m2: float = 0.1
     frontier_piece_m: float = 2.0
     cost_rate: float = 0.15
     blacklist_radius: float = 0.5
     visit_radius: float = 1.0
     erosion_m: float = 0.4
     goal_margin: float = 0.1
+    approach_m: float = 1.0
     gain_beams: int = 48
     path_lengths: PathLengths = planner_path_lengths
     blacklist: list[Blacklisted] = field(default_factory=list)
@@ -152,13 +162,13 @@ class ExplorationPlanner:
     def candidates(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[Candidate]:
         """Reachable, not blacklisted goals, best first (empty: nothing reachable is left to explore)."""
         if self.strategy == "scan_points":
-            points = [(p.x, p.y, p.cells) for p in scan_points(grid, self.erosion_m)]
+            points = [(p.x, p.y, p.cells, p.x, p.y) for p in scan_points(grid, self.erosion_m)]
             r2 = self.visit_radius ** 2
             points = [p for p in points if not self.is_blacklisted(p[0], p[1])
                       and all((vx - p[0]) ** 2 + (vy - p[1]) ** 2 > r2 for vx, vy in self.visited)]
             kind = "scan_point"
         else:
-            points = [(*g, f.size) for f, g in self.frontier_goals(grid)]
+            points = [(*g, f.size, *f.goal) for f, g in self.frontier_goals(grid)]
             points = [p for p in points if not self.is_blacklisted(p[0], p[1])]
             kind = "frontier"
         if not points:
@@ -173,7 +183,7 @@ class ExplorationPlanner:
         out = []
         for (p, length), gain in zip(reachable, gains, strict=True):
             out.append(Candidate(p[0], p[1], kind, int(p[2]), float(gain), float(length),
-                                 self._score(float(gain), float(length), int(p[2]))))
+                                 self._score(float(gain), float(length), int(p[2])), (p[3], p[4])))
         out.sort(key=lambda c: (-c.score, c.path_m, c.x, c.y))
         return out
 
@@ -190,30 +200,57 @@ class ExplorationPlanner:
             return True
         if self.strategy == "gain":
             return best.score > margin * current.score
-        if self.strategy == "nearest":
-            return best.path_m < current.path_m - 0.5
-        return False  # the report's strategy finishes each scan point before choosing the next
+        # nearest and scan points keep their goal until it is reached, seen or given up
+        return False
 
     def frontier_goals(self, grid: OccupancyGrid) -> list[tuple[Frontier, tuple[float, float]]]:
-        """Frontier pieces with the goal cell chosen for each (clear of obstacles where possible)."""
+        """Frontier pieces, each with the place to send the robot to see it.
+
+        The goal is the free cell nearest the frontier's centroid that keeps ``footprint_radius +
+        goal_margin`` from every cell not known to be free (the unknown side of a frontier often
+        turns out to be a wall), within ``approach_m`` of the centroid and in line of sight of the
+        frontier. Where there is none, it is the frontier cell farthest from known obstacles.
+        """
         res = grid.resolution
         min_cells = max(1, int(math.ceil(self.min_frontier_m / res)))
         piece = max(min_cells, int(math.ceil(self.frontier_piece_m / res)))
-        frontiers = find_frontiers(grid, min_size_cells=min_cells, max_size_cells=piece)
+        frontiers = find_frontiers(grid, min_size_cells=min_cells, max_size_cells=piece,
+                                   min_unknown_cells=max(1, int(self.min_unknown_m2 / (res * res))))
         if not frontiers:
             return []
-        clearance = ndimage.distance_transform_edt(~occupied_mask(grid)) * res
+        free = free_mask(grid)
+        occupied = occupied_mask(grid)
         want = self.footprint_radius + self.goal_margin
+        # distance (m) to the nearest cell not known free, and to the nearest occupied cell
+        to_unfree = cv2.distanceTransform(np.pad(free, 1).astype(np.uint8), cv2.DIST_L2, 5)[1:-1, 1:-1] * res
+        to_occupied = cv2.distanceTransform((~occupied).astype(np.uint8), cv2.DIST_L2, 5) * res
+        safe = to_unfree >= want
+        k = int(math.ceil(self.approach_m / res))
+        h, w = grid.data.shape
         out = []
         for f in frontiers:
             rows, cols = f.cells[:, 0], f.cells[:, 1]
-            clear = clearance[rows, cols]
-            xs = grid.origin.x + (cols + 0.5) * res
-            ys = grid.origin.y + (rows + 0.5) * res
-            d2 = (xs - f.centroid[0]) ** 2 + (ys - f.centroid[1]) ** 2
-            ok = clear >= want
-            k = int(np.argmin(np.where(ok, d2, np.inf))) if ok.any() else int(np.argmax(clear))
-            out.append((f, (float(xs[k]), float(ys[k]))))
+            cr = min(h - 1, max(0, int(math.floor((f.centroid[1] - grid.origin.y) / res))))
+            cc = min(w - 1, max(0, int(math.floor((f.centroid[0] - grid.origin.x) / res))))
+            goal = None
+            r0, c0 = max(0, cr - k), max(0, cc - k)
+            sr, sc = np.nonzero(safe[r0:cr + k + 1, c0:cc + k + 1])
+            if len(sr):
+                sr, sc = sr + r0, sc + c0
+                d2 = (sr - cr) ** 2 + (sc - cc) ** 2
+                for j in np.argsort(d2, kind="stable")[:8]:  # the nearest few that see the frontier
+                    if d2[j] > k * k:
+                        break
+                    m = int(np.argmin((rows - sr[j]) ** 2 + (cols - sc[j]) ** 2))
+                    if _clear_line(occupied, (int(sr[j]), int(sc[j])), (int(rows[m]), int(cols[m]))):
+                        goal = grid.cell_to_world(int(sr[j]), int(sc[j]))
+                        break
+            if goal is None:
+                m = int(np.argmax(to_occupied[rows, cols]))
+                if to_occupied[rows[m], cols[m]] < self.footprint_radius:
+                    continue  # no place to stand near it: leave it
+                goal = grid.cell_to_world(int(rows[m]), int(cols[m]))
+            out.append((f, (float(goal[0]), float(goal[1]))))
         return out
 
     def still_frontier(self, grid: OccupancyGrid, x: float, y: float, radius: float = 0.3) -> bool:
@@ -234,6 +271,14 @@ class ExplorationPlanner:
             return False
         d2 = ((rr + rs - r0) ** 2 + (cc + cs - c0) ** 2) * res * res
         return bool((d2 <= radius * radius).any())
+
+
+def _clear_line(occupied: np.ndarray, a: tuple[int, int], b: tuple[int, int]) -> bool:
+    """Whether the straight line between cells ``a`` and ``b`` crosses no occupied cell."""
+    n = max(abs(b[0] - a[0]), abs(b[1] - a[1])) * 2 + 1
+    rows = np.rint(np.linspace(a[0], b[0], n)).astype(np.int64)
+    cols = np.rint(np.linspace(a[1], b[1], n)).astype(np.int64)
+    return not occupied[rows, cols].any()
 
 
 def visible_unknown_area(grid: OccupancyGrid, points: np.ndarray, sensor_range: float,

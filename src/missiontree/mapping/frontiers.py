@@ -50,15 +50,26 @@ class Frontier:
         return float(np.hypot(self.goal[0] - x, self.goal[1] - y))
 
 
-def frontier_mask(grid: OccupancyGrid) -> np.ndarray:
-    """Bool mask of the frontier cells: free cells with an unknown four-neighbour (or at the border)."""
+def frontier_mask(grid: OccupancyGrid, min_unknown_cells: int = 1) -> np.ndarray:
+    """Bool mask of the frontier cells: free cells with an unknown four-neighbour (or at the border).
+
+    Unknown patches of fewer than ``min_unknown_cells`` cells that do not touch the border (specks
+    between far-apart beams, inside space already seen all around) are not counted as unknown.
+    """
     unknown = np.pad(unknown_mask(grid), 1, constant_values=True)
+    if min_unknown_cells > 1:
+        labels, count = ndimage.label(unknown, structure=_SQUARE)
+        sizes = np.bincount(labels.ravel(), minlength=count + 1)
+        keep = sizes >= min_unknown_cells
+        keep[0] = False
+        keep[labels[0, 0]] = True  # the padding ring: everything beyond the border
+        unknown = keep[labels]
     near_unknown = ndimage.binary_dilation(unknown, structure=_CROSS)[1:-1, 1:-1]
     return free_mask(grid) & near_unknown
 
 
-def find_frontiers(grid: OccupancyGrid, min_size_cells: int = 5,
-                   max_size_cells: int | None = None) -> list[Frontier]:
+def find_frontiers(grid: OccupancyGrid, min_size_cells: int = 5, max_size_cells: int | None = None,
+                   min_unknown_cells: int = 1) -> list[Frontier]:
     """The frontiers of ``grid``, largest first.
 
     Args:
@@ -66,6 +77,8 @@ def find_frontiers(grid: OccupancyGrid, min_size_cells: int = 5,
         min_size_cells: Clusters with fewer cells are dropped (noise, gaps between wall cells).
         max_size_cells: Split clusters longer than this into pieces along their main axis
             (None: never split).
+        min_unknown_cells: Enclosed unknown patches smaller than this are no frontier's cause
+            (see :func:`frontier_mask`).
 
     Returns:
         The frontiers, sorted by size (largest first), ties by position.
@@ -74,7 +87,7 @@ def find_frontiers(grid: OccupancyGrid, min_size_cells: int = 5,
         raise ValueError(f"min_size_cells must be >= 1, found {min_size_cells}")
     if max_size_cells is not None and max_size_cells < min_size_cells:
         raise ValueError(f"max_size_cells ({max_size_cells}) must be >= min_size_cells ({min_size_cells})")
-    mask = frontier_mask(grid)
+    mask = frontier_mask(grid, min_unknown_cells)
     labels, count = ndimage.label(mask, structure=_SQUARE)
     if count == 0:
         return []
