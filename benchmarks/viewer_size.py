@@ -66,15 +66,19 @@ def open_seconds(browser: Any, path: Path) -> float:
 
 
 def scrub_ms(browser: Any, path: Path, moves: int = 40) -> list[float]:
-    """Milliseconds per timeline move to a random tick (state, tree, events, map redrawn)."""
+    """Milliseconds per timeline move to a random tick until the frame is painted (tree, events, map)."""
     context = browser.new_context(viewport={"width": 1400, "height": 900})
     page = context.new_page()
     page.goto(path.as_uri())
     page.wait_for_selector("body[data-ready='1']", state="attached", timeout=60_000)
+    # each move waits for the next painted frame: what a user dragging the slider sees
     times = page.evaluate(
-        """(moves) => { const out = []; let seed = 7; const n = MT.count();
+        """async (moves) => { const out = []; let seed = 7; const n = MT.count();
+        const frame = () => new Promise((r) => requestAnimationFrame(() => setTimeout(r, 0)));
+        await frame();
         for (let k = 0; k < moves; k++) { seed = (seed * 16807) % 2147483647;
-          const t0 = performance.now(); MT.setTick(seed % n); out.push(performance.now() - t0); }
+          const t0 = performance.now(); MT.setTick(seed % n); await frame();
+          out.push(performance.now() - t0); }
         return out; }""",
         moves,
     )

@@ -291,7 +291,8 @@
     for (let n = 0; n < nodes.length; n++) {
       if (shown && shown.st[n] === s.st[n] && shown.fb[n] === s.fb[n] && shown.rs[n] === s.rs[n]) continue;
       const el = rows[n]; if (!el) continue;
-      el.dataset.status = D.statuses[s.st[n]];
+      el.dataset.status = D.statuses[s.st[n]];  // for tools and tests; styles key on the row's class
+      el.firstChild.className = "row s" + s.st[n];
       el.firstChild.lastChild.textContent = s.st[n] ? (S[s.rs[n]] || S[s.fb[n]]) : "";
     }
     shown = s; cur = i;
