@@ -72,6 +72,7 @@ from missiontree.types import Pose2D, Tolerance
 TRUTH_ALIAS = {"desk": "table", "dining table": "table", "coffee table": "table"}
 MATCH_RADIUS = 0.5
 TURN_SPEED = 0.5
+COVER_RADIUS = 3.0
 NAIS_ROOM_PERIOD = 1.0
 DEBUG = False
 SINGLE_PASS = False
@@ -108,6 +109,19 @@ def viewpoints(robot: Any) -> list[tuple[float, float]]:
                 break
             chosen.append(xy[int(np.argmax(d))])
         points += [(float(p[0]), float(p[1])) for p in chosen]
+    # then cover what the rooms missed (a room the segmentation joined to another): no free spot with
+    # room to turn farther than COVER_RADIUS from a viewpoint
+    rows, cols = np.nonzero(free & (clearance >= 0.45) & (seg.labels > 0))
+    if len(rows):
+        every = np.stack([grid.origin.x + (cols + 0.5) * grid.resolution,
+                          grid.origin.y + (rows + 0.5) * grid.resolution], axis=1)[::7]
+        while True:
+            chosen_xy = np.array(points) if points else np.array([[start.x, start.y]])
+            d = np.min(np.linalg.norm(every[:, None, :] - chosen_xy[None], axis=2), axis=1)
+            if d.max() <= COVER_RADIUS:
+                break
+            far = every[int(np.argmax(d))]
+            points.append((float(far[0]), float(far[1])))
     tour, here = [], (start.x, start.y)
     while points:
         nxt = min(points, key=lambda p: math.hypot(p[0] - here[0], p[1] - here[1]))
@@ -528,6 +542,9 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
         if o.movable and truth_label(o.label) in classes and o.size[0] * o.size[1] < 0.5 and o.elevation < 0.3
     ]
     rng.shuffle(candidates)
+    # objects the robot has seen first (found by either method): a change to an object nobody saw says little
+    seen = {id(first[m]["truths"][j]) for m in first for _, j in first[m]["pairs"]}
+    candidates.sort(key=lambda o: id(o) not in seen)
     changes: list[dict[str, Any]] = []
     avoid = list(route)
     for obj in candidates[:3]:

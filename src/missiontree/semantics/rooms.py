@@ -164,13 +164,14 @@ def segment_rooms(
     p = params or SegmentationParams()
     res = grid.resolution
     data = np.asarray(grid.data)
-    free = (data >= 0) & (data < p.occupied)
+    building = _building_free((data >= 0) & (data < p.occupied), grid, inside)
+    free = building.copy()
     side = int(round(p.close_gaps / res))
     if side > 1:
+        # holes in walls are closed for finding rooms (a narrow passage closed this way is reopened below)
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (side | 1, side | 1))
         walls = cv2.morphologyEx((data >= p.occupied).astype(np.uint8), cv2.MORPH_CLOSE, kernel)
         free &= walls == 0
-    free = _building_free(free, grid, inside)
     if not free.any():
         return Segmentation(grid, np.zeros(data.shape, np.int32), [])
     dist = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, 5) * res
@@ -189,6 +190,7 @@ def segment_rooms(
     markers = _drop_small_cores(best_markers, min_cells * 0.1)
     labels = _grow(markers, dist, free)
     labels = _merge_open(labels, dist, p.max_door_width)
+    labels = _grow(labels, dist, building)  # the cells the closing took back: to the nearest room
     labels = _merge_small(labels, min_cells)
     rooms = _regions(grid, labels)
     return Segmentation(grid, labels, rooms)
