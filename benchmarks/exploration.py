@@ -103,7 +103,7 @@ def most_open_point(data: np.ndarray, res: float, ox: float, oy: float) -> tuple
     """The free cell farthest from anything not free (ties: lowest row, then column)."""
     clearance = ndimage.distance_transform_edt((data >= 0) & (data < 50))
     r, c = np.unravel_index(int(np.argmax(clearance)), clearance.shape)
-    return round(ox + (c + 0.5) * res, 4), round(oy + (r + 0.5) * res, 4)
+    return round(float(ox + (c + 0.5) * res), 4), round(float(oy + (r + 0.5) * res), 4)
 
 
 # -- scoring against the truth ----------------------------------------------------------------------

@@ -1,0 +1,178 @@
+"""The Explore leaf on a scripted robot: blacklisting, ending, stuck, look-around, map files."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from patrol_doubles import Events, FakeHandle, FakeRobot
+
+from missiontree.behaviours.explore import Explore
+from missiontree.engine.context import MissionContext
+from missiontree.engine.leaf import Status
+from missiontree.mapping.mapfile import read_map
+from missiontree.robot.actions import ActionStatus
+from missiontree.types import OccupancyGrid, Pose2D, Tolerance
+
+RES = 0.05
+
+
+def corridor_map() -> np.ndarray:
+    """A corridor 6 x 1.6 m (x 0-6, y 0-1.6) with walls along its sides, open at both ends to unknown.
+
+    Known free: x 1.5-4.5; unknown beyond on both ends.
+    """
+    data = np.full((32, 120), -1, np.int8)
+    data[:, 30:90] = 0
+    data[0, 30:90] = 100
+    data[-1, 30:90] = 100
+    return data
+
+
+class MapRobot(FakeRobot):
+    """A scripted robot with a map: goals west of ``block_x`` abort; reaching one reveals its end."""
+
+    def __init__(self, data: np.ndarray, block_x: float | None = None, polls: int = 3) -> None:
+        super().__init__()
+        self.data = data
+        self.block_x = block_x
+        self.polls_per_goal = polls
+        self.set_pose(Pose2D(3.0, 0.8, 0.0))
+
+    def occupancy(self) -> OccupancyGrid | None:  # type: ignore[override]
+        return OccupancyGrid(self.time, RES, Pose2D(0.0, 0.0), self.data.copy())
+
+    def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> FakeHandle:
+        if self.block_x is not None and goal.x < self.block_x:
+            handle = FakeHandle(goal, tolerance, ActionStatus.ABORTED, "no path to it on the map", 1)
+        else:
+            handle = FakeHandle(goal, tolerance, ActionStatus.SUCCEEDED, "", self.polls_per_goal)
+        self.goals.append(handle)
+        return handle
+
+    def reveal_east(self) -> None:
+        """The east end turns out closed: free up to a wall at x 5.5."""
+        self.data[1:-1, 90:110] = 0
+        self.data[0, 90:110] = 100
+        self.data[-1, 90:110] = 100
+        self.data[:, 110] = 100
+
+
+def make(robot: FakeRobot, run_dir: Path | None = None, **params: object) -> tuple[Explore, Events]:
+    events = Events()
+    leaf = Explore("explore", Explore.Params(**params))
+    leaf.setup(context=MissionContext(robot=robot, events=events, run_dir=run_dir))
+    return leaf, events
+
+
+def run(leaf: Explore, robot: FakeRobot, max_ticks: int = 400, on_tick: object = None) -> int:
+    """Tick every 0.1 s of robot time until the leaf ends."""
+    for count in range(1, max_ticks + 1):
+        leaf.tick_once()
+        if on_tick is not None:
+            on_tick()  # type: ignore[operator]
+        if leaf.status in (Status.SUCCESS, Status.FAILURE):
+            return count
+        robot.advance(0.1)
+    raise AssertionError(f"still {leaf.status.name} after {max_ticks} ticks: {leaf.feedback_message}")
+
+
+@pytest.mark.parametrize("strategy", ["gain", "nearest"])
+def test_unreachable_frontier_is_blacklisted_and_exploring_ends_without_it(strategy: str) -> None:
+    """The west goal aborts: blacklisted with the reason, never sent again; the east end is explored."""
+    robot = MapRobot(corridor_map(), block_x=2.0)
+    leaf, events = make(robot, strategy=strategy)
+
+    def reveal() -> None:
+        if any(g.goal.x > 4.0 and g.polls <= 1 for g in robot.goals):  # arriving there: it sees the end
+            robot.reveal_east()
+
+    run(leaf, robot, on_tick=reveal)
+    assert leaf.status == Status.SUCCESS, leaf.feedback_message
+    blacklisted = events.of("explore_blacklist")
+    assert len(blacklisted) == 1 and blacklisted[0]["x"] < 2.0
+    assert "no path to it on the map" in blacklisted[0]["reason"]
+    west = [g for g in robot.goals if g.goal.x < 2.0]
+    assert len(west) == 1  # never offered again once blacklisted
+    assert any(g.goal.x > 4.0 for g in robot.goals)
+    assert "no reachable frontier remains" in leaf.feedback_message
+    assert "1 unreachable" in leaf.feedback_message
+
+
+def test_goals_keep_clear_of_walls_and_unknown_cells() -> None:
+    """A goal is sent to known free space with the robot's clearance, not onto the frontier's edge."""
+    robot = MapRobot(corridor_map())
+    leaf, _ = make(robot, footprint_radius=0.2)
+    leaf.tick_once()
+    goal = robot.goals[0].goal
+    r, c = int(goal.y / RES), int(goal.x / RES)
+    k = int(math.ceil(0.3 / RES)) - 1
+    assert (robot.data[r - k:r + k + 1, c - k:c + k + 1] == 0).all()
+    assert robot.goals[0].tolerance is not None and robot.goals[0].tolerance.yaw >= 2 * math.pi - 1e-9
+
+
+def test_no_map_fails_with_a_reason_after_the_timeout() -> None:
+    """With no free cell in the map the leaf waits map_timeout seconds, then fails saying why."""
+    robot = MapRobot(np.full((10, 10), -1, np.int8))
+    leaf, _ = make(robot, map_timeout=2.0)
+    run(leaf, robot)
+    assert leaf.status == Status.FAILURE
+    assert "no map with free space" in leaf.feedback_message
+    assert robot.time >= 2.0 and robot.goals == []
+
+
+def test_stuck_robot_fails_when_nothing_changes() -> None:
+    """Goals that never end while the robot stands still and the map stays the same end in FAILURE."""
+    robot = MapRobot(corridor_map(), polls=10**9)
+    leaf, _ = make(robot, stuck_timeout=5.0, no_progress_timeout=1000.0)
+    run(leaf, robot)
+    assert leaf.status == Status.FAILURE
+    assert leaf.feedback_message.startswith("stuck:")
+    assert robot.goals[-1].cancelled  # the goal was cancelled when the leaf ended
+
+
+def test_look_around_turns_a_full_circle_at_a_goal_reached() -> None:
+    """With look_around, reaching a goal turns the robot 2 pi (by drive) before the next goal goes out."""
+    data = corridor_map()
+    data[:, :30] = 100  # the west end is a wall: one frontier left
+    robot = MapRobot(data)
+    leaf, events = make(robot, look_around=True, look_steps=4, look_pause=0.2, turn_speed=1.0)
+    looks: list[list[float]] = []  # heading change during each look-around
+    was_looking = [False]
+
+    def watch() -> None:
+        looking = leaf.state == "look"
+        if looking and not was_looking[0]:
+            looks.append([robot.current.yaw])
+        if looking:
+            looks[-1].append(robot.current.yaw)
+        elif looks:
+            robot.reveal_east()
+        was_looking[0] = looking
+
+    run(leaf, robot, on_tick=watch)
+    assert events.of("explore_reached")
+    assert looks
+    for yaws in looks:
+        assert yaws[-1] - yaws[0] == pytest.approx(2 * math.pi, abs=0.15)
+    assert any(v == 0.0 and w == 0.0 for v, w in robot.drives)  # paused between the steps
+    assert robot.drives[-1] == (0.0, 0.0)
+
+
+def test_learned_map_is_written_into_the_run_directory(tmp_path: Path) -> None:
+    """When the leaf ends, map.pgm + map.yaml (map_server format) hold the map it explored."""
+    data = corridor_map()
+    data[:, :30] = 100
+    data[:, 90:] = 100
+    robot = MapRobot(data)
+    leaf, events = make(robot, run_dir=tmp_path)
+    run(leaf, robot)
+    assert leaf.status == Status.SUCCESS  # nothing left to explore
+    assert (tmp_path / "map.pgm").is_file()
+    back = read_map(tmp_path / "map.yaml")
+    np.testing.assert_array_equal(back.data, data)
+    assert events.of("map_saved")[0]["path"] == str(tmp_path / "map.yaml")
+    assert leaf.bb.get("map_yaml") == str(tmp_path / "map.yaml")
+    assert leaf.bb.get("explored_area") == pytest.approx(data.size * RES * RES)
