@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import pytest
 import yaml
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
-from strategies import mutations, values
+from strategies import SCALARS, mutations, values
 
-from missiontree.backends.sim import load_robot_profile
+from missiontree.backends.sim import create_robot, load_robot_profile
 from missiontree.backends.sim.world import build_world
-from missiontree.errors import ProblemsError, WorldFileError
+from missiontree.errors import ConfigError, ProblemsError, WorldFileError
 from missiontree.paths import REPO_ROOT
 from missiontree.yamlio import parse_yaml
 
@@ -60,3 +60,21 @@ def test_mutated_robot_profiles_never_crash(tmp_path_factory: pytest.TempPathFac
         load_robot_profile(path, overrides)
     except ProblemsError:
         pass
+
+
+_OPTION_VALUES = st.one_of(SCALARS, st.sampled_from(["conformance", "generated:3", "office", "nowhere",
+                                                     "turtlebot4", "../../etc/passwd"]),
+                           st.dictionaries(st.sampled_from(["lidar", "camera", "odometry", "body", "beams"]),
+                                           values(), max_size=2))
+
+
+@settings(max_examples=max(20, settings.default.max_examples // 10))  # each case builds a robot
+@given(st.dictionaries(st.sampled_from(["world", "robot", "seed", "config", "name", "unknown_map", "wrld"]),
+                       _OPTION_VALUES, max_size=4))
+def test_simulator_factory_options_never_crash(options: dict) -> None:
+    """Any options to the simulator's factory build a robot or raise a ConfigError, nothing else."""
+    try:
+        robot = create_robot(options)
+    except ConfigError:
+        return
+    robot.close()
