@@ -345,11 +345,14 @@ def feedback_of(node: Behaviour) -> str:
 
 def _watched_stop(node: Behaviour, original: Callable[..., None],
                   stopped: list[Behaviour]) -> Callable[..., None]:
-    def stop(new_status: Status = Status.INVALID) -> None:
+    invalid = Status.INVALID
+
+    def stop(new_status: Status = invalid) -> None:
         try:
             original(new_status)
         finally:
-            stopped.append(node)
+            if new_status is invalid:  # a halt; stop(SUCCESS/FAILURE) ends a node's own tick (visited)
+                stopped.append(node)
 
     return stop
 
