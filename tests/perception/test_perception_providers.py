@@ -75,7 +75,7 @@ def test_oracle_factory_checks_its_rates() -> None:
 
 
 def test_models_config_with_a_missing_model_leaves_a_broken_role_with_the_reason(tmp_path: Path) -> None:
-    """Through the models hub, a missing ONNX file makes the role unusable with the provider's message."""
+    """Through session.models, a missing ONNX file makes the role unusable with the provider's message."""
     from missiontree.errors import ModelError
     from missiontree.session.models import build_models
 

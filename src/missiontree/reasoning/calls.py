@@ -61,7 +61,7 @@ if TYPE_CHECKING:
 
 #: Key under which a mission's ModelCaller is kept in ``MissionContext.models``.
 CALLER_KEY = "_caller"
-#: Key under which the models hub leaves the :class:`CallSettings` of a models config.
+#: Key under which the model wiring (session.models) leaves the :class:`CallSettings` of a models config.
 SETTINGS_KEY = "_calls"
 
 #: Wall-clock seconds the simulator waits for a worker that has not finished at its due time.
