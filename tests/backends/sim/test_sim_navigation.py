@@ -69,7 +69,7 @@ def test_unreachable_goals_abort_with_a_reason(goal, words, code):
     handle = robot.navigate_to(goal, ANY)
     result = _run(robot, handle, 5.0)
     assert handle.status() is ActionStatus.ABORTED
-    assert words in result.reason and result.code == code
+    assert words in result.reason and result.code == code and result.kind == "unreachable"
     assert robot.now() < 1.0
 
 

@@ -32,7 +32,7 @@ from missiontree.backends.sim.schema import NavigationSpec, RobotProfile
 from missiontree.backends.sim.timing import TimingLog
 from missiontree.mapping import planner
 from missiontree.mapping.planner import INSCRIBED, LETHAL, MAX_FREE
-from missiontree.robot.actions import ActionResult, ActionStatus, NavFeedback
+from missiontree.robot.actions import UNREACHABLE, ActionResult, ActionStatus, NavFeedback
 from missiontree.types import LaserScan, OccupancyGrid, Pose2D, Tolerance, wrap_angle
 
 __all__ = ["BLOCKED", "GOAL_IN_OBSTACLE", "INSCRIBED", "LETHAL", "NO_PROGRESS", "NO_VALID_PATH", "OUT_OF_MAP",
@@ -135,7 +135,9 @@ class SimNavHandle:
     def _finish(self, status: ActionStatus, reason: str = "", code: int = 0) -> None:
         if not self._status.done:
             self._status = status
-            self._result = ActionResult(status, reason, code)
+            # every abort of the in-process navigator is about the goal (no server to lose)
+            kind = UNREACHABLE if status is ActionStatus.ABORTED else ""
+            self._result = ActionResult(status, reason, code, kind=kind)
 
 
 @dataclass
