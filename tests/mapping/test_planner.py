@@ -144,3 +144,16 @@ def test_a_plan_touches_tiles_along_its_way_not_the_whole_map() -> None:
     assert costmap.tiles_computed < 0.02 * total
     assert path.expanded < 0.01 * data.size
     assert planner.TILE == TILE
+
+
+def test_a_replan_overlay_reuses_tiles_and_equals_a_fresh_costmap() -> None:
+    """with_points starts from the kept tiles, recomputes only near the points: the costs of a fresh one."""
+    grid = grid_of(two_rooms())
+    kept = Costmap(grid, 0.17)
+    kept.plan((2.0, 1.0), (8.0, 1.0))
+    person = np.array([[5.2, 5.0], [3.0, 1.2]])
+    overlay = kept.with_points(person, radius=0.3)
+    assert overlay.tiles_computed == 0 and (overlay.cost_slot >= 0).any()
+    fresh = Costmap(grid, 0.17, extra_lethal=person, extra_radius=0.3)
+    assert np.array_equal(overlay.dense(), fresh.dense())
+    assert kept.cost_at(3.0, 1.2) < LETHAL   # the kept costmap is untouched

@@ -431,13 +431,23 @@ class Costmap:
         block[...] = -1
 
     def with_points(self, points: np.ndarray, radius: float = 0.08) -> Costmap:
-        """A costmap of the same map with extra lethal discs at ``points`` (N, 2); its own tile cache.
+        """A costmap of the same map with extra lethal discs at ``points`` (N, 2), for one replan.
 
-        Lethal points already added to this costmap (:meth:`add_lethal`) stay lethal in it.
+        It starts from a copy of this costmap's tiles, all but those near the points (so a replan
+        costs what a plan costs); lethal points already added here (:meth:`add_lethal`) stay lethal.
         """
-        extra = np.concatenate([self.extra_lethal, np.asarray(points, float).reshape(-1, 2)])
-        return Costmap(self.grid, self.radius, self.inflation_radius, self.cost_scaling, self.allow_unknown,
-                       self.accelerate, extra, max(radius, self.extra_radius))
+        new = np.asarray(points, float).reshape(-1, 2)
+        extra = np.concatenate([self.extra_lethal, new])
+        other = Costmap(self.grid, self.radius, self.inflation_radius, self.cost_scaling, self.allow_unknown,
+                        self.accelerate, extra, max(radius, self.extra_radius))
+        other.cost_slot = self.cost_slot.copy()
+        other.cost_pool = self.cost_pool.copy()
+        other._free_slots = list(self._free_slots)
+        other._blocks = None if self._blocks is None else self._blocks.copy()
+        if other.extra_radius != self.extra_radius:
+            other._invalidate_points(self.extra_lethal)
+        other._invalidate_points(new)
+        return other
 
     def add_lethal(self, points: np.ndarray) -> None:
         """Make discs of ``extra_radius`` at ``points`` (N, 2) lethal from now on (e.g. bumper hits)."""
