@@ -17,8 +17,14 @@ from missiontree.perception.tracking import (
 from missiontree.types import Detection, Pose2D
 
 
-def proj(label: str = "chair", x: float = 1.0, y: float = 0.0, score: float = 0.9, rng: float = 2.0,
-         stamp: float = 0.0) -> Projection:
+def proj(
+    label: str = "chair",
+    x: float = 1.0,
+    y: float = 0.0,
+    score: float = 0.9,
+    rng: float = 2.0,
+    stamp: float = 0.0,
+) -> Projection:
     det = Detection(label, score, (10, 10, 20, 20))
     return Projection(label, score, det.box, (x, y, 0.3), rng, rng, (0.5, 0.5, 0.9), stamp, Pose2D(0, 0), det)
 
@@ -26,7 +32,13 @@ def proj(label: str = "chair", x: float = 1.0, y: float = 0.0, score: float = 0.
 def test_defaults_are_the_papers_values() -> None:
     """0.7, 4.5 m, 10 frames, 0.5 m over 100 entries, room-change replacement on."""
     p = NaisFilterParams()
-    assert (p.min_confidence, p.max_range, p.min_frames, p.dedup_radius, p.dedup_buffer) == (0.7, 4.5, 10, 0.5, 100)
+    assert (p.min_confidence, p.max_range, p.min_frames, p.dedup_radius, p.dedup_buffer) == (
+        0.7,
+        4.5,
+        10,
+        0.5,
+        100,
+    )
     assert p.room_change_replacement and "person" in p.dynamic_classes
 
 
@@ -88,8 +100,14 @@ def test_the_chain_confirms_once_and_never_updates() -> None:
     tracker = NaisTracker()
     events = []
     for k in range(25):
-        events += tracker.process([proj(stamp=k * 0.2, rng=3.0), proj("person", stamp=k * 0.2),
-                                   proj(score=0.5, x=2.0, stamp=k * 0.2)], room="kitchen")
+        events += tracker.process(
+            [
+                proj(stamp=k * 0.2, rng=3.0),
+                proj("person", stamp=k * 0.2),
+                proj(score=0.5, x=2.0, stamp=k * 0.2),
+            ],
+            room="kitchen",
+        )
     assert [e.kind for e in events] == ["confirmed", "duplicate"]
     assert tracker.dropped["dynamic"] == 25 and tracker.dropped["confidence"] == 25
     assert len(tracker.objects) == 1

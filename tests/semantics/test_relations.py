@@ -53,8 +53,10 @@ def test_without_a_room_only_distance_relations_are_given() -> None:
 def test_relations_are_deterministic_and_fast_for_300_objects() -> None:
     """The same layout gives the same edges whatever the input order, well within 20 ms."""
     rng = np.random.default_rng(3)
-    bodies = [Body(f"o{i:03d}", *rng.uniform(0, 30, 2), 0.3, *rng.uniform(0.1, 1.5, 2), 0.6, f"r{i % 5}")
-              for i in range(300)]
+    bodies = [
+        Body(f"o{i:03d}", *rng.uniform(0, 30, 2), 0.3, *rng.uniform(0.1, 1.5, 2), 0.6, f"r{i % 5}")
+        for i in range(300)
+    ]
     centres = {f"r{k}": (k * 6.0 + 3.0, 15.0) for k in range(5)}
     first = compute_relations(bodies, centres)
     assert compute_relations(bodies[::-1], centres) == first

@@ -54,7 +54,7 @@ def test_a_learned_map_with_holes_in_its_walls_still_splits_at_the_door() -> Non
     col = int((5.0 - world.grid.origin.x) / res)
     for y in (1.0, 6.0, 7.0):  # three 0.2 m holes in the kitchen | office wall
         row = int((y - world.grid.origin.y) / res)
-        data[row:row + 4, col - 3:col + 3] = 0
+        data[row : row + 4, col - 3 : col + 3] = 0
     grid = OccupancyGrid(0.0, res, world.grid.origin, data)
     seg = segment_rooms(grid, inside=(2.5, 4.0))
     assert len(seg.rooms) == 2
@@ -73,7 +73,7 @@ def test_room_ids_stay_stable_while_the_map_grows() -> None:
     world = load_world("office")
     full = world.grid
     partial = np.array(full.data)
-    partial[:, int((8.0 - full.origin.x) / full.resolution):] = -1  # the east part not yet seen
+    partial[:, int((8.0 - full.origin.x) / full.resolution) :] = -1  # the east part not yet seen
     tracker = RoomTracker()
     first = tracker.update(OccupancyGrid(0.0, full.resolution, full.origin, partial), inside=(2.5, 4.0))
     kitchen = first.room_at(2.5, 4.0)
@@ -87,8 +87,10 @@ def test_room_ids_stay_stable_while_the_map_grows() -> None:
 def test_room_polygons_from_a_file(tmp_path: Path) -> None:
     """A YAML list of {name, type, polygon} gives rooms; a malformed file is a clear error."""
     path = tmp_path / "rooms.yaml"
-    path.write_text("rooms:\n  - {name: lab, type: office, polygon: [[0, 0], [4, 0], [4, 3], [0, 3]]}\n"
-                    "  - {name: store, polygon: [[4, 0], [6, 0], [6, 3], [4, 3]]}\n")
+    path.write_text(
+        "rooms:\n  - {name: lab, type: office, polygon: [[0, 0], [4, 0], [4, 3], [0, 3]]}\n"
+        "  - {name: store, polygon: [[4, 0], [6, 0], [6, 3], [4, 3]]}\n"
+    )
     rooms = load_room_polygons(path)
     assert [(r.name, r.type, r.area) for r in rooms] == [("lab", "office", 12.0), ("store", "unknown", 6.0)]
     world = load_world("office")

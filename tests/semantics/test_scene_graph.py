@@ -17,21 +17,78 @@ NAIS_GRAPH = {
         {"id": 0, "type": "building", "label": "Building", "description": ""},
         {"id": 1, "type": "room", "label": "kitchen", "description": "a kitchen with a fridge"},
         {"id": 2, "type": "room", "label": "office", "description": "an office"},
-        {"id": 3, "type": "object", "label": "cup", "description": "a pink cup",
-         "coordinates": {"x": 1.0, "y": 2.0, "z": 0.1}},
-        {"id": 4, "type": "object", "label": "sofa", "description": "a grey sofa", "coordinates": [6.0, 3.0, 0.4]},
-        {"id": 5, "type": "object", "label": "laptop", "description": "in front of the sofa",
-         "coordinates": [6.0, 2.2, 0.1]},
+        {
+            "id": 3,
+            "type": "object",
+            "label": "cup",
+            "description": "a pink cup",
+            "coordinates": {"x": 1.0, "y": 2.0, "z": 0.1},
+        },
+        {
+            "id": 4,
+            "type": "object",
+            "label": "sofa",
+            "description": "a grey sofa",
+            "coordinates": [6.0, 3.0, 0.4],
+        },
+        {
+            "id": 5,
+            "type": "object",
+            "label": "laptop",
+            "description": "in front of the sofa",
+            "coordinates": [6.0, 2.2, 0.1],
+        },
     ],
     "edges": [
-        {"source_id": 0, "source_label": "Building", "target_id": 1, "target_label": "kitchen", "relation": "contains"},
-        {"source_id": 0, "source_label": "Building", "target_id": 2, "target_label": "office", "relation": "contains"},
-        {"source_id": 1, "source_label": "kitchen", "target_id": 3, "target_label": "cup", "relation": "contains"},
-        {"source_id": 2, "source_label": "office", "target_id": 4, "target_label": "sofa", "relation": "contains"},
-        {"source_id": 4, "source_label": "sofa", "target_id": 5, "target_label": "laptop", "relation": "contains"},
-        {"source_id": 5, "source_label": "laptop", "target_id": 4, "target_label": "sofa",
-         "relation": "in front of"},
-        {"source_id": 5, "source_label": "laptop", "target_id": 99, "target_label": "desk", "relation": "on top of"},
+        {
+            "source_id": 0,
+            "source_label": "Building",
+            "target_id": 1,
+            "target_label": "kitchen",
+            "relation": "contains",
+        },
+        {
+            "source_id": 0,
+            "source_label": "Building",
+            "target_id": 2,
+            "target_label": "office",
+            "relation": "contains",
+        },
+        {
+            "source_id": 1,
+            "source_label": "kitchen",
+            "target_id": 3,
+            "target_label": "cup",
+            "relation": "contains",
+        },
+        {
+            "source_id": 2,
+            "source_label": "office",
+            "target_id": 4,
+            "target_label": "sofa",
+            "relation": "contains",
+        },
+        {
+            "source_id": 4,
+            "source_label": "sofa",
+            "target_id": 5,
+            "target_label": "laptop",
+            "relation": "contains",
+        },
+        {
+            "source_id": 5,
+            "source_label": "laptop",
+            "target_id": 4,
+            "target_label": "sofa",
+            "relation": "in front of",
+        },
+        {
+            "source_id": 5,
+            "source_label": "laptop",
+            "target_id": 99,
+            "target_label": "desk",
+            "relation": "on top of",
+        },
     ],
 }
 
@@ -51,7 +108,9 @@ def test_round_trip_keeps_exactly_the_nais_keys() -> None:
     graph = SceneGraph.from_json(NAIS_GRAPH)
     data = json.loads(graph.to_json())
     for node in data["nodes"]:
-        expected = {"id", "type", "label", "description"} | ({"coordinates"} if node["type"] == "object" else set())
+        expected = {"id", "type", "label", "description"} | (
+            {"coordinates"} if node["type"] == "object" else set()
+        )
         assert set(node) == expected
     for edge in data["edges"]:
         assert set(edge) == {"source_id", "source_label", "target_id", "target_label", "relation"}
@@ -80,8 +139,11 @@ def test_build_from_instances_puts_objects_under_their_rooms(tmp_path: Path) -> 
     smap = SemanticMap()
     smap.add("cup", (1.0, 2.0, 0.05), 0.0, room="room_1")
     smap.add("chair", (4.0, 2.0, 0.4), 0.0)
-    graph = SceneGraph.build(list(smap), [Room()], [RelationEdge("cup_1", "chair_1", "near"),
-                                                    RelationEdge("cup_1", "ghost_9", "near")])
+    graph = SceneGraph.build(
+        list(smap),
+        [Room()],
+        [RelationEdge("cup_1", "chair_1", "near"), RelationEdge("cup_1", "ghost_9", "near")],
+    )
     contains = {(str(e["source_id"]), e["target_id"]) for e in graph.edges if e["relation"] == "contains"}
     assert contains == {("0", "room_1"), ("room_1", "cup_1"), ("0", "chair_1")}
     assert [e["target_id"] for e in graph.dropped] == ["ghost_9"]
@@ -89,14 +151,20 @@ def test_build_from_instances_puts_objects_under_their_rooms(tmp_path: Path) -> 
     assert SceneGraph.load(path).to_dict() == graph.to_dict()
 
 
-@pytest.mark.parametrize("text, fragment", [
-    ("not json", "not JSON"),
-    ('{"nodes": [{"id": 1, "label": "x"}], "edges": []}', "missing type"),
-    ('{"nodes": [{"id": 1, "type": "planet", "label": "x"}], "edges": []}', "not one of"),
-    ('{"nodes": [{"id": 1, "type": "room", "label": "a"}, {"id": 1, "type": "room", "label": "b"}]}', "unique"),
-    ('{"nodes": [{"id": 1, "type": "object", "label": "a", "coordinates": "here"}]}', "coordinates"),
-    ('{"edges": []}', "'nodes' list"),
-])
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        ("not json", "not JSON"),
+        ('{"nodes": [{"id": 1, "label": "x"}], "edges": []}', "missing type"),
+        ('{"nodes": [{"id": 1, "type": "planet", "label": "x"}], "edges": []}', "not one of"),
+        (
+            '{"nodes": [{"id": 1, "type": "room", "label": "a"}, {"id": 1, "type": "room", "label": "b"}]}',
+            "unique",
+        ),
+        ('{"nodes": [{"id": 1, "type": "object", "label": "a", "coordinates": "here"}]}', "coordinates"),
+        ('{"edges": []}', "'nodes' list"),
+    ],
+)
 def test_malformed_graphs_are_refused_saying_why(text: str, fragment: str) -> None:
     """Each shape error is a SceneGraphError naming the node and the problem."""
     with pytest.raises(SceneGraphError, match=fragment):

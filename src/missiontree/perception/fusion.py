@@ -54,7 +54,7 @@ class FusionParams:
         memory: Observations averaged into an instance's position (older ones fade).
         miss_frames: Frames that should show an instance and do not before it is removed.
         min_pixels: An instance is only expected in a frame where it would be at least this many
-            pixels wide and high.
+            pixels wide or high (and a third of it the other way: a bottle is narrow).
         edge_margin: Share of the image width kept clear at each side when judging visibility.
         depth_tolerance: Depth nearer than the instance's near surface by more than this means
             something stands in front of it, metres.
@@ -100,6 +100,7 @@ class InstanceFusion:
         self.tracks: dict[str, _Track] = {}
         self._candidate_colours: dict[int, Counter[str]] = {}
         self.frames = 0
+        self.last_stamp = -math.inf
         #: Instance id → the detection that showed it in the latest frame (for crops to describe).
         self.observed: dict[str, Detection] = {}
 
@@ -113,7 +114,7 @@ class InstanceFusion:
     def process(
         self, frame: RGBDFrame, projections: list[Projection], detections: list[Detection] | None = None
     ) -> None:
-        """Fuse one frame's projections and judge what it should have shown.
+        """Fuse one frame's projections and judge what it should have shown (a frame already seen is ignored).
 
         Args:
             frame: The frame (pixels for colour, depth and intrinsics for visibility).
@@ -121,6 +122,9 @@ class InstanceFusion:
             detections: All its detections (boxes that explain an instance even without depth);
                 default: those of ``projections``.
         """
+        if frame.stamp <= self.last_stamp:
+            return  # a frame seen already (or older): its votes are counted
+        self.last_stamp = frame.stamp
         self.frames += 1
         self.observed = {}
         stamp = frame.stamp
@@ -277,7 +281,10 @@ class InstanceFusion:
             return None
         width_px = max(inst.size[0], inst.size[1], 0.05) * k.fx / forward
         height_px = max(inst.size[2], 0.05) * k.fy / forward
-        if min(width_px, height_px) < self.params.min_pixels:
+        if (
+            max(width_px, height_px) < self.params.min_pixels
+            or min(width_px, height_px) < self.params.min_pixels / 3
+        ):
             return None
         return u, v, forward
 
@@ -309,7 +316,19 @@ class InstanceFusion:
             misses = inst.misses + 1
             self.map.update(inst.id, misses=misses, doubtful=True, confidence=confidence)
             if misses >= self.params.miss_frames:
+                if misses < 3 * self.params.miss_frames and self._candidate_twin(inst):
+                    continue  # the same object may be what is being seen elsewhere: wait to move it
                 self._retire(inst, frame.stamp, True)
+
+    def _candidate_twin(self, inst: Instance) -> bool:
+        """Whether a candidate of the same label and colour is being voted for elsewhere right now."""
+        for cand in self.voting.candidates:
+            if cand.label != inst.label or inst.distance_to(cand.x, cand.y) <= self.params.associate_radius:
+                continue
+            colour = _majority(self._candidate_colours.get(id(cand), Counter()), "unknown")
+            if colour in (inst.colour, "unknown") and cand.last_stamp >= self.last_stamp - 1.0:
+                return True
+        return False
 
     def _place_seen(self, frame: RGBDFrame, inst: Instance, u: float, v: float, forward: float) -> str:
         """What the depth image shows where ``inst`` should be: ``empty``, ``present`` or ``occluded``.

@@ -8,7 +8,8 @@ point into the map frame (TF2 at the image's stamp). :func:`project` does the sa
 - depth: ``method="centre"`` is the paper's median of a ``window`` x ``window`` pixel square at the
   box centre; ``method="robust"`` is :func:`missiontree.perception.depth.box_depth` (floor pixels
   dropped, the nearest cluster of the box's depths: what the box's object shows even when its
-  centre falls on background, e.g. between a chair's legs);
+  centre falls on background, e.g. between a chair's legs; for an object lower than the floor
+  clearance, the centre's median);
 - pose: the camera pose of the frame's instant. A frame carries it (``frame.camera_pose``, the
   localisation estimate at ``frame.stamp``); :func:`camera_pose_at` can instead take the robot's
   pose history at the stamp (``robot.pose_at``) composed with the camera mount, which is what a
@@ -152,6 +153,8 @@ def project(
         z = reading.depth if reading.found else float("nan")
         if reading.found and math.isfinite(reading.column):
             u = reading.column
+        if not reading.found:  # an object lower than the floor clearance (a cup): the centre's depth
+            z = centre_depth(np.asarray(frame.depth), detection.box, window)
     elif method == "centre":
         z = centre_depth(np.asarray(frame.depth), detection.box, window)
     else:

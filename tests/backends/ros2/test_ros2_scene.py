@@ -1,4 +1,4 @@
-"""The scene graph on ROS 2: /scene_graph JSON (TRANSIENT_LOCAL) and a MarkerArray of its objects, over DDS."""
+"""The scene graph on ROS 2: /scene_graph JSON (TRANSIENT_LOCAL) and a MarkerArray of objects, over DDS."""
 
 from __future__ import annotations
 
@@ -60,9 +60,12 @@ class Listener(SpinningPeer):
         super().__init__(domain, "scene_listener")
         self.graphs: list[dict[str, Any]] = []
         self.markers: list[MarkerArray] = []
-        self.node.create_subscription(String, "/scene_graph", lambda m: self.graphs.append(json.loads(m.data)),
-                                      latched_qos())
-        self.node.create_subscription(MarkerArray, "/missiontree/detections", self.markers.append, latched_qos())
+        self.node.create_subscription(
+            String, "/scene_graph", lambda m: self.graphs.append(json.loads(m.data)), latched_qos()
+        )
+        self.node.create_subscription(
+            MarkerArray, "/missiontree/detections", self.markers.append, latched_qos()
+        )
         self.start()
 
 
@@ -74,8 +77,9 @@ class Sink:
         self.events.append(event)
 
 
-def test_scene_graph_events_reach_a_late_subscriber_over_dds(domain_id: int, make_robot: Callable,
-                                                             wait_until: Callable) -> None:
+def test_scene_graph_events_reach_a_late_subscriber_over_dds(
+    domain_id: int, make_robot: Callable, wait_until: Callable
+) -> None:
     """The leaf's scene_graph event is published once; a subscriber that joins afterwards still gets it."""
     robot = make_robot(domain_id)
     context = MissionContext(robot=robot, events=Sink())
