@@ -6,6 +6,7 @@
 - :mod:`~missiontree.behaviours.servo`: ServoToTarget (visual servoing on an alarm).
 - :mod:`~missiontree.behaviours.explore`: Explore (frontiers or scan points on a learned map).
 - :mod:`~missiontree.behaviours.intent`: ServeCommands, GoToIntent (go where the user means).
+- :mod:`~missiontree.behaviours.search`: ScanRotate, ColourAttention, Locate, Approach, Verify (search).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ def register_nodes(registry: NodeRegistry) -> None:
     from missiontree.behaviours.motion import NavigateTo, Rotate
     from missiontree.behaviours.patrol import Patrol
     from missiontree.behaviours.scene import BuildSceneGraph
+    from missiontree.behaviours.search import Approach, ColourAttention, Locate, ScanRotate, Verify
     from missiontree.behaviours.servo import ServoToTarget
     from missiontree.behaviours.surveillance import Surveillance
 
@@ -31,3 +33,5 @@ def register_nodes(registry: NodeRegistry) -> None:
     registry.add(SERVE_COMMANDS)
     registry.add(Explore)
     registry.add(BuildSceneGraph)
+    for leaf in (ScanRotate, ColourAttention, Locate, Approach, Verify):
+        registry.add(leaf)

@@ -1,0 +1,318 @@
+"""Object search: ours (trees/find_object.yaml) against the vision-language object-search report's method.
+
+    python benchmarks/search_eval.py               # 50 worlds with the target + 10 without
+    python benchmarks/search_eval.py --quick       # 6 + 2 (tractable on a loaded 2-core machine)
+    python benchmarks/search_eval.py --workers 2   # two missions at once
+
+Worlds. Apartments from :mod:`missiontree.backends.sim.generator` (4 rooms, no people), edited here
+for the search (benchmark-side world editing, the generator is untouched): a target (class and
+colour, e.g. "red backpack") is chosen per world among the small objects; decoys of both kinds are
+made sure of — an object of the same class in another colour and one of the same colour in another
+class (the generated furnishings already hold some; missing ones are made by recolouring another
+small object); any second object matching the target is recoloured, so exactly one is right. In the
+``absent`` cases the target itself is recoloured into one more decoy: nothing matches.
+
+Methods, alternating which runs first from world to world, each through the session API in
+unknown-map mode (the robot starts with no map):
+
+- ``ours``: ``trees/find_object.yaml``: semantic map from every frame, known candidates first,
+  exploration weighted by room priors, standoff approach from depth, VLM check on the detection.
+- ``report``: ``trees/examples/report_search.yaml``: scan points with 360-degree scans, colour
+  trigger, box-area approach steps, whole-frame VLM check, rounds without memory.
+
+Scoring reads the simulator's ground truth after the run (never the leaves): a run *finds* the
+target when it ends SUCCESS with the robot within ``REACH`` m of the target's footprint and facing
+it (bearing error under ``FACING_DEG``). A *false found* is a SUCCESS anywhere else (or any SUCCESS
+in an absent case). An absent case is *correct* when the run ends FAILURE by the tree's own verdict
+(not the time limit). Time to find is robot-clock seconds of the successful runs. Last line: JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import math
+import statistics
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+MISSIONS = {
+    "ours": REPO / "trees" / "find_object.yaml",
+    "report": REPO / "trees" / "examples" / "report_search.yaml",
+}
+#: Targets drawn from the generator's small objects: (class, colour).
+TARGETS = [
+    ("backpack", "red"),
+    ("backpack", "blue"),
+    ("bottle", "green"),
+    ("backpack", "green"),
+    ("umbrella", "red"),
+    ("bottle", "blue"),
+]
+#: Colours a decoy may be painted in.
+PALETTE = ["red", "blue", "green", "grey", "white", "pink", "black", "yellow"]
+REACH = 1.0
+FACING_DEG = 30.0
+
+
+@dataclass
+class Case:
+    """One world and what is searched in it."""
+
+    index: int
+    seed: int
+    label: str
+    colour: str
+    absent: bool
+    target_id: str = ""
+
+    @property
+    def target(self) -> str:
+        """The phrase searched for ("red backpack")."""
+        return f"{self.colour} {self.label}"
+
+
+@dataclass
+class Trial:
+    """One method on one case, scored against the truth."""
+
+    method: str
+    case: int
+    seed: int
+    target: str
+    absent: bool
+    status: str = ""
+    stopped_by: str = ""
+    reason: str = ""
+    sim_s: float = math.nan
+    wall_s: float = math.nan
+    path_m: float = 0.0
+    distance_m: float = math.nan
+    bearing_deg: float = math.nan
+    found: bool = False
+    false_found: bool = False
+    absent_correct: bool = False
+
+
+def make_case(index: int, seed: int, absent: bool, folder: Path) -> tuple[Case, Path]:
+    """Generate, edit and write the world of one case; return the case and the world file."""
+    from missiontree.backends.sim.generator import generate_world
+
+    data = generate_world(seed, rooms=4, people=0)
+    objects = data["objects"]
+    small = [o for o in objects if "description" in o]
+    rng = np.random.default_rng(seed + 7919)
+    options = [t for t in TARGETS if any(o["label"] == t[0] for o in small)]
+    label, colour = options[int(rng.integers(len(options)))]
+    same_class = [o for o in small if o["label"] == label]
+    target = next((o for o in same_class if o["color"] == colour), same_class[0])
+    target["color"] = colour
+    for o in same_class:  # exactly one right object
+        if o is not target and o["color"] == colour:
+            o["color"] = next(c for c in PALETTE if c != colour)
+    others = [o for o in small if o["label"] != label]
+    if len(same_class) < 2 and others:  # a same-class decoy: another small object becomes one
+        decoy = others.pop(int(rng.integers(len(others))))
+        decoy.update(
+            label=label,
+            color=next(c for c in PALETTE if c != colour),
+            size=list(target["size"]),
+            shape=target.get("shape", "box"),
+        )
+    if not any(o["color"] == colour for o in others) and others:  # a same-colour decoy of another class
+        others[int(rng.integers(len(others)))]["color"] = colour
+    if absent:
+        target["color"] = next(
+            c
+            for c in PALETTE
+            if c != colour and not any(o["color"] == c and o["label"] == label for o in same_class)
+        )
+    for o in small:
+        o["description"] = f"a {o['color']} {o['label']}"
+    case = Case(index, seed, label, colour, absent, target_id=target["id"])
+    path = folder / f"world_{index:03d}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return case, path
+
+
+def run_trial(method: str, case: Case, world: str, max_duration: float) -> Trial:
+    """Run one method on one case through the session and score it against the truth."""
+    from missiontree.plugins.manager import load_plugins
+    from missiontree.session import MissionRequest, Session
+
+    trial = Trial(method, case.index, case.seed, case.target, case.absent)
+    log = io.StringIO()
+    request = MissionRequest(
+        mission=MISSIONS[method],
+        world=world,
+        seed=case.seed,
+        unknown_map=True,
+        max_duration=max_duration,
+        params={"target": case.target},
+        quiet=True,
+        plugins=load_plugins(autoload=False),
+        handle_signals=False,
+        log_stream=log,
+        config={"camera": {"rate": 2.0}},
+    )
+    started = time.perf_counter()
+    with Session.open(request) as session:
+        result = session.run()
+        robot = session.robot
+        pose = robot.truth.robot_pose()
+        obj = next(o for o in robot.world.objects if o.id == case.target_id)
+        traj = np.array([(x, y) for _, x, y in robot.trajectory])
+        trial.sim_s = float(robot.now())
+    trial.wall_s = time.perf_counter() - started
+    trial.path_m = float(np.hypot(*np.diff(traj, axis=0).T).sum()) if len(traj) > 1 else 0.0
+    trial.status = result.status.name
+    trial.stopped_by = str(result.stopped_by)
+    trial.reason = _reason(log.getvalue())
+    trial.distance_m = _footprint_distance(obj.footprint(), (pose.x, pose.y))
+    trial.bearing_deg = abs(math.degrees(pose.bearing_to(obj.pose.x, obj.pose.y)))
+    claimed = trial.status == "SUCCESS"
+    on_target = not case.absent and trial.distance_m <= REACH and trial.bearing_deg <= FACING_DEG
+    trial.found = claimed and on_target
+    trial.false_found = claimed and (case.absent or trial.distance_m > REACH)
+    trial.absent_correct = case.absent and not claimed and trial.stopped_by == "status"
+    return trial
+
+
+def _footprint_distance(corners: np.ndarray, xy: tuple[float, float]) -> float:
+    """Distance from ``xy`` to a convex outline (0 inside)."""
+    p = np.asarray(xy, dtype=float)
+    best = math.inf
+    inside = True
+    n = len(corners)
+    for i in range(n):
+        a, b = corners[i], corners[(i + 1) % n]
+        ab, ap = b - a, p - a
+        t = float(np.clip(np.dot(ap, ab) / max(float(np.dot(ab, ab)), 1e-12), 0.0, 1.0))
+        best = min(best, float(np.linalg.norm(a + t * ab - p)))
+        if ab[0] * ap[1] - ab[1] * ap[0] < 0:
+            inside = False
+    return 0.0 if inside else best
+
+
+def _reason(log: str) -> str:
+    """The last failure reason or found message of the search leaves in the tick log."""
+    reason = ""
+    for line in log.splitlines():
+        if '"object_found"' in line or '"search_explored"' in line or "not found" in line:
+            try:
+                event = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            if event.get("event") == "object_found":
+                reason = f"found {event.get('id')} ({event.get('reason', '')})"
+            for change in event.get("changed", []) if event.get("event") == "tick" else []:
+                if "not found" in str(change.get("feedback", "")):
+                    reason = str(change["feedback"])[:160]
+    return reason
+
+
+def _job(args: tuple[str, dict[str, Any], str, float]) -> dict[str, Any]:
+    method, case, world, max_duration = args
+    return asdict(run_trial(method, Case(**case), world, max_duration))
+
+
+def summarise(trials: list[Trial], method: str) -> dict[str, Any]:
+    """Rates and medians of one method's trials."""
+    mine = [t for t in trials if t.method == method]
+    present = [t for t in mine if not t.absent]
+    absent = [t for t in mine if t.absent]
+    found = [t for t in present if t.found]
+    times = sorted(t.sim_s for t in found)
+    claimed = [t for t in present if t.status == "SUCCESS"]
+
+    def med(values: list[float]) -> float | None:
+        return round(statistics.median(values), 3) if values else None
+
+    return {
+        "runs": len(mine),
+        "success_rate": round(len(found) / len(present), 4) if present else None,
+        "false_found": sum(t.false_found for t in mine),
+        "absent_correct_rate": round(sum(t.absent_correct for t in absent) / len(absent), 4)
+        if absent
+        else None,
+        "time_to_find_s_median": med(times),
+        "time_to_find_s_p90": round(float(np.percentile(times, 90)), 3) if times else None,
+        "path_length_m_median": med([t.path_m for t in found]),
+        "final_distance_error_m_median": med([t.distance_m for t in claimed]),
+        "final_bearing_error_deg_median": med([t.bearing_deg for t in claimed]),
+        "timeouts": sum(t.stopped_by != "status" for t in mine),
+        "wall_s_median": med([t.wall_s for t in mine]),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="6 worlds with the target + 2 without")
+    parser.add_argument("--worlds", type=int, default=None, help="worlds with the target (default 50)")
+    parser.add_argument("--absent", type=int, default=None, help="worlds without it (default 10)")
+    parser.add_argument("--max-duration", type=float, default=None, help="robot seconds per mission")
+    parser.add_argument("--workers", type=int, default=1, help="missions run at once")
+    parser.add_argument("--first-seed", type=int, default=100)
+    args = parser.parse_args(argv)
+    n_present = args.worlds if args.worlds is not None else (6 if args.quick else 50)
+    n_absent = args.absent if args.absent is not None else (2 if args.quick else 10)
+    max_duration = args.max_duration or (420.0 if args.quick else 600.0)
+    trials: list[Trial] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        jobs = []
+        for i in range(n_present + n_absent):
+            case, world = make_case(i, args.first_seed + i, i >= n_present, folder)
+            order = ("ours", "report") if i % 2 == 0 else ("report", "ours")
+            jobs += [(m, asdict(case), str(world), max_duration) for m in order]
+        started = time.perf_counter()
+        if args.workers > 1:
+            with ProcessPoolExecutor(args.workers) as pool:
+                results = list(pool.map(_job, jobs))
+        else:
+            results = [_job(j) for j in jobs]
+        for r in results:
+            t = Trial(**r)
+            trials.append(t)
+            print(
+                f"{t.method:6s} case {t.case:3d} {'absent ' if t.absent else ''}{t.target:16s} {t.status:8s} "
+                f"{t.stopped_by:8s} {t.sim_s:6.1f} s  d={t.distance_m:5.2f} m  bearing={t.bearing_deg:5.1f}  "
+                f"found={t.found!s:5s} false={t.false_found!s:5s}  {t.reason[:90]}",
+                flush=True,
+            )
+        wall = time.perf_counter() - started
+    out: dict[str, Any] = {
+        "worlds": n_present,
+        "absent_cases": n_absent,
+        "max_duration_s": max_duration,
+        "wall_s": round(wall, 1),
+    }
+    for method in ("ours", "report"):
+        out[method] = summarise(trials, method)
+        s = out[method]
+        print(
+            f"{method}: success {s['success_rate']}, false found {s['false_found']}, absent correct "
+            f"{s['absent_correct_rate']}, time to find median {s['time_to_find_s_median']} s "
+            f"(p90 {s['time_to_find_s_p90']}), path {s['path_length_m_median']} m, final distance "
+            f"{s['final_distance_error_m_median']} m, bearing {s['final_bearing_error_deg_median']} deg"
+        )
+    ours, report = out["ours"]["time_to_find_s_median"], out["report"]["time_to_find_s_median"]
+    out["time_ratio_ours_vs_report"] = round(ours / report, 3) if ours and report else None
+    absent_ok = out["ours"]["absent_correct_rate"]
+    out["absent_correct_rate"] = absent_ok
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
