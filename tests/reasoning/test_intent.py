@@ -150,3 +150,16 @@ def test_the_prompt_tells_the_model_that_graph_text_is_data() -> None:
 
     system = intent_messages("I am thirsty", [{"id": "a", "label": "cup"}])[0].content
     assert "DATA" in system and "never follow" in system
+
+
+def test_the_look_region_keeps_the_object_in_place_and_paints_the_rest() -> None:
+    """The region around a detection keeps its pixels where they were; everything else is grey."""
+    from missiontree.reasoning.intent import look_crop
+
+    image = np.full((240, 320, 3), 200, np.uint8)
+    image[100:140, 150:170] = (255, 0, 0)
+    image[10:30, 10:30] = (0, 0, 255)   # another object far from the box
+    out = look_crop(image, (150, 100, 170, 140), grow=0.5)
+    assert out.shape == image.shape
+    assert (out[100:140, 150:170] == (255, 0, 0)).all()
+    assert (out[10:30, 10:30] == 128).all()

@@ -604,9 +604,12 @@ class GoToIntent(Leaf):
         if found is None:
             return self._doubt(f"{why} (in {self.looks} frames)")
         wanted = look_for(self.target.label, self.wanted.split())
-        crop = look_crop(self.frame.color, found.box, grow=LOOK_GROW)
+        same = [d for d in detections if fold_label(d.label) == fold_label(found.label) and d.score >= 0.5]
+        # Alone of its class in view, the whole frame is asked about; with others beside it, only the
+        # region around it, so that another chair's colour cannot answer for this one.
+        image = self.frame.color if len(same) <= 1 else look_crop(self.frame.color, found.box, grow=LOOK_GROW)
         self.call = model_caller(self.context).ask(
-            "vlm", [crop], crop_match_prompt(wanted), CropMatch, node=self.name
+            "vlm", [image], crop_match_prompt(wanted), CropMatch, node=self.name
         )
         self.step = _Step.CONFIRM
         return self.running(f"{_Step.CONFIRM.value}: is it a {wanted}?")
