@@ -20,7 +20,7 @@ def events(run_dir: Path, kind: str) -> list[dict]:
 
 
 def test_map_scene_explores_and_writes_a_true_scene_graph(tmp_path: Path) -> None:
-    """Exploring the unknown office builds rooms and objects; scene_graph.json is NAIS-shaped, mostly right."""
+    """Exploring the unknown office builds rooms and objects; its scene_graph.json is NAIS-shaped."""
     result = run_mission(
         MissionRequest(mission=REPO / "trees/map_scene.yaml", out=tmp_path, max_duration=150, quiet=True)
     )

@@ -41,7 +41,7 @@ def graph() -> dict[str, Any]:
 
 def test_markers_are_cubes_coloured_by_class_with_labels_and_room_names() -> None:
     """DELETEALL, a cube and an id label per object in its class colour, the room's name over its objects."""
-    array = scene_markers(graph(), stamp=3.0)
+    array = scene_markers(graph(), stamp=3.0, colour=label_colour)
     assert array.markers[0].action == Marker.DELETEALL
     cubes = [m for m in array.markers if m.type == Marker.CUBE]
     texts = [m.text for m in array.markers if m.type == Marker.TEXT_VIEW_FACING]
@@ -50,7 +50,7 @@ def test_markers_are_cubes_coloured_by_class_with_labels_and_room_names() -> Non
     assert texts == ["chair_1", "cup_1", "kitchen (room_1)"]
     assert len({(m.ns, m.id) for m in array.markers[1:]}) == len(array.markers) - 1
     assert json.loads(scene_graph_message(graph()).data) == graph()
-    assert len(scene_markers({"building": {}}, 0.0).markers) == 1
+    assert len(scene_markers({"building": {}}, 0.0, label_colour).markers) == 1
 
 
 class Listener(SpinningPeer):

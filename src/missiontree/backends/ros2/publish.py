@@ -139,7 +139,7 @@ class WorldPublisher:
         if isinstance(graph.get("nodes"), list):
             from missiontree.backends.ros2.scene import scene_markers
 
-            self._markers.publish(scene_markers(graph, self._stamp()))
+            self._markers.publish(scene_markers(graph, self._stamp(), label_colour))
 
     def alarm(self, message: str, **fields: Any) -> None:
         """Publish an alarm as JSON: ``{"stamp": ..., "message": ..., **fields}``."""

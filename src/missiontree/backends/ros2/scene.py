@@ -18,14 +18,13 @@ from __future__ import annotations
 
 import json
 import zlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from std_msgs.msg import ColorRGBA, String
 from visualization_msgs.msg import Marker, MarkerArray
 
 from missiontree.backends.ros2.conversions import sec_to_time
-from missiontree.backends.ros2.publish import label_colour
 
 CUBE = 0.25
 NAMESPACE = "scene_graph"
@@ -52,11 +51,17 @@ def _stable_id(key: str) -> int:
     return zlib.crc32(key.encode("utf-8")) % 1_000_000 + 1
 
 
-def scene_markers(graph: Mapping[str, Any], stamp: float, frame_id: str = "map") -> MarkerArray:
+def scene_markers(
+    graph: Mapping[str, Any],
+    stamp: float,
+    colour: Callable[[str], tuple[float, float, float]],
+    frame_id: str = "map",
+) -> MarkerArray:
     """Cubes coloured by class with text labels for the objects, and the rooms' names (see module docstring).
 
     Nodes without coordinates (rooms, the building) are placed over the middle of what they contain.
-    A graph with no ``nodes`` list gives only the DELETEALL.
+    A graph with no ``nodes`` list gives only the DELETEALL. ``colour`` maps a class label to RGB in
+    [0, 1] (the publisher's :func:`~missiontree.backends.ros2.publish.label_colour`).
     """
     clear = Marker()
     clear.action = Marker.DELETEALL
@@ -65,14 +70,20 @@ def scene_markers(graph: Mapping[str, Any], stamp: float, frame_id: str = "map")
     nodes = graph.get("nodes")
     if not isinstance(nodes, list):
         return MarkerArray(markers=markers)
-    objects = [n for n in nodes if isinstance(n, Mapping) and n.get("type") == "object"
-               and isinstance(n.get("coordinates"), list | tuple) and len(n["coordinates"]) >= 2]
+    objects = [
+        n
+        for n in nodes
+        if isinstance(n, Mapping)
+        and n.get("type") == "object"
+        and isinstance(n.get("coordinates"), list | tuple)
+        and len(n["coordinates"]) >= 2
+    ]
     where = {str(n["id"]): n["coordinates"] for n in objects}
     for node in objects:
         x, y = float(node["coordinates"][0]), float(node["coordinates"][1])
         z = float(node["coordinates"][2]) if len(node["coordinates"]) > 2 else CUBE / 2
         key = str(node["id"])
-        r, g, b = label_colour(str(node.get("label", "")))
+        r, g, b = colour(str(node.get("label", "")))
         cube = _marker(Marker.CUBE, 2 * _stable_id(key), stamp, frame_id, NAMESPACE)
         cube.pose.position.x, cube.pose.position.y, cube.pose.position.z = x, y, z
         cube.scale.x = cube.scale.y = cube.scale.z = CUBE
@@ -88,13 +99,19 @@ def scene_markers(graph: Mapping[str, Any], stamp: float, frame_id: str = "map")
     for node in nodes:
         if not isinstance(node, Mapping) or node.get("type") != "room":
             continue
-        inside = [where[str(e.get("target_id"))] for e in edges
-                  if isinstance(e, Mapping) and e.get("relation") == "contains"
-                  and str(e.get("source_id")) == str(node.get("id")) and str(e.get("target_id")) in where]
+        inside = [
+            where[str(e.get("target_id"))]
+            for e in edges
+            if isinstance(e, Mapping)
+            and e.get("relation") == "contains"
+            and str(e.get("source_id")) == str(node.get("id"))
+            and str(e.get("target_id")) in where
+        ]
         if not inside:
             continue
-        name = _marker(Marker.TEXT_VIEW_FACING, _stable_id(f"room:{node['id']}"), stamp, frame_id,
-                       f"{NAMESPACE}/rooms")
+        name = _marker(
+            Marker.TEXT_VIEW_FACING, _stable_id(f"room:{node['id']}"), stamp, frame_id, f"{NAMESPACE}/rooms"
+        )
         name.pose.position.x = sum(float(c[0]) for c in inside) / len(inside)
         name.pose.position.y = sum(float(c[1]) for c in inside) / len(inside)
         name.pose.position.z = 1.5
