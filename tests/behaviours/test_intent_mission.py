@@ -90,3 +90,12 @@ def test_an_ambiguous_reference_goes_to_the_nearest_and_says_so() -> None:
     assert "ambiguous: 5 chairs fit" in note["note"] and first in note["note"]
     assert first == min(ranked, key=lambda c: c["path_length"])["id"]
     assert status == "SUCCESS"
+
+
+def test_an_object_no_model_can_see_is_reached_and_reported_unverifiable() -> None:
+    """The detector knows no printer: the robot goes to it and says it could not confirm it (not doubted)."""
+    status, events, final = run({"command": "I need to print a document"})
+    [unverifiable] = of(events, "object_unverifiable")
+    assert unverifiable["object"] == "printer_1" and "knows no printer" in unverifiable["reason"]
+    assert not of(events, "object_doubtful") and status == "SUCCESS"
+    assert math.hypot(final.x - 10.2, final.y - 0.4) < 1.3
