@@ -13,7 +13,8 @@ configurations of the same leaf run on the same worlds and seeds, alternating wo
   report's scan points (centroids of the largest eroded free regions, largest first) with its 360°
   scan at each.
 
-Worlds: generated apartments (``generated:<seed>``, 9-13 x 7-10 m, five rooms, two people walking)
+Worlds: generated apartments (``generated:<seed>``, 9-13 x 7-10 m, five rooms; without the walkers, who
+pace through doorways and would measure how long the navigator waits for them, not the strategy)
 plus the shipped map_server maps (real SLAM maps in /work/shared/maps and config/worlds/maps), each
 made into a world file with the start at the free cell farthest from any obstacle.
 
@@ -63,7 +64,7 @@ from scipy import ndimage
 
 STRATEGIES: dict[str, dict[str, Any]] = {
     "ours": {"strategy": "gain"},
-    "nearest_frontier": {"strategy": "nearest"},
+    "nearest_frontier": {"strategy": "nearest", "min_frontier_size": 0.75},  # explore_lite's default size
     "scan_points": {"strategy": "scan_points", "look_around": True},
 }
 SAMPLE_S = 2.0                      # coverage sampling period (robot clock)
@@ -75,6 +76,14 @@ MAP_DIRS = [Path("/work/shared/maps"), REPO / "config" / "worlds" / "maps"]
 
 
 # -- worlds -----------------------------------------------------------------------------------------
+
+
+def generated_world_files(tmp: Path, seeds: range) -> list[tuple[str, str]]:
+    """Generated apartments without people (walkers in doorways would time the navigator's waits)."""
+    from missiontree.backends.sim.generator import write_world_file
+
+    return [(f"generated:{s}", str(write_world_file(s, tmp / f"generated_{s}.yaml", people=0)))
+            for s in seeds]
 
 
 def map_world_files(tmp: Path, limit: int | None = None) -> list[tuple[str, str]]:
@@ -383,8 +392,7 @@ def main() -> int:
     n_worlds = 3 if args.quick else args.worlds
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        seeds = range(args.first_seed, args.first_seed + n_worlds)
-        worlds = [(f"generated:{s}", f"generated:{s}") for s in seeds]
+        worlds = generated_world_files(Path(tmp), range(args.first_seed, args.first_seed + n_worlds))
         if not args.no_maps:
             worlds += map_world_files(Path(tmp), limit=1 if args.quick else None)
         order = list(STRATEGIES)

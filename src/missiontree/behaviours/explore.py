@@ -57,18 +57,22 @@ class Explore(Leaf):
         look_steps: int = Field(4, ge=1, le=36, description="Steps of the full turn (pause after each).")
         look_pause: float = Field(0.5, ge=0, description="Pause after each step of the turn (s).")
         turn_speed: float = Field(1.0, gt=0, description="Angular speed of the look-around (rad/s).")
+        scan_point_erosion: float = Field(
+            0.5, ge=0, description="Scan point erosion (m); over half a door's width cuts rooms apart.")
         sensor_range: float = Field(
             4.0, gt=0, description="Range over which a frontier's gain is counted (m).")
         cost_rate: float = Field(
             0.15, ge=0, description="Gain discount per metre of path (1/m), strategy gain.")
-        min_frontier_size: float = Field(0.3, gt=0, description="Ignore frontiers shorter than this (m).")
+        min_gain: float = Field(
+            1.0, ge=0, description="strategy gain: skip frontiers revealing less unknown area (m^2).")
+        min_frontier_size: float = Field(0.5, gt=0, description="Ignore frontiers shorter than this (m).")
         footprint_radius: float = Field(
             0.2, gt=0, description="Robot radius for planning and goal clearance (m).")
         xy_tolerance: float = Field(0.3, gt=0, description="Distance at which a goal counts as reached (m).")
         replan_period: float = Field(
             2.0, gt=0, description="Re-evaluate the goal this often while driving (s).")
         no_progress_timeout: float = Field(
-            20.0, gt=0, description="Blacklist a goal the robot got no closer to for this long (s).")
+            15.0, gt=0, description="Blacklist a goal the robot got no closer to for this long (s).")
         stuck_timeout: float = Field(
             60.0, gt=0, description="Fail when neither the map grew nor the robot moved for this long (s).")
         map_timeout: float = Field(
@@ -113,7 +117,8 @@ class Explore(Leaf):
         p = self.params
         self.planner = ExplorationPlanner(
             strategy=p.strategy, footprint_radius=p.footprint_radius, sensor_range=p.sensor_range,
-            min_frontier_m=p.min_frontier_size, cost_rate=p.cost_rate)
+            min_frontier_m=p.min_frontier_size, cost_rate=p.cost_rate, erosion_m=p.scan_point_erosion,
+            min_gain_m2=p.min_gain)
         self.handle = None
         self.target = None
         self.state = _SELECT
@@ -242,7 +247,7 @@ class Explore(Leaf):
 
     def _give_up(self, target: Candidate, reason: str) -> None:
         assert self.planner is not None
-        self.planner.give_up(target.x, target.y, reason)
+        self.planner.give_up(target.x, target.y, reason, target.target)
         if target.kind == "scan_point":
             self.planner.visit(target.x, target.y)
         self.emit("explore_blacklist", x=target.x, y=target.y, reason=reason)

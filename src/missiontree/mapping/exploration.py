@@ -90,11 +90,12 @@ class Candidate:
 
 @dataclass(frozen=True)
 class Blacklisted:
-    """A goal given up, and why."""
+    """A goal given up, the place it was to see (its frontier), and why."""
 
     x: float
     y: float
     reason: str
+    target: tuple[float, float] = (math.nan, math.nan)
 
 
 @dataclass
@@ -111,12 +112,16 @@ class ExplorationPlanner:
             no frontier (specks between far-apart beams).
         frontier_piece_m: Long frontiers are cut into pieces of at most this length (m).
         cost_rate: Gain discount per metre of path (1/m), for ``gain``.
+        min_gain_m2: For ``gain``, frontiers revealing less unknown area (m^2) are not worth a trip.
         blacklist_radius: Candidates this close (m) to a blacklisted goal are not offered.
         visit_radius: A scan point this close (m) to one already visited is not offered again.
         erosion_m: Erosion radius of the scan points (m).
         goal_margin: Extra clearance of a goal (m).
         approach_m: How far from a frontier's centroid its goal may stand (m).
         gain_beams: Rays cast per goal to measure its gain.
+        wall_gap_m: Unknown gaps this narrow (m) between occupied cells are taken for wall (cells a
+            wall seen at a grazing angle left unknown; else every such gap would be a frontier
+            onto the unknown outside the building).
         path_lengths: How path lengths are measured (default: the planner).
     """
 
@@ -124,15 +129,17 @@ class ExplorationPlanner:
     footprint_radius: float = 0.2
     sensor_range: float = 4.0
     min_frontier_m: float = 0.3
-    min_unknown_m2: float = 0.1
+    min_unknown_m2: float = 1.0
     frontier_piece_m: float = 2.0
     cost_rate: float = 0.15
-    blacklist_radius: float = 0.5
+    min_gain_m2: float = 0.5
+    blacklist_radius: float = 0.75
     visit_radius: float = 1.0
     erosion_m: float = 0.4
     goal_margin: float = 0.1
     approach_m: float = 1.0
     gain_beams: int = 48
+    wall_gap_m: float = 0.1
     path_lengths: PathLengths = planner_path_lengths
     blacklist: list[Blacklisted] = field(default_factory=list)
     visited: list[tuple[float, float]] = field(default_factory=list)
@@ -144,23 +151,31 @@ class ExplorationPlanner:
 
     # -- bookkeeping -------------------------------------------------------------------------------
 
-    def give_up(self, x: float, y: float, reason: str) -> None:
-        """Blacklist the goal (x, y): it proved unreachable."""
-        self.blacklist.append(Blacklisted(float(x), float(y), reason))
+    def give_up(self, x: float, y: float, reason: str,
+                target: tuple[float, float] | None = None) -> None:
+        """Blacklist the goal (x, y) and the frontier place it was to see: it proved unreachable."""
+        where = (float(target[0]), float(target[1])) if target is not None else (math.nan, math.nan)
+        self.blacklist.append(Blacklisted(float(x), float(y), reason, where))
 
     def visit(self, x: float, y: float) -> None:
         """Record that the robot stood (and looked) at (x, y)."""
         self.visited.append((float(x), float(y)))
 
-    def is_blacklisted(self, x: float, y: float) -> bool:
-        """Whether (x, y) lies within ``blacklist_radius`` of a blacklisted goal."""
+    def is_blacklisted(self, x: float, y: float, target: tuple[float, float] | None = None) -> bool:
+        """Whether goal (x, y) or frontier place ``target`` is within ``blacklist_radius`` of one given up."""
         r2 = self.blacklist_radius ** 2
-        return any((b.x - x) ** 2 + (b.y - y) ** 2 <= r2 for b in self.blacklist)
+        for b in self.blacklist:
+            if (b.x - x) ** 2 + (b.y - y) ** 2 <= r2:
+                return True
+            if target is not None and (b.target[0] - target[0]) ** 2 + (b.target[1] - target[1]) ** 2 <= r2:
+                return True
+        return False
 
     # -- ranking -----------------------------------------------------------------------------------
 
     def candidates(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[Candidate]:
         """Reachable, not blacklisted goals, best first (empty: nothing reachable is left to explore)."""
+        grid = self.close_wall_gaps(grid)
         if self.strategy == "scan_points":
             points = [(p.x, p.y, p.cells, p.x, p.y) for p in scan_points(grid, self.erosion_m)]
             r2 = self.visit_radius ** 2
@@ -169,7 +184,7 @@ class ExplorationPlanner:
             kind = "scan_point"
         else:
             points = [(*g, f.size, *f.goal) for f, g in self.frontier_goals(grid)]
-            points = [p for p in points if not self.is_blacklisted(p[0], p[1])]
+            points = [p for p in points if not self.is_blacklisted(p[0], p[1], (p[3], p[4]))]
             kind = "frontier"
         if not points:
             return []
@@ -182,6 +197,8 @@ class ExplorationPlanner:
             else np.zeros(len(reachable))
         out = []
         for (p, length), gain in zip(reachable, gains, strict=True):
+            if self.strategy == "gain" and gain < self.min_gain_m2:
+                continue
             out.append(Candidate(p[0], p[1], kind, int(p[2]), float(gain), float(length),
                                  self._score(float(gain), float(length), int(p[2])), (p[3], p[4])))
         out.sort(key=lambda c: (-c.score, c.path_m, c.x, c.y))
@@ -202,6 +219,27 @@ class ExplorationPlanner:
             return best.score > margin * current.score
         # nearest and scan points keep their goal until it is reached, seen or given up
         return False
+
+    def close_wall_gaps(self, grid: OccupancyGrid) -> OccupancyGrid:
+        """The grid with unknown cells in gaps under ``wall_gap_m`` between occupied cells made occupied."""
+        k = int(round(self.wall_gap_m / grid.resolution / 2.0))
+        if k < 1:
+            return grid
+        cached = getattr(self, "_closed", None)
+        if cached is not None and cached[0] is grid:
+            return cached[1]
+        occupied = occupied_mask(grid)
+        size = 2 * k + 1
+        closed = cv2.morphologyEx(occupied.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((size, size), np.uint8),
+                                  borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)
+        fill = closed & unknown_mask(grid)
+        out = grid
+        if fill.any():
+            data = grid.data.copy()
+            data[fill] = 100
+            out = OccupancyGrid(grid.stamp, grid.resolution, grid.origin, data)
+        self._closed = (grid, out)
+        return out
 
     def frontier_goals(self, grid: OccupancyGrid) -> list[tuple[Frontier, tuple[float, float]]]:
         """Frontier pieces, each with the place to send the robot to see it.
@@ -255,6 +293,7 @@ class ExplorationPlanner:
 
     def still_frontier(self, grid: OccupancyGrid, x: float, y: float, radius: float = 0.3) -> bool:
         """Whether there is still frontier within ``radius`` of (x, y) (else that goal has been seen)."""
+        grid = self.close_wall_gaps(grid)
         res = grid.resolution
         r0, c0 = grid.world_to_cell(x, y)
         k = int(math.ceil(radius / res))
