@@ -24,7 +24,14 @@ def register_nodes(registry: NodeRegistry) -> None:
     from missiontree.behaviours.motion import NavigateTo, Rotate
     from missiontree.behaviours.patrol import Patrol
     from missiontree.behaviours.scene import BuildSceneGraph
-    from missiontree.behaviours.search import Approach, ColourAttention, Locate, ScanRotate, Verify
+    from missiontree.behaviours.search import (
+        Approach,
+        ColourAttention,
+        Locate,
+        ResumeExplore,
+        ScanRotate,
+        Verify,
+    )
     from missiontree.behaviours.servo import ServoToTarget
     from missiontree.behaviours.surveillance import Surveillance
 
@@ -33,5 +40,5 @@ def register_nodes(registry: NodeRegistry) -> None:
     registry.add(SERVE_COMMANDS)
     registry.add(Explore)
     registry.add(BuildSceneGraph)
-    for leaf in (ScanRotate, ColourAttention, Locate, Approach, Verify):
+    for leaf in (ScanRotate, ColourAttention, ResumeExplore, Locate, Approach, Verify):
         registry.add(leaf)

@@ -280,7 +280,73 @@ class PriorPlanner(ExplorationPlanner):
         return sorted(scored, key=lambda c: -c.score)
 
 
-class Locate(Explore):
+class ResumeExplore(Explore):
+    """Explore that resumes where it left off when entered again, and may stop after each goal reached.
+
+    Keeps its visited goals and blacklist across runs of the leaf (a tree that retries does not
+    revisit what it saw). With ``max_goals`` it ends SUCCESS after reaching that many goals (the
+    report's MOVING_TO_SCAN: one scan point at a time). With ``exhausted_fails`` it ends FAILURE
+    "not found" once nothing is left to explore, at once on every later entry.
+    """
+
+    class Params(Explore.Params):
+        max_goals: int = Field(
+            0, ge=0, description="End SUCCESS after reaching this many goals (0: explore all)."
+        )
+        exhausted_fails: bool = Field(False, description="Nothing left to explore is FAILURE 'not found'.")
+
+    params: Params
+
+    def __init__(self, name: str, params: BaseModel | None = None) -> None:
+        super().__init__(name, params)
+        self.kept: ExplorationPlanner | None = None
+        self.exhausted = False
+        self.reached = 0
+
+    def make_planner(self) -> ExplorationPlanner:
+        """The planner kept for the whole mission (subclasses rank its goals)."""
+        p = self.params
+        return ExplorationPlanner(
+            strategy=p.strategy,
+            footprint_radius=p.footprint_radius,
+            sensor_range=p.sensor_range,
+            min_frontier_m=p.min_frontier_size,
+            cost_rate=p.cost_rate,
+        )
+
+    def initialise(self) -> None:
+        """Explore on with what earlier runs of this leaf learned (blacklist, visited goals)."""
+        super().initialise()
+        if self.kept is None:
+            self.kept = self.make_planner()
+        self.planner = self.kept
+        self.reached = 0
+
+    def emit(self, event: str, **fields: Any) -> None:
+        """Send the event; count the goals reached (``explore_reached``)."""
+        if event == "explore_reached":
+            self.reached += 1
+        super().emit(event, **fields)
+
+    def update(self) -> Status:
+        """One step of exploration; SUCCESS after ``max_goals`` goals; exhausted -> FAILURE when asked."""
+        if self.exhausted and self.params.exhausted_fails:
+            return self.fail(f"not found: nothing left to explore ({self.feedback_message})")
+        status = super().update()
+        if status == Status.SUCCESS and not (self.params.max_goals and self.reached >= self.params.max_goals):
+            self.exhausted = True
+            if self.params.exhausted_fails:
+                return self.fail(f"not found: {self.feedback_message}")
+        return status
+
+    def _select(self, now: float, grid: Any, pose: Pose2D) -> Status:
+        """Choose the next goal, unless ``max_goals`` goals were reached in this run of the leaf."""
+        if self.params.max_goals and self.reached >= self.params.max_goals:
+            return self.succeed(f"reached {self.reached} goal{'s' if self.reached > 1 else ''}")
+        return super()._select(now, grid, pose)
+
+
+class Locate(ResumeExplore):
     """A candidate of the target: from the semantic map or a loaded graph, else explore where it is likely.
 
     SUCCESS with ``search_candidate`` written as soon as an object of the target's class that was
@@ -288,7 +354,7 @@ class Locate(Explore):
     the room priors) until one is seen; FAILURE "not found" when no reachable frontier is left.
     """
 
-    class Params(Explore.Params):
+    class Params(ResumeExplore.Params):
         target: str = Field(description="What to find: colour words and a class ('red backpack').")
         scene_graph: str = Field(
             "", description="A scene graph file (NAIS JSON) whose objects are checked first."
@@ -308,8 +374,6 @@ class Locate(Explore):
         super().__init__(name, params)
         self.goal: Target | None = None
         self.file_objects: list[GraphObject] = []
-        self.kept: ExplorationPlanner | None = None
-        self.exhausted = False
         self.priors: dict[str, float] = {}
 
     def on_setup(self) -> None:
@@ -324,23 +388,18 @@ class Locate(Explore):
             graph = SceneGraph.load(find_scene_graph(self.params.scene_graph))
             self.file_objects = list(graph_objects(graph).objects.values())
 
-    def initialise(self) -> None:
-        """Explore on with what earlier runs of this leaf learned (blacklist, visited goals)."""
-        super().initialise()
-        if self.kept is not None:
-            self.planner = self.kept
-        else:
-            p = self.params
-            self.planner = PriorPlanner(
-                self._prior,
-                p.prior_weight,
-                strategy=p.strategy,
-                footprint_radius=p.footprint_radius,
-                sensor_range=p.sensor_range,
-                min_frontier_m=p.min_frontier_size,
-                cost_rate=p.cost_rate,
-            )
-            self.kept = self.planner
+    def make_planner(self) -> ExplorationPlanner:
+        """Frontiers by gain, their scores weighted by the room priors."""
+        p = self.params
+        return PriorPlanner(
+            self._prior,
+            p.prior_weight,
+            strategy=p.strategy,
+            footprint_radius=p.footprint_radius,
+            sensor_range=p.sensor_range,
+            min_frontier_m=p.min_frontier_size,
+            cost_rate=p.cost_rate,
+        )
 
     def update(self) -> Status:
         """A known candidate ends the leaf; else one step of exploration."""
@@ -349,7 +408,7 @@ class Locate(Explore):
             return self._found(found)
         if self.exhausted:
             return self._not_found()
-        status = super().update()
+        status = Explore.update(self)
         if status == Status.SUCCESS:
             self.exhausted = True
             self.emit("search_explored", reason=self.feedback_message)
