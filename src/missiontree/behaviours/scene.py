@@ -11,7 +11,8 @@ Where it shows:
 - ``context.scene`` — the :class:`~missiontree.semantics.live.LiveScene` (semantic map, rooms,
   latest graph) for later leaves of the same run (intent, search);
 - ``<run_dir>/scene_graph.json`` (the NAIS paper's JSON shape), rewritten on every change, and
-  ``scene_graph.png`` (the map with rooms, their names and the instances) when the leaf stops;
+  ``scene_graph.png`` (the map with rooms, their names and the instances) when the leaf stops; the
+  instances and room names are also marked on the run's top-down picture;
 - tick-log events: ``scene_graph_changed`` with ``added``, ``moved``, ``removed`` (and ``updated``)
   for every change, and ``scene_graph`` carrying the whole graph on change and at least every
   ``publish_every`` seconds, which the ROS 2 backend mirrors to ``/scene_graph`` and a MarkerArray.
@@ -189,6 +190,11 @@ class BuildSceneGraph(Leaf):
             return
         self.builder.rebuild(self.context.robot.now())
         self._save()
+        scene = self.builder.scene
+        for inst in scene.map:  # the run's top-down picture shows what the robot believes is where
+            self.context.mark("scene_object", inst.position[0], inst.position[1], inst.id)
+        for room in scene.rooms:
+            self.context.mark("scene_room", room.centroid[0], room.centroid[1], f"{room.label} ({room.id})")
         run_dir = self.context.run_dir
         grid = self.context.robot.occupancy()
         if run_dir is not None and grid is not None:
