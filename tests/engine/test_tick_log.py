@@ -283,7 +283,7 @@ def test_halted_nodes_are_still_found_when_only_stops_are_watched() -> None:
     ticks = [json.loads(line) for line in stream.getvalue().splitlines() if '"event":"tick"' in line]
     third = {c["node"]: (c["was"], c["status"]) for c in ticks[2]["changed"]}
     assert third["root/work"] == ("RUNNING", "INVALID") and third["root/work/step"] == ("RUNNING", "INVALID")
-    assert "stop" not in vars(work) and "stop" not in vars(guard)  # the watch is removed after the run
+    assert "terminate" not in vars(work) and "terminate" not in vars(guard)  # the watch is removed after
 
 
 def test_setup_is_linear_in_a_composites_child_count() -> None:

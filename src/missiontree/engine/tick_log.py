@@ -343,18 +343,27 @@ def feedback_of(node: Behaviour) -> str:
     return message
 
 
-def _watched_stop(node: Behaviour, original: Callable[..., None],
-                  stopped: list[Behaviour]) -> Callable[..., None]:
-    invalid = Status.INVALID
+def _watched_terminate(node: Behaviour, original: Callable[[Status], None] | None,
+                       stopped: list[Behaviour]) -> Callable[[Status], None]:
+    """A ``terminate`` that notes halts (every py_trees ``stop()`` calls ``terminate``).
 
-    def stop(new_status: Status = invalid) -> None:
-        try:
-            original(new_status)
-        finally:
-            if new_status is invalid:  # a halt; stop(SUCCESS/FAILURE) ends a node's own tick (visited)
+    ``original`` is None for nodes whose class keeps py_trees' empty ``terminate``: the note then
+    replaces the call instead of adding one (most nodes of a tree, so watching costs next to nothing).
+    """
+    invalid = Status.INVALID
+    if original is None:
+        def terminate(new_status: Status) -> None:
+            if new_status is invalid:  # a halt; SUCCESS/FAILURE ends a node's own tick (it was visited)
                 stopped.append(node)
 
-    return stop
+        return terminate
+
+    def terminate_and_note(new_status: Status) -> None:
+        if new_status is invalid:
+            stopped.append(node)
+        original(new_status)
+
+    return terminate_and_note
 
 
 def failure_reason(node: Behaviour) -> str:
@@ -411,6 +420,7 @@ class TickRecorder:
         #: Nodes whose stop() ran since the last record (filled by the wrappers of watch_stops).
         self._stopped: list[Behaviour] = []
         self._watching: dict[Behaviour, Any] = {}
+        self._missing = object()
         #: Nodes looked at by the last record (those ticked plus those stopped): the recorder's work.
         self.examined = 0
         storage = py_trees.blackboard.Blackboard.storage
@@ -421,27 +431,31 @@ class TickRecorder:
         storage.written.clear()
 
     def watch_stops(self) -> None:
-        """Note every node's ``stop()`` so that halted nodes are found without scanning the tree.
+        """Note every node's halts so that halted nodes are found without scanning the tree.
 
-        Wraps ``stop`` on each node instance (once; :meth:`close` puts the previous one back). Nodes
+        py_trees' ``stop()`` calls ``terminate()``, so an instance-level ``terminate`` notes each
+        node stopped with INVALID (once per node; :meth:`close` puts the previous one back). Nodes
         added to the tree later are found when ticked; the halt at the end of a run checks all.
         """
         stopped = self._stopped
-        missing = object()
+        missing = self._missing
+        empty = py_trees.behaviour.Behaviour.terminate
         for node in self.paths:
             if node in self._watching:
                 continue
-            self._watching[node] = node.__dict__.get("stop", missing)
-            node.stop = _watched_stop(node, node.stop, stopped)  # type: ignore[method-assign]
-        self._missing = missing
+            own = node.__dict__.get("terminate", missing)
+            self._watching[node] = own
+            plain_class = own is missing and type(node).terminate is empty
+            original = None if plain_class else node.terminate
+            node.terminate = _watched_terminate(node, original, stopped)  # type: ignore[method-assign]
 
     def close(self) -> None:
         """Remove the stop() wrappers (the tree can be ticked again without this recorder)."""
         for node, previous in self._watching.items():
             if previous is self._missing:
-                node.__dict__.pop("stop", None)
+                node.__dict__.pop("terminate", None)
             else:
-                node.stop = previous  # type: ignore[method-assign]
+                node.terminate = previous  # type: ignore[method-assign]
         self._watching.clear()
         self._stopped.clear()
 
@@ -472,8 +486,8 @@ class TickRecorder:
                 else:
                     active[node] = status
                     self._count(node, status, failed)
-        # A node not ticked can only have changed by being stopped (halted): every node's stop() is
-        # watched (:meth:`watch_stops`), so the nodes to look at are the ones stopped this tick —
+        # A node not ticked can only have changed by being stopped (halted): every node's halt is
+        # noted (:meth:`watch_stops`), so the nodes to look at are the ones halted this tick —
         # never the whole set of active nodes, which holds every finished child of a memory
         # Sequence. A halt line (or a tree not watched) looks at every active node once.
         stopped = self._stopped
