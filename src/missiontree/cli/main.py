@@ -29,6 +29,7 @@ SUBCOMMANDS: list[str] = [
     "missiontree.cli.models",
     "missiontree.cli.sim_ros",
     "missiontree.cli.view",
+    "missiontree.cli.batch",
 ]
 
 EXIT_BAD_INPUT = 2

@@ -1,0 +1,266 @@
+"""Where a batch's runs execute: in this process, a local process pool, or a Dask cluster.
+
+Every engine runs one mission per task and yields ``(task, outcome)`` as runs finish, where the
+outcome is the run's record or a :class:`Crash` (the process running the mission died: a segfault,
+``os._exit``, a killed worker). The batch counts crashes apart and retries each once, isolated
+(``isolated=True``: alone on a fresh worker, so a second crash is the run's own and not a
+neighbour's).
+
+- :class:`SerialEngine` — in this process, one after another (the reference of
+  benchmarks/batch_scaling.py; a crash here ends the batch).
+- :class:`PoolEngine` — ``concurrent.futures.ProcessPoolExecutor`` with spawned workers that pin
+  their threads before importing anything numerical. When a worker dies the pool breaks for every
+  task in it: the runs that had started (their staging directory exists) are reported as crashed,
+  the others are simply submitted again to a new pool.
+- :class:`DaskEngine` — Dask distributed through ``Client.get_executor(pure=False)`` (``pure=False``:
+  identical tasks are not deduplicated). ``local`` starts a ``LocalCluster`` with one thread per
+  worker process; any other address connects to a running scheduler (``dask scheduler`` and
+  ``dask worker tcp://HOST:8786``). A task whose worker died comes back as ``KilledWorker``
+  once the scheduler gives up on it (the local cluster gives up at the first death, so the
+  batch's own single retry is the only one; a remote scheduler applies its own
+  ``distributed.scheduler.allowed-failures`` first).
+
+Dask is an optional extra: importing this module never imports it; :class:`DaskEngine` raises a
+:class:`~missiontree.errors.BackendUnavailableError` naming the extra when it is missing.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from missiontree.errors import BackendUnavailableError, ConfigError
+from missiontree.evaluation.worker import THREAD_ENV, RunTask, ignore_interrupts
+
+__all__ = ["Crash", "DaskEngine", "Engine", "PoolEngine", "SerialEngine", "make_engine"]
+
+Outcome = dict[str, Any]
+TaskFn = Callable[[RunTask], Outcome]
+DASK_EXTRA = "dask"
+
+
+@dataclass(frozen=True)
+class Crash:
+    """The process running a run died before the run finished.
+
+    Attributes:
+        reason: What the engine reported.
+    """
+
+    reason: str
+
+
+class Engine:
+    """Runs tasks, one mission each; see the module docstring."""
+
+    name = "engine"
+    workers = 1
+
+    def run(self, fn: TaskFn, tasks: Iterable[RunTask], isolated: bool = False
+            ) -> Iterator[tuple[RunTask, Outcome | Crash]]:
+        """Run every task; yield each with its outcome as it finishes."""
+        raise NotImplementedError
+
+    def describe(self) -> dict[str, Any]:
+        """The engine for reports."""
+        return {"name": self.name, "workers": self.workers}
+
+    def close(self) -> None:
+        """Release workers (idempotent)."""
+
+    def __enter__(self) -> Engine:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class SerialEngine(Engine):
+    """Every run in this process, one after another."""
+
+    name = "serial"
+
+    def run(self, fn: TaskFn, tasks: Iterable[RunTask], isolated: bool = False
+            ) -> Iterator[tuple[RunTask, Outcome | Crash]]:
+        """Run the tasks here, in order (``isolated`` changes nothing)."""
+        for task in tasks:
+            yield task, fn(task)
+
+
+class PoolEngine(Engine):
+    """A local process pool (spawned workers, threads pinned), one mission per task."""
+
+    name = "pool"
+
+    def __init__(self, workers: int | None = None) -> None:
+        self.workers = max(1, workers or os.cpu_count() or 1)
+        self._context = multiprocessing.get_context("spawn")  # a clean interpreter: nothing loaded unpinned
+        self._pool: ProcessPoolExecutor | None = None
+        self._size = 0
+
+    def _fresh_pool(self, size: int) -> ProcessPoolExecutor:
+        if self._pool is not None and self._size == size:
+            return self._pool
+        self._drop_pool()
+        self._pool = ProcessPoolExecutor(max_workers=size, mp_context=self._context,
+                                         initializer=ignore_interrupts)
+        self._size = size
+        return self._pool
+
+    def _drop_pool(self, kill: bool = False) -> None:
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        if kill:  # stop missions now (Ctrl-C): the pool's own shutdown would wait for them
+            for process in list(getattr(pool, "_processes", {}).values()):  # stdlib internals, stable
+                process.kill()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+    def run(self, fn: TaskFn, tasks: Iterable[RunTask], isolated: bool = False
+            ) -> Iterator[tuple[RunTask, Outcome | Crash]]:
+        """Run the tasks on the pool (``isolated``: one worker, one task at a time)."""
+        queue = list(tasks)
+        size = 1 if isolated else min(self.workers, max(1, len(queue)))
+        ok = False
+        try:
+            while queue:
+                pool = self._fresh_pool(size)
+                futures: dict[Future[Outcome], RunTask] = {pool.submit(fn, t): t for t in queue}
+                queue = []
+                pending = set(futures)
+                broken = False
+                while pending and not broken:
+                    done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                    for future in done:
+                        error = future.exception()
+                        if isinstance(error, BrokenProcessPool):
+                            broken = True
+                            pending.add(future)
+                            continue
+                        if error is not None:
+                            raise error
+                        yield futures[future], future.result()
+                if broken:
+                    self._drop_pool()
+                    for future in pending:
+                        task = futures[future]
+                        if future.done() and future.exception() is None:
+                            yield task, future.result()
+                        elif _started(task):
+                            _clear_partials(task)
+                            yield task, Crash("the worker process died while running it (BrokenProcessPool)")
+                        else:
+                            queue.append(task)
+            ok = True
+        finally:
+            if not ok:
+                self._drop_pool(kill=True)
+
+    def close(self) -> None:
+        """Shut the pool down."""
+        self._drop_pool()
+
+
+class DaskEngine(Engine):
+    """Dask distributed: a ``LocalCluster`` (``address="local"``) or a running scheduler."""
+
+    name = "dask"
+
+    def __init__(self, address: str, workers: int | None = None) -> None:
+        try:
+            import dask
+            from distributed import Client, LocalCluster
+        except ImportError as error:
+            raise BackendUnavailableError(
+                f"--dask needs the '{DASK_EXTRA}' extra (Dask distributed), which is not installed "
+                f"({error}); install it with: pip install 'missiontree[{DASK_EXTRA}]'") from None
+        self.address = address
+        self.cluster: Any = None
+        try:
+            if address == "local":
+                self.workers = max(1, workers or os.cpu_count() or 1)
+                # allowed-failures 0: a task whose worker died comes back at once; the batch retries it once
+                with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+                    self.cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
+                                                dashboard_address=None, env=dict(THREAD_ENV),
+                                                silence_logs=logging.ERROR)
+                self.client = Client(self.cluster)
+            else:
+                self.client = Client(address, timeout="20s")
+                self.workers = max(1, sum(self.client.nthreads().values()))
+        except OSError as error:
+            self.close()
+            raise ConfigError(f"--dask {address}: cannot reach the Dask scheduler ({error}); start one "
+                              "with `dask scheduler` and workers with `dask worker tcp://HOST:8786`, "
+                              "or use --dask local") from None
+        self.executor = self.client.get_executor(pure=False)
+
+    def describe(self) -> dict[str, Any]:
+        """The engine for reports, with the scheduler's address."""
+        return {"name": self.name, "workers": self.workers, "address": self.address}
+
+    def run(self, fn: TaskFn, tasks: Iterable[RunTask], isolated: bool = False
+            ) -> Iterator[tuple[RunTask, Outcome | Crash]]:
+        """Submit every task to the cluster (``isolated`` changes nothing: a worker runs one at a time)."""
+        from distributed import KilledWorker
+
+        futures = {self.executor.submit(fn, task): task for task in tasks}
+        pending = set(futures)
+        try:
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    task = futures[future]
+                    error = future.exception()
+                    if isinstance(error, KilledWorker):
+                        _clear_partials(task)
+                        yield task, Crash(f"the Dask worker died while running it (KilledWorker: {error})")
+                    elif error is not None:
+                        raise error
+                    else:
+                        yield task, future.result()
+        finally:
+            for future in pending:
+                future.cancel()
+
+    def close(self) -> None:
+        """Close the client, and the local cluster when this engine started it."""
+        client = getattr(self, "client", None)
+        if client is not None:
+            client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+            self.cluster = None
+
+
+def make_engine(dask: str | None, jobs: int | None) -> Engine:
+    """The engine the flags ask for: ``--dask ADDRESS|local`` (or DASK_SCHEDULER_ADDRESS), else a pool."""
+    address = dask or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    if address:
+        return DaskEngine(address, jobs)
+    return PoolEngine(jobs)
+
+
+def _started(task: RunTask) -> bool:
+    """Whether an attempt of this task created its staging directory (the worker had begun it)."""
+    return any(Path(task.runs_dir).glob(f"{_glob_escape(task.partial_prefix())}*.{task.attempt}.partial"))
+
+
+def _clear_partials(task: RunTask) -> None:
+    import shutil
+
+    for path in Path(task.runs_dir).glob(f"{_glob_escape(task.partial_prefix())}*.partial"):
+        shutil.rmtree(path, ignore_errors=True)
+
+
+def _glob_escape(text: str) -> str:
+    import glob
+
+    return glob.escape(text)
