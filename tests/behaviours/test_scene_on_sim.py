@@ -81,3 +81,25 @@ root:
     on_disk = SceneGraph.load(tmp_path / "run" / "scene_graph.json")
     assert {str(n["id"]) for n in on_disk.objects()} == {i.id for i in scene.map}
     assert events(tmp_path / "run", "scene_graph")  # the whole graph for ROS and viewers
+
+
+def test_room_types_and_descriptions_can_come_from_the_vision_language_model(tmp_path: Path) -> None:
+    """room_types/describe vlm: frames in the room and 20 % crops go to the VLM role, never blocking."""
+    mission = tmp_path / "vlm.yaml"
+    mission.write_text("""version: 1
+run: {backend: sim, world: office, tick_hz: 10, seed: 4}
+root:
+  Parallel:
+    name: turn_and_map
+    policy: success_on_one
+    children:
+      - Rotate: {name: turn, angle: 6.2, max_speed: 0.5, timeout: 30}
+      - BuildSceneGraph: {name: scene, room_types: vlm, describe: vlm, room_query_every: 3.0}
+""")
+    result = run_mission(MissionRequest(mission=mission, out=tmp_path / "run", quiet=True))
+    assert result.status.name == "SUCCESS"
+    calls = [e for e in events(tmp_path / "run", "model_call") if e.get("node") == "scene"]
+    assert calls and all(e.get("role") == "vlm" for e in calls)
+    graph = SceneGraph.load(tmp_path / "run" / "scene_graph.json")
+    assert [r for r in graph.rooms() if r["label"] != "room"], "no room was typed by the VLM"
+    assert all(o["description"] for o in graph.objects())

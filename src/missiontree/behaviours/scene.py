@@ -252,7 +252,8 @@ class BuildSceneGraph(Leaf):
             if not votes:
                 return room.type, room.type_confidence, room.evidence
             best = max(sorted(votes), key=lambda t: votes[t])
-            return best, votes[best] / sum(votes.values()), [f"{n:g} VLM votes" for n in [votes[best]]]
+            total = sum(votes.values())
+            return best, votes[best] / total, [f"the VLM ({votes[best]:.1f} of {total:.1f} votes)"]
         answer = room_type_from_objects(labels)
         return answer.room_type, answer.confidence, answer.evidence
 
