@@ -222,7 +222,7 @@ class ExplorationPlanner:
 
     def close_wall_gaps(self, grid: OccupancyGrid) -> OccupancyGrid:
         """The grid with unknown cells in gaps under ``wall_gap_m`` between occupied cells made occupied."""
-        k = int(round(self.wall_gap_m / grid.resolution / 2.0))
+        k = math.ceil(math.floor(self.wall_gap_m / grid.resolution + 1e-9) / 2.0)  # closes gaps of 2k cells
         if k < 1:
             return grid
         cached = getattr(self, "_closed", None)

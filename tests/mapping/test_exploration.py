@@ -1,0 +1,103 @@
+"""Ranking exploration goals: gain against path cost, nearest, scan points, blacklist, wall gaps."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from missiontree.mapping.exploration import ExplorationPlanner, straight_line_lengths, visible_unknown_area
+from missiontree.types import OccupancyGrid, Pose2D
+
+RES = 0.1
+
+
+def grid(data: np.ndarray) -> OccupancyGrid:
+    return OccupancyGrid(0.0, RES, Pose2D(0.0, 0.0), data)
+
+
+def two_openings() -> np.ndarray:
+    """A known room (x 3-5 m, y 0-2 m) between a small unknown pocket (x 2-3) and a large unknown (x 5-12)."""
+    data = np.full((20, 120), -1, np.int8)
+    data[:, 30:50] = 0
+    data[0, :] = 100
+    data[-1, :] = 100
+    data[:, 19] = 100          # the pocket's back wall at x 1.9
+    return data
+
+
+def planner(strategy: str, **kw: object) -> ExplorationPlanner:
+    return ExplorationPlanner(strategy=strategy, path_lengths=straight_line_lengths, footprint_radius=0.2,
+                              sensor_range=4.0, **kw)  # type: ignore[arg-type]
+
+
+def test_gain_prefers_the_frontier_that_reveals_more_and_nearest_the_closer_one() -> None:
+    """Nearer the small west pocket: nearest goes west, gain goes east to the large unknown."""
+    g = grid(two_openings())
+    robot = (3.5, 1.0)
+    best_gain = planner("gain").candidates(g, robot)[0]
+    best_near = planner("nearest").candidates(g, robot)[0]
+    assert best_gain.target[0] > 4.5 and best_gain.gain_m2 > 3.0
+    assert best_near.target[0] < 3.5
+    assert best_near.path_m < best_gain.path_m
+
+
+def test_walls_stop_the_gain_rays() -> None:
+    """Unknown space behind a known wall adds nothing to the gain."""
+    data = np.full((80, 80), -1, np.int8)
+    data[:, :50] = 0                      # free up to x 5 m, unknown beyond
+    at = np.array([[3.0, 4.0]])           # every ray stays inside the grid
+    open_gain = visible_unknown_area(grid(data), at, 2.5)[0]
+    data[:, 50] = 100                     # a wall at x 5 m
+    walled_gain = visible_unknown_area(grid(data), at, 2.5)[0]
+    assert open_gain > 1.0 and walled_gain == pytest.approx(0.0)
+
+
+def test_a_blacklisted_frontier_is_not_offered_again() -> None:
+    """give_up() removes the goal and the frontier place it stood for from the candidates."""
+    g = grid(two_openings())
+    p = planner("nearest")
+    first = p.candidates(g, (3.5, 1.0))[0]
+    p.give_up(first.x, first.y, "no path", first.target)
+    rest = p.candidates(g, (3.5, 1.0))
+    assert all(np.hypot(c.target[0] - first.target[0], c.target[1] - first.target[1]) > 0.75 for c in rest)
+    assert p.blacklist[0].reason == "no path"
+
+
+def test_unreachable_goals_are_no_candidates() -> None:
+    """A goal the path-length function calls unreachable (None) is dropped."""
+    g = grid(two_openings())
+    p = ExplorationPlanner(strategy="gain", path_lengths=lambda grid, s, goals, r: [None] * len(goals))
+    assert p.candidates(g, (3.5, 1.0)) == []
+
+
+def test_a_one_cell_gap_in_a_wall_is_no_frontier() -> None:
+    """A wall seen with a one-cell unknown hole does not make a frontier onto the unknown behind it."""
+    data = np.full((30, 40), -1, np.int8)
+    data[:, :20] = 0
+    data[:, 20] = 100
+    data[:, :2] = 100
+    data[:2, :21] = 100
+    data[-2:, :21] = 100
+    data[15, 20] = -1   # a gap the beams missed
+    p = planner("gain", min_frontier_m=0.1, min_gain_m2=0.0)
+    assert p.candidates(grid(data), (1.0, 1.5)) == []
+
+
+def test_scan_points_are_visited_once_largest_first() -> None:
+    """The scan-point strategy offers the largest region first and not again once visited."""
+    data = np.full((22, 63), 100, np.int8)
+    data[1:21, 1:41] = 0
+    data[1:21, 42:62] = 0
+    data[9:13, 41] = 0
+    p = planner("scan_points", erosion_m=0.3)
+    first = p.candidates(grid(data), (1.0, 1.0))
+    assert len(first) == 2 and first[0].size > first[1].size
+    p.visit(first[0].x, first[0].y)
+    again = p.candidates(grid(data), (1.0, 1.0))
+    assert [(c.x, c.y) for c in again] == [(first[1].x, first[1].y)]
+
+
+def test_unknown_strategy_is_refused() -> None:
+    """A strategy name outside gain, nearest, scan_points raises ValueError listing them."""
+    with pytest.raises(ValueError, match="gain, nearest, scan_points"):
+        ExplorationPlanner(strategy="random")
