@@ -14,8 +14,9 @@ Where it shows:
   ``scene_graph.png`` (the map with rooms, their names and the instances) when the leaf stops; the
   instances and room names are also marked on the run's top-down picture;
 - tick-log events: ``scene_graph_changed`` with ``added``, ``moved``, ``removed`` (and ``updated``)
-  for every change, and ``scene_graph`` carrying the whole graph on change and at least every
-  ``publish_every`` seconds, which the ROS 2 backend mirrors to ``/scene_graph`` and a MarkerArray.
+  for every change, and ``scene_graph`` carrying the whole graph on change (at most one a second)
+  and at least every ``publish_every`` seconds, which the ROS 2 backend mirrors to ``/scene_graph``
+  and a MarkerArray.
 
 Room types and descriptions come from the vision-language model (``room_types: vlm``,
 ``describe: vlm``: frames taken in the room with the NAIS room prompt; crops 20 % larger than the
@@ -47,6 +48,8 @@ from missiontree.semantics.semantic_map import Change, Instance
 
 SCENE_GRAPH_FILE = "scene_graph.json"
 SCENE_PICTURE_FILE = "scene_graph.png"
+#: Least seconds between two ``scene_graph`` events after changes (a burst of changes sends one graph).
+PUBLISH_GAP = 1.0
 
 
 class BuildSceneGraph(Leaf):
@@ -114,6 +117,7 @@ class BuildSceneGraph(Leaf):
         self.asked: set[str] = set()
         self.last_room_query = -math.inf
         self.semantic_edges: list[dict[str, Any]] = []
+        self.publish_due = False
 
     # -- lifecycle -------------------------------------------------------------------------------
 
@@ -173,7 +177,8 @@ class BuildSceneGraph(Leaf):
         changes = self.builder.step(now)
         if changes is not None:
             self._record(changes, now)
-        if now - self.last_publish >= self.params.publish_every:
+        since = now - self.last_publish
+        if since >= self.params.publish_every or (self.publish_due and since >= PUBLISH_GAP):
             self._publish(now)
         scene = self.builder.scene
         return self.running(
@@ -224,13 +229,14 @@ class BuildSceneGraph(Leaf):
                 rooms=len(scene.graph.rooms()),
                 **kinds,
             )
-            self._publish(now)
+            self.publish_due = True
             if self.params.semantic_relations:
                 self._ask_relations(now)
 
     def _publish(self, now: float) -> None:
         assert self.builder is not None
         self.last_publish = now
+        self.publish_due = False
         self.emit("scene_graph", version=self.builder.scene.version, graph=self.builder.scene.graph.to_dict())
 
     def _save(self) -> None:
