@@ -9,9 +9,10 @@ report's scan points, largest region first).
 
 While driving it re-plans every ``replan_period`` seconds: a goal whose frontier has been seen
 meanwhile is dropped for the next one (the lidar reaches far ahead of the robot), and the
-``gain`` and ``nearest`` strategies switch when another goal is clearly better. A goal that the
-navigation stack aborts, or that the robot makes no progress toward for ``no_progress_timeout``
-seconds, is blacklisted with its reason and never offered again. With ``look_around`` the robot
+``gain`` strategy also switches when another goal scores clearly (1.3 times) better. A goal that
+the navigation stack aborts, that the robot makes no progress toward for ``no_progress_timeout``
+seconds, or whose frontier stays unknown once reached, is blacklisted with its reason and never
+offered again (nor any goal for the same frontier place). With ``look_around`` the robot
 turns a full circle at each goal reached, in ``look_steps`` steps with a pause at each (the
 report's 360° scan), by ``drive`` commands.
 

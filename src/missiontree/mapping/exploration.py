@@ -15,6 +15,14 @@
 - ``scan_points``: the vision-language object-search report's strategy -- the scan points of the
   map (centroids of the largest eroded free regions), largest region first, each visited once.
 
+Before frontiers are looked for, unknown gaps narrower than ``wall_gap_m`` between occupied cells
+are taken for wall (a wall seen at a grazing angle leaves such holes, and each would otherwise be
+a frontier onto the unknown outside the building), and enclosed unknown patches smaller than
+``min_unknown_m2`` (specks between far-apart beams, the inside of furniture) are no frontier's
+cause. Each frontier's goal stands back from it in known free space, clear of everything not known
+free by the robot's radius plus a margin, within ``approach_m`` and in line of sight of it: the
+unknown side of a frontier often turns out to be a wall.
+
 Path lengths come from :func:`missiontree.mapping.planner.path_lengths` (one Dijkstra from the
 robot over the inflated costmap, unknown cells traversable as with a SLAM map); a goal it cannot
 reach is no candidate. Goals the robot failed to reach are *blacklisted* (with the reason), and no
