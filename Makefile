@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
 EXAMPLE_PLUGIN := plugins/missiontree-example
 
-.PHONY: setup setup-ros2 setup-browser demo test lint bench clean
+.PHONY: setup setup-ros2 setup-browser setup-train demo test lint bench clean
 
 setup: $(VENV)/.installed
 
@@ -23,15 +23,22 @@ setup-ros2: setup
 setup-browser:
 	command -v chromium >/dev/null || { [ "$$(id -u)" = 0 ] && apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium; } || echo "chromium missing and not root: the browser tests will fail"
 
+# CPU torch for the detector tools' tests (tests/tools): the train extra pins the local CPU build.
+setup-train: $(VENV)/.installed-train
+
+$(VENV)/.installed-train: $(VENV)/.installed
+	$(PIP) install -q -e ".[train]"
+	touch $@
+
 demo: setup
 	$(VENV)/bin/missiontree run trees/patrol.yaml --out runs/demo
 
 lint: setup
-	$(VENV)/bin/ruff check src tests examples benchmarks scripts plugins
+	$(VENV)/bin/ruff check src tests examples benchmarks tools plugins
 
-test: setup setup-ros2 setup-browser
-	$(VENV)/bin/ruff check src tests examples benchmarks scripts plugins
-	MISSIONTREE_REQUIRE_ROS2=1 MISSIONTREE_REQUIRE_BROWSER=1 $(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests)
+test: setup setup-ros2 setup-browser setup-train
+	$(VENV)/bin/ruff check src tests examples benchmarks tools plugins
+	MISSIONTREE_REQUIRE_ROS2=1 MISSIONTREE_REQUIRE_BROWSER=1 MISSIONTREE_REQUIRE_TRAIN=1 $(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests)
 
 bench: setup
 	for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

@@ -1,6 +1,6 @@
 """Quality and speed of the shipped simulator detector on scenes it never saw.
 
-Renders views of generated worlds whose seeds training never used (scripts/detector_data.py:
+Renders views of generated worlds whose seeds training never used (tools/detector/data.py:
 training uses world seeds below 10 000, this benchmark seeds from 10 000 on), labels them from
 the simulator's instance mask, and scores three detectors on the same frames, rotating their order
 frame by frame so that machine load affects them alike:
@@ -58,8 +58,15 @@ from types import SimpleNamespace
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from detector_data import (  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository's root: tools/
+from missiontree.backends.sim import load_world  # noqa: E402
+from missiontree.paths import find_config  # noqa: E402
+from missiontree.perception.detectors import nms  # noqa: E402
+from missiontree.perception.evaluation import APAccumulator, GroundTruth  # noqa: E402
+from missiontree.perception.oracle import OracleDetector  # noqa: E402
+from missiontree.perception.providers import SIM_DETECTOR_MODEL, create_sim_detector  # noqa: E402
+from missiontree.types import Detection  # noqa: E402
+from tools.detector.data import (  # noqa: E402
     CLASSES,
     EVAL_FIRST_WORLD,
     IMAGE_HW,
@@ -68,14 +75,6 @@ from detector_data import (  # noqa: E402
     render_views,
     unoccluded_share,
 )
-
-from missiontree.backends.sim import load_world  # noqa: E402
-from missiontree.paths import find_config  # noqa: E402
-from missiontree.perception.detectors import nms  # noqa: E402
-from missiontree.perception.evaluation import APAccumulator, GroundTruth  # noqa: E402
-from missiontree.perception.oracle import OracleDetector  # noqa: E402
-from missiontree.perception.providers import SIM_DETECTOR_MODEL, create_sim_detector  # noqa: E402
-from missiontree.types import Detection  # noqa: E402
 
 #: COCO's "small" objects: box area under 32 x 32 pixels (ignored in the medium+large figure).
 SMALL_AREA = 32 * 32

@@ -6,7 +6,7 @@
   ONNX export; ``model:`` is required.
 - ``sim_detector`` — the same detector on the model shipped in the package
   (``missiontree/data/models/sim_detector.onnx``), trained on the simulator's rendered images
-  by ``scripts/train_detector.py``; by default it also detects in the mirror image
+  by the repository's ``tools/detector/train.py``; by default it also detects in the mirror image
   (``test_time_flip``).
 - ``oracle`` — :class:`~missiontree.perception.oracle.OracleDetector`, simulation only: it must be
   bound to the simulated robot (``options["robot"]``, or :func:`bind_robot` once the robot

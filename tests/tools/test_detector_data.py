@@ -1,20 +1,17 @@
-"""scripts/detector_data.py: generated worlds and labelled views for the shipped detector."""
+"""tools/detector/data.py: generated worlds and labelled views for the shipped detector."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
-import detector_data  # noqa: E402
-from detector_data import CLASSES, View, generated_world, render_views, unoccluded_share, world_spec  # noqa: E402
-
-from missiontree.backends.sim.camera import Camera  # noqa: E402
-from missiontree.backends.sim.schema import CameraSpec  # noqa: E402
-from missiontree.backends.sim.world import load_world  # noqa: E402
-from missiontree.types import Pose2D  # noqa: E402
+from missiontree.backends.sim.camera import Camera
+from missiontree.backends.sim.schema import CameraSpec
+from missiontree.backends.sim.world import load_world
+from missiontree.types import Pose2D
+from tools.detector import data as detector_data
+from tools.detector.data import CLASSES, View, generated_world, render_views, unoccluded_share, world_spec
 
 
 def test_a_world_is_the_same_for_the_same_seed_and_differs_for_another() -> None:
