@@ -289,8 +289,9 @@ class GoToIntent(Leaf):
     class Params(BaseModel):
         scene_graph: str = Field(
             "",
-            description="A scene graph file in the NAIS JSON shape; empty: the live "
-            "graph built earlier in the mission (context.scene).",
+            description="A scene graph file in the NAIS JSON shape, or a shipped name under "
+            "config/scene_graphs/ (office); empty: the live graph built earlier in the mission "
+            "(context.scene, see BuildSceneGraph).",
         )
         look: bool = Field(
             True,
