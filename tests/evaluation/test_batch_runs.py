@@ -1,0 +1,168 @@
+"""Tests of batch runs on real engines: crashes, a killed and resumed batch, pool against Dask."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from missiontree.evaluation.batch import INFRA, RUNS_DIR, run_batch
+from missiontree.evaluation.engines import DaskEngine, PoolEngine, SerialEngine
+from missiontree.evaluation.plan import expand_plan
+from missiontree.evaluation.worker import RunTask, execute_run
+from missiontree.testing import clean_state
+
+WAIT_MISSION = """\
+version: 1
+params:
+  wait: 0.3
+run:
+  backend: sim
+  tick_hz: 10
+  max_duration: 20
+  realtime: {realtime}
+root:
+  Wait: {{seconds: "${{wait}}"}}
+"""
+
+NAV_MISSION = """\
+version: 1
+params:
+  x: 6.5
+run:
+  backend: sim
+  world: office
+  tick_hz: 10
+  max_duration: 40
+root:
+  NavigateTo: {x: "${x}", y: 3.6, timeout: 35}
+"""
+
+
+@pytest.fixture(autouse=True)
+def _clean() -> None:
+    clean_state()
+
+
+def _mission(tmp_path: Path, text: str, name: str = "m.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+# Task functions the engines run instead of execute_run: module level, so spawned workers import them.
+
+def crash_seed_2_always_seed_1_once(task: RunTask) -> dict[str, Any]:
+    """Seed 2's process dies every time; seed 1's only on its first attempt; the rest run normally."""
+    if task.spec.seed == 2 or (task.spec.seed == 1 and task.attempt == 1):
+        Path(task.runs_dir, f".{task.spec.run_id}.{os.getpid()}.{task.attempt}.partial").mkdir()
+        os._exit(3)  # noqa: SLF001 - a process dying without cleanup is what is tested
+    return execute_run(task)
+
+
+def kill_own_process_on_seed_0(task: RunTask) -> dict[str, Any]:
+    """Seed 0's worker kills itself with SIGKILL (a killed Dask worker)."""
+    if task.spec.seed == 0:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return execute_run(task)
+
+
+@pytest.mark.slow
+def test_a_run_that_crashes_its_process_is_an_infrastructure_failure(tmp_path: Path) -> None:
+    """Pool: a run dying twice is INFRA (retried once), one dying once succeeds on retry, others untouched."""
+    plan = expand_plan(_mission(tmp_path, WAIT_MISSION.format(realtime="false")), seeds=range(5))
+    with PoolEngine(2) as engine:
+        records = run_batch(plan, engine, tmp_path / "out", fn=crash_seed_2_always_seed_1_once)
+    by_seed = {r.seed: r for r in records}
+    assert [r.seed for r in records] == [0, 1, 2, 3, 4]
+    assert by_seed[2].status == INFRA and by_seed[2].attempt == 2 and by_seed[2].run_dir is None
+    assert "retried once" in by_seed[2].reason
+    assert by_seed[1].status == "SUCCESS" and by_seed[1].attempt == 2
+    assert all(by_seed[s].status == "SUCCESS" for s in (0, 3, 4))
+    runs = tmp_path / "out" / RUNS_DIR
+    assert sorted(p.name for p in runs.iterdir()) == sorted(r.run_id for r in records if r.status != INFRA)
+
+
+@pytest.mark.slow
+def test_a_killed_dask_worker_is_an_infrastructure_failure(tmp_path: Path) -> None:
+    """Dask LocalCluster: a task whose worker is SIGKILLed twice comes back as INFRA; the others succeed."""
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])  # Dask workers cannot import test modules
+    plan = expand_plan(_mission(tmp_path, WAIT_MISSION.format(realtime="false")), seeds=range(3))
+    with DaskEngine("local", 2) as engine:
+        records = run_batch(plan, engine, tmp_path / "out", fn=kill_own_process_on_seed_0)
+    assert [r.status for r in records] == [INFRA, "SUCCESS", "SUCCESS"]
+    assert "KilledWorker" in records[0].reason
+
+
+def _comparable(path: Path) -> list[dict[str, Any]]:
+    lines = [json.loads(line) for line in path.read_text().splitlines()]
+    for line in lines:
+        line.pop("wall_time_s")
+    return lines
+
+
+@pytest.mark.slow
+def test_pool_dask_and_serial_give_the_same_results(tmp_path: Path) -> None:
+    """The same small navigation batch on the three engines: results.jsonl equal apart from wall times."""
+    from missiontree.evaluation.report import write_results
+
+    mission = _mission(tmp_path, NAV_MISSION)
+    plan = expand_plan(mission, seeds=[0, 1], sweeps={"x": ["6.5", "3.5"]})
+    outputs = {}
+    engines = (("pool", PoolEngine(2)), ("dask", DaskEngine("local", 2)), ("serial", SerialEngine()))
+    for name, engine in engines:
+        with engine:
+            records = run_batch(plan, engine, tmp_path / name)
+        write_results(records, tmp_path / name / "results.jsonl")
+        outputs[name] = _comparable(tmp_path / name / "results.jsonl")
+    assert len(outputs["pool"]) == 4
+    assert all(r["status"] == "SUCCESS" and r["path_length_m"] > 0.5 for r in outputs["pool"])
+    assert {r["robot_time_s"] for r in outputs["pool"]} != {outputs["pool"][0]["robot_time_s"]}  # x matters
+    assert outputs["pool"] == outputs["dask"] == outputs["serial"]
+
+
+@pytest.mark.slow
+def test_a_killed_batch_resumes_without_repeating_or_losing_runs(tmp_path: Path) -> None:
+    """SIGKILL the whole batch mid-way: no half run under a final name; --resume runs only the rest."""
+    mission = _mission(tmp_path, WAIT_MISSION.format(realtime="true").replace("wait: 0.3", "wait: 1.5"))
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "missiontree.cli.main", "batch", str(mission), "--seeds", "0-7",
+               "--jobs", "2", "--out", str(out), "--quiet"]
+    process = subprocess.Popen(command, start_new_session=True, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL)
+    runs = out / RUNS_DIR
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline:
+        done = [p for p in runs.glob("[!.]*")] if runs.is_dir() else []
+        if len(done) >= 2:
+            break
+        assert process.poll() is None, "the batch ended before it could be killed"
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait(timeout=30)
+    time.sleep(0.5)
+    complete = {p.name: (p / "record.json").stat().st_mtime_ns
+                for p in runs.iterdir() if not p.name.startswith(".")}
+    assert 2 <= len(complete) < 8
+    assert all((runs / name / "record.json").is_file() for name in complete)  # no half run under a final name
+    assert not (out / "results.jsonl").exists()
+
+    again = subprocess.run([*command[:-1], "--resume", "--quiet"], capture_output=True, text=True,
+                           timeout=300)
+    assert again.returncode == 0, again.stderr + again.stdout
+    records = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert [r["seed"] for r in records] == list(range(8))  # every run once, in plan order
+    assert all(r["status"] == "SUCCESS" for r in records)
+    for name, mtime in complete.items():  # runs complete before the kill were not run again
+        assert (runs / name / "record.json").stat().st_mtime_ns == mtime
+    assert not list(runs.glob(".*"))  # the killed batch's partial runs are gone
+    assert len(list(runs.iterdir())) == 8
