@@ -1,11 +1,11 @@
-"""Seed 001's patrol scenarios, measured: the seed's surveillance (0.5 s and 0.2 s) against ours.
+"""The patrol-robot thesis's scenarios, measured: the thesis's surveillance (0.5 s and 0.2 s) against ours.
 
-Scenarios (seed 001 §4.5): A = corridor, B = entrance hall, C/D = the combined route. People cross
+Scenarios (the thesis §4.5): A = corridor, B = entrance hall, C/D = the combined route. People cross
 the robot's path: walkers pace back and forth across every leg of the route at 1.0-1.6 m/s, so they
 cross the camera's view at bearings across its 70° field of view. The VLM answers after a latency
 drawn from 0.5-3 s (simulated clock). Configurations, all on the same worlds, seeds and routes:
 
-- ``seed_05`` — seed 001 as built: the latest frame to the VLM every 0.5 s (scenarios A-C), the
+- ``seed_05`` — the thesis as built: the latest frame to the VLM every 0.5 s (scenarios A-C), the
   distance read by its ±15° front cone from the *latest* scan once the answer arrives.
 - ``seed_02`` — the same every 0.2 s (scenario D).
 - ``ours`` — the detector on every frame, the VLM confirming at most every 0.5 s (≤ 2 calls/s),
@@ -70,7 +70,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "ours": {"mode": "detect", "period": 0.5, "method": "depth", "fuse_at": "frame", "max_in_flight": 6},
 }
 
-LATENCY = (0.5, 3.0)          # seconds, seed 001's cloud VLM
+LATENCY = (0.5, 3.0)          # seconds, the thesis's cloud VLM
 SPEEDS = (1.0, 1.6)           # m/s, people crossing
 MIN_PIXELS = 400              # a person this visible in a frame can be asked to be seen
 MERGE_GAP = 1.0               # seconds out of view that still belong to the same encounter

@@ -1,6 +1,6 @@
 """How much faster than real time the simulator runs a patrol, with numba and with numpy alone.
 
-60 simulated seconds of patrol in the `combined` world (seed 001 scenario C's waypoint loop,
+60 simulated seconds of patrol in the `combined` world (the patrol-robot thesis's scenario C waypoint loop,
 driven with navigate_to), lidar 360 beams at 10 Hz, RGB-D 320x240 at 5 Hz, three people walking.
 The numba-accelerated run (the default) and the numpy-only reference are measured in the same
 process, alternating; the numpy reference covers a shorter window (--numpy-seconds) because it

@@ -52,7 +52,10 @@ class PoseStamped:
 
 @dataclass(frozen=True, slots=True)
 class Tolerance:
-    """Goal tolerances as in Nav2's goal checker; ``yaw=2*pi`` accepts any heading (seed 001 §3.6)."""
+    """Goal tolerances as in Nav2's goal checker.
+
+    ``yaw=2*pi`` accepts any heading, as the patrol-robot thesis configured Nav2 (§3.6).
+    """
 
     xy: float = 0.25
     yaw: float = 0.25

@@ -2,9 +2,9 @@
 
 The three methods of issue 5, all fed with the sensor data *of the instant the frame was taken*
 (``robot.pose_at(frame.stamp)``, ``robot.scan_at(frame.stamp)``) unless told to use the latest
-data, which is what seed 001 did and why its distances drifted by Δd = v·T:
+data, which is what the patrol-robot thesis did and why its distances drifted by Δd = v·T:
 
-- ``seed``: seed 001's ±15° front cone (:func:`~missiontree.perception.lidar.seed_front_distance`);
+- ``seed``: the thesis's ±15° front cone (:func:`~missiontree.perception.lidar.seed_front_distance`);
   it assumes the person is straight ahead.
 - ``cone``: a lidar cone on the bearing and width of the person's box, reaching past an image
   border that cuts the box (:func:`~missiontree.perception.lidar.cone_distance`).

@@ -18,7 +18,7 @@ from missiontree.engine.ports import Output
 from missiontree.robot.actions import ActionHandle, ActionStatus
 from missiontree.types import Pose2D, Tolerance, wrap_angle
 
-#: A yaw tolerance that accepts any final heading (seed 001 §3.6.3).
+#: A yaw tolerance that accepts any final heading (the patrol-robot thesis §3.6.3).
 ANY_HEADING = 2.0 * math.pi
 
 
@@ -26,7 +26,7 @@ class NavigateTo(Leaf):
     """Drive to a map pose with the navigation stack; fails with the planner's reason.
 
     Emits ``goal_sent`` when the goal goes out and ``goal_result`` when it ends. A yaw tolerance
-    of 6.28 (2π) accepts any final heading, as seed 001 configured Nav2.
+    of 6.28 (2π) accepts any final heading, as the patrol-robot thesis configured Nav2.
     """
 
     class Params(BaseModel):

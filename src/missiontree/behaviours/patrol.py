@@ -1,6 +1,6 @@
 """The patrol: loop a waypoint route through the navigation stack, skipping what cannot be reached.
 
-Seed 001 §4.5.8: a waypoint that Nav2 aborts (inside an obstacle's inscribed zone, a blocked
+The patrol-robot thesis §4.5.8: a waypoint that Nav2 aborts (inside an obstacle's inscribed zone, a blocked
 corridor) is logged and skipped, and the patrol goes on to the next one. Here the route comes
 from the tree, a config file or a Nav2-style waypoint YAML (:mod:`missiontree.behaviours.waypoints`);
 it runs a number of laps (0 = forever).
@@ -49,7 +49,8 @@ class Patrol(Leaf):
         xy_tolerance: float = Field(0.3, gt=0, description="Distance that counts as reached (m).")
         yaw_tolerance: float = Field(
             ANY_HEADING, gt=0, le=ANY_HEADING,
-            description="Heading error accepted (rad); 6.28 accepts any heading (seed 001 §3.6.3).")
+            description="Heading error accepted (rad); 6.28 accepts any heading (the patrol-robot thesis "
+            "§3.6.3).")
         waypoint_timeout: float | None = Field(
             None, gt=0, description="Skip a waypoint not reached within this many seconds.")
         max_consecutive_skips: int = Field(

@@ -1,7 +1,7 @@
-"""Visual servoing on an alarm (seed 001 §5.3.1): turn to face the person, measure, record.
+"""Visual servoing on an alarm (the patrol-robot thesis §5.3.1): turn to face the person, measure.
 
-Seed 001 found that a person seen at the edge of the 70° camera lies outside its ±15° lidar cone
-and proposed a reflex: preempt the patrol goal and rotate the chassis to centre the target.
+The patrol-robot thesis found that a person seen at the edge of the 70° camera lies outside its
+±15° lidar cone and proposed a reflex: preempt the patrol goal and rotate the chassis to centre the target.
 :class:`ServoToTarget` does that with a proportional controller on the bearing error, where the
 bearing comes from the detector run on each new frame (the person nearest the expected bearing)
 or, while the person is not in view, from the alarm's estimated map position. Once the person is

@@ -2,8 +2,8 @@
 
 Runs beside the patrol (a Parallel) and never finishes by itself. Two modes:
 
-- ``poll`` — seed 001: every ``period`` seconds (0.5 s, or 0.2 s in scenario D) the latest frame
-  goes to the vision-language model with the ALARM/SAFE prompt. People who cross the view between
+- ``poll`` — the patrol-robot thesis: every ``period`` seconds (0.5 s, or 0.2 s in scenario D) the
+  latest frame goes to the vision-language model with the ALARM/SAFE prompt. People who cross the view between
   two checks, or while answers are slow, are missed.
 - ``detect`` — a cheap detector looks at *every* frame; a frame showing a person not seen before
   (light tracks by map position and clothing colour, :mod:`missiontree.behaviours.tracks`; a
@@ -98,15 +98,16 @@ class Surveillance(Leaf):
 
     class Params(BaseModel):
         mode: Literal["poll", "detect"] = Field(
-            "detect", description="poll: send a frame every period (seed 001); detect: detector on every "
-            "frame, VLM confirms.")
+            "detect", description="poll: send a frame every period (the patrol-robot thesis); detect: "
+            "detector on every frame, VLM confirms.")
         period: float = Field(
             0.5, gt=0, description="Seconds between VLM calls (poll); seconds per call on average (detect).")
         max_in_flight: int = Field(1, ge=1, description="Most VLM calls waiting for an answer at once.")
         confirm: bool = Field(True, description="detect mode: the VLM confirms (false: detector decides).")
         method: Method = Field("depth", description="Distance method: seed, cone or depth.")
         fuse_at: FuseAt = Field(
-            "frame", description="Sensor data of the frame's instant (frame) or the answer's (seed 001).")
+            "frame", description="Sensor data of the frame's instant (frame) or the answer's (the "
+            "patrol-robot thesis).")
         min_score: float = Field(0.5, ge=0, le=1, description="Detector score needed to count a person.")
         label: str = Field("person", description="Detector label that counts as a person.")
         surface_offset: float = Field(
@@ -127,7 +128,8 @@ class Surveillance(Leaf):
             10.0, gt=0, description="Fail when no frame younger than max_frame_age came for this long (s).")
         max_failed_calls: int = Field(
             10, ge=0, description="Fail after this many calls of one model role failed in a row (0: never).")
-        prompt: str | None = Field(None, description="Question for the VLM; default: seed 001's prompt.")
+        prompt: str | None = Field(
+            None, description="Question for the VLM; default: the patrol-robot thesis's prompt.")
         alarm: Annotated[str, Output("the last alarm raised", type="dict")] = "alarm"
 
     params: Params

@@ -2,7 +2,7 @@
 
 Accepted shapes, for a list given inline in a tree or read from a file:
 
-- a list of ``[x, y]`` or ``[x, y, yaw]`` (seed 001's Listing 4.8);
+- a list of ``[x, y]`` or ``[x, y, yaw]`` (the patrol-robot thesis's Listing 4.8);
 - a list of mappings ``{x, y, yaw?, name?}``;
 - a list of geometry_msgs-like poses ``{pose: {position: {x, y}, orientation: {z, w}}}``
   (a PoseStamped dump; yaw from the quaternion);
@@ -163,7 +163,7 @@ def misfits(waypoints: Sequence[Waypoint], grid: OccupancyGrid) -> list[str]:
     """Why waypoints cannot belong to the world of ``grid``: outside its map, or inside an obstacle.
 
     A waypoint merely close to an obstacle is not a misfit: the patrol skips it with the planner's
-    reason at run time (seed 001 §4.5.8). Returns one sentence per misfit, empty when all fit.
+    reason at run time (the patrol-robot thesis §4.5.8). Returns one sentence per misfit, empty when all fit.
     """
     rows, cols = grid.data.shape
     x0, y0 = grid.origin.x, grid.origin.y

@@ -1,8 +1,9 @@
-"""Colour naming of image regions in HSV, and where in the image a colour lies (seed 002's mapper).
+"""Colour naming of image regions in HSV, and where in the image a colour lies.
 
-Seed 002's colour mapper thresholds the image in HSV for a named colour, calls the colour present
-when the matching pixels exceed a fraction of the region (typically 1 %), and places the matching
-region left, centre or right from the horizontal position of its centroid (image moments). This
+The vision-language object-search report's colour mapper thresholds the image in HSV for a named
+colour, calls the colour present when the matching pixels exceed a fraction of the region
+(typically 1 %), and places the matching region left, centre or right from the horizontal
+position of its centroid (image moments). This
 module does that, and the inverse: name the dominant colour of a box or mask, so a detection can
 carry "grey backpack" or "red cup".
 
@@ -188,7 +189,7 @@ def dominant_colour(
 
 @dataclass(frozen=True, slots=True)
 class ColourRegion:
-    """Where a named colour was found in an image (seed 002's colour mapper result).
+    """Where a named colour was found in an image (the object-search report's colour mapper result).
 
     Attributes:
         colour: The colour asked for (canonical name).

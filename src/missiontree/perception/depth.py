@@ -3,7 +3,7 @@
 Method (c) of issue 5: the median depth inside the box, made robust against what a box holds
 besides its target — the floor at its feet, the background between the legs and around the
 outline (floor pixels are dropped by their height, the nearest cluster of depths is kept, as NAIS
-takes the median depth around the box centre, seed 000). The position is the ray through the
+takes the median depth around the box centre). The position is the ray through the
 target's pixels (their median column) from the camera, through the frame's intrinsics, scaled to
 that depth and placed in the map with the frame's camera pose. Pure functions of
 :class:`~missiontree.types.RGBDFrame` and :class:`~missiontree.types.Detection`.

@@ -1,13 +1,13 @@
-"""Distance from a 2D lidar scan: the seed's front cone, and a cone aimed at a detection.
+"""Distance from a 2D lidar scan: the patrol-robot thesis's front cone, and a cone aimed at a detection.
 
 Two methods, both pure functions of a :class:`~missiontree.types.LaserScan`:
 
-- :func:`seed_front_distance` is seed 001's ``get_front_distance`` (Listing 3.6), reproduced
+- :func:`seed_front_distance` is the patrol-robot thesis's ``get_front_distance`` (Listing 3.6), reproduced
   exactly, including its assumptions: the array starts at the robot's right (index 0 = -90°) and
   the front sits at 25 % of the array whatever the scan's ``angle_min`` says; a ±15° cone taken
   by index arithmetic; centre ±5° drops readings under 0.75 m, the sides drop readings under
   0.40 m; the 10th percentile of what is left. It measures straight ahead, so a person 25° off
-  the axis is missed and the wall behind is measured (seed 001 §4.5.8).
+  the axis is missed and the wall behind is measured (the thesis §4.5.8).
 - :func:`cone_distance` looks where the camera saw the target: a cone centred on the bearing of
   the detection's box, as wide as the box, using the scan's own angle layout. It returns the
   nearest compact cluster of returns inside the cone (the target in front of its background).
@@ -24,7 +24,7 @@ import numpy as np
 
 from missiontree.types import LaserScan, Pose2D, wrap_angle
 
-#: Seed 001's cone and masking constants (§3.9–3.11, Listing 3.6).
+#: The patrol-robot thesis's cone and masking constants (§3.9–3.11, Listing 3.6).
 SEED_HALF_CONE_DEG = 15.0
 SEED_CENTRE_HALF_DEG = 5.0
 SEED_CENTRE_MIN_RANGE = 0.75
@@ -33,7 +33,7 @@ SEED_PERCENTILE = 10.0
 
 
 def seed_front_distance(scan: LaserScan) -> float:
-    """Seed 001's front distance (Listing 3.6), reproduced line by line.
+    """The patrol-robot thesis's front distance (Listing 3.6), reproduced line by line.
 
     Args:
         scan: A full-circle scan in the TurtleBot 4 layout (index 0 = right, front at 25 %).

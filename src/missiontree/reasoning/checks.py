@@ -1,6 +1,6 @@
 """Checked answers: validate structured answers, retry once with the error fed back, ground object ids.
 
-A model's structured answer steers a robot, so it is checked before use (seed 001 §2.3,
+A model's structured answer steers a robot, so it is checked before use (the patrol-robot thesis §2.3,
 "hallucination management"):
 
 1. The text must be JSON (a fenced ```json block is accepted) of the pydantic schema asked for.

@@ -3,7 +3,7 @@
 No network, no GPU. It answers the questions the shipped missions ask a VLM, chosen by the answer
 schema (or, without one, by the prompt):
 
-- :class:`SurveillanceVerdict` (seed 001's "ALARM: PERSON DETECTED" / "SAFE"): ALARM when the
+- :class:`SurveillanceVerdict` (the patrol-robot thesis's "ALARM: PERSON DETECTED" / "SAFE"): ALARM when the
   detector finds a ``person`` scoring at least ``min_score``; the people's boxes come along.
 - :class:`CropMatch` ("does this crop show 'grey backpack'?"): the description is parsed into label
   and attributes; it matches when the detector finds that label and the colour measured in HSV
@@ -14,7 +14,8 @@ schema (or, without one, by the prompt):
   through a doorway).
 - :class:`ObjectDescription`: label, measured colour, a typical size of the class and a shape from
   the box's aspect ratio.
-- No schema: seed 001's free-text sentence for a prompt about a PERSON, else a list of what is seen.
+- No schema: the patrol-robot thesis's free-text sentence for a prompt about a PERSON, else a list
+  of what is seen.
 
 It is a stand-in, not a model: it can only name what the detector knows. Provider name
 ``offline_vlm``; options: ``detector`` (role of the detector, default ``detector``), ``min_score``

@@ -16,7 +16,7 @@ from typing import Any
 from missiontree.reasoning.protocols import Message
 from missiontree.reasoning.schemas import RELATIONS, ROOM_TYPES
 
-#: Seed 001's security prompt (Listing 3.7), asking for the verdict as JSON as well.
+#: The patrol-robot thesis's security prompt (Listing 3.7), asking for the verdict as JSON as well.
 SURVEILLANCE_PROMPT = (
     "You are a security robot. Briefly describe what you see in one sentence. "
     "If you see a PERSON (even incompletely, like a pair of legs with shoes, etc), "
@@ -37,7 +37,7 @@ _OBJECTS = re.compile(r"Scene objects \(JSON\):\s*```json\s*(.*?)```", re.DOTALL
 
 
 def surveillance_prompt() -> str:
-    """Seed 001's ALARM/SAFE prompt."""
+    """The patrol-robot thesis's ALARM/SAFE prompt."""
     return SURVEILLANCE_PROMPT
 
 

@@ -4,12 +4,13 @@ Each schema is sent to the model as a JSON schema (OpenAI ``response_format: jso
 answer is validated against it (:mod:`missiontree.reasoning.checks`). A schema whose answer names
 scene objects implements ``named_ids()``; the checks reject ids the caller's map does not hold.
 
-- :class:`SurveillanceVerdict` — seed 001: "ALARM: PERSON DETECTED" or "SAFE", plus people boxes.
+- :class:`SurveillanceVerdict` — the patrol-robot thesis: "ALARM: PERSON DETECTED" or "SAFE", plus
+  people boxes.
 - :class:`CropMatch` — does an image crop show "grey backpack"? (object search verification).
-- :class:`RoomClassification` — which room type an image shows (seed 000, NAIS node 3).
-- :class:`ObjectDescription` — colour, size and shape of an object crop (seed 000, NAIS node 3).
+- :class:`RoomClassification` — which room type an image shows (the NAIS paper, node 3).
+- :class:`ObjectDescription` — colour, size and shape of an object crop (the NAIS paper, node 3).
 - :class:`ReferenceParse` — a referential phrase as label + attributes + spatial relation.
-- :class:`IntentResolution` — the scene objects that satisfy a request, by id (seed 000, node 5).
+- :class:`IntentResolution` — the scene objects that satisfy a request, by id (the NAIS paper, node 5).
 
 Model answers are trusted no further than they are checked: every number must be finite (NaN and
 infinity, which Python's JSON reader accepts, are refused), free text is cut to
@@ -29,7 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 ROOM_TYPES = ("kitchen", "office", "corridor", "hall", "living_room", "bedroom", "bathroom", "storage",
               "unknown")
 
-#: Spatial relations a reference may use (seed 000: "the laptop in front of the sofa").
+#: Spatial relations a reference may use (the NAIS paper: "the laptop in front of the sofa").
 RELATIONS = ("near", "next_to", "in_front_of", "behind", "left_of", "right_of", "on", "in")
 
 #: Longest free text kept from an answer (longer text is cut: it only travels to logs and alarms).
@@ -90,7 +91,7 @@ class PersonBox(_Answer):
 
 
 class SurveillanceVerdict(_Answer):
-    """Seed 001's security check: ALARM when a person (even partly visible) is in the image."""
+    """The patrol-robot thesis's security check: ALARM when a person (even partly visible) is in the image."""
 
     verdict: Literal["ALARM", "SAFE"] = Field(
         description="ALARM if a person is visible, even incompletely (legs, an arm); else SAFE.")
@@ -118,13 +119,13 @@ class SurveillanceVerdict(_Answer):
         return self.verdict == "ALARM"
 
     def as_text(self) -> str:
-        """The answer in seed 001's free-text form ("ALARM: PERSON DETECTED ..." / "SAFE: ...")."""
+        """The answer in the patrol-robot thesis's form ("ALARM: PERSON DETECTED ..." / "SAFE: ...")."""
         head = "ALARM: PERSON DETECTED" if self.alarm else "SAFE:"
         return f"{head} {self.description}".strip()
 
     @classmethod
     def from_text(cls, text: str) -> SurveillanceVerdict:
-        """Read seed 001's free-text answer: ALARM when it starts with (or contains) "ALARM"."""
+        """Read the patrol-robot thesis's free-text answer: ALARM when it starts with or contains "ALARM"."""
         stripped = text.strip()
         alarm = stripped.upper().startswith("ALARM") or "ALARM" in stripped.upper().split(".")[0]
         for prefix in ("ALARM: PERSON DETECTED", "ALARM:", "SAFE:", "SAFE"):
@@ -135,7 +136,7 @@ class SurveillanceVerdict(_Answer):
 
 
 class CropMatch(_Answer):
-    """Whether an image crop shows the described object (object search verification, seed 002)."""
+    """Whether an image crop shows the described object (the object-search report's verification)."""
 
     matches: bool = Field(description="True if the image shows the described object.")
     confidence: float = Field(ge=0.0, le=1.0, description="Confidence in [0, 1].")

@@ -9,7 +9,7 @@ the role's simulated latency and timeout::
       vlm:
         provider: offline_vlm
         detector: detector                # another role this provider uses
-        latency: {uniform: [0.5, 3.0]}    # simulated seconds (seed 001's cloud VLM)
+        latency: {uniform: [0.5, 3.0]}    # simulated seconds (the patrol-robot thesis's cloud VLM)
         timeout: 10
       embedder:
         provider: minilm

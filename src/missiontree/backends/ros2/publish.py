@@ -1,6 +1,6 @@
 """What a mission shows the ROS world: detections as coloured cubes, the scene graph, alarms.
 
-NAIS (seed 000) draws every object of its semantic map as a coloured cube in RViz — chairs green,
+The NAIS paper draws every object of its semantic map as a coloured cube in RViz — chairs green,
 umbrellas blue, bottles purple, cups pink, sofas lime — and publishes its scene graph as a JSON
 ``std_msgs/String`` on ``/scene_graph``. :class:`WorldPublisher` does the same from a mission,
 plus alarms as ``std_msgs/String`` JSON on their own topic. Message building is pure

@@ -6,7 +6,7 @@ config/worlds/*.yaml, so it goes through the same checks); ``load_world("generat
 for inspection. The layout splits a rectangle recursively into rooms (binary space partition);
 every split wall gets one door, so all rooms connect. Large furniture stands against walls and
 away from doors, small objects lie on the floor or on low furniture where a camera 40 cm high can
-see them (seed 000), and the start pose is in free space. Everything random comes from one
+see them (the NAIS paper), and the start pose is in free space. Everything random comes from one
 ``numpy.random.Generator`` seeded with ``seed``: the same seed gives the same world.
 """
 

@@ -1,4 +1,6 @@
-"""Differential drive kinematics (seed 002 §1) integrated exactly over the instantaneous centre of curvature.
+"""Differential drive kinematics integrated exactly over the instantaneous centre of curvature.
+
+As in the vision-language object-search report (§1).
 
 Wheel speeds map to body velocity as ``v = r/2 (phi_R + phi_L)``, ``w = r/L (phi_R - phi_L)``;
 for a velocity held constant over a step the pose moves on a circle about the ICC, which

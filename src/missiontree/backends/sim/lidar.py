@@ -4,7 +4,7 @@ Beams are cast in the horizontal plane at the mount height against every prism t
 it: walls, objects tall enough (a cup on the floor is below a 0.19 m scan plane), and people's
 legs. Index ``i`` looks along ``mount_yaw + angle_min + i * angle_increment`` in the robot
 frame; the TurtleBot 4 profile mounts the RPLIDAR at +90° and starts at -180°, so index 0 looks
-right (-90°), a quarter of the array ahead and half of it left (seed 001 §3.9), and
+right (-90°), a quarter of the array ahead and half of it left (the patrol-robot thesis §3.9), and
 ``LaserScan.angles()`` returns robot-frame angles. Readings beyond ``range_max`` are ``inf``
 (no return), readings under ``range_min`` NaN (invalid), as sensor_msgs/LaserScan has it.
 """

@@ -1,12 +1,12 @@
 """A NavigateToPose equivalent: inflated costmap, A* planner, path follower, tolerances, aborts.
 
 Like Nav2: a global costmap holds lethal cells (walls and obstacles), an inscribed zone as wide
-as the robot's radius around them (a goal there is unreachable, seed 001 §4.5.8) and an
+as the robot's radius around them (a goal there is unreachable, the patrol-robot thesis §4.5.8) and an
 inflation cost decaying as ``252 * exp(-cost_scaling * (d - radius))`` out to
 ``inflation_radius`` (:mod:`missiontree.mapping.planner`: computed tile by tile as plans reach
 it, updated where the map changes). A* plans over it (8-connected, cost-weighted); a pure-pursuit
 follower drives the path; the goal is reached within ``tolerance.xy`` and, unless ``tolerance.yaw``
-is a full turn (seed 001 §3.6), after turning to the goal heading. What the lidar sees ahead
+is a full turn (the thesis §3.6), after turning to the goal heading. What the lidar sees ahead
 (people) stops the robot; the planner then replans around it, and the goal aborts when the way
 stays blocked for ``blocked_timeout`` seconds.
 

@@ -8,7 +8,7 @@ truth can answer "where was she at t" for any t, and runs are deterministic.
 
 A person is drawn as legs (two thin cylinders that swing with the gait, what the lidar sees at
 its 0.2 m plane), a torso and a head. People do not avoid the robot: they block its sensors and
-its path, as the passers-by of seed 001 did.
+its path, as the passers-by of the patrol-robot thesis did.
 """
 
 from __future__ import annotations
