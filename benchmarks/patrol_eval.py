@@ -24,14 +24,14 @@ path. Scoring uses the simulator's ground truth (never seen by the leaves):
   are not scored: no configuration could answer them before the patrol ends);
 - the distance error of an alarm is |reported − true| against the true distance, at the frame's
   time, from the robot to the person in that frame whose distance matches best (favourable to
-  every method alike); an alarm without a distance (the seed's ``inf``) counts as an error > 1 m.
+  every method alike); an alarm without a distance (the thesis's ``inf``) counts as an error > 1 m.
   Simulated walkers ignore the robot and may walk through its body; alarms on frames where a person
   is closer than OVERLAP (bodies overlapping, impossible for real people) are not scored for
   distance and are counted apart (``overlapping``).
 
 ``--detector oracle`` runs every configuration on the simulation oracle (a perfect detector) instead
 of the shipped trained detector, to separate what the detector costs from what the design costs.
-Runs alternate between configurations scenario by scenario; ratios of ours against the seed's are
+Runs alternate between configurations scenario by scenario; ratios of ours against the thesis's are
 printed with min/median/max over scenarios. Last line: one JSON object with the figures.
 """
 

@@ -68,9 +68,9 @@ def measure(
     Args:
         robot: Source of the pose and scan (history lookups by the frame's stamp).
         frame: The frame the person was seen in.
-        detection: The person's box; None means "somewhere in the image" (the seed's case).
+        detection: The person's box; None means "somewhere in the image" (the thesis's case).
         method: ``seed``, ``cone`` or ``depth``.
-        fuse_at: ``frame`` uses the data of the frame's instant; ``answer`` the latest (the seed's).
+        fuse_at: ``frame`` uses the data of the frame's instant; ``answer`` the latest (the thesis's).
         surface_offset: Added to lidar and depth ranges: sensors see the near surface of the
             person, the position wanted is their centre (ignored by ``seed``, reproduced as is).
 

@@ -112,7 +112,7 @@ class ServoToTarget(Leaf):
         self.bearing_hint = float(seen) if seen is not None else wrap_angle(
             self.alarm.robot_pose[2] + self.alarm.bearing)
         self.target = self.alarm.position
-        if self.target is not None:  # a position that disagrees with the camera (the seed's cone) is ignored
+        if self.target is not None:  # a position that disagrees with the camera (the thesis cone) is ignored
             at = self.alarm.pose
             gap = abs(wrap_angle(at.bearing_to(*self.target) + at.yaw - self.bearing_hint))
             self.target = self.target if gap <= self.params.max_jump else None

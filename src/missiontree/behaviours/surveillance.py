@@ -39,7 +39,7 @@ The answer is read through the :class:`~missiontree.reasoning.schemas.Surveillan
 (checked, retried once), never by searching its text. The person's bearing, distance and map
 position come from the sensor data of the instant the frame was taken (``fuse_at: frame``), by the
 chosen ``method`` (seed | cone | depth, :mod:`missiontree.behaviours.measure`); ``fuse_at: answer``
-reproduces the seed, which read the latest scan once the answer came back.
+reproduces the patrol-robot thesis, which read the latest scan once the answer came back.
 """
 
 from __future__ import annotations
@@ -104,7 +104,8 @@ class Surveillance(Leaf):
             0.5, gt=0, description="Seconds between VLM calls (poll); seconds per call on average (detect).")
         max_in_flight: int = Field(1, ge=1, description="Most VLM calls waiting for an answer at once.")
         confirm: bool = Field(True, description="detect mode: the VLM confirms (false: detector decides).")
-        method: Method = Field("depth", description="Distance method: seed, cone or depth.")
+        method: Method = Field("depth", description="Distance method: seed (the patrol-robot thesis's front "
+                                      "cone), cone or depth.")
         fuse_at: FuseAt = Field(
             "frame", description="Sensor data of the frame's instant (frame) or the answer's (the "
             "patrol-robot thesis).")
@@ -191,7 +192,7 @@ class Surveillance(Leaf):
             return self.running(f"camera quiet for {quiet:.1f} s; {self.alarm_count} alarms")
         self.last_fresh = now
         if self.params.mode == "poll":
-            self._poll(frame)  # the seed sends the latest frame when the period is up, new or not
+            self._poll(frame)  # the thesis sends the latest frame when the period is up, new or not
         elif frame.stamp > self.last_frame_stamp and self.detecting is None:
             self.last_frame_stamp = frame.stamp
             self._submit_detection(frame)
@@ -285,7 +286,7 @@ class Surveillance(Leaf):
         """Measure a person at the frame's instant and find their track (None: the lidar saw no legs)."""
         measurement = measure(self.context.robot, frame, person, self.params.method, fuse_at="frame",
                               surface_offset=self.params.surface_offset)
-        checkable = self.params.method != "seed"  # the seed's cone measures straight ahead, not the box
+        checkable = self.params.method != "seed"  # the thesis's cone measures straight ahead, not the box
         if (self.params.lidar_check and checkable and measurement is not None
                 and math.isfinite(measurement.distance)):
             scan = self.context.robot.scan_at(frame.stamp)

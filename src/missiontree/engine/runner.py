@@ -11,7 +11,7 @@ duration limit, or SIGINT/SIGTERM; on every exit path it halts the tree (``root.
 so each running leaf's ``terminate()`` cancels its work) and then calls ``robot.stop()``.
 
 Ticking walks only the nodes the tick reaches (the root's tick generator, as ``tick_once()``
-does), never the whole tree as ``BehaviourTree.tick()`` does after every tick (ARCHITECTURE §9).
+does), never the whole tree as ``BehaviourTree.tick()`` does after every tick.
 An exception escaping a behaviour that is not a :class:`~missiontree.engine.leaf.Leaf` (those
 handle their own) becomes FAILURE of that node with an ``error`` event; the run goes on. A halt
 whose cancel raises is reported the same way. py_trees' own composites and decorators, which only

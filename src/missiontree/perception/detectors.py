@@ -418,7 +418,7 @@ class YoloOnnxDetector:
     # -- loading -------------------------------------------------------------------------------
 
     def _open_session(self, threads: int) -> Any:
-        import onnxruntime as ort  # vendor SDK stays inside the provider (ARCHITECTURE §1)
+        import onnxruntime as ort  # vendor SDK stays inside the provider
 
         if not self.model_path.is_file():
             raise ModelConfigError(

@@ -1,6 +1,6 @@
 """Non-blocking model calls: submit on a worker pool, poll a handle every tick, time out, cancel.
 
-A leaf never waits for a model on the tick thread (ARCHITECTURE §3). It submits the call in
+A leaf never waits for a model on the tick thread. It submits the call in
 ``initialise()``, polls the returned :class:`ModelCall` in ``update()`` and cancels it in
 ``terminate()``::
 
@@ -86,7 +86,7 @@ class _NullEvents:
 class CallContext(Protocol):
     """What a caller needs from the running mission (the engine's ``MissionContext`` provides it).
 
-    Declared here so that this layer does not import the engine (ARCHITECTURE §1).
+    Declared here so that this layer does not import the engine (imports point down only).
     """
 
     robot: Robot

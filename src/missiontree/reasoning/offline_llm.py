@@ -6,7 +6,7 @@ network and no GPU:
 
 - A **need** ("I am thirsty") is matched to the scene's object classes through one-line affordance
   descriptions (what an object is for), ranked by text-embedding similarity to the request
-  (ARCHITECTURE §8: bare labels rank badly — "thirsty" puts sink first; descriptions put bottle and
+  (measured: bare labels rank badly — "thirsty" puts sink first; descriptions put bottle and
   cup first). Every class scoring within ``margin`` of the best (and at least ``min_score``) is a
   candidate; its objects are the answer, best class first.
 - A **reference** ("the grey backpack in front of the sofa") is parsed into label + attributes +

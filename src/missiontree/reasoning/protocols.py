@@ -2,7 +2,7 @@
 
 Providers are plain synchronous objects: ``ask`` blocks until the answer is there. They never
 run on the tick thread; leaves submit them through :class:`missiontree.reasoning.calls.ModelCaller`,
-which runs them on a worker pool and hands back a handle to poll (ARCHITECTURE §3).
+which runs them on a worker pool and hands back a handle to poll.
 
 An answer is the model's text. When a pydantic ``schema`` is given the provider asks for
 structured output and the text should be JSON of that schema; :mod:`missiontree.reasoning.checks`

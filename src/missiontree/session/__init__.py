@@ -5,7 +5,7 @@
 - :mod:`~missiontree.session.params` — ``run --set`` values checked against the mission's ``params:``.
 - :mod:`~missiontree.session.progress` — the live progress line on stderr.
 
-Only this package wires concrete backends and model providers together (ARCHITECTURE §1); the CLI,
+Only this package wires concrete backends and model providers together; the CLI,
 the benchmarks and the batch runner call it.
 """
 
