@@ -337,33 +337,45 @@ def feedback_of(node: Behaviour) -> str:
     """The node's feedback message, py_trees' own phrases put in the mission file's words."""
     message = node.feedback_message
     if message:
-        rewrite = _FEEDBACK_WORDS.get(type(node))
+        rewrite = _FEEDBACK_WORDS.get(node_class(node))
         if rewrite is not None:
             return rewrite(message) or message
     return message
 
 
-def _watched_terminate(node: Behaviour, original: Callable[[Status], None] | None,
-                       stopped: list[Behaviour]) -> Callable[[Status], None]:
-    """A ``terminate`` that notes halts (every py_trees ``stop()`` calls ``terminate``).
+def _watched_class(cls: type, stopped: list[Behaviour]) -> type:
+    """A subclass of ``cls`` whose ``terminate`` notes halts (every py_trees ``stop()`` calls it).
 
-    ``original`` is None for nodes whose class keeps py_trees' empty ``terminate``: the note then
-    replaces the call instead of adding one (most nodes of a tree, so watching costs next to nothing).
+    Nodes are switched to it for the run (``node.__class__``) rather than given an instance
+    attribute: an attribute added to (or removed from) an instance turns its shared-key ``__dict__``
+    into a private one, which made every attribute lookup of every node slower. For classes that
+    keep py_trees' empty ``terminate`` the note replaces the call instead of adding one.
     """
     invalid = Status.INVALID
-    if original is None:
-        def terminate(new_status: Status) -> None:
+    original = cls.terminate  # type: ignore[attr-defined]
+    if original is py_trees.behaviour.Behaviour.terminate:
+        def terminate(self: Behaviour, new_status: Status) -> None:
             if new_status is invalid:  # a halt; SUCCESS/FAILURE ends a node's own tick (it was visited)
-                stopped.append(node)
+                stopped.append(self)
+    else:
+        def terminate(self: Behaviour, new_status: Status) -> None:
+            if new_status is invalid:
+                stopped.append(self)
+            original(self, new_status)
+    return type(cls.__name__, (cls,), {"terminate": terminate, "__module__": cls.__module__,
+                                       "__qualname__": cls.__qualname__, _BASE_CLASS: cls})
 
-        return terminate
 
-    def terminate_and_note(new_status: Status) -> None:
-        if new_status is invalid:
-            stopped.append(node)
-        original(new_status)
+#: Composites with more children than this have their children's halts watched, not scanned.
+WATCH_SIBLINGS = 16
+#: Attribute of a watched class naming the node's own class.
+_BASE_CLASS = "_missiontree_base_class"
 
-    return terminate_and_note
+
+def node_class(node: Behaviour) -> type:
+    """The node's own class, also while a recorder watches it."""
+    cls = type(node)
+    return getattr(cls, _BASE_CLASS, cls)
 
 
 def failure_reason(node: Behaviour) -> str:
@@ -419,8 +431,9 @@ class TickRecorder:
         self._bb_logged: dict[str, Any] = {}
         #: Nodes whose stop() ran since the last record (filled by the wrappers of watch_stops).
         self._stopped: list[Behaviour] = []
-        self._watching: dict[Behaviour, Any] = {}
-        self._missing = object()
+        self._watching: dict[Behaviour, type] = {}
+        #: Active nodes that are not watched: looked at after a tick with a change.
+        self._scanned: dict[Behaviour, None] = {}
         #: Nodes looked at by the last record (those ticked plus those stopped): the recorder's work.
         self.examined = 0
         storage = py_trees.blackboard.Blackboard.storage
@@ -430,32 +443,36 @@ class TickRecorder:
         self._storage = storage
         storage.written.clear()
 
-    def watch_stops(self) -> None:
-        """Note every node's halts so that halted nodes are found without scanning the tree.
+    def watch_stops(self, min_siblings: int = WATCH_SIBLINGS) -> None:
+        """Note the halts of the children of large composites, so they are found without a scan.
 
-        py_trees' ``stop()`` calls ``terminate()``, so an instance-level ``terminate`` notes each
-        node stopped with INVALID (once per node; :meth:`close` puts the previous one back). Nodes
-        added to the tree later are found when ticked; the halt at the end of a run checks all.
+        py_trees' ``stop()`` calls ``terminate()``; each child of a composite with more than
+        ``min_siblings`` children is switched for the run to a subclass of its class whose
+        ``terminate`` notes a stop with INVALID (:func:`_watched_class`; :meth:`close` switches it
+        back). Other nodes are cheaper to look at than to watch: they are scanned after a tick with
+        a change. Nodes added to the tree later are found when ticked; the final halt checks all.
         """
-        stopped = self._stopped
-        missing = self._missing
-        empty = py_trees.behaviour.Behaviour.terminate
+        classes: dict[type, type] = {}
         for node in self.paths:
-            if node in self._watching:
+            if node in self._watching or node.parent is None or len(node.parent.children) <= min_siblings:
                 continue
-            own = node.__dict__.get("terminate", missing)
-            self._watching[node] = own
-            plain_class = own is missing and type(node).terminate is empty
-            original = None if plain_class else node.terminate
-            node.terminate = _watched_terminate(node, original, stopped)  # type: ignore[method-assign]
+            cls = type(node)
+            watched = classes.get(cls)
+            if watched is None:
+                watched = classes[cls] = _watched_class(cls, self._stopped)
+            try:
+                node.__class__ = watched
+            except TypeError:  # a class that cannot be switched (its layout): found by scanning
+                continue
+            self._watching[node] = cls
+            self._scanned.pop(node, None)
 
     def close(self) -> None:
-        """Remove the stop() wrappers (the tree can be ticked again without this recorder)."""
-        for node, previous in self._watching.items():
-            if previous is self._missing:
-                node.__dict__.pop("terminate", None)
-            else:
-                node.terminate = previous  # type: ignore[method-assign]
+        """Switch every node back to its own class (the tree can be ticked again without this recorder)."""
+        for node, cls in self._watching.items():
+            node.__class__ = cls
+            if node in self._active:
+                self._scanned[node] = None
         self._watching.clear()
         self._stopped.clear()
 
@@ -481,34 +498,33 @@ class TickRecorder:
                 was = invalid
             if status is not was:
                 changed.append(self._change(node, status, was))
-                if status is invalid:
-                    del active[node]
-                else:
-                    active[node] = status
+                self._set_active(node, status)
+                if status is not invalid:
                     self._count(node, status, failed)
-        # A node not ticked can only have changed by being stopped (halted): every node's halt is
-        # noted (:meth:`watch_stops`), so the nodes to look at are the ones halted this tick —
-        # never the whole set of active nodes, which holds every finished child of a memory
-        # Sequence. A halt line (or a tree not watched) looks at every active node once.
+        # A node not ticked can only have changed by being stopped (halted). Children of large
+        # composites are watched (:meth:`watch_stops`): the ones halted this tick are noted, so the
+        # finished children of a memory Sequence are never scanned. Other active nodes are looked
+        # at after a tick in which a ticked node changed (a composite halts a child only then). A
+        # halt line looks at every active node once.
         stopped = self._stopped
-        if event != "tick" or not self._watching:
-            candidates: Any = list(active)
-            stopped.clear()
-        elif stopped:
-            candidates = set(stopped)
-            stopped.clear()
+        if event != "tick":
+            candidates: list[Behaviour] = list(active)
         else:
-            candidates = ()
+            candidates = []
+            if changed:
+                ticked = set(visited)
+                candidates = [n for n in self._scanned if n not in ticked]
+            if stopped:
+                candidates.extend(stopped)
+        stopped.clear()
         self.examined = len(visited) + len(candidates)
         if candidates:
-            halted = [n for n in candidates if n in active and n.status is not active[n]]
+            halted = [n for n in dict.fromkeys(candidates) if n in active and n.status is not active[n]]
             for node in sorted(halted, key=self.path):  # by path: independent of memory addresses
                 status = node.status
                 changed.append(self._change(node, status, active[node]))
-                if status is invalid:
-                    del active[node]
-                else:
-                    active[node] = status
+                self._set_active(node, status)
+                if status is not invalid:
                     self._count(node, status, failed)
         for node in failed:
             self._classify(node)
@@ -518,6 +534,16 @@ class TickRecorder:
             self.log.tick(t, self.root.status, changed, bb, unset)
         else:
             self.log.line(event, t=t, changed=changed, bb=bb, bb_unset=unset)
+
+    def _set_active(self, node: Behaviour, status: Status) -> None:
+        """Keep the node's status (dropped when INVALID); unwatched nodes are also kept to scan."""
+        if status is Status.INVALID:
+            del self._active[node]
+            self._scanned.pop(node, None)
+        else:
+            self._active[node] = status
+            if node not in self._watching:
+                self._scanned[node] = None
 
     def _count(self, node: Behaviour, status: Status, failed: list[Behaviour]) -> None:
         """Count a transition into SUCCESS or FAILURE (a failure is classified after the tick)."""
