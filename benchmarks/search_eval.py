@@ -276,20 +276,22 @@ def main(argv: list[str] | None = None) -> int:
             order = ("ours", "report") if i % 2 == 0 else ("report", "ours")
             jobs += [(m, asdict(case), str(world), max_duration) for m in order]
         started = time.perf_counter()
-        if args.workers > 1:
-            with ProcessPoolExecutor(args.workers) as pool:
-                results = list(pool.map(_job, jobs))
-        else:
-            results = [_job(j) for j in jobs]
-        for r in results:
-            t = Trial(**r)
-            trials.append(t)
-            print(
-                f"{t.method:6s} case {t.case:3d} {'absent ' if t.absent else ''}{t.target:16s} {t.status:8s} "
-                f"{t.stopped_by:8s} {t.sim_s:6.1f} s  d={t.distance_m:5.2f} m  bearing={t.bearing_deg:5.1f}  "
-                f"found={t.found!s:5s} false={t.false_found!s:5s}  {t.reason[:90]}",
-                flush=True,
-            )
+        pool = ProcessPoolExecutor(args.workers) if args.workers > 1 else None
+        try:
+            results = pool.map(_job, jobs) if pool is not None else map(_job, jobs)
+            for r in results:  # printed as they come, in order
+                t = Trial(**r)
+                trials.append(t)
+                print(
+                    f"{t.method:6s} case {t.case:3d} {'absent ' if t.absent else ''}{t.target:16s} "
+                    f"{t.status:8s} {t.stopped_by:8s} {t.sim_s:6.1f} s  d={t.distance_m:5.2f} m  "
+                    f"bearing={t.bearing_deg:5.1f}  found={t.found!s:5s} false={t.false_found!s:5s}  "
+                    f"{t.reason[:90]}",
+                    flush=True,
+                )
+        finally:
+            if pool is not None:
+                pool.shutdown()
         wall = time.perf_counter() - started
     out: dict[str, Any] = {
         "worlds": n_present,

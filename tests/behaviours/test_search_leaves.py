@@ -201,3 +201,42 @@ def test_the_target_phrase_and_the_room_priors() -> None:
     near_fridge = region_score((1.0, 1.0), priors, [("refrigerator", (1.5, 1.0))])
     near_bed = region_score((1.0, 1.0), priors, [("bed", (1.5, 1.0))])
     assert near_fridge > near_bed
+
+
+def test_locate_takes_a_candidate_from_a_loaded_scene_graph_before_exploring(tmp_path: Path) -> None:
+    """A graph naming a red backpack: Locate hands it over at once (no exploration), colour match first."""
+    world = room(
+        tmp_path, (1.0, 1.0, 0.0), [backpack("red_bag", "red", RED), backpack("blue_bag", "blue", BLUE)]
+    )
+    graph = {
+        "nodes": [
+            {"id": 0, "type": "building", "label": "Building", "description": ""},
+            {
+                "id": "bp_blue",
+                "type": "object",
+                "label": "backpack",
+                "description": "a blue backpack",
+                "coordinates": [BLUE[0], BLUE[1], 0.2],
+            },
+            {
+                "id": "bp_red",
+                "type": "object",
+                "label": "backpack",
+                "description": "a red backpack",
+                "coordinates": [RED[0], RED[1], 0.2],
+            },
+        ],
+        "edges": [],
+    }
+    graph_path = tmp_path / "graph.json"
+    graph_path.write_text(json.dumps(graph))
+    status, events, _ = run(
+        tmp_path,
+        world,
+        {"Locate": {"name": "locate", "target": "red backpack", "scene_graph": str(graph_path)}},
+        max_duration=10,
+    )
+    assert status == "SUCCESS"
+    picked = of(events, "search_candidate")[0]
+    assert (picked["id"], picked["source"]) == ("bp_red", "scene graph")
+    assert not of(events, "explore_goal")
