@@ -72,6 +72,9 @@ class Engine:
         """The engine for reports."""
         return {"name": self.name, "workers": self.workers}
 
+    def warm_up(self) -> None:
+        """Start every worker and import the mission engine there (benchmarks time runs, not start-up)."""
+
     def close(self) -> None:
         """Release workers (idempotent)."""
 
@@ -127,7 +130,9 @@ class PoolEngine(Engine):
             ) -> Iterator[tuple[RunTask, Outcome | Crash]]:
         """Run the tasks on the pool (``isolated``: one worker, one task at a time)."""
         queue = list(tasks)
-        size = 1 if isolated else min(self.workers, max(1, len(queue)))
+        # a running pool is kept (warm workers); a new one needs no more workers than tasks
+        size = 1 if isolated else (self._size if self._pool is not None and self._size > 1
+                                   else min(self.workers, max(1, len(queue))))
         ok = False
         try:
             while queue:
@@ -162,6 +167,12 @@ class PoolEngine(Engine):
         finally:
             if not ok:
                 self._drop_pool(kill=True)
+
+    def warm_up(self) -> None:
+        """Spawn the workers (their initialiser imports the session) and wait until each answered."""
+        pool = self._fresh_pool(self.workers)
+        for future in [pool.submit(_warm, None) for _ in range(self.workers)]:
+            future.result()
 
     def close(self) -> None:
         """Shut the pool down."""
@@ -230,6 +241,11 @@ class DaskEngine(Engine):
             for future in pending:
                 future.cancel()
 
+    def warm_up(self) -> None:
+        """Import the mission engine on every worker of the cluster."""
+        self.client.wait_for_workers(1)
+        self.client.run(_warm, None)
+
     def close(self) -> None:
         """Close the client, and the local cluster when this engine started it."""
         client = getattr(self, "client", None)
@@ -246,6 +262,16 @@ def make_engine(dask: str | None, jobs: int | None) -> Engine:
     if address:
         return DaskEngine(address, jobs)
     return PoolEngine(jobs)
+
+
+def _warm(_: object) -> int:
+    """Import what a run needs (in a worker); return the worker's process id."""
+    from missiontree.evaluation.worker import pin_threads
+
+    pin_threads()
+    import missiontree.session  # noqa: F401 - the import is the point
+
+    return os.getpid()
 
 
 def _started(task: RunTask) -> bool:

@@ -1,0 +1,134 @@
+"""Batch engines measured: short missions serially, on the local process pool and on a Dask LocalCluster.
+
+Each engine runs the same missions (a one-metre NavigateTo in the office world, through the session,
+every run writing its run directory) — ``--runs`` (200) per engine in all, split into ``--rounds``
+rounds; in every round the three engines run the round's share one after another, the order
+rotated between rounds, so the machine's load falls on all of them alike. Pool and cluster start
+once (their start-up is printed apart) and stay up between rounds.
+
+- ``speedup_pool`` / ``speedup_dask``: serial wall time over the engine's, summed over the rounds
+  (min/median/max of the per-round ratios printed as well).
+- ``overhead_ms_per_run_*``: worker time not spent in missions, per run:
+  (workers × engine wall − Σ missions' own wall time in the workers) / runs. It holds dispatch,
+  pickling, result transfer and the idle tail of a round (workers waiting for the last run).
+
+Targets (issue 21): speed-up ≥ 1.8 on 2 cores, overhead ≤ 50 ms a run. The machine is shared; its
+load average is printed before and after, since other work on the same cores lowers every speed-up.
+Last line: one JSON object.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from missiontree.evaluation import DaskEngine, Engine, PoolEngine, SerialEngine, expand_plan, run_batch
+
+MISSION = """\
+version: 1
+description: batch_scaling run (a one-metre hop)
+run:
+  backend: sim
+  world: office
+  tick_hz: 10
+  max_duration: 30
+root:
+  NavigateTo: {x: 3.5, y: 4.0, timeout: 25}
+"""
+
+
+def run_round(engine: Engine, mission: Path, seeds: list[int], out: Path) -> tuple[float, float, int]:
+    """Run the seeds on the engine; return (wall s, Σ in-worker mission wall s, failures)."""
+    plan = expand_plan(mission, seeds=seeds)
+    started = time.perf_counter()
+    records = run_batch(plan, engine, out)
+    wall = time.perf_counter() - started
+    return wall, sum(r.wall_time_s for r in records), sum(not r.passed for r in records)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=200, help="missions per engine (default 200)")
+    parser.add_argument("--rounds", type=int, default=4, help="rounds the runs are split into (default 4)")
+    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="workers (default: the cores)")
+    args = parser.parse_args()
+    load_before = os.getloadavg()
+    print(f"{os.cpu_count()} cores, {args.jobs} workers; load average before: "
+          f"{' '.join(f'{v:.1f}' for v in load_before)}", flush=True)
+    per_round = [args.runs // args.rounds + (i < args.runs % args.rounds) for i in range(args.rounds)]
+    with tempfile.TemporaryDirectory(prefix="batch_scaling_") as tmp_name:
+        tmp = Path(tmp_name)
+        mission = tmp / "hop.yaml"
+        mission.write_text(MISSION, encoding="utf-8")
+        started = time.perf_counter()
+        pool = PoolEngine(args.jobs)
+        pool.warm_up()  # workers spawned, the session imported in each
+        pool_start_s = time.perf_counter() - started
+        started = time.perf_counter()
+        dask = DaskEngine("local", args.jobs)
+        dask.warm_up()
+        dask_start_s = time.perf_counter() - started
+        engines: dict[str, Engine] = {"serial": SerialEngine(), "pool": pool, "dask": dask}
+        print(f"start-up: pool {pool_start_s:.2f} s, dask {dask_start_s:.2f} s", flush=True)
+        # warm-up round: the first run in a process loads the world, the models and the plugins
+        for name, engine in engines.items():
+            began = time.perf_counter()
+            run_round(engine, mission, list(range(2 * args.jobs)), tmp / f"warm_{name}")
+            print(f"warm-up {name}: {time.perf_counter() - began:.2f} s", flush=True)
+        totals = {name: {"wall": 0.0, "inside": 0.0, "failed": 0} for name in engines}
+        ratios: dict[str, list[float]] = {"pool": [], "dask": []}
+        seed = 1000
+        for index, count in enumerate(per_round):
+            seeds = list(range(seed, seed + count))
+            seed += count
+            order = list(engines)[index % 3:] + list(engines)[:index % 3]  # rotate who goes first
+            walls: dict[str, float] = {}
+            for name in order:
+                wall, inside, failed = run_round(engines[name], mission, seeds, tmp / f"r{index}_{name}")
+                walls[name] = wall
+                totals[name]["wall"] += wall
+                totals[name]["inside"] += inside
+                totals[name]["failed"] += failed
+            for name in ratios:
+                ratios[name].append(walls["serial"] / walls[name])
+            print(f"round {index + 1}: {count} runs each, order {'/'.join(order)}: "
+                  + "  ".join(f"{n} {w:.1f} s" for n, w in walls.items())
+                  + f"  speed-up pool {ratios['pool'][-1]:.2f} dask {ratios['dask'][-1]:.2f}", flush=True)
+        for engine in engines.values():
+            engine.close()
+    runs = sum(per_round)
+    result: dict[str, Any] = {"runs_per_engine": runs, "workers": args.jobs, "cores": os.cpu_count()}
+    for name in ("pool", "dask"):
+        speedup = totals["serial"]["wall"] / totals[name]["wall"]
+        overhead = (args.jobs * totals[name]["wall"] - totals[name]["inside"]) / runs * 1000
+        result[f"speedup_{name}"] = round(speedup, 3)
+        result[f"overhead_ms_per_run_{name}"] = round(overhead, 1)
+        result[f"speedup_{name}_rounds"] = {"min": round(min(ratios[name]), 3),
+                                            "median": round(statistics.median(ratios[name]), 3),
+                                            "max": round(max(ratios[name]), 3)}
+        print(f"{name}: speed-up {speedup:.2f} (rounds min {min(ratios[name]):.2f} median "
+              f"{statistics.median(ratios[name]):.2f} max {max(ratios[name]):.2f}), overhead "
+              f"{overhead:.1f} ms a run")
+    for name, total in totals.items():
+        result[f"wall_s_{name}"] = round(total["wall"], 2)
+        result[f"mission_wall_ms_{name}"] = round(total["inside"] / runs * 1000, 1)
+        result[f"failed_{name}"] = total["failed"]
+    result["startup_s_pool"] = round(pool_start_s, 2)
+    result["startup_s_dask"] = round(dask_start_s, 2)
+    result["load_average_before"] = [round(v, 2) for v in load_before]
+    result["load_average_after"] = [round(v, 2) for v in os.getloadavg()]
+    print(f"mean mission wall time in a worker: serial {result['mission_wall_ms_serial']} ms, pool "
+          f"{result['mission_wall_ms_pool']} ms, dask {result['mission_wall_ms_dask']} ms; load average "
+          f"after {' '.join(f'{v:.1f}' for v in os.getloadavg())}")
+    print(json.dumps(result, sort_keys=True))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
