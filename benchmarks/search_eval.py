@@ -12,13 +12,16 @@ class (the generated furnishings already hold some; missing ones are made by rec
 small object); any second object matching the target is recoloured, so exactly one is right. In the
 ``absent`` cases the target itself is recoloured into one more decoy: nothing matches.
 
-Methods, alternating which runs first from world to world, each through the session API in
-unknown-map mode (the robot starts with no map):
+Methods, alternating which runs first from world to world, each through the session API with its
+mission's own ``run:`` section (map mode included):
 
-- ``ours``: ``trees/find_object.yaml``: semantic map from every frame, known candidates first,
-  exploration weighted by room priors, standoff approach from depth, VLM check on the detection.
-- ``report``: ``trees/examples/report_search.yaml``: scan points with 360-degree scans, colour
-  trigger, box-area approach steps, whole-frame VLM check, rounds without memory.
+- ``ours``: ``trees/find_object.yaml`` on an unknown map (the robot starts knowing nothing): semantic
+  map from every frame, known candidates first, exploration weighted by room priors, standoff
+  approach from depth, VLM check on the detection.
+- ``report``: ``trees/examples/report_search.yaml`` on the known map (the report localises with AMCL
+  on a map SLAM built beforehand, so its scan points cover the whole place from the start): scan
+  points with 360-degree scans, colour trigger, box-area approach steps, whole-frame VLM check,
+  rounds without memory. The known map is a head start for the reference, not for ours.
 
 Scoring reads the simulator's ground truth after the run (never the leaves): a run *finds* the
 target when it ends SUCCESS with the robot within ``REACH`` m of the target's footprint and facing
@@ -156,14 +159,12 @@ def run_trial(method: str, case: Case, world: str, max_duration: float) -> Trial
         mission=MISSIONS[method],
         world=world,
         seed=case.seed,
-        unknown_map=True,
         max_duration=max_duration,
         params={"target": case.target},
         quiet=True,
         plugins=load_plugins(autoload=False),
         handle_signals=False,
         log_stream=log,
-        config={"camera": {"rate": 2.0}},
     )
     started = time.perf_counter()
     with Session.open(request) as session:
