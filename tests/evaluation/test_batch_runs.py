@@ -166,3 +166,34 @@ def test_a_killed_batch_resumes_without_repeating_or_losing_runs(tmp_path: Path)
         assert (runs / name / "record.json").stat().st_mtime_ns == mtime
     assert not list(runs.glob(".*"))  # the killed batch's partial runs are gone
     assert len(list(runs.iterdir())) == 8
+
+
+class TruthProbe:
+    """Counts ticks and keeps the simulator's true final x (a probe as evaluation benchmarks write them)."""
+
+    def __init__(self) -> None:
+        self.ticks = 0
+        self.x = float("nan")
+
+    def on_tick(self, session: Any) -> None:
+        self.ticks += 1
+        self.x = session.robot.truth.robot_pose().x
+
+    def finish(self, session: Any, result: Any) -> dict[str, Any]:
+        log = (session.run_dir / "ticks.jsonl").read_text().splitlines()
+        return {"probe_ticks": self.ticks, "true_x": self.x, "log_lines": len(log)}
+
+
+@pytest.mark.slow
+def test_a_probe_scores_each_run_inside_its_worker(tmp_path: Path) -> None:
+    """A probe built in the worker sees every tick and the finished run; its figures reach the record."""
+    plan = expand_plan(_mission(tmp_path, NAV_MISSION), seeds=[0], sweeps={"x": ["3.5", "6.5"]})
+    with PoolEngine(2) as engine:
+        records = run_batch(plan, engine, tmp_path / "out", probe=TruthProbe)
+    for record, goal in zip(records, (3.5, 6.5), strict=True):
+        assert record.status == "SUCCESS"
+        assert record.figures["probe_ticks"] == record.ticks
+        assert record.figures["true_x"] == pytest.approx(goal, abs=0.3)
+        assert record.figures["log_lines"] > record.ticks / 2
+        summary = json.loads((tmp_path / "out" / record.run_dir / "summary.json").read_text())
+        assert record.figures["true_x"] == pytest.approx(summary["true_final_pose"]["x"], abs=1e-6)
