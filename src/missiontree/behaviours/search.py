@@ -365,7 +365,9 @@ class Locate(ResumeExplore):
         prior_weight: float = Field(
             2.0, ge=0, description="How much the prior multiplies a frontier's score."
         )
-        rejected: Annotated[str, Input("candidates rejected so far", type="list")] = "search_rejected"
+        rejected: Annotated[
+            str, Output("candidates rejected so far (emptied when the mission starts)", type="list")
+        ] = "search_rejected"
         candidate: Annotated[str, Output("the candidate to approach", type="dict")] = "search_candidate"
 
     params: Params
@@ -378,6 +380,9 @@ class Locate(ResumeExplore):
 
     def on_setup(self) -> None:
         """Read the target against the detector's classes and load the graph file, if any."""
+        # py_trees' blackboard outlives a mission in the same process (batch runs, benchmarks): the
+        # rejected candidates start empty with each mission, never inherited from another one.
+        self.write("rejected", [])
         if self.ctx is None:
             return
         self.goal = _target(self.ctx, self.params.target)
@@ -951,7 +956,7 @@ class Verify(Leaf):
 
     def initialise(self) -> None:
         """Take the candidate; wait for a frame newer than now."""
-        value = self.read("candidate")
+        value = self.read("candidate") if self.params.mode == "crop" else None
         self.cand = dict(value) if isinstance(value, dict) else None
         self.call = None
         self.stage = "frame"
