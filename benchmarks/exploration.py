@@ -50,6 +50,7 @@ import io
 import json
 import math
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -99,11 +100,18 @@ def map_world_files(tmp: Path, limit: int | None = None) -> list[tuple[str, str]
                 print(f"  note: {meta} skipped: {exc}", file=sys.stderr)
                 continue
             x, y = most_open_point(grid.data, grid.resolution, grid.origin.x, grid.origin.y)
-            world = tmp / f"map_{meta.stem}.yaml"
+            # the world loader reads maps beside the world file: copy the map (yaml and image) there
+            doc = yaml.safe_load(meta.read_text(encoding="utf-8"))
+            folder_out = tmp / f"map_{meta.stem}"
+            folder_out.mkdir(exist_ok=True)
+            shutil.copy(meta.parent / str(doc["image"]), folder_out / Path(str(doc["image"])).name)
+            doc["image"] = Path(str(doc["image"])).name
+            (folder_out / meta.name).write_text(yaml.safe_dump(doc, sort_keys=False))
+            world = folder_out / f"map_{meta.stem}.yaml"
             world.write_text(yaml.safe_dump({
                 "name": f"map_{meta.stem}",
                 "robot": {"profile": "turtlebot4", "start": {"x": x, "y": y, "yaw": 0.0}},
-                "map": {"yaml": str(meta.resolve())}}, sort_keys=False))
+                "map": {"yaml": meta.name}}, sort_keys=False))
             out.append((f"map:{meta.stem}", str(world)))
     return out[:limit] if limit is not None else out
 
@@ -392,9 +400,8 @@ def main() -> int:
     n_worlds = 3 if args.quick else args.worlds
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        worlds = generated_world_files(Path(tmp), range(args.first_seed, args.first_seed + n_worlds))
-        if not args.no_maps:
-            worlds += map_world_files(Path(tmp), limit=1 if args.quick else None)
+        worlds = [] if args.no_maps else map_world_files(Path(tmp), limit=1 if args.quick else None)
+        worlds += generated_world_files(Path(tmp), range(args.first_seed, args.first_seed + n_worlds))
         order = list(STRATEGIES)
         jobs = []
         for i, (name, world) in enumerate(worlds):
@@ -408,8 +415,12 @@ def main() -> int:
         runs: list[RunScore] = []
         with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
             futures = [pool.submit(run_one, *job) for job in jobs]
-            for future in futures:
-                r = future.result()
+            for job, future in zip(jobs, futures, strict=True):
+                try:
+                    r = future.result()
+                except Exception as exc:  # noqa: BLE001 - one broken run must not lose the others
+                    print(f"  {job[0]:22s} {job[2]:16s} ERROR {type(exc).__name__}: {exc}", flush=True)
+                    continue
                 runs.append(r)
                 t90 = "-" if r.time_to_90_s is None else f"{r.time_to_90_s:.0f}"
                 t99 = "-" if r.time_to_99_s is None else f"{r.time_to_99_s:.0f}"
