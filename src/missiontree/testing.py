@@ -25,6 +25,7 @@ from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.errors import BackendError
 from missiontree.robot.actions import ActionHandle
+from missiontree.robot.sensors import SensorKind, SensorReading, SensorStore
 from missiontree.types import LaserScan, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
 
 _STATUS = {"S": Status.SUCCESS, "F": Status.FAILURE, "R": Status.RUNNING}
@@ -48,6 +49,7 @@ class ClockRobot:
         self.stop_calls = 0
         self.closed = False
         self.spins: list[float] = []
+        self.sensor_store = SensorStore()
 
     def now(self) -> float:
         """The clock's time."""
@@ -77,6 +79,26 @@ class ClockRobot:
     def pose_at(self, stamp: float) -> Pose2D | None:
         """No history: None."""
         return None
+
+    def sensor(self, name: str) -> SensorReading | None:
+        """A reading set with :meth:`set_sensor`, None before; unknown names raise as on a robot."""
+        return self.sensor_store.get(name)
+
+    def sensor_names(self) -> list[str]:
+        """The sensors given to :meth:`add_sensor`."""
+        return self.sensor_store.names()
+
+    def sensor_kind(self, name: str) -> SensorKind:
+        """What plugin sensor ``name`` is (UnknownSensorError naming the robot's sensors otherwise)."""
+        return self.sensor_store.kind(name)
+
+    def add_sensor(self, kind: SensorKind) -> None:
+        """Give the double a plugin sensor (no readings until :meth:`set_sensor`)."""
+        self.sensor_store = SensorStore([*self.sensor_store.kinds.values(), kind])
+
+    def set_sensor(self, name: str, value: Any, stamp: float | None = None) -> None:
+        """Record a reading of sensor ``name`` stamped ``stamp`` (default: the clock now)."""
+        self.sensor_store.put(name, self.time if stamp is None else stamp, value)
 
     def scan_at(self, stamp: float) -> LaserScan | None:
         """No history: None."""

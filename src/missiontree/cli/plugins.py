@@ -39,6 +39,8 @@ def run(args: argparse.Namespace) -> int:
         print(_names("nodes", plugin.nodes))
         print(_names("backends", plugin.backends))
         print(_names("providers", plugin.providers))
+        if plugin.sensors:
+            print(_names("sensors", plugin.sensors))
     if not autoload:
         print(f"(installed plugins not loaded: --no-plugins or {DISABLE_ENV} is set)")
     return 0

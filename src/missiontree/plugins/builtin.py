@@ -32,6 +32,7 @@ if TYPE_CHECKING:
 NODE_MODULES: list[str] = [
     "missiontree.engine.nodes",
     "missiontree.behaviours",
+    "missiontree.engine.nodes.sensors",  # SensorCondition, WaitForSensor: any numeric plugin sensor
 ]
 
 #: Modules whose ``register_providers(providers)`` adds built-in model providers.

@@ -62,6 +62,17 @@ def missiontree_register_model_providers(providers: dict[str, Any]) -> None:
 
 
 @hookspec
+def missiontree_register_sensors(sensors: dict[str, Any]) -> None:
+    """Add sensor kinds: ``sensors["name"] = SensorKind(...)`` (:mod:`missiontree.robot.sensors`).
+
+    A kind names its value type, how the ROS 2 backend gets it (topic, message type, QoS, pure
+    conversions) and how the simulator produces it (a model fed the simulator's state, time and
+    motion, configured by the world file's ``plugins:`` section). Leaves read it with
+    ``robot.sensor(name)``; the built-in ``SensorCondition``/``WaitForSensor`` test its numbers.
+    """
+
+
+@hookspec
 def missiontree_mission_started(context: Any, mission: Any) -> None:
     """Called once before the first tick, with the MissionContext and the checked mission spec."""
 

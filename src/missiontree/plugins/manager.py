@@ -45,6 +45,7 @@ class PluginInfo:
         nodes: Node type names it registered.
         backends: Backend names it registered.
         providers: Model provider names it registered.
+        sensors: Sensor kind names it registered.
     """
 
     name: str
@@ -53,6 +54,7 @@ class PluginInfo:
     nodes: list[str] = field(default_factory=list)
     backends: list[str] = field(default_factory=list)
     providers: list[str] = field(default_factory=list)
+    sensors: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -65,6 +67,7 @@ class Plugins:
         backends: Backend name → factory (a callable or a lazy ``"module:function"``).
         providers: Model provider name → factory.
         info: Every loaded plugin, built-in first, with what it registered.
+        sensors: Sensor name → :class:`~missiontree.robot.sensors.SensorKind`.
     """
 
     pm: pluggy.PluginManager
@@ -72,6 +75,7 @@ class Plugins:
     backends: dict[str, Any]
     providers: dict[str, Any]
     info: list[PluginInfo]
+    sensors: dict[str, Any] = field(default_factory=dict)
 
     @property
     def hook(self) -> Any:
@@ -98,7 +102,7 @@ class Plugins:
         return resolve_factory("provider", name, self.providers[name])
 
     def provided_by(self, kind: str, name: str) -> str:
-        """Name of the plugin that registered ``name`` of ``kind`` (nodes, backends, providers)."""
+        """Name of the plugin that registered ``name`` of ``kind`` (nodes, backends, providers, sensors)."""
         for plugin in self.info:
             if name in getattr(plugin, kind):
                 return plugin.name
@@ -210,7 +214,7 @@ def _collect_named(
 
 
 def load_plugins(autoload: bool | None = None) -> Plugins:
-    """Build a fresh plugin manager and collect every node type, backend and provider.
+    """Build a fresh plugin manager and collect every node type, backend, provider and sensor.
 
     Args:
         autoload: Load entry-point plugins; None means "unless ``MISSIONTREE_DISABLE_PLUGIN_AUTOLOAD``
@@ -236,6 +240,8 @@ def load_plugins(autoload: bool | None = None) -> Plugins:
     providers: dict[str, Any] = {}
     backend_owner: dict[str, str] = {}
     provider_owner: dict[str, str] = {}
+    sensors: dict[str, Any] = {}
+    sensor_owner: dict[str, str] = {}
     for plugin in info:
         _call_for_each(pm, "missiontree_register_nodes", plugin.name,
                        registry=_ProviderScopedRegistry(nodes, plugin.name, plugin.nodes))
@@ -243,4 +249,20 @@ def load_plugins(autoload: bool | None = None) -> Plugins:
                                          backend_owner, "backends")
         plugin.providers = _collect_named(pm, "missiontree_register_model_providers", plugin, providers,
                                           provider_owner, "providers")
-    return Plugins(pm=pm, nodes=nodes, backends=backends, providers=providers, info=info)
+        plugin.sensors = _collect_named(pm, "missiontree_register_sensors", plugin, sensors,
+                                        sensor_owner, "sensors")
+    _check_sensors(sensors, sensor_owner)
+    return Plugins(pm=pm, nodes=nodes, backends=backends, providers=providers, info=info, sensors=sensors)
+
+
+def _check_sensors(sensors: dict[str, Any], owners: dict[str, str]) -> None:
+    """Every registered sensor is a SensorKind filed under its own name."""
+    from missiontree.robot.sensors import SensorKind
+
+    for name, kind in sensors.items():
+        if not isinstance(kind, SensorKind):
+            raise PluginError(f"plugin {owners[name]!r} registered sensor {name!r} as {type(kind).__name__}; "
+                              f"expected missiontree.robot.sensors.SensorKind, {_DISABLE_HINT}")
+        if kind.name != name:
+            raise PluginError(f"plugin {owners[name]!r} registered sensor {kind.name!r} under the name "
+                              f"{name!r}; use sensors[kind.name] = kind")

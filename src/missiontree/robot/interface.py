@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 from missiontree.robot.actions import ActionHandle
+from missiontree.robot.sensors import SensorKind, SensorReading
 from missiontree.types import LaserScan, Marker, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
 
 
@@ -57,6 +58,23 @@ class Robot(Protocol):
 
     def scan_at(self, stamp: float) -> LaserScan | None:
         """The scan taken closest to ``stamp`` from the recent history, None if outside it."""
+        ...
+
+    def sensor(self, name: str) -> SensorReading | None:
+        """Latest reading of a plugin sensor (``battery``...) with its stamp, None before the first.
+
+        A sensor that went quiet keeps its old stamp. Raises
+        :class:`~missiontree.robot.sensors.UnknownSensorError` (naming the robot's sensors) for a
+        sensor no loaded plugin registered.
+        """
+        ...
+
+    def sensor_names(self) -> list[str]:
+        """Names of the plugin sensors this robot has."""
+        ...
+
+    def sensor_kind(self, name: str) -> SensorKind:
+        """What sensor ``name`` is (value type, numeric fields, unit); unknown names raise."""
         ...
 
     def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> ActionHandle:

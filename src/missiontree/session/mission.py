@@ -231,6 +231,8 @@ class Session:
             options["config"] = config
         if unknown_map:
             options["unknown_map"] = True
+        if self.plugins.sensors:  # plugin sensors (missiontree.robot.sensors), only when there are some
+            options["sensors"] = list(self.plugins.sensors.values())
         return options
 
     def _resolve_world(self, world: str, from_file: bool) -> str:

@@ -60,8 +60,10 @@ def create_robot(options: dict[str, Any]) -> Ros2Robot:
     profile = profile_from_options(options)
     require_rclpy()
     from missiontree.backends.ros2.robot import Ros2Robot
+    from missiontree.robot.sensors import sensor_kinds_from_options
 
-    robot = Ros2Robot(profile, node_name=str(options.get("node_name") or "missiontree"))
+    robot = Ros2Robot(profile, node_name=str(options.get("node_name") or "missiontree"),
+                      sensors=sensor_kinds_from_options(options))
     missing = robot.wait_until_ready(profile.startup_timeout)
     if missing:
         import structlog

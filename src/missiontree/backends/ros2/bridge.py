@@ -5,7 +5,8 @@ what a TurtleBot 4 running Nav2 would: /scan, /odom, the OAK-D colour and depth 
 camera_info, /tf (map → odom → base_link), /tf_static (lidar and camera mounts), /map (transient
 local; in unknown-map runs the map the robot learns, republished every ``MAP_PERIOD`` as a SLAM
 node does), /amcl_pose; it drives the simulated base from /cmd_vel and serves NavigateToPose (and
-/goal_pose, as bt_navigator does) with the simulator's navigation. Missions, RViz and other ROS
+/goal_pose, as bt_navigator does) with the simulator's navigation, and every plugin sensor the
+simulator produces on its topic (its ``Ros2Source.to_msg``). Missions, RViz and other ROS
 tools then run against it as against the robot.
 
 Threads: the pacing loop (``run``) owns the simulator's stepping; the executor's threads serve
@@ -65,8 +66,9 @@ class SimBridge:
 
     Besides the robot's topics it listens on ``/missiontree/sim/control`` (std_msgs/String) for
     simulator controls, as Gazebo's reset service: ``reset`` (a fresh simulator from the factory,
-    robot back at the start; running goals abort), ``silence lidar|camera`` and ``resume
-    lidar|camera`` (a sensor stops or restarts publishing); and publishes ``/missiontree/sim/status``
+    robot back at the start; running goals abort), ``silence lidar|camera|<plugin sensor>`` and
+    ``resume lidar|camera|<plugin sensor>`` (a sensor stops or restarts publishing); and publishes
+    ``/missiontree/sim/status``
     (JSON: resets, controls applied, goals served; transient local) after each.
 
     With ``sim_time`` it works as Gazebo with ``use_sim_time``: stamps are simulated time and the
@@ -121,6 +123,7 @@ class SimBridge:
         self._last_odom = -math.inf
         self._last_map = -math.inf
         self._last_pose: Pose2D | None = None
+        self._last_sensor: dict[str, float] = {}
 
     # ------------------------------------------------------------------------------ wiring
 
@@ -150,6 +153,15 @@ class SimBridge:
         node.create_subscription(String, CONTROL_TOPIC, self._on_control, reliable_qos())
         self._status_pub = node.create_publisher(String, STATUS_TOPIC, latched_qos())
         self._clock_pub = node.create_publisher(Clock, "/clock", reliable_qos(10))
+        # plugin sensors the simulator produces and can publish (missiontree.robot.sensors)
+        self._sensor_pubs: dict[str, tuple[Any, Any]] = {}
+        for name in self.sim.sensor_names():
+            kind = self.sim.plugin_sensors.store.kinds[name]
+            if kind.ros2 is None or kind.ros2.to_msg is None or kind.sim is None:
+                continue
+            qos = latched_qos() if kind.ros2.qos == "latched" else reliable_qos(10)
+            self._sensor_pubs[name] = (node.create_publisher(kind.ros2.message_type(), kind.ros2.topic, qos),
+                                       kind.ros2.to_msg)
 
     def _spin(self) -> None:
         try:
@@ -195,7 +207,8 @@ class SimBridge:
                 self.reset()
             elif words == ["resume"]:
                 self.resume()
-            elif len(words) == 2 and words[0] in ("silence", "resume") and words[1] in ("lidar", "camera"):
+            elif len(words) == 2 and words[0] in ("silence", "resume") and (
+                    words[1] in ("lidar", "camera") or words[1] in self.sim.sensor_names()):
                 self.sim.silence(words[1], quiet=words[0] == "silence")
             else:
                 self.node.get_logger().warning(
@@ -376,6 +389,11 @@ class SimBridge:
             self._color_pub.publish(conv.image_to_msg(frame.color, "rgb8", stamp, optical))
             self._info_pub.publish(conv.intrinsics_to_msg(frame.intrinsics, stamp, optical))
             self._depth_pub.publish(conv.depth_to_msg(frame.depth, stamp, optical, "16UC1"))
+        for name, (publisher, to_msg) in self._sensor_pubs.items():
+            reading = sim.sensor(name)
+            if reading is not None and reading.stamp > self._last_sensor.get(name, -math.inf):
+                self._last_sensor[name] = reading.stamp
+                publisher.publish(to_msg(reading.value, self.stamp(reading.stamp)))
 
     def _body_velocity(self, pose: Pose2D, dt: float) -> tuple[float, float]:
         """Forward speed and yaw rate since the last odometry message (the estimate's own motion)."""

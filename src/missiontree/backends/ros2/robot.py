@@ -47,6 +47,7 @@ from missiontree.backends.ros2.tf_buffer import TransformBuffer, compose, histor
 from missiontree.robot.actions import ActionHandle
 from missiontree.robot.commands import Command
 from missiontree.robot.history import StampedHistory
+from missiontree.robot.sensors import SensorKind, SensorReading, SensorStore
 from missiontree.types import LaserScan, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
 
 try:  # built locally by scripts/setup-ros2.sh, or from /opt/ros on a robot
@@ -84,6 +85,15 @@ def reliable_qos(depth: int = 10) -> QoSProfile:
                       history=HistoryPolicy.KEEP_LAST, depth=depth)
 
 
+def qos_named(name: str, profile: Ros2Profile) -> QoSProfile:
+    """The QoS of a plugin sensor's :class:`~missiontree.robot.sensors.Ros2Source` (``sensor``...)."""
+    if name == "latched":
+        return latched_qos()
+    if name == "reliable":
+        return reliable_qos()
+    return sensor_qos(profile.sensor_qos_depth)
+
+
 class Ros2Robot:
     """A ROS 2 robot behind the :class:`~missiontree.robot.interface.Robot` protocol.
 
@@ -91,12 +101,13 @@ class Ros2Robot:
         profile: Topic names, frames and navigation settings (config/backends/*.yaml).
         node_name: Name of this process's node.
         install_signal_stop: On SIGINT, publish zero velocity before the previous handler runs.
+        sensors: Plugin sensor kinds to subscribe to (those with a ``ros2`` source).
     """
 
     simulated = False
 
     def __init__(self, profile: Ros2Profile, node_name: str = "missiontree",
-                 install_signal_stop: bool = True) -> None:
+                 install_signal_stop: bool = True, sensors: list[SensorKind] | None = None) -> None:
         self.profile = profile
         self.name = profile.name
         self._lock = threading.RLock()
@@ -126,6 +137,8 @@ class Ros2Robot:
         # old command must never go out after stop()'s zero velocity (the base would keep driving).
         self._drive_lock = threading.RLock()
         self._nav_goal_ids: set[bytes] = set()  # goals seen on the NavigateToPose status topic
+        self._sensors = SensorStore(sensors or [])
+        self._sensor_errors: set[str] = set()
         try:
             self._subscribe()
             self._advertise()
@@ -161,6 +174,10 @@ class Ros2Robot:
             node.create_subscription(TFMessage, t.tf_static, lambda m: self._on_tf(m, True), latched_qos(100))
         if p.pose_source == "amcl" or TFMessage is None:
             node.create_subscription(PoseWithCovarianceStamped, t.amcl_pose, self._on_amcl, latched_qos())
+        for kind in self._sensors.kinds.values():
+            if kind.ros2 is not None:
+                node.create_subscription(kind.ros2.message_type(), kind.ros2.topic,
+                                         lambda m, k=kind: self._on_sensor(k, m), qos_named(kind.ros2.qos, p))
 
     def _advertise(self) -> None:
         p, t, node = self.profile, self.profile.topics, self.node
@@ -248,6 +265,24 @@ class Ros2Robot:
     def _on_map(self, msg: OccupancyGridMsg) -> None:
         with self._lock:
             self._map_msg, self._map = msg, None
+
+    def _on_sensor(self, kind: SensorKind, msg: Any) -> None:
+        """A plugin sensor's message: convert with its pure function, stamp from the header (else now)."""
+        source = kind.ros2
+        assert source is not None
+        try:
+            value = source.from_msg(msg)
+        except Exception as error:  # noqa: BLE001 - a plugin's conversion bug must not stop the executor
+            if kind.name not in self._sensor_errors:
+                self._sensor_errors.add(kind.name)
+                self.node.get_logger().error(f"sensor {kind.name!r}: its conversion failed on a message "
+                                             f"from {source.topic}: {type(error).__name__}: {error}")
+            return
+        stamp = 0.0
+        header = getattr(msg, "header", None) if source.stamp_from_header else None
+        if header is not None:
+            stamp = conv.time_to_sec(header.stamp)
+        self._sensors.put(kind.name, stamp if stamp > 0.0 else self.now(), value)
 
     def _on_color(self, msg: Image) -> None:
         self._color = msg
@@ -373,6 +408,18 @@ class Ros2Robot:
         if found is not None:
             return found[1]
         return Pose2D(cam.mount_x, cam.mount_y, math.radians(cam.mount_yaw_deg))
+
+    def sensor(self, name: str) -> SensorReading | None:
+        """The latest reading of a plugin sensor (a quiet one keeps its old stamp), None before the first."""
+        return self._sensors.get(name)
+
+    def sensor_names(self) -> list[str]:
+        """The plugin sensors this robot subscribes to."""
+        return self._sensors.names()
+
+    def sensor_kind(self, name: str) -> SensorKind:
+        """What plugin sensor ``name`` is (UnknownSensorError naming the robot's sensors otherwise)."""
+        return self._sensors.kind(name)
 
     def commands(self) -> list[Command]:
         """User commands received on the command topic (std_msgs/String) since the last call."""

@@ -15,10 +15,11 @@ from missiontree.backends.sim.generator import MAX_SEED
 from missiontree.backends.sim.robot import SimRobot
 from missiontree.backends.sim.world import World, load_robot_profile, load_world
 from missiontree.errors import ConfigError
+from missiontree.robot.sensors import sensor_kinds_from_options
 
 __all__ = ["SimRobot", "World", "create_robot", "load_robot_profile", "load_world"]
 
-_OPTIONS = {"world", "robot", "seed", "config", "name", "unknown_map"}
+_OPTIONS = {"world", "robot", "seed", "config", "name", "unknown_map", "sensors"}
 
 
 def create_robot(options: Mapping[str, Any] | None = None) -> SimRobot:
@@ -30,7 +31,9 @@ def create_robot(options: Mapping[str, Any] | None = None) -> SimRobot:
             ``turtlebot4``), ``seed`` (a whole number from 0, default 0), ``config`` (a dict merged
             over the robot profile, e.g. ``{"lidar": {"rate": 20}, "camera": {"width": 640, "height": 480},
             "odometry": {"noise_v": 0.02}, "accelerate": False}``), ``name``, ``unknown_map`` (bool:
-            the robot starts knowing nothing and learns its map from its lidar).
+            the robot starts knowing nothing and learns its map from its lidar), ``sensors`` (the
+            plugin sensor kinds; default: those of the plugins that load, see
+            :func:`missiontree.robot.sensors.sensor_kinds_from_options`).
 
     Raises:
         WorldFileError: The world, the profile or an override is broken (file:line problems).
@@ -57,4 +60,6 @@ def create_robot(options: Mapping[str, Any] | None = None) -> SimRobot:
     unknown_map = opts.get("unknown_map") or False
     if not isinstance(unknown_map, bool):
         raise ConfigError(f"simulator option unknown_map: expected true or false, found {unknown_map!r}")
-    return SimRobot(world, profile, seed=seed, name=str(opts.get("name") or "sim"), unknown_map=unknown_map)
+    sensors = sensor_kinds_from_options(opts)
+    return SimRobot(world, profile, seed=seed, name=str(opts.get("name") or "sim"), unknown_map=unknown_map,
+                    sensors=sensors)

@@ -40,6 +40,7 @@ from missiontree.backends.sim.world import World
 from missiontree.mapping.grid import LogOddsGrid, logit
 from missiontree.robot.commands import Command, LineCommands
 from missiontree.robot.history import StampedHistory
+from missiontree.robot.sensors import SensorKind, SensorReading, SimSensors
 from missiontree.types import LaserScan, Marker, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
 
 _TIME_EPS = 1e-9
@@ -71,7 +72,7 @@ class SimRobot:
     simulated = True
 
     def __init__(self, world: World, profile: RobotProfile, seed: int = 0, name: str = "sim",
-                 unknown_map: bool = False) -> None:
+                 unknown_map: bool = False, sensors: list[SensorKind] | None = None) -> None:
         self.name = name
         self.world = world
         self.profile = profile
@@ -111,6 +112,10 @@ class SimRobot:
         self._next_scan = 0.0
         self._next_frame = 0.0
         self._quiet: set[str] = set()
+        #: Plugin sensors (missiontree.robot.sensors), configured by the world's ``plugins:`` sections.
+        self.plugin_sensors = SimSensors(list(sensors or []), world.spec.plugins, seed)
+        self.odometer = 0.0  # metres driven (true motion), for plugin sensor models
+        self._v = self._w = 0.0
         self.bumps = 0
         self._pending: tuple[Future[tuple[Rendering, float]], float, Pose2D] | None = None
         self._background = accel and profile.camera_thread
@@ -190,6 +195,18 @@ class SimRobot:
             return None
         return self._scans.nearest(stamp)
 
+    def sensor(self, name: str) -> SensorReading | None:
+        """The latest reading of a plugin sensor (stale stamp when silenced), None before the first."""
+        return self.plugin_sensors.store.get(name)
+
+    def sensor_names(self) -> list[str]:
+        """The plugin sensors this robot has."""
+        return self.plugin_sensors.store.names()
+
+    def sensor_kind(self, name: str) -> SensorKind:
+        """What plugin sensor ``name`` is (UnknownSensorError naming the robot's sensors otherwise)."""
+        return self.plugin_sensors.store.kind(name)
+
     def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> SimNavHandle:
         """Send a NavigateToPose goal; planning happens at the next step. Ends a drive() override."""
         self._drive = None
@@ -253,7 +270,7 @@ class SimRobot:
             robot_pose=self._base.pose, robot_radius=self.profile.body.radius,
             rooms=[SceneRoom(r.name, r.type, r.polygon) for r in world.rooms],
             walls=list(world.wall_segments),
-            objects=[SceneObject(o.id, tuple(int(c) for c in o.rgb), o.footprint(),
+            objects=[SceneObject(o.id, tuple(int(c) for c in o.rgb), o.footprint(),  # type: ignore[arg-type]
                                  (o.pose.x, o.pose.y - o.size[1] / 2 - 0.12)) for o in world.objects],
             people=people, trajectory=list(self.trajectory), goals=list(self._nav.goals),
             learned=self.occupancy() if self.unknown_map else None)
@@ -261,9 +278,13 @@ class SimRobot:
     # -- simulator controls (not part of the Robot protocol) ---------------------------------------
 
     def silence(self, sensor: str, quiet: bool = True) -> None:
-        """Make ``lidar`` or ``camera`` stop (or resume) publishing, to test stale-stamp handling."""
+        """Make ``lidar``, ``camera`` or a plugin sensor stop (or resume) publishing (stale stamps)."""
+        if sensor in self.plugin_sensors.store.kinds:
+            (self.plugin_sensors.quiet.add if quiet else self.plugin_sensors.quiet.discard)(sensor)
+            return
         if sensor not in ("lidar", "camera"):
-            raise ValueError(f"unknown sensor {sensor!r}; expected 'lidar' or 'camera'")
+            known = ", ".join(["lidar", "camera", *self.plugin_sensors.store.names()])
+            raise ValueError(f"unknown sensor {sensor!r}; expected one of {known}")
         (self._quiet.add if quiet else self._quiet.discard)(sensor)
 
     @property
@@ -308,6 +329,8 @@ class SimRobot:
             v = w = 0.0
         else:
             self._base.accept(proposed, v, w)
+        self.odometer += abs(v) * dt
+        self._v, self._w = v, w
         self._odom.update(v, w, dt)
         self._steps += 1
         self._t = self._steps * dt
@@ -348,6 +371,9 @@ class SimRobot:
 
     def _sense(self) -> None:
         t = self._t
+        if self.plugin_sensors.kinds:
+            p = self._base.pose
+            self.plugin_sensors.step(t, (p.x, p.y, p.yaw), self._v, self._w, self.odometer)
         dynamic: Primitives | None = None
         if t >= self._next_scan - _TIME_EPS:
             self._next_scan = self._tick_after(self._next_scan, self.profile.lidar.rate)

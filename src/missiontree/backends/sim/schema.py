@@ -126,7 +126,7 @@ class ObjectSpec(_Strict):
     elevation: float = Field(0.0, ge=0, le=100)
     movable: bool = True
     obstacle: bool | None = Field(None, description="blocks the robot; default: if it reaches below 0.3 m")
-    pattern: PatternName | None = Field(
+    pattern: PatternName | None = Field(  # type: ignore[valid-type]  # a Literal built from PATTERNS
         None, description="what the camera paints on the side faces; default: what the label suggests")
 
     @field_validator("size")
@@ -185,6 +185,9 @@ class WorldSpec(_Strict):
     rooms: list[RoomSpec] = []
     objects: list[ObjectSpec] = []
     people: list[PersonSpec] = []
+    plugins: dict[str, dict[str, object]] = Field(
+        {}, description="sections for plugin sensor models (e.g. `battery: {dock: {x, y}}`), each read "
+        "by the plugin that registered it (missiontree.robot.sensors.SimSource)")
 
     @model_validator(mode="after")
     def _walls_or_map(self) -> WorldSpec:
