@@ -303,16 +303,20 @@ class ResumeExplore(Explore):
         self.exhausted = False
         self.reached = 0
 
+    def planner_options(self) -> dict[str, Any]:
+        """The exploration planner's options from the parameters (as Explore builds its planner)."""
+        p = self.params
+        return {
+            "strategy": p.strategy,
+            "footprint_radius": p.footprint_radius,
+            "sensor_range": p.sensor_range,
+            "min_frontier_m": p.min_frontier_size,
+            "cost_rate": p.cost_rate,
+        }
+
     def make_planner(self) -> ExplorationPlanner:
         """The planner kept for the whole mission (subclasses rank its goals)."""
-        p = self.params
-        return ExplorationPlanner(
-            strategy=p.strategy,
-            footprint_radius=p.footprint_radius,
-            sensor_range=p.sensor_range,
-            min_frontier_m=p.min_frontier_size,
-            cost_rate=p.cost_rate,
-        )
+        return ExplorationPlanner(**self.planner_options())
 
     def initialise(self) -> None:
         """Explore on with what earlier runs of this leaf learned (blacklist, visited goals)."""
@@ -395,16 +399,7 @@ class Locate(ResumeExplore):
 
     def make_planner(self) -> ExplorationPlanner:
         """Frontiers by gain, their scores weighted by the room priors."""
-        p = self.params
-        return PriorPlanner(
-            self._prior,
-            p.prior_weight,
-            strategy=p.strategy,
-            footprint_radius=p.footprint_radius,
-            sensor_range=p.sensor_range,
-            min_frontier_m=p.min_frontier_size,
-            cost_rate=p.cost_rate,
-        )
+        return PriorPlanner(self._prior, self.params.prior_weight, **self.planner_options())
 
     def update(self) -> Status:
         """A known candidate ends the leaf; else one step of exploration."""
