@@ -12,19 +12,23 @@ once (their start-up is printed apart) and stay up between rounds.
   (workers × engine wall − Σ missions' own wall time in the workers) / runs. It holds dispatch,
   pickling, result transfer and the idle tail of a round (workers waiting for the last run).
 
-Targets (issue 21): speed-up ≥ 1.8 on 2 cores, overhead ≤ 50 ms a run. The machine is shared; its
-load average is printed before and after, since other work on the same cores lowers every speed-up.
-Last line: one JSON object.
+Targets (issue 21): speed-up ≥ 1.8 on 2 cores, overhead ≤ 50 ms a run. The machine is shared, so
+each round also measures what parallelism the machine gives at that moment: the same pure-Python
+busy loop, ``2 × workers`` times, serially and on a plain process pool (``parallel_ceiling``, the
+speed-up no engine can beat then); ``scaling_*`` is an engine's speed-up over that ceiling. The load
+average and CPU pressure are printed before and after. Last line: one JSON object.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
 import statistics
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +47,36 @@ root:
 """
 
 
+def spin(count: int) -> int:
+    """A pure-Python busy loop (the ceiling's unit of work)."""
+    total = 0
+    for i in range(count):
+        total += i
+    return total
+
+
+SPIN = 2_000_000
+
+
+def ceiling(pool: ProcessPoolExecutor, workers: int) -> float:
+    """Serial time over pool time for ``2 × workers`` busy loops: the parallelism the machine gives now."""
+    started = time.perf_counter()
+    for _ in range(2 * workers):
+        spin(SPIN)
+    serial = time.perf_counter() - started
+    started = time.perf_counter()
+    list(pool.map(spin, [SPIN] * (2 * workers)))
+    return serial / (time.perf_counter() - started)
+
+
+def cpu_pressure() -> str:
+    """The kernel's CPU pressure line (share of time some task waited for a CPU), when available."""
+    try:
+        return Path("/proc/pressure/cpu").read_text().splitlines()[0]
+    except OSError:
+        return "n/a"
+
+
 def run_round(engine: Engine, mission: Path, seeds: list[int], out: Path) -> tuple[float, float, int]:
     """Run the seeds on the engine; return (wall s, Σ in-worker mission wall s, failures)."""
     plan = expand_plan(mission, seeds=seeds)
@@ -55,12 +89,15 @@ def run_round(engine: Engine, mission: Path, seeds: list[int], out: Path) -> tup
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=200, help="missions per engine (default 200)")
-    parser.add_argument("--rounds", type=int, default=4, help="rounds the runs are split into (default 4)")
+    parser.add_argument("--rounds", type=int, default=8, help="rounds the runs are split into (default 8)")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="workers (default: the cores)")
     args = parser.parse_args()
     load_before = os.getloadavg()
     print(f"{os.cpu_count()} cores, {args.jobs} workers; load average before: "
-          f"{' '.join(f'{v:.1f}' for v in load_before)}", flush=True)
+          f"{' '.join(f'{v:.1f}' for v in load_before)}; cpu pressure {cpu_pressure()}", flush=True)
+    spinner = ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn"))
+    list(spinner.map(spin, [1] * args.jobs))
+    ceilings: list[float] = []
     per_round = [args.runs // args.rounds + (i < args.runs % args.rounds) for i in range(args.rounds)]
     with tempfile.TemporaryDirectory(prefix="batch_scaling_") as tmp_name:
         tmp = Path(tmp_name)
@@ -97,15 +134,23 @@ def main() -> int:
                 totals[name]["failed"] += failed
             for name in ratios:
                 ratios[name].append(walls["serial"] / walls[name])
+            ceilings.append(ceiling(spinner, args.jobs))
             print(f"round {index + 1}: {count} runs each, order {'/'.join(order)}: "
                   + "  ".join(f"{n} {w:.1f} s" for n, w in walls.items())
-                  + f"  speed-up pool {ratios['pool'][-1]:.2f} dask {ratios['dask'][-1]:.2f}", flush=True)
+                  + f"  speed-up pool {ratios['pool'][-1]:.2f} dask {ratios['dask'][-1]:.2f}"
+                  + f"  machine ceiling {ceilings[-1]:.2f}", flush=True)
         for engine in engines.values():
             engine.close()
+        spinner.shutdown()
     runs = sum(per_round)
     result: dict[str, Any] = {"runs_per_engine": runs, "workers": args.jobs, "cores": os.cpu_count()}
+    result["parallel_ceiling"] = round(statistics.median(ceilings), 3)
+    result["parallel_ceiling_rounds"] = {"min": round(min(ceilings), 3), "max": round(max(ceilings), 3)}
+    print(f"machine ceiling (busy loop, serial / pool of {args.jobs}): median "
+          f"{statistics.median(ceilings):.2f} min {min(ceilings):.2f} max {max(ceilings):.2f}")
     for name in ("pool", "dask"):
         speedup = totals["serial"]["wall"] / totals[name]["wall"]
+        result[f"scaling_{name}"] = round(speedup / result["parallel_ceiling"], 3)
         overhead = (args.jobs * totals[name]["wall"] - totals[name]["inside"]) / runs * 1000
         result[f"speedup_{name}"] = round(speedup, 3)
         result[f"overhead_ms_per_run_{name}"] = round(overhead, 1)
@@ -123,6 +168,7 @@ def main() -> int:
     result["startup_s_dask"] = round(dask_start_s, 2)
     result["load_average_before"] = [round(v, 2) for v in load_before]
     result["load_average_after"] = [round(v, 2) for v in os.getloadavg()]
+    result["cpu_pressure_after"] = cpu_pressure()
     print(f"mean mission wall time in a worker: serial {result['mission_wall_ms_serial']} ms, pool "
           f"{result['mission_wall_ms_pool']} ms, dask {result['mission_wall_ms_dask']} ms; load average "
           f"after {' '.join(f'{v:.1f}' for v in os.getloadavg())}")
