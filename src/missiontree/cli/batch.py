@@ -51,7 +51,8 @@ are compared on the same draws); --base-seed B derives them from B instead. Both
 A run whose process crashes is retried once; crashing again it is an infrastructure failure,
 counted apart from the mission's results, and fails the batch.
 --dask ADDRESS runs on a Dask distributed cluster (default: $DASK_SCHEDULER_ADDRESS); --dask local
-starts one on this machine. Needs the 'dask' extra: pip install 'missiontree[dask]'.
+starts one on this machine. Needs the 'dask' extra: pip install 'missiontree[dask]'. Workers
+write the run directories: on a multi-machine cluster --out must be on a filesystem they share.
 """
 
 
@@ -61,7 +62,7 @@ def register(subparsers: Any) -> None:
         "batch", help="run a mission over many seeds, worlds and parameter values",
         description="Run a mission many times (seeds × worlds × parameter grid) on a local process pool "
         "or a Dask cluster; write results.jsonl, summary.json, junit.xml and print success rates with "
-        "95%% Wilson intervals.", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+        "95 percent Wilson intervals.", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("tree", type=Path, help="the mission file (YAML)")
     parser.add_argument("--seeds", default="0-9", help="batch seeds: a list and ranges, e.g. 0-999,2000 "
                         "(default: 0-9)")
@@ -72,7 +73,8 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--sweep", action="append", default=[], metavar="KEY=V1,V2",
                         help="one run per value of a param; several sweeps make a grid (repeatable)")
     parser.add_argument("--jobs", "-j", type=int, metavar="N",
-                        help=f"worker processes (default: the cores, {os.cpu_count() or 1} here)")
+                        help=f"worker processes (default: the cores, {os.cpu_count() or 1} here; with "
+                        "--dask local the cluster's workers; a remote cluster runs as many as it has)")
     parser.add_argument("--out", type=Path, help="batch directory (default: runs/batch/<mission name>)")
     parser.add_argument("--resume", action="store_true", help="keep complete runs in --out, run the rest")
     parser.add_argument("--min-success", type=_rate, metavar="RATE",
@@ -146,7 +148,8 @@ def preflight(plan: BatchPlan, plugins: Any) -> None:
         spec = load_mission(plan.mission, plugins.nodes, allow_outside=allow, params=overrides)
     problems = []
     for world in worlds:
-        problems += check_references(spec, providers=plugins.providers, backend=plan.request.get("backend"),
+        problems += check_references(spec,  # type: ignore[arg-type]  # a plan has runs, so spec is loaded
+                                     providers=plugins.providers, backend=plan.request.get("backend"),
                                      world=world, robot=plan.request.get("robot"), check_models=False)
     if problems:
         raise MissionFileError(problems)

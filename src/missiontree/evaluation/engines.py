@@ -2,9 +2,10 @@
 
 Every engine runs one mission per task and yields ``(task, outcome)`` as runs finish, where the
 outcome is the run's record or a :class:`Crash` (the process running the mission died: a segfault,
-``os._exit``, a killed worker). The batch counts crashes apart and retries each once, isolated
-(``isolated=True``: alone on a fresh worker, so a second crash is the run's own and not a
-neighbour's).
+``os._exit``, a killed worker; or the harness around the mission raised, e.g. a full disk — a
+mission's own exceptions are records with status ERROR). The batch counts crashes apart and
+retries each once, isolated (``isolated=True``: alone on a fresh worker, so a second crash is the
+run's own and not a neighbour's).
 
 - :class:`SerialEngine` — in this process, one after another (the reference of
   benchmarks/batch_scaling.py; a crash here ends the batch).
@@ -18,7 +19,9 @@ neighbour's).
   ``dask worker tcp://HOST:8786``). A task whose worker died comes back as ``KilledWorker``
   once the scheduler gives up on it (the local cluster gives up at the first death, so the
   batch's own single retry is the only one; a remote scheduler applies its own
-  ``distributed.scheduler.allowed-failures`` first).
+  ``distributed.scheduler.allowed-failures`` first). Workers write run directories themselves: on
+  a cluster of several machines the batch's ``--out`` must be on a filesystem they all share, and
+  missiontree (with the plugins the mission needs) must be installed in every worker's environment.
 
 Dask is an optional extra: importing this module never imports it; :class:`DaskEngine` raises a
 :class:`~missiontree.errors.BackendUnavailableError` naming the extra when it is missing.
@@ -149,8 +152,9 @@ class PoolEngine(Engine):
                             broken = True
                             pending.add(future)
                             continue
-                        if error is not None:
-                            raise error
+                        if error is not None:  # the harness failed, not the mission (disk full, ...)
+                            yield futures[future], Crash(f"{type(error).__name__}: {error}")
+                            continue
                         yield futures[future], future.result()
                 if broken:
                     self._drop_pool()
@@ -233,8 +237,8 @@ class DaskEngine(Engine):
                     if isinstance(error, KilledWorker):
                         _clear_partials(task)
                         yield task, Crash(f"the Dask worker died while running it (KilledWorker: {error})")
-                    elif error is not None:
-                        raise error
+                    elif error is not None:  # the harness failed, not the mission (disk full, ...)
+                        yield task, Crash(f"{type(error).__name__}: {error}")
                     else:
                         yield task, future.result()
         finally:

@@ -229,7 +229,8 @@ def expand_plan(
 def _split(text: str, flag: str) -> list[str]:
     """Split on commas outside brackets and quotes; strip; refuse empty items."""
     parts: list[str] = []
-    depth, quote, current = 0, "", []
+    depth, quote = 0, ""
+    current: list[str] = []
     for char in text:
         if quote:
             quote = "" if char == quote else quote
