@@ -153,6 +153,7 @@ class PoolEngine(Engine):
                             pending.add(future)
                             continue
                         if error is not None:  # the harness failed, not the mission (disk full, ...)
+                            _clear_partials(futures[future])
                             yield futures[future], Crash(f"{type(error).__name__}: {error}")
                             continue
                         yield futures[future], future.result()
@@ -238,6 +239,7 @@ class DaskEngine(Engine):
                         _clear_partials(task)
                         yield task, Crash(f"the Dask worker died while running it (KilledWorker: {error})")
                     elif error is not None:  # the harness failed, not the mission (disk full, ...)
+                        _clear_partials(task)
                         yield task, Crash(f"{type(error).__name__}: {error}")
                     else:
                         yield task, future.result()
