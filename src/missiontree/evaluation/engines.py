@@ -97,7 +97,12 @@ class SerialEngine(Engine):
             ) -> Iterator[tuple[RunTask, Outcome | Crash]]:
         """Run the tasks here, in order (``isolated`` changes nothing)."""
         for task in tasks:
-            yield task, fn(task)
+            try:
+                outcome: Outcome | Crash = fn(task)
+            except Exception as error:  # noqa: BLE001 - the harness failed, not the mission
+                _clear_partials(task)
+                outcome = Crash(f"{type(error).__name__}: {error}")
+            yield task, outcome
 
 
 class PoolEngine(Engine):
