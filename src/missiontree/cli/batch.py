@@ -159,6 +159,11 @@ def run(args: argparse.Namespace) -> int:
     """Run the batch; print the table; return the exit code."""
     plan = plan_from_args(args)
     plugins = plugins_from_args(args)
+    if not args.quiet:
+        worlds = len({r.world for r in plan.runs})
+        combos = len({r.params for r in plan.runs})
+        print(f"batch {args.tree.stem}: checking the mission with {combos} parameter set(s) on {worlds} "
+              "world(s) before any run", file=sys.stderr)
     preflight(plan, plugins)
     if args.no_plugins:
         os.environ[DISABLE_ENV] = "1"  # workers load plugins as this process did
