@@ -3,7 +3,9 @@
 Subcommands are the modules in :data:`SUBCOMMANDS` (append yours there); each exposes
 ``register(subparsers)`` and ``run(args) -> int``. Bad input (``ConfigError`` and its
 ``ProblemsError`` reports), a broken plugin or a missing extra print their message on stderr and
-exit with code 2, without a traceback; Ctrl-C exits with 130.
+exit with code 2, without a traceback. A run stopped by signal N exits 128+N (130 for Ctrl-C/SIGINT,
+143 for SIGTERM), the shell convention; Ctrl-C at any other moment (start-up included, see
+:mod:`missiontree.__main__`) exits 130 with one line on stderr.
 """
 
 from __future__ import annotations
@@ -51,8 +53,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:  # Ctrl-C while the subcommands' modules are imported
+        print("missiontree: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     try:
         return int(args.func(args))
     except ProblemsError as error:

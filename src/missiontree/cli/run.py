@@ -21,6 +21,7 @@ from missiontree.session.mission import (
     run_mission,
 )
 from missiontree.session.params import parse_assignment
+from missiontree.session.rundir import RunDirectory
 
 EPILOG = """\
 Defaults: every flag left out is taken from the mission file's `run:` section (backend, world,
@@ -57,7 +58,8 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--models", help="models config: a shipped name or a path (default: run.models, "
                         "else offline)")
     parser.add_argument("--seed", type=int, help=f"random seed (default: run.seed, else {DEFAULT_SEED})")
-    parser.add_argument("--out", type=Path, help="run directory (default: runs/<mission name>)")
+    parser.add_argument("--out", type=run_directory, help="run directory (default: runs/<mission name>); "
+                        "an earlier run's files in it are replaced, one run at a time")
     parser.add_argument("--max-duration", type=float, metavar="S",
                         help="stop after S seconds on the robot clock (default: run.max_duration, else none)")
     parser.add_argument("--tick-hz", type=float, metavar="H",
@@ -75,6 +77,13 @@ def register(subparsers: Any) -> None:
                         help="let subtree includes leave the mission's folder")
     add_plugin_flag(parser)
     parser.set_defaults(func=run)
+
+
+def run_directory(text: str) -> Path:
+    """``--out``'s type: a directory path; an empty one is refused (it would mean the working directory)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("the run directory is an empty path; name a directory")
+    return Path(text)
 
 
 def request_from_args(args: argparse.Namespace) -> MissionRequest:
@@ -96,7 +105,14 @@ def run(args: argparse.Namespace) -> int:
     if getattr(args, "view", False):
         from missiontree.cli.view import run_with_viewer
 
-        return run_with_viewer(args, request_from_args(args), run_mission, describe)
+        request = request_from_args(args)
+        # claimed (checked, locked, cleared) before the viewer writes into it; the session's own
+        # claim then finds this process's lock and keeps it
+        claim = RunDirectory.claim(args.out if args.out is not None else Path("runs") / args.tree.stem)
+        try:
+            return run_with_viewer(args, request, run_mission, describe)
+        finally:
+            claim.release()
     result = run_mission(request_from_args(args))
     print(describe(result))
     return result.exit_code

@@ -23,9 +23,11 @@ and whatever pictures the backend draws (:class:`~missiontree.robot.interface.Dr
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import math
+import os
 import signal
 import threading
 import time
@@ -115,7 +117,7 @@ def guard_exceptions(root: Behaviour, on_error: Callable[[Behaviour, Exception],
         if getattr(node, "_missiontree_guarded", False):
             continue
         node.tick = _guarded_tick(node, node.tick, on_error)  # type: ignore[method-assign]
-        node.stop = _guarded_stop(node, node.stop, on_error)  # type: ignore[method-assign]
+        node.stop = _guarded_stop(node, node.stop, on_error)  # type: ignore[method-assign,assignment]
         node._missiontree_guarded = True  # type: ignore[attr-defined]
 
 
@@ -216,6 +218,16 @@ class Runner:
         self._own_stream = log_stream is None and self.run_dir is not None
         self._stream: TextIO = log_stream if log_stream is not None else io.StringIO()
         self._signal = 0
+        #: ``running`` (setup and ticks: a second signal interrupts at once) or ``stopping`` (halt,
+        #: robot stop, summary: later signals are only noted, so the summary and log are whole).
+        self._phase = "idle"
+        self._interrupted = False
+        #: Why the run ended when stopped_by is ``error`` (written as the summary's ``reason``).
+        self._reason = ""
+        #: The run directory was deleted during the run (the log is recovered from the open file).
+        self._dir_lost = False
+        #: Writing the summary or the log failed: (what, error); the run then raises ConfigError.
+        self._write_failure: tuple[str, OSError] | None = None
         self.log: TickLog | None = None
         self.recorder: TickRecorder | None = None
         self._set_up = False
@@ -231,10 +243,15 @@ class Runner:
         if self._set_up:
             return
         if self.run_dir is not None:
-            self.run_dir.mkdir(parents=True, exist_ok=True)
+            try:
+                self.run_dir.mkdir(parents=True, exist_ok=True)
+                if self._own_stream:  # w+: a deleted directory's log can be read back (_recover_log)
+                    self._stream = (self.run_dir / "ticks.jsonl").open("w+", encoding="utf-8", newline="\n")
+                self._write_summary(self._provisional_summary())
+            except OSError as error:
+                raise ConfigError(f"cannot write the run directory {self.run_dir}: "
+                                  f"{error.strerror or error}") from error
             self.context.run_dir = self.run_dir
-            if self._own_stream:
-                self._stream = (self.run_dir / "ticks.jsonl").open("w", encoding="utf-8", newline="\n")
         self.log = TickLog(self._stream, self.mission, self.robot.now, bool(self.robot.simulated))
         self.context.events = self.log
         self.log.bind()
@@ -289,18 +306,30 @@ class Runner:
                       where=frames[-1].name if frames else "")
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
-        """First signal: stop after this tick. A second one: stop now (the tree is still halted)."""
-        if self._signal:
+        """First signal: stop after this tick; a second one while running: stop now.
+
+        After a second signal the tree is still halted and the robot stopped. While stopping (halt,
+        robot stop, summary) later signals are only noted: they cannot cut the summary or the last
+        log lines short.
+        """
+        if not self._signal:
+            self._signal = signum
+            return
+        if self._phase == "running":
+            self._interrupted = True
             raise KeyboardInterrupt
-        self._signal = signum
 
     # -- the loop ------------------------------------------------------------------------------
 
     def run(self) -> RunResult:
         """Tick until the tree ends, the limit passes or a signal arrives; always halt and stop.
 
+        A second SIGINT/SIGTERM interrupts a tick at once; the run still halts the tree, stops the
+        robot, writes the summary (``stopped_by: signal``) and returns normally.
+
         Raises:
-            ConfigError: A node failed to set up.
+            ConfigError: A node failed to set up, the run directory cannot be written, or the
+                summary could not be written at the end (a full disk).
             PluginError: A mission started/finished hook failed.
         """
         self._install_signal_handlers()
@@ -308,6 +337,7 @@ class Runner:
         stopped_by = STOPPED_BY_ERROR
         start = self.robot.now()
         try:
+            self._phase = "running"
             self.setup()
             assert self.log is not None
             self.log.line("mission_started", tick_hz=self.tick_hz, max_duration=self.max_duration,
@@ -316,7 +346,19 @@ class Runner:
             self._call_hook("missiontree_mission_started", context=self.context, mission=self.spec)
             start = self.robot.now()
             status, stopped_by = self._loop(start)
+        except KeyboardInterrupt:  # a second signal (ours), or Ctrl-C without our handlers
+            # interrupted inside a tick, the root has no status of that tick yet: it was running
+            status = self.root.status if self.root.status in _FINAL else Status.RUNNING
+            stopped_by = STOPPED_BY_SIGNAL
+            if not self._signal:
+                self._signal = signal.SIGINT
+            if not self._interrupted:
+                raise
+        except BaseException as error:
+            self._reason = f"{type(error).__name__}: {error}"
+            raise
         finally:
+            self._phase = "stopping"
             duration = self.robot.now() - start
             try:
                 if self._set_up:
@@ -324,7 +366,12 @@ class Runner:
             finally:
                 self.robot.stop()
             result = self._finish(status, stopped_by, duration)
+            self._restore_signal_handlers()
         self._call_hook("missiontree_mission_finished", context=self.context, summary=result.summary)
+        if self._write_failure is not None:
+            what, error = self._write_failure
+            raise ConfigError(f"the run ended ({result.status.name}, stopped by {result.stopped_by}) but its "
+                              f"{what} could not be written in {self.run_dir}: {error.strerror or error}")
         return result
 
     def _loop(self, start: float) -> tuple[Status, str]:
@@ -338,6 +385,8 @@ class Runner:
             status = self.tick()
             if self.on_tick is not None:
                 self.on_tick(self)
+            if self._log_lost():
+                return self.root.status, STOPPED_BY_ERROR
             if status in _FINAL:
                 return status, STOPPED_BY_STATUS
             index += 1
@@ -352,13 +401,73 @@ class Runner:
             if self.realtime:
                 time.sleep(max(0.0, wall_start + (next_time - start) - time.monotonic()))
 
+    def _log_lost(self) -> bool:
+        """True (with the reason kept) when the tick log can no longer be written.
+
+        That is a failed write (a full disk) or a run directory deleted under the run (its open log
+        file has no name left).
+        """
+        assert self.log is not None
+        error = self.log.write_error
+        if error is not None:
+            self._reason = (f"the tick log could not be written: {error.strerror or error}; the lines "
+                            f"before the failure are kept")
+            return True
+        if self._own_stream and os.fstat(self._stream.fileno()).st_nlink == 0:
+            self._dir_lost = True
+            self._reason = (f"the run directory {self.run_dir} was deleted during the run; it was made "
+                            f"again with the tick log read back from the open file (other files are lost)")
+            return True
+        return False
+
+    def _recover_log(self) -> None:
+        """After the run directory was deleted: make it again, copy the unlinked log into it, go on there."""
+        assert self.run_dir is not None and self.log is not None
+        old = self._stream
+        try:
+            old.flush()
+            self.run_dir.mkdir(parents=True, exist_ok=True)
+            fd, offset = old.fileno(), 0
+            with (self.run_dir / "ticks.jsonl").open("wb") as copy:
+                while chunk := os.pread(fd, 1 << 20, offset):
+                    copy.write(chunk)
+                    offset += len(chunk)
+            self._stream = (self.run_dir / "ticks.jsonl").open("a", encoding="utf-8", newline="\n")
+        except OSError as error:
+            self._write_failure = ("tick log (its directory was deleted)", error)
+            return
+        finally:
+            with contextlib.suppress(OSError):
+                old.close()
+        self.log.redirect(self._stream)
+
+    def _provisional_summary(self) -> dict[str, Any]:
+        """The summary written as the run starts: valid JSON marked incomplete until the run ends."""
+        return plain({"mission": self.mission, "complete": False, "status": Status.RUNNING.name,
+                      "stopped_by": "", "signal": "", "ticks": 0, "tick_hz": self.tick_hz,
+                      "seed": self.context.seed, "robot": self.robot.name})
+
+    def _write_summary(self, summary: dict[str, Any]) -> None:
+        """Write summary.json whole or not at all (a temporary file renamed over it)."""
+        assert self.run_dir is not None
+        target = self.run_dir / "summary.json"
+        temporary = self.run_dir / ".summary.json.tmp"
+        try:
+            temporary.write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+            os.replace(temporary, target)
+        except OSError:
+            with contextlib.suppress(OSError):
+                temporary.unlink()
+            raise
+
     def _finish(self, status: Status, stopped_by: str, duration: float) -> RunResult:
-        """Restore handlers, draw pictures, write the summary and close the log."""
-        self._restore_signal_handlers()
+        """Draw pictures, write the summary and close the log (never raises: failures are kept)."""
+        if self._dir_lost:
+            self._recover_log()
         if self.log is not None:
             self.log.flush_pending()
         pictures: list[str] = []
-        if self.run_dir is not None and isinstance(self.robot, Drawable):
+        if self.run_dir is not None and isinstance(self.robot, Drawable) and self._write_failure is None:
             try:
                 pictures = [p.name for p in self.robot.draw(self.run_dir, self.context.markers)]
             except Exception as error:  # noqa: BLE001 - a failed picture must not lose the summary
@@ -367,6 +476,7 @@ class Runner:
                                   where="draw")
         summary: dict[str, Any] = {
             "mission": self.mission,
+            "complete": True,
             "status": status.name,
             "stopped_by": stopped_by,
             "signal": signal.Signals(self._signal).name if self._signal else "",
@@ -378,6 +488,8 @@ class Runner:
             "events": dict(sorted(self.log.event_counts.items())) if self.log else {},
             "pictures": pictures,
         }
+        if stopped_by == STOPPED_BY_ERROR and self._reason:
+            summary["reason"] = self._reason
         if self.recorder is not None:
             summary.update(self.recorder.summary())
         summary.update(self._final_pose())
@@ -386,16 +498,23 @@ class Runner:
             self.recorder.close()
         if self.log is not None:
             self.log.line("mission_finished", status=status.name, stopped_by=stopped_by,
-                          ticks=summary["ticks"], duration=duration)
+                          ticks=summary["ticks"], duration=duration, reason=summary.get("reason"))
             self.log.unbind()
-        if self.run_dir is not None:
-            self.run_dir.mkdir(parents=True, exist_ok=True)
-            (self.run_dir / "summary.json").write_text(
-                json.dumps(summary, indent=2, sort_keys=True) + "\n", encoding="utf-8")
-        if self._own_stream:
-            self._stream.close()
-        else:
-            self._stream.flush()
+            self.log.flush()
+        if self.run_dir is not None and self._write_failure is None:
+            try:
+                self.run_dir.mkdir(parents=True, exist_ok=True)
+                self._write_summary(summary)
+            except OSError as error:
+                self._write_failure = ("summary", error)
+        try:
+            if self._own_stream:
+                self._stream.close()
+            else:
+                self._stream.flush()
+        except OSError as error:
+            if self._write_failure is None and (self.log is None or self.log.write_error is None):
+                self._write_failure = ("tick log", error)
         return RunResult(status=status, stopped_by=stopped_by, ticks=summary["ticks"], duration=duration,
                          run_dir=self.run_dir, summary=summary, signal=self._signal)
 

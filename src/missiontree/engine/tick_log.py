@@ -32,8 +32,10 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import errno
 import json
 import math
+import os
 import re
 import threading
 import time
@@ -45,6 +47,7 @@ from typing import Any, TextIO
 import py_trees
 import structlog
 from pydantic import BaseModel
+from structlog.typing import EventDict
 
 Status = py_trees.common.Status
 Behaviour = py_trees.behaviour.Behaviour
@@ -92,12 +95,12 @@ def plain(value: Any) -> Any:
     return f"<{type(value).__name__}>"
 
 
-def _plain_event(logger: Any, method: str, event_dict: dict[str, Any]) -> dict[str, Any]:
+def _plain_event(logger: Any, method: str, event_dict: EventDict) -> EventDict:
     """Structlog processor: make every field JSON-ready and stable."""
     return {k: plain(v) for k, v in event_dict.items()}
 
 
-def _add_wall_time(logger: Any, method: str, event_dict: dict[str, Any]) -> dict[str, Any]:
+def _add_wall_time(logger: Any, method: str, event_dict: EventDict) -> EventDict:
     """Structlog processor for real robots: the wall-clock time, to the millisecond."""
     event_dict["wall"] = round(time.time(), 3)
     return event_dict
@@ -111,22 +114,45 @@ def _dumps(obj: Any, **kwargs: Any) -> str:
     return _ENCODE(obj)
 
 
+#: Test hook (fault injection): when this environment variable holds a number of bytes, the tick
+#: log's writer raises ``OSError(ENOSPC)`` on the first line that would take the file past it, as a
+#: full disk does. Read when a :class:`TickLog` is made; unset in normal runs.
+DISK_FULL_AFTER_ENV = "MISSIONTREE_TEST_DISK_FULL_AFTER"
+
+
 class _LineWriter:
     """structlog's final logger: writes rendered lines, flushing only when asked to.
 
     structlog's ``WriteLogger`` flushes every line, a system call per tick; a simulated run
     needs the file only at the end, a real robot's run flushes each line (``flush_each_line``).
+
+    A write that fails (a full disk, a vanished file system) is kept in :attr:`error` instead of
+    raised into the tick, and every later line is dropped, so the file stays whole lines; the
+    runner sees :attr:`error` after the tick and ends the run with the reason.
     """
 
     def __init__(self, stream: TextIO, flush_each_line: bool) -> None:
         self._write = stream.write
         self._flush = stream.flush if flush_each_line else None
+        self.error: OSError | None = None
+        limit = os.environ.get(DISK_FULL_AFTER_ENV, "").strip()
+        self._room: int | None = int(limit) if limit.isdigit() else None
 
     def msg(self, message: str) -> None:
-        """Write one line."""
-        self._write(message + "\n")
-        if self._flush is not None:
-            self._flush()
+        """Write one line (dropped after a failed write)."""
+        if self.error is not None:
+            return
+        line = message + "\n"
+        try:
+            if self._room is not None:
+                self._room -= len(line.encode("utf-8"))
+                if self._room < 0:
+                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            self._write(line)
+            if self._flush is not None:
+                self._flush()
+        except OSError as error:
+            self.error = error
 
     info = msg  # structlog's native bound logger calls the level name
 
@@ -150,6 +176,7 @@ class TickLog:
         #: The kind (and node) of the last event a leaf emitted, for progress lines.
         self.last_event = ""
         writer = _LineWriter(stream, flush_each_line=not simulated)
+        self._writer = writer
         render = structlog.processors.JSONRenderer(serializer=_dumps)  # keys sorted by _ENCODE
         stamp = [] if simulated else [_add_wall_time]
         merge = structlog.contextvars.merge_contextvars
@@ -239,8 +266,25 @@ class TickLog:
         self._tick_log.msg("tick", **fields)
 
     def flush(self) -> None:
-        """Flush the underlying stream."""
-        self.stream.flush()
+        """Flush the underlying stream (a failure is kept in :attr:`write_error`, not raised)."""
+        if self._writer.error is not None:
+            return
+        try:
+            self.stream.flush()
+        except OSError as error:
+            self._writer.error = error
+
+    def redirect(self, stream: TextIO) -> None:
+        """Write the following lines to ``stream`` (the runner's recovered log after a deleted directory)."""
+        self.stream = stream
+        self._writer._write = stream.write
+        if self._writer._flush is not None:
+            self._writer._flush = stream.flush
+
+    @property
+    def write_error(self) -> OSError | None:
+        """The error that stopped the log's writing (a full disk), or None while it writes."""
+        return self._writer.error
 
 
 class _RecordingStorage(dict[str, Any]):

@@ -36,6 +36,7 @@ from missiontree.session.models import build_models
 from missiontree.session.params import parse_overrides
 from missiontree.session.preflight import check_references
 from missiontree.session.progress import ProgressLine
+from missiontree.session.rundir import RunDirectory
 
 __all__ = ["DEFAULT_BACKEND", "DEFAULT_SEED", "DEFAULT_TICK_HZ", "MissionRequest", "Session",
            "load_run_config", "run_mission"]
@@ -143,6 +144,7 @@ class Session:
         self.models: dict[str, Any] = {}
         self.result: RunResult | None = None
         self.progress: ProgressLine | None = None
+        self.run_claim: RunDirectory | None = None
         self._closed = False
 
     @classmethod
@@ -197,6 +199,8 @@ class Session:
             "backend": backend, "seed": seed, "tick_hz": tick_hz, "max_duration": max_duration,
             "realtime": realtime, "unknown_map": unknown_map, "models": models_config, "params": overrides,
         }
+        if self.run_dir is not None:  # checked, locked and cleared before the robot starts
+            self.run_claim = RunDirectory.claim(self.run_dir)
 
         self.root = build_tree(self.spec, self.plugins.nodes)
         self.options = self._robot_options(seed, config, unknown_map)
@@ -282,8 +286,12 @@ class Session:
         caller = self.models.get(CALLER_KEY)
         if caller is not None and hasattr(caller, "close"):
             caller.close()
-        if self.robot is not None:
-            self.robot.close()
+        try:
+            if self.robot is not None:
+                self.robot.close()
+        finally:
+            if self.run_claim is not None:
+                self.run_claim.release()
 
     def __enter__(self) -> Session:
         return self
