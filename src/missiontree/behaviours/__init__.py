@@ -40,5 +40,5 @@ def register_nodes(registry: NodeRegistry) -> None:
     registry.add(SERVE_COMMANDS)
     registry.add(Explore)
     registry.add(BuildSceneGraph)
-    for leaf in (ScanRotate, ColourAttention, ResumeExplore, Locate, Approach, Verify):
-        registry.add(leaf)
+    for search_leaf in (ScanRotate, ColourAttention, ResumeExplore, Locate, Approach, Verify):
+        registry.add(search_leaf)

@@ -409,7 +409,7 @@ class Surveillance(Leaf):
             return
         self.last_alarm_time = now
         self.alarm_count += 1
-        extra = {}
+        extra: dict[str, Any] = {}
         if sighting.detection is not None:  # where the camera saw them, whatever the distance method assumed
             seen = frame.camera_pose.yaw + frame.intrinsics.pixel_bearing(sighting.detection.center[0])
             extra["map_bearing"] = round(wrap_angle(seen), 4)

@@ -128,7 +128,7 @@ def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
     "child 'name' failed: <its reason>" (see :func:`explain_failures`).
     """
     started = next((r for r in lines if r.get("event") == "mission_started"), {})
-    finished = next((r for r in reversed(lines) if r.get("event") == "mission_finished"), {})
+    finished: dict[str, Any] = next((r for r in reversed(lines) if r.get("event") == "mission_finished"), {})
     ticks = [r for r in lines if r.get("event") == "tick"]
     latest: dict[str, dict[str, Any]] = {}
     failures: dict[str, dict[str, Any]] = {}

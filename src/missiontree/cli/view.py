@@ -13,7 +13,7 @@ import sys
 import threading
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from missiontree.errors import ConfigError
 
@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(
                 f"cannot serve on 127.0.0.1:{args.port}: {error.strerror}; pick another --port"
             ) from error
-        host, port = server.server_address[:2]
+        host, port = cast(tuple[str, int], server.server_address[:2])  # an AF_INET server's address
         print(f"viewing {run_dir} live at http://{host}:{port}/ (Ctrl-C stops)", flush=True)
         try:
             server.serve_forever()
@@ -105,7 +105,7 @@ def run_with_viewer(
     except OSError as error:
         raise ConfigError(f"cannot serve the viewer on 127.0.0.1:{port}: {error.strerror}; "
                           f"another viewer may be running (or run `missiontree view --follow`)") from error
-    host, bound = server.server_address[:2]
+    host, bound = cast(tuple[str, int], server.server_address[:2])  # an AF_INET server's address
     print(f"live viewer at http://{host}:{bound}/", file=sys.stderr, flush=True)
     try:
         trail = PoseTrail(run_dir)

@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
         name=world.name, bounds=world.bounds(), grid=world.grid, now=0.0, seed=0, bumps=0,
         robot_pose=world.start, robot_radius=profile.body.radius,
         rooms=[SceneRoom(r.name, r.type, r.polygon) for r in world.rooms],
-        walls=[tuple(float(v) for v in s) for s in world.wall_segments],
+        walls=[tuple(float(v) for v in s) for s in world.wall_segments],  # type: ignore[misc]  # x1 y1 x2 y2
         objects=[SceneObject(o.id, tuple(int(c) for c in o.rgb), o.footprint(),  # type: ignore[arg-type]
                              (o.pose.x, o.pose.y - o.size[1] / 2 - 0.12)) for o in world.objects],
         people=people, goals=goals,

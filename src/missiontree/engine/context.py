@@ -17,7 +17,7 @@ from missiontree.types import Marker
 class EventSink(Protocol):
     """Where leaves send typed events (goal sent, model call, alarm, ...) for the tick log."""
 
-    def emit(self, event: str, **fields: Any) -> None:
+    def emit(self, event: str, /, **fields: Any) -> None:
         """Record one event of kind ``event``; fields must be JSON-serialisable."""
         ...
 
@@ -25,7 +25,7 @@ class EventSink(Protocol):
 class NullEvents:
     """An event sink that drops everything (for trees ticked outside the runner)."""
 
-    def emit(self, event: str, **fields: Any) -> None:
+    def emit(self, event: str, /, **fields: Any) -> None:
         """Drop the event."""
 
 

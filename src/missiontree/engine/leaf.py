@@ -149,7 +149,7 @@ class Leaf(py_trees.behaviour.Behaviour):
             return raw
         value = self.bb.get(raw.key)
         annotation = type(self.params).model_fields[field_name].annotation
-        return TypeAdapter(annotation).validate_python(value)
+        return TypeAdapter(annotation).validate_python(value)  # type: ignore[arg-type]  # declared: annotated
 
     def read(self, port: str, default: Any = None) -> Any:
         """Read the blackboard key bound to input port ``port`` (``default`` when unset)."""

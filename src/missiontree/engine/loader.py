@@ -314,7 +314,8 @@ class _Loader:
             return None
         suffix = f"[{index}]" if index is not None else ""
         if isinstance(data, str):
-            type_name, params, params_path = data, {}, key_path
+            type_name, params_path = data, key_path
+            params: dict[str, Any] = {}
         elif isinstance(data, dict) and len(data) == 1:
             type_name, params = next(iter(data.items()))
             params_path = (*key_path, type_name)

@@ -132,7 +132,8 @@ def validate_params(
         elif instance is not None:
             values[name] = getattr(instance, name)
         elif (info.alias or name) in plain:
-            values[name] = TypeAdapter(info.annotation).validate_python(plain[info.alias or name])
+            adapter = TypeAdapter(info.annotation)  # type: ignore[arg-type]  # a declared field is annotated
+            values[name] = adapter.validate_python(plain[info.alias or name])
     return model.model_construct(_fields_set={*refs, *(by_name[k] for k in plain)}, **values), []
 
 

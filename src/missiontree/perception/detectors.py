@@ -493,7 +493,8 @@ class YoloOnnxDetector:
     def preprocess(self, image: np.ndarray) -> tuple[np.ndarray, Letterbox]:
         """Letterbox ``image`` into the model's input tensor ``[1, 3, H, W]`` scaled to [0, 1]."""
         padded, box = letterbox(image, self.input_height, self.input_width)
-        tensor = padded.transpose(2, 0, 1)[None].astype(self._input_dtype) / self._input_dtype(255.0)
+        # numpy's stubs cannot divide an array of a dtype chosen at run time; it is float16 or float32
+        tensor = padded.transpose(2, 0, 1)[None].astype(self._input_dtype) / self._input_dtype(255.0)  # type: ignore[operator]
         return np.ascontiguousarray(tensor), box
 
     def detect(self, image: np.ndarray) -> list[Detection]:

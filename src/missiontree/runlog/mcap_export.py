@@ -357,8 +357,10 @@ def grid_message(grid_map: dict[str, Any], t: float) -> dict[str, Any]:
     import numpy as np
 
     image = cv2.imdecode(np.frombuffer(base64.b64decode(grid_map["png"]), np.uint8), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise ValueError("the run's map is not a PNG image")
     rows = np.flipud(image)  # the PNG's top row is the highest y; the grid's first row is the lowest
-    cells = np.full(rows.shape, -1, dtype=np.int8)
+    cells: np.ndarray = np.full(rows.shape, -1, dtype=np.int8)
     cells[rows >= 250] = 0
     cells[rows <= 50] = 100
     resolution = float(grid_map["resolution"])

@@ -57,7 +57,7 @@ def synthetic_tree(leaves: int = 4, groups: int = 1) -> dict[str, Any]:
     root["children"].append(servo)
     for g in range(groups):
         name = f"group{g}"
-        group = {
+        group: dict[str, Any] = {
             "path": f"root/{name}",
             "name": name,
             "type": "Sequence",

@@ -49,7 +49,7 @@ def draw_scene(
     data = np.asarray(grid.data)
     h, w = data.shape
     scale = max(1, min(8, _SCALE_MAX // max(h, w, 1)))
-    img = np.full((h, w, 3), 255, np.uint8)
+    img: np.ndarray = np.full((h, w, 3), 255, np.uint8)
     img[data < 0] = (200, 200, 200)
     img[data >= 50] = (0, 0, 0)
     img = cv2.resize(img[::-1], (w * scale, h * scale), interpolation=cv2.INTER_NEAREST)

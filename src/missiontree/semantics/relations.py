@@ -111,7 +111,7 @@ def bodies_of(objects: Sequence[object]) -> list[Body]:
         w, d, h = getattr(o, "size", (0.0, 0.0, 0.0))
         out.append(
             Body(
-                str(o.id),
+                str(o.id),  # type: ignore[attr-defined]
                 float(x),
                 float(y),
                 float(z),

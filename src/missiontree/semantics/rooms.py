@@ -182,9 +182,9 @@ def segment_rooms(
         count, markers = cv2.connectedComponents((dist > radius).astype(np.uint8), connectivity=8)
         sizes = np.bincount(markers.ravel(), minlength=count)[1:]
         # a piece at this radius is the core of a room: its room is larger than the core itself
-        rooms = int(np.sum((sizes >= min_cells * 0.1) & (sizes <= max_cells)))
-        if rooms > best_count:
-            best_markers, best_count = markers, rooms
+        found = int(np.sum((sizes >= min_cells * 0.1) & (sizes <= max_cells)))
+        if found > best_count:
+            best_markers, best_count = markers, found
         radius += p.step
     assert best_markers is not None
     markers = _drop_small_cores(best_markers, min_cells * 0.1)

@@ -227,7 +227,8 @@ class SceneGraph:
     def drop_dangling(self) -> list[dict[str, Any]]:
         """Drop every edge whose source or target is not a node; return the dropped edges."""
         ids = {_key(n["id"]) for n in self.nodes}
-        kept, dropped = [], []
+        kept: list[dict[str, Any]] = []
+        dropped: list[dict[str, Any]] = []
         for edge in self.edges:
             whole = _key(edge["source_id"]) in ids and _key(edge["target_id"]) in ids
             (kept if whole else dropped).append(edge)
@@ -249,7 +250,7 @@ class SceneGraph:
                 source_id, target_id, relation = rel.source_id, rel.target_id, rel.relation
             else:
                 source_id, target_id = rel.get("source_id"), rel.get("target_id")
-                relation = rel.get("relation")
+                relation = str(rel.get("relation") or "")  # as the edge below stores it
             source, target = index.get(_key(source_id)), index.get(_key(target_id))
             edge = {
                 "source_id": source_id,

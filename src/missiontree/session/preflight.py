@@ -219,7 +219,7 @@ def _provider_options(document: Located, roles: Mapping[str, Mapping[str, Any]],
         if name not in providers:
             continue
         try:
-            factory = resolve_factory("provider", str(name), providers[name])
+            factory = resolve_factory("provider", str(name), providers[str(name)])
         except (ImportError, MissionTreeError):
             continue  # reported when the models are built (the role is unusable, with the reason)
         model = getattr(factory, "options_model", None)

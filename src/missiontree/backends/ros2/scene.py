@@ -95,7 +95,8 @@ def scene_markers(
         text.color = ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0)
         text.text = key
         markers += [cube, text]
-    edges = graph.get("edges") if isinstance(graph.get("edges"), list) else []
+    edges = graph.get("edges")
+    edges = edges if isinstance(edges, list) else []
     for node in nodes:
         if not isinstance(node, Mapping) or node.get("type") != "room":
             continue

@@ -79,7 +79,7 @@ class TransformBuffer:
             if static:
                 edge.history = StampedHistory(horizon=math.inf, maxlen=1)
                 edge.history.push(stamp, pose)
-            elif edge.history.latest() is None or stamp >= edge.history.latest()[0]:
+            elif (latest := edge.history.latest()) is None or stamp >= latest[0]:
                 edge.history.push(stamp, pose)
 
     def frames(self) -> set[str]:
@@ -115,7 +115,7 @@ class TransformBuffer:
             path_source = up_source[: up_source.index(common)]
             path_target = up_target[: up_target.index(common)]
             edges = [self._edges[f] for f in path_source + path_target]
-            dynamic = [e.history.latest()[0] for e in edges if not e.static and e.history.latest()]
+            dynamic = [last[0] for e in edges if not e.static and (last := e.history.latest())]
             if stamp is None:
                 stamp = min(dynamic) if dynamic else 0.0
             source_in_common = self._pose_along(path_source, stamp)

@@ -169,7 +169,9 @@ def _draw(
     leaves, walls, doors = _partition(_Rect(0.0, 0.0, width, height), rooms, rng)
     types = [ROOM_TYPES[i % len(ROOM_TYPES)] for i in range(len(leaves))]
     order = rng.permutation(len(leaves))
-    room_data, objects, placed = [], [], []
+    room_data: list[Any] = []
+    objects: list[Any] = []
+    placed: list[Any] = []
     for n, i in enumerate(order):
         rect, kind = leaves[i], types[n]
         room_data.append(

@@ -461,9 +461,9 @@ class Navigator:
                                f"an obstacle at ({ox:.2f}, {oy:.2f})", BLOCKED)
         if now - follow.last_replan >= self.spec.replan_period and now - follow.blocked_since >= 0.5:
             follow.last_replan = now
-            points = self._scan_points(scan, pose)
+            seen = self._scan_points(scan, pose)
             goal = self.handle.goal if self.handle else None
-            path2 = self._plan(self.costmap.with_points(points), pose, goal) if goal else None
+            path2 = self._plan(self.costmap.with_points(seen), pose, goal) if goal else None
             self.replans += 1
             if path2 is not None:
                 follow.set_path(path2)

@@ -88,7 +88,7 @@ class Primitives:
         pattern = None
         if self.pattern is not None or other.pattern is not None:
             pattern = np.concatenate([self.patterns(), other.patterns()])
-        return Primitives(*(np.concatenate([a, b]) for a, b in zip(
+        return Primitives(*(np.concatenate([a, b]) for a, b in zip(  # type: ignore[call-arg]  # 5 + pattern
             (self.kind, self.geom, self.z, self.rgb, self.inst),
             (other.kind, other.geom, other.z, other.rgb, other.inst), strict=True)), pattern)
 

@@ -32,7 +32,7 @@ import pydantic
 from missiontree.backends.sim.mapimage import MAX_MAP_CELLS, MapImageError, read_map_image
 from missiontree.backends.sim.patterns import pattern_for
 from missiontree.backends.sim.people import Crowd, Person
-from missiontree.backends.sim.raycast import BOX, CYLINDER, SEGMENT, Primitives
+from missiontree.backends.sim.raycast import BOX, CYLINDER, SEGMENT, Primitives, Row
 from missiontree.backends.sim.schema import (
     MAX_EXTENT,
     NavMapYaml,
@@ -352,7 +352,7 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem],
     object_at = kept.get("objects") or list(range(len(spec.objects)))
     person_at = kept.get("people") or list(range(len(spec.people)))
     segments: list[tuple[float, float, float, float]] = []
-    rows: list[tuple[int, tuple[float, ...], float, float, tuple[int, int, int], int]] = []
+    rows: list[Row] = []
     ceiling = 2.5
     map_grid: tuple[np.ndarray, float, Pose2D] | None = None
     if spec.walls is not None:
@@ -640,7 +640,7 @@ def _check_routes(doc: Located, spec: WorldSpec, segs: np.ndarray, problems: lis
     if not len(segs):
         return
     for i, person in enumerate(spec.people):
-        points = [tuple(p) for p in person.route]
+        points = list(person.route)
         if person.loop and len(points) > 2:
             points.append(points[0])
         for j, (a, b) in enumerate(zip(points[:-1], points[1:], strict=True)):
@@ -706,7 +706,7 @@ def _footprint_hits_walls(obj: WorldObject, segs: np.ndarray) -> bool:
 
 
 def _footprint_hits_grid(obj: WorldObject, walls_grid: np.ndarray, grid: OccupancyGrid) -> bool:
-    mask = np.zeros(walls_grid.shape, np.uint8)
+    mask: np.ndarray = np.zeros(walls_grid.shape, np.uint8)
     poly = ((obj.footprint() - [grid.origin.x, grid.origin.y]) / grid.resolution * 16).astype(np.int32)
     cv2.fillPoly(mask, [poly], 1, cv2.LINE_8, shift=4)
     mask = cv2.erode(mask, np.ones((3, 3), np.uint8))

@@ -51,6 +51,8 @@ class Fail(Leaf):
 
         reason: str = Field("failed on purpose", description="The failure reason recorded in the tick log.")
 
+    params: Params
+
     def update(self) -> Status:
         """Fail with the reason."""
         return self.fail(self.params.reason)

@@ -20,6 +20,8 @@ class SetBlackboard(Leaf):
         key: Annotated[str, Output("the key written")] = Field(description="Blackboard key to write.")
         value: Any = Field(description="Value to write (a `{bb: other}` copies another key).")
 
+    params: Params
+
     def update(self) -> Status:
         """Write the value (read now if it references another key) and succeed."""
         value = self.value("value")
