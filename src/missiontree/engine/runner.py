@@ -369,9 +369,9 @@ class Runner:
             self._restore_signal_handlers()
         self._call_hook("missiontree_mission_finished", context=self.context, summary=result.summary)
         if self._write_failure is not None:
-            what, error = self._write_failure
+            what, failure = self._write_failure
             raise ConfigError(f"the run ended ({result.status.name}, stopped by {result.stopped_by}) but its "
-                              f"{what} could not be written in {self.run_dir}: {error.strerror or error}")
+                              f"{what} could not be written in {self.run_dir}: {failure.strerror or failure}")
         return result
 
     def _loop(self, start: float) -> tuple[Status, str]:

@@ -176,8 +176,10 @@ class Ros2Robot:
             node.create_subscription(PoseWithCovarianceStamped, t.amcl_pose, self._on_amcl, latched_qos())
         for kind in self._sensors.kinds.values():
             if kind.ros2 is not None:
+                # mypy cannot infer a lambda with a default argument (binding this loop's kind)
                 node.create_subscription(kind.ros2.message_type(), kind.ros2.topic,
-                                         lambda m, k=kind: self._on_sensor(k, m), qos_named(kind.ros2.qos, p))
+                                         lambda m, k=kind: self._on_sensor(k, m),  # type: ignore[misc]
+                                         qos_named(kind.ros2.qos, p))
 
     def _advertise(self) -> None:
         p, t, node = self.profile, self.profile.topics, self.node
