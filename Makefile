@@ -37,9 +37,11 @@ demo: setup
 
 lint: setup
 	$(VENV)/bin/ruff check src tests examples benchmarks tools plugins
+	$(VENV)/bin/mypy
 
 test: setup setup-ros2 setup-browser setup-train
 	$(VENV)/bin/ruff check src tests examples benchmarks tools plugins
+	$(VENV)/bin/mypy
 	MISSIONTREE_REQUIRE_ROS2=1 MISSIONTREE_REQUIRE_BROWSER=1 MISSIONTREE_REQUIRE_TRAIN=1 $(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests) $(if $(wildcard $(BATTERY_PLUGIN)/tests),$(BATTERY_PLUGIN)/tests)
 
 bench: setup
