@@ -1,6 +1,6 @@
 """Where is the person in this frame? Bearing, distance and map position by a chosen method.
 
-The three methods of issue 5, all fed with the sensor data *of the instant the frame was taken*
+The three distance methods, all fed with the sensor data *of the instant the frame was taken*
 (``robot.pose_at(frame.stamp)``, ``robot.scan_at(frame.stamp)``) unless told to use the latest
 data, which is what the patrol-robot thesis did and why its distances drifted by Δd = v·T:
 

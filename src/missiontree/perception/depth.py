@@ -1,6 +1,6 @@
 """Distance and map position of a detection from the depth image of its own frame.
 
-Method (c) of issue 5: the median depth inside the box, made robust against what a box holds
+The ``depth`` distance method: the median depth inside the box, made robust against what a box holds
 besides its target — the floor at its feet, the background between the legs and around the
 outline (floor pixels are dropped by their height, the nearest cluster of depths is kept, as NAIS
 takes the median depth around the box centre). The position is the ray through the
