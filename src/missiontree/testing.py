@@ -8,6 +8,9 @@
 - :func:`capture_tick_log`: run a tree with the runner and get the tick log lines back.
 - :func:`clean_state`: reset py_trees' blackboard and structlog's context (call it in a fixture).
 - :func:`fresh_plugins`: a fresh plugin manager, entry-point plugins off unless asked.
+- :mod:`missiontree.testing_models`: conformance suites for model providers (Detector,
+  VisionLanguageModel, LanguageModel, Embedder); :mod:`missiontree.robot.conformance` for backends.
+- :meth:`ClockRobot.add_sensor` / :meth:`ClockRobot.set_sensor`: plugin sensor readings for leaf tests.
 """
 
 from __future__ import annotations
@@ -210,8 +213,12 @@ def clean_state() -> None:
     structlog.reset_defaults()
 
 
-def fresh_plugins(autoload: bool = False) -> Any:
-    """A fresh :class:`~missiontree.plugins.manager.Plugins` (entry-point plugins off by default)."""
+def fresh_plugins(autoload: bool = False, strict: bool = False) -> Any:
+    """A fresh :class:`~missiontree.plugins.manager.Plugins` (entry-point plugins off by default).
+
+    ``strict=True`` raises on a broken plugin instead of leaving it out: a plugin's own tests use it
+    to see their plugin's error.
+    """
     from missiontree.plugins.manager import load_plugins
 
-    return load_plugins(autoload=autoload)
+    return load_plugins(autoload=autoload, strict=strict)

@@ -96,11 +96,14 @@ def test_explicit_autoload_wins_over_the_environment(entry_points: Callable,
 
 
 def test_plugin_that_fails_to_import_is_named_with_the_fix(entry_points: Callable) -> None:
-    """An entry point whose module cannot be imported is a PluginError naming it and how to skip it."""
-    entry_points(broken="mt_no_such_module_xyz")
-    with pytest.raises(PluginError) as caught:
-        load_plugins(autoload=True)
-    message = str(caught.value)
+    """An entry point whose module cannot be imported is left out, named with how to fix or skip it."""
+    entry_points(broken="mt_no_such_module_xyz", beacon=_beacon_plugin())
+    plugins = load_plugins(autoload=True)
+    assert [b.name for b in plugins.broken] == ["broken"]
+    assert "Beacon" in plugins.nodes and [p.name for p in plugins.info] == ["builtin", "beacon"]
+    message = plugins.broken[0].error
+    with pytest.raises(PluginError, match="mt_no_such_module_xyz"):
+        load_plugins(autoload=True, strict=True)
     assert "plugin 'broken'" in message and "mt_no_such_module_xyz" in message
     assert "--no-plugins" in message and "MISSIONTREE_DISABLE_PLUGIN_AUTOLOAD=1" in message
 
@@ -108,8 +111,12 @@ def test_plugin_that_fails_to_import_is_named_with_the_fix(entry_points: Callabl
 def test_misspelt_hook_is_a_plugin_error(entry_points: Callable) -> None:
     """A hook implementation whose name is not a missiontree hook is refused."""
     entry_points(typo=_module("mt_test_typo", missiontree_register_node=lambda registry: None))
+    plugins = load_plugins(autoload=True)
+    assert [b.name for b in plugins.broken] == ["typo"]
+    assert "'missiontree_register_node', which is not a missiontree hook" in plugins.broken[0].error
+    assert plugins.pm.get_plugin("typo") is None
     with pytest.raises(PluginError, match="missiontree_register_node"):
-        load_plugins(autoload=True)
+        load_plugins(autoload=True, strict=True)
 
 
 def test_hook_that_raises_is_a_plugin_error_naming_the_plugin(entry_points: Callable) -> None:
@@ -118,17 +125,30 @@ def test_hook_that_raises_is_a_plugin_error_naming_the_plugin(entry_points: Call
     def missiontree_register_nodes(registry: Any) -> None:
         raise RuntimeError("forgot an import")
 
-    entry_points(crashy=_module("mt_test_crashy", missiontree_register_nodes=missiontree_register_nodes))
+    def missiontree_register_backends(backends: dict[str, Any]) -> None:
+        backends["crashy_backend"] = lambda options: ClockRobot()
+
+    entry_points(crashy=_module("mt_test_crashy", missiontree_register_nodes=missiontree_register_nodes,
+                                missiontree_register_backends=missiontree_register_backends))
+    plugins = load_plugins(autoload=True)
+    assert "crashy_backend" not in plugins.backends  # left out whole, not half registered
+    assert plugins.pm.get_plugin("crashy") is None   # its mission hooks do not run either
+    [broken] = plugins.broken
+    assert broken.name == "crashy" and "failed in missiontree_register_nodes" in broken.error
     with pytest.raises(PluginError, match=r"plugin 'crashy' failed in missiontree_register_nodes.*forgot"):
-        load_plugins(autoload=True)
+        load_plugins(autoload=True, strict=True)
 
 
 def test_node_type_registered_twice_names_both_plugins(entry_points: Callable) -> None:
     """Two plugins registering the same node type name is an error naming both."""
     second = _module("mt_test_second", missiontree_register_nodes=lambda registry: registry.add(Beacon))
     entry_points(first=_beacon_plugin("mt_test_first"), second=second)
+    plugins = load_plugins(autoload=True)
+    assert plugins.provided_by("nodes", "Beacon") == "first"
+    assert [b.name for b in plugins.broken] == ["second"]
+    assert "'Beacon' registered twice: by 'first' and by 'second'" in plugins.broken[0].error
     with pytest.raises(PluginError, match=r"'Beacon' registered twice: by 'first' and by 'second'"):
-        load_plugins(autoload=True)
+        load_plugins(autoload=True, strict=True)
 
 
 def test_backend_registered_twice_names_both_plugins(entry_points: Callable) -> None:
@@ -138,8 +158,11 @@ def test_backend_registered_twice_names_both_plugins(entry_points: Callable) -> 
         backends["sim"] = lambda options: ClockRobot()
 
     entry_points(rival=_module("mt_test_rival", missiontree_register_backends=missiontree_register_backends))
+    plugins = load_plugins(autoload=True)
+    assert plugins.backends["sim"] == "missiontree.backends.sim:create_robot"
+    assert "backend 'sim' registered twice: by 'builtin' and by 'rival'" in plugins.broken[0].error
     with pytest.raises(PluginError, match=r"backend 'sim' registered twice: by 'builtin' and by 'rival'"):
-        load_plugins(autoload=True)
+        load_plugins(autoload=True, strict=True)
 
 
 def test_every_call_starts_fresh(entry_points: Callable) -> None:

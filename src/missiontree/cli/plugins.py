@@ -31,7 +31,8 @@ def run(args: argparse.Namespace) -> int:
     plugins = plugins_from_args(args)
     autoload = not args.no_plugins and autoload_enabled()
     if args.json:
-        print_json({"autoload": autoload, "plugins": [asdict(p) for p in plugins.info]})
+        print_json({"autoload": autoload, "plugins": [asdict(p) for p in plugins.info],
+                    "broken": [asdict(b) for b in plugins.broken]})
         return 0
     for plugin in plugins.info:
         origin = plugin.distribution or "built in"
@@ -41,6 +42,9 @@ def run(args: argparse.Namespace) -> int:
         print(_names("providers", plugin.providers))
         if plugin.sensors:
             print(_names("sensors", plugin.sensors))
+    for broken in plugins.broken:
+        print(f"{broken.name}  ({broken.distribution or 'entry point'}, BROKEN: left out)")
+        print(f"    {broken.error}")
     if not autoload:
         print(f"(installed plugins not loaded: --no-plugins or {DISABLE_ENV} is set)")
     return 0

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import os
+import sys
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -31,6 +32,17 @@ from missiontree.plugins.builtin import resolve_factory
 
 DISABLE_ENV = "MISSIONTREE_DISABLE_PLUGIN_AUTOLOAD"
 BUILTIN = "builtin"
+_warned: set[str] = set()
+
+
+def _warn(plugin: BrokenPlugin) -> None:
+    """Say on stderr (once per process) that a broken plugin was left out: stdout stays the command's."""
+    if plugin.error not in _warned:
+        _warned.add(plugin.error)
+        print(f"missiontree: warning: {plugin.error} (the plugin was left out; other plugins loaded)",
+              file=sys.stderr)
+
+
 _DISABLE_HINT = f"or run with --no-plugins / {DISABLE_ENV}=1 to skip installed plugins"
 
 
@@ -57,6 +69,21 @@ class PluginInfo:
     sensors: list[str] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class BrokenPlugin:
+    """An entry-point plugin left out because it is broken.
+
+    Attributes:
+        name: Its entry point name.
+        distribution: The distribution and version it came from.
+        error: What is wrong, naming the plugin and the fix.
+    """
+
+    name: str
+    distribution: str
+    error: str
+
+
 @dataclass
 class Plugins:
     """What the loaded plugins provide.
@@ -68,6 +95,7 @@ class Plugins:
         providers: Model provider name → factory.
         info: Every loaded plugin, built-in first, with what it registered.
         sensors: Sensor name → :class:`~missiontree.robot.sensors.SensorKind`.
+        broken: Entry-point plugins left out, with the reason (see :func:`load_plugins`).
     """
 
     pm: pluggy.PluginManager
@@ -76,6 +104,7 @@ class Plugins:
     providers: dict[str, Any]
     info: list[PluginInfo]
     sensors: dict[str, Any] = field(default_factory=dict)
+    broken: list[BrokenPlugin] = field(default_factory=list)
 
     @property
     def hook(self) -> Any:
@@ -151,9 +180,10 @@ def discover_entry_points() -> list[importlib.metadata.EntryPoint]:
     return sorted(importlib.metadata.entry_points(group=hookspecs.ENTRY_POINT_GROUP), key=lambda e: e.name)
 
 
-def _entry_point_plugins() -> list[tuple[str, Any, str]]:
-    """Import every ``missiontree`` entry point: (name, module, distribution), sorted by name."""
+def _entry_point_plugins() -> tuple[list[tuple[str, Any, str]], list[BrokenPlugin]]:
+    """Import every ``missiontree`` entry point: (name, module, distribution) by name, and the broken ones."""
     loaded: list[tuple[str, Any, str]] = []
+    broken: list[BrokenPlugin] = []
     seen: set[str] = set()
     for ep in discover_entry_points():
         if ep.name in seen or ep.name == BUILTIN:
@@ -164,13 +194,13 @@ def _entry_point_plugins() -> list[tuple[str, Any, str]]:
             module = ep.load()
         except Exception as error:  # noqa: BLE001 - any import failure is reported as the plugin's
             where = f" from distribution {dist}" if dist else ""
-            raise PluginError(
+            broken.append(BrokenPlugin(ep.name, dist, (
                 f"plugin {ep.name!r} (entry point {ep.value!r}{where}) failed to import: "
                 f"{type(error).__name__}: {error}; fix or uninstall it "
-                f"(pip uninstall {ep.dist.name if ep.dist else ep.name}), {_DISABLE_HINT}"
-            ) from error
+                f"(pip uninstall {ep.dist.name if ep.dist else ep.name}), {_DISABLE_HINT}")))
+            continue
         loaded.append((ep.name, module, dist))
-    return loaded
+    return loaded, broken
 
 
 def _register(pm: pluggy.PluginManager, name: str, module: Any, dist: str) -> PluginInfo:
@@ -197,72 +227,131 @@ def _call_for_each(pm: pluggy.PluginManager, hook_name: str, plugin_name: str, *
                               f"{error}; fix the plugin, {_DISABLE_HINT}") from error
 
 
-def _collect_named(
-    pm: pluggy.PluginManager, hook_name: str, info: PluginInfo, target: dict[str, Any],
-    owners: dict[str, str], kind: str,
-) -> list[str]:
-    """Call a ``dict``-filling hook of one plugin and merge its entries, refusing duplicates."""
-    local: dict[str, Any] = {}
-    _call_for_each(pm, hook_name, info.name, **{kind: local})
-    for name, factory in local.items():
-        if name in target:
-            raise PluginError(f"{kind[:-1]} {name!r} registered twice: by {owners[name]!r} and by "
-                              f"{info.name!r}; uninstall or rename one of them")
-        target[name] = factory
-        owners[name] = info.name
-    return list(local)
-
-
-def load_plugins(autoload: bool | None = None) -> Plugins:
+def load_plugins(autoload: bool | None = None, strict: bool = False) -> Plugins:
     """Build a fresh plugin manager and collect every node type, backend, provider and sensor.
+
+    A broken entry-point plugin — it fails to import, implements a hook missiontree does not have,
+    raises in a registration hook, or registers a name another plugin took — names itself and is
+    left out whole (nothing it registered is kept, its mission hooks do not run); the others load.
+    Each is listed in :attr:`Plugins.broken` and logged as a warning, so an unrelated command still
+    runs, and a mission that needs the broken plugin's nodes is refused by the checker.
 
     Args:
         autoload: Load entry-point plugins; None means "unless ``MISSIONTREE_DISABLE_PLUGIN_AUTOLOAD``
             is set". The built-in plugin is always loaded.
+        strict: Raise on the first broken plugin instead (a plugin's own tests use it).
 
     Raises:
-        PluginError: A plugin failed to import, implements an unknown hook, or registered a name
-            another plugin already took (the message names the plugins and the fix).
+        PluginError: The built-in plugin is broken, or (``strict``) any plugin is (the message names
+            the plugin and the fix).
     """
     pm = pluggy.PluginManager(hookspecs.PROJECT)
     pm.add_hookspecs(hookspecs)
     info = [_register(pm, BUILTIN, builtin, "")]
+    broken: list[BrokenPlugin] = []
     if autoload_enabled(autoload):
-        info += [_register(pm, name, module, dist) for name, module, dist in _entry_point_plugins()]
-    try:
-        pm.check_pending()
-    except pluggy.PluginValidationError as error:
-        raise PluginError(f"{error}; hook names must match missiontree.plugins.hookspecs, "
-                          f"{_DISABLE_HINT}") from error
+        loaded, broken = _entry_point_plugins()
+        for name, module, dist in loaded:
+            try:
+                info.append(_register(pm, name, module, dist))
+                _check_hook_names(pm, name)
+            except PluginError as error:
+                if pm.get_plugin(name) is not None:
+                    pm.unregister(name=name)
+                broken.append(BrokenPlugin(name, dist, str(error)))
+    if strict and broken:
+        raise PluginError(broken[0].error)
+    info = [plugin for plugin in info if pm.get_plugin(plugin.name) is not None]
 
     nodes = NodeRegistry()
     backends: dict[str, Any] = {}
     providers: dict[str, Any] = {}
-    backend_owner: dict[str, str] = {}
-    provider_owner: dict[str, str] = {}
     sensors: dict[str, Any] = {}
-    sensor_owner: dict[str, str] = {}
+    owners: dict[str, dict[str, str]] = {"backends": {}, "providers": {}, "sensors": {}}
+    kept: list[PluginInfo] = []
     for plugin in info:
-        _call_for_each(pm, "missiontree_register_nodes", plugin.name,
-                       registry=_ProviderScopedRegistry(nodes, plugin.name, plugin.nodes))
-        plugin.backends = _collect_named(pm, "missiontree_register_backends", plugin, backends,
-                                         backend_owner, "backends")
-        plugin.providers = _collect_named(pm, "missiontree_register_model_providers", plugin, providers,
-                                          provider_owner, "providers")
-        plugin.sensors = _collect_named(pm, "missiontree_register_sensors", plugin, sensors,
-                                        sensor_owner, "sensors")
-    _check_sensors(sensors, sensor_owner)
-    return Plugins(pm=pm, nodes=nodes, backends=backends, providers=providers, info=info, sensors=sensors)
+        try:
+            found = _collect_plugin(pm, plugin)
+            _merge(plugin, found, nodes, {"backends": backends, "providers": providers, "sensors": sensors},
+                   owners)
+        except PluginError as error:
+            if plugin.name == BUILTIN or strict:
+                raise
+            pm.unregister(name=plugin.name)
+            broken.append(BrokenPlugin(plugin.name, plugin.distribution, str(error)))
+            continue
+        kept.append(plugin)
+    for plugin in broken:
+        _warn(plugin)
+    return Plugins(pm=pm, nodes=nodes, backends=backends, providers=providers, info=kept, sensors=sensors,
+                   broken=broken)
 
 
-def _check_sensors(sensors: dict[str, Any], owners: dict[str, str]) -> None:
-    """Every registered sensor is a SensorKind filed under its own name."""
+def _check_hook_names(pm: pluggy.PluginManager, name: str) -> None:
+    """Refuse a plugin with a hook implementation whose name is no missiontree hook (a misspelling)."""
+    plugin = pm.get_plugin(name)
+    for hook_name in dir(pm.hook):
+        caller = getattr(pm.hook, hook_name, None)
+        if not isinstance(caller, pluggy.HookCaller) or caller.spec is not None:
+            continue
+        if any(impl.plugin is plugin for impl in caller.get_hookimpls()):
+            raise PluginError(f"plugin {name!r} implements {hook_name!r}, which is not a missiontree hook; "
+                              f"hook names must match missiontree.plugins.hookspecs, {_DISABLE_HINT}")
+
+
+@dataclass
+class _Found:
+    nodes: NodeRegistry
+    named: dict[str, dict[str, Any]]
+
+
+def _collect_plugin(pm: pluggy.PluginManager, plugin: PluginInfo) -> _Found:
+    """Everything one plugin registers, in registries of its own (merged only if all of it is fine)."""
+    own = NodeRegistry()
+    added: list[str] = []
+    _call_for_each(pm, "missiontree_register_nodes", plugin.name,
+                   registry=_ProviderScopedRegistry(own, plugin.name, added))
+    named: dict[str, dict[str, Any]] = {}
+    for kind, hook in (("backends", "missiontree_register_backends"),
+                       ("providers", "missiontree_register_model_providers"),
+                       ("sensors", "missiontree_register_sensors")):
+        local: dict[str, Any] = {}
+        _call_for_each(pm, hook, plugin.name, **{kind: local})
+        named[kind] = local
+    _check_sensors(named["sensors"], plugin.name)
+    return _Found(own, named)
+
+
+def _merge(plugin: PluginInfo, found: _Found, nodes: NodeRegistry, targets: dict[str, dict[str, Any]],
+           owners: dict[str, dict[str, str]]) -> None:
+    """Add one plugin's registrations, refusing any name already taken (nothing is added then)."""
+    for node_type in found.nodes:
+        existing = nodes.get(node_type.name)
+        if existing is not None:
+            raise PluginError(f"node type {node_type.name!r} registered twice: by {existing.provider!r} "
+                              f"and by {plugin.name!r}; rename one of them")
+    for kind, local in found.named.items():
+        for name in local:
+            if name in targets[kind]:
+                raise PluginError(f"{kind[:-1]} {name!r} registered twice: by {owners[kind][name]!r} and by "
+                                  f"{plugin.name!r}; uninstall or rename one of them")
+    for node_type in found.nodes:
+        nodes.add(node_type)
+    plugin.nodes = [t.name for t in found.nodes]
+    for kind, local in found.named.items():
+        targets[kind].update(local)
+        owners[kind].update(dict.fromkeys(local, plugin.name))
+        setattr(plugin, kind, list(local))
+
+
+def _check_sensors(sensors: dict[str, Any], plugin: str) -> None:
+    """Every sensor a plugin registered is a SensorKind filed under its own name."""
     from missiontree.robot.sensors import SensorKind
 
     for name, kind in sensors.items():
         if not isinstance(kind, SensorKind):
-            raise PluginError(f"plugin {owners[name]!r} registered sensor {name!r} as {type(kind).__name__}; "
+            raise PluginError(f"plugin {plugin!r} registered sensor {name!r} as {type(kind).__name__}; "
                               f"expected missiontree.robot.sensors.SensorKind, {_DISABLE_HINT}")
         if kind.name != name:
-            raise PluginError(f"plugin {owners[name]!r} registered sensor {kind.name!r} under the name "
+            raise PluginError(f"plugin {plugin!r} registered sensor {kind.name!r} under the name "
                               f"{name!r}; use sensors[kind.name] = kind")
