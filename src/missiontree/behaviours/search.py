@@ -294,6 +294,12 @@ class ResumeExplore(Explore):
             0, ge=0, description="End SUCCESS after reaching this many goals (0: explore all)."
         )
         exhausted_fails: bool = Field(False, description="Nothing left to explore is FAILURE 'not found'.")
+        second_chances: int = Field(
+            1,
+            ge=0,
+            description="Times the goals given up as unreachable are tried again once nothing else "
+            "is left (a doorway judged too narrow on a half-learned map often is not).",
+        )
 
     params: Params
 
@@ -302,6 +308,7 @@ class ResumeExplore(Explore):
         self.kept: ExplorationPlanner | None = None
         self.exhausted = False
         self.reached = 0
+        self.chances_used = 0
 
     def planner_options(self) -> dict[str, Any]:
         """The exploration planner's options from the parameters (as Explore builds its planner)."""
@@ -344,10 +351,25 @@ class ResumeExplore(Explore):
         return status
 
     def _select(self, now: float, grid: Any, pose: Pose2D) -> Status:
-        """Choose the next goal, unless ``max_goals`` goals were reached in this run of the leaf."""
+        """Choose the next goal, unless ``max_goals`` goals were reached in this run of the leaf.
+
+        When nothing is left but goals given up as unreachable, they get ``second_chances``.
+        """
         if self.params.max_goals and self.reached >= self.params.max_goals:
             return self.succeed(f"reached {self.reached} goal{'s' if self.reached > 1 else ''}")
-        return super()._select(now, grid, pose)
+        status = super()._select(now, grid, pose)
+        planner = self.planner
+        if (
+            status == Status.SUCCESS
+            and planner is not None
+            and planner.blacklist
+            and self.chances_used < self.params.second_chances
+        ):
+            self.chances_used += 1
+            self.emit("explore_second_chance", goals=len(planner.blacklist))
+            planner.blacklist.clear()
+            return super()._select(now, grid, pose)
+        return status
 
 
 class Locate(ResumeExplore):
