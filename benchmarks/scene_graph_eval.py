@@ -73,6 +73,9 @@ TRUTH_ALIAS = {"desk": "table", "dining table": "table", "coffee table": "table"
 MATCH_RADIUS = 0.5
 TURN_SPEED = 0.5
 COVER_RADIUS = 3.0
+#: The dynamic phase's pass adds a viewpoint this far (min, best, max) from each known instance no
+#: viewpoint of the route is within REVISIT_MAX of.
+REVISIT_MIN, REVISIT_BEST, REVISIT_MAX = 0.9, 1.5, 2.2
 NAIS_ROOM_PERIOD = 1.0
 DEBUG = False
 SINGLE_PASS = False
@@ -113,8 +116,10 @@ def viewpoints(robot: Any) -> list[tuple[float, float]]:
     # room to turn farther than COVER_RADIUS from a viewpoint
     rows, cols = np.nonzero(free & (clearance >= 0.45) & (seg.labels > 0))
     if len(rows):
-        every = np.stack([grid.origin.x + (cols + 0.5) * grid.resolution,
-                          grid.origin.y + (rows + 0.5) * grid.resolution], axis=1)[::7]
+        every = np.stack(
+            [grid.origin.x + (cols + 0.5) * grid.resolution, grid.origin.y + (rows + 0.5) * grid.resolution],
+            axis=1,
+        )[::7]
         while True:
             chosen_xy = np.array(points) if points else np.array([[start.x, start.y]])
             d = np.min(np.linalg.norm(every[:, None, :] - chosen_xy[None], axis=2), axis=1)
@@ -122,6 +127,46 @@ def viewpoints(robot: Any) -> list[tuple[float, float]]:
                 break
             far = every[int(np.argmax(d))]
             points.append((float(far[0]), float(far[1])))
+    tour, here = [], (start.x, start.y)
+    while points:
+        nxt = min(points, key=lambda p: math.hypot(p[0] - here[0], p[1] - here[1]))
+        points.remove(nxt)
+        tour.append(nxt)
+        here = nxt
+    return tour
+
+
+def revisit_points(
+    robot: Any, places: list[tuple[float, float]], route: list[tuple[float, float]]
+) -> list[tuple[float, float]]:
+    """The route plus a viewpoint near every known instance's place that no viewpoint is close to.
+
+    ``places`` are the instances of the robot's own graph (what it believes is where), so the
+    dynamic phase's pass looks at the old places again; a viewpoint is a free cell with room to
+    turn, between ``REVISIT_MIN`` and ``REVISIT_MAX`` metres from the place (as close to
+    ``REVISIT_BEST`` as the map allows). Nothing here reads the simulator's truth.
+    """
+    import cv2
+
+    grid = robot.occupancy()
+    free = (grid.data >= 0) & (grid.data < 50)
+    clearance = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
+    rows, cols = np.nonzero(clearance >= 0.45)
+    if not len(rows):
+        return list(route)
+    res = grid.resolution
+    xy = np.stack([grid.origin.x + (cols + 0.5) * res, grid.origin.y + (rows + 0.5) * res], axis=1)
+    points = list(route)
+    for px, py in places:
+        if any(math.hypot(px - a, py - b) <= REVISIT_MAX for a, b in points):
+            continue
+        d = np.hypot(xy[:, 0] - px, xy[:, 1] - py)
+        ok = (d >= REVISIT_MIN) & (d <= REVISIT_MAX)
+        if not ok.any():
+            continue
+        best = int(np.argmin(np.where(ok, np.abs(d - REVISIT_BEST), np.inf)))
+        points.append((float(xy[best, 0]), float(xy[best, 1])))
+    start = robot.pose().pose
     tour, here = [], (start.x, start.y)
     while points:
         nxt = min(points, key=lambda p: math.hypot(p[0] - here[0], p[1] - here[1]))
@@ -458,8 +503,8 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
         ours.step(robot.now())
         state["wall_ours"] += time.perf_counter() - t0
 
-    def patrol() -> None:
-        for x, y in route:
+    def patrol(points: list[tuple[float, float]]) -> None:
+        for x, y in points:
             handle = robot.navigate_to(Pose2D(x, y, 0.0), Tolerance(0.35, 2 * math.pi))
             limit = robot.now() + 90.0
             while not handle.status().done and robot.now() < limit:
@@ -472,7 +517,7 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
                 tick()
             robot.stop()
 
-    patrol()
+    patrol(route)
     ours.rebuild(robot.now())
     world = robot.world
     first = {
@@ -573,14 +618,17 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
     to = free_spot(world, rng, avoid)
     oid = add_object(world, "backpack", "green", (0.32, 0.22, 0.45), "box", *to)
     changes.append({"kind": "added", "label": "backpack", "id": oid, "to": to})
-    patrol()
+    # the pass of the dynamic phase looks again at every place the robot's graph holds an object
+    patrol(revisit_points(robot, [inst.xy for inst in ours.scene.map], route))
     ours.rebuild(robot.now())
     after = {"ours": ours_predictions(ours), "nais": nais.predictions()}
     reflected = {m: sum(change_reflected(after[m], c) for c in changes) for m in after}
     if DEBUG:
         for c in changes:
-            print(f"  change {c['kind']} {c['id']} {c['label']} from {c.get('from')} to {c.get('to')}: "
-                  f"ours {change_reflected(after['ours'], c)} nais {change_reflected(after['nais'], c)}")
+            print(
+                f"  change {c['kind']} {c['id']} {c['label']} from {c.get('from')} to {c.get('to')}: "
+                f"ours {change_reflected(after['ours'], c)} nais {change_reflected(after['nais'], c)}"
+            )
     robot.close()
     out = {
         "world": name,

@@ -63,6 +63,15 @@ class FusionParams:
         move_window: Seconds within which an instance seen empty may be moved to a new sighting.
         min_elevation: A box whose centre's depth point lies lower than this above the floor shows
             the floor, not an object standing on it (tiles taken for a laptop), metres.
+        floor_height: A depth pixel whose point lies lower than this shows the floor; where the
+            instance's place shows floor at or past its near side, the camera sees through its place
+            (a removed object's place seen from close by shows the floor just behind it), metres.
+        present_miss_frames: Frames that should show an instance, whose depth shows *something* at
+            its place, yet with no detection of its label, before it is removed (what stands there
+            now is not it: an object taken off a desk leaves the desk).
+        edge_clip: A box within this many pixels of the image's left or right border is cut by it:
+            its centre is not the object's, so it places nothing while uncut views exist (it still
+            counts as an observation), pixels.
     """
 
     filters: NaisFilterParams = field(default_factory=NaisFilterParams)
@@ -76,6 +85,9 @@ class FusionParams:
     hit_gain: float = 0.3
     move_window: float = 600.0
     min_elevation: float = 0.03
+    floor_height: float = 0.04
+    present_miss_frames: int = 15
+    edge_clip: float = 2.0
 
 
 @dataclass
@@ -86,6 +98,8 @@ class _Track:
     xs: list[tuple[float, float, float]] = field(default_factory=list)
     sizes: list[tuple[float, float, float]] = field(default_factory=list)
     empty_seen: float = -math.inf
+    unexplained: int = 0
+    clipped: list[tuple[float, float, float]] = field(default_factory=list)
 
 
 class InstanceFusion:
@@ -100,6 +114,7 @@ class InstanceFusion:
         self.tracks: dict[str, _Track] = {}
         self._candidate_colours: dict[int, Counter[str]] = {}
         self.frames = 0
+        self._image_width = 0
         self.last_stamp = -math.inf
         #: Instance id → the detection that showed it in the latest frame (for crops to describe).
         self.observed: dict[str, Detection] = {}
@@ -125,6 +140,7 @@ class InstanceFusion:
         if frame.stamp <= self.last_stamp:
             return  # a frame seen already (or older): its votes are counted
         self.last_stamp = frame.stamp
+        self._image_width = frame.intrinsics.width
         self.frames += 1
         self.observed = {}
         stamp = frame.stamp
@@ -176,13 +192,14 @@ class InstanceFusion:
 
     def _refine(self, inst: Instance, p: Projection, colour: str | None) -> None:
         track = self.tracks.setdefault(inst.id, _Track())
-        track.xs.append(p.position)
+        (track.clipped if self._clipped(p) else track.xs).append(p.position)
         track.sizes.append(p.size)
         del track.xs[: -self.params.memory]
+        del track.clipped[: -self.params.memory]
         del track.sizes[: -self.params.memory]
         if colour:
             track.colours[colour] += 1
-        position = tuple(float(v) for v in np.median(np.array(track.xs), axis=0))
+        position = tuple(float(v) for v in np.median(np.array(track.xs or track.clipped), axis=0))
         size = tuple(float(v) for v in np.max(np.array(track.sizes), axis=0))
         confidence = inst.confidence + self.params.hit_gain * (1.0 - inst.confidence)
         self.map.update(
@@ -197,6 +214,17 @@ class InstanceFusion:
             colour=_majority(track.colours, inst.colour),
         )
         track.empty_seen = -math.inf
+        track.unexplained = 0
+
+    def _clipped(self, p: Projection) -> bool:
+        """Whether the box is cut by the image's left or right border."""
+        limit = self.params.edge_clip
+        return p.box[0] <= limit or (self._image_width > 0 and p.box[2] >= self._image_width - limit)
+
+    def _placing(self, projections: list[Projection]) -> tuple[list[Projection], list[Projection]]:
+        """Projections split into uncut and cut boxes."""
+        cut = [q for q in projections if self._clipped(q)]
+        return [q for q in projections if not self._clipped(q)], cut
 
     def _candidate_of(self, p: Projection, accepted: Candidate | None) -> Candidate:
         if accepted is not None:
@@ -208,7 +236,10 @@ class InstanceFusion:
 
     def _confirm(self, cand: Candidate, colours: Counter[str], stamp: float) -> Instance:
         colour = _majority(colours, "unknown")
+        uncut, cut = self._placing(cand.projections)
         position = (cand.x, cand.y, cand.z)
+        if uncut and cut:
+            position = tuple(float(v) for v in np.median(np.array([q.position for q in uncut]), axis=0))
         sizes = np.array([q.size for q in cand.projections])
         size = tuple(float(v) for v in (np.median(sizes, axis=0) if len(sizes) else (0.0, 0.0, 0.0)))
         score = float(np.mean([q.score for q in cand.projections])) if cand.projections else 0.7
@@ -227,7 +258,8 @@ class InstanceFusion:
                 confidence=max(twin.confidence, score),
             )
             track = self.tracks.setdefault(twin.id, _Track())
-            track.xs = [q.position for q in cand.projections]
+            track.xs = [q.position for q in uncut]
+            track.clipped = [q.position for q in cut]
             track.empty_seen = -math.inf
             return twin
         inst = self.map.add(
@@ -243,7 +275,8 @@ class InstanceFusion:
         )
         self.tracks[inst.id] = _Track(
             colours=Counter(colours),
-            xs=[q.position for q in cand.projections],
+            xs=[q.position for q in uncut],
+            clipped=[q.position for q in cut],
             sizes=[q.size for q in cand.projections],
         )
         return inst
@@ -309,8 +342,12 @@ class InstanceFusion:
             track = self.tracks.setdefault(inst.id, _Track())
             confidence = inst.confidence * self.params.miss_decay
             if verdict == "present":
-                # depth shows something where it should be, the detector did not name it: doubt, no removal
+                # depth shows something where it should be, the detector did not name it: doubt; only
+                # after many such frames is it removed (what stands there is not it)
+                track.unexplained += 1
                 self.map.update(inst.id, doubtful=True, confidence=max(confidence, 0.2))
+                if track.unexplained >= self.params.present_miss_frames:
+                    self._retire(inst, frame.stamp, False)
                 continue
             track.empty_seen = frame.stamp
             misses = inst.misses + 1
@@ -346,14 +383,19 @@ class InstanceFusion:
         dv_bottom = (inst.position[2] - half_h * 0.5 - frame.camera_height) * k.fy / forward
         x1, x2 = int(max(0, u - du)), int(min(k.width, u + du + 1))
         y1, y2 = int(max(0, k.cy - dv_top)), int(min(k.height, k.cy - dv_bottom + 1))
-        patch = np.asarray(frame.depth)[y1 : max(y2, y1 + 1), x1 : max(x2, x1 + 1)].astype(float)
-        values = patch[np.isfinite(patch) & (patch > 0)]
+        y2 = max(y2, y1 + 1)
+        patch = np.asarray(frame.depth)[y1:y2, x1 : max(x2, x1 + 1)].astype(float)
+        rows = np.broadcast_to(np.arange(y1, y2, dtype=float)[:, None] + 0.5, patch.shape)
+        valid = np.isfinite(patch) & (patch > 0)
+        values = patch[valid]
         near_side = forward - half_w - self.params.depth_tolerance
         far_side = forward + half_w + self.params.depth_tolerance
         if values.size == 0:
             return "empty"  # no return at all: nothing within the sensor's range there
-        there = float(np.mean((values >= near_side) & (values <= far_side)))
-        beyond = float(np.mean(values > far_side))
+        heights = frame.camera_height - (rows[valid] - k.cy) * values / k.fy
+        floor = heights < self.params.floor_height
+        there = float(np.mean((values >= near_side) & (values <= far_side) & ~floor))
+        beyond = float(np.mean((values > far_side) | (floor & (values >= near_side))))
         if there >= 0.2:
             return "present"
         if beyond >= 0.6:
@@ -386,7 +428,9 @@ class InstanceFusion:
                 )
                 self.map.update(keep.id, position=position, observations=total)
                 track = self.tracks.setdefault(keep.id, _Track())
-                track.xs.extend(self.tracks.pop(drop.id, _Track()).xs)
+                dropped = self.tracks.pop(drop.id, _Track())
+                track.xs.extend(dropped.xs)
+                track.clipped.extend(dropped.clipped)
                 gone.add(drop.id)
                 if drop is a:
                     break
@@ -413,8 +457,9 @@ class InstanceFusion:
         self.map.remove(
             inst.id,
             stamp,
-            reason=f"not seen in {self.params.miss_frames} frames that should show it"
-            + (" (its place seen empty)" if empty else ""),
+            reason=f"not seen in {self.params.miss_frames} frames that should show it (its place seen empty)"
+            if empty
+            else f"not detected in {self.params.present_miss_frames} frames showing something else there",
         )
         self.tracks.pop(inst.id, None)
 

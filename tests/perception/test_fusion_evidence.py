@@ -1,0 +1,115 @@
+"""Fusion's evidence rules on hand-made frames: floor seen through a place, unexplained depth, cut boxes.
+
+A camera 0.4 m above the floor looks along +x at a floor that runs to a wall 6 m away; the depth
+image is computed exactly, so each rule is checked on its own.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from missiontree.perception.fusion import FusionParams, InstanceFusion
+from missiontree.perception.projection import Projection
+from missiontree.semantics.semantic_map import SemanticMap
+from missiontree.types import CameraIntrinsics, Detection, Pose2D, RGBDFrame
+
+K = CameraIntrinsics(width=320, height=240, fx=228.5, fy=228.5, cx=159.5, cy=119.5)
+CAMERA_HEIGHT = 0.4
+
+
+def floor_depth() -> np.ndarray:
+    """Depth of an empty room: floor below the horizon, a wall 6 m ahead above it."""
+    rows = np.arange(K.height, dtype=float)[:, None] + 0.5
+    below = rows - K.cy
+    depth = np.where(below > 0, CAMERA_HEIGHT * K.fy / np.maximum(below, 1e-6), 6.0)
+    return np.broadcast_to(np.minimum(depth, 6.0), (K.height, K.width)).astype(np.float32).copy()
+
+
+def frame(stamp: float, depth: np.ndarray) -> RGBDFrame:
+    colour = np.full((K.height, K.width, 3), 128, np.uint8)
+    return RGBDFrame(stamp, colour, depth, K, Pose2D(0.0, 0.0, 0.0), CAMERA_HEIGHT)
+
+
+def fusion_with_cup(**params: float) -> tuple[InstanceFusion, str]:
+    smap = SemanticMap()
+    fusion = InstanceFusion(smap, FusionParams(**params))  # type: ignore[arg-type]
+    inst = smap.add("cup", (1.2, 0.0, 0.05), 0.0, size=(0.09, 0.09, 0.11), colour="red", observations=10)
+    return fusion, inst.id
+
+
+def test_a_floor_object_taken_away_is_seen_gone_though_the_floor_behind_it_is_near() -> None:
+    """From 1.2 m the rays past a cup's place meet the floor within its far side: still, empty."""
+    fusion, cup = fusion_with_cup(miss_frames=4)
+    depth = floor_depth()
+    for k in range(3):
+        fusion.process(frame(1.0 + k, depth), [])
+    assert cup in fusion.map and fusion.map.get(cup).doubtful  # type: ignore[union-attr]
+    fusion.process(frame(5.0, depth), [])
+    assert cup not in fusion.map
+    assert fusion.params.miss_frames == 4
+
+
+def test_something_else_at_the_place_removes_only_after_many_frames() -> None:
+    """Depth shows an object where the cup was and no cup is detected: doubtful, removed only much later."""
+    fusion, cup = fusion_with_cup(miss_frames=3, present_miss_frames=8)
+    depth = floor_depth()
+    u0, u1 = int(K.cx - 30), int(K.cx + 30)
+    depth[int(K.cy) : K.height, u0:u1] = 1.2  # a box standing at the cup's place, taller than it
+    for k in range(7):
+        fusion.process(frame(1.0 + k, depth), [])
+    inst = fusion.map.get(cup)
+    assert inst is not None and inst.doubtful
+    fusion.process(frame(9.0, depth), [])
+    assert cup not in fusion.map
+    removed = [c for c in fusion.map.drain_changes() if c.kind == "removed"]
+    assert removed and "something else" in removed[0].reason
+
+
+def test_a_detection_resets_the_unexplained_count() -> None:
+    """A cup detected now and then is not removed however many frames miss it in between."""
+    fusion, cup = fusion_with_cup(miss_frames=3, present_miss_frames=5)
+    depth = floor_depth()
+    depth[int(K.cy) : K.height, int(K.cx - 30) : int(K.cx + 30)] = 1.2
+    box = (K.cx - 12, K.cy + 60, K.cx + 12, K.cy + 85)
+    for k in range(20):
+        projections = []
+        if k % 4 == 3:
+            det = Detection("cup", 0.9, box)
+            projections = [
+                Projection(
+                    "cup",
+                    0.9,
+                    box,
+                    (1.2, 0.0, 0.05),
+                    1.2,
+                    1.2,
+                    (0.09, 0.09, 0.11),
+                    1.0 + k,
+                    Pose2D(0, 0, 0),
+                    det,
+                )
+            ]
+        fusion.process(frame(1.0 + k, depth), projections)
+    assert cup in fusion.map
+
+
+def test_a_box_cut_by_the_image_border_does_not_move_the_instance() -> None:
+    """Uncut views place the instance; views whose box touches the border count but do not move it."""
+    smap = SemanticMap()
+    fusion = InstanceFusion(smap, FusionParams(min_elevation=0.0))
+    depth = floor_depth()
+
+    def proj(stamp: float, box: tuple[float, float, float, float], x: float) -> Projection:
+        det = Detection("sofa", 0.95, box)
+        return Projection(
+            "sofa", 0.95, box, (x, 0.0, 0.4), x, x, (1.8, 1.8, 0.8), stamp, Pose2D(0, 0, 0), det
+        )
+
+    for k in range(10):
+        fusion.process(frame(1.0 + k, depth), [proj(1.0 + k, (60, 80, 260, 160), 3.0)])
+    (inst,) = smap.by_label("sofa")
+    assert abs(inst.position[0] - 3.0) < 1e-6
+    for k in range(10):
+        fusion.process(frame(20.0 + k, depth), [proj(20.0 + k, (0, 80, 150, 160), 3.4)])
+    after = smap.get(inst.id)
+    assert after is not None and abs(after.position[0] - 3.0) < 1e-6 and after.observations == 20
