@@ -24,7 +24,7 @@ Run it from the repository root (a few seconds)::
     .venv/bin/python examples/write_a_leaf.py --out runs/leaf && missiontree log summarize runs/leaf
 
 In a real project the leaf would live in a plugin that registers it through the
-``missiontree_register_nodes`` hook (see examples/write_a_plugin.md).
+``missiontree_register_nodes`` hook (see docs/plugins.md).
 """
 
 from __future__ import annotations

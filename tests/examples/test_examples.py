@@ -12,6 +12,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLES = REPO / "examples"
+GUIDE = REPO / "docs" / "plugins.md"  # the plugin guide (it replaced examples/write_a_plugin.md)
 MISSIONTREE = Path(sys.executable).parent / "missiontree"
 
 
@@ -64,12 +65,13 @@ def test_write_a_leaf_drives_on_the_simulator_until_an_obstacle(tmp_path: Path) 
 
 
 def test_plugin_walkthrough_names_only_files_that_exist() -> None:
-    """Every repository path the plugin walk-through mentions exists."""
-    text = (EXAMPLES / "write_a_plugin.md").read_text(encoding="utf-8")
-    paths = set(re.findall(r"`((?:plugins|src|examples)/[\w./-]+)`", text))
-    paths |= {(EXAMPLES / link).resolve().relative_to(REPO).as_posix()
+    """Every repository path the plugin guide (docs/plugins.md) mentions exists."""
+    text = GUIDE.read_text(encoding="utf-8")
+    paths = set(re.findall(r"`((?:plugins|src|examples|tests)/[\w./-]+)`", text))
+    paths |= {(GUIDE.parent / link).resolve().relative_to(REPO).as_posix()
               for link in re.findall(r"\]\(([^)#]+)\)", text)}
-    assert "plugins/missiontree-example/src/missiontree_example/plugin.py" in paths
+    assert "plugins/missiontree-battery/src/missiontree_battery/plugin.py" in paths
+    assert "plugins/missiontree-battery/missions/patrol_and_charge.yaml" in paths
     missing = sorted(p for p in paths if not (REPO / p).exists())
     assert missing == []
 
@@ -77,8 +79,8 @@ def test_plugin_walkthrough_names_only_files_that_exist() -> None:
 def test_plugin_walkthrough_mission_runs_with_the_plugin_and_not_without(tmp_path: Path) -> None:
     """The walk-through's CountDown mission succeeds with the plugin and is refused with autoload off."""
     pytest.importorskip("missiontree_example", reason="the example plugin is not installed (make setup)")
-    text = (EXAMPLES / "write_a_plugin.md").read_text(encoding="utf-8")
-    [yaml_block] = re.findall(r"```yaml\n(.*?)```", text, flags=re.S)
+    text = GUIDE.read_text(encoding="utf-8")
+    [yaml_block] = [b for b in re.findall(r"```yaml\n(.*?)```", text, flags=re.S) if "CountDown" in b]
     mission = tmp_path / "countdown.yaml"
     mission.write_text(yaml_block, encoding="utf-8")
     done = _run(MISSIONTREE, "run", mission, "--out", tmp_path / "run")
