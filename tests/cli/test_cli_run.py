@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import importlib.metadata
 import json
+import os
+import signal
+import subprocess
 import sys
+import time
 import types
 from pathlib import Path
 from typing import Any
@@ -145,3 +149,86 @@ def test_same_seed_on_the_simulator_gives_the_same_log_bytes(tmp_path: Path) -> 
         logs.append((tmp_path / name / "ticks.jsonl").read_bytes())
     assert logs[0] == logs[1]
     assert b'"wall"' not in logs[0]
+
+
+# -- run directories: checked before the run, one run at a time, no leftovers ------------------------
+
+def test_out_at_a_file_or_an_uncreatable_place_exits_two(tmp_path: Path, capsys: Capture) -> None:
+    """--out at a file, below a file, or where nothing can be made: exit 2 naming it, no traceback."""
+    mission = _write(tmp_path, MISSION)
+    afile = tmp_path / "afile"
+    afile.write_text("mine")
+    assert main(["run", str(mission), "--out", str(afile)]) == 2
+    assert "is a file, not a directory" in capsys.readouterr().err
+    assert main(["run", str(mission), "--out", str(afile / "sub")]) == 2
+    assert "cannot create the run directory" in capsys.readouterr().err
+    assert main(["run", str(mission), "--out", "/proc/missiontree-no-such/run"]) == 2
+    assert "cannot create the run directory" in capsys.readouterr().err
+    assert afile.read_text() == "mine"
+
+
+def test_empty_out_is_refused(tmp_path: Path, capsys: Capture) -> None:
+    """--out '' would write into the working directory: refused as a usage error (exit 2)."""
+    with pytest.raises(SystemExit) as stopped:
+        main(["run", str(_write(tmp_path, MISSION)), "--out", ""])
+    assert stopped.value.code == 2
+    assert "empty path" in capsys.readouterr().err
+
+
+def test_a_directory_in_use_by_a_live_run_exits_two(tmp_path: Path, capsys: Capture) -> None:
+    """The lock holds a live pid: exit 2 naming it; the other run's lock is left alone."""
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "run.lock").write_text(f"{os.getppid()}\n")
+    assert main(["run", str(_write(tmp_path, MISSION)), "--out", str(out)]) == 2
+    assert f"in use by another run (pid {os.getppid()}" in capsys.readouterr().err
+    assert (out / "run.lock").read_text().strip() == str(os.getppid())
+
+
+def test_a_stale_lock_of_a_dead_run_is_taken_over(tmp_path: Path) -> None:
+    """A lock whose pid is dead (a killed run) is taken over; the lock is gone after the run."""
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "run.lock").write_text(f"{dead.pid}\n")
+    (out / "ticks.jsonl").write_text("")
+    assert main(["run", str(_write(tmp_path, MISSION)), "--out", str(out)]) == 0
+    assert not (out / "run.lock").exists()
+
+
+def test_reusing_a_run_directory_clears_the_earlier_runs_files(tmp_path: Path) -> None:
+    """An earlier run's alarms and pictures do not sit beside the new summary."""
+    out = tmp_path / "run"
+    mission = _write(tmp_path, MISSION)
+    assert main(["run", str(mission), "--out", str(out)]) == 0
+    (out / "alarms.jsonl").write_text('{"id": 1}\n')
+    (out / "alarms").mkdir()
+    (out / "alarms" / "alarm_001.png").write_bytes(b"png")
+    assert main(["run", str(mission), "--out", str(out)]) == 0
+    assert not (out / "alarms.jsonl").exists() and not (out / "alarms").exists()
+    assert {"summary.json", "ticks.jsonl"} <= {p.name for p in out.iterdir()}
+
+
+def test_a_non_empty_directory_that_holds_no_run_is_refused(tmp_path: Path, capsys: Capture) -> None:
+    """--out at a folder of the user's files: exit 2, nothing deleted."""
+    out = tmp_path / "documents"
+    out.mkdir()
+    (out / "notes.txt").write_text("keep me")
+    assert main(["run", str(_write(tmp_path, MISSION)), "--out", str(out)]) == 2
+    assert "holds no earlier run" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+
+
+def test_ctrl_c_during_start_up_prints_no_traceback(tmp_path: Path) -> None:
+    """SIGINT while the command is still importing and loading: exit 130, one line, no traceback."""
+    for delay in (0.15, 0.4, 0.8):
+        process = subprocess.Popen(
+            [sys.executable, "-m", "missiontree", "run", str(REPO / "trees" / "patrol.yaml"), "--quiet",
+             "--out", str(tmp_path / f"run{delay}"), "--max-duration", "5"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
+        time.sleep(delay)
+        process.send_signal(signal.SIGINT)
+        _, stderr = process.communicate(timeout=120)
+        assert "Traceback" not in stderr, stderr
+        assert process.returncode in (130, -signal.SIGINT), (delay, process.returncode, stderr)
