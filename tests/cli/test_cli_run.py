@@ -221,14 +221,21 @@ def test_a_non_empty_directory_that_holds_no_run_is_refused(tmp_path: Path, caps
 
 
 def test_ctrl_c_during_start_up_prints_no_traceback(tmp_path: Path) -> None:
-    """SIGINT while the command is still importing and loading: exit 130, one line, no traceback."""
+    """SIGINT while the command is still importing and loading: exit 130, one line, no traceback.
+
+    A signal inside the interpreter's own start-up (before any missiontree code, reported by Python
+    as "Fatal Python error: init_import_site") is outside the command: that attempt is repeated.
+    """
     for delay in (0.15, 0.4, 0.8):
-        process = subprocess.Popen(
-            [sys.executable, "-m", "missiontree", "run", str(REPO / "trees" / "patrol.yaml"), "--quiet",
-             "--out", str(tmp_path / f"run{delay}"), "--max-duration", "5"],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
-        time.sleep(delay)
-        process.send_signal(signal.SIGINT)
-        _, stderr = process.communicate(timeout=120)
+        for _attempt in range(5):
+            process = subprocess.Popen(
+                [sys.executable, "-m", "missiontree", "run", str(REPO / "trees" / "patrol.yaml"), "--quiet",
+                 "--out", str(tmp_path / f"run{delay}"), "--max-duration", "5"],
+                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
+            time.sleep(delay)
+            process.send_signal(signal.SIGINT)
+            _, stderr = process.communicate(timeout=120)
+            if "init_import_site" not in stderr:
+                break
         assert "Traceback" not in stderr, stderr
         assert process.returncode in (130, -signal.SIGINT), (delay, process.returncode, stderr)
