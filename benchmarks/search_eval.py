@@ -26,7 +26,10 @@ mission's own ``run:`` section (map mode included):
 Scoring reads the simulator's ground truth after the run (never the leaves): a run *finds* the
 target when it ends SUCCESS with the robot within ``REACH`` m of the target's footprint and facing
 it (bearing error under ``FACING_DEG``). A *false found* is a SUCCESS anywhere else (or any SUCCESS
-in an absent case). An absent case is *correct* when the run ends FAILURE by the tree's own verdict
+in an absent case); ``false_found_wrong_object`` counts those where the target was not even in view
+(farther than ``VIEW_RANGE`` or outside the camera's half field of view): another object was taken
+for it. The time comparison is also given paired: ours / report on the cases both found.
+An absent case is *correct* when the run ends FAILURE by the tree's own verdict
 (not the time limit). Time to find is robot-clock seconds of the successful runs. Last line: JSON.
 """
 
@@ -66,6 +69,8 @@ TARGETS = [
 PALETTE = ["red", "blue", "green", "grey", "white", "pink", "black", "yellow"]
 REACH = 1.0
 FACING_DEG = 30.0
+#: A "found" with the target farther than this or outside the half field of view is of another object.
+VIEW_RANGE, HALF_FOV_DEG = 3.0, 35.0
 
 
 @dataclass
@@ -104,6 +109,7 @@ class Trial:
     bearing_deg: float = math.nan
     found: bool = False
     false_found: bool = False
+    wrong_object: bool = False
     absent_correct: bool = False
 
 
@@ -184,7 +190,10 @@ def run_trial(method: str, case: Case, world: str, max_duration: float) -> Trial
     claimed = trial.status == "SUCCESS"
     on_target = not case.absent and trial.distance_m <= REACH and trial.bearing_deg <= FACING_DEG
     trial.found = claimed and on_target
-    trial.false_found = claimed and (case.absent or trial.distance_m > REACH)
+    trial.false_found = claimed and not on_target
+    trial.wrong_object = claimed and (
+        case.absent or trial.distance_m > VIEW_RANGE or trial.bearing_deg > HALF_FOV_DEG
+    )
     trial.absent_correct = case.absent and not claimed and trial.stopped_by == "status"
     return trial
 
@@ -243,6 +252,7 @@ def summarise(trials: list[Trial], method: str) -> dict[str, Any]:
         "runs": len(mine),
         "success_rate": round(len(found) / len(present), 4) if present else None,
         "false_found": sum(t.false_found for t in mine),
+        "false_found_wrong_object": sum(t.wrong_object for t in mine),
         "absent_correct_rate": round(sum(t.absent_correct for t in absent) / len(absent), 4)
         if absent
         else None,
@@ -253,6 +263,24 @@ def summarise(trials: list[Trial], method: str) -> dict[str, Any]:
         "final_bearing_error_deg_median": med([t.bearing_deg for t in claimed]),
         "timeouts": sum(t.stopped_by != "status" for t in mine),
         "wall_s_median": med([t.wall_s for t in mine]),
+    }
+
+
+def paired_ratios(trials: list[Trial]) -> dict[str, Any]:
+    """Ours / report time to find on the cases both found: min, median, max and how many cases."""
+    found = {(t.method, t.case): t.sim_s for t in trials if t.found}
+    ratios = sorted(
+        found[("ours", c)] / found[("report", c)]
+        for m, c in found
+        if m == "ours" and ("report", c) in found and found[("report", c)] > 0
+    )
+    if not ratios:
+        return {"cases": 0}
+    return {
+        "cases": len(ratios),
+        "min": round(ratios[0], 3),
+        "median": round(statistics.median(ratios), 3),
+        "max": round(ratios[-1], 3),
     }
 
 
@@ -311,6 +339,8 @@ def main(argv: list[str] | None = None) -> int:
         )
     ours, report = out["ours"]["time_to_find_s_median"], out["report"]["time_to_find_s_median"]
     out["time_ratio_ours_vs_report"] = round(ours / report, 3) if ours and report else None
+    out["time_ratio_paired"] = paired_ratios(trials)
+    print(f"time to find, ours / report on the cases both found: {out['time_ratio_paired']}")
     absent_ok = out["ours"]["absent_correct_rate"]
     out["absent_correct_rate"] = absent_ok
     print(json.dumps(out))
