@@ -39,6 +39,7 @@ LAYERS: dict[str, int] = {
     "evaluation": 8,  # batch runs call the session
     "cli": 9,
     "testing": 10,  # helpers for tests of the layers above
+    "testing_models": 10,  # conformance suites for model providers
 }
 #: Pairs inside one layer that are forbidden in one direction only: (importer, imported).
 FORBIDDEN_SAME_LAYER = {("semantics", "reasoning")}

@@ -2,7 +2,8 @@
 
 Publishes the TurtleBot 4 topics (/scan, /odom, the OAK-D images, /tf, /tf_static, /map) and
 serves NavigateToPose with the simulator's navigation, paced in real time, so that
-``missiontree run TREE --backend ros2``, RViz and other ROS 2 tools run against it. Needs the
+``missiontree run TREE --backend ros2``, RViz and other ROS 2 tools run against it; the installed
+plugins' sensors are simulated and published on their topics (``--no-plugins``: none). Needs the
 ``ros2`` extra (see docs/ros2.md). With ``--unknown-map`` the robot starts knowing nothing and
 /map is the map it learns from its lidar, republished as it grows. Exit code 0 after a signal or
 ``--duration``, 2 on bad input or when ROS 2 support is not installed.
@@ -17,6 +18,8 @@ import sys
 import threading
 from types import FrameType
 from typing import Any
+
+from missiontree.cli import add_plugin_flag, plugins_from_args
 
 DEFAULT_WORLD = "office"
 
@@ -50,6 +53,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S wall seconds")
     parser.add_argument("--domain-id", type=int, metavar="N",
                         help="ROS_DOMAIN_ID to serve on (default: the environment's)")
+    add_plugin_flag(parser)  # plugin sensors are simulated and published on their topics
     parser.set_defaults(func=run)
 
 
@@ -69,7 +73,8 @@ def run(args: argparse.Namespace) -> int:
         raise BackendUnavailableError(f"missiontree sim-ros needs the ros2 extra with its NavigateToPose "
                                       f"interface package, which does not import ({error}); "
                                       f"{INSTALL_HINT}") from None
-    options = {"world": args.world, "seed": args.seed, "robot": args.robot, "unknown_map": args.unknown_map}
+    options = {"world": args.world, "seed": args.seed, "robot": args.robot, "unknown_map": args.unknown_map,
+               "sensors": list(plugins_from_args(args).sensors.values())}
 
     bridge = SimBridge(lambda: create_sim(options), profile, rate=args.rate, sim_time=args.sim_time,
                        paused=args.paused)

@@ -284,41 +284,22 @@ def unknown_sensor_message(name: str, known: Iterable[str]) -> str:
 
 
 def sensor_kinds_from_options(options: Mapping[str, Any]) -> list[SensorKind]:
-    """The sensor kinds a backend factory should give its robot.
+    """The sensor kinds a backend factory should give its robot: ``options["sensors"]``, else none.
 
-    ``options["sensors"]`` when the caller passed them (the session passes the loaded plugins'), else
-    the sensors of the plugins loaded now as the environment says (a direct ``create_robot`` call, or
-    ``missiontree sim-ros``). A broken plugin does not stop the robot: its sensors are left out and a
-    warning names it.
+    The session passes the loaded plugins' sensors (``missiontree sim-ros`` too); a backend built
+    without them has no plugin sensors.
 
     Raises:
-        ConfigError: ``options["sensors"]`` is not a list of SensorKind.
+        ConfigError: ``options["sensors"]`` is not a list (or mapping) of SensorKind.
     """
     given = options.get("sensors")
-    if given is not None:
-        kinds = list(given.values()) if isinstance(given, Mapping) else list(given)
-        bad = [k for k in kinds if not isinstance(k, SensorKind)]
-        if bad:
-            raise ConfigError(f"backend option sensors: expected SensorKind values, found {bad[0]!r}")
-        return kinds
-    return default_sensor_kinds()
-
-
-def default_sensor_kinds() -> list[SensorKind]:
-    """The sensors of the plugins that load now (entry points unless autoloading is off)."""
-    from missiontree.plugins.manager import load_plugins
-
-    try:
-        return list(load_plugins().sensors.values())
-    except PluginError as error:
-        import structlog
-
-        structlog.get_logger("missiontree.sensors").warning(
-            "plugin sensors left out", error=str(error))
-        try:
-            return list(load_plugins(autoload=False).sensors.values())
-        except PluginError:
-            return []
+    if given is None:
+        return []
+    kinds = list(given.values()) if isinstance(given, Mapping) else list(given)
+    bad = [k for k in kinds if not isinstance(k, SensorKind)]
+    if bad:
+        raise ConfigError(f"backend option sensors: expected SensorKind values, found {bad[0]!r}")
+    return kinds
 
 
 @dataclass
