@@ -59,7 +59,7 @@ from missiontree.perception.projection import project
 from missiontree.perception.tracking import NaisTracker
 from missiontree.reasoning.offline_scene import measured_description, room_type_from_objects
 from missiontree.reasoning.prompts import object_description_prompt
-from missiontree.reasoning.scene_prompts import expanded_crop
+from missiontree.reasoning.scene_prompts import crop_verifier, expanded_crop
 from missiontree.reasoning.schemas import ObjectDescription, RoomClassification
 from missiontree.semantics.builder import SceneBuilder
 from missiontree.semantics.relations import Body, compute_relations
@@ -76,9 +76,12 @@ COVER_RADIUS = 3.0
 #: The dynamic phase's pass adds a viewpoint this far (min, best, max) from each known instance no
 #: viewpoint of the route is within REVISIT_MAX of.
 REVISIT_MIN, REVISIT_BEST, REVISIT_MAX = 0.9, 1.5, 2.2
+#: Radians swept to each side of a revisited place.
+LOOK_SWEEP = 0.5
 NAIS_ROOM_PERIOD = 1.0
 DEBUG = False
 SINGLE_PASS = False
+VERIFY = False
 
 
 # -- the robot's route (from its map only) ---------------------------------------------------------
@@ -136,15 +139,20 @@ def viewpoints(robot: Any) -> list[tuple[float, float]]:
     return tour
 
 
+Stop = tuple[float, float, "tuple[float, float] | None"]
+
+
 def revisit_points(
     robot: Any, places: list[tuple[float, float]], route: list[tuple[float, float]]
-) -> list[tuple[float, float]]:
-    """The route plus a viewpoint near every known instance's place that no viewpoint is close to.
+) -> list[Stop]:
+    """The route plus a look at every known instance's place that no viewpoint is close to.
 
     ``places`` are the instances of the robot's own graph (what it believes is where), so the
     dynamic phase's pass looks at the old places again; a viewpoint is a free cell with room to
     turn, between ``REVISIT_MIN`` and ``REVISIT_MAX`` metres from the place (as close to
-    ``REVISIT_BEST`` as the map allows). Nothing here reads the simulator's truth.
+    ``REVISIT_BEST`` as the map allows), where the robot faces the place and sweeps ``LOOK_SWEEP``
+    to each side instead of turning a full circle. Returns (x, y, place to look at or None for a
+    full circle) in a nearest-neighbour tour. Nothing here reads the simulator's truth.
     """
     import cv2
 
@@ -153,26 +161,27 @@ def revisit_points(
     clearance = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
     rows, cols = np.nonzero(clearance >= 0.45)
     if not len(rows):
-        return list(route)
+        return [(x, y, None) for x, y in route]
     res = grid.resolution
     xy = np.stack([grid.origin.x + (cols + 0.5) * res, grid.origin.y + (rows + 0.5) * res], axis=1)
-    points = list(route)
+    points: list[Stop] = [(x, y, None) for x, y in route]
     for px, py in places:
-        if any(math.hypot(px - a, py - b) <= REVISIT_MAX for a, b in points):
+        if any(math.hypot(px - a, py - b) <= REVISIT_MAX for a, b, _ in points):
             continue
         d = np.hypot(xy[:, 0] - px, xy[:, 1] - py)
         ok = (d >= REVISIT_MIN) & (d <= REVISIT_MAX)
         if not ok.any():
             continue
         best = int(np.argmin(np.where(ok, np.abs(d - REVISIT_BEST), np.inf)))
-        points.append((float(xy[best, 0]), float(xy[best, 1])))
+        points.append((float(xy[best, 0]), float(xy[best, 1]), (px, py)))
     start = robot.pose().pose
-    tour, here = [], (start.x, start.y)
+    tour: list[Stop] = []
+    here = (start.x, start.y)
     while points:
         nxt = min(points, key=lambda p: math.hypot(p[0] - here[0], p[1] - here[1]))
         points.remove(nxt)
         tour.append(nxt)
-        here = nxt
+        here = (nxt[0], nxt[1])
     return tour
 
 
@@ -479,7 +488,8 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
         d = measured_description(inst.label, inst.colour, inst.size)
         return d.description, d.shape, d.size
 
-    ours = SceneBuilder(room_typer=typer, describer=describer)
+    verifier = crop_verifier(vlm) if VERIFY else None
+    ours = SceneBuilder(room_typer=typer, describer=describer, verifier=verifier)
     nais = NaisPipeline(vlm)
     route = viewpoints(robot)
     state = {"last": -math.inf, "frames": 0, "wall_ours": 0.0, "wall_nais": 0.0}
@@ -503,21 +513,32 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
         ours.step(robot.now())
         state["wall_ours"] += time.perf_counter() - t0
 
-    def patrol(points: list[tuple[float, float]]) -> None:
-        for x, y in points:
+    def turn(speed: float, seconds: float) -> None:
+        robot.drive(0.0, speed)
+        end = robot.now() + seconds
+        while robot.now() < end:
+            tick()
+        robot.stop()
+
+    def patrol(points: list[Stop]) -> None:
+        for x, y, look in points:
             handle = robot.navigate_to(Pose2D(x, y, 0.0), Tolerance(0.35, 2 * math.pi))
             limit = robot.now() + 90.0
             while not handle.status().done and robot.now() < limit:
                 tick()
             if not handle.status().done:
                 handle.cancel()
-            robot.drive(0.0, TURN_SPEED)
-            end = robot.now() + 2 * math.pi / TURN_SPEED
-            while robot.now() < end:
-                tick()
-            robot.stop()
+            if look is None:
+                turn(TURN_SPEED, 2 * math.pi / TURN_SPEED)
+                continue
+            here = robot.pose().pose
+            error = math.remainder(math.atan2(look[1] - here.y, look[0] - here.x) - here.yaw, 2 * math.pi)
+            turn(math.copysign(TURN_SPEED, error), abs(error) / TURN_SPEED)  # face the place
+            turn(TURN_SPEED, LOOK_SWEEP / TURN_SPEED)
+            turn(-TURN_SPEED, 2 * LOOK_SWEEP / TURN_SPEED)
+            turn(TURN_SPEED, LOOK_SWEEP / TURN_SPEED)
 
-    patrol(route)
+    patrol([(x, y, None) for x, y in route])
     ours.rebuild(robot.now())
     world = robot.world
     first = {
@@ -654,10 +675,10 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
 _MODELS: dict[str, Any] = {}
 
 
-def _job(job: tuple[str, int, str, int, bool, bool]) -> dict[str, Any]:
+def _job(job: tuple[str, int, str, int, bool, bool, bool]) -> dict[str, Any]:
     """One world in a worker process (models built once per process)."""
-    global DEBUG, SINGLE_PASS
-    name, seed, models_name, changes_seed, DEBUG, SINGLE_PASS = job
+    global DEBUG, SINGLE_PASS, VERIFY
+    name, seed, models_name, changes_seed, DEBUG, SINGLE_PASS, VERIFY = job
     if models_name not in _MODELS:
         _MODELS[models_name] = build_models(models_name)
     t0 = time.perf_counter()
@@ -714,6 +735,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=2, help="worlds run at once (processes, default 2)")
     parser.add_argument("--debug", action="store_true", help="list each world's false and missed objects")
     parser.add_argument("--single-pass", action="store_true", help="skip the dynamic phase (diagnostics)")
+    parser.add_argument(
+        "--verify",
+        action="store_true",
+        help="ours asks the VLM whether a 20%% larger crop shows the label before adding an instance "
+        "(off by default: the offline stand-in re-detects on the crop and turns down most true small objects)",
+    )
     args = parser.parse_args(argv)
     global DEBUG, SINGLE_PASS
     DEBUG = args.debug
@@ -724,7 +751,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     started = time.perf_counter()
     rows = []
-    jobs = [(name, k, args.models, args.changes_seed, DEBUG, SINGLE_PASS) for k, name in enumerate(names)]
+    jobs = [
+        (name, k, args.models, args.changes_seed, DEBUG, SINGLE_PASS, args.verify)
+        for k, name in enumerate(names)
+    ]
     if args.workers > 1:
         from concurrent.futures import ProcessPoolExecutor
 

@@ -113,3 +113,33 @@ def test_a_box_cut_by_the_image_border_does_not_move_the_instance() -> None:
         fusion.process(frame(20.0 + k, depth), [proj(20.0 + k, (0, 80, 150, 160), 3.4)])
     after = smap.get(inst.id)
     assert after is not None and abs(after.position[0] - 3.0) < 1e-6 and after.observations == 20
+
+
+def cup_projection(stamp: float) -> Projection:
+    box = (K.cx - 12, K.cy + 60, K.cx + 12, K.cy + 85)
+    det = Detection("cup", 0.9, box)
+    return Projection(
+        "cup", 0.9, box, (1.2, 0.0, 0.05), 1.2, 1.2, (0.09, 0.09, 0.11), stamp, Pose2D(0, 0, 0), det
+    )
+
+
+def test_a_candidate_the_verifier_turns_down_does_not_become_an_instance() -> None:
+    """Ten frames of a cup the verifier says is no cup: nothing added, the rejection counted."""
+    asked: list[str] = []
+
+    def verifier(frame: RGBDFrame, detection: Detection) -> bool | None:
+        asked.append(detection.label)
+        return False
+
+    fusion = InstanceFusion(SemanticMap(), FusionParams(), verifier)
+    for k in range(25):
+        fusion.process(frame(1.0 + k, floor_depth()), [cup_projection(1.0 + k)])
+    assert len(fusion.map) == 0 and fusion.rejected["cup"] == 2 and asked == ["cup", "cup"]
+
+
+def test_a_verifier_that_agrees_or_cannot_tell_lets_the_candidate_in() -> None:
+    for answer in (True, None):
+        fusion = InstanceFusion(SemanticMap(), FusionParams(), lambda f, d, a=answer: a)
+        for k in range(10):
+            fusion.process(frame(1.0 + k, floor_depth()), [cup_projection(1.0 + k)])
+        assert [i.label for i in fusion.map] == ["cup"] and not fusion.rejected

@@ -9,13 +9,18 @@
    the instance's size, for big furniture) and refines it: running mean position (the newest
    ``memory`` observations), size, colour votes (the box's pixels, :mod:`missiontree.perception.colour`),
    observation count, confidence, last seen;
-3. votes the rest as candidates, accepted after ``min_frames`` frames (the paper's 10);
+3. votes the rest as candidates, accepted after ``min_frames`` frames (the paper's 10) and, with a
+   ``verifier`` (the vision-language model on a crop 20 % larger than the box), only when it does
+   not say the crop shows something else (a turned-down candidate starts its voting again);
+   boxes cut by the image's side border count as observations but place nothing while uncut views
+   exist (their centre is not the object's);
 4. judges every instance the frame *should* show — in the camera's field of view (away from the
    image edges by ``edge_margin``), within ``max_range``, large enough on the image
    (``min_pixels``), with depth showing nothing in front of it — and, when no detection of its label
    covers it, counts a miss: it becomes ``doubtful``, loses confidence, and after ``miss_frames``
-   such frames it is removed. Where the depth reaches clearly past its place, its place is *seen
-   empty*.
+   such frames it is removed. Where the depth reaches clearly past its place (or meets the floor
+   beyond its near side), its place is *seen empty*; where depth shows something at its place that
+   the detector never names, it is removed after ``present_miss_frames`` such frames.
 5. An object of the same label and colour confirmed elsewhere while its old place is seen empty is
    the old object moved: the instance is moved (one ``moved`` change), not duplicated. When the new
    place is seen first and the old place emptied later, the old instance takes the new one's place
@@ -29,6 +34,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,6 +47,10 @@ from missiontree.types import Detection, RGBDFrame
 
 #: Inner share of a box whose pixels name its colour (a box holds background at its edges).
 COLOUR_INNER = 0.6
+
+#: Second opinion on a candidate before it becomes an instance: (frame, its detection in it) →
+#: True (it is what the detector said), False (it is not: rejected), None (cannot tell: accepted).
+Verifier = Callable[[RGBDFrame, Detection], "bool | None"]
 
 
 @dataclass(frozen=True)
@@ -69,6 +79,10 @@ class FusionParams:
         present_miss_frames: Frames that should show an instance, whose depth shows *something* at
             its place, yet with no detection of its label, before it is removed (what stands there
             now is not it: an object taken off a desk leaves the desk).
+        present_range: Only frames closer than this count towards ``present_miss_frames`` (farther,
+            a small object is often missed by the detector while it is there), metres.
+        place_margin: The depth patch judged at an instance's place is this much wider on each side
+            than the instance (its position is an estimate), metres.
         edge_clip: A box within this many pixels of the image's left or right border is cut by it:
             its centre is not the object's, so it places nothing while uncut views exist (it still
             counts as an observation), pixels.
@@ -87,6 +101,8 @@ class FusionParams:
     min_elevation: float = 0.03
     floor_height: float = 0.04
     present_miss_frames: int = 15
+    present_range: float = 2.5
+    place_margin: float = 0.05
     edge_clip: float = 2.0
 
 
@@ -105,7 +121,15 @@ class _Track:
 class InstanceFusion:
     """Projected detections → instances of a :class:`SemanticMap` (see module docstring)."""
 
-    def __init__(self, semantic_map: SemanticMap | None = None, params: FusionParams | None = None) -> None:
+    def __init__(
+        self,
+        semantic_map: SemanticMap | None = None,
+        params: FusionParams | None = None,
+        verifier: Verifier | None = None,
+    ) -> None:
+        self.verifier = verifier
+        #: Candidates the verifier turned down, per label.
+        self.rejected: Counter[str] = Counter()
         self.map = semantic_map if semantic_map is not None else SemanticMap()
         self.params = params or FusionParams()
         f = self.params.filters
@@ -159,7 +183,11 @@ class InstanceFusion:
             if colour:
                 votes[colour] += 1
             if cand is not None:
-                new = self._confirm(cand, self._candidate_colours.pop(id(cand), Counter()), stamp)
+                colours = self._candidate_colours.pop(id(cand), Counter())
+                if self.verifier is not None and self.verifier(frame, p.detection) is False:
+                    self.rejected[cand.label] += 1  # voting starts again: a later frame may convince
+                    continue
+                new = self._confirm(cand, colours, stamp)
                 seen.add(new.id)
                 self.observed[new.id] = p.detection
         boxes = detections if detections is not None else [p.detection for p in projections]
@@ -344,7 +372,8 @@ class InstanceFusion:
             if verdict == "present":
                 # depth shows something where it should be, the detector did not name it: doubt; only
                 # after many such frames is it removed (what stands there is not it)
-                track.unexplained += 1
+                if forward <= self.params.present_range:
+                    track.unexplained += 1
                 self.map.update(inst.id, doubtful=True, confidence=max(confidence, 0.2))
                 if track.unexplained >= self.params.present_miss_frames:
                     self._retire(inst, frame.stamp, False)
@@ -378,7 +407,8 @@ class InstanceFusion:
         k = frame.intrinsics
         half_w = 0.5 * max(inst.size[0], inst.size[1], 0.05)
         half_h = 0.5 * max(inst.size[2], 0.05)
-        du = max(2.0, 0.5 * half_w * k.fx / forward)
+        margin = self.params.place_margin * k.fx / forward  # the instance's position is an estimate
+        du = max(2.0, 0.5 * half_w * k.fx / forward) + margin
         dv_top = (inst.position[2] + half_h * 0.5 - frame.camera_height) * k.fy / forward
         dv_bottom = (inst.position[2] - half_h * 0.5 - frame.camera_height) * k.fy / forward
         x1, x2 = int(max(0, u - du)), int(min(k.width, u + du + 1))
@@ -394,9 +424,11 @@ class InstanceFusion:
             return "empty"  # no return at all: nothing within the sensor's range there
         heights = frame.camera_height - (rows[valid] - k.cy) * values / k.fy
         floor = heights < self.params.floor_height
-        there = float(np.mean((values >= near_side) & (values <= far_side) & ~floor))
+        at_place = (values >= near_side) & (values <= far_side) & ~floor
+        there = float(np.mean(at_place))
         beyond = float(np.mean((values > far_side) | (floor & (values >= near_side))))
-        if there >= 0.2:
+        object_px = min(2.0 * half_w * k.fx / forward, float(patch.shape[1])) * patch.shape[0]
+        if there >= 0.2 or int(np.count_nonzero(at_place)) >= max(3.0, 0.5 * object_px):
             return "present"
         if beyond >= 0.6:
             return "empty"

@@ -5,6 +5,11 @@
   with the :class:`~missiontree.reasoning.schemas.ObjectDescription` schema). Room types use
   :func:`missiontree.reasoning.prompts.room_prompt` with
   :class:`~missiontree.reasoning.schemas.RoomClassification` on frames taken in the room.
+- :func:`crop_verifier` — the second opinion on a new instance before it enters the graph: the
+  vision-language model asked (:func:`missiontree.reasoning.prompts.crop_match_prompt`, the
+  :class:`~missiontree.reasoning.schemas.CropMatch` schema) whether the 20 % larger crop shows the
+  detector's label; a "no" turns the candidate down, an error or unparsable answer leaves the
+  decision to the detector.
 - :func:`semantic_relations_messages` and :class:`SemanticRelations` — an optional language-model
   pass over the computed graph that may *add* semantic relations ("the laptop belongs to the
   desk"); the answer's edges are checked against the graph and every edge naming a missing node is
@@ -14,13 +19,17 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from missiontree.errors import ModelError
+from missiontree.reasoning.prompts import crop_match_prompt
 from missiontree.reasoning.protocols import Message
+from missiontree.reasoning.schemas import CropMatch
+from missiontree.types import Detection, RGBDFrame
 
 #: How much larger than its box the NAIS paper crops an object for the VLM.
 CROP_GROWTH = 0.2
@@ -54,6 +63,30 @@ def expanded_crop(
     if x2 <= x1 or y2 <= y1:
         raise ValueError(f"box {box} lies outside the {w}x{h} image; no crop to describe")
     return np.ascontiguousarray(image[y1:y2, x1:x2])
+
+
+def crop_verifier(vlm: Any, growth: float = CROP_GROWTH) -> Callable[[RGBDFrame, Detection], bool | None]:
+    """A verifier for :class:`~missiontree.perception.fusion.InstanceFusion` backed by ``vlm``.
+
+    Args:
+        vlm: A vision-language model (``ask(images, prompt, schema) -> str``).
+        growth: How much larger than the box the crop is.
+
+    Returns:
+        A function (frame, detection) → True when the model says the crop shows the detection's
+        label, False when it says it does not, None when it cannot answer (model error, bad JSON,
+        box outside the image).
+    """
+
+    def verify(frame: RGBDFrame, detection: Detection) -> bool | None:
+        try:
+            crop = expanded_crop(frame.color, detection.box, growth)
+            text = vlm.ask([crop], crop_match_prompt(detection.label), CropMatch)
+            return bool(CropMatch.model_validate_json(text).matches)
+        except (ModelError, ValidationError, ValueError):
+            return None
+
+    return verify
 
 
 class RelationEdgeAnswer(BaseModel):

@@ -8,8 +8,10 @@ association, removal and moves). Rooms come from segmenting the occupancy map ev
 ``segment_every`` seconds (or from fixed polygons); each instance is placed in the room holding it,
 rooms are typed by an injected ``room_typer`` (the vision-language model's votes, or the offline
 stand-in's reasoning over the objects seen there) and instances described by an injected
-``describer``. The graph is rebuilt at once when something was added, moved, removed or changed
-room, and every ``refresh`` seconds while positions are being refined.
+``describer``; a ``verifier`` (the vision-language model on a crop 20 % larger than the box) may
+turn down a candidate before it becomes an instance. The graph is rebuilt at once when something
+was added, moved, removed or changed room, and every ``refresh`` seconds while positions are being
+refined.
 
 It reads nothing but what it is given: frames, detections, the occupancy map, the robot's
 position. This module imports no reasoning (the layers allow only the reverse): model-backed
@@ -25,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from missiontree.perception.fusion import FusionParams, InstanceFusion
+from missiontree.perception.fusion import FusionParams, InstanceFusion, Verifier
 from missiontree.perception.projection import DepthMethod, project
 from missiontree.semantics.live import LiveScene
 from missiontree.semantics.relations import RelationParams, bodies_of, compute_relations
@@ -88,10 +90,11 @@ class SceneBuilder:
         rooms: Sequence[RoomRegion] | None = None,
         room_typer: RoomTyper | None = None,
         describer: Describer | None = None,
+        verifier: Verifier | None = None,
     ) -> None:
         self.params = params or BuilderParams()
         self.scene = LiveScene()
-        self.fusion = InstanceFusion(self.scene.map, self.params.fusion)
+        self.fusion = InstanceFusion(self.scene.map, self.params.fusion, verifier)
         self.fixed_rooms = list(rooms) if rooms is not None else None
         self.tracker = RoomTracker(self.params.segmentation)
         self.segmentation: Segmentation | None = None
