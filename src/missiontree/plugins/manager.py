@@ -281,8 +281,8 @@ def load_plugins(autoload: bool | None = None, strict: bool = False) -> Plugins:
             broken.append(BrokenPlugin(plugin.name, plugin.distribution, str(error)))
             continue
         kept.append(plugin)
-    for plugin in broken:
-        _warn(plugin)
+    for left_out in broken:
+        _warn(left_out)
     return Plugins(pm=pm, nodes=nodes, backends=backends, providers=providers, info=kept, sensors=sensors,
                    broken=broken)
 
