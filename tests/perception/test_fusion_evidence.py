@@ -143,3 +143,19 @@ def test_a_verifier_that_agrees_or_cannot_tell_lets_the_candidate_in() -> None:
         for k in range(10):
             fusion.process(frame(1.0 + k, floor_depth()), [cup_projection(1.0 + k)])
         assert [i.label for i in fusion.map] == ["cup"] and not fusion.rejected
+
+
+def test_one_object_named_two_ways_is_kept_once_but_a_cup_on_a_table_is_not_merged() -> None:
+    """A tv also seen as a table at the same place: the more often seen name stays; a cup on a table stays."""
+    fusion = InstanceFusion(SemanticMap())
+    add = fusion.map.add
+    tv = add("tv", (2.0, 0.3, 0.3), 0.0, size=(1.1, 1.1, 0.6), colour="black", observations=40)
+    table = add("table", (2.1, 0.35, 0.3), 0.0, size=(1.0, 1.0, 0.55), colour="black", observations=12)
+    desk = add("table", (5.0, 5.0, 0.37), 0.0, size=(1.2, 1.2, 0.75), colour="brown", observations=30)
+    cup = add("cup", (5.05, 5.0, 0.8), 0.0, size=(0.09, 0.09, 0.11), colour="red", observations=15)
+    chair = add("chair", (5.0, 5.55, 0.45), 0.0, size=(0.5, 0.5, 0.9), colour="red", observations=5)
+    same_desk = add("table", (5.2, 5.05, 0.37), 0.0, size=(1.2, 1.2, 0.75), colour="grey", observations=9)
+    fusion.merge_overlapping(1.0)
+    assert set(i.id for i in fusion.map) == {tv.id, desk.id, cup.id, chair.id}
+    reasons = {c.id: c.reason for c in fusion.map.drain_changes() if c.kind == "removed"}
+    assert "seen as a tv" in reasons[table.id] and same_desk.id in reasons

@@ -434,24 +434,47 @@ class InstanceFusion:
             return "empty"
         return "occluded"
 
+    def same_object(self, a: Instance, b: Instance) -> bool:
+        """Whether two instances are one object seen twice.
+
+        Same label: their centres within 0.9 of the larger half-footprint (``associate_radius`` at
+        least), or within half of it when the colours differ (big furniture looks another colour
+        from another side).
+        Different labels (the detector named one object two ways): centres within a quarter of the
+        smaller footprint's larger side and heights overlapping over half of the lower one, so a cup
+        on a table or a chair beside it stays apart.
+        """
+        d = a.distance_to(*b.xy)
+        if a.label == b.label:
+            half = max(0.5 * max(a.size[0], a.size[1]), 0.5 * max(b.size[0], b.size[1]))
+            if a.colour == b.colour:
+                return d <= 0.9 * max(self.params.associate_radius, half)
+            return d <= 0.5 * half
+        if d > 0.25 * min(max(a.size[0], a.size[1]), max(b.size[0], b.size[1])):
+            return False
+        lo = max(a.position[2] - a.size[2] / 2, b.position[2] - b.size[2] / 2)
+        hi = min(a.position[2] + a.size[2] / 2, b.position[2] + b.size[2] / 2)
+        return hi - lo >= 0.5 * max(min(a.size[2], b.size[2]), 1e-3)
+
     def merge_overlapping(self, stamp: float) -> None:
-        """Join instances of one label whose footprints overlap (seen from two sides of a big object)."""
+        """Join instances that are one object (:meth:`same_object`); the more often seen one stays."""
         items = list(self.map)
         gone: set[str] = set()
         for i, a in enumerate(items):
             if a.id in gone:
                 continue
             for b in items[i + 1 :]:
-                if b.id in gone or b.label != a.label or b.colour != a.colour:
-                    continue
-                reach = max(
-                    self.params.associate_radius,
-                    0.5 * max(a.size[0], a.size[1]),
-                    0.5 * max(b.size[0], b.size[1]),
-                )
-                if a.distance_to(*b.xy) > reach * 0.9:
+                if b.id in gone or not self.same_object(a, b):
                     continue
                 keep, drop = (a, b) if a.observations >= b.observations else (b, a)
+                if keep.label != drop.label:
+                    why = f"the same object as {keep.id}, seen as a {keep.label} more often"
+                    self.map.remove(drop.id, stamp, reason=why)
+                    self.tracks.pop(drop.id, None)
+                    gone.add(drop.id)
+                    if drop is a:
+                        break
+                    continue
                 self.map.remove(drop.id, stamp, reason=f"the same {drop.label} as {keep.id}")
                 total = keep.observations + drop.observations
                 position = tuple(
