@@ -24,12 +24,18 @@ one to one to agree on the most objects), **room_type_accuracy** (true rooms who
 names their type), **colour_accuracy** (matched objects with the true colour name), and
 **relation_precision** (ours: relations between matched objects that also hold between the true
 objects, by the same geometry). Then the **dynamic phase**: three objects are moved, two removed
-and one added (``--changes-seed``) while the robot patrols the same viewpoints once more;
+and one added (``--changes-seed``) while the robot patrols the same viewpoints once more, plus a
+look (face the place, sweep 0.5 rad to each side) from a free cell near every object *its own
+graph* holds that no viewpoint is within 2.2 m of (the route reads the robot's map and graph only);
 **changes_reflected** is the share of those six changes the final graph shows (a moved object
 found at its new place and nothing of its label at the old, a removed one gone, an added one
 found). **rebuild_ms_300** times rebuilding relations and graph for 300 objects (min / median /
 max over repetitions), beside the NAIS reference's rebuild, which is a GPT-4 round trip not
 timed here.
+
+``--verify`` makes ours ask the VLM whether a crop 20 % larger than the box shows the label before
+a candidate becomes an instance (off by default: the offline stand-in re-runs the detector on the
+small crop and turns down most true small objects).
 
 Scoring reads the simulator's truth; both pipelines see only frames, detections, poses and the
 map. The last line is one JSON object. ``--quick`` runs 3 generated worlds and the office world.
@@ -739,7 +745,7 @@ def main(argv: list[str] | None = None) -> int:
         "--verify",
         action="store_true",
         help="ours asks the VLM whether a 20%% larger crop shows the label before adding an instance "
-        "(off by default: the offline stand-in re-detects on the crop and turns down most true small objects)",
+        "(off by default: the offline stand-in turns down most true small objects)",
     )
     args = parser.parse_args(argv)
     global DEBUG, SINGLE_PASS
