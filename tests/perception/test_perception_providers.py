@@ -74,13 +74,15 @@ def test_oracle_factory_checks_its_rates() -> None:
         create_oracle({"false_positive_rate": -0.1})
 
 
-def test_models_config_with_a_missing_model_leaves_a_broken_role_with_the_reason(tmp_path: Path) -> None:
+def test_models_config_with_a_missing_model_leaves_a_broken_role_with_the_reason(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Through session.models, a missing ONNX file makes the role unusable with the provider's message."""
     from missiontree.errors import ModelError
     from missiontree.session.models import build_models
 
     providers: dict[str, object] = {}
     register_providers(providers)
+    monkeypatch.setenv("MISSIONTREE_MODEL_PATH", str(tmp_path))  # a folder models may be read from
     config = {"roles": {"detector": {"provider": "yolo_onnx", "model": str(tmp_path / "no.onnx")}}}
     models = build_models(config, providers)
     with pytest.raises(ModelError, match=r"'yolo_onnx'.*does not exist.*models config"):

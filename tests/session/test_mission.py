@@ -186,11 +186,22 @@ def test_on_tick_sees_the_robot_between_ticks(tmp_path: Path) -> None:
     assert len(seen) == result.ticks and seen[:3] == pytest.approx([0.0, 0.1, 0.2])
 
 
-def test_the_robot_is_closed_when_wiring_fails(tmp_path: Path) -> None:
+def test_a_missing_models_config_is_a_problem_before_any_robot_is_built(tmp_path: Path) -> None:
     plugins, fake = _plugins_with_fake()
-    with pytest.raises(ConfigError):
+    with pytest.raises(MissionFileError, match="missing_models.yaml' does not exist"):
         Session.open(MissionRequest(mission=_mission(tmp_path, backend="fake"), plugins=plugins,
                                     models=tmp_path / "missing_models.yaml"))
+    assert fake.robots == []
+
+
+def test_the_robot_is_closed_when_wiring_fails(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    def failing_build(*args: Any, **kwargs: Any) -> Any:
+        raise ConfigError("the models cannot be built")
+
+    monkeypatch.setattr("missiontree.session.mission.build_models", failing_build)
+    plugins, fake = _plugins_with_fake()
+    with pytest.raises(ConfigError, match="cannot be built"):
+        Session.open(MissionRequest(mission=_mission(tmp_path, backend="fake"), plugins=plugins))
     assert fake.robots and fake.robots[0].closed
 
 

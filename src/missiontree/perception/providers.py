@@ -23,6 +23,10 @@ A models config section, e.g.::
         multi_label: false      # true: a box under every class above the threshold, not only its best
         test_time_flip: false   # true: also detect in the mirror image and pool both (twice the time)
 
+``model:`` and ``labels_file:`` resolve against the models config's folder and must lie inside it,
+inside the package's data or inside a folder of ``$MISSIONTREE_MODEL_PATH`` (at most 512 MiB for a
+model, 1 MiB for a labels file; see :mod:`missiontree.file_limits`).
+
 Options are checked: an unknown or mistyped option is a :class:`ModelConfigError` naming the
 provider and the options it knows. onnxruntime is imported only when a detector is built.
 """
@@ -36,6 +40,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from missiontree.errors import ModelConfigError
+from missiontree.file_limits import DETECTOR_FILES
 from missiontree.options import parse_provider_options
 
 #: The detector shipped in the package (trained on the simulator's images).
@@ -118,6 +123,9 @@ def create_sim_detector(options: Mapping[str, Any]) -> Any:
 # the options each factory takes, so a models config is checked (file:line:col) before anything is built
 create_yolo_onnx.options_model = YoloOptions  # type: ignore[attr-defined]
 create_sim_detector.options_model = YoloOptions  # type: ignore[attr-defined]
+# the options that name files, confined and size-checked by the session before the detector is built
+create_yolo_onnx.path_options = DETECTOR_FILES  # type: ignore[attr-defined]
+create_sim_detector.path_options = DETECTOR_FILES  # type: ignore[attr-defined]
 
 
 def create_oracle(options: Mapping[str, Any]) -> Any:

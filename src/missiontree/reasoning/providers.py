@@ -21,6 +21,7 @@ from typing import Any, TypeVar
 from pydantic import BaseModel, ConfigDict, Field
 
 from missiontree.errors import ModelConfigError
+from missiontree.file_limits import EMBEDDER_FILES
 from missiontree.options import parse_provider_options
 
 M = TypeVar("M", bound=BaseModel)
@@ -104,6 +105,7 @@ def create_minilm(options: Mapping[str, Any]) -> Any:
     return MiniLMEmbedder.from_options(dict(options))
 
 
+create_minilm.path_options = EMBEDDER_FILES  # type: ignore[attr-defined]  # files checked before building
 create_offline_vlm.wants_models = True  # type: ignore[attr-defined]
 create_offline_llm.wants_models = True  # type: ignore[attr-defined]
 

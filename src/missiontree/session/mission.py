@@ -171,10 +171,10 @@ class Session:
         overrides = parse_overrides(mission, request.params)
         self.spec: MissionSpec = load_mission(
             mission, self.plugins.nodes, allow_outside=request.allow_outside, params=overrides)
-        # what the mission references (world, robot, waypoint files), checked before the run; the
-        # models config is checked whole by build_models below, before the run starts
+        # what the mission references (world, robot, waypoint files, the models config and its model
+        # files), checked before the robot is built: a bad one is exit 2 with no robot started
         problems = check_references(self.spec, providers=self.plugins.providers, backend=request.backend,
-                                    world=request.world, robot=request.robot, check_models=False)
+                                    world=request.world, robot=request.robot, models=request.models)
         if problems:
             raise MissionFileError(problems)
         run = self.spec.run

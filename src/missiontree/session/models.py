@@ -25,11 +25,14 @@ timeout (its own, else ``calls: timeout:``), so an HTTP client waits exactly as 
 handle and ``missiontree models`` say.
 
 :func:`build_models` checks the whole file first and reports every problem with file:line:col
-(a :class:`~missiontree.errors.ProblemsError`, exit code 2). A provider that fails to *build*
-(a missing model file, an unset API key, a missing extra) does not stop the run: its role holds a
-:class:`BrokenProvider` that raises the reason when used, so a mission that needs it fails with
-the reason in the tick log and a mission that does not runs on. ``missiontree models`` shows
-the same reasons.
+(a :class:`~missiontree.errors.ProblemsError`, exit code 2), the files its providers' options
+name included: each resolves against the config's folder and must lie inside it, inside the
+package's data or inside a folder of ``$MISSIONTREE_MODEL_PATH``, within its size limit
+(:mod:`missiontree.session.model_files`); the factory gets the checked absolute path. A provider
+that fails to *build* (a missing model file, an unset API key, a missing extra) does not stop the
+run: its role holds a :class:`BrokenProvider` that raises the reason when used, so a mission that
+needs it fails with the reason in the tick log and a mission that does not runs on.
+``missiontree models`` shows the same reasons.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from typing import Any
 from missiontree.errors import ConfigError, MissionTreeError, Problem, ProblemsError
 from missiontree.paths import find_config
 from missiontree.reasoning.calls import SETTINGS_KEY, BrokenProvider, CallSettings, LatencyModel
+from missiontree.session.model_files import config_base, model_file_problems
 from missiontree.yamlio import Located, load_yaml, parse_yaml
 
 #: The models config used when none is given.
@@ -84,7 +88,8 @@ def build_models(
         Role → provider, plus the :class:`CallSettings` under ``calls.SETTINGS_KEY``.
 
     Raises:
-        ProblemsError: The file is malformed (every problem, with file:line:col).
+        ProblemsError: The file is malformed, or names a model file outside its folder and the
+            allow-list or over its size limit (every problem, with file:line:col).
     """
     if providers is None:
         from missiontree.plugins.manager import load_plugins
@@ -94,6 +99,11 @@ def build_models(
     # The default config must not stop missions that use no model when a provider is missing.
     roles, settings = check_models_config(document, providers, strict=models is not None if strict is None
                                           else strict)
+    # files the providers' options name: confined and size-checked here, handed over as absolute paths
+    file_problems, resolved = model_file_problems(document, roles, providers, config_base(models, document))
+    if file_problems:
+        raise ProblemsError(file_problems)
+    roles = {role: {**section, **resolved.get(role, {})} for role, section in roles.items()}
     built: dict[str, Any] = {}
     for role in _build_order(roles):
         timeout = settings.timeouts.get(role, settings.default_timeout)

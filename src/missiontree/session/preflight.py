@@ -5,7 +5,8 @@ blackboard defaults against the parameters that read them). This module checks w
 *names*, as the run will use it (flags first, then the mission's ``run:`` section, then defaults):
 
 - the world (simulator only): found, and valid as a whole (its own ``file:line:col`` problems);
-- the robot profile and the models config: found and valid;
+- the robot profile and the models config: found and valid, the model files its providers name
+  inside its folder (or ``$MISSIONTREE_MODEL_PATH``) and within their size limits;
 - every waypoint file a node names (a parameter called ``waypoints_file``, with ``route``): found
   beside the mission or under config/waypoints/, valid, written for this world (its ``world:``),
   and every waypoint inside the world's map and outside its obstacles; inline ``waypoints`` lists
@@ -191,11 +192,15 @@ def _check_models(spec: MissionSpec, doc: Located | None, flag: Any, providers: 
 
 def check_models_file(models: str | os.PathLike[str] | Mapping[str, Any] | None,
                       providers: Mapping[str, Any]) -> list[Problem]:
-    """A models config checked whole, each role's provider options included; every problem, located.
+    """A models config checked whole, each role's provider options and the files they name included.
+
+    Every problem is located; a file outside the config's folder and ``$MISSIONTREE_MODEL_PATH`` or
+    over its size limit is one (:mod:`missiontree.session.model_files`), its content never shown.
 
     Raises:
         ConfigError: The config cannot be found (the message lists the shipped ones).
     """
+    from missiontree.session.model_files import config_base, model_file_problems
     from missiontree.session.models import check_models_config, load_models_config
 
     document = load_models_config(models)
@@ -203,7 +208,8 @@ def check_models_file(models: str | os.PathLike[str] | Mapping[str, Any] | None,
         roles, _ = check_models_config(document, providers, strict=models is not None)
     except ProblemsError as exc:
         return list(exc.problems)
-    return _provider_options(document, roles, providers)
+    file_problems, _ = model_file_problems(document, roles, providers, config_base(models, document))
+    return _provider_options(document, roles, providers) + file_problems
 
 
 def _provider_options(document: Located, roles: Mapping[str, Mapping[str, Any]],
