@@ -45,7 +45,7 @@ PARTIAL_SUFFIX = ".partial"
 #: The summary keys every run has; the rest are the mission's (or a plugin's) own figures.
 _RUNNER_KEYS = {"mission", "status", "stopped_by", "signal", "ticks", "duration", "tick_hz", "seed", "robot",
                 "events", "pictures", "nodes", "failure_reasons", "failures", "final_pose",
-                "true_final_pose", "final_pose_error", "final_state_error"}
+                "true_final_pose", "final_pose_error", "final_state_error", "complete", "reason"}
 
 
 class Probe(Protocol):
