@@ -145,6 +145,8 @@ def test_is_battery_low_compares_percentage_or_voltage_and_fails_on_stale() -> N
     robot.spin_until(110.0)  # the reading is now 10 s old
     assert leaf.update() == Status.FAILURE and "10.0 s old" in leaf.failure_reason
     assert _leaf(robot, stale_is_low=True).update() == Status.SUCCESS
+    robot.set_sensor("battery", BatteryReading(math.nan, 15.0, -0.5, False))
+    assert leaf.update() == Status.FAILURE and "does not report its percentage" in leaf.failure_reason
 
 
 def test_is_battery_low_on_a_robot_without_the_sensor_names_the_problem() -> None:

@@ -45,8 +45,9 @@ def missiontree_register_backends(backends: dict[str, Any]) -> None:
     """Add robot backends: ``backends["name"] = factory``.
 
     ``factory(options: dict) -> Robot``, where options holds at least ``world``, ``robot``,
-    ``seed`` and ``config`` (the CLI's ``--world``, ``--seed``, ``--config``). Heavy imports
-    (rclpy) belong inside the factory, so listing backends costs nothing.
+    ``seed`` and ``config`` (the CLI's ``--world``, ``--seed``, ``--config``), and ``sensors`` (the
+    plugins' :class:`~missiontree.robot.sensors.SensorKind` list) when plugins registered sensors.
+    Heavy imports (rclpy) belong inside the factory, so listing backends costs nothing.
     """
 
 

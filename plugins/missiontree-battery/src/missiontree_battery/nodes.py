@@ -4,10 +4,13 @@ Nav2's ``IsBatteryLow`` subscribes to a BatteryState topic and succeeds when the
 voltage, with ``is_voltage``) is at or below ``min_battery``. Here the backend does the subscribing
 (the ``battery`` sensor, :mod:`missiontree_battery.battery`) and the leaf reads
 ``robot.sensor("battery")``: the latest reading with its stamp. A reading older than ``max_age``
-(the battery went quiet) or none at all is FAILURE with the reason, unless ``stale_is_low``.
+(the battery went quiet), none at all, or a NaN level (ROS's "unknown") is FAILURE with the reason,
+unless ``stale_is_low``.
 """
 
 from __future__ import annotations
+
+import math
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -45,6 +48,9 @@ class IsBatteryLow(Leaf):
             return self.succeed(f"{why}: taken as low") if self.params.stale_is_low else self.fail(why)
         level = reading.value.voltage if self.params.is_voltage else reading.value.percentage
         unit = " V" if self.params.is_voltage else ""
+        if not math.isfinite(level):  # ROS leaves what the battery does not know NaN
+            why = f"the battery does not report its {'voltage' if self.params.is_voltage else 'percentage'}"
+            return self.succeed(f"{why}: taken as low") if self.params.stale_is_low else self.fail(why)
         if level <= self.params.min_battery:
             return self.succeed(f"battery low: {level:.3g}{unit} <= {self.params.min_battery:g}{unit}")
         return self.fail(f"battery ok: {level:.3g}{unit} > {self.params.min_battery:g}{unit}")
