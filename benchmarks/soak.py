@@ -9,12 +9,16 @@ Printed as the run goes: each simulated 10 minutes the process's resident memory
 log's size and the wall time. At the end: the tick log's size per simulated hour, RSS over time,
 and the tick period's percentiles. The last line is one JSON object:
 
-- ``rss_growth_mib``: RSS at the end minus RSS after the first 10 simulated minutes (target <= 10);
-  ``rss_growth_max_mib``: the highest sample after 10 minutes minus that value;
+- ``rss_growth_mib``: RSS at the last sample of the run (the 2 hours' last simulated minute) minus
+  RSS after the first 10 simulated minutes (target <= 10); ``rss_growth_max_mib``: the highest sample
+  after 10 minutes minus that value; ``rss_after_run_mib``: RSS once the run ended (the top-down
+  picture drawn, the summary written), for reference;
 - ``ticklog_mb_per_hour``: the tick log's size (10^6 bytes) per simulated hour (target <= 10);
 - ``tick_period_p99_ms``: the 99th percentile of the wall time from one tick to the next (the tree's
   tick, the tick log and the simulator's step to the next tick time); ``tick_cost_p99_ms``: the same
   for the tree's tick and its log line alone.
+
+The warnings the run prints (one per rejected model answer) go to ``<out>.warnings.log``.
 
 Usage: ``python benchmarks/soak.py [--hours 2] [--out runs/soak]``.
 """
@@ -32,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import structlog
 
 from missiontree.errors import ModelError
 from missiontree.plugins.manager import load_plugins
@@ -99,6 +104,9 @@ MODELS: dict[str, Any] = {
 
 def soak(hours: float, out: Path) -> dict[str, Any]:
     """Run the patrol for ``hours`` simulated hours; return the figures."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    warnings = (out.parent / f"{out.name}.warnings.log").open("w", encoding="utf-8")
+    structlog.configure(logger_factory=structlog.PrintLoggerFactory(file=warnings))
     plugins = load_plugins(autoload=False)
     plugins.providers["flaky_vlm"] = create_flaky_vlm
     seconds = hours * 3600.0
@@ -145,7 +153,10 @@ def soak(hours: float, out: Path) -> dict[str, Any]:
     log_bytes = (out / "ticks.jsonl").stat().st_size
     after = [s for s in samples if s[0] >= BASELINE_S]
     base = after[0][1] if after else samples[0][1]
-    rss_end = rss_mib()
+    rss_end = samples[-1][1]
+    rss_after = rss_mib()
+    structlog.reset_defaults()
+    warnings.close()
     per_hour = []
     for hour in range(1, int(np.ceil(result.duration / 3600.0)) + 1):
         until = [s[2] for s in samples if s[0] <= hour * 3600.0]
@@ -167,6 +178,7 @@ def soak(hours: float, out: Path) -> dict[str, Any]:
         "simulated_hours": round(result.duration / 3600.0, 3),
         "status": result.status.name, "stopped_by": result.stopped_by,
         "rss_baseline_mib": round(base, 2), "rss_end_mib": round(rss_end, 2),
+        "rss_after_run_mib": round(rss_after, 2),
         "rss_growth_mib": round(rss_end - base, 2),
         "rss_growth_max_mib": round(max(s[1] for s in after) - base, 2) if after else 0.0,
         "ticklog_mb_per_hour": round(log_bytes / 1e6 / (result.duration / 3600.0), 3),
