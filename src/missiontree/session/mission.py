@@ -12,6 +12,10 @@ providers::
 Every value comes from the request (the command-line flags) first, then the mission's ``run:``
 section, then the defaults below (:data:`DEFAULT_BACKEND`, :data:`DEFAULT_TICK_HZ`,
 :data:`DEFAULT_SEED`; the run directory ``runs/<mission file stem>``).
+
+The run directory is claimed before the robot starts (:mod:`missiontree.session.rundir`): checked,
+locked for this run (``run.lock``; exit 2 when another live run holds it) and cleared of an earlier
+run's files; the lock goes when the session closes.
 """
 
 from __future__ import annotations
