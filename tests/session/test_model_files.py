@@ -181,3 +181,16 @@ def test_missiontree_run_and_validate_exit_2_at_the_line(tree: dict[str, Path], 
     out = capsys.readouterr()
     assert out.out.count(f"{config}:4:") + out.err.count(f"{config}:4:") >= 2
     assert "hunter2" not in out.out + out.err and "Traceback" not in out.err
+
+
+def test_the_embedder_checks_a_tokenizer_size_before_reading_it(tmp_path: Path) -> None:
+    """Used directly (no models config), MiniLM still refuses an oversized file by its size."""
+    from missiontree.errors import ModelConfigError
+    from missiontree.file_limits import MAX_TOKENIZER_BYTES
+    from missiontree.reasoning.embedder import MiniLMEmbedder
+
+    big = tmp_path / "tokenizer.json"
+    with big.open("wb") as f:
+        f.truncate(MAX_TOKENIZER_BYTES + 1)
+    with pytest.raises(ModelConfigError, match="larger than 64 MiB"):
+        MiniLMEmbedder(tokenizer_path=big).embed(["a chair"])

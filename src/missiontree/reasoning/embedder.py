@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from missiontree.errors import ModelConfigError, ModelError
+from missiontree.file_limits import MAX_MODEL_BYTES, MAX_TOKENIZER_BYTES
 
 #: The committed tokenizer of all-MiniLM-L6-v2.
 TOKENIZER_FILE = "data/minilm/tokenizer.json"
@@ -103,11 +104,16 @@ class MiniLMEmbedder:
 
             model_path = self._model_path or default_model_path()
             tokenizer_path = self._tokenizer_path or default_tokenizer_path()
+            limits = {"model": MAX_MODEL_BYTES, "tokenizer": MAX_TOKENIZER_BYTES}
             for what, path in (("model", model_path), ("tokenizer", tokenizer_path)):
                 if not path.is_file():
                     raise ModelConfigError(
                         f"embedder {self.name!r}: the {what} file {str(path)!r} does not exist; "
                         f"fix {what}_path in the models config (default: the one shipped with missiontree)")
+                if path.stat().st_size > limits[what]:  # checked before a byte is read
+                    raise ModelConfigError(
+                        f"embedder {self.name!r}: the {what} file {str(path)!r} is larger than "
+                        f"{limits[what] // 2**20} MiB; is {what}_path the right file?")
             try:
                 tokenizer = Tokenizer.from_file(str(tokenizer_path))
             except Exception as exc:  # noqa: BLE001 - tokenizers raises plain Exception subclasses
