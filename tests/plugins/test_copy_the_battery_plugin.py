@@ -105,7 +105,8 @@ def test_a_copy_of_the_battery_plugin_with_its_own_sensor_runs_a_mission(tmp_pat
                                          encoding="utf-8")
     (tmp_path / "warm.yaml").write_text(MISSION, encoding="utf-8")
     command = [str(MISSIONTREE), "run", str(tmp_path / "warm.yaml"), "--out", str(tmp_path / "run")]
-    done = subprocess.run(command, env=env, cwd=REPO, capture_output=True, text=True, timeout=300, check=False)
+    done = subprocess.run(command, env=env, cwd=REPO, capture_output=True, text=True, timeout=300,
+                          check=False)
     assert done.returncode == 0, done.stdout + done.stderr
     assert "warm: SUCCESS" in done.stdout
     log = (tmp_path / "run" / "ticks.jsonl").read_text(encoding="utf-8")
