@@ -88,6 +88,14 @@ def _fresh_frame(robot: Any, after: float) -> RGBDFrame | None:
     return frame if frame is not None and frame.stamp > after else None
 
 
+def _await_frame(robot: Any, after: float) -> tuple[RGBDFrame | None, str]:
+    """A frame newer than ``after``, or None and why not yet: "" (wait on) or a reason to fail."""
+    frame = _fresh_frame(robot, after)
+    if frame is None and robot.now() - after > FRAME_TIMEOUT:
+        return None, f"no camera frame within {FRAME_TIMEOUT:g} s"
+    return frame, ""
+
+
 def _rejected(entries: Any) -> list[dict[str, Any]]:
     return [e for e in entries if isinstance(e, dict)] if isinstance(entries, list) else []
 
@@ -790,12 +798,9 @@ class Approach(Leaf):
         return self.running(_Step.FRAME.value)
 
     def _framed(self) -> Status:
-        robot = self.context.robot
-        frame = _fresh_frame(robot, self.started)
+        frame, late = _await_frame(self.context.robot, self.started)
         if frame is None:
-            if robot.now() - self.started > FRAME_TIMEOUT:
-                return self.fail(f"no camera frame within {FRAME_TIMEOUT:g} s")
-            return self.running(_Step.FRAME.value)
+            return self.fail(late) if late else self.running(_Step.FRAME.value)
         self.frame = frame
         self.call = model_caller(self.context).submit(
             "detector",
@@ -1014,12 +1019,9 @@ class Verify(Leaf):
             self.call = None
 
     def _framed(self) -> Status:
-        robot = self.context.robot
-        frame = _fresh_frame(robot, self.started)
+        frame, late = _await_frame(self.context.robot, self.started)
         if frame is None:
-            if robot.now() - self.started > FRAME_TIMEOUT:
-                return self.fail(f"no camera frame within {FRAME_TIMEOUT:g} s")
-            return self.running("waiting for a fresh frame")
+            return self.fail(late) if late else self.running("waiting for a fresh frame")
         self.frame = frame
         self.looks += 1
         if self.params.mode == "frame":
