@@ -10,7 +10,8 @@ an input like a user's. The leaves see only that file and the robot.
 
 Methods, each trial alternating between them from the same start pose:
 
-- ``ours``: ``trees/go_to_intent.yaml`` through the session (the mission a user runs): model
+- ``ours``: ``trees/go_to_intent.yaml`` through the session (the mission a user runs; all such runs
+  go through the batch runner, missiontree.evaluation, on a process pool of ``--jobs``): model
   candidates checked against the graph and the map, ranked by path length, a standoff goal facing
   the object, a look on arrival with failover to the next candidate.
 - ``nais``: the NAIS paper's interpretation node as published — the same language model's
@@ -34,6 +35,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import statistics
 import sys
 import tempfile
@@ -386,31 +388,53 @@ class Bench:
         return ranking.candidates[0].id if ranking.candidates else None
 
 
-def run_ours(bench: Bench, case: Case, start: tuple[float, float, float]) -> Trial:
-    """Run trees/go_to_intent.yaml through the session from ``start`` and score it."""
-    import io
+class IntentProbe:
+    """Scores an ``ours`` run inside its batch worker.
 
-    from missiontree.session import MissionRequest, Session
+    It reads the run's goals and served reason from its tick log and the simulator's true final pose
+    (scoring only; the leaves never see it).
+    """
 
-    trial = Trial("ours", case, start)
-    world = bench.world(case.world)
-    log = io.StringIO()
-    request = MissionRequest(mission=MISSION, world=str(world_file(world, start, bench.folder)),
-                             params={"command": case.command, "scene_graph": str(bench.graph(case))},
-                             quiet=True, seed=1, max_duration=400, log_stream=log, handle_signals=False,
-                             plugins=bench.plugins)
-    with Session.open(request) as session:
-        result = session.run()
-        final = session.robot.truth.robot_pose()
-    trial.status = result.status.value
-    events = [json.loads(line) for line in log.getvalue().splitlines() if line.strip()]
-    for event in events:
-        if event.get("event") == "goal_sent":
-            trial.goals.append(event)
-        if event.get("event") == "command_served":
-            trial.reason = event.get("reason", "")
-    _score(bench, trial, final, graph_reach=1.0)
-    return trial
+    def on_tick(self, session: Any) -> None:
+        """Nothing per tick."""
+
+    def finish(self, session: Any, result: Any) -> dict[str, Any]:
+        """The run's goals, the reason it was served with, and the true final pose."""
+        goals: list[dict[str, Any]] = []
+        reason = ""
+        for line in (session.run_dir / "ticks.jsonl").read_text(encoding="utf-8").splitlines():
+            event = json.loads(line) if line.strip() else {}
+            if event.get("event") == "goal_sent":
+                goals.append(event)
+            if event.get("event") == "command_served":
+                reason = event.get("reason", "")
+        pose = session.robot.truth.robot_pose()
+        return {"goals": goals, "served_reason": reason, "final_pose": [pose.x, pose.y, pose.yaw]}
+
+
+def run_ours(bench: Bench, wanted: Sequence[tuple[Case, tuple[float, float, float]]],
+             jobs: int) -> list[Trial]:
+    """Run trees/go_to_intent.yaml from each start on the batch runner (a process pool) and score each."""
+    from missiontree.evaluation import BatchPlan, PoolEngine, RunSpec, run_batch
+    from missiontree.types import Pose2D
+
+    specs = [RunSpec(world=str(world_file(bench.world(case.world), start, bench.folder)), seed=1,
+                     run_seed=1, params=(("command", case.command), ("scene_graph", str(bench.graph(case)))))
+             for case, start in wanted]
+    plan = BatchPlan(mission=MISSION, runs=specs, request={"max_duration": 400})
+    with PoolEngine(jobs) as engine:
+        records = run_batch(plan, engine, bench.folder / "batch", probe=IntentProbe)
+    trials = []
+    for (case, start), record in zip(wanted, records, strict=True):
+        trial = Trial("ours", case, start)
+        trial.status = record.status
+        trial.goals = list(record.figures.get("goals", []))
+        served = record.figures.get("served_reason", "")
+        trial.reason = served or (record.reason if record.status in ("ERROR", "INFRA") else "")
+        final = Pose2D(*record.figures.get("final_pose", start))
+        _score(bench, trial, final, graph_reach=1.0)
+        trials.append(trial)
+    return trials
 
 
 def run_nais(bench: Bench, case: Case, start: tuple[float, float, float]) -> Trial:
@@ -535,6 +559,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--written-starts", type=int, default=None,
                         help="start poses per written command (2)")
     parser.add_argument("--seed", type=int, default=18)
+    parser.add_argument("--jobs", type=int, default=None,
+                        help="batch workers for our runs (default: the cores)")
     args = parser.parse_args(argv)
     n_table = args.starts or (3 if args.quick else 10)
     n_written = args.written_starts or (1 if args.quick else 2)
@@ -547,16 +573,21 @@ def main(argv: Sequence[str] | None = None) -> int:
                 poses = start_poses(bench.world(case.world), max(n_table, n_written), args.seed)
                 plan += [(case, poses[(i + k) % len(poses)]) for k in range(n)]
         bench.resolve(plan[0][0], plan[0][1], "ours")   # warm the embedder once, outside the timings
+        timings: dict[tuple[int, str], float] = {}
+        nais_trials: dict[int, Trial] = {}
+        for k, (case, start) in enumerate(plan):        # the command-to-goal timings alternate methods
+            for method in (("ours", "nais") if k % 2 == 0 else ("nais", "ours")):
+                timings[k, method], _ = bench.resolve(case, start, method)
+            nais_trials[k] = run_nais(bench, case, start)
+        our_trials = run_ours(bench, plan, args.jobs or os.cpu_count() or 1)  # missions on the batch runner
         for k, (case, start) in enumerate(plan):
-            order = ("ours", "nais") if k % 2 == 0 else ("nais", "ours")
-            for method in order:
-                ms, _ = bench.resolve(case, start, method)
-                trial = run_ours(bench, case, start) if method == "ours" else run_nais(bench, case, start)
-                trial.ms = ms
+            for trial in (our_trials[k], nais_trials[k]):
+                trial.ms = timings[k, trial.method]
                 trials.append(trial)
-                print(f"{method:4} {case.group:11} {case.world:12} {case.command[:44]:44} start={start} "
+                print(f"{trial.method:4} {case.group:11} {case.world:12} {case.command[:44]:44} "
+                      f"start={start} "
                       f"{trial.status:7} {'ok ' if trial.success else 'MISS'} first={trial.first_object} "
-                      f"invented={trial.invented} {ms:6.1f} ms {trial.reason[:240]}", flush=True)
+                      f"invented={trial.invented} {trial.ms:6.1f} ms {trial.reason[:240]}", flush=True)
     summary = summarise(trials)
     ours, nais = summary["ours"], summary["nais"]
     for key in ("table2_success", "referential_success", "overall_success", "nearest_by_path_rate",
