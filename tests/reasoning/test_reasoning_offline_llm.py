@@ -56,6 +56,37 @@ def test_need_with_nothing_serving_it_names_nothing(llm: OfflineLanguageModel) -
     assert answer.candidates == [] and "no object in the scene serves" in answer.reason
 
 
+@pytest.mark.parametrize(("request_", "lacking"), [
+    ("I want to go swimming", "swimming pool"),       # shares "water" with the bottle and the cup
+    ("I want to wash my clothes", "washing machine"),  # shares "washing" with the sink
+    ("I feel dirty and need a bath", "bathtub"),
+])
+def test_need_calling_for_something_the_scene_lacks_names_nothing(llm: OfflineLanguageModel, request_: str,
+                                                                  lacking: str) -> None:
+    """A need whose fitting object the scene lacks is unserved, even when a present object shares a word."""
+    answer = resolve(llm, request_)
+    assert answer.candidates == [] and lacking in answer.reason
+
+
+@pytest.mark.parametrize(("request_", "expected"), [
+    ("I need to wash my hands", {"sink_1"}),
+    ("I need coffee", {"cup_1"}),
+    ("I would like to watch a film", {"tv_1"}),
+])
+def test_lacking_classes_do_not_shadow_present_ones(llm: OfflineLanguageModel, request_: str,
+                                                    expected: set[str]) -> None:
+    """The classes a scene may lack only veto a weak fit: needs a present object serves still find it."""
+    assert expected <= set(resolve(llm, request_).candidates)
+
+
+def test_a_lacking_class_present_in_the_scene_is_a_candidate(llm: OfflineLanguageModel) -> None:
+    """When the scene holds the class a need calls for (a shower), it is the answer, not a veto."""
+    scene = [*SCENE, obj("shower_1", "shower", 3.0, 1.0, "white", room="bathroom")]
+    answer = IntentResolution.model_validate_json(
+        llm.chat(intent_messages("I want to take a shower", scene), IntentResolution))
+    assert answer.candidates[:1] == ["shower_1"]
+
+
 def test_grey_backpack_picks_the_grey_one(llm: OfflineLanguageModel) -> None:
     """"I want the grey backpack" names only the grey backpack, with the parsed reference."""
     answer = resolve(llm, "I want the grey backpack")

@@ -17,7 +17,12 @@ Which object is nearest, and so the goal, is the caller's choice (NAIS node 5).
 
 Provider name ``offline_llm``; options: ``embedder`` (role of the embedder, default ``embedder``),
 ``affordances`` (label → description, added to the defaults), ``margin`` (0.05),
-``min_score`` (0.25: at 0.2 "I want to fly to the moon" still found a laptop).
+``min_score`` (0.25: at 0.2 "I want to fly to the moon" still found a laptop); the constructor also takes ``absent_margin`` (0.1, below).
+
+Saying "nothing fits" takes more than a similarity floor: "I want to take a shower" scores 0.40 with
+the cup ("water") while a shower, which the scene lacks, scores 0.64. The affordance table also
+describes common things scenes often lack; when the best of those beats the best present class by
+``absent_margin``, the need goes unserved with a reason naming what it calls for.
 """
 
 from __future__ import annotations
@@ -63,6 +68,22 @@ AFFORDANCES: dict[str, str] = {
     "dining table": "a dining table to eat meals at",
     "printer": "a printer to print documents",
     "bookshelf": "a bookshelf full of books to read when bored",
+    # common things a scene may lack: a need they fit better than anything present goes unserved
+    "shower": "a shower to wash and bathe the whole body under running water",
+    "bathtub": "a bathtub to take a bath in",
+    "washing machine": "a washing machine to wash dirty clothes and laundry",
+    "swimming pool": "a swimming pool to swim in",
+    "car": "a car to drive somewhere far away",
+    "airplane": "an airplane or rocket to fly in",
+    "bicycle": "a bicycle to ride outside",
+    "telephone": "a telephone to call someone",
+    "toothbrush": "a toothbrush to brush your teeth",
+    "piano": "a piano to play music on",
+    "stove": "a stove to cook food on",
+    "mirror": "a mirror to look at yourself",
+    "door": "a door to leave the house",
+    "first aid kit": "a first aid kit with medicine and bandages when hurt or sick",
+    "dog": "a pet dog to play with and walk",
 }
 
 #: Metres within which "near" / "next to" / "on" hold.
@@ -77,6 +98,8 @@ class OfflineLanguageModel:
         affordances: Extra or replacement label → description entries.
         margin: Classes scoring within this of the best class are candidates too.
         min_score: Below this cosine similarity nothing in the scene serves the need.
+        absent_margin: Nothing serves the need either when a known class the scene lacks (a shower)
+            fits it by this much better than the best class present.
         name: Provider name for events and errors.
     """
 
@@ -87,12 +110,14 @@ class OfflineLanguageModel:
         margin: float = 0.05,
         min_score: float = 0.25,
         name: str = "offline_llm",
+        absent_margin: float = 0.1,
     ) -> None:
         self.name = name
         self.embedder = embedder
         self.affordances = {**AFFORDANCES, **{fold_label(k): v for k, v in (affordances or {}).items()}}
         self.margin = float(margin)
         self.min_score = float(min_score)
+        self.absent_margin = float(absent_margin)
 
     def check(self) -> str:
         """Check the embedder; return a one-line description."""
@@ -134,14 +159,27 @@ class OfflineLanguageModel:
                       labels: list[str]) -> IntentResolution:
         if not labels:
             return IntentResolution(candidates=[], reason="the scene holds no objects")
+        present = {fold_label(label) for label in labels}
+        absent = sorted(k for k in self.affordances if k not in present)
         texts = [self.affordances.get(fold_label(label), f"a {label}") for label in labels]
-        scores = similarity(self.embedder, request, texts)
+        all_scores = similarity(self.embedder, request, texts + [self.affordances[k] for k in absent])
+        scores = all_scores[:len(labels)]
         order = sorted(range(len(labels)), key=lambda i: (-float(scores[i]), labels[i]))
         best = float(scores[order[0]])
         if best < self.min_score:
             return IntentResolution(candidates=[], reason=(
                 f"no object in the scene serves {request!r} (best: {labels[order[0]]}, "
                 f"similarity {best:.2f} < {self.min_score:.2f})"))
+        if absent:
+            # the need calls for something the scene lacks: a present class far behind it is only
+            # a word-level echo ("take a shower" and a cup share "water"), not a way to serve it
+            j = max(range(len(absent)), key=lambda i: float(all_scores[len(labels) + i]))
+            lacking = float(all_scores[len(labels) + j])
+            if lacking >= best + self.absent_margin:
+                return IntentResolution(candidates=[], reason=(
+                    f"no object in the scene serves {request!r}: it calls for a {absent[j]} (similarity "
+                    f"{lacking:.2f}), which the scene lacks; the best present, {labels[order[0]]}, "
+                    f"scores {best:.2f}"))
         chosen = [labels[i] for i in order if float(scores[i]) >= max(self.min_score, best - self.margin)]
         ids = [str(o["id"]) for label in chosen for o in objects if o["label"] == label]
         ranked = ", ".join(f"{labels[i]} {float(scores[i]):.2f}" for i in order[:4])
