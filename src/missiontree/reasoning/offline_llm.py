@@ -17,7 +17,8 @@ Which object is nearest, and so the goal, is the caller's choice (NAIS node 5).
 
 Provider name ``offline_llm``; options: ``embedder`` (role of the embedder, default ``embedder``),
 ``affordances`` (label → description, added to the defaults), ``margin`` (0.05),
-``min_score`` (0.25: at 0.2 "I want to fly to the moon" still found a laptop); the constructor also takes ``absent_margin`` (0.1, below).
+``min_score`` (0.25: at 0.2 "I want to fly to the moon" still found a laptop);
+the constructor also takes ``absent_margin`` (0.1, below).
 
 Saying "nothing fits" takes more than a similarity floor: "I want to take a shower" scores 0.40 with
 the cup ("water") while a shower, which the scene lacks, scores 0.64. The affordance table also
