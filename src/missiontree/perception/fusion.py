@@ -267,7 +267,8 @@ class InstanceFusion:
         uncut, cut = self._placing(cand.projections)
         position = (cand.x, cand.y, cand.z)
         if uncut and cut:
-            position = tuple(float(v) for v in np.median(np.array([q.position for q in uncut]), axis=0))
+            mx, my, mz = np.median(np.array([q.position for q in uncut]), axis=0)  # of (x, y, z) points
+            position = (float(mx), float(my), float(mz))
         sizes = np.array([q.size for q in cand.projections])
         size = tuple(float(v) for v in (np.median(sizes, axis=0) if len(sizes) else (0.0, 0.0, 0.0)))
         score = float(np.mean([q.score for q in cand.projections])) if cand.projections else 0.7
