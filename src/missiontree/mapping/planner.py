@@ -551,20 +551,27 @@ class Costmap:
 
     def blocked_along(self, points: np.ndarray) -> bool:
         """Whether any of the map ``points`` (N, 2) lies on a cell the robot cannot enter (or off the map)."""
+        return bool((self.costs_along(points) > MAX_FREE).any())
+
+    def costs_along(self, points: np.ndarray) -> np.ndarray:
+        """The cost (0..254, LETHAL off the map) of the cell under each map point (N, 2), as an int array."""
         pts = np.asarray(points, float).reshape(-1, 2)
         if not len(pts):
-            return False
+            return np.zeros(0, np.int64)
         res, origin = self.grid.resolution, self.grid.origin
         rows = np.floor((pts[:, 1] - origin.y) / res).astype(np.int64)
         cols = np.floor((pts[:, 0] - origin.x) / res).astype(np.int64)
         h, w = self.shape
-        if ((rows < 0) | (rows >= h) | (cols < 0) | (cols >= w)).any():
-            return True
-        tiles = (rows >> TILE_BITS) * self.ntc + (cols >> TILE_BITS)
-        for tile in np.unique(tiles).tolist():
-            self.ensure_tile(tile)
-        costs = self.cost_pool[self.cost_slot[tiles], rows & _TILE_MASK, cols & _TILE_MASK]
-        return bool((costs > MAX_FREE).any())
+        outside = (rows < 0) | (rows >= h) | (cols < 0) | (cols >= w)
+        costs = np.full(len(pts), LETHAL, np.int64)
+        inside = ~outside
+        if inside.any():
+            r, c = rows[inside], cols[inside]
+            tiles = (r >> TILE_BITS) * self.ntc + (c >> TILE_BITS)
+            for tile in np.unique(tiles).tolist():
+                self.ensure_tile(tile)
+            costs[inside] = self.cost_pool[self.cost_slot[tiles], r & _TILE_MASK, c & _TILE_MASK]
+        return costs
 
     def dense(self) -> np.ndarray:
         """The whole cost array (every tile computed): for pictures and tests, not for planning."""

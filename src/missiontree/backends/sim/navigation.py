@@ -5,7 +5,12 @@ as the robot's radius around them (a goal there is unreachable, the patrol-robot
 inflation cost decaying as ``252 * exp(-cost_scaling * (d - radius))`` out to
 ``inflation_radius`` (:mod:`missiontree.mapping.planner`: computed tile by tile as plans reach
 it, updated where the map changes). A* plans over it (8-connected, cost-weighted); a pure-pursuit
-follower drives the path; the goal is reached within ``tolerance.xy`` and, unless ``tolerance.yaw``
+follower drives the path, aiming only as far ahead as a straight line keeps the path's clearance
+(no cutting a bend round a door jamb); the arc it drives is swept against the lidar (walls on the
+map with a small side margin, anything else with a wider one), its speed regulated down to a creep
+as something comes near; when that arc is blocked it tries slower arcs back to the path (as a
+DWB-style local planner) or turns in place towards the path, which a round base can always do.
+The goal is reached within ``tolerance.xy`` and, unless ``tolerance.yaw``
 is a full turn (the thesis §3.6), after turning to the goal heading. What the lidar sees ahead
 (people) stops the robot; the planner then replans around it, and the goal aborts when the way
 stays blocked for ``blocked_timeout`` seconds.
@@ -46,6 +51,15 @@ _PINNED_TIME = 1.0         # s driving forward without moving before backing up
 _BACKUP_TIME, _BACKUP_SPEED = 1.0, 0.1
 _HAZARD_LIFETIME = 60.0   # s a bumper hit stays in the costmap
 _MAX_HAZARDS = 2_000
+_STOP_TIME = 0.5          # s of travel at the commanded speed kept clear ahead (stopping distance)
+_CREEP_SPEED = 0.05        # m/s: the slowest approach the speed regulation allows
+_SIDE_MARGIN = 0.03        # m beside the footprint the swept arc keeps clear of mapped obstacles
+_UNMAPPED_MARGIN = 0.12    # m it keeps clear of what the map does not hold (people reach past their legs)
+_TURN_WHEN_BLOCKED = 0.15  # rad: blocked with the path this far off the heading, turn in place
+_COST_SLACK = 12           # costmap units a lookahead line may exceed the path's own cost by (~2 cm)
+_SWERVE_SPEEDS = (0.05, 0.1)          # m/s: the arcs tried when the pure-pursuit arc is blocked
+_SWERVE_CURVATURES = tuple(np.linspace(-6.0, 6.0, 13).tolist())   # 1/m
+_SWERVE_TIME = 0.6         # s: how far along each tried arc its end point is judged
 _SHORT_LOOKAHEAD = 0.12    # m: the follower's target when the lookahead line would cut a corner
 _CORNER_SAMPLES = np.linspace(0.2, 1.0, 5)
 _MAX_GOALS_KEPT = 10_000   # goals remembered for pictures (the oldest are dropped on very long runs)
@@ -146,6 +160,7 @@ class _Follow:
     cumulative: np.ndarray = None  # type: ignore[assignment]  # arc length at each path point
     points: list[tuple[float, float]] = None  # type: ignore[assignment]
     cumulative_list: list[float] = None  # type: ignore[assignment]
+    costs: np.ndarray | None = None   # costmap cost under each path point
     total: float = 0.0
     index: int = 0
     blocked_since: float | None = None
@@ -171,6 +186,7 @@ class _Follow:
         self.cumulative = np.concatenate([[0.0], np.cumsum(steps)])
         self.cumulative_list = self.cumulative.tolist()
         self.total = self.cumulative_list[-1]
+        self.costs = None   # filled by the navigator from its costmap when first needed
 
 
 class Navigator:
@@ -210,7 +226,8 @@ class Navigator:
         self._map_changed = False
         self._xy_cache: tuple[LaserScan, np.ndarray, np.ndarray] | None = None
         self._trig: tuple[tuple[float, float, int, float], np.ndarray, np.ndarray] | None = None
-        self._ahead_cache: tuple[LaserScan, tuple[float, float] | None] | None = None
+        self._mapped_cache: tuple[LaserScan, np.ndarray] | None = None
+        self._scan_pose = Pose2D(0.0, 0.0, 0.0)
 
     @property
     def radius(self) -> float:
@@ -291,6 +308,7 @@ class Navigator:
                                       self.recoveries)
             follow.last_step = now
             return 0.0, 0.0   # no way on the map learned so far: wait for one (people move on)
+        self._scan_pose = pose
         gap = now - follow.last_step - self.physics_dt
         if gap > 1e-6:  # drive() overrode us meanwhile: the goal's timers pause
             follow.best_time += gap
@@ -425,21 +443,7 @@ class Navigator:
 
     def _drive(self, follow: _Follow, now: float, pose: Pose2D, scan: LaserScan | None,
                remaining: float) -> tuple[float, float]:
-        points = follow.points
-        target = points[-1]
-        for i in range(follow.index, len(points)):
-            px, py = points[i]
-            if math.hypot(px - pose.x, py - pose.y) >= self.spec.lookahead:
-                target = points[i]
-                break
-        if self._cuts_corner(pose, target):
-            # the straight line to the lookahead point crosses the inscribed zone (a corner, a door
-            # post): steer for a nearer point of the path instead, as a collision-checking controller
-            for i in range(follow.index, len(points)):
-                px, py = points[i]
-                if math.hypot(px - pose.x, py - pose.y) >= _SHORT_LOOKAHEAD:
-                    target = points[i]
-                    break
+        target = self._target(follow, pose)
         err = wrap_angle(math.atan2(target[1] - pose.y, target[0] - pose.x) - pose.yaw)
         lim = self.limits
         w = max(-lim.max_w, min(lim.max_w, self.spec.heading_gain * err))
@@ -447,7 +451,21 @@ class Navigator:
             follow.blocked_since = None
             return 0.0, w
         v = lim.max_v * max(0.0, math.cos(err)) * min(1.0, 0.3 + remaining / 0.6)
-        obstacle = self._obstacle_ahead(scan, v)
+        obstacle = self._obstacle_ahead(scan, v, w)
+        if obstacle is not None:
+            # regulate the speed to what lidar sees ahead (as Nav2's regulated pure pursuit): creep
+            # on while the stopping distance at a lower speed keeps clear of it
+            # on the same arc (the curvature kept, as Nav2's regulated pure pursuit scales speed)
+            slower = (obstacle[0] - self.radius - self.spec.obstacle_margin - 0.01) / _STOP_TIME
+            if _CREEP_SPEED <= slower < v:
+                w *= slower / v
+                v = slower
+                obstacle = self._obstacle_ahead(scan, v, w)
+        if obstacle is not None:
+            swerve = self._swerve(follow, pose, scan)
+            if swerve is not None:
+                v, w = swerve
+                obstacle = None
         if obstacle is None:
             follow.blocked_since = None
             if self._pinned(follow, now, pose):
@@ -456,7 +474,7 @@ class Navigator:
         if follow.blocked_since is None:
             follow.blocked_since = now
         if now - follow.blocked_since >= self.spec.blocked_timeout:
-            ox, oy = pose.transform(*obstacle)
+            ox, oy = pose.transform(*obstacle[1:])
             return self._abort(ActionStatus.ABORTED, f"path blocked for {self.spec.blocked_timeout:.1f} s by "
                                f"an obstacle at ({ox:.2f}, {oy:.2f})", BLOCKED)
         if now - follow.last_replan >= self.spec.replan_period and now - follow.blocked_since >= 0.5:
@@ -467,15 +485,87 @@ class Navigator:
             self.replans += 1
             if path2 is not None:
                 follow.set_path(path2)
+        if abs(err) > _TURN_WHEN_BLOCKED:
+            # what blocks the arc is not where the path leads (a door post on the inside of a turn):
+            # a round base turns in place without sweeping anything new, then the arc is checked again
+            return 0.0, w
         return 0.0, 0.0
 
-    def _cuts_corner(self, pose: Pose2D, target: tuple[float, float]) -> bool:
-        """Whether the straight line from ``pose`` to ``target`` crosses a cell the robot cannot enter."""
-        if self.costmap.cost_at(pose.x, pose.y) > MAX_FREE:
-            return False  # leaving the inscribed zone: the path itself leads out
-        t = _CORNER_SAMPLES
-        line = np.stack([pose.x + t * (target[0] - pose.x), pose.y + t * (target[1] - pose.y)], axis=1)
-        return self.costmap.blocked_along(line)
+    def _swerve(self, follow: _Follow, pose: Pose2D, scan: LaserScan | None) -> tuple[float, float] | None:
+        """When the pure-pursuit arc is blocked: the best free arc back towards the path, or None.
+
+        A small sample of arcs (slow speeds, curvatures both ways, as a DWB-style local planner)
+        is swept against the scan; those ending on a cell the robot may not enter are dropped;
+        the one ending nearest the path point a lookahead ahead wins. None when no arc is free
+        (something stands on the path: the caller waits, turns or replans).
+        """
+        points = follow.points
+        far = follow.index
+        while far < len(points) - 1 and math.hypot(points[far][0] - pose.x,
+                                                   points[far][1] - pose.y) < self.spec.lookahead:
+            far += 1
+        fx, fy = points[far]
+        now_gap = math.hypot(fx - pose.x, fy - pose.y)
+        best: tuple[float, float, float] | None = None
+        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+        for v in _SWERVE_SPEEDS:
+            for k in _SWERVE_CURVATURES:
+                w = v * k
+                if abs(w) > self.limits.max_w or self._obstacle_ahead(scan, v, w) is not None:
+                    continue
+                d = v * _SWERVE_TIME
+                if abs(k) < 1e-6:
+                    lx, ly, yaw = d, 0.0, 0.0
+                else:
+                    yaw = d * k
+                    lx, ly = math.sin(yaw) / k, (1.0 - math.cos(yaw)) / k
+                ex, ey = pose.x + c * lx - s * ly, pose.y + s * lx + c * ly
+                if self.costmap.cost_at(ex, ey) > MAX_FREE:
+                    continue
+                gap = math.hypot(fx - ex, fy - ey)
+                if gap < now_gap - 0.25 * d and (best is None or gap < best[0]):
+                    best = (gap, v, w)
+        return None if best is None else (best[1], best[2])
+
+    def _target(self, follow: _Follow, pose: Pose2D) -> tuple[float, float]:
+        """The pure-pursuit point: the farthest path point in the lookahead a straight line reaches safely.
+
+        The line must not come nearer to obstacles than the path itself does there.
+        The straight line to a point past a bend cuts the bend's inside; near a door post or a
+        corner that is where the costmap's inflation cost rises. A line whose cost exceeds the path's
+        own over that stretch (plus a little slack) would clip the post, so a nearer point is
+        taken, down to ``_SHORT_LOOKAHEAD`` (in the open the full lookahead stands).
+        """
+        points = follow.points
+        start = follow.index
+        stop = start
+        while stop < len(points) - 1 and math.hypot(points[stop][0] - pose.x,
+                                                    points[stop][1] - pose.y) < self.spec.lookahead:
+            stop += 1
+        here = self.costmap.cost_at(pose.x, pose.y)
+        if here > MAX_FREE:
+            return points[stop]   # leaving the inscribed zone: the path itself leads out
+        if follow.costs is None:
+            follow.costs = self.costmap.costs_along(follow.path)
+        chosen = list(range(start, stop + 1))
+        ends = follow.path[chosen]
+        t = _CORNER_SAMPLES[:, None, None]
+        line = (1.0 - t) * np.array([pose.x, pose.y]) + t * ends[None, :, :]     # (samples, K, 2)
+        line_cost = self.costmap.costs_along(line.reshape(-1, 2))
+        line_cost = line_cost.reshape(len(_CORNER_SAMPLES), -1).max(axis=0)
+        path_cost = np.maximum.accumulate(follow.costs[start:stop + 1])
+        allowed = np.maximum(path_cost, here) + _COST_SLACK
+        for k in range(len(chosen) - 1, -1, -1):
+            if line_cost[k] <= allowed[k] and line_cost[k] <= MAX_FREE:
+                far_enough = math.hypot(ends[k][0] - pose.x, ends[k][1] - pose.y) >= _SHORT_LOOKAHEAD
+                if far_enough or k == len(chosen) - 1:
+                    return points[chosen[k]]
+                break
+        for i in range(start, len(points)):   # nothing safe to aim at: keep to the path close by
+            px, py = points[i]
+            if math.hypot(px - pose.x, py - pose.y) >= _SHORT_LOOKAHEAD:
+                return points[i]
+        return points[-1]
 
     def _pinned(self, follow: _Follow, now: float, pose: Pose2D) -> bool:
         """Whether the robot has been driving forward without moving (pinned against something)."""
@@ -491,22 +581,54 @@ class Navigator:
         self.recoveries += 1
         return -_BACKUP_SPEED, 0.0
 
-    def _obstacle_ahead(self, scan: LaserScan | None, v: float) -> tuple[float, float] | None:
-        """The nearest scan point (robot frame) in the corridor the robot is about to sweep."""
+    def _obstacle_ahead(self, scan: LaserScan | None, v: float,
+                        w: float = 0.0) -> tuple[float, float, float] | None:
+        """The first scan point the footprint would sweep on the arc ``(v, w)`` within stopping reach.
+
+        The footprint (radius plus a small side margin) is swept along the circular arc the command
+        drives (a straight corridor when ``w`` is about 0), as a controller's collision check
+        projects its command forward; a point counts when the arc reaches its side within the
+        stopping distance ``radius + obstacle_margin + v * 0.5 s``. Returns (arc length to it, x, y)
+        in the robot frame, or None.
+        """
         if scan is None:
             return None
-        if self._ahead_cache is None or self._ahead_cache[0] is not scan:
-            # nearest point in the robot's swept corridor, once per scan
+        x, y = self._scan_xy(scan)
+        reach = self.radius + self.spec.obstacle_margin + max(v, _CREEP_SPEED) * _STOP_TIME
+        box = reach + self.radius + _UNMAPPED_MARGIN
+        near = (np.abs(x) < box) & (np.abs(y) < box)
+        if not near.any():
+            return None
+        x, y = x[near], y[near]
+        side = self.radius + np.where(self._mapped(scan)[near], _SIDE_MARGIN, _UNMAPPED_MARGIN)
+        k = w / v if v > 1e-3 else 0.0
+        mirrored = k < 0.0
+        if abs(k) < 1e-3:
+            lateral, along = np.abs(y), x
+        else:
+            if mirrored:
+                y, k = -y, -k   # mirror a right turn into a left one
+            r = 1.0 / k
+            lateral = np.abs(np.hypot(x, y - r) - r)
+            along = np.mod(np.arctan2(x, r - y), 2.0 * math.pi) * r
+        hit = (along > 0.0) & (along < reach) & (lateral < side)
+        if not hit.any():
+            return None
+        i = int(np.argmin(np.where(hit, along, np.inf)))
+        return float(along[i]), float(x[i]), float(-y[i] if mirrored and abs(k) >= 1e-3 else y[i])
+
+    def _mapped(self, scan: LaserScan) -> np.ndarray:
+        """Per scan point: whether it lies on the map's own obstacles (not on something the map lacks).
+
+        A wall the plan already keeps clear of needs a small side margin; a person may step closer.
+        """
+        if self._mapped_cache is None or self._mapped_cache[0] is not scan:
             x, y = self._scan_xy(scan)
-            hit = (x > 0.0) & (np.abs(y) < self.radius + 0.03)
-            nearest = None
-            if hit.any():
-                i = int(np.argmin(np.where(hit, x, np.inf)))
-                nearest = (float(x[i]), float(y[i]))
-            self._ahead_cache = (scan, nearest)
-        nearest = self._ahead_cache[1]
-        reach = self.radius + self.spec.obstacle_margin + max(v, 0.1) * 0.5
-        return nearest if nearest is not None and nearest[0] < reach else None
+            pose = self._scan_pose
+            c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+            world = np.stack([pose.x + c * x - s * y, pose.y + s * x + c * y], axis=1)
+            self._mapped_cache = (scan, self.costmap.costs_along(world) >= INSCRIBED)
+        return self._mapped_cache[1]
 
     def _scan_xy(self, scan: LaserScan) -> tuple[np.ndarray, np.ndarray]:
         """Scan end points in the robot frame (cached per scan)."""
