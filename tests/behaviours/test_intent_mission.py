@@ -57,7 +57,8 @@ def test_nothing_satisfies_fails_with_the_reason_and_no_goal(tmp_path: Path) -> 
 
 
 def test_an_object_not_seen_on_arrival_is_doubted_and_the_next_candidate_tried(tmp_path: Path) -> None:
-    """The graph puts the pink bottle on empty floor: the look fails, it is marked doubtful, a cup is next."""
+    """The graph puts the pink bottle on empty floor: the look fails, a second look from another place
+    fails too, it is marked doubtful, a cup is next."""
     graph = json.loads(OFFICE_GRAPH.read_text())
     for node in graph["nodes"]:
         if node["id"] == "bottle_pink":
@@ -67,8 +68,13 @@ def test_an_object_not_seen_on_arrival_is_doubted_and_the_next_candidate_tried(t
     status, events, _ = run({"command": "I'm thirsty", "scene_graph": str(path)})
     doubted = of(events, "object_doubtful")
     assert doubted and doubted[0]["object"] == "bottle_pink"
-    goals = [e["object"] for e in of(events, "goal_sent")]
-    assert goals[0] == "bottle_pink" and len(goals) >= 2 and goals[1] != "bottle_pink"
+    again = of(events, "look_again")
+    assert [e["object"] for e in again] == ["bottle_pink"] and "second place" in doubted[0]["reason"]
+    sent = of(events, "goal_sent")
+    goals = [e["object"] for e in sent]
+    assert goals[:2] == ["bottle_pink", "bottle_pink"] and len(goals) >= 3 and goals[2] != "bottle_pink"
+    first, second = sent[0], sent[1]
+    assert math.hypot(first["x"] - second["x"], first["y"] - second["y"]) > 0.2   # another place to look from
     assert status == "SUCCESS"
 
 

@@ -22,6 +22,7 @@ Tick-log events: ``command_received``, ``intent_interpreted``, ``candidate_rejec
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 from collections.abc import Iterator
@@ -45,6 +46,7 @@ from missiontree.reasoning.intent import (
     look_for,
     match_detection,
     nearest_note,
+    other_viewpoint,
     plan_candidates,
     prompt_objects,
 )
@@ -276,6 +278,7 @@ class _Step(enum.Enum):
     FRAME = "waiting for a fresh camera frame"
     DETECT = "looking with the detector"
     CONFIRM = "asking the vision-language model"
+    VIEWPOINT = "finding another place to look from"
 
 
 class GoToIntent(Leaf):
@@ -342,6 +345,8 @@ class GoToIntent(Leaf):
         self.frame: RGBDFrame | None = None
         self.looks = 0
         self.started = 0.0
+        self.second_look = False   # the current candidate has been looked at from a second place
+        self.first_miss = ""
 
     def on_setup(self) -> None:
         """Load the graph file (a missing or malformed file fails here, before the first tick)."""
@@ -391,6 +396,7 @@ class GoToIntent(Leaf):
             _Step.FRAME: self._framed,
             _Step.DETECT: self._detected,
             _Step.CONFIRM: self._confirmed,
+            _Step.VIEWPOINT: self._viewpoint,
         }
         return handlers[self.step]()
 
@@ -489,6 +495,7 @@ class GoToIntent(Leaf):
         driven = sum(1 for _, why in self.tried if why.startswith(("not confirmed", "not reached")))
         if not ranking.candidates or driven >= self.params.max_candidates:
             return self._give_up()
+        self.second_look = False
         return self._drive_to(ranking.candidates[0])
 
     def _drive_to(self, candidate: Candidate) -> Status:
@@ -603,7 +610,7 @@ class GoToIntent(Leaf):
             self.step = _Step.FRAME
             return self.running(f"{_Step.FRAME.value} (look {self.looks + 1} of {LOOK_FRAMES})")
         if found is None:
-            return self._doubt(f"{why} (in {self.looks} frames)")
+            return self._look_elsewhere(f"{why} (in {self.looks} frames)")
         wanted = look_for(self.target.label, self.wanted.split())
         same = [d for d in detections if fold_label(d.label) == fold_label(found.label) and d.score >= 0.5]
         # Alone of its class in view, the whole frame is asked about; with others beside it, only the
@@ -631,8 +638,8 @@ class GoToIntent(Leaf):
             self.step = _Step.FRAME
             return self.running(f"{_Step.FRAME.value} (look {self.looks + 1} of {LOOK_FRAMES})")
         if not verdict.matches:
-            return self._doubt(f"the vision-language model does not see a {wanted}: {verdict.reason} "
-                               f"(in {self.looks} frames)")
+            return self._look_elsewhere(f"the vision-language model does not see a {wanted}: "
+                                        f"{verdict.reason} (in {self.looks} frames)")
         self.emit(
             "object_verified",
             command=self.text,
@@ -644,6 +651,43 @@ class GoToIntent(Leaf):
         return self.succeed(f"at {self.target.id}: a {wanted} seen ({verdict.reason})")
 
     # -- failing over ----------------------------------------------------------------------------
+
+    def _look_elsewhere(self, reason: str) -> Status:
+        """A look that did not confirm the target: look once more from another side before doubting it.
+
+        A detector misses a cup seen edge-on on a cluttered table, or one cut by the view's edge;
+        the graph's instance came from views elsewhere. One second standoff pose (another side, or
+        nearer/farther: :func:`~missiontree.reasoning.intent.other_viewpoint`) is tried first.
+        """
+        assert self.target is not None and self.scene is not None
+        robot = self.context.robot
+        stamped = robot.pose()
+        grid = robot.occupancy()
+        obj = self.scene.objects.get(self.target.id)
+        if self.second_look or stamped is None or grid is None or obj is None:
+            return self._doubt(reason if not self.second_look else f"{self.first_miss}; again from a "
+                               f"second place: {reason}")
+        self.second_look = True
+        self.first_miss = reason
+        self.call = model_caller(self.context).submit(
+            "planner", other_viewpoint, obj, grid, stamped.pose, self.target.goal, self.params.robot_radius,
+            self.params.allow_unknown, _camera_view(self.frame), provider="intent_viewpoint", node=self.name,
+        )
+        self.step = _Step.VIEWPOINT
+        return self.running(_Step.VIEWPOINT.value)
+
+    def _viewpoint(self) -> Status:
+        assert self.call is not None and self.target is not None
+        status = self.call.status()
+        if not status.done:
+            return self.running(_Step.VIEWPOINT.value)
+        pose = self.call.result() if status is CallStatus.SUCCEEDED else None
+        self.call = None
+        if pose is None:
+            return self._doubt(f"{self.first_miss}; no other place to look at it from")
+        self.emit("look_again", command=self.text, object=self.target.id, reason=self.first_miss,
+                  x=round(pose.x, 3), y=round(pose.y, 3), yaw=round(pose.yaw, 3))
+        return self._drive_to(dataclasses.replace(self.target, goal=pose))
 
     def _doubt(self, reason: str) -> Status:
         assert self.target is not None

@@ -58,6 +58,10 @@ CLEAR_WANTED, CLEAR_WEIGHT = 0.25, 4.0
 VIEW_MARGIN = 0.12
 #: An object whose cell and surroundings (this radius, m) are all unknown is outside the known map.
 KNOWN_RADIUS = 0.5
+#: A second look comes from a side at least this far round the object (rad) ...
+OTHER_SIDE = math.radians(60.0)
+#: ... or, when the object is seen from one side only, this much nearer or farther (m).
+OTHER_RANGE = 0.3
 
 
 @dataclass(frozen=True)
@@ -503,6 +507,50 @@ def plan_candidates(
         ranked.append((length, order, Candidate(obj.id, obj.label, obj.xy, goal, length, straight)))
     ranked.sort(key=lambda item: (item[0], item[1]))
     return Ranking([c for _, _, c in ranked], rejected)
+
+
+def other_viewpoint(
+    obj: GraphObject,
+    grid: OccupancyGrid,
+    robot: Pose2D,
+    first: Pose2D,
+    robot_radius: float = 0.17,
+    allow_unknown: bool = False,
+    camera: tuple[float, float] | None = None,
+) -> Pose2D | None:
+    """A second standoff pose to look at ``obj`` from when the first look (from ``first``) did not see it.
+
+    A detector misses a small object seen edge-on, against a clutter of others or cut by the view's
+    edge; another side shows it differently. Among the object's standoff cells (those
+    :func:`standoff_cells` gives, far enough for the camera to see its height), the reachable one of
+    least path length plus penalty whose bearing from the object differs from the first pose's by at
+    least :data:`OTHER_SIDE` is chosen; failing that, one at least :data:`OTHER_RANGE` nearer or farther.
+    None when there is no such place (then the object is doubted as before).
+    """
+    if obj.xy is None:
+        return None
+    space = prepare_space(grid, robot_radius, allow_unknown)
+    cells = standoff_cells(space, obj.xy, robot_radius, _view_distance(camera, obj.z))
+    if not cells:
+        return None
+    ox, oy = obj.xy
+    first_bearing = math.atan2(first.y - oy, first.x - ox)
+    first_range = math.hypot(first.x - ox, first.y - oy)
+    places = [(grid.cell_to_world(r, c), pen) for r, c, pen in cells]
+    aside = [(xy, pen) for xy, pen in places
+             if abs(wrap_angle(math.atan2(xy[1] - oy, xy[0] - ox) - first_bearing)) >= OTHER_SIDE]
+    if not aside:
+        aside = [(xy, pen) for xy, pen in places
+                 if abs(math.hypot(xy[0] - ox, xy[1] - oy) - first_range) >= OTHER_RANGE]
+    if not aside:
+        return None
+    lengths = path_lengths(space.costmap, robot, [xy for xy, _ in aside])
+    scored = [(float(length) + pen, xy) for (xy, pen), length in zip(aside, lengths, strict=True)
+              if length is not None]
+    if not scored:
+        return None
+    _, (gx, gy) = min(scored, key=lambda item: item[0])
+    return Pose2D(gx, gy, math.atan2(oy - gy, ox - gx))
 
 
 def _view_distance(camera: tuple[float, float] | None, z: float) -> float:
