@@ -461,3 +461,35 @@ def test_runner_and_tick_log_memory_stays_flat_on_a_long_run() -> None:
         finally:
             tracemalloc.stop()
     assert sizes[1] - sizes[0] < 32 * 1024, f"grew {sizes[1] - sizes[0]} bytes over 2,500 ticks"
+
+
+def test_a_summary_that_cannot_be_written_is_a_clear_error_after_the_robot_stopped(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A full disk at the end: ConfigError (exit 2) saying the summary was not written; robot stopped."""
+    import errno
+
+    robot = ClockRobot()
+    runner = _runner(ScriptedLeaf("a", script="RRS"), robot, run_dir=tmp_path)
+    original = Runner._write_summary
+
+    def full_at_the_end(self: Runner, summary: dict) -> None:
+        if summary.get("complete"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        original(self, summary)
+
+    monkeypatch.setattr(Runner, "_write_summary", full_at_the_end)
+    with pytest.raises(ConfigError, match="summary could not be written .*No space left on device"):
+        runner.run()
+    assert robot.stop_calls == 1
+    assert json.loads((tmp_path / "summary.json").read_text())["complete"] is False  # the start's, valid
+    assert json.loads((tmp_path / "ticks.jsonl").read_text().splitlines()[-1])["event"] == "mission_finished"
+
+
+def test_run_directory_that_is_a_file_is_a_config_error(tmp_path: Path) -> None:
+    """The runner alone (no session) given a file as its directory: ConfigError, robot stopped."""
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    robot = ClockRobot()
+    with pytest.raises(ConfigError, match="cannot write the run directory"):
+        _runner(ScriptedLeaf("a", script="S"), robot, run_dir=afile).run()
+    assert robot.stop_calls == 1 and afile.read_text() == "x"
