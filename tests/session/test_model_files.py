@@ -194,3 +194,18 @@ def test_the_embedder_checks_a_tokenizer_size_before_reading_it(tmp_path: Path) 
         f.truncate(MAX_TOKENIZER_BYTES + 1)
     with pytest.raises(ModelConfigError, match="larger than 64 MiB"):
         MiniLMEmbedder(tokenizer_path=big).embed(["a chair"])
+
+
+def test_a_config_given_as_data_is_confined_to_the_working_directory(
+        tree: dict[str, Path], monkeypatch: pytest.MonkeyPatch) -> None:
+    """Relative to the working directory; absolute or relative paths outside it refused."""
+    monkeypatch.chdir(tree["models"])
+    for value in (str(tree["outside"] / "secret.onnx"), "../outside/secret.onnx"):
+        config = {"roles": {"embedder": {"provider": "minilm", "tokenizer_path": value}}}
+        with pytest.raises(ProblemsError, match="outside them") as caught:
+            build_models(config, providers())
+        assert "<models config>:" in str(caught.value) and "hunter2" not in str(caught.value)
+    monkeypatch.setenv(MODEL_PATH_ENV, str(tree["outside"]))
+    allowed = {"roles": {"embedder": {"provider": "minilm", "tokenizer_path": "../outside/secret.onnx"}}}
+    embedder = build_models(allowed, providers())["embedder"]
+    assert embedder._tokenizer_path == (tree["outside"] / "secret.onnx").resolve()  # handed over absolute

@@ -21,6 +21,7 @@ the file that was checked.
 
 from __future__ import annotations
 
+import os
 import stat
 from collections.abc import Mapping
 from pathlib import Path
@@ -76,6 +77,8 @@ def model_file_problems(
             continue  # the role is unusable; reported when the models are built
         for option, spec in path_options(factory).items():
             value = section.get(option)
+            if isinstance(value, os.PathLike):  # a config given as data may hold Path objects
+                value = os.fspath(value)
             if option in _ROLE_KEYS or not isinstance(value, str):
                 continue  # absent, or not a string (the provider's options check reports that)
             key = ("roles", role, option)
