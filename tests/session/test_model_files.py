@@ -209,3 +209,21 @@ def test_a_config_given_as_data_is_confined_to_the_working_directory(
     allowed = {"roles": {"embedder": {"provider": "minilm", "tokenizer_path": "../outside/secret.onnx"}}}
     embedder = build_models(allowed, providers())["embedder"]
     assert embedder._tokenizer_path == (tree["outside"] / "secret.onnx").resolve()  # handed over absolute
+
+
+def test_a_models_config_named_in_the_run_section_is_read_beside_the_mission(
+        tree: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """As checked before the run: from another working directory, the run uses the checked files."""
+    shutil.copy(SIM_DETECTOR_MODEL, tree["models"] / "mine.onnx")
+    write_config(tree["models"], "    provider: yolo_onnx\n    model: mine.onnx\n", "mymodels.yaml")
+    mission = tree["models"] / "m.yaml"
+    mission.write_text("version: 1\nrun: {backend: fake, max_duration: 1, models: mymodels.yaml}\nroot:\n"
+                       "  Wait: {seconds: 0.1}\n", encoding="utf-8")
+    plugins = load_plugins(autoload=False)
+    plugins.backends["fake"] = lambda options: ClockRobot()
+    monkeypatch.chdir(tree["outside"])
+    session = Session.open(MissionRequest(mission=mission, plugins=plugins, out=tmp_path / "run"))
+    try:
+        assert Path(session.models["detector"].model_path) == (tree["models"] / "mine.onnx").resolve()
+    finally:
+        session.close()

@@ -38,7 +38,7 @@ from missiontree.plugins.manager import Plugins, load_plugins
 from missiontree.reasoning.calls import CALLER_KEY
 from missiontree.session.models import build_models
 from missiontree.session.params import parse_overrides
-from missiontree.session.preflight import check_references
+from missiontree.session.preflight import check_references, resolve_mission_path
 from missiontree.session.progress import ProgressLine
 from missiontree.session.rundir import RunDirectory
 
@@ -192,7 +192,8 @@ class Session:
         map_from_file = None if run.map is None else run.map == "unknown"
         unknown_map = bool(_pick(request.unknown_map, map_from_file, False))
         config = load_run_config(_pick(request.config, run.config, None))
-        models_config = _pick(request.models, run.models, None)
+        models_config = _pick(request.models, None if run.models is None  # beside the mission, as checked
+                              else resolve_mission_path(mission, run.models), None)
         self.mission_name = mission.stem
         self.run_dir: Path | None = None
         if request.log_stream is None:
