@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 
 from missiontree.cli.main import main
-from missiontree.errors import MissionFileError, ProblemsError
+from missiontree.errors import MissionFileError, ModelError, ProblemsError
 from missiontree.file_limits import MAX_LABELS_BYTES, MAX_MODEL_BYTES, MODEL_PATH_ENV
 from missiontree.perception.providers import SIM_DETECTOR_MODEL, create_sim_detector
 from missiontree.perception.providers import register_providers as register_perception
@@ -227,3 +227,12 @@ def test_a_models_config_named_in_the_run_section_is_read_beside_the_mission(
         assert Path(session.models["detector"].model_path) == (tree["models"] / "mine.onnx").resolve()
     finally:
         session.close()
+
+
+def test_a_broken_yaml_labels_file_makes_the_role_unusable_without_its_lines(tree: dict[str, Path]) -> None:
+    (tree["models"] / "labels.yaml").write_text("names: [a, b\npassword: hunter2\n", encoding="utf-8")
+    config = write_config(tree["models"], "    provider: sim_detector\n    labels_file: labels.yaml\n")
+    detector = build_models(config, providers())["detector"]
+    with pytest.raises(ModelError, match=r"not valid YAML \(line 2, column 9\)") as caught:
+        detector.detect(None)
+    assert "hunter2" not in str(caught.value)

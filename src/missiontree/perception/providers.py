@@ -80,6 +80,19 @@ class OracleOptions(BaseModel):
 
 
 def _yolo(parsed: YoloOptions, model: str | Path, name: str) -> Any:
+    import yaml
+
+    try:
+        return _yolo_detector(parsed, model, name)
+    except yaml.YAMLError as exc:  # a broken YAML labels file: where, never the file's lines
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
+        raise ModelConfigError(
+            f"detector {parsed.name or name!r}: labels file {parsed.labels_file!r} is not valid YAML{where}; "
+            "give one class name a line, or a 'names' list or mapping") from None
+
+
+def _yolo_detector(parsed: YoloOptions, model: str | Path, name: str) -> Any:
     from missiontree.perception.detectors import YoloOnnxDetector
 
     return YoloOnnxDetector(
