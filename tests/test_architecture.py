@@ -39,6 +39,7 @@ LAYERS: dict[str, int] = {
     "runlog": 7, "session": 7,
     "evaluation": 8,  # batch runs call the session
     "cli": 9,
+    "__main__": 9,  # `python -m missiontree` and the console script: the command line's entry
     "testing": 10,  # helpers for tests of the layers above
     "testing_models": 10,  # conformance suites for model providers
 }
