@@ -295,7 +295,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     n_present = args.worlds if args.worlds is not None else (6 if args.quick else 50)
     n_absent = args.absent if args.absent is not None else (2 if args.quick else 10)
-    max_duration = args.max_duration or (420.0 if args.quick else 600.0)
+    max_duration = args.max_duration or 600.0
     trials: list[Trial] = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)

@@ -303,10 +303,11 @@ class ResumeExplore(Explore):
         )
         exhausted_fails: bool = Field(False, description="Nothing left to explore is FAILURE 'not found'.")
         second_chances: int = Field(
-            1,
+            0,
             ge=0,
             description="Times the goals given up as unreachable are tried again once nothing else "
-            "is left (a doorway judged too narrow on a half-learned map often is not).",
+            "is left (a doorway judged too narrow on a half-learned map often is not; costs time "
+            "when the target is absent).",
         )
 
     params: Params
