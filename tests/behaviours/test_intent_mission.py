@@ -57,8 +57,7 @@ def test_nothing_satisfies_fails_with_the_reason_and_no_goal(tmp_path: Path) -> 
 
 
 def test_an_object_not_seen_on_arrival_is_doubted_and_the_next_candidate_tried(tmp_path: Path) -> None:
-    """The graph puts the pink bottle on empty floor: the look fails, a second look from another place
-    fails too, it is marked doubtful, a cup is next."""
+    """A bottle the graph puts on empty floor is looked for twice, marked doubtful, and a cup is next."""
     graph = json.loads(OFFICE_GRAPH.read_text())
     for node in graph["nodes"]:
         if node["id"] == "bottle_pink":
