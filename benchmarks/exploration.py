@@ -15,8 +15,8 @@ configurations of the same leaf run on the same worlds and seeds, alternating wo
 
 Worlds: generated apartments (``generated:<seed>``, 9-13 x 7-10 m, five rooms; without the walkers, who
 pace through doorways and would measure how long the navigator waits for them, not the strategy)
-plus the shipped map_server maps (real SLAM maps in /work/shared/maps and config/worlds/maps), each
-made into a world file with the start at the free cell farthest from any obstacle.
+plus the shipped map_server maps (config/worlds/maps: real SLAM maps from TurtleBot 4 and Nav2, and a
+drawn office), each made into a world file with the start at the free cell farthest from any obstacle.
 
 Scoring reads the simulator's truth, which the leaf never sees:
 
@@ -73,7 +73,7 @@ ROBOT_RADIUS = 0.17                 # TurtleBot 4 (the reachable area is judged 
 #: The camera is not used by exploration: a small, slow one keeps the runs cheap.
 SIM_CONFIG = {"camera": {"rate": 0.5, "width": 64, "height": 48}}
 REPO = Path(__file__).resolve().parents[1]
-MAP_DIRS = [Path("/work/shared/maps"), REPO / "config" / "worlds" / "maps"]
+MAP_DIRS = [REPO / "config" / "worlds" / "maps"]
 
 
 # -- worlds -----------------------------------------------------------------------------------------

@@ -11,7 +11,7 @@ import yaml
 from missiontree.mapping.mapfile import MapFileError, map_image, read_map, write_map
 from missiontree.types import OccupancyGrid, Pose2D
 
-SHARED_MAPS = Path("/work/shared/maps")
+SHARED_MAPS = Path(__file__).resolve().parents[2] / "config" / "worlds" / "maps"
 
 
 def small_map() -> OccupancyGrid:
@@ -52,8 +52,6 @@ def test_read_back_gives_the_same_grid(tmp_path: Path) -> None:
 @pytest.mark.parametrize("name", ["maze.yaml", "tb3_sandbox.yaml"])
 def test_real_slam_maps_round_trip(tmp_path: Path, name: str) -> None:
     """The real SLAM maps (TurtleBot 4 maze, Nav2 sandbox) read and round-trip unchanged."""
-    if not (SHARED_MAPS / name).is_file():
-        pytest.skip(f"{SHARED_MAPS / name} is not on this machine")
     grid = read_map(SHARED_MAPS / name)
     assert (grid.data == 0).any() and (grid.data == 100).any()
     _, meta = write_map(grid, tmp_path)
