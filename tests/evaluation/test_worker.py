@@ -79,4 +79,29 @@ def test_pin_threads_sets_the_environment(monkeypatch: pytest.MonkeyPatch) -> No
     for name in THREAD_ENV:
         monkeypatch.setenv(name, "8")
     pin_threads()
-    assert all(os.environ[name] == "1" for name in THREAD_ENV)
+    assert all(os.environ[name] == "1" for name in THREAD_ENV if name != "NUMBA_NUM_THREADS")
+
+
+def test_pinning_in_a_process_that_runs_numba_leaves_its_thread_variable_alone() -> None:
+    """A serial batch pins numba through its API: a changed NUMBA_NUM_THREADS would break compiles."""
+    import numba
+    import numpy as np
+
+    @numba.njit(parallel=True, cache=False)
+    def total(values: np.ndarray) -> float:
+        result = 0.0
+        for i in numba.prange(values.size):
+            result += values[i]
+        return result
+
+    assert total(np.ones(8)) == 8.0  # launches numba's thread pool, as the simulator does
+    before = os.environ.get("NUMBA_NUM_THREADS")
+    pin_threads()
+    assert os.environ.get("NUMBA_NUM_THREADS") == before
+    assert numba.get_num_threads() == 1
+
+    @numba.njit(cache=False)
+    def twice(x: float) -> float:
+        return 2 * x
+
+    assert twice(2.0) == 4.0  # compiles: numba's environment check passes

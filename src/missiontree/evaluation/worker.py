@@ -91,16 +91,23 @@ class RunTask:
 
 
 def pin_threads() -> None:
-    """Pin numerical libraries' threads to one (environment first; pools already loaded too)."""
-    os.environ.update(THREAD_ENV)
-    try:  # numba may already be imported (a Dask worker reused from another batch)
-        import sys
+    """Pin numerical libraries' threads to one (environment first; pools already loaded too).
 
-        numba = sys.modules.get("numba")
-        if numba is not None:
+    Once numba is imported its thread count is pinned with ``numba.set_num_threads`` and its
+    environment variable is left alone: numba re-reads the environment at every compilation and
+    refuses a ``NUMBA_NUM_THREADS`` that differs from the pool it launched (a serial batch runs in
+    the caller's own process, which may have launched that pool already).
+    """
+    import sys
+
+    numba = sys.modules.get("numba")
+    os.environ.update({name: value for name, value in THREAD_ENV.items()
+                       if numba is None or name != "NUMBA_NUM_THREADS"})
+    if numba is not None:
+        try:
             numba.set_num_threads(1)
-    except Exception:  # noqa: BLE001, S110 - numba without threading layer: nothing to pin
-        pass
+        except Exception:  # noqa: BLE001, S110 - numba without threading layer: nothing to pin
+            pass
 
 
 def ignore_interrupts() -> None:
