@@ -13,6 +13,10 @@ from typing import Any, Protocol
 from missiontree.robot.interface import Robot
 from missiontree.types import Marker
 
+#: Most markers a run keeps for its picture; past it the oldest is dropped (a patrol that runs for
+#: days marks one alarm per encounter: the list must not grow with the run).
+MAX_MARKERS = 2000
+
 
 class EventSink(Protocol):
     """Where leaves send typed events (goal sent, model call, alarm, ...) for the tick log."""
@@ -38,7 +42,10 @@ class MissionContext:
         models: Model providers by role (``detector``, ``vlm``, ``llm``, ``embedder``, ...).
         events: Sink for typed tick-log events.
         run_dir: The run's output directory (alarm frames, pictures), None when not writing.
-        markers: Things to draw on the run's top-down picture.
+        markers: Things to draw on the run's top-down picture, added through :meth:`mark`:
+            bounded (:data:`MAX_MARKERS`, oldest dropped first), and a repeat of a marker already
+            kept (same kind, label and spot, e.g. a patrol's goal on every lap) is not added again.
+        markers_dropped: How many markers :meth:`mark` dropped to keep the bound.
         config: Free-form run configuration (from ``--config``).
         seed: The run's random seed.
         started_files: Run-directory files this run has begun (see :meth:`starts`).
@@ -58,6 +65,8 @@ class MissionContext:
     started_files: set[Path] = field(default_factory=set)
     realtime: bool = False
     scene: Any = None
+    markers_dropped: int = 0
+    _marker_keys: set[tuple[str, str, float, float]] = field(default_factory=set, repr=False)
 
     def starts(self, path: Path) -> bool:
         """Whether ``path`` in the run directory is new to this run (True once, on the first call).
@@ -72,8 +81,21 @@ class MissionContext:
         return True
 
     def mark(self, kind: str, x: float, y: float, label: str = "") -> None:
-        """Add a marker for the run's picture at the current time."""
+        """Add a marker for the run's picture at the current time (a repeat is not added again).
+
+        The picture draws a repeat (same kind and label within a centimetre) exactly as the first, so
+        a patrol's goals add one marker per waypoint, not one per lap. Past :data:`MAX_MARKERS` the
+        oldest marker is dropped and counted in :attr:`markers_dropped`.
+        """
+        key = (kind, label, round(x, 2), round(y, 2))
+        if key in self._marker_keys:
+            return
+        while len(self.markers) >= MAX_MARKERS:
+            old = self.markers.pop(0)
+            self._marker_keys.discard((old.kind, old.label, round(old.x, 2), round(old.y, 2)))
+            self.markers_dropped += 1
         self.markers.append(Marker(kind, x, y, self.robot.now(), label))
+        self._marker_keys.add(key)
 
     def model(self, role: str) -> Any:
         """The provider configured for ``role``; raises ConfigError naming the known roles."""
