@@ -30,7 +30,7 @@ import numpy as np
 from missiontree.perception.fusion import FusionParams, InstanceFusion, Verifier
 from missiontree.perception.projection import DepthMethod, project
 from missiontree.semantics.live import LiveScene
-from missiontree.semantics.relations import RelationParams, bodies_of, compute_relations
+from missiontree.semantics.relations import RelationParams, relations_of
 from missiontree.semantics.rooms import (
     RoomRegion,
     RoomTracker,
@@ -182,7 +182,7 @@ class SceneBuilder:
         rooms = self.scene.rooms
         centres = {r.id: r.centroid for r in rooms}
         objects = list(self.scene.map)
-        relations = compute_relations(bodies_of(objects), centres, self.params.relations)
+        relations = relations_of(objects, centres, self.params.relations)
         used = {o.room for o in objects}
         shown = [r for r in rooms if r.id in used or r.type != "unknown"]
         self.scene.graph = SceneGraph.build(objects, shown, relations)

@@ -136,13 +136,56 @@ def compute_relations(
         room_centres: Room id → (x, y) of its middle, for the anchors' facing.
         params: Thresholds.
     """
-    p = params or RelationParams()
-    n = len(bodies)
-    if n < 2:
+    if len(bodies) < 2:
         return []
-    centres = room_centres or {}
     b = sorted(bodies, key=lambda o: o.id)
     table = np.array([(o.x, o.y, o.z, o.w, o.d, o.h) for o in b], dtype=float)
+    return _relations(
+        [o.id for o in b], table, [o.room for o in b], room_centres or {}, params or RelationParams()
+    )
+
+
+def relations_of(
+    objects: Sequence[object],
+    room_centres: Mapping[str, tuple[float, float]] | None = None,
+    params: RelationParams | None = None,
+) -> list[RelationEdge]:
+    """``compute_relations(bodies_of(objects), ...)`` without a :class:`Body` per object (the rebuild's path).
+
+    Args:
+        objects: Instance-like objects (``id``, ``position``, ``size``, ``room``).
+        room_centres: Room id → (x, y) of its middle, for the anchors' facing.
+        params: Thresholds.
+    """
+    if len(objects) < 2:
+        return []
+    keyed = sorted(((str(o.id), o) for o in objects), key=_first)  # type: ignore[attr-defined]
+    no_size = (0.0, 0.0, 0.0)
+    table = np.array(
+        [(*o.position, *getattr(o, "size", no_size)) for _, o in keyed],  # type: ignore[attr-defined]
+        dtype=float,
+    )
+    np.maximum(table[:, 3:], _MIN_SIZE, out=table[:, 3:])  # as bodies_of: no footprint under 5 cm
+    rooms = [getattr(o, "room", None) for _, o in keyed]
+    return _relations([k for k, _ in keyed], table, rooms, room_centres or {}, params or RelationParams())
+
+
+def _first(pair: tuple[str, object]) -> str:
+    return pair[0]
+
+
+#: Smallest side of a footprint or height, metres (a point-like detection still has a body).
+_MIN_SIZE = 0.05
+
+
+def _relations(
+    ids: list[str],
+    table: np.ndarray,
+    rooms: list[str | None],
+    centres: Mapping[str, tuple[float, float]],
+    p: RelationParams,
+) -> list[RelationEdge]:
+    """The relations of objects sorted by id: ``table`` rows (x, y, z, w, d, h), ``rooms`` their rooms."""
     xy = table[:, :2]
     half = table[:, 3:5] / 2.0
     radius = half.max(axis=1)  # footprints as discs of the larger half-size: orientation is unknown
@@ -167,38 +210,62 @@ def compute_relations(
     # each source keeps its max_per_object nearest anchors
     order = np.lexsort((anc, gap, src))
     src, anc, offset, gap = src[order], anc[order], offset[order], gap[order]
-    first = np.r_[0, np.flatnonzero(np.diff(src)) + 1]
-    rank = np.arange(len(src)) - np.repeat(first, np.diff(np.r_[first, len(src)]))
+    first = np.flatnonzero(np.concatenate(([True], src[1:] != src[:-1])))  # each source's first row
+    rank = np.arange(len(src)) - np.repeat(first, np.diff(np.append(first, len(src))))
     keep = rank < p.max_per_object
     src, anc, offset, gap = src[keep], anc[keep], offset[keep], gap[keep]
     over = (np.abs(offset[:, 0]) <= half[anc, 0] + p.on_margin) & (
         np.abs(offset[:, 1]) <= half[anc, 1] + p.on_margin
     )
     on = over & (np.abs(bottom[src] - top[anc]) <= p.on_tolerance) & (bottom[src] > 0.05)
-    facing = np.zeros((n, 2))
-    has_facing = np.zeros(n, bool)
-    for j, o in enumerate(b):
-        centre = centres.get(o.room) if o.room is not None else None
-        if centre is None:
-            continue
-        fx, fy = centre[0] - o.x, centre[1] - o.y
-        norm = math.hypot(fx, fy)
-        if norm >= p.min_facing_distance:
-            facing[j] = (fx / norm, fy / norm)
-            has_facing[j] = True
+    facing, has_facing = _facing(xy, rooms, centres, p.min_facing_distance, np.unique(anc).tolist())
     f = facing[anc]
     along = offset[:, 0] * f[:, 0] + offset[:, 1] * f[:, 1]
     # the anchor's own left is (-fy, fx); a viewer in front of it sees that side on their right
     own_left = -offset[:, 0] * f[:, 1] + offset[:, 1] * f[:, 0]
-    relation = np.where(gap <= p.next_gap, "next_to", "near").astype(object)
+    code = np.where(gap <= p.next_gap, _NEXT_TO, _NEAR)
     sided = has_facing[anc]
     front_back = sided & (np.abs(along) >= p.side_ratio * np.abs(own_left))
     left_right = sided & ~front_back & (np.abs(own_left) >= p.side_ratio * np.abs(along))
-    relation[front_back] = np.where(along[front_back] > 0, "in_front_of", "behind")
-    relation[left_right] = np.where(own_left[left_right] > 0, "right_of", "left_of")
-    relation[on] = "on"
-    ids = [o.id for o in b]
-    return [
-        RelationEdge(ids[i], ids[j], str(r))
-        for i, j, r in zip(src.tolist(), anc.tolist(), relation, strict=True)
-    ]
+    code[front_back] = np.where(along[front_back] > 0, _IN_FRONT_OF, _BEHIND)
+    code[left_right] = np.where(own_left[left_right] > 0, _RIGHT_OF, _LEFT_OF)
+    code[on] = _ON
+    names = [RELATIONS[k] for k in code.tolist()]
+    edge = RelationEdge
+    return [edge(ids[i], ids[j], r) for i, j, r in zip(src.tolist(), anc.tolist(), names, strict=True)]
+
+
+_ON, _NEXT_TO, _NEAR, _IN_FRONT_OF, _BEHIND, _LEFT_OF, _RIGHT_OF = range(len(RELATIONS))
+
+
+def _facing(
+    xy: np.ndarray,
+    rooms: list[str | None],
+    centres: Mapping[str, tuple[float, float]],
+    min_distance: float,
+    anchors: list[int],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vector from each of the ``anchors`` (rows) towards its room's middle, and whether it has one.
+
+    An object in no known room, or closer than ``min_distance`` to its room's middle, has none;
+    rows not in ``anchors`` are left without one (nothing is related to them as an anchor).
+    """
+    n = len(rooms)
+    facing = np.zeros((n, 2))
+    has = np.zeros(n, bool)
+    known = [(j, centres[r]) for j in anchors if (r := rooms[j]) is not None and r in centres]
+    if not known:
+        return facing, has
+    rows = np.fromiter((j for j, _ in known), dtype=np.intp, count=len(known))
+    middle = np.array([c for _, c in known], dtype=float).reshape(len(known), 2)
+    fx = middle[:, 0] - xy[rows, 0]
+    fy = middle[:, 1] - xy[rows, 1]
+    # math.hypot, not np.hypot: the two differ in the last bit now and then, and a facing on the
+    # edge of a side's cone must come out the same whichever path computed it
+    norm = np.array([math.hypot(u, v) for u, v in zip(fx.tolist(), fy.tolist(), strict=True)])
+    ok = norm >= min_distance
+    rows, norm = rows[ok], norm[ok]
+    facing[rows, 0] = fx[ok] / norm
+    facing[rows, 1] = fy[ok] / norm
+    has[rows] = True
+    return facing, has
