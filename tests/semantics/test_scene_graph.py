@@ -169,3 +169,18 @@ def test_malformed_graphs_are_refused_saying_why(text: str, fragment: str) -> No
     """Each shape error is a SceneGraphError naming the node and the problem."""
     with pytest.raises(SceneGraphError, match=fragment):
         SceneGraph.from_json(text)
+
+
+def test_json_text_has_one_node_or_edge_a_line_and_reads_back_exactly() -> None:
+    """Indented text puts each item on its own line; quotes, unicode and control characters survive."""
+    graph = SceneGraph.from_json(NAIS_GRAPH)
+    graph.nodes[1]["description"] = 'a "big" kitchen },{ with\x1e a tab\there and ünïcode'
+    text = graph.to_json()
+    lines = text.splitlines()
+    assert lines[0] == "{" and lines[1] == '  "nodes": [' and lines[-1] == "}"
+    assert sum(line.startswith('    {"id": ') for line in lines) == len(graph.nodes)
+    assert sum(line.startswith('    {"source_id": ') for line in lines) == len(graph.edges)
+    assert json.loads(text) == graph.to_dict()
+    assert json.loads(graph.to_json(indent=None)) == graph.to_dict()
+    assert "\n" not in graph.to_json(indent=None)
+    assert json.loads(SceneGraph().to_json()) == {"nodes": [], "edges": []}

@@ -41,6 +41,9 @@ CONTAINS = "contains"
 
 _NODE_KEYS = ("id", "type", "label", "description", "coordinates")
 _EDGE_KEYS = ("source_id", "source_label", "target_id", "target_label", "relation")
+#: Encoders without indent (only those use the C encoder); text as it is, not \u-escaped.
+_COMPACT = json.JSONEncoder(ensure_ascii=False)
+_MARKED = json.JSONEncoder(ensure_ascii=False, separators=(",\x1e", ": "))
 
 
 class SceneGraphError(ConfigError):
@@ -164,8 +167,29 @@ class SceneGraph:
         }
 
     def to_json(self, indent: int | None = 2) -> str:
-        """The graph as JSON text."""
-        return json.dumps(self.to_dict(), indent=indent, ensure_ascii=False)
+        """The graph as JSON text: one node or edge a line, indented by ``indent``; one line if None.
+
+        One item a line reads as well as a fully indented dump and is written by the C encoder:
+        ``json.dumps(..., indent=2)`` falls back to the pure-Python encoder, several times slower
+        (about 5 ms for a 300-object graph, on every change of ``scene_graph.json``).
+        """
+        data = self.to_dict()
+        if indent is None:
+            return _COMPACT.encode(data)
+        pad = " " * indent
+        lines = []
+        for key in ("nodes", "edges"):
+            items = data[key]
+            if items:
+                # each list in one call of the C encoder; its separators carry a control character,
+                # which never stands unescaped inside a JSON string, and become a line break between
+                # the list's items and a space everywhere else
+                body = _MARKED.encode(items)[1:-1]
+                body = body.replace("},\x1e{", "},\n" + pad + pad + "{").replace("\x1e", " ")
+                lines.append(f'{pad}"{key}": [\n{pad}{pad}{body}\n{pad}]')
+            else:
+                lines.append(f'{pad}"{key}": []')
+        return "{\n" + ",\n".join(lines) + "\n}"
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the graph atomically (a reader never sees half a file); return the path."""
