@@ -104,6 +104,8 @@ class SceneBuilder:
         self._grid_stamp = -math.inf
         self._last_segment = -math.inf
         self._last_rebuild = -math.inf
+        self._last_check = -math.inf
+        self._built_from: tuple[object, ...] | None = None
         self._dirty = False
         self._pending: list[Change] = []
         if self.fixed_rooms is not None:
@@ -159,6 +161,11 @@ class SceneBuilder:
     def step(self, now: float) -> list[Change] | None:
         """Place instances in rooms, type rooms, describe, rebuild if due; return the changes rebuilt for.
 
+        A change of the map (added, moved, removed, updated) rebuilds at once. Otherwise, while
+        frames keep coming, the graph is refreshed every ``refresh`` seconds, and only if what it
+        is built from (positions, sizes, colours, descriptions, rooms and their types) differs
+        from what the last rebuild used: a robot watching an unchanged scene rebuilds nothing.
+
         Returns:
             The changes since the last rebuild when the graph was rebuilt now (possibly empty, for a
             refresh), None when it was not.
@@ -167,12 +174,17 @@ class SceneBuilder:
         self._assign_rooms(now)
         self._pending.extend(self.scene.map.drain_changes())
         structural = any(c.kind in ("added", "moved", "removed", "updated") for c in self._pending)
-        due = self._dirty and now - self._last_rebuild >= self.params.refresh
+        due = self._dirty and now - self._last_check >= self.params.refresh
         if not (structural or due):
             return None
+        self._last_check = now
         self._type_rooms()
+        if not structural and self._fingerprint() == self._built_from:
+            self._dirty = False
+            return None
         self._describe()
         self.rebuild(now)
+        self._built_from = self._fingerprint()
         changes, self._pending = self._pending, []
         return changes
 
@@ -190,10 +202,23 @@ class SceneBuilder:
         self.scene.stamp = now
         self._last_rebuild = now
         self._dirty = False
+        self._built_from = None  # step() records what it rebuilt from; a direct call is not checked
         self.times.rebuild.append((time.perf_counter() - t0) * 1000.0)
         return self.scene.graph
 
     # -- internals -------------------------------------------------------------------------------
+
+    def _fingerprint(self) -> tuple[object, ...]:
+        """What the graph is built from: each instance's and each room's attributes the graph shows."""
+        return (
+            tuple(
+                (i.id, i.label, i.position, i.size, i.colour, i.room, i.description) for i in self.scene.map
+            ),
+            tuple(
+                (r.id, r.type, r.type_confidence, tuple(r.evidence), r.area, tuple(r.centroid), r.name)
+                for r in self.scene.rooms
+            ),
+        )
 
     def _assign_rooms(self, now: float) -> None:
         if self.segmentation is None:
