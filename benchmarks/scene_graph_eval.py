@@ -54,6 +54,7 @@ from collections import Counter
 from typing import Any
 
 import numpy as np
+from scene_rebuild import rebuild_figures  # benchmarks/scene_rebuild.py, beside this script
 from scipy.optimize import linear_sum_assignment
 
 from missiontree.backends.sim import create_robot
@@ -70,7 +71,6 @@ from missiontree.reasoning.schemas import ObjectDescription, RoomClassification
 from missiontree.semantics.builder import SceneBuilder
 from missiontree.semantics.relations import Body, compute_relations
 from missiontree.semantics.rooms import segment_rooms
-from missiontree.semantics.semantic_map import SemanticMap
 from missiontree.session.models import build_models
 from missiontree.types import Pose2D, Tolerance
 
@@ -696,38 +696,7 @@ def _job(job: tuple[str, int, str, int, bool, bool, bool]) -> dict[str, Any]:
 # -- rebuild time at 300 objects -------------------------------------------------------------------------
 
 
-def rebuild_times(repeats: int = 15) -> list[float]:
-    rng = np.random.default_rng(0)
-    builder = SceneBuilder()
-    from missiontree.semantics.rooms import RoomRegion
-
-    builder.scene.rooms = [
-        RoomRegion(
-            f"room_{k}",
-            "office",
-            np.array([[k * 6, 0], [k * 6 + 6, 0], [k * 6 + 6, 30], [k * 6, 30]], float),
-            180.0,
-            (k * 6 + 3, 15),
-        )
-        for k in range(10)
-    ]
-    labels = ["chair", "table", "cup", "bottle", "sofa", "laptop", "backpack", "tv"]
-    smap: SemanticMap = builder.scene.map
-    for i in range(300):
-        x, y = rng.uniform(0, 60), rng.uniform(0, 30)
-        smap.add(
-            labels[i % len(labels)],
-            (x, y, 0.4),
-            0.0,
-            size=tuple(rng.uniform(0.1, 1.5, 3)),
-            room=f"room_{int(x // 6)}",
-        )
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        builder.rebuild(0.0)
-        times.append((time.perf_counter() - t0) * 1000.0)
-    return times
+# (timed by benchmarks/scene_rebuild.py, beside the previous implementation: rebuild_figures)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -783,7 +752,6 @@ def main(argv: list[str] | None = None) -> int:
         )
     if pool is not None:
         pool.shutdown()
-    rebuild = rebuild_times()
     result: dict[str, Any] = {"worlds": len(rows), "wall_s": round(time.perf_counter() - started, 1)}
     for m in ("ours", "nais"):
         tot = Counter()
@@ -805,12 +773,7 @@ def main(argv: list[str] | None = None) -> int:
     rel_total = sum(r["relations"] for r in rows)
     result["ours"]["relation_precision"] = round(rel_good / max(rel_total, 1), 4)
     result["nais"]["relation_precision"] = None  # its relations come from GPT-4 reading descriptions
-    result["rebuild_ms_300"] = round(statistics.median(rebuild), 3)
-    result["rebuild_ms_300_min_median_max"] = [
-        round(min(rebuild), 3),
-        round(statistics.median(rebuild), 3),
-        round(max(rebuild), 3),
-    ]
+    result.update(rebuild_figures())  # rebuild_ms_300 and its min/median/max, printed too
     ratio = [row["ms_per_frame"]["ours"] / max(row["ms_per_frame"]["nais"], 1e-9) for row in rows]
     result["ms_per_frame_ratio_ours_to_nais_min_median_max"] = [
         round(min(ratio), 3),
