@@ -222,23 +222,43 @@ def _drop_small_cores(markers: np.ndarray, min_cells: float) -> np.ndarray:
 
 
 def _grow(markers: np.ndarray, dist: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Grow the cores over the free cells one cell a step (each cell to the geodesically nearest core)."""
+    """Grow the cores over the free cells one cell a step (each cell to the geodesically nearest core).
+
+    A breadth-first wave from every core at once over 4-connected free cells; a cell reached by
+    several cores in the same step takes the highest label (the step-by-step grey dilation this
+    replaces did the same, redrawing the whole map at each of hundreds of steps on a real map).
+    """
     del dist  # the cores already encode the distance map; growth is by geodesic distance
     labels = markers.astype(np.int32).copy()
     labels[~free] = 0
     if labels.max() == 0:
         count, comp = cv2.connectedComponents(free.astype(np.uint8), connectivity=8)
         return comp.astype(np.int32)
-    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], bool)
-    while True:
-        todo = free & (labels == 0)
-        if not todo.any():
-            break
-        grown = ndimage.grey_dilation(labels, footprint=cross)
-        reach = todo & (grown > 0)
-        if not reach.any():
+    h, w = labels.shape
+    flat = labels.reshape(-1)  # a view: writing flat writes labels
+    open_cells = (free & (labels == 0)).reshape(-1)
+    front = np.flatnonzero(flat)
+    while front.size:
+        row, col = np.divmod(front, w)
+        label = flat[front]
+        steps = (
+            (row > 0, -w),
+            (row < h - 1, w),
+            (col > 0, -1),
+            (col < w - 1, 1),
+        )
+        cells = np.concatenate([front[ok] + step for ok, step in steps])
+        values = np.concatenate([label[ok] for ok, _ in steps])
+        reach = open_cells[cells]
+        cells, values = cells[reach], values[reach]
+        if not cells.size:
             break  # free space cut off from every core (the outside of a building, a pocket)
-        labels[reach] = grown[reach]
+        order = np.lexsort((values, cells))  # by cell, its highest label last
+        cells, values = cells[order], values[order]
+        last = np.concatenate((cells[1:] != cells[:-1], [True]))
+        front, label = cells[last], values[last]
+        flat[front] = label
+        open_cells[front] = False
     return labels
 
 
@@ -255,17 +275,21 @@ def _merge_open(labels: np.ndarray, clearance: np.ndarray, max_door_width: float
     merged = True
     while merged:
         merged = False
+        boxes = ndimage.find_objects(labels)
         for a in sorted(set(np.unique(labels).tolist()) - {0}):
-            grown = cv2.dilate((labels == a).astype(np.uint8), kernel).astype(bool)
-            for b in sorted(set(np.unique(labels[grown]).tolist()) - {0, a}):
-                border = grown & (labels == b)
+            # the region's box grown by a cell holds its dilation: work there, not on the whole map
+            window = _padded(boxes[a - 1], labels.shape, 1)
+            near = labels[window]
+            grown = cv2.dilate((near == a).astype(np.uint8), kernel).astype(bool)
+            for b in sorted(set(np.unique(near[grown]).tolist()) - {0, a}):
+                border = grown & (near == b)
                 count, comp, stats, _ = cv2.connectedComponentsWithStats(
                     border.astype(np.uint8), connectivity=8
                 )
                 stretches = [i for i in range(1, count) if stats[i][cv2.CC_STAT_AREA] >= 5]
                 if not stretches:
                     continue
-                open_floor = float(clearance[border].max()) > max_door_width / 2.0
+                open_floor = float(clearance[window][border].max()) > max_door_width / 2.0
                 if len(stretches) > 1 or open_floor:
                     labels[labels == b] = a
                     merged = True
@@ -282,22 +306,34 @@ def _merge_small(labels: np.ndarray, min_cells: float) -> np.ndarray:
     while changed:
         changed = False
         sizes = np.bincount(labels.ravel())
+        boxes = ndimage.find_objects(labels)
         for label in np.argsort(sizes):
             if label == 0 or sizes[label] == 0 or sizes[label] >= min_cells:
                 continue
-            region = labels == label
+            window = _padded(boxes[label - 1], labels.shape, 2)  # holds the 5 x 5 ring
+            near = labels[window]
+            region = near == label
             ring = cv2.dilate(region.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool) & ~region
-            around = labels[ring]
+            around = near[ring]
             around = around[(around > 0) & (around != label)]
             if around.size == 0:
                 continue
-            labels[region] = int(np.bincount(around).argmax())
+            labels[labels == label] = int(np.bincount(around).argmax())
             changed = True
             break
     out = np.zeros_like(labels)
     for i, old in enumerate(sorted(set(np.unique(labels).tolist()) - {0}), start=1):
         out[labels == old] = i
     return out
+
+
+def _padded(box: tuple[slice, slice], shape: tuple[int, ...], pad: int) -> tuple[slice, slice]:
+    """``box`` (from ``ndimage.find_objects``) grown by ``pad`` cells on each side, within ``shape``."""
+    rows, cols = box
+    return (
+        slice(max(rows.start - pad, 0), min(rows.stop + pad, shape[0])),
+        slice(max(cols.start - pad, 0), min(cols.stop + pad, shape[1])),
+    )
 
 
 def _regions(grid: OccupancyGrid, labels: np.ndarray) -> list[RoomRegion]:
