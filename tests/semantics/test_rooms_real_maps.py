@@ -125,3 +125,26 @@ def test_a_real_slam_map_is_segmented_well_within_a_tick_budget() -> None:
     t0 = time.thread_time()
     segment_rooms(grid, inside=inside)
     assert time.thread_time() - t0 < 1.0
+
+
+@pytest.mark.parametrize("name", ["maze", "tb3_sandbox", "small_office"])
+def test_a_real_map_without_a_point_inside_gives_the_rooms_of_its_largest_free_space(name: str) -> None:
+    """A SLAM map cropped to what was seen reaches the map's edge: its rooms are still found.
+
+    The robot's position is the usual guide; without it the largest connected free space is the
+    building (the maze's free space touches all four edges and used to be dropped whole: no room).
+    """
+    grid, inside = map_and_inside(name)
+    guided = segment_rooms(grid, inside=inside)
+    unguided = segment_rooms(grid)
+    assert unguided.rooms
+    assert np.array_equal(unguided.labels > 0, guided.labels > 0)
+
+
+def test_a_simulated_map_without_a_point_inside_leaves_the_floor_around_the_building_out() -> None:
+    """The simulator's free floor outside the walls touches the map's edge and is no room."""
+    world = load_world("office")
+    seg = segment_rooms(world.grid)
+    assert len(seg.rooms) == 2
+    assert seg.room_at(-0.3, -0.3, reach=0.1) is None
+    assert np.array_equal(seg.labels > 0, segment_rooms(world.grid, inside=(2.5, 4.0)).labels > 0)

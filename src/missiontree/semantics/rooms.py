@@ -159,7 +159,9 @@ def segment_rooms(
         params: Segmentation parameters.
         inside: A point known to be inside the building (the robot's position): free space not
             connected to it (the outside of a simulated building, a pocket behind a wall) is left
-            out. Without it, free space touching the map's edge is left out.
+            out. Without it, free space touching the map's edge is left out when more free space
+            lies inside (a simulated building surrounded by floor), else (a SLAM map cropped to what
+            was seen, the building reaching the edge) the largest connected free space is taken.
     """
     p = params or SegmentationParams()
     res = grid.resolution
@@ -208,7 +210,14 @@ def _building_free(free: np.ndarray, grid: OccupancyGrid, inside: tuple[float, f
                 label = int(comp[rows[row, col], cols[row, col]])
             return comp == label if label else free
     edge = set(np.unique(np.concatenate([comp[0], comp[-1], comp[:, 0], comp[:, -1]])).tolist()) - {0}
-    return free & ~np.isin(comp, list(edge))
+    inner = free & ~np.isin(comp, list(edge))
+    sizes = np.bincount(comp.ravel(), minlength=count)
+    sizes[0] = 0
+    if not edge or int(inner.sum()) > int(sizes[list(edge)].max()):
+        return inner  # a simulated building in free floor that runs off the map
+    # a SLAM map cropped to what the robot saw: the building itself reaches the edge; take its
+    # largest piece of free space (what is seen through a window or a gap stays out)
+    return comp == int(sizes.argmax())
 
 
 def _drop_small_cores(markers: np.ndarray, min_cells: float) -> np.ndarray:
