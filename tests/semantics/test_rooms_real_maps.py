@@ -148,3 +148,41 @@ def test_a_simulated_map_without_a_point_inside_leaves_the_floor_around_the_buil
     assert len(seg.rooms) == 2
     assert seg.room_at(-0.3, -0.3, reach=0.1) is None
     assert np.array_equal(seg.labels > 0, segment_rooms(world.grid, inside=(2.5, 4.0)).labels > 0)
+
+
+def speckled(grid: OccupancyGrid, share: float, seed: int = 0) -> OccupancyGrid:
+    """``grid`` with ``share`` of its free cells turned occupied and as many again unknown (map noise)."""
+    rng = np.random.default_rng(seed)
+    data = np.array(grid.data)
+    free = np.argwhere(data == 0)
+    for value in (100, -1):
+        pick = free[rng.choice(len(free), int(share * len(free)), replace=False)]
+        data[pick[:, 0], pick[:, 1]] = value
+    return OccupancyGrid(grid.stamp, grid.resolution, grid.origin, data)
+
+
+@pytest.mark.parametrize("name", ["office", "generated:1", "generated:4"])
+def test_specks_in_the_map_do_not_join_or_split_rooms(name: str) -> None:
+    """1 % of the free cells occupied and 1 % unknown, scattered: still one room per true room.
+
+    Without treating specks as floor, 0.2 % already split or joined rooms and 1 % made one room
+    of the whole building (the closing of wall gaps joined the specks into walls everywhere).
+    """
+    world = load_world(name)
+    seg = segment_rooms(speckled(world.grid, 0.01), inside=(world.start.x, world.start.y))
+    found = sorted(
+        str(world.room_at(*r.centroid).name) if world.room_at(*r.centroid) else "-" for r in seg.rooms
+    )
+    assert found == sorted(r.name for r in world.rooms)
+
+
+def test_an_obstacle_bigger_than_a_speck_still_counts() -> None:
+    """A 0.15 m post (9 cells) stays an obstacle: no room cell on it; a single-cell speck is floor."""
+    world = load_world("office")
+    data = np.array(world.grid.data)
+    row, col = world.grid.world_to_cell(2.5, 2.0)
+    data[row : row + 3, col : col + 3] = 100
+    data[row + 20, col + 20] = 100
+    seg = segment_rooms(OccupancyGrid(0.0, world.grid.resolution, world.grid.origin, data), inside=(2.5, 4.0))
+    assert not seg.labels[row : row + 3, col : col + 3].any()
+    assert seg.labels[row + 20, col + 20] > 0

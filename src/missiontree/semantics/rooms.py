@@ -110,6 +110,10 @@ class SegmentationParams:
             stretch (around a table, on both sides of a sofa), are one room.
         close_gaps: Gaps in walls narrower than this are closed first (a learned map's walls have
             holes where the lidar grazed them), metres.
+        speckle_area: Obstacles (occupied or unknown cells) smaller than this, square metres, are
+            the map's noise (a lidar speck, a cell never seen) and count as free floor: a real map's
+            specks would otherwise break every room's distance map and join the rooms through
+            the closing of wall gaps.
     """
 
     min_door_half: float = 0.35
@@ -120,6 +124,7 @@ class SegmentationParams:
     occupied: int = 50
     max_door_width: float = 1.5
     close_gaps: float = 0.5
+    speckle_area: float = 0.01
 
 
 @dataclass
@@ -166,13 +171,15 @@ def segment_rooms(
     p = params or SegmentationParams()
     res = grid.resolution
     data = np.asarray(grid.data)
-    building = _building_free((data >= 0) & (data < p.occupied), grid, inside)
+    known_free = (data >= 0) & (data < p.occupied)
+    specks = _specks(~known_free, p.speckle_area / res**2)
+    building = _building_free(known_free | specks, grid, inside)
     free = building.copy()
     side = int(round(p.close_gaps / res))
     if side > 1:
         # holes in walls are closed for finding rooms (a narrow passage closed this way is reopened below)
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (side | 1, side | 1))
-        walls = cv2.morphologyEx((data >= p.occupied).astype(np.uint8), cv2.MORPH_CLOSE, kernel)
+        walls = cv2.morphologyEx(((data >= p.occupied) & ~specks).astype(np.uint8), cv2.MORPH_CLOSE, kernel)
         free &= walls == 0
     if not free.any():
         return Segmentation(grid, np.zeros(data.shape, np.int32), [])
@@ -196,6 +203,16 @@ def segment_rooms(
     labels = _merge_small(labels, min_cells)
     rooms = _regions(grid, labels)
     return Segmentation(grid, labels, rooms)
+
+
+def _specks(obstacle: np.ndarray, max_cells: float) -> np.ndarray:
+    """Cells of the 8-connected obstacle pieces smaller than ``max_cells`` (the map's noise)."""
+    if max_cells <= 1:
+        return np.zeros_like(obstacle)
+    count, comp, stats, _ = cv2.connectedComponentsWithStats(obstacle.astype(np.uint8), connectivity=8)
+    small = stats[:, cv2.CC_STAT_AREA] < max_cells
+    small[0] = False  # the background: the free cells
+    return small[comp]
 
 
 def _building_free(free: np.ndarray, grid: OccupancyGrid, inside: tuple[float, float] | None) -> np.ndarray:
