@@ -2,7 +2,7 @@
 
     python benchmarks/search_eval.py               # 50 worlds with the target + 10 without
     python benchmarks/search_eval.py --quick       # 6 + 2 (tractable on a loaded 2-core machine)
-    python benchmarks/search_eval.py --workers 2   # two missions at once
+    python benchmarks/search_eval.py --workers 2   # two missions at once (one of each method)
 
 Worlds. Apartments from :mod:`missiontree.backends.sim.generator` (4 rooms, no people), edited here
 for the search (benchmark-side world editing, the generator is untouched): a target (class and
@@ -12,8 +12,9 @@ class (the generated furnishings already hold some; missing ones are made by rec
 small object); any second object matching the target is recoloured, so exactly one is right. In the
 ``absent`` cases the target itself is recoloured into one more decoy: nothing matches.
 
-Methods, alternating which runs first from world to world, each through the session API with its
-mission's own ``run:`` section (map mode included):
+Methods, each through the batch runner (:func:`missiontree.evaluation.run_batch`, a probe reading the
+true final pose in the worker) with its mission's own ``run:`` section (map mode included), the worlds
+in chunks run by one method then the other, alternating which goes first:
 
 - ``ours``: ``trees/find_object.yaml`` on an unknown map (the robot starts knowing nothing): semantic
   map from every frame, known candidates first, exploration weighted by room priors, standoff
@@ -36,15 +37,14 @@ An absent case is *correct* when the run ends FAILURE by the tree's own verdict
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import math
 import statistics
 import sys
 import tempfile
+import threading
 import time
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -154,48 +154,73 @@ def make_case(index: int, seed: int, absent: bool, folder: Path) -> tuple[Case, 
     return case, path
 
 
-def run_trial(method: str, case: Case, world: str, max_duration: float) -> Trial:
-    """Run one method on one case through the session and score it against the truth."""
-    from missiontree.plugins.manager import load_plugins
-    from missiontree.session import MissionRequest, Session
+class SearchProbe:
+    """Reads, inside the batch worker, what scoring needs: the true final pose and the search's verdict.
 
-    trial = Trial(method, case.index, case.seed, case.target, case.absent)
-    log = io.StringIO()
-    request = MissionRequest(
-        mission=MISSIONS[method],
-        world=world,
-        seed=case.seed,
-        max_duration=max_duration,
-        params={"target": case.target},
-        quiet=True,
-        plugins=load_plugins(autoload=False),
-        handle_signals=False,
-        log_stream=log,
-    )
-    started = time.perf_counter()
-    with Session.open(request) as session:
-        result = session.run()
-        robot = session.robot
-        pose = robot.truth.robot_pose()
-        obj = next(o for o in robot.world.objects if o.id == case.target_id)
-        traj = np.array([(x, y) for _, x, y in robot.trajectory])
-        trial.sim_s = float(robot.now())
-    trial.wall_s = time.perf_counter() - started
-    trial.path_m = float(np.hypot(*np.diff(traj, axis=0).T).sum()) if len(traj) > 1 else 0.0
-    trial.status = result.status.name
-    trial.stopped_by = str(result.stopped_by)
-    trial.reason = _reason(log.getvalue())
-    trial.distance_m = _footprint_distance(obj.footprint(), (pose.x, pose.y))
-    trial.bearing_deg = abs(math.degrees(pose.bearing_to(obj.pose.x, obj.pose.y)))
+    The true pose is the simulator's ground truth (scoring only; the leaves never see it).
+    """
+
+    def on_tick(self, session: Any) -> None:
+        """Nothing per tick."""
+
+    def finish(self, session: Any, result: Any) -> dict[str, Any]:
+        """The robot's true final pose and the search's last found / not-found message."""
+        pose = session.robot.truth.robot_pose()
+        log = (session.run_dir / "ticks.jsonl").read_text(encoding="utf-8")
+        return {"final_pose": [pose.x, pose.y, pose.yaw], "search_reason": _reason(log)}
+
+
+def score(trial: Trial, case: Case, world: Any, record: Any) -> Trial:
+    """Fill ``trial`` from a batch record and score it against the world's truth."""
+    trial.status = record.status
+    trial.stopped_by = str(record.stopped_by)
+    trial.reason = str(record.figures.get("search_reason") or record.reason)
+    trial.sim_s = float(record.robot_time_s)
+    trial.wall_s = float(record.wall_time_s)
+    trial.path_m = float(record.path_length_m)
+    final = record.figures.get("final_pose")
+    obj = next(o for o in world.objects if o.id == case.target_id)
+    if final is not None:
+        from missiontree.types import Pose2D
+
+        pose = Pose2D(*final)
+        trial.distance_m = _footprint_distance(obj.footprint(), (pose.x, pose.y))
+        trial.bearing_deg = abs(math.degrees(pose.bearing_to(obj.pose.x, obj.pose.y)))
     claimed = trial.status == "SUCCESS"
     on_target = not case.absent and trial.distance_m <= REACH and trial.bearing_deg <= FACING_DEG
     trial.found = claimed and on_target
     trial.false_found = claimed and not on_target
     trial.wrong_object = claimed and (
-        case.absent or trial.distance_m > VIEW_RANGE or trial.bearing_deg > HALF_FOV_DEG
+        case.absent or not trial.distance_m <= VIEW_RANGE or not trial.bearing_deg <= HALF_FOV_DEG
     )
     trial.absent_correct = case.absent and not claimed and trial.stopped_by == "status"
     return trial
+
+
+def run_chunk(
+    method: str,
+    cases: list[tuple[Case, Path]],
+    engine: Any,
+    out: Path,
+    max_duration: float,
+    report: Any,
+) -> list[Any]:
+    """Run one method's mission on ``cases`` with the batch runner; ``report`` gets each record."""
+    from missiontree.evaluation import BatchPlan, RunSpec, run_batch
+
+    specs = [
+        RunSpec(world=str(path), seed=case.seed, run_seed=case.seed, params=(("target", case.target),))
+        for case, path in cases
+    ]
+    plan = BatchPlan(mission=MISSIONS[method], runs=specs, request={"max_duration": max_duration})
+    return run_batch(
+        plan,
+        engine,
+        out / f"batch_{method}",
+        resume=True,  # one batch directory per method, filled chunk by chunk
+        probe=SearchProbe,
+        on_record=lambda record, _skipped: report(method, record),
+    )
 
 
 def _footprint_distance(corners: np.ndarray, xy: tuple[float, float]) -> float:
@@ -229,11 +254,6 @@ def _reason(log: str) -> str:
                 if "not found" in str(change.get("feedback", "")):
                     reason = str(change["feedback"])[:160]
     return reason
-
-
-def _job(args: tuple[str, dict[str, Any], str, float]) -> dict[str, Any]:
-    method, case, world, max_duration = args
-    return asdict(run_trial(method, Case(**case), world, max_duration))
 
 
 def summarise(trials: list[Trial], method: str) -> dict[str, Any]:
@@ -285,6 +305,9 @@ def paired_ratios(trials: list[Trial]) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from missiontree.backends.sim import load_world
+    from missiontree.evaluation import PoolEngine, SerialEngine
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="6 worlds with the target + 2 without")
     parser.add_argument("--worlds", type=int, default=None, help="worlds with the target (default 50)")
@@ -299,17 +322,17 @@ def main(argv: list[str] | None = None) -> int:
     trials: list[Trial] = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        jobs = []
-        for i in range(n_present + n_absent):
-            case, world = make_case(i, args.first_seed + i, i >= n_present, folder)
-            order = ("ours", "report") if i % 2 == 0 else ("report", "ours")
-            jobs += [(m, asdict(case), str(world), max_duration) for m in order]
-        started = time.perf_counter()
-        pool = ProcessPoolExecutor(args.workers) if args.workers > 1 else None
-        try:
-            results = pool.map(_job, jobs) if pool is not None else map(_job, jobs)
-            for r in results:  # printed as they come, in order
-                t = Trial(**r)
+        n = n_present + n_absent
+        cases = [make_case(i, args.first_seed + i, i >= n_present, folder) for i in range(n)]
+        by_path = {str(path): case for case, path in cases}
+        worlds = {case.index: load_world(path) for case, path in cases}
+        lock = threading.Lock()
+
+        def report(method: str, record: Any) -> None:  # printed as they come
+            case = by_path[str(record.world)]
+            t = score(Trial(method, case.index, case.seed, case.target, case.absent), case,
+                      worlds[case.index], record)
+            with lock:
                 trials.append(t)
                 print(
                     f"{t.method:6s} case {t.case:3d} {'absent ' if t.absent else ''}{t.target:16s} "
@@ -318,9 +341,17 @@ def main(argv: list[str] | None = None) -> int:
                     f"{t.reason[:90]}",
                     flush=True,
                 )
-        finally:
-            if pool is not None:
-                pool.shutdown()
+
+        started = time.perf_counter()
+        # the worlds in chunks, each run by one method then the other (which goes first alternates),
+        # every chunk on the batch runner with all the workers
+        size = 2 * max(1, args.workers)
+        engines = {m: PoolEngine(args.workers) if args.workers > 1 else SerialEngine() for m in MISSIONS}
+        with engines["ours"], engines["report"]:
+            for k, at in enumerate(range(0, n, size)):
+                chunk = cases[at : at + size]
+                for m in ("ours", "report") if k % 2 == 0 else ("report", "ours"):
+                    run_chunk(m, chunk, engines[m], folder, max_duration, report)
         wall = time.perf_counter() - started
     out: dict[str, Any] = {
         "worlds": n_present,

@@ -20,12 +20,17 @@ Ends SUCCESS when no reachable frontier (or unvisited scan point) remains; FAILU
 when no map arrives within ``map_timeout`` or the robot is stuck (neither the known area grew nor
 the robot moved for ``stuck_timeout`` seconds). On every end, halts included, the learned map is
 written into the run directory as ``map.pgm`` + ``map.yaml`` (Nav2 map_server format).
+
+Leaves built on Explore (the search's ``ResumeExplore`` and ``Locate``) use its public interface:
+:meth:`Explore.planner_options` and :meth:`Explore.make_planner` (the planner a run uses),
+:meth:`Explore.select_goal` (choose and send the next goal), :meth:`Explore.on_goal_reached` and
+:meth:`Explore.on_give_up` (hooks), :meth:`Explore.summary` and :func:`known_area`.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, Field
@@ -114,12 +119,8 @@ class Explore(Leaf):
     # -- lifecycle ---------------------------------------------------------------------------------
 
     def initialise(self) -> None:
-        """Start with an empty blacklist and no goal."""
-        p = self.params
-        self.planner = ExplorationPlanner(
-            strategy=p.strategy, footprint_radius=p.footprint_radius, sensor_range=p.sensor_range,
-            min_frontier_m=p.min_frontier_size, cost_rate=p.cost_rate, erosion_m=p.scan_point_erosion,
-            min_gain_m2=p.min_gain)
+        """Start with the planner :meth:`make_planner` gives (a new one: empty blacklist) and no goal."""
+        self.planner = self.make_planner()
         self.handle = None
         self.target = None
         self.state = _SELECT
@@ -144,7 +145,7 @@ class Explore(Leaf):
         pose = stamped.pose
         if self._stuck(now, grid, pose):
             return self.fail(f"stuck: the map did not grow and the robot did not move for "
-                             f"{self.params.stuck_timeout:g} s ({self._summary(grid)})")
+                             f"{self.params.stuck_timeout:g} s ({self.summary(grid)})")
         if self.state == _LOOK:
             if not self._look(now, pose):
                 return self.running(f"looking around: {math.degrees(self.look_turned):.0f} deg")
@@ -154,7 +155,7 @@ class Explore(Leaf):
             if status is not None:
                 return status
         if self.state == _SELECT:
-            return self._select(now, grid, pose)
+            return self.select_goal(now, grid, pose)
         return self.running(self._feedback(pose))
 
     def terminate(self, new_status: Status) -> None:
@@ -168,15 +169,46 @@ class Explore(Leaf):
         self.state = _SELECT
         self._save_map()
 
-    # -- states ------------------------------------------------------------------------------------
+    # -- public interface for leaves built on Explore ------------------------------------------------
 
-    def _select(self, now: float, grid: OccupancyGrid, pose: Pose2D) -> Status:
+    def planner_options(self) -> dict[str, Any]:
+        """The exploration planner's options, from the parameters."""
+        p = self.params
+        return {"strategy": p.strategy, "footprint_radius": p.footprint_radius,
+                "sensor_range": p.sensor_range, "min_frontier_m": p.min_frontier_size,
+                "cost_rate": p.cost_rate, "erosion_m": p.scan_point_erosion, "min_gain_m2": p.min_gain}
+
+    def make_planner(self) -> ExplorationPlanner:
+        """The planner for a run of the leaf (called by :meth:`initialise`; a new one each run here).
+
+        Subclasses may keep one across runs (its blacklist and visited goals) or rank its goals.
+        """
+        return ExplorationPlanner(**self.planner_options())
+
+    def select_goal(self, now: float, grid: OccupancyGrid, pose: Pose2D) -> Status:
+        """Send the best candidate goal (RUNNING), or SUCCESS when no reachable one remains."""
         assert self.planner is not None
         candidates = self.planner.candidates(grid, (pose.x, pose.y))
         if not candidates:
-            return self.succeed(f"explored: no reachable {self._what()} remains ({self._summary(grid)})")
+            return self.succeed(f"explored: no reachable {self._what()} remains ({self.summary(grid)})")
         self._send(now, candidates[0])
         return self.running(self._feedback(pose))
+
+    def on_goal_reached(self, goal: Candidate) -> None:
+        """Called when the robot reached ``goal`` (before any look-around); nothing here."""
+
+    def on_give_up(self, goal: Candidate, reason: str) -> None:
+        """Called when ``goal`` was blacklisted (``self.last_grid`` is the map then); nothing here."""
+
+    def summary(self, grid: OccupancyGrid) -> str:
+        """Known area, goals sent and goals given up, e.g. '20.8 m^2 known, 3 goals, 2 unreachable'."""
+        assert self.planner is not None
+        text = f"{known_area(grid):.1f} m^2 known, {self.goals} goals"
+        if self.planner.blacklist:
+            text += f", {len(self.planner.blacklist)} unreachable"
+        return text
+
+    # -- states ------------------------------------------------------------------------------------
 
     def _drive(self, now: float, grid: OccupancyGrid, pose: Pose2D) -> Status | None:
         """Poll the goal; None when the state changed to select (or look) and the caller goes on."""
@@ -189,6 +221,7 @@ class Explore(Leaf):
             if status is ActionStatus.SUCCEEDED:
                 self.planner.visit(target.x, target.y)
                 self.emit("explore_reached", x=target.x, y=target.y)
+                self.on_goal_reached(target)
                 if target.kind == "frontier" and not self.params.look_around \
                         and self.planner.still_frontier(grid, *target.target):
                     # standing there did not reveal it (a gap the lidar cannot look into): never again
@@ -252,6 +285,7 @@ class Explore(Leaf):
         if target.kind == "scan_point":
             self.planner.visit(target.x, target.y)
         self.emit("explore_blacklist", x=target.x, y=target.y, reason=reason)
+        self.on_give_up(target, reason)
 
     def _start_look(self, now: float, pose: Pose2D) -> None:
         self.state = _LOOK
@@ -290,7 +324,7 @@ class Explore(Leaf):
     # -- progress, feedback, map -----------------------------------------------------------------
 
     def _stuck(self, now: float, grid: OccupancyGrid, pose: Pose2D) -> bool:
-        area = _known_area(grid)
+        area = known_area(grid)
         moved = math.hypot(pose.x - self.progress_xy[0], pose.y - self.progress_xy[1])
         if area > self.progress_area + _AREA_PROGRESS or not moved <= _MOVE_PROGRESS:
             self.progress_area, self.progress_xy, self.progress_at = area, (pose.x, pose.y), now
@@ -299,13 +333,6 @@ class Explore(Leaf):
 
     def _what(self) -> str:
         return "unvisited scan point" if self.params.strategy == "scan_points" else "frontier"
-
-    def _summary(self, grid: OccupancyGrid) -> str:
-        assert self.planner is not None
-        text = f"{_known_area(grid):.1f} m^2 known, {self.goals} goals"
-        if self.planner.blacklist:
-            text += f", {len(self.planner.blacklist)} unreachable"
-        return text
 
     def _feedback(self, pose: Pose2D) -> str:
         if self.target is None:
@@ -319,16 +346,17 @@ class Explore(Leaf):
             grid = self.ctx.robot.occupancy()
         if grid is None:
             return
-        self.write("explored_area", round(_known_area(grid), 3))
+        self.write("explored_area", round(known_area(grid), 3))
         run_dir = self.ctx.run_dir if self.ctx is not None else None
         if run_dir is None:
             return
         _, yaml_path = write_map(grid, run_dir, self.params.map_name)
         self.write("map_yaml", str(yaml_path))
-        self.emit("map_saved", path=str(yaml_path), known_m2=round(_known_area(grid), 3))
+        self.emit("map_saved", path=str(yaml_path), known_m2=round(known_area(grid), 3))
 
 
-def _known_area(grid: OccupancyGrid) -> float:
+def known_area(grid: OccupancyGrid) -> float:
+    """Area of the map's known cells, free or occupied (m^2)."""
     return float(np.count_nonzero(~unknown_mask(grid))) * grid.resolution ** 2
 
 

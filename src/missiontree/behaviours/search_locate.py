@@ -1,0 +1,523 @@
+"""Where to look next in the search: ResumeExplore (exploration kept across rounds) and Locate (a candidate).
+
+- :class:`ResumeExplore`: the ``Explore`` leaf kept across the rounds of a search (visited goals and
+  blacklist survive a retry); it may stop after each goal reached (the report's MOVING_TO_SCAN: one
+  scan point at a time) and fail "not found" once nothing is left. A goal given up on a half-learned
+  map (a doorway judged blocked while its jambs were still unknown) is offered once more when the map
+  around it has grown since, or the map now places its frontier's goal elsewhere.
+- :class:`Locate`: a candidate of the target from what is known — the live semantic map that
+  ``BuildSceneGraph`` fuses every frame into (a candidate seen once is not forgotten when the robot
+  turns away) or a loaded scene graph — else exploration ordered by where the target is likely
+  (:mod:`missiontree.reasoning.search_priors`: a cup -> kitchen first) and by the frontiers' gain,
+  until a candidate appears. A candidate that could not be reached is offered once more when nothing
+  is left to explore. FAILURE "not found" when the reachable space is explored and no candidate is left.
+
+Both use ``Explore`` through its public interface only (``make_planner``, ``select_goal``, the
+``on_goal_reached`` / ``on_give_up`` hooks, ``summary``).
+
+Tick-log events: ``search_candidate``, ``search_explored``, ``explore_retry`` (and Explore's own).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Annotated, Any, Literal
+
+import cv2
+import numpy as np
+from pydantic import BaseModel, Field
+
+from missiontree.behaviours.explore import Explore
+from missiontree.behaviours.intent import find_scene_graph
+from missiontree.behaviours.search_common import REJECT_RADIUS, read_target, rejected_entries
+from missiontree.engine.leaf import Status
+from missiontree.engine.ports import Output
+from missiontree.mapping.exploration import Blacklisted, ExplorationPlanner
+from missiontree.mapping.exploration import Candidate as Frontier
+from missiontree.mapping.grid import free_mask, occupied_mask, unknown_mask
+from missiontree.perception.colour import canonical_colour
+from missiontree.reasoning.intent import GraphObject, graph_objects
+from missiontree.reasoning.phrases import fold_label
+from missiontree.reasoning.search_priors import Target, region_score, room_priors
+from missiontree.types import OccupancyGrid, Pose2D
+
+#: Known area (m^2) counted around a goal given up, to tell whether the map there has grown since.
+AROUND_M = 1.5
+#: A retried goal's new place must lie this far (m) from the one given up, when the map did not grow.
+MOVED_M = 0.3
+#: How far (m) a frontier goal too near an obstacle may be moved to give the robot room.
+NUDGE_M = 0.6
+#: An instance whose colour the semantic map's majority vote settled over this many frames is not
+#: looked at closer for another colour (when nothing else is left, ones seen in fewer frames are).
+TRUSTED_COLOUR_FRAMES = 10
+
+
+class PriorPlanner(ExplorationPlanner):
+    """Exploration candidates re-scored by where the target is likely: score x (1 + weight x prior).
+
+    A frontier goal nearer an obstacle than the robot's radius plus margin (on a half-learned map a
+    doorway's goal often lands beside a jamb seen later; the navigation stack refuses such a goal)
+    is moved to the nearest known-free cell within :data:`NUDGE_M` that has that room.
+    """
+
+    def __init__(self, bias: Any, weight: float, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.bias = bias
+        self.weight = weight
+
+    def candidates(self, grid: Any, robot_xy: tuple[float, float]) -> list[Frontier]:
+        """The planner's candidates (goals given room), best first after the prior."""
+        found = super().candidates(grid, robot_xy)
+        if not found:
+            return found
+        room = self.footprint_radius + self.goal_margin
+        clear = clearance_map(grid)
+        found = [_with_room(c, grid, clear, room) for c in found]
+        if self.weight <= 0:
+            return found
+        scored = [replace(c, score=c.score * (1.0 + self.weight * self.bias(c))) for c in found]
+        return sorted(scored, key=lambda c: -c.score)
+
+
+def clearance_map(grid: OccupancyGrid) -> np.ndarray:
+    """Distance (m) of every cell to the nearest occupied cell."""
+    occupied = occupied_mask(grid)
+    return cv2.distanceTransform((~occupied).astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
+
+
+def clearance_at(grid: OccupancyGrid, clear: np.ndarray, x: float, y: float) -> float:
+    """Distance (m) from (x, y) to the nearest occupied cell (inf off the map)."""
+    r, c = grid.world_to_cell(x, y)
+    h, w = clear.shape
+    return float(clear[r, c]) if 0 <= r < h and 0 <= c < w else math.inf
+
+
+def _with_room(c: Frontier, grid: OccupancyGrid, clear: np.ndarray, room: float) -> Frontier:
+    """``c`` with its goal moved to the nearest free cell within NUDGE_M that keeps ``room`` (m)."""
+    if c.kind != "frontier" or clearance_at(grid, clear, c.x, c.y) >= room:
+        return c
+    res = grid.resolution
+    r0, c0 = grid.world_to_cell(c.x, c.y)
+    k = int(math.ceil(NUDGE_M / res))
+    h, w = clear.shape
+    rs, re_, cs, ce = max(0, r0 - k), min(h, r0 + k + 1), max(0, c0 - k), min(w, c0 + k + 1)
+    if rs >= re_ or cs >= ce:
+        return c
+    free = free_mask(grid)[rs:re_, cs:ce]
+    rr, cc = np.nonzero(free & (clear[rs:re_, cs:ce] >= room))
+    if not len(rr):
+        return c
+    d2 = (rr + rs - r0) ** 2 + (cc + cs - c0) ** 2
+    j = int(np.argmin(d2))
+    if d2[j] > k * k:
+        return c
+    x, y = grid.cell_to_world(int(rr[j] + rs), int(cc[j] + cs))
+    return replace(c, x=float(x), y=float(y))
+
+
+@dataclass
+class _GivenUp:
+    """A goal given up: the known area around it then, and whether it was offered again already."""
+
+    entry: Blacklisted
+    known_m2: float
+    retried: bool = False
+
+
+class ResumeExplore(Explore):
+    """Explore that resumes where it left off when entered again, and may stop after each goal reached.
+
+    Keeps its visited goals and blacklist across runs of the leaf (a tree that retries does not
+    revisit what it saw). With ``max_goals`` it ends SUCCESS after reaching that many goals (the
+    report's MOVING_TO_SCAN: one scan point at a time). With ``exhausted_fails`` it ends FAILURE
+    "not found" once nothing is left to explore, at once on every later entry. With ``retry_grown``,
+    when nothing else is left, a goal given up is offered once more if the known map within
+    1.5 m of it grew by ``retry_growth`` m^2 since, or the map now puts its frontier's goal
+    elsewhere (0.3 m or more away): a doorway judged blocked on a half-learned map often is not.
+    """
+
+    class Params(Explore.Params):
+        max_goals: int = Field(
+            0, ge=0, description="End SUCCESS after reaching this many goals (0: explore all)."
+        )
+        exhausted_fails: bool = Field(False, description="Nothing left to explore is FAILURE 'not found'.")
+        retry_grown: bool = Field(
+            True,
+            description="Once nothing else is left, offer a goal given up once more when the map "
+            "around it grew or now places its goal elsewhere.",
+        )
+        retry_growth: float = Field(
+            1.0, ge=0, description="Growth of the known area within 1.5 m of a goal given up (m^2)."
+        )
+        second_chances: int = Field(
+            0,
+            ge=0,
+            description="Times every goal given up is tried again once nothing else is left, "
+            "whatever the map shows (costs time when the target is absent).",
+        )
+        # the search's defaults (Explore's: 0.5 m and 1.0 m^2)
+        scan_point_erosion: float = Field(
+            0.4, ge=0, description="Scan point erosion (m); over half a door's width cuts rooms apart."
+        )
+        min_gain: float = Field(
+            0.5, ge=0, description="strategy gain: skip frontiers revealing less unknown area (m^2)."
+        )
+
+    params: Params
+
+    def __init__(self, name: str, params: BaseModel | None = None) -> None:
+        super().__init__(name, params)
+        self.kept: ExplorationPlanner | None = None
+        self.exhausted = False
+        self.reached = 0
+        self.chances_used = 0
+        self.given_up: list[_GivenUp] = []
+
+    def make_planner(self) -> ExplorationPlanner:
+        """The planner kept for the whole mission (made once by :meth:`new_planner`)."""
+        if self.kept is None:
+            self.kept = self.new_planner()
+        return self.kept
+
+    def new_planner(self) -> ExplorationPlanner:
+        """A planner for the mission (subclasses rank its goals)."""
+        return ExplorationPlanner(**self.planner_options())
+
+    def initialise(self) -> None:
+        """Explore on with what earlier runs of this leaf learned (blacklist, visited goals)."""
+        super().initialise()
+        self.reached = 0
+
+    def on_goal_reached(self, goal: Frontier) -> None:
+        """Count the goals reached in this run of the leaf."""
+        self.reached += 1
+
+    def on_give_up(self, goal: Frontier, reason: str) -> None:
+        """Remember the known area around the goal given up (to tell later whether the map grew)."""
+        if self.planner is None or not self.planner.blacklist:
+            return
+        entry = self.planner.blacklist[-1]
+        grid = self.last_grid
+        self.given_up.append(_GivenUp(entry, _known_around(grid, entry) if grid is not None else 0.0))
+
+    def explore_step(self) -> Status:
+        """One step of exploration (Explore's update); sets ``exhausted`` when nothing is left."""
+        status = super().update()
+        if status == Status.SUCCESS and not (self.params.max_goals and self.reached >= self.params.max_goals):
+            self.exhausted = True
+        return status
+
+    def update(self) -> Status:
+        """One step of exploration; SUCCESS after ``max_goals`` goals; exhausted -> FAILURE when asked."""
+        if self.exhausted and self.params.exhausted_fails:
+            return self.fail(f"not found: nothing left to explore ({self.feedback_message})")
+        status = self.explore_step()
+        if status == Status.SUCCESS and self.exhausted and self.params.exhausted_fails:
+            return self.fail(f"not found: {self.feedback_message}")
+        return status
+
+    def select_goal(self, now: float, grid: OccupancyGrid, pose: Pose2D) -> Status:
+        """Choose the next goal, unless ``max_goals`` goals were reached in this run of the leaf.
+
+        When nothing is left but goals given up, those whose surroundings changed are offered once
+        more (``retry_grown``); then all of them get ``second_chances``.
+        """
+        if self.params.max_goals and self.reached >= self.params.max_goals:
+            return self.succeed(f"reached {self.reached} goal{'s' if self.reached > 1 else ''}")
+        status = super().select_goal(now, grid, pose)
+        planner = self.planner
+        if status != Status.SUCCESS or planner is None or not planner.blacklist:
+            return status
+        if self.params.retry_grown:
+            again = self._changed_since_given_up(grid, pose)
+            if again:
+                self.emit(
+                    "explore_retry",
+                    goals=[{"x": round(g.entry.x, 3), "y": round(g.entry.y, 3)} for g in again],
+                    reasons=[g.entry.reason for g in again],
+                )
+                for g in again:
+                    g.retried = True
+                    planner.blacklist.remove(g.entry)
+                retried = super().select_goal(now, grid, pose)
+                if retried != Status.SUCCESS:
+                    return retried
+        if self.chances_used < self.params.second_chances:
+            self.chances_used += 1
+            self.emit("explore_second_chance", goals=len(planner.blacklist))
+            planner.blacklist.clear()
+            return super().select_goal(now, grid, pose)
+        return status
+
+    def _changed_since_given_up(self, grid: OccupancyGrid, pose: Pose2D) -> list[_GivenUp]:
+        """Goals given up, not retried yet, whose surroundings grew or whose frontier's goal moved."""
+        assert self.planner is not None
+        planner = self.planner
+        # a place given up again after its retry stays given up
+        done = [g.entry for g in self.given_up if g.retried]
+        open_ = [
+            g
+            for g in self.given_up
+            if not g.retried and g.entry in planner.blacklist and not any(_near(g.entry, d) for d in done)
+        ]
+        if not open_:
+            return []
+        grown = [
+            g for g in open_ if _known_around(grid, g.entry) - g.known_m2 >= self.params.retry_growth
+        ]
+        rest = [g for g in open_ if g not in grown]
+        if not rest:
+            return grown
+        kept = list(planner.blacklist)
+        planner.blacklist[:] = [b for b in kept if all(b is not g.entry for g in rest)]
+        try:
+            offered = planner.candidates(grid, (pose.x, pose.y))
+        finally:
+            planner.blacklist[:] = kept
+        r = planner.blacklist_radius
+        room = planner.footprint_radius + planner.goal_margin
+        clear = clearance_map(grid)
+        moved = []
+        for g in rest:
+            b = g.entry
+            before = clearance_at(grid, clear, b.x, b.y)
+            for c in offered:
+                same = math.dist(c.target, b.target) <= r if math.isfinite(b.target[0]) else False
+                if not (same or math.dist((c.x, c.y), (b.x, b.y)) <= r):
+                    continue
+                shift = math.dist((c.x, c.y), (b.x, b.y))
+                now = clearance_at(grid, clear, c.x, c.y)
+                # the map now places its goal elsewhere, or where the robot has more room
+                roomier = now >= room and now > before + 0.01 and shift >= 0.1
+                if shift >= MOVED_M or roomier:
+                    moved.append(g)
+                    break
+        return grown + moved
+
+
+def _near(a: Blacklisted, b: Blacklisted, radius: float = 0.75) -> bool:
+    return math.dist((a.x, a.y), (b.x, b.y)) <= radius
+
+
+def _known_around(grid: OccupancyGrid, entry: Blacklisted, radius: float = AROUND_M) -> float:
+    """Known area (m^2) within ``radius`` of a goal given up and of the frontier place it was to see."""
+    res = grid.resolution
+    h, w = grid.data.shape
+    known = ~unknown_mask(grid)
+    total = 0.0
+    places = [(entry.x, entry.y)]
+    if math.isfinite(entry.target[0]) and math.dist(entry.target, (entry.x, entry.y)) > radius:
+        places.append(entry.target)
+    k = int(math.ceil(radius / res))
+    for x, y in places:
+        r0, c0 = grid.world_to_cell(x, y)
+        rs, re_, cs, ce = max(0, r0 - k), min(h, r0 + k + 1), max(0, c0 - k), min(w, c0 + k + 1)
+        if rs >= re_ or cs >= ce:
+            continue
+        rr, cc = np.mgrid[rs:re_, cs:ce]
+        disc = (rr - r0) ** 2 + (cc - c0) ** 2 <= k * k
+        total += float(np.count_nonzero(known[rs:re_, cs:ce] & disc)) * res * res
+    return total
+
+
+class Locate(ResumeExplore):
+    """A candidate of the target: from the semantic map or a loaded graph, else explore where it is likely.
+
+    SUCCESS with ``search_candidate`` written as soon as an object of the target's class that was
+    not rejected is known (colour matches first, then colour unknown). Otherwise explores (frontiers
+    by gain, weighted by the room priors) until one is seen. When nothing is left to explore, a
+    candidate rejected only because it could not be reached is offered once more (the map has grown
+    since), and objects of the class whose other colour rests on fewer than
+    :data:`TRUSTED_COLOUR_FRAMES` frames are looked at; FAILURE "not found" when none is left.
+    """
+
+    class Params(ResumeExplore.Params):
+        target: str = Field(description="What to find: colour words and a class ('red backpack').")
+        scene_graph: str = Field(
+            "", description="A scene graph file (NAIS JSON) whose objects are checked first."
+        )
+        priors: Literal["offline", "none"] = Field(
+            "offline", description="Rank frontiers by where the target is likely (offline priors) or not."
+        )
+        prior_weight: float = Field(
+            2.0, ge=0, description="How much the prior multiplies a frontier's score."
+        )
+        rejected: Annotated[
+            str, Output("candidates rejected so far (emptied when the mission starts)", type="list")
+        ] = "search_rejected"
+        candidate: Annotated[str, Output("the candidate to approach", type="dict")] = "search_candidate"
+
+    params: Params
+
+    def __init__(self, name: str, params: BaseModel | None = None) -> None:
+        super().__init__(name, params)
+        self.goal: Target | None = None
+        self.file_objects: list[GraphObject] = []
+        self.priors: dict[str, float] = {}
+        self.offered_again: set[str] = set()
+
+    def on_setup(self) -> None:
+        """Read the target against the detector's classes and load the graph file, if any."""
+        # py_trees' blackboard outlives a mission in the same process (batch runs, benchmarks): the
+        # rejected candidates start empty with each mission, never inherited from another one.
+        self.write("rejected", [])
+        if self.ctx is None:
+            return
+        self.goal = read_target(self.ctx, self.params.target)
+        self.priors = room_priors(self.goal.label) if self.params.priors == "offline" else {}
+        if self.params.scene_graph:
+            from missiontree.semantics.scene_graph import SceneGraph
+
+            graph = SceneGraph.load(find_scene_graph(self.params.scene_graph))
+            self.file_objects = list(graph_objects(graph).objects.values())
+
+    def new_planner(self) -> ExplorationPlanner:
+        """Frontiers by gain, their scores weighted by the room priors."""
+        return PriorPlanner(self._prior, self.params.prior_weight, **self.planner_options())
+
+    def update(self) -> Status:
+        """A known candidate ends the leaf; else one step of exploration."""
+        found = self._pick(with_mismatch=self.exhausted)
+        if found is not None:
+            return self._found(found)
+        if self.exhausted:
+            return self._not_found()
+        status = self.explore_step()
+        if status == Status.SUCCESS:
+            self.exhausted = True
+            self.emit("search_explored", reason=self.feedback_message)
+            found = self._pick(with_mismatch=True)
+            return self._found(found) if found is not None else self._not_found()
+        if status == Status.FAILURE:
+            return self.fail(
+                f"searching for the {self.goal.text if self.goal else '?'}: {self.failure_reason}"
+            )
+        return status
+
+    def _found(self, found: dict[str, Any]) -> Status:
+        if found.pop("again", False):
+            self.offered_again.add(str(found["id"]))
+        self.write("candidate", found)
+        self.emit("search_candidate", **found)
+        return self.succeed(
+            f"candidate {found['id']} ({found['colour']} {found['label']}) from "
+            f"{found['source']} at ({found['x']:.2f}, {found['y']:.2f})"
+        )
+
+    def _not_found(self) -> Status:
+        assert self.goal is not None
+        tried = rejected_entries(self.read("rejected", []))
+        shown = "; ".join(f"{e.get('id')}: {e.get('reason', '')}" for e in tried[:4])
+        grid = self.last_grid
+        known = f", {self.summary(grid)}" if grid is not None and self.planner is not None else ""
+        return self.fail(
+            f"not found: no {self.goal.text} in the reachable space explored{known}"
+            + (f" ({len(tried)} candidates rejected: {shown})" if tried else "")
+        )
+
+    # -- candidates -------------------------------------------------------------------------------
+
+    def _pick(self, with_mismatch: bool) -> dict[str, Any] | None:
+        """The best known candidate not rejected: colour match first, then unknown colour, then nearest."""
+        if self.goal is None:
+            return None
+        goal = self.goal
+        rejected = rejected_entries(self.read("rejected", []))
+        stamped = self.context.robot.pose()
+        here = (stamped.pose.x, stamped.pose.y) if stamped is not None else (0.0, 0.0)
+        options: list[tuple[int, float, dict[str, Any]]] = []
+        scene = getattr(self.ctx, "scene", None)
+        instances = getattr(scene, "map", None)
+        for inst in list(instances) if instances is not None else []:
+            if fold_label(inst.label) != fold_label(goal.label):
+                continue
+            entry = {
+                "id": inst.id,
+                "label": inst.label,
+                "colour": inst.colour,
+                "x": round(inst.position[0], 3),
+                "y": round(inst.position[1], 3),
+                "z": round(inst.position[2], 3),
+                "source": "semantic map",
+                "observations": inst.observations,
+            }
+            options.append(self._ranked(entry, rejected, here, with_mismatch))
+        for obj in self.file_objects:
+            if obj.xy is None or fold_label(obj.label) != fold_label(goal.label):
+                continue
+            colours = [c for c in obj.attributes if c in goal.colours] or obj.attributes[:1]
+            entry = {
+                "id": obj.id,
+                "label": obj.label,
+                "colour": colours[0] if colours else "unknown",
+                "x": obj.xy[0],
+                "y": obj.xy[1],
+                "z": obj.z,
+                "source": "scene graph",
+            }
+            options.append(self._ranked(entry, rejected, here, with_mismatch))
+        options = [o for o in options if o[0] >= 0]
+        if not options:
+            return None
+        return min(options, key=lambda o: (o[0], o[1]))[2]
+
+    def _ranked(
+        self,
+        entry: dict[str, Any],
+        rejected: list[dict[str, Any]],
+        here: tuple[float, float],
+        with_mismatch: bool,
+    ) -> tuple[int, float, dict[str, Any]]:
+        """(rank, distance, entry); rank -1: ruled out. Unreached ones come back once when exhausted."""
+        assert self.goal is not None
+        unreached = False
+        for r in rejected:
+            if r.get("id") == entry["id"] or (
+                fold_label(str(r.get("label", ""))) == fold_label(entry["label"])
+                and math.hypot(
+                    float(r.get("x", math.inf)) - entry["x"], float(r.get("y", math.inf)) - entry["y"]
+                )
+                < REJECT_RADIUS
+            ):
+                if r.get("kind", "wrong") != "unreached":
+                    return -1, 0.0, entry
+                unreached = True
+        if unreached:
+            if not self.exhausted or str(entry["id"]) in self.offered_again:
+                return -1, 0.0, entry
+            entry = {**entry, "again": True}
+        colour = canonical_colour(str(entry["colour"]))
+        if not self.goal.colours or colour in self.goal.colours:
+            rank = 0
+        elif colour in ("", "unknown"):
+            rank = 1
+        elif with_mismatch and int(entry.get("observations", 0)) < TRUSTED_COLOUR_FRAMES:
+            rank = 2  # its colour may be misread: worth a close look once nothing else is left
+        else:
+            rank = -1
+        return rank, math.hypot(entry["x"] - here[0], entry["y"] - here[1]), entry
+
+    def _prior(self, frontier: Frontier) -> float:
+        """Likelihood of the target beyond a frontier: its room's type and the objects seen near it."""
+        if not self.priors:
+            return 0.0
+        scene = getattr(self.ctx, "scene", None)
+        instances = getattr(scene, "map", None)
+        seen = [(i.label, i.xy) for i in instances] if instances is not None else []
+        room_type = None
+        for room in getattr(scene, "rooms", None) or []:
+            if _inside(room.polygon, frontier.x, frontier.y):
+                room_type = room.type
+                break
+        return region_score((frontier.x, frontier.y), self.priors, seen, room_type)
+
+
+def _inside(polygon: Any, x: float, y: float) -> bool:
+    """Point in polygon (even-odd rule); False for an empty polygon."""
+    pts = [(float(p[0]), float(p[1])) for p in polygon]
+    inside = False
+    for (x1, y1), (x2, y2) in zip(pts, pts[1:] + pts[:1], strict=True):
+        if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
+            inside = not inside
+    return inside
