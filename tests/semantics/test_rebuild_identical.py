@@ -10,12 +10,15 @@ import numpy as np
 import pytest
 
 from missiontree.semantics import relations as relations_module
-from missiontree.semantics.builder import SceneBuilder
-from missiontree.semantics.relations import bodies_of, compute_relations, relations_of
+from missiontree.semantics.builder import BuilderParams, SceneBuilder
+from missiontree.semantics.relations import RelationParams, bodies_of, compute_relations, relations_of
 from missiontree.semantics.rooms import RoomRegion
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import scene_rebuild  # noqa: E402  (the previous implementation is kept there as the benchmark's reference)
+
+#: The previous implementation related objects across rooms; the rule added since is off here.
+AS_BEFORE = BuilderParams(relations=RelationParams(same_room_only=False))
 
 
 def mixed_layout(seed: int, objects: int = 300, depth: float = 30.0) -> SceneBuilder:
@@ -27,7 +30,7 @@ def mixed_layout(seed: int, objects: int = 300, depth: float = 30.0) -> SceneBui
     Objects lie in the first ``depth`` metres of the 30 m deep rooms (a small depth crowds them).
     """
     rng = np.random.default_rng(seed)
-    builder = scene_rebuild.layout(objects=0, rooms=4, seed=seed, room_width=7.0)
+    builder = scene_rebuild.layout(objects=0, rooms=4, seed=seed, room_width=7.0, params=AS_BEFORE)
     builder.scene.rooms.append(RoomRegion("room_empty", "unknown", np.zeros((0, 2)), 5.0, (100.0, 100.0)))
     builder.scene.rooms[1].type = "unknown"
     smap = builder.scene.map
@@ -91,8 +94,9 @@ def test_relations_of_instances_equal_relations_of_their_bodies(seed: int) -> No
     objects = list(builder.scene.map)
     centres = {r.id: r.centroid for r in builder.scene.rooms}
     expected = scene_rebuild._reference_relations(bodies_of(objects), centres)
-    assert relations_of(objects, centres) == expected
-    assert compute_relations(bodies_of(objects[::-1]), centres) == expected
+    params = AS_BEFORE.relations
+    assert relations_of(objects, centres, params) == expected
+    assert compute_relations(bodies_of(objects[::-1]), centres, params) == expected
 
 
 def test_small_and_empty_maps_rebuild() -> None:

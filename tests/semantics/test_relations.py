@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from missiontree.semantics.relations import Body, compute_relations, normalise_relation
+from missiontree.semantics.relations import Body, RelationParams, compute_relations, normalise_relation
 
 ROOM = {"room": (5.0, 5.0)}  # the room's middle: the anchors below face it (+y from y = 1)
 
@@ -80,3 +80,21 @@ def test_phrases_of_the_paper_map_onto_relation_names() -> None:
     assert normalise_relation("Next to") == "next_to"
     assert normalise_relation("in front of") == "in_front_of"
     assert normalise_relation("belongs to") == "belongs_to"
+
+
+def test_objects_either_side_of_a_wall_are_not_related() -> None:
+    """A cup in the kitchen and a sofa 0.3 m away in the living room: no edge through the wall.
+
+    The same two objects in one room are next to each other, and an object in no known room is
+    related to what is near it.
+    """
+    centres = {"kitchen": (2.5, 2.0), "living": (2.5, 5.0)}
+    cup = Body("cup", 2.5, 3.2, 0.8, 0.1, 0.1, 0.1, "kitchen")
+    sofa = Body("sofa", 2.5, 4.0, 0.4, 2.0, 0.9, 0.8, "living")
+    assert compute_relations([cup, sofa], centres) == []
+    same_room = Body("cup", 2.5, 3.2, 0.8, 0.1, 0.1, 0.1, "living")
+    assert relation(compute_relations([same_room, sofa], centres), "cup", "sofa") == "behind"
+    roomless = Body("cup", 2.5, 3.2, 0.8, 0.1, 0.1, 0.1)
+    assert relation(compute_relations([roomless, sofa], centres), "cup", "sofa") == "behind"
+    through_walls = RelationParams(same_room_only=False)
+    assert relation(compute_relations([cup, sofa], centres, through_walls), "cup", "sofa") == "behind"

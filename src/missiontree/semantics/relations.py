@@ -17,6 +17,10 @@ the room's door is not known either and the plain ``next_to`` / ``near`` is kept
 ``right_of`` are as seen by someone standing in front of the anchor and looking at it (the sofa's
 own left is the viewer's right).
 
+**Rooms.** Two objects in different known rooms are not related (``same_room_only``): a wall
+stands between them, and "the plant is behind the sofa" through it would send a robot the wrong
+way. An object in no known room may still be related to anything near it.
+
 Each object keeps relations to its ``max_per_object`` nearest anchors, so a crowded room does not
 become a complete graph. Relation names are those of
 :data:`RELATIONS`; :func:`normalise_relation` maps the NAIS paper's phrasing ("on top of",
@@ -78,6 +82,7 @@ class RelationParams:
         side_ratio: How much longer one axis offset must be than the other to name a side.
         max_per_object: Anchors kept per object, nearest first.
         min_facing_distance: An anchor this close to its room's middle has no facing.
+        same_room_only: Objects in two different known rooms are not related.
     """
 
     near_gap: float = 1.5
@@ -87,6 +92,7 @@ class RelationParams:
     side_ratio: float = 1.5
     max_per_object: int = 3
     min_facing_distance: float = 0.5
+    same_room_only: bool = True
 
 
 @dataclass(frozen=True)
@@ -198,6 +204,12 @@ def _relations(
     pairs = tree.query_pairs(p.near_gap + 2.0 * float(radius.max()), output_type="ndarray")
     if not len(pairs):
         return []
+    if p.same_room_only:
+        room_code = _room_codes(rooms)
+        ca, cc = room_code[pairs[:, 0]], room_code[pairs[:, 1]]
+        pairs = pairs[(ca == cc) | (ca < 0) | (cc < 0)]
+        if not len(pairs):
+            return []
     a, c = pairs[:, 0], pairs[:, 1]
     # the smaller (by area, ties: the later id) is the source, the other its anchor
     a_small = (area[a] < area[c]) | ((area[a] == area[c]) & (a > c))
@@ -266,6 +278,16 @@ def _best_candidates(src: np.ndarray, gap: np.ndarray, k: int) -> np.ndarray:
     sizes = np.diff(np.append(starts, len(order)))
     kth = q[starts + np.minimum(sizes, k) - 1]
     return order[q <= np.repeat(kth, sizes)]
+
+
+def _room_codes(rooms: list[str | None]) -> np.ndarray:
+    """A number per object's room, -1 for none (equal numbers: the same room)."""
+    numbers: dict[str, int] = {}
+    return np.fromiter(
+        (-1 if r is None else numbers.setdefault(r, len(numbers)) for r in rooms),
+        dtype=np.intp,
+        count=len(rooms),
+    )
 
 
 def _facing(
