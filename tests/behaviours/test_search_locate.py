@@ -3,17 +3,22 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
+import pytest
 from patrol_doubles import Events, FakeHandle, FakeRobot
+from pydantic import BaseModel
 
 from missiontree.behaviours.search_approach import SAME_PLACE, standoff_goal
 from missiontree.behaviours.search_locate import NUDGE_M, Locate, ResumeExplore, _with_room, clearance_map
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Status
 from missiontree.mapping.exploration import Candidate
+from missiontree.reasoning.calls import CALLER_KEY, ModelCaller
 from missiontree.reasoning.intent import GraphObject
-from missiontree.reasoning.search_priors import Target
+from missiontree.reasoning.protocols import Message
+from missiontree.reasoning.search_priors import Target, room_priors
 from missiontree.robot.actions import ActionStatus
 from missiontree.types import OccupancyGrid, Pose2D, Tolerance
 
@@ -188,3 +193,72 @@ def test_once_nothing_is_left_only_objects_of_a_doubtful_other_colour_are_looked
     assert rank("unknown", 100) == 1
     assert rank("blue", 3) == 2  # seen blue in a few frames: may be misread, look closer
     assert rank("blue", 100) == -1  # blue over a hundred frames: not the red one
+
+
+class Detector:
+    """Only its class list is read (the target phrase against the detector's classes)."""
+
+    labels = ["backpack", "cup", "bottle"]
+
+
+class ScriptedLLM:
+    """A language model that answers every question with ``answer`` and keeps the questions."""
+
+    name = "scripted_llm"
+
+    def __init__(self, answer: str) -> None:
+        self.answer = answer
+        self.asked: list[str] = []
+
+    def chat(self, messages: Sequence[Message], schema: type[BaseModel] | None = None) -> str:
+        self.asked.append(messages[-1].content)
+        return self.answer
+
+
+def locate_with(llm: ScriptedLLM | None, target: str = "cup") -> tuple[Locate, Events]:
+    robot = MapRobot(corridor_map(), block_x=-1.0)
+    events = Events()
+    models: dict[str, object] = {"detector": Detector()}
+    if llm is not None:
+        models["llm"] = llm
+    models[CALLER_KEY] = ModelCaller(robot.now, events, simulated=True, models=models)
+    leaf = Locate("locate", Locate.Params(target=target, priors="model"))
+    leaf.setup(context=MissionContext(robot=robot, models=models, events=events))
+    for _ in range(5):
+        leaf.tick_once()
+        robot.advance(0.1)
+    leaf.stop(Status.INVALID)
+    return leaf, events
+
+
+def test_the_language_model_ranks_the_rooms_when_priors_come_from_the_model() -> None:
+    llm = ScriptedLLM('{"rooms": ["bathroom", "kitchen"], "reason": "cups are rinsed"}')
+    leaf, events = locate_with(llm)
+    assert len(llm.asked) == 1 and "cup" in llm.asked[0] and "kitchen" in llm.asked[0]
+    [used] = events.of("search_priors")
+    assert used["source"] == "model"
+    assert leaf.priors == {"bathroom": 1.0, "kitchen": 0.8}
+    assert any(e["role"] == "llm" and e["outcome"] == "succeeded" for e in events.of("model_call"))
+
+
+@pytest.mark.parametrize(
+    ("answer", "why"),
+    [
+        ("the kitchen, I think", "JSON"),  # not JSON, twice (asked again once with the error)
+        ('{"rooms": ["garage", "attic"]}', "no known room type"),  # checked, but off the list
+    ],
+)
+def test_a_malformed_ranking_keeps_the_offline_table(answer: str, why: str) -> None:
+    llm = ScriptedLLM(answer)
+    leaf, events = locate_with(llm)
+    [used] = events.of("search_priors")
+    assert used["source"] == "offline" and why in used["reason"]
+    assert leaf.priors == room_priors("cup") and max(leaf.priors, key=leaf.priors.get) == "kitchen"
+    assert leaf.status == Status.INVALID  # halted by the test, never failed by the answer
+
+
+def test_no_language_model_configured_keeps_the_offline_table() -> None:
+    leaf, events = locate_with(None)
+    [used] = events.of("search_priors")
+    assert used["source"] == "offline" and "no model configured for role 'llm'" in used["reason"]
+    assert leaf.priors == room_priors("cup")

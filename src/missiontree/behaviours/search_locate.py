@@ -15,7 +15,8 @@
 Both use ``Explore`` through its public interface only (``make_planner``, ``select_goal``, the
 ``on_goal_reached`` / ``on_give_up`` hooks, ``summary``).
 
-Tick-log events: ``search_candidate``, ``search_explored``, ``explore_retry`` (and Explore's own).
+Tick-log events: ``search_candidate``, ``search_explored``, ``search_priors`` (whose ranking of the
+rooms is used: the language model's, or the offline table's and why), ``explore_retry`` (and Explore's).
 """
 
 from __future__ import annotations
@@ -33,13 +34,23 @@ from missiontree.behaviours.intent import find_scene_graph
 from missiontree.behaviours.search_common import REJECT_RADIUS, read_target, rejected_entries
 from missiontree.engine.leaf import Status
 from missiontree.engine.ports import Output
+from missiontree.errors import MissionTreeError
 from missiontree.mapping.exploration import Blacklisted, ExplorationPlanner
 from missiontree.mapping.exploration import Candidate as Frontier
 from missiontree.mapping.grid import free_mask, occupied_mask, unknown_mask
 from missiontree.perception.colour import canonical_colour
+from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
 from missiontree.reasoning.intent import GraphObject, graph_objects
 from missiontree.reasoning.phrases import fold_label
-from missiontree.reasoning.search_priors import Target, region_score, room_priors
+from missiontree.reasoning.search_priors import (
+    RoomRanking,
+    Target,
+    priors_from_ranking,
+    region_score,
+    room_priors,
+    room_ranking_messages,
+    room_types,
+)
 from missiontree.types import OccupancyGrid, Pose2D
 
 #: Known area (m^2) counted around a goal given up, to tell whether the map there has grown since.
@@ -337,9 +348,13 @@ class Locate(ResumeExplore):
         scene_graph: str = Field(
             "", description="A scene graph file (NAIS JSON) whose objects are checked first."
         )
-        priors: Literal["offline", "none"] = Field(
-            "offline", description="Rank frontiers by where the target is likely (offline priors) or not."
+        priors: Literal["offline", "model", "none"] = Field(
+            "offline",
+            description="Rank frontiers by where the target is likely: the offline stand-in's table, "
+            "the language model of `priors_role` (the table until it answers, and when it fails or "
+            "answers out of place), or not at all.",
         )
+        priors_role: str = Field("llm", description="priors: model -- the language model role asked.")
         prior_weight: float = Field(
             2.0, ge=0, description="How much the prior multiplies a frontier's score."
         )
@@ -355,6 +370,9 @@ class Locate(ResumeExplore):
         self.goal: Target | None = None
         self.file_objects: list[GraphObject] = []
         self.priors: dict[str, float] = {}
+        self.priors_source = "offline"
+        self.prior_call: ModelCall | None = None
+        self.asked = False
         self.offered_again: set[str] = set()
 
     def on_setup(self) -> None:
@@ -365,7 +383,7 @@ class Locate(ResumeExplore):
         if self.ctx is None:
             return
         self.goal = read_target(self.ctx, self.params.target)
-        self.priors = room_priors(self.goal.label) if self.params.priors == "offline" else {}
+        self.priors = room_priors(self.goal.label) if self.params.priors != "none" else {}
         if self.params.scene_graph:
             from missiontree.semantics.scene_graph import SceneGraph
 
@@ -376,8 +394,57 @@ class Locate(ResumeExplore):
         """Frontiers by gain, their scores weighted by the room priors."""
         return PriorPlanner(self._prior, self.params.prior_weight, **self.planner_options())
 
+    def initialise(self) -> None:
+        """Explore on; with ``priors: model`` the language model is asked once a mission (no waiting)."""
+        super().initialise()
+        if self.params.priors == "model" and not self.asked and self.goal is not None:
+            self.asked = True
+            messages = room_ranking_messages(self.goal.text, room_types())
+            try:
+                self.prior_call = model_caller(self.context).chat(
+                    self.params.priors_role, messages, RoomRanking, node=self.name
+                )
+            except MissionTreeError as error:  # no such role: the stand-in's table it is
+                self._priors_fallback(str(error))
+
+    def terminate(self, new_status: Status) -> None:
+        """Stop exploring; halted, cancel a ranking still in flight (kept across rounds otherwise)."""
+        if self.prior_call is not None and new_status == Status.INVALID:
+            self.prior_call.cancel()
+            self.prior_call = None
+            self._priors_fallback("the search moved on before the language model answered")
+        super().terminate(new_status)
+
+    def _poll_priors(self) -> None:
+        """Take the language model's ranking when it has come (or keep the stand-in's table)."""
+        call = self.prior_call
+        if call is None or not call.status().done:
+            return
+        self.prior_call = None
+        if call.status() is not CallStatus.SUCCEEDED:
+            self._priors_fallback(call.error() or call.status().value)
+            return
+        try:
+            priors = priors_from_ranking(call.result().value, room_types())
+        except ValueError as error:
+            self._priors_fallback(str(error))
+            return
+        self.priors, self.priors_source = priors, "model"
+        self.emit("search_priors", source="model", role=self.params.priors_role, priors=priors)
+
+    def _priors_fallback(self, reason: str) -> None:
+        self.priors_source = "offline"
+        self.emit(
+            "search_priors",
+            source="offline",
+            role=self.params.priors_role,
+            reason=reason[:300],
+            priors=self.priors,
+        )
+
     def update(self) -> Status:
         """A known candidate ends the leaf; else one step of exploration."""
+        self._poll_priors()
         found = self._pick(with_mismatch=self.exhausted)
         if found is not None:
             return self._found(found)

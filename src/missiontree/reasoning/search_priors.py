@@ -9,7 +9,9 @@ knowledge for the search leaves:
 - :func:`room_priors` gives, for a class, how likely each room type is to hold it. The offline
   stand-in's table is the offline vision model's room objects (a cup, a sink and a refrigerator
   say kitchen) plus the places everyday carried things are left (a backpack in an office, a bedroom,
-  a hall); a language model's answer can replace it (:func:`priors_from_answer`).
+  a hall). A language model can rank the rooms instead: :func:`room_ranking_messages` asks it,
+  :class:`RoomRanking` is the answer's schema and :func:`priors_from_ranking` turns a checked answer
+  into priors (a malformed one raises, and the caller keeps the stand-in's table).
 - :func:`region_score` scores a place (a frontier) in [0, 1]: the prior of the room it lies in when
   that room's type is known, and of the rooms the objects already seen around it point to (a
   frontier beside a refrigerator leads into the kitchen's unknown part).
@@ -23,8 +25,11 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
+from pydantic import BaseModel, Field
+
 from missiontree.reasoning.offline_vlm import ROOM_OBJECTS
 from missiontree.reasoning.phrases import colour_words, find_label, fold_label
+from missiontree.reasoning.protocols import Message
 
 #: Places people leave things the room-typing table does not list (backpacks, umbrellas, ...).
 CARRIED_PLACES: dict[str, dict[str, float]] = {
@@ -102,6 +107,52 @@ def priors_from_answer(ranked_rooms: Sequence[str]) -> dict[str, float]:
         if key and key not in priors:
             priors[key] = max(0.2, 1.0 - 0.2 * i)
     return priors
+
+
+class RoomRanking(BaseModel):
+    """A language model's answer: room types where the object is likely, most likely first."""
+
+    rooms: list[str] = Field(description="Room types from the list given, most likely first.")
+    reason: str = Field("", description="One short sentence.")
+
+
+def room_types(table: Mapping[str, Sequence[str]] | None = None) -> list[str]:
+    """The room types a ranking may name: the room-typing table's and the carried-things table's."""
+    names = set(table or ROOM_OBJECTS)
+    for places in CARRIED_PLACES.values():
+        names.update(places)
+    return sorted(names)
+
+
+def room_ranking_messages(target: str, rooms: Sequence[str]) -> list[Message]:
+    """The conversation asking a language model where ``target`` is likely found, among ``rooms``."""
+    return [
+        Message(
+            "system",
+            "You help a mobile robot search a home or office for an object. Answer with only a JSON "
+            'object {"rooms": [...], "reason": "..."}.',
+        ),
+        Message(
+            "user",
+            f"Where is a {target} most likely to be found? Rank these room types, most likely first, "
+            f"leaving out the unlikely ones: {', '.join(rooms)}.",
+        ),
+    ]
+
+
+def priors_from_ranking(answer: RoomRanking, rooms: Sequence[str]) -> dict[str, float]:
+    """Priors from a checked ranking; room types outside ``rooms`` are dropped.
+
+    Raises:
+        ValueError: The ranking names none of ``rooms`` (a malformed or off-topic answer).
+    """
+    known = {r.lower() for r in rooms}
+    named = [r.strip().lower().replace("_", " ") for r in answer.rooms]
+    kept = [r for r in named if r in known]
+    if not kept:
+        shown = ", ".join(repr(r) for r in answer.rooms[:5]) or "nothing"
+        raise ValueError(f"the ranking names no known room type ({shown})")
+    return priors_from_answer(kept)
 
 
 def room_of_labels(table: Mapping[str, Sequence[str]] | None = None) -> dict[str, list[str]]:
