@@ -42,6 +42,10 @@ from missiontree.semantics.scene_graph import SceneGraph
 from missiontree.semantics.semantic_map import Change, Instance
 from missiontree.types import Detection, OccupancyGrid, RGBDFrame
 
+#: Metres from an object's middle within which the nearest room floor is its room (at least).
+ROOM_REACH = 0.8
+#: Metres beyond half an object's footprint within which the nearest room floor is its room.
+ROOM_REACH_MARGIN = 0.3
 #: Room typer: a room and the labels of the objects seen in it → (type, confidence, evidence).
 RoomTyper = Callable[[RoomRegion, list[str]], tuple[str, float, list[str]]]
 #: Describer: an instance → (description, shape, relative size), or None to leave it.
@@ -224,7 +228,11 @@ class SceneBuilder:
         if self.segmentation is None:
             return
         for inst in self.scene.map:
-            room = self.segmentation.room_at(*inst.xy)
+            # furniture is an obstacle in the map and its middle no room's floor: the room is the
+            # one whose floor is nearest, looked for beyond half the object's footprint (a bed's
+            # middle lies a metre from any floor)
+            reach = max(ROOM_REACH, 0.5 * max(inst.size[0], inst.size[1]) + ROOM_REACH_MARGIN)
+            room = self.segmentation.room_at(*inst.xy, reach=reach)
             room_id = room.id if room is not None else None
             if room_id != inst.room:
                 announce = inst.room is not None  # a first room is part of being added
