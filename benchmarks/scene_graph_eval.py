@@ -86,6 +86,7 @@ REVISIT_MIN, REVISIT_BEST, REVISIT_MAX = 0.9, 1.5, 2.2
 LOOK_SWEEP = 0.5
 NAIS_ROOM_PERIOD = 1.0
 DEBUG = False
+DIAGNOSE = False
 SINGLE_PASS = False
 VERIFY = False
 
@@ -498,6 +499,12 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
     ours = SceneBuilder(room_typer=typer, describer=describer, verifier=verifier)
     nais = NaisPipeline(vlm)
     route = viewpoints(robot)
+    diag = None
+    if DIAGNOSE:
+        from scene_graph_diagnosis import Diagnosis
+
+        diag = Diagnosis(robot, classes, ours.params.depth_method)
+        diag.watch(ours.scene.map)
     state = {"last": -math.inf, "frames": 0, "wall_ours": 0.0, "wall_nais": 0.0}
 
     def tick() -> None:
@@ -507,6 +514,8 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
             state["last"] = frame.stamp
             state["frames"] += 1
             detections = detector.detect(frame.color)
+            if diag is not None:
+                diag.frame(frame, detections)
             # alternate which method goes first, so machine load falls on both alike
             order = [(ours, "wall_ours"), (nais, "wall_nais")]
             for method, key in order if state["frames"] % 2 else order[::-1]:
@@ -552,6 +561,11 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
         "nais": score_phase(nais.predictions(), world, classes),
     }
     rel_good, rel_total = relation_precision(ours, first["ours"], world)
+    if diag is not None:
+        for line in diag.report(
+            name, first["ours"], world, lambda p, w: on_unknown_object(p, w, classes), truth_label
+        ):
+            print(line, flush=True)
     if DEBUG:
         for m in ("ours", "nais"):
             sc = first[m]
@@ -650,6 +664,9 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
     ours.rebuild(robot.now())
     after = {"ours": ours_predictions(ours), "nais": nais.predictions()}
     reflected = {m: sum(change_reflected(after[m], c) for c in changes) for m in after}
+    if diag is not None:
+        for line in diag.report_changes(name, changes, after["ours"], change_reflected):
+            print(line, flush=True)
     if DEBUG:
         for c in changes:
             print(
@@ -681,10 +698,10 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
 _MODELS: dict[str, Any] = {}
 
 
-def _job(job: tuple[str, int, str, int, bool, bool, bool]) -> dict[str, Any]:
+def _job(job: tuple[str, int, str, int, bool, bool, bool, bool]) -> dict[str, Any]:
     """One world in a worker process (models built once per process)."""
-    global DEBUG, SINGLE_PASS, VERIFY
-    name, seed, models_name, changes_seed, DEBUG, SINGLE_PASS, VERIFY = job
+    global DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE
+    name, seed, models_name, changes_seed, DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE = job
     if models_name not in _MODELS:
         _MODELS[models_name] = build_models(models_name)
     t0 = time.perf_counter()
@@ -709,6 +726,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="3 generated worlds and the office world")
     parser.add_argument("--workers", type=int, default=2, help="worlds run at once (processes, default 2)")
     parser.add_argument("--debug", action="store_true", help="list each world's false and missed objects")
+    parser.add_argument(
+        "--diagnose",
+        action="store_true",
+        help="print each false and missed object of ours with its cause, and each change (reads the "
+        "simulator's truth for the diagnosis only)",
+    )
+    parser.add_argument("--only", help="comma-separated world names to run (diagnostics)")
     parser.add_argument("--single-pass", action="store_true", help="skip the dynamic phase (diagnostics)")
     parser.add_argument(
         "--verify",
@@ -727,8 +751,9 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     rows = []
     jobs = [
-        (name, k, args.models, args.changes_seed, DEBUG, SINGLE_PASS, args.verify)
+        (name, k, args.models, args.changes_seed, DEBUG, SINGLE_PASS, args.verify, args.diagnose)
         for k, name in enumerate(names)
+        if not args.only or name in args.only.split(",")
     ]
     if args.workers > 1:
         from concurrent.futures import ProcessPoolExecutor

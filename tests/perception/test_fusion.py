@@ -52,7 +52,7 @@ class Rig:
     def __init__(self) -> None:
         self.robot = create_robot({"world": "office", "seed": 2})
         self.smap = SemanticMap()
-        self.fusion = InstanceFusion(self.smap, FusionParams(miss_frames=5))
+        self.fusion = InstanceFusion(self.smap, FusionParams(miss_frames=5, small_min_frames=10))
         self.robot.spin_until(0.5)
         self.target = None
         for _ in range(40):  # turn in small steps until a small object is wholly in view

@@ -131,7 +131,7 @@ def test_a_candidate_the_verifier_turns_down_does_not_become_an_instance() -> No
         asked.append(detection.label)
         return False
 
-    fusion = InstanceFusion(SemanticMap(), FusionParams(), verifier)
+    fusion = InstanceFusion(SemanticMap(), FusionParams(small_min_frames=10), verifier)
     for k in range(25):
         fusion.process(frame(1.0 + k, floor_depth()), [cup_projection(1.0 + k)])
     assert len(fusion.map) == 0 and fusion.rejected["cup"] == 2 and asked == ["cup", "cup"]

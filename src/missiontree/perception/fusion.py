@@ -37,13 +37,15 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from missiontree.perception.colour import dominant_colour
+from missiontree.perception.depth import surface_points
 from missiontree.perception.projection import Projection, to_camera
 from missiontree.perception.tracking import Candidate, NaisFilterParams, NaisTracker, TemporalVoting
 from missiontree.semantics.semantic_map import Instance, SemanticMap
-from missiontree.types import Detection, RGBDFrame
+from missiontree.types import CameraIntrinsics, Detection, RGBDFrame
 
 #: Inner share of a box whose pixels name its colour (a box holds background at its edges).
 COLOUR_INNER = 0.6
@@ -86,6 +88,24 @@ class FusionParams:
         edge_clip: A box within this many pixels of the image's left or right border is cut by it:
             its centre is not the object's, so it places nothing while uncut views exist (it still
             counts as an observation), pixels.
+        candidate_memory: Seconds a candidate waits for its next sighting before it is forgotten
+            (the paper's voting forgets within ``filters.candidate_timeout``; here the frames of
+            several visits add up, so an object seen a few frames at a time from several places
+            is confirmed).
+        large_size: An instance or a box at least this wide (metres) is large: a box of its label
+            whose inner part holds the instance's centre at a consistent depth refines it (views
+            of a sofa from two sides place their near faces a metre apart), two instances one box
+            holds are merged, and its centre comes from the outline of its surface points.
+        inner_share: Share of a box's width at each side that is not its inner part.
+        surface_cell: Cell size of the surface points kept per large instance, metres.
+        min_uncut: Projections whose box no left, right or bottom image border cuts that a
+            candidate needs before it is confirmed (a wall cut by the image's corners looks like a
+            refrigerator; an object is seen with its foot and both sides in view a few times; the
+            top may cut a tall one seen from close).
+        min_uncut_share: Least share of a candidate's recent projections that must be whole.
+        small_size: A candidate whose boxes measure at most this much (larger side, median,
+            metres) is small: the detector finds a bottle or a cup in a few frames of each visit.
+        small_min_frames: Frames a small candidate needs instead of ``filters.min_frames``.
     """
 
     filters: NaisFilterParams = field(default_factory=NaisFilterParams)
@@ -100,10 +120,18 @@ class FusionParams:
     move_window: float = 600.0
     min_elevation: float = 0.03
     floor_height: float = 0.04
-    present_miss_frames: int = 15
+    present_miss_frames: int = 30
     present_range: float = 2.5
     place_margin: float = 0.05
     edge_clip: float = 2.0
+    candidate_memory: float = 300.0
+    large_size: float = 0.6
+    inner_share: float = 0.2
+    surface_cell: float = 0.05
+    min_uncut: int = 2
+    min_uncut_share: float = 0.15
+    small_size: float = 0.3
+    small_min_frames: int = 5
 
 
 @dataclass
@@ -116,6 +144,7 @@ class _Track:
     empty_seen: float = -math.inf
     unexplained: int = 0
     clipped: list[tuple[float, float, float]] = field(default_factory=list)
+    cells: Counter[tuple[int, int]] = field(default_factory=Counter)
 
 
 class InstanceFusion:
@@ -134,11 +163,19 @@ class InstanceFusion:
         self.params = params or FusionParams()
         f = self.params.filters
         self._filters = NaisTracker(f)  # only its single-frame filters and counters are used
-        self.voting = TemporalVoting(f.min_frames, f.candidate_radius, f.candidate_timeout)
+        self.voting = TemporalVoting(
+            f.min_frames,
+            f.candidate_radius,
+            max(f.candidate_timeout, self.params.candidate_memory),
+            size_aware=True,
+            required=self._frames_needed,
+            ready=self._whole_enough,
+        )
         self.tracks: dict[str, _Track] = {}
         self._candidate_colours: dict[int, Counter[str]] = {}
         self.frames = 0
         self._image_width = 0
+        self._k: CameraIntrinsics | None = None
         self.last_stamp = -math.inf
         #: Instance id → the detection that showed it in the latest frame (for crops to describe).
         self.observed: dict[str, Detection] = {}
@@ -165,6 +202,7 @@ class InstanceFusion:
             return  # a frame seen already (or older): its votes are counted
         self.last_stamp = frame.stamp
         self._image_width = frame.intrinsics.width
+        self._k = frame.intrinsics
         self.frames += 1
         self.observed = {}
         stamp = frame.stamp
@@ -174,9 +212,17 @@ class InstanceFusion:
             colour = _colour(frame, p.detection)
             instance = self._associate(p, seen)
             if instance is not None:
-                self._refine(instance, p, colour)
+                self._refine(instance, p, colour, frame)
                 seen.add(instance.id)
                 self.observed[instance.id] = p.detection
+                for other in self._held_by_box(p, instance, seen):
+                    kept_id = self._merge_pair(instance, other, stamp)
+                    if kept_id != instance.id:  # the other was seen more often: it stays
+                        seen.discard(instance.id)
+                        self.observed.pop(instance.id, None)
+                        seen.add(kept_id)
+                        self.observed[kept_id] = p.detection
+                        break
                 continue
             cand = self.voting.vote(p)
             votes = self._candidate_colours.setdefault(id(self._candidate_of(p, cand)), Counter())
@@ -216,9 +262,75 @@ class InstanceFusion:
             d = inst.distance_to(*p.xy)
             if d <= radius and d < best_d:
                 best, best_d = inst, d
-        return best
+        if best is not None:
+            return best
+        offsets = [(self._box_offset(p, i), i) for i in self.map.by_label(p.label) if i.id not in taken]
+        held = [(off, inst) for off, inst in offsets if off is not None]
+        return min(held, key=lambda e: e[0])[1] if held else None
 
-    def _refine(self, inst: Instance, p: Projection, colour: str | None) -> None:
+    def _large(self, p: Projection, inst: Instance) -> bool:
+        return max(inst.size[0], inst.size[1], p.size[0]) >= self.params.large_size
+
+    def _box_offset(self, p: Projection, inst: Instance) -> float | None:
+        """How far from the box's middle a large instance's centre falls (share of its width), None: outside.
+
+        Inside means: in the box's inner part (``inner_share`` off each side, unless that side is cut
+        by the image border) and at a depth between the box's measured surface and that surface
+        plus the instance's extent.
+        """
+        k = self._k
+        if k is None or not self._large(p, inst):
+            return None
+        forward, left = to_camera(p.camera_pose, *inst.xy)
+        if forward <= 0.2:
+            return None
+        u = k.cx - left * k.fx / forward
+        x1, _, x2, _ = p.box
+        width = max(x2 - x1, 1.0)
+        limit = self.params.edge_clip
+        lo = x1 if x1 <= limit else x1 + self.params.inner_share * width
+        hi = x2 if x2 >= k.width - limit else x2 - self.params.inner_share * width
+        if not lo <= u <= hi:
+            return None
+        extent = max(inst.size[0], inst.size[1], p.size[0])
+        tolerance = self.params.depth_tolerance
+        if not p.depth - tolerance <= forward <= p.depth + extent + tolerance:
+            return None
+        return abs(u - (x1 + x2) / 2.0) / width
+
+    def _held_by_box(self, p: Projection, inst: Instance, taken: set[str]) -> list[Instance]:
+        """Other instances of the label whose centres ``p``'s box holds with ``inst``'s: one object."""
+        if self._box_offset(p, inst) is None:
+            return []
+        return [
+            other
+            for other in self.map.by_label(p.label)
+            if other.id != inst.id and other.id not in taken and self._box_offset(p, other) is not None
+        ]
+
+    def _frames_needed(self, cand: Candidate) -> int:
+        """Frames a candidate needs: fewer for a small one (see ``small_min_frames``)."""
+        need = self.params.filters.min_frames
+        if cand.projections:
+            sizes = np.median(np.array([max(q.size[0], q.size[2]) for q in cand.projections]))
+            if float(sizes) <= self.params.small_size:
+                need = min(need, self.params.small_min_frames)
+        return need
+
+    def _whole_enough(self, cand: Candidate) -> bool:
+        """Whether enough of a candidate's boxes stand whole (no side or bottom image border cuts them).
+
+        The top may cut a tall object seen from close (a refrigerator), whose foot is still in view.
+        """
+        limit = self.params.edge_clip
+        bottom = (self._k.height if self._k is not None else math.inf) - limit
+        whole = sum(1 for q in cand.projections if q.box[3] < bottom and not self._clipped(q))
+        share = self.params.min_uncut_share * len(cand.projections)
+        return whole >= min(self.params.min_uncut, len(cand.projections)) and whole >= share
+
+    def _refine(
+        self, inst: Instance, p: Projection, colour: str | None, frame: RGBDFrame | None = None
+    ) -> None:
         track = self.tracks.setdefault(inst.id, _Track())
         (track.clipped if self._clipped(p) else track.xs).append(p.position)
         track.sizes.append(p.size)
@@ -228,6 +340,11 @@ class InstanceFusion:
         if colour:
             track.colours[colour] += 1
         position = tuple(float(v) for v in np.median(np.array(track.xs or track.clipped), axis=0))
+        if frame is not None and self._large(p, inst):
+            self._add_surface(track, frame, p)
+            outline = self._outline_centre(track, position, inst)
+            if outline is not None:
+                position = (outline[0], outline[1], position[2])
         size = tuple(float(v) for v in np.max(np.array(track.sizes), axis=0))
         confidence = inst.confidence + self.params.hit_gain * (1.0 - inst.confidence)
         self.map.update(
@@ -243,6 +360,67 @@ class InstanceFusion:
         )
         track.empty_seen = -math.inf
         track.unexplained = 0
+
+    def _add_surface(self, track: _Track, frame: RGBDFrame, p: Projection) -> None:
+        """Count the cells of the surface the box shows (its nearest depth cluster) for the instance."""
+        points = surface_points(frame, p.box)
+        if not len(points):
+            return
+        cell = self.params.surface_cell
+        keys = np.unique(np.floor(points / cell).astype(np.int64), axis=0)
+        track.cells.update(map(tuple, keys.tolist()))
+        if len(track.cells) > 4000:  # keep the most often seen cells
+            track.cells = Counter(dict(track.cells.most_common(2000)))
+
+    def _outline_centre(
+        self, track: _Track, fused: tuple[float, ...], inst: Instance
+    ) -> tuple[float, float] | None:
+        """The centre of the footprint the surface cells outline, None while they outline too little.
+
+        Cells seen at least twice and near the fused position are fitted with the smallest rectangle.
+        Two faces seen (the rectangle has depth): its centre. One face (a thin rectangle): the point
+        on the face's perpendicular bisector at the fused position's distance behind it.
+        """
+        cell = self.params.surface_cell
+        keys = [key for key, n in track.cells.items() if n >= 2]
+        if len(keys) < 8:
+            return None
+        pts = (np.array(keys, dtype=float) + 0.5) * cell
+        reach = 0.5 * max(inst.size[0], inst.size[1]) + 0.6
+        pts = pts[np.hypot(pts[:, 0] - fused[0], pts[:, 1] - fused[1]) <= reach]
+        if len(pts) < 8:
+            return None
+        (cx, cy), (w, h), angle = cv2.minAreaRect(pts.astype(np.float32))
+        long_side, short_side = max(w, h), min(w, h)
+        if short_side >= max(0.25, 0.3 * long_side):
+            centre = (float(cx), float(cy))
+        else:
+            a = math.radians(angle if w >= h else angle + 90.0)
+            normal = (-math.sin(a), math.cos(a))
+            t = (fused[0] - cx) * normal[0] + (fused[1] - cy) * normal[1]
+            centre = (float(cx + t * normal[0]), float(cy + t * normal[1]))
+        if math.hypot(centre[0] - fused[0], centre[1] - fused[1]) > 1.0:
+            return None  # the cells hold something else too: keep the fused position
+        return centre
+
+    def _merge_pair(self, keep: Instance, drop: Instance, stamp: float) -> str:
+        """One object seen as two instances of its label: the less often seen joins the other; its id."""
+        if keep.observations < drop.observations:
+            keep, drop = drop, keep
+        self.map.remove(drop.id, stamp, reason=f"the same {drop.label} as {keep.id} (one box holds both)")
+        track = self.tracks.setdefault(keep.id, _Track())
+        dropped = self.tracks.pop(drop.id, _Track())
+        track.xs.extend(dropped.xs)
+        track.clipped.extend(dropped.clipped)
+        track.cells.update(dropped.cells)
+        track.colours.update(dropped.colours)
+        points = np.array(track.xs or track.clipped or [keep.position])
+        position = tuple(float(v) for v in np.median(points, axis=0))
+        outline = self._outline_centre(track, position, keep)
+        if outline is not None:
+            position = (outline[0], outline[1], position[2])
+        self.map.update(keep.id, position=position, observations=keep.observations + drop.observations)
+        return keep.id
 
     def _clipped(self, p: Projection) -> bool:
         """Whether the box is cut by the image's left or right border."""
@@ -352,8 +530,8 @@ class InstanceFusion:
 
     def _judge_unseen(self, frame: RGBDFrame, seen: set[str], detections: list[Detection]) -> None:
         for inst in list(self.map):
-            if inst.id in seen:
-                continue
+            if inst.id in seen or inst.id not in self.map:
+                continue  # seen, or removed meanwhile (a retired instance's twin)
             view = self.expected_view(frame, inst)
             if view is None:
                 continue

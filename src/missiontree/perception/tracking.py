@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 from missiontree.perception.projection import Projection
@@ -138,12 +138,37 @@ class Candidate:
 class TemporalVoting:
     """Filter 4: a candidate is accepted once it has appeared in ``min_frames`` frames."""
 
-    def __init__(self, min_frames: int = 10, radius: float = 0.5, timeout: float = 30.0) -> None:
+    def __init__(
+        self,
+        min_frames: int = 10,
+        radius: float = 0.5,
+        timeout: float = 30.0,
+        *,
+        size_aware: bool = False,
+        required: Callable[[Candidate], int] | None = None,
+        ready: Callable[[Candidate], bool] | None = None,
+    ) -> None:
+        """Voting as the paper does by default.
+
+        Args:
+            min_frames: Frames a candidate needs (the paper's 10).
+            radius: A projection joins a candidate of its label this close, metres.
+            timeout: Seconds after which an unseen candidate is forgotten.
+            size_aware: Join within half the projection's measured width when that is larger than
+                ``radius`` (a sofa's views scatter more than a cup's; off for the paper).
+            required: Frames a given candidate needs instead of ``min_frames`` (a class- or
+                size-aware rule); None: ``min_frames``.
+            ready: A further test a candidate with enough frames must pass to be accepted; one that
+                fails keeps collecting frames.
+        """
         if min_frames < 1:
             raise ValueError(f"min_frames must be at least 1, found {min_frames}")
         self.min_frames = min_frames
         self.radius = radius
         self.timeout = timeout
+        self.size_aware = size_aware
+        self.required = required
+        self.ready = ready
         self.candidates: list[Candidate] = []
 
     def vote(self, projection: Projection) -> Candidate | None:
@@ -153,6 +178,8 @@ class TemporalVoting:
         """
         self.expire(projection.stamp)
         best, best_d = None, self.radius
+        if self.size_aware:
+            best_d = max(self.radius, 0.5 * projection.size[0])
         for cand in self.candidates:
             if cand.label != projection.label or cand.last_stamp == projection.stamp:
                 continue  # one vote a frame per candidate
@@ -164,7 +191,8 @@ class TemporalVoting:
             best = Candidate(projection.label, x, y, z, 0, projection.stamp, projection.range)
             self.candidates.append(best)
         best.add(projection)
-        if best.frames >= self.min_frames:
+        need = self.required(best) if self.required is not None else self.min_frames
+        if best.frames >= need and (self.ready is None or self.ready(best)):
             self.candidates.remove(best)
             return best
         return None

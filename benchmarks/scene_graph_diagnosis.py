@@ -1,0 +1,232 @@
+"""Why the scene-graph benchmark's ``ours`` got an object wrong: each false and missed object with its cause.
+
+``scene_graph_eval.py --diagnose`` records, beside the run, what the simulator's truth says each
+frame showed (the instance mask: which object a detection's box really covers, and how many frames
+showed each object) and every change the semantic map made. After each phase it prints, per world:
+
+- ``FP``: a graph object matched to no true object, with its cause: ``ignored`` (it stands on an
+  object of a class the detector does not know: not counted in precision), ``offset`` (a true object
+  of its label within 1.5 m is unmatched: its centre is off), ``duplicate`` (that true object is
+  matched by another instance), ``confusion`` (its boxes mostly cover an object of another class),
+  ``phantom`` (nothing); with what its boxes covered, how many frames and viewpoints placed it and
+  the share of its boxes cut by the image border;
+- ``FN``: a true object no graph object matched, with the frames that showed it (>= 100 pixels),
+  the detections covering it by label (confident ones), how far their projections fell from it,
+  and what the semantic map did near it (added, merged, removed and why);
+- ``change``: each change of the dynamic phase, reflected or not, with the graph objects of its label
+  near its old and new place.
+
+Truth is read here for the diagnosis only, as for scoring; the pipelines never see it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+from missiontree.perception.projection import project
+from missiontree.semantics.semantic_map import Change
+
+#: Pixels an object must show in a frame to count as shown.
+SHOWN_PIXELS = 100
+#: Border, pixels, within which a box counts as cut by the image's edge.
+EDGE = 2.0
+
+
+@dataclass
+class Sight:
+    """One confident detection, what it really covered and where ours placed it."""
+
+    label: str
+    truth: str | None
+    truth_label: str | None
+    xy: tuple[float, float] | None
+    camera: tuple[float, float]
+    cut: str
+    stamp: float
+    score: float
+
+
+@dataclass
+class Diagnosis:
+    """Records a run for :meth:`report` (see module docstring)."""
+
+    robot: Any
+    classes: set[str]
+    depth_method: str = "centre"
+    sights: list[Sight] = field(default_factory=list)
+    shown: Counter[str] = field(default_factory=Counter)
+    changes: list[Change] = field(default_factory=list)
+
+    def watch(self, semantic_map: Any) -> None:
+        """Record every change of ``semantic_map``."""
+        semantic_map.subscribe(self.changes.append)
+
+    def frame(self, frame: Any, detections: list[Any]) -> None:
+        """Record one frame: who it showed, what each confident detection covered."""
+        truth = self.robot.truth
+        for name, sighting in truth.visible_at(frame.stamp, SHOWN_PIXELS).items():
+            if sighting.kind == "object":
+                self.shown[name] += 1
+        mask = truth.instance_mask(frame.stamp)
+        infos = truth.instances
+        w, h = frame.intrinsics.width, frame.intrinsics.height
+        for d in detections:
+            if d.score < 0.7 or d.label == "person":
+                continue
+            x1, y1, x2, y2 = (int(round(v)) for v in d.box)
+            name, label = None, None
+            if mask is not None:
+                cx, cy = (x2 - x1) // 4, (y2 - y1) // 4
+                patch = mask[max(0, y1 + cy) : max(y1 + cy + 1, y2 - cy), max(0, x1 + cx) : max(x1 + cx + 1, x2 - cx)]
+                ids = Counter(patch.ravel().tolist())
+                for inst, _ in ids.most_common():
+                    info = infos.get(int(inst))
+                    if info is not None and info.kind == "object":
+                        name, label = info.name, info.label
+                        break
+            p = project(frame, d, method=self.depth_method)  # type: ignore[arg-type]
+            cut = "".join(
+                s
+                for s, c in (
+                    ("L", d.box[0] <= EDGE),
+                    ("R", d.box[2] >= w - EDGE),
+                    ("T", d.box[1] <= EDGE),
+                    ("B", d.box[3] >= h - EDGE),
+                )
+                if c
+            )
+            self.sights.append(
+                Sight(
+                    d.label,
+                    name,
+                    label,
+                    p.xy if p is not None else None,
+                    (frame.camera_pose.x, frame.camera_pose.y),
+                    cut,
+                    frame.stamp,
+                    float(d.score),
+                )
+            )
+
+    def report(
+        self,
+        world_name: str,
+        scored: dict[str, Any],
+        world: Any,
+        ignored: Any,
+        truth_label: Any,
+        phase: str = "first",
+    ) -> list[str]:
+        """Lines for each false and missed object of a scored phase (see module docstring)."""
+        lines: list[str] = []
+        preds, truths, pairs = scored["preds"], scored["truths"], scored["pairs"]
+        matched_p = {i for i, _ in pairs}
+        matched_t = {j for _, j in pairs}
+        for i, p in enumerate(preds):
+            if i in matched_p:
+                continue
+            x, y = p["position"][0], p["position"][1]
+            radius = max(0.6, 0.5 * max(p.get("size", (0, 0, 0))[:2] or (0,)))
+            mine = [
+                s
+                for s in self.sights
+                if s.label == p["label"] and s.xy is not None and math.hypot(s.xy[0] - x, s.xy[1] - y) <= radius
+            ]
+            covered = Counter(f"{s.truth_label}:{s.truth}" for s in mine).most_common(3)
+            views = len({(round(s.camera[0] / 0.5), round(s.camera[1] / 0.5)) for s in mine})
+            cut = sum(1 for s in mine if s.cut) / max(len(mine), 1)
+            same = [
+                (math.hypot(t.pose.x - x, t.pose.y - y), j, t)
+                for j, t in enumerate(truths)
+                if truth_label(t.label) == p["label"]
+            ]
+            same.sort(key=lambda e: e[0])
+            if ignored(p, world):
+                cause = "ignored"
+            elif same and same[0][0] <= 1.5 and same[0][1] not in matched_t:
+                cause = f"offset {same[0][0]:.2f} m from {same[0][2].id}"
+            elif same and same[0][0] <= 1.5:
+                cause = f"duplicate of {same[0][2].id} ({same[0][0]:.2f} m)"
+            elif covered and covered[0][0].split(":")[0] not in (p["label"], "None"):
+                cause = "confusion"
+            else:
+                cause = "phantom"
+            cuts = Counter(s.cut for s in mine if s.cut).most_common(2)
+            lines.append(
+                f"{world_name} {phase} FP {p['id']} {p['label']} ({x:.2f}, {y:.2f}) size "
+                f"{[round(v, 2) for v in p.get('size', ())]}: {cause}; boxes cover {covered}; "
+                f"{len(mine)} sights, {views} viewpoints, cut {cut:.0%} {cuts}"
+            )
+        for j, t in enumerate(truths):
+            if j in matched_t:
+                continue
+            mine = [s for s in self.sights if s.truth == t.id]
+            labels = Counter(s.label for s in mine).most_common(3)
+            right = [s for s in mine if s.label == truth_label(t.label) and s.xy is not None]
+            dists = sorted(math.hypot(s.xy[0] - t.pose.x, s.xy[1] - t.pose.y) for s in right)  # type: ignore[index]
+            views = len({(round(s.camera[0] / 0.5), round(s.camera[1] / 0.5)) for s in right})
+            spread = (
+                f"proj dist median {dists[len(dists) // 2]:.2f} min {dists[0]:.2f}, {views} viewpoints"
+                if dists
+                else "no projection"
+            )
+            near_changes = [
+                f"{c.kind} {c.id}" + (f" ({c.reason})" if c.kind == "removed" else "")
+                for c in self.changes
+                if c.label == truth_label(t.label)
+                and c.kind in ("added", "removed", "moved")
+                and math.hypot(c.position[0] - t.pose.x, c.position[1] - t.pose.y) <= 1.0
+            ]
+            near_preds = [
+                f"{p['id']}@{math.hypot(p['position'][0] - t.pose.x, p['position'][1] - t.pose.y):.2f}"
+                for p in preds
+                if p["label"] == truth_label(t.label)
+                and math.hypot(p["position"][0] - t.pose.x, p["position"][1] - t.pose.y) <= 1.5
+            ]
+            lines.append(
+                f"{world_name} {phase} FN {t.id} {t.label} ({t.pose.x:.2f}, {t.pose.y:.2f}) size "
+                f"{[round(v, 2) for v in t.size]} elev {t.elevation}: shown in {self.shown[t.id]} frames; "
+                f"detected as {labels}; {spread}; graph near {near_preds}; map changes {near_changes[-4:]}"
+            )
+        return lines
+
+    def report_changes(
+        self, world_name: str, changes: list[dict[str, Any]], preds: list[dict[str, Any]], reflected: Any
+    ) -> list[str]:
+        """Lines for each change of the dynamic phase."""
+        lines = []
+        for c in changes:
+            ok = reflected(preds, c)
+            where = []
+            for key in ("from", "to"):
+                if key not in c:
+                    continue
+                px, py = c[key]
+                near = [
+                    f"{p['id']}@{math.hypot(p['position'][0] - px, p['position'][1] - py):.2f}"
+                    for p in preds
+                    if p["label"] == c["label"]
+                    and math.hypot(p["position"][0] - px, p["position"][1] - py) <= 1.5
+                ]
+                shown = [s for s in self.sights if s.truth == c["id"]]
+                where.append(f"{key} ({px:.2f}, {py:.2f}) graph {near}")
+            log = [
+                f"{ch.kind} {ch.id} {ch.reason}"
+                for ch in self.changes
+                if ch.label == c["label"]
+                and ch.kind in ("added", "removed", "moved")
+                and any(
+                    math.hypot(ch.position[0] - c[k][0], ch.position[1] - c[k][1]) <= 1.0
+                    or (ch.previous is not None and math.hypot(ch.previous[0] - c[k][0], ch.previous[1] - c[k][1]) <= 1.0)
+                    for k in ("from", "to")
+                    if k in c
+                )
+            ]
+            lines.append(
+                f"{world_name} change {c['kind']} {c['id']} {c['label']} {'OK' if ok else 'MISSED'}: "
+                f"{'; '.join(where)}; sights of it {len(shown)}; map log {log[-4:]}"
+            )
+        return lines
