@@ -91,10 +91,13 @@ class Approach(Leaf):
     near the object, far enough for the camera to see it), drive, turn to face it, then look: the
     detector finds the class where the candidate is and the depth image places it; when it stands
     more than ``refine_distance`` from where it was believed, the candidate moves there and another
-    attempt is made (at most ``max_attempts``). ``mode: box_area`` (the object-search report):
-    fixed steps of ``step`` m toward the detection's (or the colour's) bearing, distance from the
-    box's area, d = 3.0 * (1 - A_box / A_frame), until d is below ``stop_distance`` or the attempts
-    are used up. A candidate that cannot be reached is rejected (``search_rejected``).
+    attempt is made (at most ``max_attempts``). A standoff pose the robot does not reach is
+    followed by one with ``clearance_step`` more room around the robot, elsewhere than the poses
+    that failed (:func:`standoff_goal`). ``mode: box_area`` (the object-search report): fixed steps
+    of ``step`` m toward the detection's (or the colour's) bearing, distance from the box's area,
+    d = 3.0 * (1 - A_box / A_frame), until d is below ``stop_distance`` or the attempts are used
+    up. A candidate no standoff pose of which was reached is marked ``unreached`` in
+    ``search_rejected`` (Locate offers it again once nothing is left to explore).
     """
 
     class Params(BaseModel):
