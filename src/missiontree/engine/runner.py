@@ -42,6 +42,7 @@ import py_trees
 
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Leaf
+from missiontree.engine.native_memory import pin_mmap_threshold
 from missiontree.engine.tick_log import TickLog, TickRecorder, node_paths, plain
 from missiontree.errors import ConfigError, MissionTreeError, PluginError
 from missiontree.robot.interface import Drawable
@@ -333,6 +334,7 @@ class Runner:
             PluginError: A mission started/finished hook failed.
         """
         self._install_signal_handlers()
+        pin_mmap_threshold()  # glibc: big buffers not in the heap, no growth by fragmentation in long runs
         status = Status.INVALID
         stopped_by = STOPPED_BY_ERROR
         start = self.robot.now()
