@@ -18,6 +18,12 @@ and the tick period's percentiles. The last line is one JSON object:
   tick, the tick log and the simulator's step to the next tick time); ``tick_cost_p99_ms``: the same
   for the tree's tick and its log line alone.
 
+On glibc the heap's in-use and free MiB (``mallinfo2``) are sampled with the RSS, and printed
+over time: growth in the free part is fragmentation, growth in the in-use part is memory kept
+(the runner pins glibc's mmap threshold against the former: ``missiontree.engine.native_memory``).
+``heap_inuse_growth_mib`` and ``heap_free_growth_mib`` are their changes over the same span as
+``rss_growth_mib``.
+
 The warnings the run prints (one per rejected model answer) go to ``<out>.warnings.log``.
 
 Usage: ``python benchmarks/soak.py [--hours 2] [--out runs/soak]``.
@@ -26,6 +32,7 @@ Usage: ``python benchmarks/soak.py [--hours 2] [--out runs/soak]``.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import json
 import os
 import shutil
@@ -54,6 +61,32 @@ def rss_mib() -> float:
     """This process's resident set size, MiB."""
     with open("/proc/self/statm", encoding="ascii") as handle:
         return int(handle.read().split()[1]) * PAGE / 2**20
+
+
+class _MallInfo2(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_size_t) for name in (
+        "arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks",
+        "keepcost")]
+
+
+def _mallinfo2() -> Any:
+    try:
+        function = ctypes.CDLL("libc.so.6").mallinfo2  # glibc >= 2.33
+    except (OSError, AttributeError):
+        return None
+    function.restype = _MallInfo2
+    return function
+
+
+_MALLINFO2 = _mallinfo2()
+
+
+def heap_mib() -> tuple[float, float]:
+    """The glibc heap: (in use incl. mmapped blocks, free in the heap) MiB; (nan, nan) elsewhere."""
+    if _MALLINFO2 is None:
+        return float("nan"), float("nan")
+    info = _MALLINFO2()
+    return (info.uordblks + info.hblkhd) / 2**20, info.fordblks / 2**20
 
 
 class FlakyVision:
@@ -118,6 +151,7 @@ def soak(hours: float, out: Path) -> dict[str, Any]:
     period = np.zeros(ticks_max)  # allocated before the baseline: the measurement does not grow
     cost = np.zeros(ticks_max)
     samples: list[tuple[float, float, int, float]] = []  # (robot s, RSS MiB, log bytes, wall s)
+    heap: list[tuple[float, float]] = []  # (in use, free) MiB at each sample
     state = {"n": 0, "last": 0.0, "next_sample": 0.0, "wall0": time.perf_counter()}
 
     with Session.open(request) as session:
@@ -140,6 +174,7 @@ def soak(hours: float, out: Path) -> dict[str, Any]:
                 state["next_sample"] += SAMPLE_S
                 size = log_path.stat().st_size if log_path.exists() else 0
                 samples.append((now, rss_mib(), size, time.perf_counter() - state["wall0"]))
+                heap.append(heap_mib())
                 if len(samples) % 10 == 1:
                     print(f"  t={now / 60:6.1f} min  rss={samples[-1][1]:7.1f} MiB  "
                           f"log={size / 1e6:6.2f} MB  wall={samples[-1][3]:6.0f} s", flush=True)
@@ -153,6 +188,7 @@ def soak(hours: float, out: Path) -> dict[str, Any]:
     log_bytes = (out / "ticks.jsonl").stat().st_size
     after = [s for s in samples if s[0] >= BASELINE_S]
     base = after[0][1] if after else samples[0][1]
+    base_heap = heap[samples.index(after[0])] if after else heap[0]
     rss_end = samples[-1][1]
     rss_after = rss_mib()
     structlog.reset_defaults()
@@ -170,6 +206,9 @@ def soak(hours: float, out: Path) -> dict[str, Any]:
     print(f"events: {json.dumps(result.summary.get('events', {}), sort_keys=True)}; vlm calls {vlm_calls}")
     print("RSS over time (simulated min: MiB): "
           + ", ".join(f"{s[0] / 60:.0f}: {s[1]:.1f}" for s in samples[::10]))
+    paired = list(zip(samples, heap, strict=True))[::10]
+    print("heap in use / free over time (simulated min: MiB): "
+          + ", ".join(f"{s[0] / 60:.0f}: {h[0]:.1f}/{h[1]:.1f}" for s, h in paired))
     print("tick log per simulated hour (MB): " + ", ".join(f"{v:.2f}" for v in per_hour))
     print(f"tick period ms: p50 {np.percentile(periods, 50):.2f}  p99 {np.percentile(periods, 99):.2f}  "
           f"max {periods.max():.2f}; tick cost ms: p50 {np.percentile(costs, 50):.3f}  "
@@ -180,6 +219,8 @@ def soak(hours: float, out: Path) -> dict[str, Any]:
         "rss_baseline_mib": round(base, 2), "rss_end_mib": round(rss_end, 2),
         "rss_after_run_mib": round(rss_after, 2),
         "rss_growth_mib": round(rss_end - base, 2),
+        "heap_inuse_growth_mib": round(heap[-1][0] - base_heap[0], 2),
+        "heap_free_growth_mib": round(heap[-1][1] - base_heap[1], 2),
         "rss_growth_max_mib": round(max(s[1] for s in after) - base, 2) if after else 0.0,
         "ticklog_mb_per_hour": round(log_bytes / 1e6 / (result.duration / 3600.0), 3),
         "ticklog_mb_per_hour_each": [round(v, 3) for v in per_hour],
