@@ -197,9 +197,9 @@ def segment_rooms(
         radius += p.step
     assert best_markers is not None
     markers = _drop_small_cores(best_markers, min_cells * 0.1)
-    labels = _grow(markers, dist, free)
+    labels = _flood(markers, dist, free, p.step)
     labels = _merge_open(labels, dist, p.max_door_width)
-    labels = _grow(labels, dist, building)  # the cells the closing took back: to the nearest room
+    labels = _grow(labels, building)  # the cells the closing took back: to the nearest room
     labels = _merge_small(labels, min_cells)
     rooms = _regions(grid, labels)
     return Segmentation(grid, labels, rooms)
@@ -247,23 +247,53 @@ def _drop_small_cores(markers: np.ndarray, min_cells: float) -> np.ndarray:
     return out.astype(np.int32)
 
 
-def _grow(markers: np.ndarray, dist: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Grow the cores over the free cells one cell a step (each cell to the geodesically nearest core).
+def _flood(markers: np.ndarray, clearance: np.ndarray, free: np.ndarray, step: float) -> np.ndarray:
+    """Grow the cores over the free cells by a watershed on the clearance, so boundaries fall in doors.
 
-    A breadth-first wave from every core at once over 4-connected free cells; a cell reached by
-    several cores in the same step takes the highest label (the step-by-step grey dilation this
-    replaces did the same, redrawing the whole map at each of hundreds of steps on a real map).
+    The free cells are flooded level by level, from the clearest down in ``step`` metres; at each
+    level the labelled regions grow (breadth-first, see :func:`_wave`) over the cells at least that
+    clear. A door is the least clear place between two rooms: both rooms are filled before the
+    water reaches it, and their boundary lies in it. (Growing by geodesic distance alone put the
+    boundary wherever the two cores were equally far, often a metre into the room whose core lay
+    farther from the door, where the floor is open, and the rooms were then merged.)
     """
-    del dist  # the cores already encode the distance map; growth is by geodesic distance
     labels = markers.astype(np.int32).copy()
     labels[~free] = 0
     if labels.max() == 0:
         count, comp = cv2.connectedComponents(free.astype(np.uint8), connectivity=8)
         return comp.astype(np.int32)
+    level = float(clearance[free].max())
+    while level > 0.0:
+        level = max(level - step, 0.0)
+        _wave(labels, free & (clearance >= level) & (labels == 0))
+    return labels
+
+
+def _grow(markers: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Grow the labelled regions over the free cells, each cell to the geodesically nearest region."""
+    labels = markers.astype(np.int32).copy()
+    labels[~free] = 0
+    if labels.max() == 0:
+        count, comp = cv2.connectedComponents(free.astype(np.uint8), connectivity=8)
+        return comp.astype(np.int32)
+    _wave(labels, free & (labels == 0))
+    return labels
+
+
+def _wave(labels: np.ndarray, open_cells: np.ndarray) -> None:
+    """Label ``open_cells`` reached from the labelled cells, in place, one 4-connected step at a time.
+
+    A breadth-first wave from every region at once; a cell reached by several regions in the same
+    step takes the highest label (as a grey dilation would, step after step, but without
+    redrawing the whole map at each of hundreds of steps on a real map). Open cells no region
+    reaches (the outside of a building, a pocket) stay unlabelled.
+    """
     h, w = labels.shape
     flat = labels.reshape(-1)  # a view: writing flat writes labels
-    open_cells = (free & (labels == 0)).reshape(-1)
-    front = np.flatnonzero(flat)
+    todo = open_cells.reshape(-1).copy()
+    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
+    touching = cv2.dilate(open_cells.astype(np.uint8), cross).reshape(-1).astype(bool)
+    front = np.flatnonzero((flat > 0) & touching)
     while front.size:
         row, col = np.divmod(front, w)
         label = flat[front]
@@ -275,17 +305,16 @@ def _grow(markers: np.ndarray, dist: np.ndarray, free: np.ndarray) -> np.ndarray
         )
         cells = np.concatenate([front[ok] + step for ok, step in steps])
         values = np.concatenate([label[ok] for ok, _ in steps])
-        reach = open_cells[cells]
+        reach = todo[cells]
         cells, values = cells[reach], values[reach]
         if not cells.size:
-            break  # free space cut off from every core (the outside of a building, a pocket)
+            break
         order = np.lexsort((values, cells))  # by cell, its highest label last
         cells, values = cells[order], values[order]
         last = np.concatenate((cells[1:] != cells[:-1], [True]))
         front, label = cells[last], values[last]
         flat[front] = label
-        open_cells[front] = False
-    return labels
+        todo[front] = False
 
 
 def _merge_open(labels: np.ndarray, clearance: np.ndarray, max_door_width: float) -> np.ndarray:
