@@ -169,7 +169,7 @@ def relations_of(
     no_size = (0.0, 0.0, 0.0)
     table = np.array(
         [(*o.position, *getattr(o, "size", no_size)) for _, o in keyed],  # type: ignore[attr-defined]
-        dtype=float,
+        dtype=np.float64,
     )
     np.maximum(table[:, 3:], _MIN_SIZE, out=table[:, 3:])  # as bodies_of: no footprint under 5 cm
     rooms = [getattr(o, "room", None) for _, o in keyed]

@@ -278,12 +278,12 @@ class SceneGraph:
         existing = {(str(e["source_id"]), str(e["target_id"]), e["relation"]) for e in self.edges}
         edges, dropped = self.edges, self.dropped
         for rel in relations:
+            raw: Any
             if isinstance(rel, RelationEdge):
-                source_id, target_id, relation = rel
+                source_id, target_id, raw = rel
             else:
-                source_id, target_id = rel.get("source_id"), rel.get("target_id")
-                relation = rel.get("relation")
-            relation = str(relation or "")
+                source_id, target_id, raw = rel.get("source_id"), rel.get("target_id"), rel.get("relation")
+            relation = str(raw or "")
             source_key, target_key = str(source_id), str(target_id)
             source, target = index.get(source_key), index.get(target_key)
             if source is None or target is None or not relation:
@@ -345,7 +345,7 @@ class SceneGraph:
         nodes_append, edges_append = nodes.append, edges.append
         for obj in objects:
             x, y, z = obj.position
-            obj_id, label, room = obj.id, obj.label, obj.room
+            obj_id, label, obj_room = obj.id, obj.label, obj.room
             nodes_append(
                 {
                     "id": obj_id,
@@ -355,10 +355,10 @@ class SceneGraph:
                     "coordinates": [round(x, 3), round(y, 3), round(z, 3)],
                 }
             )
-            room_label = room_labels.get(room) if room is not None else None
+            room_label = room_labels.get(obj_room) if obj_room is not None else None
             edges_append(
                 {
-                    "source_id": room if room_label is not None else BUILDING_ID,
+                    "source_id": obj_room if room_label is not None else BUILDING_ID,
                     "source_label": room_label if room_label is not None else building_label,
                     "target_id": obj_id,
                     "target_label": label,
