@@ -246,3 +246,70 @@ def test_an_unreachable_waypoint_is_still_skipped_not_lost() -> None:
     tick_until(leaf, max_ticks=50)
     assert leaf.status == Status.SUCCESS and len(events.of("waypoint_skipped")) == 1
     assert events.of("patrol_lost") == []
+
+
+def test_halted_on_the_tick_its_goal_succeeded_the_patrol_counts_the_waypoint_and_moves_on() -> None:
+    """Preempted at the moment a waypoint is reached: the visit counts, the next start heads onwards.
+
+    The goal for P2 has ended (the robot is there) but the patrol is halted before it polls it, as
+    when servoing on an alarm preempts it on that very tick. Driving back to P2 afterwards would
+    repeat the visit, or lose it when the person who raised the alarm now stands on P2.
+    """
+    robot = FakeRobot()
+    leaf, events = make(robot, waypoints=ROUTE, laps=1)
+    for _ in range(4):  # P1 reached after 3 polls, P2 sent
+        leaf.tick_once()
+    robot.goals[-1].polls = 1  # P2's goal ends at its next poll: the robot has arrived
+    leaf.stop(Status.INVALID)  # a higher-priority branch takes over before the patrol polls
+    assert [e["waypoint"] for e in events.of("waypoint_reached")] == ["P1", "P2"]
+    assert events.of("patrol_preempted") == []  # no goal was cut short
+    robot.unreachable.add((2.0, 0.0))  # the person now stands on P2
+    tick_until(leaf, max_ticks=50)
+    assert leaf.status == Status.SUCCESS
+    assert [(g.goal.x, g.goal.y) for g in robot.goals] == [(1, 0), (2, 0), (2, 1)]  # P2 not driven twice
+    assert [e["waypoint"] for e in events.of("waypoint_reached")] == ["P1", "P2", "P3"]
+    assert events.of("waypoint_skipped") == []
+
+
+def test_halted_as_the_last_waypoint_of_the_last_lap_is_reached_the_patrol_ends_on_its_next_start() -> None:
+    robot = FakeRobot()
+    leaf, events = make(robot, waypoints=ROUTE[:2], laps=1)
+    for _ in range(4):
+        leaf.tick_once()
+    robot.goals[-1].polls = 1
+    leaf.stop(Status.INVALID)
+    assert [e["lap"] for e in events.of("lap_done")] == [1]
+    leaf.tick_once()
+    assert leaf.status == Status.SUCCESS
+    assert len(robot.goals) == 2 and "1 lap(s): 2 waypoints reached" in leaf.feedback_message
+    leaf.tick_once()  # started again (a tree that repeats it): a new patrol from P1
+    assert leaf.status == Status.RUNNING and (robot.goals[-1].goal.x, robot.goals[-1].goal.y) == (1, 0)
+
+
+def test_a_preemption_in_a_tree_on_the_arrival_tick_keeps_the_visit() -> None:
+    """The patrol under a Selector whose first branch takes over on the tick P2's goal ends."""
+    robot = FakeRobot()
+    events = Events()
+    patrol = Patrol("patrol", Patrol.Params(waypoints=ROUTE, laps=1))
+    alarm = {"on": False}
+
+    class Respond(py_trees.behaviour.Behaviour):
+        def update(self) -> py_trees.common.Status:
+            return py_trees.common.Status.RUNNING if alarm["on"] else py_trees.common.Status.FAILURE
+
+    root = py_trees.composites.Selector("respond_or_patrol", memory=False,
+                                        children=[Respond("respond"), patrol])
+    py_trees.trees.setup(root, context=MissionContext(robot=robot, events=events))
+    for _ in range(4):
+        root.tick_once()
+    robot.goals[-1].polls = 1  # P2 reached during this tick's step
+    alarm["on"] = True
+    root.tick_once()  # the respond branch preempts the patrol before it polls
+    robot.unreachable.add((2.0, 0.0))
+    alarm["on"] = False
+    for _ in range(20):
+        root.tick_once()
+        if patrol.status == Status.SUCCESS:
+            break
+    assert [e["waypoint"] for e in events.of("waypoint_reached")] == ["P1", "P2", "P3"]
+    assert events.of("waypoint_skipped") == []

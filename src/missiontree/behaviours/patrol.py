@@ -15,6 +15,9 @@ patrol.
 Preemption: when a higher-priority branch (visual servoing on an alarm) halts the patrol, its
 goal is cancelled but its place is kept, so the next time it starts it drives to the waypoint
 it was interrupted on, on the same lap. Only finishing (all laps done) or failing resets it.
+A halt that falls on the tick the goal ended (the robot arrived, the patrol had not yet polled)
+counts the visit and moves the place on: driving back to that waypoint after servoing would
+repeat the visit, or lose it when the person who raised the alarm stands on it.
 """
 
 from __future__ import annotations
@@ -80,6 +83,7 @@ class Patrol(Leaf):
         self.consecutive_skips = 0
         self.handle: ActionHandle | None = None
         self.goal_started = 0.0
+        self.laps_done = False  # the last lap ended as the patrol was halted: succeed on the next start
 
     def on_setup(self) -> None:
         """Load the route (a missing or malformed file fails here, before the first tick)."""
@@ -96,10 +100,13 @@ class Patrol(Leaf):
         """Head for the current waypoint: the first one, or the one the patrol was interrupted on."""
         if not self.route:
             self.on_setup()
-        self._send()
+        if not self.laps_done:
+            self._send()
 
     def update(self) -> Status:
         """Poll the goal; on its end move on, and finish after the last lap."""
+        if self.laps_done:
+            return self._finish()
         assert self.handle is not None
         status = self.handle.status()
         waypoint = self.route[self.index]
@@ -116,10 +123,7 @@ class Patrol(Leaf):
             else:
                 return self.running(self._progress(waypoint))
         elif status is ActionStatus.SUCCEEDED:
-            self.reached += 1
-            self.consecutive_skips = 0
-            self.emit("waypoint_reached", waypoint=waypoint.name, index=self.index, lap=self.lap,
-                      x=waypoint.pose.x, y=waypoint.pose.y)
+            self._reached(waypoint)
             outcome = None
         else:
             result = self.handle.result()
@@ -133,16 +137,25 @@ class Patrol(Leaf):
         return self._advance()
 
     def terminate(self, new_status: Status) -> None:
-        """Halted mid-goal: cancel it and keep the place. Finished or failed: start over next time."""
+        """Halted mid-goal: cancel it and keep the place. Finished or failed: start over next time.
+
+        Halted as its goal had just succeeded (not yet polled): the visit counts and the place moves
+        on to the next waypoint, which the next start drives to.
+        """
         if self.handle is not None:
-            self.handle.cancel()
-            self.handle = None
+            handle, self.handle = self.handle, None
             waypoint = self.route[self.index]
-            self.emit("patrol_preempted", waypoint=waypoint.name, index=self.index, lap=self.lap)
+            if new_status is Status.INVALID and handle.status() is ActionStatus.SUCCEEDED:
+                self._reached(waypoint)
+                self._next()
+            else:
+                handle.cancel()
+                self.emit("patrol_preempted", waypoint=waypoint.name, index=self.index, lap=self.lap)
         if new_status in (Status.SUCCESS, Status.FAILURE):
             self.index = 0
             self.lap = 0
             self.consecutive_skips = 0
+            self.laps_done = False
 
     # -- helpers ---------------------------------------------------------------------------------
 
@@ -189,15 +202,29 @@ class Patrol(Leaf):
                              f"{waypoint.name}: {reason}")
         return None
 
-    def _advance(self) -> Status:
+    def _reached(self, waypoint: Waypoint) -> None:
+        self.reached += 1
+        self.consecutive_skips = 0
+        self.emit("waypoint_reached", waypoint=waypoint.name, index=self.index, lap=self.lap,
+                  x=waypoint.pose.x, y=waypoint.pose.y)
+
+    def _next(self) -> None:
+        """Move the place to the next waypoint (and lap); note when the last lap is done."""
         self.index += 1
         if self.index >= len(self.route):
             self.index = 0
             self.lap += 1
             self.emit("lap_done", lap=self.lap, reached=self.reached, skipped=self.skipped)
             if self.params.laps and self.lap >= self.params.laps:
-                return self.succeed(f"{self.lap} lap(s): {self.reached} waypoints reached, "
-                                    f"{self.skipped} skipped")
+                self.laps_done = True
+
+    def _finish(self) -> Status:
+        return self.succeed(f"{self.lap} lap(s): {self.reached} waypoints reached, {self.skipped} skipped")
+
+    def _advance(self) -> Status:
+        self._next()
+        if self.laps_done:
+            return self._finish()
         self._send()
         return self.running(self._progress(self.route[self.index]))
 
