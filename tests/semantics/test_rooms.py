@@ -101,3 +101,17 @@ def test_room_polygons_from_a_file(tmp_path: Path) -> None:
         load_room_polygons(tmp_path / "bad.yaml")
     with pytest.raises(ConfigError, match="cannot read"):
         load_room_polygons(tmp_path / "missing.yaml")
+
+
+def test_a_room_from_a_file_has_its_middle_at_its_centre_of_mass(tmp_path: Path) -> None:
+    """An L-shaped room's middle is its centre of mass, and extra corners on one wall do not move it."""
+    path = tmp_path / "rooms.yaml"
+    path.write_text(
+        "- {name: ell, type: office, polygon: [[0, 0], [4, 0], [4, 1], [1, 1], [1, 4], [0, 4]]}\n"
+        "- {name: box, polygon: [[0, 0], [1, 0], [2, 0], [3, 0], [4, 0], [4, 2], [0, 2]]}\n"
+    )
+    ell, box = load_room_polygons(path)
+    assert ell.area == pytest.approx(7.0)
+    assert ell.centroid == pytest.approx((9.5 / 7, 9.5 / 7))  # (4 * 2 + 3 * 0.5) / 7, the same in y
+    assert box.area == pytest.approx(8.0)
+    assert box.centroid == pytest.approx((2.0, 1.0))  # the mean of the corners would say y = 0.57

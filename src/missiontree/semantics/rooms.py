@@ -434,12 +434,7 @@ def rooms_from_polygons(
             ) from None
         if len(polygon) < 3:
             raise ConfigError(f"rooms[{i - 1}]: a polygon needs at least 3 points, found {len(polygon)}")
-        area = 0.5 * abs(
-            float(
-                np.dot(polygon[:, 0], np.roll(polygon[:, 1], 1))
-                - np.dot(polygon[:, 1], np.roll(polygon[:, 0], 1))
-            )
-        )
+        area, centroid = _area_and_centroid(polygon)
         name = str(entry.get("name") or f"room_{i}")
         room_type = str(entry.get("type") or "unknown").strip().lower().replace(" ", "_")
         rooms.append(
@@ -448,12 +443,29 @@ def rooms_from_polygons(
                 type=room_type,
                 polygon=polygon,
                 area=area,
-                centroid=(float(polygon[:, 0].mean()), float(polygon[:, 1].mean())),
+                centroid=centroid,
                 name=name,
                 type_confidence=1.0 if room_type != "unknown" else 0.0,
             )
         )
     return rooms
+
+
+def _area_and_centroid(polygon: np.ndarray) -> tuple[float, tuple[float, float]]:
+    """Area and centre of mass of a simple polygon (the mean of its corners if it has no area).
+
+    The centre of mass, not the mean of the corners: an L-shaped room, or a wall drawn with more
+    points on one side, would put the mean off the room's middle (the anchors' facing reads it).
+    """
+    x, y = polygon[:, 0], polygon[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cross = x * yn - xn * y
+    signed = 0.5 * float(cross.sum())
+    if abs(signed) < 1e-12:
+        return 0.0, (float(x.mean()), float(y.mean()))
+    cx = float(((x + xn) * cross).sum()) / (6.0 * signed)
+    cy = float(((y + yn) * cross).sum()) / (6.0 * signed)
+    return abs(signed), (cx, cy)
 
 
 def load_room_polygons(path: str | Path) -> list[RoomRegion]:
