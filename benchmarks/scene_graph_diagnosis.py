@@ -22,7 +22,7 @@ Truth is read here for the diagnosis only, as for scoring; the pipelines never s
 from __future__ import annotations
 
 import math
-from collections import Counter
+from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -59,10 +59,32 @@ class Diagnosis:
     sights: list[Sight] = field(default_factory=list)
     shown: Counter[str] = field(default_factory=Counter)
     changes: list[Change] = field(default_factory=list)
+    verdicts: defaultdict[str, Counter[str]] = field(default_factory=lambda: defaultdict(Counter))
 
-    def watch(self, semantic_map: Any) -> None:
-        """Record every change of ``semantic_map``."""
+    def watch(self, semantic_map: Any, fusion: Any = None) -> None:
+        """Record every change of ``semantic_map`` and, with ``fusion``, its judgements of unseen places."""
         semantic_map.subscribe(self.changes.append)
+        if fusion is None:
+            return
+        expected, judged = fusion.expected_view, fusion._place_seen
+
+        def expected_view(frame: Any, inst: Any) -> Any:
+            view = expected(frame, inst)
+            if view is not None:
+                self.verdicts[inst.id]["expected"] += 1
+            return view
+
+        def place_seen(frame: Any, inst: Any, u: float, v: float, forward: float) -> str:
+            verdict = judged(frame, inst, u, v, forward)
+            self.verdicts[inst.id][verdict] += 1
+            return verdict
+
+        fusion.expected_view = expected_view
+        fusion._place_seen = place_seen
+
+    def new_phase(self) -> None:
+        """Count the judgements of unseen places afresh (the dynamic phase's pass)."""
+        self.verdicts.clear()
 
     def frame(self, frame: Any, detections: list[Any]) -> None:
         """Record one frame: who it showed, what each confident detection covered."""
@@ -80,7 +102,8 @@ class Diagnosis:
             name, label = None, None
             if mask is not None:
                 cx, cy = (x2 - x1) // 4, (y2 - y1) // 4
-                patch = mask[max(0, y1 + cy) : max(y1 + cy + 1, y2 - cy), max(0, x1 + cx) : max(x1 + cx + 1, x2 - cx)]
+                top, left = max(0, y1 + cy), max(0, x1 + cx)
+                patch = mask[top : max(top + 1, y2 - cy), left : max(left + 1, x2 - cx)]
                 ids = Counter(patch.ravel().tolist())
                 for inst, _ in ids.most_common():
                     info = infos.get(int(inst))
@@ -133,7 +156,9 @@ class Diagnosis:
             mine = [
                 s
                 for s in self.sights
-                if s.label == p["label"] and s.xy is not None and math.hypot(s.xy[0] - x, s.xy[1] - y) <= radius
+                if s.label == p["label"]
+                and s.xy is not None
+                and math.hypot(s.xy[0] - x, s.xy[1] - y) <= radius
             ]
             covered = Counter(f"{s.truth_label}:{s.truth}" for s in mine).most_common(3)
             views = len({(round(s.camera[0] / 0.5), round(s.camera[1] / 0.5)) for s in mine})
@@ -207,6 +232,7 @@ class Diagnosis:
                 px, py = c[key]
                 near = [
                     f"{p['id']}@{math.hypot(p['position'][0] - px, p['position'][1] - py):.2f}"
+                    f"{dict(self.verdicts.get(p['id'], {}))}"
                     for p in preds
                     if p["label"] == c["label"]
                     and math.hypot(p["position"][0] - px, p["position"][1] - py) <= 1.5
@@ -220,7 +246,10 @@ class Diagnosis:
                 and ch.kind in ("added", "removed", "moved")
                 and any(
                     math.hypot(ch.position[0] - c[k][0], ch.position[1] - c[k][1]) <= 1.0
-                    or (ch.previous is not None and math.hypot(ch.previous[0] - c[k][0], ch.previous[1] - c[k][1]) <= 1.0)
+                    or (
+                        ch.previous is not None
+                        and math.hypot(ch.previous[0] - c[k][0], ch.previous[1] - c[k][1]) <= 1.0
+                    )
                     for k in ("from", "to")
                     if k in c
                 )

@@ -68,7 +68,7 @@ from missiontree.reasoning.offline_scene import measured_description, room_type_
 from missiontree.reasoning.prompts import object_description_prompt
 from missiontree.reasoning.scene_prompts import crop_verifier, expanded_crop
 from missiontree.reasoning.schemas import ObjectDescription, RoomClassification
-from missiontree.semantics.builder import SceneBuilder
+from missiontree.semantics.builder import BuilderParams, SceneBuilder
 from missiontree.semantics.relations import Body, compute_relations
 from missiontree.semantics.rooms import segment_rooms
 from missiontree.session.models import build_models
@@ -89,6 +89,8 @@ DEBUG = False
 DIAGNOSE = False
 SINGLE_PASS = False
 VERIFY = False
+#: ours' depth method (the BuildSceneGraph leaf's default unless --depth-method says otherwise).
+DEPTH_METHOD = "centre"
 
 
 # -- the robot's route (from its map only) ---------------------------------------------------------
@@ -150,7 +152,10 @@ Stop = tuple[float, float, "tuple[float, float] | None"]
 
 
 def revisit_points(
-    robot: Any, places: list[tuple[float, float]], route: list[tuple[float, float]]
+    robot: Any,
+    places: list[tuple[float, float]],
+    route: list[tuple[float, float]],
+    clear_view: bool = False,
 ) -> list[Stop]:
     """The route plus a look at every known instance's place that no viewpoint is close to.
 
@@ -158,8 +163,9 @@ def revisit_points(
     dynamic phase's pass looks at the old places again; a viewpoint is a free cell with room to
     turn, between ``REVISIT_MIN`` and ``REVISIT_MAX`` metres from the place (as close to
     ``REVISIT_BEST`` as the map allows), where the robot faces the place and sweeps ``LOOK_SWEEP``
-    to each side instead of turning a full circle. Returns (x, y, place to look at or None for a
-    full circle) in a nearest-neighbour tour. Nothing here reads the simulator's truth.
+    to each side instead of turning a full circle. With ``clear_view`` the map must also be free
+    along the line of sight to the place (the last 0.35 m excepted). Returns (x, y, place to look at
+    or None for a full circle) in a nearest-neighbour tour. Nothing here reads the simulator's truth.
     """
     import cv2
 
@@ -177,6 +183,8 @@ def revisit_points(
             continue
         d = np.hypot(xy[:, 0] - px, xy[:, 1] - py)
         ok = (d >= REVISIT_MIN) & (d <= REVISIT_MAX)
+        if clear_view and ok.any():
+            ok[ok] = _line_of_sight(grid, xy[ok], (px, py))
         if not ok.any():
             continue
         best = int(np.argmin(np.where(ok, np.abs(d - REVISIT_BEST), np.inf)))
@@ -190,6 +198,21 @@ def revisit_points(
         tour.append(nxt)
         here = (nxt[0], nxt[1])
     return tour
+
+
+def _line_of_sight(grid: Any, points: np.ndarray, place: tuple[float, float]) -> np.ndarray:
+    """Whether the map is free along each point's line to ``place`` (its last 0.35 m not checked)."""
+    res = grid.resolution
+    t = np.linspace(0.0, 1.0, 24)[None, :]
+    dx, dy = place[0] - points[:, 0], place[1] - points[:, 1]
+    length = np.hypot(dx, dy)
+    stop = np.clip(1.0 - 0.35 / np.maximum(length, 1e-6), 0.0, 1.0)[:, None]
+    xs = points[:, :1] + dx[:, None] * t * stop
+    ys = points[:, 1:] + dy[:, None] * t * stop
+    cols = np.clip(((xs - grid.origin.x) / res).astype(int), 0, grid.data.shape[1] - 1)
+    rows = np.clip(((ys - grid.origin.y) / res).astype(int), 0, grid.data.shape[0] - 1)
+    cells = grid.data[rows, cols]
+    return np.all((cells >= 0) & (cells < 50), axis=1)
 
 
 # -- the NAIS reference ------------------------------------------------------------------------------
@@ -496,7 +519,12 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
         return d.description, d.shape, d.size
 
     verifier = crop_verifier(vlm) if VERIFY else None
-    ours = SceneBuilder(room_typer=typer, describer=describer, verifier=verifier)
+    ours = SceneBuilder(
+        BuilderParams(depth_method=DEPTH_METHOD),  # type: ignore[arg-type]
+        room_typer=typer,
+        describer=describer,
+        verifier=verifier,
+    )
     nais = NaisPipeline(vlm)
     route = viewpoints(robot)
     diag = None
@@ -504,7 +532,7 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
         from scene_graph_diagnosis import Diagnosis
 
         diag = Diagnosis(robot, classes, ours.params.depth_method)
-        diag.watch(ours.scene.map)
+        diag.watch(ours.scene.map, ours.fusion)
     state = {"last": -math.inf, "frames": 0, "wall_ours": 0.0, "wall_nais": 0.0}
 
     def tick() -> None:
@@ -660,7 +688,15 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
     oid = add_object(world, "backpack", "green", (0.32, 0.22, 0.45), "box", *to)
     changes.append({"kind": "added", "label": "backpack", "id": oid, "to": to})
     # the pass of the dynamic phase looks again at every place the robot's graph holds an object
+    if diag is not None:
+        diag.new_phase()
+    pass_start = robot.now()
     patrol(revisit_points(robot, [inst.xy for inst in ours.scene.map], route))
+    # then a look, with a clear line of sight, at every place of its graph no frame of the pass could
+    # check (each view of it was occluded): the robot's own bookkeeping, no truth
+    unchecked = [inst.xy for inst in ours.fusion.unchecked_since(pass_start)]
+    if unchecked:
+        patrol(revisit_points(robot, unchecked, [], clear_view=True))
     ours.rebuild(robot.now())
     after = {"ours": ours_predictions(ours), "nais": nais.predictions()}
     reflected = {m: sum(change_reflected(after[m], c) for c in changes) for m in after}
@@ -698,10 +734,10 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
 _MODELS: dict[str, Any] = {}
 
 
-def _job(job: tuple[str, int, str, int, bool, bool, bool, bool]) -> dict[str, Any]:
+def _job(job: tuple[str, int, str, int, bool, bool, bool, bool, str]) -> dict[str, Any]:
     """One world in a worker process (models built once per process)."""
-    global DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE
-    name, seed, models_name, changes_seed, DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE = job
+    global DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE, DEPTH_METHOD
+    name, seed, models_name, changes_seed, DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE, DEPTH_METHOD = job
     if models_name not in _MODELS:
         _MODELS[models_name] = build_models(models_name)
     t0 = time.perf_counter()
@@ -732,6 +768,13 @@ def main(argv: list[str] | None = None) -> int:
         help="print each false and missed object of ours with its cause, and each change (reads the "
         "simulator's truth for the diagnosis only)",
     )
+    parser.add_argument(
+        "--depth-method",
+        choices=("centre", "robust"),
+        default="centre",
+        help="ours' depth: the median at the box centre (NAIS, the leaf's default) or the box's nearest "
+        "depth cluster",
+    )
     parser.add_argument("--only", help="comma-separated world names to run (diagnostics)")
     parser.add_argument("--single-pass", action="store_true", help="skip the dynamic phase (diagnostics)")
     parser.add_argument(
@@ -751,7 +794,17 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     rows = []
     jobs = [
-        (name, k, args.models, args.changes_seed, DEBUG, SINGLE_PASS, args.verify, args.diagnose)
+        (
+            name,
+            k,
+            args.models,
+            args.changes_seed,
+            DEBUG,
+            SINGLE_PASS,
+            args.verify,
+            args.diagnose,
+            args.depth_method,
+        )
         for k, name in enumerate(names)
         if not args.only or name in args.only.split(",")
     ]

@@ -197,3 +197,32 @@ def test_voting_asks_the_candidate_rule_and_the_ready_test() -> None:
     held["ok"] = True
     accepted = voting.vote(p[2])
     assert accepted is not None and accepted.frames == 3
+
+
+def test_a_candidate_too_small_for_its_class_is_not_confirmed() -> None:
+    """A 'tv' 0.12 m wide (a closed umbrella, misnamed) stays a candidate; a 0.8 m tv is confirmed."""
+    fusion = InstanceFusion(SemanticMap())
+    thin = (150.0, 60.0, 160.0, 140.0)
+    wide = (100.0, 60.0, 180.0, 140.0)
+    for k in range(12):
+        stamp = 1.0 + k
+        fusion.process(
+            frame(stamp, room_depth()),
+            [
+                projection("tv", stamp, thin, (2.5, 0.0, 0.6), 2.5, (0.12, 0.12, 0.8)),
+                projection("tv", stamp, wide, (2.5, 2.0, 0.6), 2.5, (0.8, 0.8, 0.6)),
+            ],
+        )
+    assert [round(i.position[1]) for i in fusion.map] == [2]
+    assert len(fusion.voting.candidates) == 1
+
+
+def test_a_place_only_seen_behind_something_stays_unchecked() -> None:
+    """A cup's place hidden behind a box in front: unchecked (go and look); seen empty: checked."""
+    smap = SemanticMap()
+    fusion = InstanceFusion(smap)
+    cup_id = smap.add("cup", (1.2, 0.0, 0.05), 0.0, size=(0.09, 0.09, 0.11), observations=10).id
+    fusion.process(frame(1.0, room_depth(0.6)), [])
+    assert [i.id for i in fusion.unchecked_since(0.5)] == [cup_id]
+    fusion.process(frame(2.0, room_depth()), [])
+    assert fusion.unchecked_since(0.5) == [] and smap.get(cup_id).misses == 1  # type: ignore[union-attr]

@@ -50,6 +50,30 @@ from missiontree.types import CameraIntrinsics, Detection, RGBDFrame
 #: Inner share of a box whose pixels name its colour (a box holds background at its edges).
 COLOUR_INNER = 0.6
 
+#: Physical size ranges of common indoor classes, metres: (least width, least height) an object
+#: of the class shows a camera from any side it is usually seen from (a tv's screen is at least
+#: 0.35 m wide, a closed umbrella is 0.1 m), from furniture catalogues and the COCO classes'
+#: everyday sizes, kept generous. A candidate whose median measured width and height (box at its
+#: depth) fall below ``size_margin`` times these is not what the detector named (a thin umbrella
+#: called a tv): it is not confirmed. Classes not listed are not checked.
+SIZE_PRIORS: dict[str, tuple[float, float]] = {
+    "chair": (0.3, 0.4),
+    "sofa": (0.5, 0.4),
+    "bed": (0.8, 0.3),
+    "table": (0.3, 0.25),
+    "dining table": (0.5, 0.4),
+    "bottle": (0.03, 0.08),
+    "cup": (0.03, 0.04),
+    "backpack": (0.15, 0.2),
+    "laptop": (0.2, 0.02),
+    "umbrella": (0.03, 0.3),
+    "potted plant": (0.1, 0.15),
+    "tv": (0.35, 0.2),
+    "refrigerator": (0.45, 0.5),
+    "trash can": (0.15, 0.2),
+    "bookshelf": (0.3, 0.5),
+}
+
 #: Second opinion on a candidate before it becomes an instance: (frame, its detection in it) →
 #: True (it is what the detector said), False (it is not: rejected), None (cannot tell: accepted).
 Verifier = Callable[[RGBDFrame, Detection], "bool | None"]
@@ -106,6 +130,8 @@ class FusionParams:
         small_size: A candidate whose boxes measure at most this much (larger side, median,
             metres) is small: the detector finds a bottle or a cup in a few frames of each visit.
         small_min_frames: Frames a small candidate needs instead of ``filters.min_frames``.
+        size_margin: A candidate measured smaller than this share of its class's least size
+            (:data:`SIZE_PRIORS`) is not confirmed; 0 turns the check off.
     """
 
     filters: NaisFilterParams = field(default_factory=NaisFilterParams)
@@ -128,10 +154,11 @@ class FusionParams:
     large_size: float = 0.6
     inner_share: float = 0.2
     surface_cell: float = 0.05
-    min_uncut: int = 2
-    min_uncut_share: float = 0.15
+    min_uncut: int = 3
+    min_uncut_share: float = 0.2
     small_size: float = 0.3
     small_min_frames: int = 5
+    size_margin: float = 0.7
 
 
 @dataclass
@@ -145,6 +172,7 @@ class _Track:
     unexplained: int = 0
     clipped: list[tuple[float, float, float]] = field(default_factory=list)
     cells: Counter[tuple[int, int]] = field(default_factory=Counter)
+    checked: float = -math.inf
 
 
 class InstanceFusion:
@@ -326,7 +354,18 @@ class InstanceFusion:
         bottom = (self._k.height if self._k is not None else math.inf) - limit
         whole = sum(1 for q in cand.projections if q.box[3] < bottom and not self._clipped(q))
         share = self.params.min_uncut_share * len(cand.projections)
-        return whole >= min(self.params.min_uncut, len(cand.projections)) and whole >= share
+        enough = whole >= min(self.params.min_uncut, len(cand.projections)) and whole >= share
+        return enough and self._plausible_size(cand)
+
+    def _plausible_size(self, cand: Candidate) -> bool:
+        """Whether the candidate's median measured width and height reach its class's least size."""
+        prior = SIZE_PRIORS.get(cand.label)
+        if prior is None or self.params.size_margin <= 0 or not cand.projections:
+            return True
+        width = float(np.median([q.size[0] for q in cand.projections]))
+        height = float(np.median([q.size[2] for q in cand.projections]))
+        margin = self.params.size_margin
+        return width >= margin * prior[0] and height >= margin * prior[1]
 
     def _refine(
         self, inst: Instance, p: Projection, colour: str | None, frame: RGBDFrame | None = None
@@ -360,6 +399,7 @@ class InstanceFusion:
         )
         track.empty_seen = -math.inf
         track.unexplained = 0
+        track.checked = p.stamp
 
     def _add_surface(self, track: _Track, frame: RGBDFrame, p: Projection) -> None:
         """Count the cells of the surface the box shows (its nearest depth cluster) for the instance."""
@@ -422,6 +462,17 @@ class InstanceFusion:
         self.map.update(keep.id, position=position, observations=keep.observations + drop.observations)
         return keep.id
 
+    def unchecked_since(self, stamp: float) -> list[Instance]:
+        """Instances no frame since ``stamp`` has shown, or shown empty (views occluded, or none came).
+
+        What the robot should go and look at from another side to keep its map true.
+        """
+        return [
+            inst
+            for inst in self.map
+            if self.tracks.get(inst.id, _Track()).checked < stamp and inst.first_seen < stamp
+        ]
+
     def _clipped(self, p: Projection) -> bool:
         """Whether the box is cut by the image's left or right border."""
         limit = self.params.edge_clip
@@ -468,6 +519,7 @@ class InstanceFusion:
             track.xs = [q.position for q in uncut]
             track.clipped = [q.position for q in cut]
             track.empty_seen = -math.inf
+            track.checked = stamp
             return twin
         inst = self.map.add(
             cand.label,
@@ -485,6 +537,7 @@ class InstanceFusion:
             xs=[q.position for q in uncut],
             clipped=[q.position for q in cut],
             sizes=[q.size for q in cand.projections],
+            checked=stamp,
         )
         return inst
 
@@ -542,11 +595,13 @@ class InstanceFusion:
                 and d.box[1] - 4 <= v <= d.box[3] + 4
                 for d in detections
             ):
+                self.tracks.setdefault(inst.id, _Track()).checked = frame.stamp
                 continue  # its label's box covers it: seen, if not placed precisely enough to refine
             verdict = self._place_seen(frame, inst, u, v, forward)
             if verdict == "occluded":
                 continue  # something stands in front of it: no evidence either way
             track = self.tracks.setdefault(inst.id, _Track())
+            track.checked = frame.stamp
             confidence = inst.confidence * self.params.miss_decay
             if verdict == "present":
                 # depth shows something where it should be, the detector did not name it: doubt; only
