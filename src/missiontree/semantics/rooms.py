@@ -9,7 +9,9 @@ tried and the one giving the most room-sized pieces (between ``min_room_area`` a
 distance map, whose ridges lie in the doorways, so each boundary falls in its door. Pieces grown to
 less than ``min_room_area`` join their largest neighbour.
 
-Unknown cells count as obstacles: on a map being explored the rooms grow as the map does.
+Unknown cells count as obstacles: on a map being explored the rooms grow as the map does. Specks
+(occupied or unknown pieces smaller than ``speckle_area``: a real map's lidar noise, a cell never
+seen) count as floor, and holes narrower than ``close_gaps`` in walls are closed while finding rooms.
 :class:`RoomTracker` keeps room ids stable across re-segmentations (a new region takes the id of the
 old region it overlaps most).
 
