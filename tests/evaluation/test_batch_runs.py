@@ -197,3 +197,30 @@ def test_a_probe_scores_each_run_inside_its_worker(tmp_path: Path) -> None:
         assert record.figures["log_lines"] > record.ticks / 2
         summary = json.loads((tmp_path / "out" / record.run_dir / "summary.json").read_text())
         assert record.figures["true_x"] == pytest.approx(summary["true_final_pose"]["x"], abs=1e-6)
+
+
+def _worker_settings(dask_worker: Any) -> dict[str, Any]:
+    """What a Dask worker runs besides its task (run on the worker by Client.run)."""
+    return {"malloc_trim": os.environ.get("MALLOC_TRIM_THRESHOLD_"),
+            "omp_threads": os.environ.get("OMP_NUM_THREADS"),
+            "callbacks": sorted(dask_worker.periodic_callbacks),
+            "tick_ms": dask_worker.periodic_callbacks["tick"].callback_time}
+
+
+@pytest.mark.slow
+def test_a_local_dask_cluster_runs_missions_without_the_profiler_or_a_frozen_malloc(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """--dask local: no MALLOC_TRIM_THRESHOLD_ in the workers (nor leaked here), no 10 ms profiler."""
+    import cloudpickle
+
+    monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_", raising=False)
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    with DaskEngine("local", 1) as engine:
+        settings = list(engine.client.run(_worker_settings).values())
+    assert len(settings) == 1
+    assert settings[0]["malloc_trim"] is None
+    assert settings[0]["omp_threads"] == "1"
+    assert "profile" not in settings[0]["callbacks"]
+    assert "heartbeat" in settings[0]["callbacks"]  # the worker's own callbacks were read
+    assert settings[0]["tick_ms"] >= 1000
+    assert "MALLOC_TRIM_THRESHOLD_" not in os.environ
