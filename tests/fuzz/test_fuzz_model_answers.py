@@ -64,21 +64,26 @@ def _dump(value: Any) -> str:
         return str(value)
 
 
+#: Answer bodies: a mutated valid answer, random JSON, random text, known hostile answers (built once).
+BODIES = st.one_of(
+    mutations(BASES).map(_dump),
+    values(keys=KEYS, depth=4).map(_dump),
+    st.text(max_size=200),
+    st.sampled_from(["", "{", "[]", "null", "NaN", "[" * 5000, '{"a": ' * 3000 + "1",
+                     '{"verdict": "ALARM", "people": [{"box": [90000, 90000, 90050, 90100]}]}',
+                     '{"verdict": "ALARM", "people": [{"box": [NaN, 0, 10, 10]}]}',
+                     '{"verdict": "ALARM", "people": [{"box": [-Infinity, 0, 1e308, 10]}]}',
+                     '{"matches": true, "confidence": NaN}',
+                     '{"candidates": ["no_such_object"]}']),
+)
+WRAPS = st.sampled_from(["plain", "fence", "prose", "cut"])
+
+
 @st.composite
 def answer_texts(draw: Any) -> str:
-    """Answer text: a mutated valid answer, random JSON, random text, fenced or cut short."""
-    body = draw(st.one_of(
-        mutations(BASES).map(_dump),
-        values(keys=KEYS, depth=4).map(_dump),
-        st.text(max_size=200),
-        st.sampled_from(["", "{", "[]", "null", "NaN", "[" * 5000, '{"a": ' * 3000 + "1",
-                         '{"verdict": "ALARM", "people": [{"box": [90000, 90000, 90050, 90100]}]}',
-                         '{"verdict": "ALARM", "people": [{"box": [NaN, 0, 10, 10]}]}',
-                         '{"verdict": "ALARM", "people": [{"box": [-Infinity, 0, 1e308, 10]}]}',
-                         '{"matches": true, "confidence": NaN}',
-                         '{"candidates": ["no_such_object"]}']),
-    ))
-    wrap = draw(st.sampled_from(["plain", "fence", "prose", "cut"]))
+    """Answer text: one of :data:`BODIES`, fenced, in prose or cut short."""
+    body = draw(BODIES)
+    wrap = draw(WRAPS)
     if wrap == "fence":
         return f"Here you go:\n```json\n{body}\n```"
     if wrap == "prose":
