@@ -223,3 +223,19 @@ def test_the_boundary_between_two_rooms_falls_in_their_door(name: str) -> None:
         str(world.room_at(*r.centroid).name) if world.room_at(*r.centroid) else "-" for r in seg.rooms
     )
     assert found == sorted(r.name for r in world.rooms)
+
+
+@pytest.mark.parametrize("name", ["generated:16", "generated:42", "generated:120"])
+def test_a_cluttered_small_room_gets_a_core_of_its_own(name: str) -> None:
+    """A room whose middle is too cluttered for a core at the chosen radius is still a room.
+
+    Its clearance peak shows at that radius only as a piece too small to be a core; it used to be
+    flooded from the next room through the door and merged with it (generated:120's bedroom went
+    to the kitchen). Going down in radius, the piece grows core-sized on its own and becomes one.
+    """
+    world = load_world(name)
+    seg = segment_rooms(world.grid, inside=(world.start.x, world.start.y))
+    found = sorted(
+        str(world.room_at(*r.centroid).name) if world.room_at(*r.centroid) else "-" for r in seg.rooms
+    )
+    assert found == sorted(r.name for r in world.rooms)

@@ -187,7 +187,7 @@ def segment_rooms(
         return Segmentation(grid, np.zeros(data.shape, np.int32), [])
     dist = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, 5) * res
     min_cells, max_cells = p.min_room_area / res**2, p.max_room_area / res**2
-    best_markers, best_count = None, -1
+    best_markers, best_count, best_radius = None, -1, p.min_door_half
     radius = p.min_door_half
     while radius <= p.max_door_half + 1e-9:
         count, markers = cv2.connectedComponents((dist > radius).astype(np.uint8), connectivity=8)
@@ -195,10 +195,14 @@ def segment_rooms(
         # a piece at this radius is the core of a room: its room is larger than the core itself
         found = int(np.sum((sizes >= min_cells * 0.1) & (sizes <= max_cells)))
         if found > best_count:
-            best_markers, best_count = markers, found
+            best_markers, best_count, best_radius = markers, found, radius
         radius += p.step
     assert best_markers is not None
     markers = _drop_small_cores(best_markers, min_cells * 0.1)
+    small = (best_markers > 0) & (markers == 0)
+    markers = _late_cores(
+        markers, small, dist, best_radius, p.min_door_half, p.step, (min_cells * 0.1, max_cells)
+    )
     labels = _flood(markers, dist, free, p.step)
     labels = _merge_open(labels, dist, p.max_door_width)
     labels = _grow(labels, building)  # the cells the closing took back: to the nearest room
@@ -237,6 +241,40 @@ def _building_free(free: np.ndarray, grid: OccupancyGrid, inside: tuple[float, f
     # a SLAM map cropped to what the robot saw: the building itself reaches the edge; take its
     # largest piece of free space (what is seen through a window or a gap stays out)
     return comp == int(sizes.argmax())
+
+
+def _late_cores(
+    markers: np.ndarray,
+    small: np.ndarray,
+    clearance: np.ndarray,
+    radius: float,
+    min_radius: float,
+    step: float,
+    core_cells: tuple[float, float],
+) -> np.ndarray:
+    """Cores for rooms whose middle was too cluttered to give one at the chosen radius.
+
+    A small room full of furniture shows at the chosen radius only as a piece too small to be a
+    core (``small``); without a core of its own it is flooded from its neighbour through the door
+    and becomes part of it. Going down in radius from the chosen one, a piece that holds such a
+    small piece, no core, and is core-sized (``core_cells``) becomes a core. Pieces without a small
+    piece at the chosen radius (gaps between furniture, which show only at lower radii) do not.
+    """
+    markers = markers.copy()
+    low, high = core_cells
+    r = radius - step
+    while r >= min_radius - 1e-9:
+        count, comp = cv2.connectedComponents((clearance > r).astype(np.uint8), connectivity=8)
+        sizes = np.bincount(comp.ravel(), minlength=count)
+        cored = np.zeros(count, bool)
+        cored[np.unique(comp[markers > 0])] = True
+        seeded = np.zeros(count, bool)
+        seeded[np.unique(comp[small])] = True
+        seeded[0] = False
+        for piece in np.flatnonzero(seeded & ~cored & (sizes >= low) & (sizes <= high)):
+            markers[comp == piece] = int(markers.max()) + 1
+        r -= step
+    return markers
 
 
 def _drop_small_cores(markers: np.ndarray, min_cells: float) -> np.ndarray:
