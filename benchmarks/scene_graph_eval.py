@@ -26,7 +26,9 @@ names their type), **colour_accuracy** (matched objects with the true colour nam
 objects, by the same geometry). Then the **dynamic phase**: three objects are moved, two removed
 and one added (``--changes-seed``) while the robot patrols the same viewpoints once more, plus a
 look (face the place, sweep 0.5 rad to each side) from a free cell near every object *its own
-graph* holds that no viewpoint is within 2.2 m of (the route reads the robot's map and graph only);
+graph* holds that no viewpoint is within 2.2 m of, and at the end a look with a clear line of
+sight in its map at every place of its graph that no frame of the pass could check (every view of
+it occluded: the fusion's own bookkeeping; the route reads the robot's map and graph only);
 **changes_reflected** is the share of those six changes the final graph shows (a moved object
 found at its new place and nothing of its label at the old, a removed one gone, an added one
 found). **rebuild_ms_300** times rebuilding relations and graph for 300 objects (min / median /
@@ -36,6 +38,9 @@ timed here.
 ``--verify`` makes ours ask the VLM whether a crop 20 % larger than the box shows the label before
 a candidate becomes an instance (off by default: the offline stand-in re-runs the detector on the
 small crop and turns down most true small objects).
+
+``--diagnose`` prints each false and missed object of ours with its cause and each change of the
+dynamic phase with what the fusion judged at its places (``scene_graph_diagnosis.py``).
 
 Scoring reads the simulator's truth; both pipelines see only frames, detections, poses and the
 map. The last line is one JSON object. ``--quick`` runs 3 generated worlds and the office world.

@@ -96,7 +96,7 @@ def test_a_detection_resets_the_unexplained_count() -> None:
 def test_a_box_cut_by_the_image_border_does_not_move_the_instance() -> None:
     """Uncut views place the instance; views whose box touches the border count but do not move it."""
     smap = SemanticMap()
-    fusion = InstanceFusion(smap, FusionParams(min_elevation=0.0))
+    fusion = InstanceFusion(smap, FusionParams(min_elevation=0.0, min_bounded_share=0))
     depth = floor_depth()
 
     def proj(stamp: float, box: tuple[float, float, float, float], x: float) -> Projection:
@@ -131,7 +131,7 @@ def test_a_candidate_the_verifier_turns_down_does_not_become_an_instance() -> No
         asked.append(detection.label)
         return False
 
-    fusion = InstanceFusion(SemanticMap(), FusionParams(small_min_frames=10), verifier)
+    fusion = InstanceFusion(SemanticMap(), FusionParams(small_min_frames=10, min_bounded_share=0), verifier)
     for k in range(25):
         fusion.process(frame(1.0 + k, floor_depth()), [cup_projection(1.0 + k)])
     assert len(fusion.map) == 0 and fusion.rejected["cup"] == 2 and asked == ["cup", "cup"]
@@ -139,7 +139,7 @@ def test_a_candidate_the_verifier_turns_down_does_not_become_an_instance() -> No
 
 def test_a_verifier_that_agrees_or_cannot_tell_lets_the_candidate_in() -> None:
     for answer in (True, None):
-        fusion = InstanceFusion(SemanticMap(), FusionParams(), lambda f, d, a=answer: a)
+        fusion = InstanceFusion(SemanticMap(), FusionParams(min_bounded_share=0), lambda f, d, a=answer: a)
         for k in range(10):
             fusion.process(frame(1.0 + k, floor_depth()), [cup_projection(1.0 + k)])
         assert [i.label for i in fusion.map] == ["cup"] and not fusion.rejected

@@ -132,6 +132,10 @@ class FusionParams:
         small_min_frames: Frames a small candidate needs instead of ``filters.min_frames``.
         size_margin: A candidate measured smaller than this share of its class's least size
             (:data:`SIZE_PRIORS`) is not confirmed; 0 turns the check off.
+        edge_band: Pixels beside a box whose depth is compared with the box's own at its sides.
+        edge_step: Depth step (metres) at a box's side that shows an object standing out.
+        min_bounded_share: Least share of a candidate's views in which it stands out in depth at an
+            uncut side (a wall boxed as a refrigerator never does); 0 turns the check off.
     """
 
     filters: NaisFilterParams = field(default_factory=NaisFilterParams)
@@ -159,6 +163,9 @@ class FusionParams:
     small_size: float = 0.3
     small_min_frames: int = 5
     size_margin: float = 0.7
+    edge_band: int = 6
+    edge_step: float = 0.15
+    min_bounded_share: float = 0.2
 
 
 @dataclass
@@ -204,6 +211,8 @@ class InstanceFusion:
         self.frames = 0
         self._image_width = 0
         self._k: CameraIntrinsics | None = None
+        #: Whether each voting projection's box stands out in depth (by id; see _stands_out).
+        self._bounded: dict[int, bool] = {}
         self.last_stamp = -math.inf
         #: Instance id → the detection that showed it in the latest frame (for crops to describe).
         self.observed: dict[str, Detection] = {}
@@ -235,6 +244,10 @@ class InstanceFusion:
         self.observed = {}
         stamp = frame.stamp
         kept = [p for p in projections if self._filters.accept(p) and self._off_floor(p)]
+        live = {id(q) for c in self.voting.candidates for q in c.projections}
+        self._bounded = {k: v for k, v in self._bounded.items() if k in live}
+        for p in kept:
+            self._bounded[id(p)] = self._stands_out(frame, p)
         seen: set[str] = set()
         for p in sorted(kept, key=lambda q: -q.score):
             colour = _colour(frame, p.detection)
@@ -345,6 +358,34 @@ class InstanceFusion:
                 need = min(need, self.params.small_min_frames)
         return need
 
+    def _stands_out(self, frame: RGBDFrame, p: Projection) -> bool:
+        """Whether the box's object stands out of its surroundings in depth at an uncut side.
+
+        An object is bounded: beside its box (``edge_band`` pixels out) the depth steps away from
+        what is just inside the box by more than ``edge_step``, at least at one side the image does
+        not cut. A stretch of wall the detector boxed continues flat past the box's sides.
+        """
+        depth = np.asarray(frame.depth)
+        h, w = depth.shape[:2]
+        x1, y1, x2, y2 = (int(round(v)) for v in p.box)
+        top, bottom = max(0, y1 + (y2 - y1) // 4), min(h, y2 - (y2 - y1) // 4)
+        if bottom <= top:
+            return True
+        band = self.params.edge_band
+        inset = max(1, (x2 - x1) // 8)
+        sides = (((x1 + 1, x1 + inset), (x1 - band, x1 - 1)), ((x2 - inset, x2 - 1), (x2 + 1, x2 + band)))
+        for inside, outside in sides:
+            if outside[0] < 0 or outside[1] >= w:
+                continue  # cut by the image: no evidence at this side
+            a = depth[top:bottom, max(0, inside[0]) : max(inside[0] + 1, inside[1])].astype(float)
+            b = depth[top:bottom, outside[0] : outside[1] + 1].astype(float)
+            a, b = a[np.isfinite(a) & (a > 0)], b[np.isfinite(b) & (b > 0)]
+            if not a.size or not b.size:
+                return True  # no return beside it: nothing there, it stands out
+            if abs(float(np.median(b)) - float(np.median(a))) > self.params.edge_step:
+                return True
+        return False
+
     def _whole_enough(self, cand: Candidate) -> bool:
         """Whether enough of a candidate's boxes stand whole (no side or bottom image border cuts them).
 
@@ -355,6 +396,9 @@ class InstanceFusion:
         whole = sum(1 for q in cand.projections if q.box[3] < bottom and not self._clipped(q))
         share = self.params.min_uncut_share * len(cand.projections)
         enough = whole >= min(self.params.min_uncut, len(cand.projections)) and whole >= share
+        judged = [self._bounded[id(q)] for q in cand.projections if id(q) in self._bounded]
+        if judged and self.params.min_bounded_share > 0:
+            enough = enough and sum(judged) >= self.params.min_bounded_share * len(judged)
         return enough and self._plausible_size(cand)
 
     def _plausible_size(self, cand: Candidate) -> bool:
@@ -463,14 +507,15 @@ class InstanceFusion:
         return keep.id
 
     def unchecked_since(self, stamp: float) -> list[Instance]:
-        """Instances no frame since ``stamp`` has shown, or shown empty (views occluded, or none came).
+        """Instances doubtful now, or that no frame since ``stamp`` has shown or shown empty (views occluded).
 
-        What the robot should go and look at from another side to keep its map true.
+        What the robot should go and look at (again, from another side) to keep its map true.
         """
         return [
             inst
             for inst in self.map
-            if self.tracks.get(inst.id, _Track()).checked < stamp and inst.first_seen < stamp
+            if inst.first_seen < stamp
+            and (inst.doubtful or self.tracks.get(inst.id, _Track()).checked < stamp)
         ]
 
     def _clipped(self, p: Projection) -> bool:
