@@ -53,6 +53,11 @@ counted apart from the mission's results, and fails the batch.
 --dask ADDRESS runs on a Dask distributed cluster (default: $DASK_SCHEDULER_ADDRESS); --dask local
 starts one on this machine. Needs the 'dask' extra: pip install 'missiontree[dask]'. Workers
 write the run directories: on a multi-machine cluster --out must be on a filesystem they share.
+--dask local starts its workers without Dask's statistical profiler and without the nanny's
+MALLOC_TRIM_THRESHOLD_ (together they made a mission about a quarter slower than in the pool); on
+a remote cluster set the same in the workers' Dask config before starting them:
+distributed.worker.profile.enabled: false and
+distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_: null.
 """
 
 
