@@ -71,3 +71,24 @@ def test_a_new_room_type_is_rebuilt_at_the_next_refresh() -> None:
     frames_with_detections_arrived(builder)
     assert builder.step(7.0) == []
     assert builder.scene.graph.node("room_1")["label"] == "dining_room"
+
+
+def test_only_instances_that_changed_are_described_again() -> None:
+    """After a rebuild, only a new instance and one whose colour changed are described again."""
+    asked: list[str] = []
+
+    def describer(inst):
+        asked.append(inst.id)
+        return f"a {inst.colour} {inst.label}", "boxy", "small"
+
+    builder = SceneBuilder(BuilderParams(refresh=5.0), rooms=[KITCHEN], describer=describer)
+    builder.scene.map.add("table", (2.0, 1.0, 0.375), 0.0, size=(1.2, 0.8, 0.75), room="room_1")
+    builder.scene.map.add("cup", (2.1, 1.0, 0.8), 0.0, size=(0.1, 0.1, 0.1), room="room_1")
+    builder.step(1.0)
+    assert sorted(asked) == ["cup_1", "table_1"]
+    asked.clear()
+    builder.scene.map.add("chair", (1.0, 3.0, 0.45), 2.0, size=(0.5, 0.5, 0.9), room="room_1")
+    builder.scene.map.update("cup_1", colour="red")  # measured anew, no change record
+    builder.step(2.0)
+    assert sorted(asked) == ["chair_1", "cup_1"]
+    assert builder.scene.graph.node("cup_1")["description"] == "a red cup"

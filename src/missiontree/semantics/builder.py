@@ -110,6 +110,7 @@ class SceneBuilder:
         self._last_rebuild = -math.inf
         self._last_check = -math.inf
         self._built_from: tuple[object, ...] | None = None
+        self._described: dict[str, tuple[object, ...]] = {}
         self._dirty = False
         self._pending: list[Change] = []
         if self.fixed_rooms is not None:
@@ -254,13 +255,33 @@ class SceneBuilder:
             room.type, room.type_confidence, room.evidence = room_type, confidence, list(evidence)
 
     def _describe(self) -> None:
+        """Describe the instances whose description inputs changed since they were last described.
+
+        A describer answers from the instance (its label, colour, size and what it already says):
+        an instance unchanged since its last answer would get the same answer again, so it is not
+        asked (measuring 300 descriptions took longer than rebuilding the graph).
+        """
         if self.describer is None:
             return
+        asked = self._described
         for inst in self.scene.map:
+            key = (inst.label, inst.colour, inst.size, inst.description, inst.shape, inst.relative_size)
+            if asked.get(inst.id) == key:
+                continue
             answer = self.describer(inst)
             if answer is not None:
                 description, shape, size = answer
                 self.scene.map.update(inst.id, description=description, shape=shape, relative_size=size)
+            asked[inst.id] = (
+                inst.label,
+                inst.colour,
+                inst.size,
+                inst.description,
+                inst.shape,
+                inst.relative_size,
+            )
+        if len(asked) > 2 * len(self.scene.map):
+            self._described = {k: v for k, v in asked.items() if k in self.scene.map}
 
 
 def _segment(tracker: RoomTracker, grid: OccupancyGrid, inside: tuple[float, float] | None) -> Segmentation:
