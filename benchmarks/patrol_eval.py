@@ -13,7 +13,9 @@ drawn from 0.5-3 s (simulated clock). Configurations, all on the same worlds, se
 
 Each run is the real mission (loader, builder, runner, leaves) on the simulator: a Parallel of
 Patrol (one lap) and Surveillance, without servoing so that every configuration drives the same
-path. Scoring uses the simulator's ground truth (never seen by the leaves):
+path. The runs go through the batch runner (missiontree.evaluation) on a process pool of ``--jobs``
+workers; a probe scores each run inside its worker. Scoring uses the simulator's ground truth
+(never seen by the leaves):
 
 - an *encounter* is a run of frames in which a person shows (gaps up to 1 s bridged), with at least
   two frames showing them with MIN_PIXELS or more while they stand at least OVERLAP from the robot
@@ -31,16 +33,19 @@ path. Scoring uses the simulator's ground truth (never seen by the leaves):
 
 ``--detector oracle`` runs every configuration on the simulation oracle (a perfect detector) instead
 of the shipped trained detector, to separate what the detector costs from what the design costs.
-Runs alternate between configurations scenario by scenario; ratios of ours against the thesis's are
-printed with min/median/max over scenarios. Last line: one JSON object with the figures.
+The runs are listed alternating between configurations scenario by scenario (every score is on the
+simulated clock, so the order the pool finishes them in changes none of them); ratios of ours
+against the thesis's are printed with min/median/max over scenarios. Last line: one JSON object
+with the figures.
 """
 
 from __future__ import annotations
 
 import argparse
-import io
+import dataclasses
 import json
 import math
+import os
 import random
 import sys
 import tempfile
@@ -55,10 +60,10 @@ import yaml
 
 from missiontree.backends.sim import load_world
 from missiontree.behaviours.waypoints import load_waypoints
+from missiontree.evaluation import BatchPlan, PoolEngine, RunSpec, run_batch
 from missiontree.paths import find_config
 from missiontree.plugins.manager import load_plugins
-from missiontree.session import MissionRequest, Session
-from missiontree.session.models import BrokenProvider
+from missiontree.session.models import BrokenProvider, build_models
 
 #: (scenario, world, route file, laps) — C and D share the combined route; D is seed_02's scenario.
 SCENARIOS = [("A", "corridor", "scenario_a", 5), ("B", "entrance_hall", "scenario_b", 3),
@@ -164,11 +169,18 @@ def _free_end(world: Any, cx: float, cy: float, dx: float, dy: float) -> tuple[f
 # -- one run -----------------------------------------------------------------------------------------
 
 
-def tree_text(route: str, laps: int, config: dict[str, Any]) -> str:
-    """The benchmark mission: one lap of the route with surveillance, no servoing."""
-    options = "\n".join(f"                {k}: {v}" for k, v in config.items())
-    return f"""version: 1
+#: The benchmark mission: one lap of the route with surveillance, no servoing. The route, the laps
+#: and the surveillance configuration are its ``params`` (set per run by the batch).
+MISSION = """version: 1
 description: patrol_eval run
+params:
+  route: scenario_a
+  laps: 1
+  mode: detect
+  period: 0.5
+  method: depth
+  fuse_at: frame
+  max_in_flight: 6
 root:
   Parallel:
     name: patrol_and_watch
@@ -176,14 +188,18 @@ root:
     children:
       - Patrol:
           name: patrol
-          waypoints_file: {route}
-          laps: {laps}
+          waypoints_file: ${route}
+          laps: ${laps}
           yaw_tolerance: 6.28
           waypoint_timeout: 90
       - Surveillance:
           name: surveillance
           alarm_cooldown: 0
-{options.replace("                ", "          ")}
+          mode: ${mode}
+          period: ${period}
+          method: ${method}
+          fuse_at: ${fuse_at}
+          max_in_flight: ${max_in_flight}
 """
 
 
@@ -194,52 +210,71 @@ def models_config(detector: str) -> dict[str, Any]:
     return data
 
 
-def open_session(tree: Path, world_path: Path, seed: int, oracle: bool, on_tick: Any) -> tuple[Session, str]:
-    """The run's session on the shipped trained detector, or the simulation oracle when asked or unusable."""
-    plugins = load_plugins(autoload=False)
-
-    def request(detector: str) -> MissionRequest:
-        return MissionRequest(mission=tree, backend="sim", world=str(world_path), seed=seed,
-                              models=models_config(detector), tick_hz=10, max_duration=900, quiet=True,
-                              allow_outside=True, plugins=plugins, handle_signals=False,
-                              log_stream=io.StringIO(), on_tick=on_tick)
-
+def choose_models(oracle: bool) -> tuple[dict[str, Any], str]:
+    """The models every run uses: the shipped trained detector, or the oracle when asked or unusable."""
     if oracle:
-        return Session.open(request("oracle")), "oracle (trained detector not used: --detector oracle)"
-    session = Session.open(request("offline"))
-    detector = session.models.get("detector")
+        return models_config("oracle"), "oracle (trained detector not used: --detector oracle)"
+    models = build_models(models_config("offline"), providers=load_plugins(autoload=False).providers, seed=0)
+    detector = models.get("detector")
     if not isinstance(detector, BrokenProvider):
-        return session, "sim_detector (trained)"
-    session.close()
-    return Session.open(request("oracle")), f"oracle (trained detector not used: {detector.reason})"
+        return models_config("offline"), "sim_detector (trained)"
+    return models_config("oracle"), f"oracle (trained detector not used: {detector.reason})"
 
 
-def run_one(scenario: str, world_path: Path, route: str, laps: int, name: str,
-            tmp: Path, seed: int, oracle: bool = False) -> tuple[RunScore, str]:
-    """Run one configuration on one scenario through the session and score it against ground truth."""
-    tree = tmp / f"{name}.yaml"
-    tree.write_text(tree_text(route, laps, CONFIGS[name]))
-    truth_poses: dict[float, Any] = {}
+class PatrolProbe:
+    """Scores one run inside its batch worker: the true pose at every camera frame, then the events.
 
-    def record_truth(session: Session) -> None:  # the true pose of every frame, for scoring only
+    The leaves never see the truth; the probe reads it between ticks and, at the end, scores the
+    run's tick log (its ``ticks.jsonl``) against it.
+    """
+
+    def __init__(self) -> None:
+        self.poses: dict[float, Any] = {}
+
+    def on_tick(self, session: Any) -> None:
+        """The true pose of the latest frame (scoring only)."""
         frame = session.robot.rgbd()
-        if frame is not None and frame.stamp not in truth_poses:
-            truth_poses[frame.stamp] = session.robot.truth.robot_pose_at(frame.stamp)
+        if frame is not None and frame.stamp not in self.poses:
+            self.poses[frame.stamp] = session.robot.truth.robot_pose_at(frame.stamp)
 
-    session, note = open_session(tree, world_path, seed, oracle, record_truth)
-    with session:
-        started = time.perf_counter()
-        result = session.run()
-        robot = session.robot
-        score = RunScore(scenario, name, seed, sim_seconds=robot.now(),
-                         wall_seconds=time.perf_counter() - started)
-        stream = session.request.log_stream
-        assert isinstance(stream, io.StringIO)
-        events = [json.loads(line) for line in stream.getvalue().splitlines()]
-    if result.status.name != "SUCCESS":
-        print(f"  note: {scenario}/{name} ended {result.status.name} ({result.stopped_by})", file=sys.stderr)
-    score_events(score, events, robot.truth, truth_poses)
-    return score, note
+    def finish(self, session: Any, result: Any) -> dict[str, Any]:
+        """RunScore's figures (an infinite error, an alarm without a distance, as null)."""
+        log = (session.run_dir / "ticks.jsonl").read_text(encoding="utf-8")
+        events = [json.loads(line) for line in log.splitlines() if line.strip()]
+        score = RunScore("", "", sim_seconds=session.robot.now())
+        score_events(score, events, session.robot.truth, self.poses)
+        figures = dataclasses.asdict(score)
+        figures["errors"] = [None if math.isinf(e) else e for e in score.errors]
+        for key in ("scenario", "config", "seed", "wall_seconds"):
+            figures.pop(key)
+        return figures
+
+
+def run_all(runs: list[tuple[str, Path, str, int, str, int]], models: dict[str, Any], jobs: int,
+            out: Path) -> list[RunScore]:
+    """Every (scenario, world file, route, laps, configuration, seed) on the batch runner, scored."""
+    mission = out / "patrol_eval.yaml"
+    mission.write_text(MISSION, encoding="utf-8")
+    specs = [RunSpec(world=str(world), seed=seed, run_seed=seed,
+                     params=(("route", route), ("laps", str(laps)),
+                             *((k, str(v)) for k, v in CONFIGS[name].items())))
+             for _, world, route, laps, name, seed in runs]
+    request = {"backend": "sim", "models": models, "tick_hz": 10, "max_duration": 900, "allow_outside": True}
+    plan = BatchPlan(mission=mission, runs=specs, request=request)
+    fields = {f.name for f in dataclasses.fields(RunScore)} - {"scenario", "config", "seed", "wall_seconds"}
+    scores = []
+    with PoolEngine(jobs) as engine:
+        records = run_batch(plan, engine, out / "batch", probe=PatrolProbe)
+    for (scenario, _, _, _, name, seed), record in zip(runs, records, strict=True):
+        if record.status in ("ERROR", "INFRA"):
+            raise SystemExit(f"{scenario}/{name} seed {seed}: the run did not complete ({record.status}: "
+                             f"{record.reason})")
+        if record.status != "SUCCESS":
+            print(f"  note: {scenario}/{name} ended {record.status} ({record.stopped_by})", file=sys.stderr)
+        figures = {k: v for k, v in record.figures.items() if k in fields}
+        figures["errors"] = [math.inf if e is None else e for e in figures.get("errors", [])]
+        scores.append(RunScore(scenario, name, seed, wall_seconds=record.wall_time_s, **figures))
+    return scores
 
 
 def score_events(score: RunScore, events: list[dict[str, Any]], truth: Any, poses: dict[float, Any]) -> None:
@@ -343,27 +378,32 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--detector", choices=("shipped", "oracle"), default="shipped",
                         help="the shipped trained detector, or the simulation oracle (a perfect detector)")
-    oracle = parser.parse_args().detector == "oracle"
-    scores: list[RunScore] = []
-    note = ""
+    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
+                        help="runs in parallel (batch runner's process pool; default: the cores)")
+    parser.add_argument("--quick", action="store_true", help=f"seed {SEEDS[0]} only (a smoke run)")
+    args = parser.parse_args()
+    seeds = SEEDS[:1] if args.quick else SEEDS
     started = time.perf_counter()
+    models, note = choose_models(args.detector == "oracle")
     with tempfile.TemporaryDirectory(prefix="patrol_eval_") as tmp_name:
         tmp = Path(tmp_name)
-        runs = [(seed, *scenario) for seed in SEEDS for scenario in SCENARIOS]
-        for i, (seed, scenario, world, route, laps) in enumerate(runs):
+        runs = []
+        for i, (seed, scenario, world, route, laps) in enumerate(
+                (seed, *scenario) for seed in seeds for scenario in SCENARIOS):
             world_path = crossing_world(world, route, tmp, random.Random(f"{seed}:{scenario}"))
             order = list(CONFIGS) if i % 2 == 0 else list(reversed(CONFIGS))  # alternate the order
-            for name in order:
-                score, note = run_one(scenario, world_path, route, laps, name, tmp, seed, oracle)
-                scores.append(score)
-                median, p95, over = stats(score.errors)
-                label = {"seed_05": "C", "seed_02": "D"}.get(name, "C/D") if scenario == "C/D" else scenario
-                print(f"seed {seed:2} scenario {label:4} {name:8} encounters {score.encounters:3} detected "
-                      f"{score.detection_rate:.3f}  calls/s {score.calls_per_s:.2f}  error median "
-                      f"{fmt(median)} p95 {fmt(p95)} >1m {over:3} (alarms {len(score.errors)}, no distance "
-                      f"{score.no_distance}, overlapping {score.overlapping}, through robot "
-                      f"{score.through_robot})  waypoints reached {score.reached} skipped {score.skipped}  "
-                      f"[{score.sim_seconds:.0f} s simulated, {score.wall_seconds:.1f} s wall]", flush=True)
+            runs.extend((scenario, world_path, route, laps, name, seed) for name in order)
+        scores = run_all(runs, models, max(1, args.jobs), tmp)
+        for score in scores:
+            seed, scenario, name = score.seed, score.scenario, score.config
+            median, p95, over = stats(score.errors)
+            label = {"seed_05": "C", "seed_02": "D"}.get(name, "C/D") if scenario == "C/D" else scenario
+            print(f"seed {seed:2} scenario {label:4} {name:8} encounters {score.encounters:3} detected "
+                  f"{score.detection_rate:.3f}  calls/s {score.calls_per_s:.2f}  error median "
+                  f"{fmt(median)} p95 {fmt(p95)} >1m {over:3} (alarms {len(score.errors)}, no distance "
+                  f"{score.no_distance}, overlapping {score.overlapping}, through robot "
+                  f"{score.through_robot})  waypoints reached {score.reached} skipped {score.skipped}  "
+                  f"[{score.sim_seconds:.0f} s simulated, {score.wall_seconds:.1f} s wall]", flush=True)
     print(f"detector: {note}")
     summary: dict[str, Any] = {}
     for name in CONFIGS:
@@ -396,7 +436,7 @@ def main() -> int:
             f"{k}: n={v['n']} med={v['median_m']} p95={v['p95_m']}" for k, v in per_bin.items()))
     for reference in ("seed_05", "seed_02"):
         ratios_err, ratios_det = [], []
-        for seed, (scenario, *_) in ((seed, sc) for seed in SEEDS for sc in SCENARIOS):
+        for seed, (scenario, *_) in ((seed, sc) for seed in seeds for sc in SCENARIOS):
             ours = next(s for s in scores if (s.seed, s.scenario, s.config) == (seed, scenario, "ours"))
             ref = next(s for s in scores if (s.seed, s.scenario, s.config) == (seed, scenario, reference))
             m_ours, m_ref = stats(ours.errors)[0], stats(ref.errors)[0]
