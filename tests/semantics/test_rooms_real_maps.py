@@ -239,3 +239,16 @@ def test_a_cluttered_small_room_gets_a_core_of_its_own(name: str) -> None:
         str(world.room_at(*r.centroid).name) if world.room_at(*r.centroid) else "-" for r in seg.rooms
     )
     assert found == sorted(r.name for r in world.rooms)
+
+
+def test_rooms_at_many_points_answer_as_room_at_each() -> None:
+    """The vectorised lookup gives room_at's answer for points on floor, on furniture, off the map."""
+    world = load_world("generated:100")
+    seg = segment_rooms(world.grid, inside=(world.start.x, world.start.y))
+    rng = np.random.default_rng(2)
+    xy = rng.uniform(-2.0, 16.0, (3000, 2))
+    reach = rng.uniform(0.0, 1.5, 3000)
+    expected = [seg.room_at(x, y, reach=r) for (x, y), r in zip(xy.tolist(), reach.tolist(), strict=True)]
+    assert seg.rooms_at(xy, reach) == expected
+    assert {r is None for r in expected} == {True, False}
+    assert seg.rooms_at(np.zeros((0, 2)), np.zeros(0)) == []

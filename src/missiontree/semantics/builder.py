@@ -228,12 +228,15 @@ class SceneBuilder:
     def _assign_rooms(self, now: float) -> None:
         if self.segmentation is None:
             return
-        for inst in self.scene.map:
-            # furniture is an obstacle in the map and its middle no room's floor: the room is the
-            # one whose floor is nearest, looked for beyond half the object's footprint (a bed's
-            # middle lies a metre from any floor)
-            reach = max(ROOM_REACH, 0.5 * max(inst.size[0], inst.size[1]) + ROOM_REACH_MARGIN)
-            room = self.segmentation.room_at(*inst.xy, reach=reach)
+        instances = list(self.scene.map)
+        if not instances:
+            return
+        table = np.array([(*i.position[:2], *i.size[:2]) for i in instances], dtype=np.float64)
+        # furniture is an obstacle in the map and its middle no room's floor: the room is the one
+        # whose floor is nearest, looked for beyond half the object's footprint (a bed's middle
+        # lies a metre from any floor)
+        reach = np.maximum(ROOM_REACH, 0.5 * table[:, 2:].max(axis=1) + ROOM_REACH_MARGIN)
+        for inst, room in zip(instances, self.segmentation.rooms_at(table[:, :2], reach), strict=True):
             room_id = room.id if room is not None else None
             if room_id != inst.room:
                 announce = inst.room is not None  # a first room is part of being added

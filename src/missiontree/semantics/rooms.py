@@ -155,6 +155,30 @@ class Segmentation:
             label = int(self.labels[idx[0][row, col], idx[1][row, col]])
         return self.rooms[label - 1] if 0 < label <= len(self.rooms) else None
 
+    def rooms_at(self, xy: np.ndarray, reach: np.ndarray) -> list[RoomRegion | None]:
+        """:meth:`room_at` of many points at once: ``xy`` (N, 2), ``reach`` (N,) metres."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        if not len(xy):
+            return []
+        g = self.grid
+        rows = np.floor((xy[:, 1] - g.origin.y) / g.resolution)
+        cols = np.floor((xy[:, 0] - g.origin.x) / g.resolution)
+        h, w = self.labels.shape
+        inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        r = np.where(inside, rows, 0).astype(np.intp)
+        c = np.where(inside, cols, 0).astype(np.intp)
+        label = np.where(inside, self.labels[r, c], 0)
+        off_floor = inside & (label == 0)
+        if off_floor.any():
+            if self._nearest is None:
+                dist, idx = ndimage.distance_transform_edt(self.labels == 0, return_indices=True)
+                self._nearest = (dist, idx)
+            dist, idx = self._nearest
+            near = off_floor & (dist[r, c] * g.resolution <= np.asarray(reach, dtype=np.float64))
+            label = np.where(near, self.labels[idx[0][r, c], idx[1][r, c]], label)
+        count = len(self.rooms)
+        return [self.rooms[k - 1] if 0 < k <= count else None for k in label.tolist()]
+
 
 def segment_rooms(
     grid: OccupancyGrid, params: SegmentationParams | None = None, inside: tuple[float, float] | None = None
