@@ -232,7 +232,8 @@ class Diagnosis:
                 px, py = c[key]
                 near = [
                     f"{p['id']}@{math.hypot(p['position'][0] - px, p['position'][1] - py):.2f}"
-                    f"{dict(self.verdicts.get(p['id'], {}))}"
+                    f"{dict(self.verdicts.get(p['id'], {}))} z {p['position'][2]:.2f} "
+                    f"size {[round(v, 2) for v in p.get('size', ())]}"
                     for p in preds
                     if p["label"] == c["label"]
                     and math.hypot(p["position"][0] - px, p["position"][1] - py) <= 1.5
