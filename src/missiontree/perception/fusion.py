@@ -37,11 +37,10 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
 from missiontree.perception.colour import dominant_colour
-from missiontree.perception.depth import surface_points
+from missiontree.perception.footprint import outline_centre, plausible_size, stands_out, surface_cells
 from missiontree.perception.projection import Projection, to_camera
 from missiontree.perception.tracking import Candidate, NaisFilterParams, NaisTracker, TemporalVoting
 from missiontree.semantics.semantic_map import Instance, SemanticMap
@@ -49,30 +48,6 @@ from missiontree.types import CameraIntrinsics, Detection, RGBDFrame
 
 #: Inner share of a box whose pixels name its colour (a box holds background at its edges).
 COLOUR_INNER = 0.6
-
-#: Physical size ranges of common indoor classes, metres: (least width, least height) an object
-#: of the class shows a camera from any side it is usually seen from (a tv's screen is at least
-#: 0.35 m wide, a closed umbrella is 0.1 m), from furniture catalogues and the COCO classes'
-#: everyday sizes, kept generous. A candidate whose median measured width and height (box at its
-#: depth) fall below ``size_margin`` times these is not what the detector named (a thin umbrella
-#: called a tv): it is not confirmed. Classes not listed are not checked.
-SIZE_PRIORS: dict[str, tuple[float, float]] = {
-    "chair": (0.3, 0.4),
-    "sofa": (0.5, 0.4),
-    "bed": (0.8, 0.3),
-    "table": (0.3, 0.25),
-    "dining table": (0.5, 0.4),
-    "bottle": (0.03, 0.08),
-    "cup": (0.03, 0.04),
-    "backpack": (0.15, 0.2),
-    "laptop": (0.2, 0.02),
-    "umbrella": (0.03, 0.3),
-    "potted plant": (0.1, 0.15),
-    "tv": (0.35, 0.2),
-    "refrigerator": (0.45, 0.5),
-    "trash can": (0.15, 0.2),
-    "bookshelf": (0.3, 0.5),
-}
 
 #: Second opinion on a candidate before it becomes an instance: (frame, its detection in it) →
 #: True (it is what the detector said), False (it is not: rejected), None (cannot tell: accepted).
@@ -131,7 +106,7 @@ class FusionParams:
             metres) is small: the detector finds a bottle or a cup in a few frames of each visit.
         small_min_frames: Frames a small candidate needs instead of ``filters.min_frames``.
         size_margin: A candidate measured smaller than this share of its class's least size
-            (:data:`SIZE_PRIORS`) is not confirmed; 0 turns the check off.
+            (:data:`~missiontree.perception.footprint.SIZE_PRIORS`) is not confirmed; 0 turns the check off.
         edge_band: Pixels beside a box whose depth is compared with the box's own at its sides.
         edge_step: Depth step (metres) at a box's side that shows an object standing out.
         min_bounded_share: Least share of a candidate's views in which it stands out in depth at an
@@ -359,32 +334,8 @@ class InstanceFusion:
         return need
 
     def _stands_out(self, frame: RGBDFrame, p: Projection) -> bool:
-        """Whether the box's object stands out of its surroundings in depth at an uncut side.
-
-        An object is bounded: beside its box (``edge_band`` pixels out) the depth steps away from
-        what is just inside the box by more than ``edge_step``, at least at one side the image does
-        not cut. A stretch of wall the detector boxed continues flat past the box's sides.
-        """
-        depth = np.asarray(frame.depth)
-        h, w = depth.shape[:2]
-        x1, y1, x2, y2 = (int(round(v)) for v in p.box)
-        top, bottom = max(0, y1 + (y2 - y1) // 4), min(h, y2 - (y2 - y1) // 4)
-        if bottom <= top:
-            return True
-        band = self.params.edge_band
-        inset = max(1, (x2 - x1) // 8)
-        sides = (((x1 + 1, x1 + inset), (x1 - band, x1 - 1)), ((x2 - inset, x2 - 1), (x2 + 1, x2 + band)))
-        for inside, outside in sides:
-            if outside[0] < 0 or outside[1] >= w:
-                continue  # cut by the image: no evidence at this side
-            a = depth[top:bottom, max(0, inside[0]) : max(inside[0] + 1, inside[1])].astype(float)
-            b = depth[top:bottom, outside[0] : outside[1] + 1].astype(float)
-            a, b = a[np.isfinite(a) & (a > 0)], b[np.isfinite(b) & (b > 0)]
-            if not a.size or not b.size:
-                return True  # no return beside it: nothing there, it stands out
-            if abs(float(np.median(b)) - float(np.median(a))) > self.params.edge_step:
-                return True
-        return False
+        """Whether the box's object stands out in depth at an uncut side (:func:`.footprint.stands_out`)."""
+        return stands_out(frame, p.box, self.params.edge_band, self.params.edge_step)
 
     def _whole_enough(self, cand: Candidate) -> bool:
         """Whether enough of a candidate's boxes stand whole (no side or bottom image border cuts them).
@@ -402,14 +353,8 @@ class InstanceFusion:
         return enough and self._plausible_size(cand)
 
     def _plausible_size(self, cand: Candidate) -> bool:
-        """Whether the candidate's median measured width and height reach its class's least size."""
-        prior = SIZE_PRIORS.get(cand.label)
-        if prior is None or self.params.size_margin <= 0 or not cand.projections:
-            return True
-        width = float(np.median([q.size[0] for q in cand.projections]))
-        height = float(np.median([q.size[2] for q in cand.projections]))
-        margin = self.params.size_margin
-        return width >= margin * prior[0] and height >= margin * prior[1]
+        """Whether the candidate's median measured size reaches its class's least size (``SIZE_PRIORS``)."""
+        return plausible_size(cand.label, cand.projections, self.params.size_margin)
 
     def _refine(
         self, inst: Instance, p: Projection, colour: str | None, frame: RGBDFrame | None = None
@@ -446,46 +391,15 @@ class InstanceFusion:
         track.checked = p.stamp
 
     def _add_surface(self, track: _Track, frame: RGBDFrame, p: Projection) -> None:
-        """Count the cells of the surface the box shows (its nearest depth cluster) for the instance."""
-        points = surface_points(frame, p.box)
-        if not len(points):
-            return
-        cell = self.params.surface_cell
-        keys = np.unique(np.floor(points / cell).astype(np.int64), axis=0)
-        track.cells.update(map(tuple, keys.tolist()))
-        if len(track.cells) > 4000:  # keep the most often seen cells
-            track.cells = Counter(dict(track.cells.most_common(2000)))
+        """Count the cells of the surface the box shows (:func:`.footprint.surface_cells`)."""
+        surface_cells(track.cells, frame, p.box, self.params.surface_cell)
 
     def _outline_centre(
         self, track: _Track, fused: tuple[float, ...], inst: Instance
     ) -> tuple[float, float] | None:
-        """The centre of the footprint the surface cells outline, None while they outline too little.
-
-        Cells seen at least twice and near the fused position are fitted with the smallest rectangle.
-        Two faces seen (the rectangle has depth): its centre. One face (a thin rectangle): the point
-        on the face's perpendicular bisector at the fused position's distance behind it.
-        """
-        cell = self.params.surface_cell
-        keys = [key for key, n in track.cells.items() if n >= 2]
-        if len(keys) < 8:
-            return None
-        pts = (np.array(keys, dtype=float) + 0.5) * cell
-        reach = 0.5 * max(inst.size[0], inst.size[1]) + 0.6
-        pts = pts[np.hypot(pts[:, 0] - fused[0], pts[:, 1] - fused[1]) <= reach]
-        if len(pts) < 8:
-            return None
-        (cx, cy), (w, h), angle = cv2.minAreaRect(pts.astype(np.float32))
-        long_side, short_side = max(w, h), min(w, h)
-        if short_side >= max(0.25, 0.3 * long_side):
-            centre = (float(cx), float(cy))
-        else:
-            a = math.radians(angle if w >= h else angle + 90.0)
-            normal = (-math.sin(a), math.cos(a))
-            t = (fused[0] - cx) * normal[0] + (fused[1] - cy) * normal[1]
-            centre = (float(cx + t * normal[0]), float(cy + t * normal[1]))
-        if math.hypot(centre[0] - fused[0], centre[1] - fused[1]) > 1.0:
-            return None  # the cells hold something else too: keep the fused position
-        return centre
+        """The centre of the footprint its surface cells outline (:func:`.footprint.outline_centre`)."""
+        extent = max(inst.size[0], inst.size[1])
+        return outline_centre(track.cells, fused, extent, self.params.surface_cell)
 
     def _merge_pair(self, keep: Instance, drop: Instance, stamp: float) -> str:
         """One object seen as two instances of its label: the less often seen joins the other; its id."""

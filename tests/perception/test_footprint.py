@@ -1,0 +1,48 @@
+"""Footprint helpers alone: size priors and the depth step at a box's sides."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from missiontree.perception.footprint import SIZE_PRIORS, plausible_size, stands_out
+from missiontree.perception.projection import Projection
+from missiontree.types import CameraIntrinsics, Detection, Pose2D, RGBDFrame
+
+K = CameraIntrinsics(width=320, height=240, fx=228.5, fy=228.5, cx=159.5, cy=119.5)
+
+
+def measured(label: str, width: float, height: float) -> Projection:
+    box = (100.0, 50.0, 150.0, 150.0)
+    return Projection(
+        label,
+        0.9,
+        box,
+        (2.0, 0.0, 0.5),
+        2.0,
+        2.0,
+        (width, width, height),
+        0.0,
+        Pose2D(0, 0, 0),
+        Detection(label, 0.9, box),
+    )
+
+
+def test_size_priors_turn_down_only_what_is_too_small_for_its_class() -> None:
+    thin_tv = [measured("tv", 0.12, 0.8)] * 5
+    assert not plausible_size("tv", thin_tv, 0.7)
+    assert plausible_size("tv", [measured("tv", 0.9, 0.6)] * 5, 0.7)
+    assert plausible_size("umbrella", [measured("umbrella", 0.1, 0.9)] * 5, 0.7)
+    assert plausible_size("spaceship", [measured("spaceship", 0.01, 0.01)], 0.7)  # not listed: not checked
+    assert plausible_size("tv", thin_tv, 0.0)  # off
+    assert all(w > 0 and h > 0 for w, h in SIZE_PRIORS.values())
+
+
+def test_a_box_stands_out_where_the_depth_steps_at_an_uncut_side() -> None:
+    depth = np.full((K.height, K.width), 4.0, np.float32)  # a flat wall 4 m away
+    colour = np.zeros((K.height, K.width, 3), np.uint8)
+    frame = RGBDFrame(0.0, colour, depth, K, Pose2D(0, 0, 0), 0.4)
+    box = (100.0, 60.0, 180.0, 180.0)
+    assert not stands_out(frame, box, 6, 0.15)  # the wall continues past both sides
+    depth[:, 100:181] = 2.5  # an object 1.5 m in front of the wall fills the box
+    assert stands_out(frame, box, 6, 0.15)
+    assert not stands_out(frame, (0.0, 60.0, 319.0, 180.0), 6, 0.15)  # both sides cut: no evidence
