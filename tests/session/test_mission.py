@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import io
 import json
 from pathlib import Path
@@ -184,6 +185,17 @@ def test_on_tick_sees_the_robot_between_ticks(tmp_path: Path) -> None:
                              out=tmp_path / "run", on_tick=lambda session: seen.append(session.robot.now()))
     result = run_mission(request)
     assert len(seen) == result.ticks and seen[:3] == pytest.approx([0.0, 0.1, 0.2])
+
+
+def test_what_the_session_opened_is_frozen_for_the_run_and_unfrozen_after(tmp_path: Path) -> None:
+    plugins, _ = _plugins_with_fake()
+    frozen: list[int] = []
+    request = MissionRequest(mission=_mission(tmp_path, backend="fake"), plugins=plugins,
+                             out=tmp_path / "run", on_tick=lambda _: frozen.append(gc.get_freeze_count()))
+    before = gc.get_freeze_count()
+    run_mission(request)
+    assert frozen and min(frozen) > before  # full collections skip the session's objects during the run
+    assert gc.get_freeze_count() == before  # and a batch worker's next mission starts unfrozen
 
 
 def test_a_missing_models_config_is_a_problem_before_any_robot_is_built(tmp_path: Path) -> None:
