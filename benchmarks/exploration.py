@@ -1,9 +1,11 @@
 """Exploring unknown worlds: ours against nearest-frontier (explore_lite's rule) and the report's scan points.
 
 Every run is the real mission through the session (loader, builder, runner, the Explore leaf) on the
-simulator in unknown-map mode: the robot starts knowing nothing, its map is the log-odds grid its own
-lidar builds, and its navigation plans on that map with unknown cells traversable. Three
-configurations of the same leaf run on the same worlds and seeds, alternating world by world:
+simulator in unknown-map mode, run by the batch runner (missiontree.evaluation) on a process pool:
+the robot starts knowing nothing, its map is the log-odds grid its own lidar builds, and its
+navigation plans on that map with unknown cells traversable. Three configurations of the same leaf
+run on the same worlds and seeds (one batch per configuration on the same pool; every score is on
+the robot clock, so the order the runs happen to finish in changes none of them):
 
 - ``ours`` -- ``strategy: gain``: frontiers scored by the unknown area they would reveal (ray cast
   over the map, walls blocking) against the length of the path to them;
@@ -46,15 +48,14 @@ JSON object with, per strategy, ``coverage_final``, ``time_to_90_s_median``, ``c
 from __future__ import annotations
 
 import argparse
-import io
+import dataclasses
+import functools
 import json
 import math
-import os
 import shutil
 import sys
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -218,71 +219,102 @@ def mission_text(params: dict[str, Any]) -> str:
         "root": {"Explore": {"name": "explore", **params}}}, sort_keys=False)
 
 
-def run_one(world_name: str, world: str, strategy: str, seed: int, max_duration: float,
-            keep_scans: int = 0) -> RunScore:
-    """Run one strategy on one world through the session; score it against the simulator's truth."""
-    from missiontree.plugins.manager import load_plugins
-    from missiontree.session import MissionRequest, Session
+class ExploreProbe:
+    """Scores one run inside its batch worker, between ticks, from the simulator's truth.
 
-    with tempfile.TemporaryDirectory() as tmp:
-        tree = Path(tmp) / f"explore_{strategy}.yaml"
-        tree.write_text(mission_text(STRATEGIES[strategy]))
-        trace: list[tuple[float, float]] = []
-        scans: list[tuple[float, list[float], float, float, float]] = []
-        state: dict[str, Any] = {"truth": None, "next": 0.0}
+    Coverage is sampled every SAMPLE_S seconds of robot time; scans with their poses are kept (up to
+    ``keep_scans``, on the worlds in ``keep_scans_worlds``) for the per-scan update cost. The leaf
+    never sees any of it.
+    """
 
-        def sample(session: Session) -> None:  # scoring between ticks: reads the truth, never the leaf's
-            robot = session.robot
-            if state["truth"] is None:
-                state["truth"] = Truth(robot.world)
-            now = robot.now()
-            if now >= state["next"]:
-                state["next"] = now + SAMPLE_S
-                learned = robot.occupancy()
-                if learned is not None:
-                    trace.append((now, state["truth"].coverage(learned)))
-            if len(scans) < keep_scans:
-                scan = robot.scan()
-                if scan is not None and (not scans or scan.stamp > scans[-1][0] + 0.45):
-                    pose = robot.pose_at(scan.stamp)
-                    if pose is not None:
-                        ranges = scan.ranges.astype(float).tolist()
-                        scans.append((scan.stamp, ranges, pose.x, pose.y, pose.yaw))
+    def __init__(self, keep_scans_worlds: frozenset[str] = frozenset(), keep_scans: int = 40) -> None:
+        self.keep_worlds = keep_scans_worlds
+        self.keep = keep_scans
+        self.truth: Truth | None = None
+        self.next = 0.0
+        self.trace: list[tuple[float, float]] = []
+        self.scans: list[tuple[float, list[float], float, float, float]] = []
 
-        request = MissionRequest(mission=tree, world=world, seed=seed, unknown_map=True, config=SIM_CONFIG,
-                                 max_duration=max_duration, quiet=True, plugins=load_plugins(autoload=False),
-                                 handle_signals=False, log_stream=io.StringIO(), on_tick=sample)
-        started = time.perf_counter()
-        with Session.open(request) as session:
-            result = session.run()
-            robot = session.robot
-            truth = state["truth"] or Truth(robot.world)
+    def on_tick(self, session: Any) -> None:
+        """Sample coverage when due; keep a scan about every 0.5 s while wanted."""
+        robot = session.robot
+        if self.truth is None:
+            self.truth = Truth(robot.world)
+        now = robot.now()
+        if now >= self.next:
+            self.next = now + SAMPLE_S
             learned = robot.occupancy()
-            now = robot.now()
-            trace.append((now, truth.coverage(learned)))
-            tolerant, strict, cells = truth.accuracy(learned)
-            traj = np.array([(x, y) for _, x, y in robot.trajectory])
-            path = float(np.hypot(*np.diff(traj, axis=0).T).sum()) if len(traj) > 1 else 0.0
-            stream = session.request.log_stream
-            assert isinstance(stream, io.StringIO)
-            events = [json.loads(line) for line in stream.getvalue().splitlines()]
-        wall = time.perf_counter() - started
-    reason = next((c.get("feedback", "") for e in reversed(events) if e.get("event") == "tick"
-                   for c in e.get("changed", []) if c.get("node") == "explore" and c.get("status") in
-                   ("SUCCESS", "FAILURE")), "")
-    times = np.array(trace)
+            if learned is not None:
+                self.trace.append((now, self.truth.coverage(learned)))
+        if session.request.world in self.keep_worlds and len(self.scans) < self.keep:
+            scan = robot.scan()
+            if scan is not None and (not self.scans or scan.stamp > self.scans[-1][0] + 0.45):
+                pose = robot.pose_at(scan.stamp)
+                if pose is not None:
+                    ranges = scan.ranges.astype(float).tolist()
+                    self.scans.append((scan.stamp, ranges, pose.x, pose.y, pose.yaw))
 
-    def reached(share: float) -> float | None:
-        hit = np.nonzero(times[:, 1] >= share)[0]
-        return float(times[hit[0], 0]) if len(hit) else None
+    def finish(self, session: Any, result: Any) -> dict[str, Any]:
+        """The run's score: RunScore's fields but the world, the strategy and the wall time."""
+        robot = session.robot
+        truth = self.truth or Truth(robot.world)
+        learned = robot.occupancy()
+        now = robot.now()
+        self.trace.append((now, truth.coverage(learned)))
+        tolerant, strict, cells = truth.accuracy(learned)
+        traj = np.array([(x, y) for _, x, y in robot.trajectory])
+        path = float(np.hypot(*np.diff(traj, axis=0).T).sum()) if len(traj) > 1 else 0.0
+        log = (session.run_dir / "ticks.jsonl").read_text(encoding="utf-8")
+        events = [json.loads(line) for line in log.splitlines() if line.strip()]
+        reason = next((c.get("feedback", "") for e in reversed(events) if e.get("event") == "tick"
+                       for c in e.get("changed", []) if c.get("node") == "explore" and c.get("status") in
+                       ("SUCCESS", "FAILURE")), "")
+        times = np.array(self.trace)
 
-    return RunScore(
-        world=world_name, strategy=strategy, status=result.status.name if result.stopped_by == "status" else
-        f"{result.status.name} ({result.stopped_by})", reason=reason, sim_s=now, wall_s=wall,
-        coverage_final=float(times[-1, 1]), time_to_90_s=reached(0.90), time_to_99_s=reached(0.99),
-        cell_accuracy=tolerant, cell_accuracy_strict=strict, cells_scored=cells, path_length_m=path,
-        reachable_m2=truth.area_m2, goals=sum(e.get("event") == "explore_goal" for e in events),
-        unreachable=sum(e.get("event") == "explore_blacklist" for e in events), scans=scans)
+        def reached(share: float) -> float | None:
+            hit = np.nonzero(times[:, 1] >= share)[0]
+            return float(times[hit[0], 0]) if len(hit) else None
+
+        return {
+            "status": result.status.name if result.stopped_by == "status" else
+            f"{result.status.name} ({result.stopped_by})", "reason": reason, "sim_s": now,
+            "coverage_final": float(times[-1, 1]), "time_to_90_s": reached(0.90),
+            "time_to_99_s": reached(0.99), "cell_accuracy": tolerant, "cell_accuracy_strict": strict,
+            "cells_scored": cells, "path_length_m": path, "reachable_m2": truth.area_m2,
+            "goals": sum(e.get("event") == "explore_goal" for e in events),
+            "unreachable": sum(e.get("event") == "explore_blacklist" for e in events), "scans": self.scans}
+
+
+def run_strategies(worlds: list[tuple[str, str]], max_duration: float, jobs: int,
+                   tmp: Path) -> list[RunScore]:
+    """Every strategy on every world through the batch runner: one batch per strategy, one process pool.
+
+    A run that raised (status ERROR) or whose process died twice (INFRA) is reported and left out.
+    """
+    from missiontree.evaluation import BatchPlan, PoolEngine, RunSpec, run_batch
+
+    keep = functools.partial(ExploreProbe, frozenset(world for _, world in worlds[:3]))
+    names = {world: name for name, world in worlds}
+    fields = {f.name for f in dataclasses.fields(RunScore)} - {"world", "strategy", "wall_s"}
+    runs: list[RunScore] = []
+    with PoolEngine(jobs) as engine:
+        for strategy in STRATEGIES:
+            tree = tmp / f"explore_{strategy}.yaml"
+            tree.write_text(mission_text(STRATEGIES[strategy]), encoding="utf-8")
+            specs = [RunSpec(world=world, seed=1, run_seed=1) for _, world in worlds]
+            request = {"unknown_map": True, "config": SIM_CONFIG, "max_duration": max_duration}
+            plan = BatchPlan(mission=tree, runs=specs, request=request)
+            probe = keep if strategy == "ours" else ExploreProbe
+            for record in run_batch(plan, engine, tmp / f"batch_{strategy}", probe=probe, write_log=True):
+                name = names[str(record.world)]
+                if record.status in ("ERROR", "INFRA"):  # one broken run must not lose the others
+                    print(f"  {name:22s} {strategy:16s} {record.status} {record.reason}", flush=True)
+                    continue
+                score = RunScore(world=name, strategy=strategy, wall_s=record.wall_time_s,
+                                 **{k: v for k, v in record.figures.items() if k in fields})
+                score.scans = [tuple(s) for s in score.scans]  # type: ignore[misc]
+                runs.append(score)
+    return runs
 
 
 # -- per-scan update cost ---------------------------------------------------------------------------
@@ -402,33 +434,22 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         worlds = [] if args.no_maps else map_world_files(Path(tmp), limit=1 if args.quick else None)
         worlds += generated_world_files(Path(tmp), range(args.first_seed, args.first_seed + n_worlds))
+        print(f"exploration: {len(worlds)} worlds x {len(STRATEGIES)} strategies, max "
+              f"{args.max_duration:g} s each, {args.jobs} processes (the batch runner)", file=sys.stderr)
+        runs = run_strategies(worlds, args.max_duration, max(1, args.jobs), Path(tmp))
         order = list(STRATEGIES)
-        jobs = []
-        for i, (name, world) in enumerate(worlds):
-            rotated = order[i % len(order):] + order[:i % len(order)]  # alternate who goes first
-            for strategy in rotated:
-                keep = 40 if (strategy == "ours" and i < 3) else 0
-                jobs.append((name, world, strategy, 1, args.max_duration, keep))
-        print(f"exploration: {len(worlds)} worlds x {len(order)} strategies, max {args.max_duration:g} s "
-              f"each, {args.jobs} processes", file=sys.stderr)
-        os.environ.setdefault("OMP_NUM_THREADS", "1")
-        runs: list[RunScore] = []
-        with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            futures = [pool.submit(run_one, *job) for job in jobs]
-            for job, future in zip(jobs, futures, strict=True):
-                try:
-                    r = future.result()
-                except Exception as exc:  # noqa: BLE001 - one broken run must not lose the others
-                    print(f"  {job[0]:22s} {job[2]:16s} ERROR {type(exc).__name__}: {exc}", flush=True)
-                    continue
-                runs.append(r)
-                t90 = "-" if r.time_to_90_s is None else f"{r.time_to_90_s:.0f}"
-                t99 = "-" if r.time_to_99_s is None else f"{r.time_to_99_s:.0f}"
-                print(f"  {r.world:22s} {r.strategy:16s} {r.status:18s} cov {r.coverage_final:.3f} "
-                      f"t90 {t90:>4s} t99 {t99:>4s} acc {r.cell_accuracy:.4f} "
-                      f"({r.cell_accuracy_strict:.4f} strict) "
-                      f"path {r.path_length_m:5.1f} m  {r.sim_s:5.0f} s sim {r.wall_s:5.1f} s wall  "
-                      f"goals {r.goals} unreachable {r.unreachable}  {r.reason[:70]}", flush=True)
+        by_world = {name: i for i, (name, _) in enumerate(worlds)}
+        # the order the runs were listed in before the batch runner: strategies rotated world by world
+        runs.sort(key=lambda r: (by_world[r.world],
+                                 (order.index(r.strategy) - by_world[r.world]) % len(order)))
+        for r in runs:
+            t90 = "-" if r.time_to_90_s is None else f"{r.time_to_90_s:.0f}"
+            t99 = "-" if r.time_to_99_s is None else f"{r.time_to_99_s:.0f}"
+            print(f"  {r.world:22s} {r.strategy:16s} {r.status:18s} cov {r.coverage_final:.3f} "
+                  f"t90 {t90:>4s} t99 {t99:>4s} acc {r.cell_accuracy:.4f} "
+                  f"({r.cell_accuracy_strict:.4f} strict) "
+                  f"path {r.path_length_m:5.1f} m  {r.sim_s:5.0f} s sim {r.wall_s:5.1f} s wall  "
+                  f"goals {r.goals} unreachable {r.unreachable}  {r.reason[:70]}", flush=True)
     cost = update_cost([s for r in runs for s in r.scans])
     summary = summarise(runs)
     print("\nper strategy (medians over worlds; times on the robot clock):")
