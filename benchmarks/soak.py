@@ -22,7 +22,10 @@ On glibc the heap's in-use and free MiB (``mallinfo2``) are sampled with the RSS
 over time: growth in the free part is fragmentation, growth in the in-use part is memory kept
 (the runner pins glibc's mmap threshold against the former: ``missiontree.engine.native_memory``).
 ``heap_inuse_growth_mib`` and ``heap_free_growth_mib`` are their changes over the same span as
-``rss_growth_mib``.
+``rss_growth_mib``. A single sample carries what is in flight at that instant (the simulator keeps
+10 s of instance masks for the oracle detector, 80-110 masks of 300 KB as the camera's rate varies,
+and model calls hold their frames): ``rss_floor_growth_mib`` is the retained part, the lowest RSS
+of the last 10 simulated minutes minus the lowest of minutes 10-20 (RSS read every 5 ticks).
 
 The warnings the run prints (one per rejected model answer) go to ``<out>.warnings.log``.
 
@@ -153,6 +156,8 @@ def soak(hours: float, out: Path) -> dict[str, Any]:
     samples: list[tuple[float, float, int, float]] = []  # (robot s, RSS MiB, log bytes, wall s)
     heap: list[tuple[float, float]] = []  # (in use, free) MiB at each sample
     state = {"n": 0, "last": 0.0, "next_sample": 0.0, "wall0": time.perf_counter()}
+    floor: list[float] = []  # the lowest RSS read (every 5 ticks) since the previous sample, MiB
+    window = {"low": float("inf")}
 
     with Session.open(request) as session:
         runner = session.runner
@@ -170,11 +175,15 @@ def soak(hours: float, out: Path) -> dict[str, Any]:
             state["last"] = start
             state["n"] = n + 1
             now = runner.robot.now()
+            if n % 5 == 0:
+                window["low"] = min(window["low"], rss_mib())
             if now >= state["next_sample"]:
                 state["next_sample"] += SAMPLE_S
                 size = log_path.stat().st_size if log_path.exists() else 0
                 samples.append((now, rss_mib(), size, time.perf_counter() - state["wall0"]))
                 heap.append(heap_mib())
+                floor.append(min(window["low"], samples[-1][1]))
+                window["low"] = float("inf")
                 if len(samples) % 10 == 1:
                     print(f"  t={now / 60:6.1f} min  rss={samples[-1][1]:7.1f} MiB  "
                           f"log={size / 1e6:6.2f} MB  wall={samples[-1][3]:6.0f} s", flush=True)
@@ -190,6 +199,9 @@ def soak(hours: float, out: Path) -> dict[str, Any]:
     base = after[0][1] if after else samples[0][1]
     base_heap = heap[samples.index(after[0])] if after else heap[0]
     rss_end = samples[-1][1]
+    early = [f for s, f in zip(samples, floor, strict=True) if BASELINE_S <= s[0] < BASELINE_S + 600.0]
+    late = [f for s, f in zip(samples, floor, strict=True) if s[0] > samples[-1][0] - 600.0]
+    floor_growth = min(late) - min(early) if early and late else float("nan")
     rss_after = rss_mib()
     structlog.reset_defaults()
     warnings.close()
@@ -206,6 +218,8 @@ def soak(hours: float, out: Path) -> dict[str, Any]:
     print(f"events: {json.dumps(result.summary.get('events', {}), sort_keys=True)}; vlm calls {vlm_calls}")
     print("RSS over time (simulated min: MiB): "
           + ", ".join(f"{s[0] / 60:.0f}: {s[1]:.1f}" for s in samples[::10]))
+    print("RSS floor over time (simulated min: lowest MiB of the minute before): "
+          + ", ".join(f"{s[0] / 60:.0f}: {f:.1f}" for s, f in list(zip(samples, floor, strict=True))[::10]))
     paired = list(zip(samples, heap, strict=True))[::10]
     print("heap in use / free over time (simulated min: MiB): "
           + ", ".join(f"{s[0] / 60:.0f}: {h[0]:.1f}/{h[1]:.1f}" for s, h in paired))
@@ -219,6 +233,7 @@ def soak(hours: float, out: Path) -> dict[str, Any]:
         "rss_baseline_mib": round(base, 2), "rss_end_mib": round(rss_end, 2),
         "rss_after_run_mib": round(rss_after, 2),
         "rss_growth_mib": round(rss_end - base, 2),
+        "rss_floor_growth_mib": round(floor_growth, 2),
         "heap_inuse_growth_mib": round(heap[-1][0] - base_heap[0], 2),
         "heap_free_growth_mib": round(heap[-1][1] - base_heap[1], 2),
         "rss_growth_max_mib": round(max(s[1] for s in after) - base, 2) if after else 0.0,
