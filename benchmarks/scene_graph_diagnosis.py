@@ -31,6 +31,8 @@ from missiontree.semantics.semantic_map import Change
 
 #: Pixels an object must show in a frame to count as shown.
 SHOWN_PIXELS = 100
+#: Print every occluded verdict (debugging one world).
+DETAIL = bool(__import__("os").environ.get("SCENE_DIAG_DETAIL"))
 #: Border, pixels, within which a box counts as cut by the image's edge.
 EDGE = 2.0
 
@@ -77,6 +79,8 @@ class Diagnosis:
         def place_seen(frame: Any, inst: Any, u: float, v: float, forward: float) -> str:
             verdict = judged(frame, inst, u, v, forward)
             self.verdicts[inst.id][verdict] += 1
+            if verdict == "occluded" and DETAIL:
+                print(f"  occluded {inst.id} fwd {forward:.2f} u {u:.0f} v {v:.0f} cam {frame.camera_pose}")
             return verdict
 
         fusion.expected_view = expected_view
