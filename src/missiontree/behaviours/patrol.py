@@ -145,7 +145,7 @@ class Patrol(Leaf):
         if self.handle is not None:
             handle, self.handle = self.handle, None
             waypoint = self.route[self.index]
-            if new_status is Status.INVALID and handle.status() is ActionStatus.SUCCEEDED:
+            if new_status is Status.INVALID and _succeeded(handle):
                 self._reached(waypoint)
                 self._next()
             else:
@@ -231,6 +231,14 @@ class Patrol(Leaf):
     def _progress(self, waypoint: Waypoint) -> str:
         laps = f"{self.lap + 1}/{self.params.laps}" if self.params.laps else f"{self.lap + 1}"
         return f"lap {laps}, to {waypoint.name} ({waypoint.pose.x:.2f}, {waypoint.pose.y:.2f})"
+
+
+def _succeeded(handle: ActionHandle) -> bool:
+    """Whether the goal has succeeded; a status that cannot be read (a backend closing) is not success."""
+    try:
+        return handle.status() is ActionStatus.SUCCEEDED
+    except Exception:  # noqa: BLE001 - a halt must go on whatever the backend does
+        return False
 
 
 def _infrastructure(result: ActionResult | None) -> bool:
