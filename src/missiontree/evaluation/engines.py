@@ -32,10 +32,12 @@ difference; the local cluster changes them (:data:`LOCAL_CLUSTER_CONFIG`, applie
   (``distributed.nanny.pre-spawn-environ``). Setting any of glibc's malloc thresholds also freezes
   its mmap threshold at 128 KiB, so every larger array (scan rasters, grids, camera frames) is
   mapped and unmapped at each allocation and its pages fault in again (measured in one process
-  with and without the variable: 7.8 k against 1.7 k page faults a mission, 9 % more CPU in the
-  mission's own thread; a 1.6 MB array allocated 2,000 times: 1,000 times the page faults, 13
-  times the CPU). The local cluster drops the
-  variable (``None``), which also stops the nanny leaking it into this process's environment.
+  with and without the variable, before the runner pinned the threshold: 7.8 k against 1.7 k page
+  faults a mission, 9 % more CPU in the mission's own thread). Since the runner pins that
+  threshold itself in every engine (:mod:`missiontree.engine.native_memory`, for steady memory on
+  long runs), the variable no longer changes a mission's cost; the local cluster still drops it
+  (``None``), so a Dask worker's allocator is the pool's, and the nanny no longer leaks it into
+  this process's environment (where every process spawned later would inherit it).
 - The worker's statistical profiler samples the running task's stack every 10 ms
   (``distributed.worker.profile.enabled``), the event-loop health check wakes every 20 ms
   (``distributed.admin.tick.interval``) and the system monitor reads the process's and host's
