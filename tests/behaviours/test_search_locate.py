@@ -55,9 +55,11 @@ class MapRobot(FakeRobot):
         return handle
 
 
-def explore(robot: MapRobot, on_tick: object = None, **params: object) -> tuple[ResumeExplore, Events]:
+def explore(
+    robot: MapRobot, on_tick: object = None, leaf: ResumeExplore | None = None, **params: object
+) -> tuple[ResumeExplore, Events]:
     events = Events()
-    leaf = ResumeExplore("explore", ResumeExplore.Params(**params))
+    leaf = leaf or ResumeExplore("explore", ResumeExplore.Params(**params))
     leaf.setup(context=MissionContext(robot=robot, events=events))
     for _ in range(600):
         leaf.tick_once()
@@ -90,10 +92,12 @@ def test_a_goal_given_up_is_offered_once_more_when_the_map_around_it_grew() -> N
 
     def tick() -> None:
         close_east(robot)
-        if any(g.goal.x < 2.0 for g in robot.goals):
+        if leaf.given_up:  # seen past the west end after it was given up
             grow_west(robot)
 
-    leaf, events = explore(robot, tick, retry_growth=0.5)
+    robot.set_pose(Pose2D(2.3, 0.8, 0.0))  # nearer the west end: tried (and given up) first
+    leaf = ResumeExplore("explore", ResumeExplore.Params(retry_growth=0.5))
+    leaf, events = explore(robot, tick, leaf=leaf)
     assert leaf.status == Status.SUCCESS, leaf.feedback_message
     assert len(events.of("explore_retry")) == 1
     west = [g for g in robot.goals if g.goal.x < 2.0]

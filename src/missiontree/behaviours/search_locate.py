@@ -56,7 +56,7 @@ from missiontree.types import OccupancyGrid, Pose2D
 #: Known area (m^2) counted around a goal given up, to tell whether the map there has grown since.
 AROUND_M = 1.5
 #: A retried goal's new place must lie this far (m) from the one given up, when the map did not grow.
-MOVED_M = 0.3
+MOVED_M = 0.1
 #: How far (m) a frontier goal too near an obstacle may be moved to give the robot room.
 NUDGE_M = 0.6
 #: An instance whose colour the semantic map's majority vote settled over this many frames is not
@@ -144,8 +144,8 @@ class ResumeExplore(Explore):
     report's MOVING_TO_SCAN: one scan point at a time). With ``exhausted_fails`` it ends FAILURE
     "not found" once nothing is left to explore, at once on every later entry. With ``retry_grown``,
     when nothing else is left, a goal given up is offered once more if the known map within
-    1.5 m of it grew by ``retry_growth`` m^2 since, or the map now puts its frontier's goal
-    elsewhere (0.3 m or more away): a doorway judged blocked on a half-learned map often is not.
+    1.5 m of it grew by ``retry_growth`` m^2 since, or the map now puts its frontier's goal where
+    the robot has more room than where it failed: a doorway's goal beside a jamb seen late.
     """
 
     class Params(Explore.Params):
@@ -159,7 +159,10 @@ class ResumeExplore(Explore):
             "around it grew or now places its goal elsewhere.",
         )
         retry_growth: float = Field(
-            1.0, ge=0, description="Growth of the known area within 1.5 m of a goal given up (m^2)."
+            2.5,
+            ge=0,
+            description="Growth of the known area within 1.5 m of a goal given up (m^2; a third of "
+            "that disc) that offers it once more.",
         )
         second_chances: int = Field(
             0,
@@ -299,9 +302,8 @@ class ResumeExplore(Explore):
                     continue
                 shift = math.dist((c.x, c.y), (b.x, b.y))
                 now = clearance_at(grid, clear, c.x, c.y)
-                # the map now places its goal elsewhere, or where the robot has more room
-                roomier = now >= room and now > before + 0.01 and shift >= 0.1
-                if shift >= MOVED_M or roomier:
+                # the map now places its goal where the robot has more room than where it failed
+                if now >= room and now > before + 0.01 and shift >= MOVED_M:
                     moved.append(g)
                     break
         return grown + moved
