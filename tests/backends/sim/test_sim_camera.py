@@ -135,3 +135,14 @@ def test_frame_carries_the_estimated_camera_pose(write_world):
     frame = robot.rgbd()
     assert frame.camera_pose.x == pytest.approx(CAM_X) and frame.camera_pose.y == pytest.approx(1.5)
     assert frame.camera_height == pytest.approx(CAM_H)
+
+
+def test_kept_masks_are_uint16_and_name_the_same_instances(write_world):
+    """The truth keeps each frame's mask in half the memory (uint16), with the camera's instance ids."""
+    robot = create_robot({"world": write_world(ROOM)})
+    frame = robot.rgbd()
+    mask = robot.truth.instance_mask(frame.stamp)
+    assert mask.dtype == np.uint16
+    assert mask.shape == frame.depth.shape
+    assert set(np.unique(mask).tolist()) <= set(robot.truth.instances) | {0}
+    assert (mask == 1).any()  # the wall ahead

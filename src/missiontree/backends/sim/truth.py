@@ -98,6 +98,9 @@ class GroundTruth:
         self._flush = flush  # publishes a camera frame still being rendered
         self._poses: StampedHistory[Pose2D] = StampedHistory(horizon=max(horizon, 60.0), maxlen=100_000)
         self._masks: StampedHistory[np.ndarray] = StampedHistory(horizon=horizon, maxlen=1000)
+        # The kept masks are the simulator's largest buffer on long runs (a horizon of frames): with
+        # fewer than 65,536 instance ids they are kept as uint16, half the memory of the camera's int32.
+        self._mask_dtype = np.uint16 if max(world.instances, default=0) <= np.iinfo(np.uint16).max else None
         self._visibility = VisibilityLog(world.instances)
 
     # -- recording (called by the simulator) -------------------------------------------------------
@@ -108,6 +111,8 @@ class GroundTruth:
 
     def record_frame(self, stamp: float, instances: np.ndarray, counts: np.ndarray | None = None) -> None:
         """Remember a frame's instance mask and who it shows (``counts``: pixels per instance id)."""
+        if self._mask_dtype is not None and instances.dtype != self._mask_dtype:
+            instances = instances.astype(self._mask_dtype)
         self._masks.push(stamp, instances)
         if counts is None:
             counts = np.bincount(instances.ravel(), minlength=len(self.world.instances))
