@@ -96,19 +96,44 @@ def box_depth(
     Returns:
         A :class:`DepthReading`; ``depth`` is ``nan`` when the region held no valid depth.
     """
+    values, columns = _target_pixels(frame, box, fraction, 1, max_depth, cluster_gap, min_share,
+                                     floor_clearance, mask)
+    if values.size == 0:
+        return DepthReading(float("nan"), 0)
+    return DepthReading(float(np.median(values)), int(values.size), float(np.median(columns)))
+
+
+def _target_pixels(
+    frame: RGBDFrame,
+    box: tuple[float, float, float, float],
+    fraction: float,
+    stride: int,
+    max_depth: float,
+    cluster_gap: float,
+    min_share: float,
+    floor_clearance: float,
+    mask: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Depths and image columns of the pixels a box shows its target with (see :func:`box_depth`).
+
+    Every ``stride``-th pixel of the box's centre region; floor pixels dropped; of the rest, sorted
+    by depth, the nearest cluster holding at least ``min_share`` of them. Both arrays are empty
+    when the region holds no valid depth.
+    """
     depth = np.asarray(frame.depth)
     h, w = depth.shape[:2]
     x1, y1, x2, y2 = centre_region(box, w, h, fraction)
-    patch = depth[y1:y2, x1:x2].astype(float)
-    rows, cols = np.mgrid[y1:y2, x1:x2]
+    step = max(1, int(stride))
+    patch = depth[y1:y2:step, x1:x2:step].astype(float)
+    rows, cols = np.mgrid[y1:y2:step, x1:x2:step]
     k = frame.intrinsics
     height = frame.camera_height - (rows - k.cy) * patch / k.fy
     keep = np.isfinite(patch) & (patch > 0.0) & (patch <= max_depth) & (height > floor_clearance)
     if mask is not None:
-        keep &= np.asarray(mask)[y1:y2, x1:x2].astype(bool)
-    values, columns = patch[keep], cols[keep]
+        keep &= np.asarray(mask)[y1:y2:step, x1:x2:step].astype(bool)
+    values, columns = patch[keep], cols[keep].astype(float)
     if values.size == 0:
-        return DepthReading(float("nan"), 0)
+        return values, columns
     order = np.argsort(values, kind="stable")
     values, columns = values[order], columns[order]
     breaks = np.flatnonzero(np.diff(values) > cluster_gap)
@@ -120,7 +145,7 @@ def box_depth(
         if b - a >= need:
             lo, hi = a, b
             break
-    return DepthReading(float(np.median(values[lo:hi])), int(hi - lo), float(np.median(columns[lo:hi])))
+    return values[lo:hi], columns[lo:hi]
 
 
 def surface_points(
@@ -144,30 +169,10 @@ def surface_points(
     Returns:
         An (N, 2) float array, empty when the box holds no usable depth.
     """
-    depth = np.asarray(frame.depth)
-    h, w = depth.shape[:2]
-    x1, y1, x2, y2 = centre_region(box, w, h, fraction)
-    step = max(1, int(stride))
-    patch = depth[y1:y2:step, x1:x2:step].astype(float)
-    rows, cols = np.mgrid[y1:y2:step, x1:x2:step]
-    k = frame.intrinsics
-    height = frame.camera_height - (rows - k.cy) * patch / k.fy
-    keep = np.isfinite(patch) & (patch > 0.0) & (patch <= max_depth) & (height > floor_clearance)
-    values, columns = patch[keep], cols[keep].astype(float)
-    if values.size == 0:
+    z, u = _target_pixels(frame, box, fraction, stride, max_depth, cluster_gap, min_share, floor_clearance)
+    if z.size == 0:
         return np.empty((0, 2))
-    order = np.argsort(values, kind="stable")
-    values, columns = values[order], columns[order]
-    breaks = np.flatnonzero(np.diff(values) > cluster_gap)
-    starts = np.concatenate(([0], breaks + 1))
-    ends = np.concatenate((breaks + 1, [values.size]))
-    need = max(1, int(min_share * values.size))
-    lo, hi = 0, values.size
-    for a, b in zip(starts, ends, strict=True):
-        if b - a >= need:
-            lo, hi = a, b
-            break
-    z, u = values[lo:hi], columns[lo:hi]
+    k = frame.intrinsics
     lateral = (k.cx - u) * z / k.fx
     pose = frame.camera_pose
     c, s = math.cos(pose.yaw), math.sin(pose.yaw)
