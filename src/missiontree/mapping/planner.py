@@ -86,6 +86,54 @@ class Path:
     expanded: int
 
 
+def _sift_down_py(heap_k, heap_v, size):  # noqa: ANN001, ANN202
+    """Sift the root of the min-heap (keys ``heap_k``, values ``heap_v``, ``size`` entries) down."""
+    i = 0
+    while True:
+        left = 2 * i + 1
+        if left >= size:
+            return
+        child = left
+        if left + 1 < size and heap_k[left + 1] < heap_k[left]:
+            child = left + 1
+        if not heap_k[child] < heap_k[i]:
+            return
+        tk = heap_k[i]
+        heap_k[i] = heap_k[child]
+        heap_k[child] = tk
+        tv = heap_v[i]
+        heap_v[i] = heap_v[child]
+        heap_v[child] = tv
+        i = child
+
+
+def _push_py(heap_k, heap_v, size, key, value):  # noqa: ANN001, ANN202
+    """Add ``key``/``value`` as entry ``size`` of the min-heap and sift it up (room must exist)."""
+    j = size
+    heap_k[j] = key
+    heap_v[j] = value
+    while j > 0:
+        up = (j - 1) // 2
+        if not heap_k[up] > heap_k[j]:
+            return
+        tk = heap_k[up]
+        heap_k[up] = heap_k[j]
+        heap_k[j] = tk
+        tv = heap_v[up]
+        heap_v[up] = heap_v[j]
+        heap_v[j] = tv
+        j = up
+
+
+# The kernels below call the heap steps by these names: compiled (inlined into each kernel) with
+# numba, plain Python without it.
+if HAVE_NUMBA:
+    _sift_down = numba.njit(cache=True, nogil=True, inline="always")(_sift_down_py)
+    _push = numba.njit(cache=True, nogil=True, inline="always")(_push_py)
+else:  # pragma: no cover - exercised where numba is absent
+    _sift_down, _push = _sift_down_py, _push_py
+
+
 def _search_loops(cost_slot, cost_pool, g_slot, g_pool, l_pool, par_pool, heap_k, heap_v,  # noqa: ANN001, ANN201, PLR0912, PLR0913, PLR0915
                   state, h, w, ntc, sr, sc, escape2, goals, weight, heuristic, hweight, coarse, cfar):
     """Resumable A* (``heuristic``) or Dijkstra to every cell in sorted ``goals`` (flat indices).
@@ -122,24 +170,7 @@ def _search_loops(cost_slot, cost_pool, g_slot, g_pool, l_pool, par_pool, heap_k
         state[_S_HEAP] = size
         heap_k[0] = heap_k[size]
         heap_v[0] = heap_v[size]
-        i = 0
-        while True:
-            left = 2 * i + 1
-            if left >= size:
-                break
-            child = left
-            if left + 1 < size and heap_k[left + 1] < heap_k[left]:
-                child = left + 1
-            if heap_k[child] < heap_k[i]:
-                tk = heap_k[i]
-                heap_k[i] = heap_k[child]
-                heap_k[child] = tk
-                tv = heap_v[i]
-                heap_v[i] = heap_v[child]
-                heap_v[child] = tv
-                i = child
-            else:
-                break
+        _sift_down(heap_k, heap_v, size)
         if closed:
             continue
         par_pool[slot, off] += _CLOSED
@@ -204,22 +235,8 @@ def _search_loops(cost_slot, cost_pool, g_slot, g_pool, l_pool, par_pool, heap_k
                     if hc > est:
                         est = hc
                     f = ng + est * hweight
-                j = state[_S_HEAP]
-                heap_k[j] = f
-                heap_v[j] = nr * w + nc
-                state[_S_HEAP] = j + 1
-                while j > 0:
-                    up = (j - 1) // 2
-                    if heap_k[up] > heap_k[j]:
-                        tk = heap_k[up]
-                        heap_k[up] = heap_k[j]
-                        heap_k[j] = tk
-                        tv = heap_v[up]
-                        heap_v[up] = heap_v[j]
-                        heap_v[j] = tv
-                        j = up
-                    else:
-                        break
+                _push(heap_k, heap_v, state[_S_HEAP], f, nr * w + nc)
+                state[_S_HEAP] += 1
     return _NONE
 
 
@@ -243,24 +260,7 @@ def _coarse_loops(blocked, goal, start, dist, heap_k, heap_v):  # noqa: ANN001, 
         size -= 1
         heap_k[0] = heap_k[size]
         heap_v[0] = heap_v[size]
-        i = 0
-        while True:
-            left = 2 * i + 1
-            if left >= size:
-                break
-            child = left
-            if left + 1 < size and heap_k[left + 1] < heap_k[left]:
-                child = left + 1
-            if heap_k[child] < heap_k[i]:
-                tk = heap_k[i]
-                heap_k[i] = heap_k[child]
-                heap_k[child] = tk
-                tv = heap_v[i]
-                heap_v[i] = heap_v[child]
-                heap_v[child] = tv
-                i = child
-            else:
-                break
+        _sift_down(heap_k, heap_v, size)
         r = cur // w
         c = cur % w
         if dist[r, c] != np.inf:
@@ -280,22 +280,8 @@ def _coarse_loops(blocked, goal, start, dist, heap_k, heap_v):  # noqa: ANN001, 
             tent[nxt] = nk
             if size >= heap_k.shape[0]:
                 return np.inf  # out of room: fall back to the octile distance
-            j = size
-            heap_k[j] = nk
-            heap_v[j] = nxt
+            _push(heap_k, heap_v, size, nk, nxt)
             size += 1
-            while j > 0:
-                up = (j - 1) // 2
-                if heap_k[up] > heap_k[j]:
-                    tk = heap_k[up]
-                    heap_k[up] = heap_k[j]
-                    heap_k[j] = tk
-                    tv = heap_v[up]
-                    heap_v[up] = heap_v[j]
-                    heap_v[j] = tv
-                    j = up
-                else:
-                    break
     return np.inf
 
 
