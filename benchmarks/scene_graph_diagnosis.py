@@ -68,7 +68,8 @@ class Diagnosis:
         semantic_map.subscribe(self.changes.append)
         if fusion is None:
             return
-        expected, judged = fusion.expected_view, fusion._place_seen
+        judge = fusion.absence  # the fusion's misses and moves (perception/absence.py)
+        expected, judged = judge.expected_view, judge.place_seen
 
         def expected_view(frame: Any, inst: Any) -> Any:
             view = expected(frame, inst)
@@ -83,8 +84,8 @@ class Diagnosis:
                 print(f"  occluded {inst.id} fwd {forward:.2f} u {u:.0f} v {v:.0f} cam {frame.camera_pose}")
             return verdict
 
-        fusion.expected_view = expected_view
-        fusion._place_seen = place_seen
+        judge.expected_view = expected_view
+        judge.place_seen = place_seen
 
     def new_phase(self) -> None:
         """Count the judgements of unseen places afresh (the dynamic phase's pass)."""

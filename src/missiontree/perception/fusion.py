@@ -14,17 +14,9 @@
    not say the crop shows something else (a turned-down candidate starts its voting again);
    boxes cut by the image's side border count as observations but place nothing while uncut views
    exist (their centre is not the object's);
-4. judges every instance the frame *should* show — in the camera's field of view (away from the
-   image edges by ``edge_margin``), within ``max_range``, large enough on the image
-   (``min_pixels``), with depth showing nothing in front of it — and, when no detection of its label
-   covers it, counts a miss: it becomes ``doubtful``, loses confidence, and after ``miss_frames``
-   such frames it is removed. Where the depth reaches clearly past its place (or meets the floor
-   beyond its near side), its place is *seen empty*; where depth shows something at its place that
-   the detector never names, it is removed after ``present_miss_frames`` such frames.
-5. An object of the same label and colour confirmed elsewhere while its old place is seen empty is
-   the old object moved: the instance is moved (one ``moved`` change), not duplicated. When the new
-   place is seen first and the old place emptied later, the old instance takes the new one's place
-   when it would be removed (``moved`` for the old id, ``removed`` for the short-lived twin).
+4. judges, through its :class:`~missiontree.perception.absence.AbsenceJudge` (``absence``), every
+   instance the frame should show and did not: misses, removals, and moves of an object of the same
+   label and colour confirmed elsewhere while its old place is seen empty.
 
 Every decision changes the :class:`~missiontree.semantics.semantic_map.SemanticMap`, which records
 the changes. Nothing here reads ground truth.
@@ -39,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from missiontree.perception.absence import AbsenceJudge
 from missiontree.perception.colour import dominant_colour
 from missiontree.perception.footprint import outline_centre, plausible_size, stands_out, surface_cells
 from missiontree.perception.projection import Projection, to_camera
@@ -191,6 +184,8 @@ class InstanceFusion:
         self.last_stamp = -math.inf
         #: Instance id → the detection that showed it in the latest frame (for crops to describe).
         self.observed: dict[str, Detection] = {}
+        #: Misses, removals and moves of its instances (:mod:`missiontree.perception.absence`).
+        self.absence = AbsenceJudge(self)
 
     @property
     def dropped(self) -> dict[str, int]:
@@ -254,7 +249,7 @@ class InstanceFusion:
                 self.observed[new.id] = p.detection
         boxes = detections if detections is not None else [p.detection for p in projections]
         floor_score = self.params.filters.min_confidence * 0.7
-        self._judge_unseen(frame, seen, [d for d in boxes if d.score >= floor_score])
+        self.absence.judge_unseen(frame, seen, [d for d in boxes if d.score >= floor_score])
         if self.frames % 5 == 0:
             self.merge_overlapping(stamp)
         live = {id(c) for c in self.voting.candidates}
@@ -421,16 +416,20 @@ class InstanceFusion:
         return keep.id
 
     def unchecked_since(self, stamp: float) -> list[Instance]:
-        """Instances doubtful now, or that no frame since ``stamp`` has shown or shown empty (views occluded).
+        """Instances to look at again since ``stamp`` (:meth:`.AbsenceJudge.unchecked_since`)."""
+        return self.absence.unchecked_since(stamp)
 
-        What the robot should go and look at (again, from another side) to keep its map true.
-        """
-        return [
-            inst
-            for inst in self.map
-            if inst.first_seen < stamp
-            and (inst.doubtful or self.tracks.get(inst.id, _Track()).checked < stamp)
-        ]
+    def track(self, instance_id: str) -> _Track:
+        """What the fusion remembers of an instance besides the instance (made on first use)."""
+        return self.tracks.setdefault(instance_id, _Track())
+
+    def new_track(self) -> _Track:
+        """An empty track (for an instance that takes another's place)."""
+        return _Track()
+
+    def candidate_colour(self, cand: Candidate) -> str:
+        """The colour most of a candidate's boxes showed so far (``unknown`` without votes)."""
+        return _majority(self._candidate_colours.get(id(cand), Counter()), "unknown")
 
     def _clipped(self, p: Projection) -> bool:
         """Whether the box is cut by the image's left or right border."""
@@ -460,7 +459,7 @@ class InstanceFusion:
         sizes = np.array([q.size for q in cand.projections])
         size = tuple(float(v) for v in (np.median(sizes, axis=0) if len(sizes) else (0.0, 0.0, 0.0)))
         score = float(np.mean([q.score for q in cand.projections])) if cand.projections else 0.7
-        twin = self._seen_empty_twin(cand.label, colour, stamp)
+        twin = self.absence.seen_empty_twin(cand.label, colour, stamp)
         if twin is not None:
             self.map.move(
                 twin.id,
@@ -499,133 +498,6 @@ class InstanceFusion:
             checked=stamp,
         )
         return inst
-
-    def _seen_empty_twin(self, label: str, colour: str, stamp: float) -> Instance | None:
-        best = None
-        for inst in self.map.by_label(label):
-            track = self.tracks.get(inst.id)
-            if (
-                track is not None
-                and inst.colour == colour
-                and inst.doubtful
-                and stamp - track.empty_seen <= self.params.move_window
-            ):
-                if best is None or inst.misses > best.misses:
-                    best = inst
-        return best
-
-    # -- negative evidence -----------------------------------------------------------------------
-
-    def expected_view(self, frame: RGBDFrame, inst: Instance) -> tuple[float, float, float] | None:
-        """Where ``inst`` would appear in ``frame``: (u, v, forward distance), None when not expected.
-
-        Expected means: in front of the camera, within the range filter, inside the image away from
-        its edges, and at least ``min_pixels`` wide and high.
-        """
-        k = frame.intrinsics
-        forward, left = to_camera(frame.camera_pose, *inst.xy)
-        if forward <= 0.2 or math.hypot(forward, left) > self.params.filters.max_range:
-            return None
-        u = k.cx - left * k.fx / forward
-        v = k.cy - (inst.position[2] - frame.camera_height) * k.fy / forward
-        margin = self.params.edge_margin * k.width
-        if not (margin <= u <= k.width - margin and 0 <= v < k.height):
-            return None
-        width_px = max(inst.size[0], inst.size[1], 0.05) * k.fx / forward
-        height_px = max(inst.size[2], 0.05) * k.fy / forward
-        if (
-            max(width_px, height_px) < self.params.min_pixels
-            or min(width_px, height_px) < self.params.min_pixels / 3
-        ):
-            return None
-        return u, v, forward
-
-    def _judge_unseen(self, frame: RGBDFrame, seen: set[str], detections: list[Detection]) -> None:
-        for inst in list(self.map):
-            if inst.id in seen or inst.id not in self.map:
-                continue  # seen, or removed meanwhile (a retired instance's twin)
-            view = self.expected_view(frame, inst)
-            if view is None:
-                continue
-            u, v, forward = view
-            if any(
-                d.label == inst.label
-                and d.box[0] - 4 <= u <= d.box[2] + 4
-                and d.box[1] - 4 <= v <= d.box[3] + 4
-                for d in detections
-            ):
-                self.tracks.setdefault(inst.id, _Track()).checked = frame.stamp
-                continue  # its label's box covers it: seen, if not placed precisely enough to refine
-            verdict = self._place_seen(frame, inst, u, v, forward)
-            if verdict == "occluded":
-                continue  # something stands in front of it: no evidence either way
-            track = self.tracks.setdefault(inst.id, _Track())
-            track.checked = frame.stamp
-            confidence = inst.confidence * self.params.miss_decay
-            if verdict == "present":
-                # depth shows something where it should be, the detector did not name it: doubt; only
-                # after many such frames is it removed (what stands there is not it)
-                if forward <= self.params.present_range:
-                    track.unexplained += 1
-                self.map.update(inst.id, doubtful=True, confidence=max(confidence, 0.2))
-                if track.unexplained >= self.params.present_miss_frames:
-                    self._retire(inst, frame.stamp, False)
-                continue
-            track.empty_seen = frame.stamp
-            misses = inst.misses + 1
-            self.map.update(inst.id, misses=misses, doubtful=True, confidence=confidence)
-            if misses >= self.params.miss_frames:
-                if misses < 3 * self.params.miss_frames and self._candidate_twin(inst):
-                    continue  # the same object may be what is being seen elsewhere: wait to move it
-                self._retire(inst, frame.stamp, True)
-
-    def _candidate_twin(self, inst: Instance) -> bool:
-        """Whether a candidate of the same label and colour is being voted for elsewhere right now."""
-        for cand in self.voting.candidates:
-            if cand.label != inst.label or inst.distance_to(cand.x, cand.y) <= self.params.associate_radius:
-                continue
-            colour = _majority(self._candidate_colours.get(id(cand), Counter()), "unknown")
-            if colour in (inst.colour, "unknown") and cand.last_stamp >= self.last_stamp - 1.0:
-                return True
-        return False
-
-    def _place_seen(self, frame: RGBDFrame, inst: Instance, u: float, v: float, forward: float) -> str:
-        """What the depth image shows where ``inst`` should be: ``empty``, ``present`` or ``occluded``.
-
-        The depths of the box the instance would fill are compared with its near and far sides: a
-        share of them at its distance means something is there; most beyond its far side means the
-        camera sees through its place (``empty``); most nearer than its near side means something
-        stands in front (``occluded``).
-        """
-        k = frame.intrinsics
-        half_w = 0.5 * max(inst.size[0], inst.size[1], 0.05)
-        half_h = 0.5 * max(inst.size[2], 0.05)
-        margin = self.params.place_margin * k.fx / forward  # the instance's position is an estimate
-        du = max(2.0, 0.5 * half_w * k.fx / forward) + margin
-        dv_top = (inst.position[2] + half_h * 0.5 - frame.camera_height) * k.fy / forward
-        dv_bottom = (inst.position[2] - half_h * 0.5 - frame.camera_height) * k.fy / forward
-        x1, x2 = int(max(0, u - du)), int(min(k.width, u + du + 1))
-        y1, y2 = int(max(0, k.cy - dv_top)), int(min(k.height, k.cy - dv_bottom + 1))
-        y2 = max(y2, y1 + 1)
-        patch = np.asarray(frame.depth)[y1:y2, x1 : max(x2, x1 + 1)].astype(float)
-        rows = np.broadcast_to(np.arange(y1, y2, dtype=float)[:, None] + 0.5, patch.shape)
-        valid = np.isfinite(patch) & (patch > 0)
-        values = patch[valid]
-        near_side = forward - half_w - self.params.depth_tolerance
-        far_side = forward + half_w + self.params.depth_tolerance
-        if values.size == 0:
-            return "empty"  # no return at all: nothing within the sensor's range there
-        heights = frame.camera_height - (rows[valid] - k.cy) * values / k.fy
-        floor = heights < self.params.floor_height
-        at_place = (values >= near_side) & (values <= far_side) & ~floor
-        there = float(np.mean(at_place))
-        beyond = float(np.mean((values > far_side) | (floor & (values >= near_side))))
-        object_px = min(2.0 * half_w * k.fx / forward, float(patch.shape[1])) * patch.shape[0]
-        if there >= 0.2 or int(np.count_nonzero(at_place)) >= max(3.0, 0.5 * object_px):
-            return "present"
-        if beyond >= 0.6:
-            return "empty"
-        return "occluded"
 
     def same_object(self, a: Instance, b: Instance) -> bool:
         """Whether two instances are one object seen twice.
@@ -682,34 +554,6 @@ class InstanceFusion:
                 gone.add(drop.id)
                 if drop is a:
                     break
-
-    def _retire(self, inst: Instance, stamp: float, empty: bool) -> None:
-        twin = None
-        for other in self.map.by_label(inst.label):
-            if other.id != inst.id and other.colour == inst.colour and other.first_seen > inst.last_seen:
-                if twin is None or other.first_seen < twin.first_seen:
-                    twin = other
-        if twin is not None and inst.colour != "unknown":
-            position, observations = twin.position, twin.observations
-            self.map.remove(twin.id, stamp, reason=f"the same object as {inst.id}, which moved here")
-            self.map.move(
-                inst.id,
-                position,
-                stamp,
-                reason=f"not at its old place in {inst.misses + 1} frames; "
-                f"a {inst.colour} {inst.label} was seen here",
-            )
-            self.map.update(inst.id, observations=inst.observations + observations, confidence=0.8)
-            self.tracks[inst.id] = self.tracks.pop(twin.id, _Track())
-            return
-        self.map.remove(
-            inst.id,
-            stamp,
-            reason=f"not seen in {self.params.miss_frames} frames that should show it (its place seen empty)"
-            if empty
-            else f"not detected in {self.params.present_miss_frames} frames showing something else there",
-        )
-        self.tracks.pop(inst.id, None)
 
 
 def _colour(frame: RGBDFrame, detection: Detection) -> str | None:
