@@ -11,7 +11,8 @@ import py_trees
 from pydantic import BaseModel
 
 from missiontree.backends.sim import create_robot
-from missiontree.behaviours.intent import GoToIntent, ServeCommands, ServeCommandsParams
+from missiontree.behaviours.commands import ServeCommands, ServeCommandsParams
+from missiontree.behaviours.intent import GoToIntent
 from missiontree.engine.context import MissionContext
 from missiontree.reasoning.protocols import Message
 from missiontree.reasoning.schemas import IntentResolution

@@ -5,7 +5,8 @@
 - :mod:`~missiontree.behaviours.surveillance`: Surveillance (people, alarms with positions).
 - :mod:`~missiontree.behaviours.servo`: ServoToTarget (visual servoing on an alarm).
 - :mod:`~missiontree.behaviours.explore`: Explore (frontiers or scan points on a learned map).
-- :mod:`~missiontree.behaviours.intent`: ServeCommands, GoToIntent (go where the user means).
+- :mod:`~missiontree.behaviours.commands`: ServeCommands (a child run once per user command).
+- :mod:`~missiontree.behaviours.intent`: GoToIntent (go where the user means).
 - :mod:`~missiontree.behaviours.search`: ScanRotate, ColourAttention, Locate, Approach, Verify (search).
 """
 
@@ -19,8 +20,9 @@ if TYPE_CHECKING:
 
 def register_nodes(registry: NodeRegistry) -> None:
     """Add the behaviour leaves to ``registry`` (listed in missiontree.plugins.builtin.NODE_MODULES)."""
+    from missiontree.behaviours.commands import SERVE_COMMANDS
     from missiontree.behaviours.explore import Explore
-    from missiontree.behaviours.intent import SERVE_COMMANDS, GoToIntent
+    from missiontree.behaviours.intent import GoToIntent
     from missiontree.behaviours.motion import NavigateTo, Rotate
     from missiontree.behaviours.patrol import Patrol
     from missiontree.behaviours.scene import BuildSceneGraph
