@@ -23,7 +23,6 @@ import math
 from pathlib import Path
 from typing import Annotated, Any
 
-import py_trees
 from pydantic import BaseModel, Field
 
 from missiontree.engine.leaf import Leaf, Status
@@ -48,7 +47,6 @@ from missiontree.reasoning.prompts import crop_match_prompt, intent_messages
 from missiontree.reasoning.schemas import CropMatch, IntentResolution
 from missiontree.robot.actions import ActionHandle, ActionStatus
 from missiontree.types import RGBDFrame, Tolerance
-
 
 #: A goal aborted with the robot this close to it (m) counts as reached: the stack stopped just short.
 NEAR_ENOUGH = 0.4
