@@ -8,11 +8,13 @@ from perception_onnx import constant_yolo_model, yolo_output
 
 from missiontree.errors import ModelConfigError, ModelError
 from missiontree.perception.detectors import (
+    CLASS_SCORES,
     Detector,
     YoloOnnxDetector,
     check_image,
     checked_detections,
     decode_yolo,
+    decode_yolo_with_scores,
     iou_matrix,
     letterbox,
     nms,
@@ -246,3 +248,16 @@ def test_checked_detections_drops_clips_and_says_why() -> None:
     assert kept[2].score == 1.0
     assert len(dropped) == 5 and all(reason.startswith("fuzzy: ") for reason in dropped)
     assert checked_detections(None, 320, 240)[0] == []
+
+
+def test_onnx_detector_keeps_each_boxs_score_for_every_class(tmp_path: Path) -> None:
+    """A detection carries the model's score per class (its runner-up too), not only its best."""
+    out = yolo_output([(32, 32, 20, 10, [0.7, 0.2]), (10, 30, 6, 6, [0.005, 0.6])], 2)
+    detector = YoloOnnxDetector(constant_yolo_model(tmp_path / "m.onnx", out, names=NAMES))
+    found = detector.detect(_image(32, 64))
+    assert [d.attributes[CLASS_SCORES] for d in found] == [
+        {"person": 0.7, "cup": 0.2},
+        {"cup": 0.6},  # a share under CLASS_SCORE_FLOOR is noise: left out
+    ]
+    _, _, _, rows = decode_yolo_with_scores(out, 2, 0.25, 0.45, 100)
+    np.testing.assert_allclose(rows, [[0.7, 0.2], [0.005, 0.6]], atol=1e-6)

@@ -34,6 +34,19 @@ from missiontree.types import Detection, RGBDFrame
 PAD_VALUE = 114
 
 
+#: Key of :attr:`Detection.attributes` holding the box's score for each class the model gave a real
+#: share (label → score, at least :data:`CLASS_SCORE_FLOOR`), its reported label included.
+CLASS_SCORES = "class_scores"
+
+#: Least per-class score kept in a detection's :data:`CLASS_SCORES` (the rest is noise).
+CLASS_SCORE_FLOOR = 0.01
+
+
+def class_scores(labels: Sequence[str], row: np.ndarray) -> dict[str, float]:
+    """The classes of one box's score vector ``row`` that reach :data:`CLASS_SCORE_FLOOR`, label → score."""
+    return {labels[i]: round(float(v), 4) for i, v in enumerate(row) if v >= CLASS_SCORE_FLOOR}
+
+
 @runtime_checkable
 class Detector(Protocol):
     """Finds labelled boxes in a colour image."""
@@ -293,13 +306,35 @@ def decode_yolo(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Turn a raw ``[1, 4 + classes, N]`` output into kept boxes, scores and class ids.
 
+    As :func:`decode_yolo_with_scores`, without the per-class score rows.
+    """
+    boxes, scores, class_ids, _ = decode_yolo_with_scores(
+        output, num_classes, score_threshold, iou_threshold, max_detections, multi_label
+    )
+    return boxes, scores, class_ids
+
+
+def decode_yolo_with_scores(
+    output: np.ndarray,
+    num_classes: int,
+    score_threshold: float,
+    iou_threshold: float,
+    max_detections: int,
+    multi_label: bool = False,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Turn a raw ``[1, 4 + classes, N]`` output into kept boxes, scores, class ids and score rows.
+
     Each candidate box is reported under its best class; with ``multi_label``, under every class
     scoring above ``score_threshold`` (as Ultralytics' ``non_max_suppression(multi_label=True)``
     decodes for ``val``), so that a box the model finds ambiguous (a white bookshelf seen end-on
     or a refrigerator) yields one detection per plausible class, each with its own score.
 
+    The score rows are each kept box's whole score vector (K x classes): the model's evidence for
+    every class, not only the one it is reported under (a grey bin the model calls a backpack may
+    give "trash can" a real share); the fusion pools them over views.
+
     Returns:
-        (boxes Kx4 xyxy in input pixels, scores K, class ids K), best score first.
+        (boxes Kx4 xyxy in input pixels, scores K, class ids K, class scores KxC), best score first.
     """
     preds = output[0].T  # N x (4 + C)
     # A candidate with a non-finite number (a broken export, an fp16 overflow) is no candidate: NMS
@@ -317,7 +352,8 @@ def decode_yolo(
     cx, cy, w, h = preds[:, 0], preds[:, 1], preds[:, 2], preds[:, 3]
     boxes = np.stack([cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2], axis=1)
     keep = nms(boxes, scores, class_ids, iou_threshold)[:max_detections]
-    return boxes[keep], scores[keep].astype(np.float32), class_ids[keep]
+    rows = preds[keep, 4 : 4 + num_classes].astype(np.float32)
+    return boxes[keep], scores[keep].astype(np.float32), class_ids[keep], rows
 
 
 def parse_names(text: str) -> list[str]:
@@ -506,7 +542,7 @@ class YoloOnnxDetector:
             mirrored = self._run(np.ascontiguousarray(tensor[..., ::-1]))
             mirrored[:, 0] = self.input_width - mirrored[:, 0]  # box centres back in the unflipped input
             output = np.concatenate([output, mirrored], axis=2)
-        boxes, scores, class_ids = decode_yolo(
+        boxes, scores, class_ids, rows = decode_yolo_with_scores(
             output, len(self._labels), self.score_threshold, self.iou_threshold, self.max_detections,
             self.multi_label,
         )
@@ -516,9 +552,9 @@ class YoloOnnxDetector:
                 label=self._labels[int(c)],
                 score=float(s),
                 box=(float(b[0]), float(b[1]), float(b[2]), float(b[3])),
-                attributes={"class_id": int(c)},
+                attributes={"class_id": int(c), CLASS_SCORES: class_scores(self._labels, row)},
             )
-            for b, s, c in zip(boxes, scores, class_ids, strict=True)
+            for b, s, c, row in zip(boxes, scores, class_ids, rows, strict=True)
         ]
         kept, dropped = checked_detections(found, image.shape[1], image.shape[0], self.name)
         if dropped:
