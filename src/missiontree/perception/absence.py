@@ -133,7 +133,7 @@ class AbsenceJudge:
                 continue
             u, v, forward = view
             if any(
-                d.label == inst.label
+                d.label in fusion.labels_of(inst)
                 and d.box[0] - 4 <= u <= d.box[2] + 4
                 and d.box[1] - 4 <= v <= d.box[3] + 4
                 for d in detections

@@ -8,7 +8,10 @@ Helpers of :mod:`missiontree.perception.fusion`, pure functions of frames, boxes
 - :func:`stands_out`: an object is bounded, its box's sides show a depth step to what is beside
   it; a stretch of wall the detector boxed continues flat past the box;
 - :data:`SIZE_PRIORS` / :func:`plausible_size`: the least width and height an object of a class
-  shows a camera (a tv's screen is at least 0.35 m wide, a closed umbrella 0.1 m).
+  shows a camera (a tv's screen is at least 0.35 m wide, a closed umbrella 0.1 m);
+- :data:`SIZE_LIMITS` / :func:`footprint_sides` / :func:`size_likelihood`: the largest an object of a
+  class is, the footprint several views outline, and how well a class explains what was measured
+  (a grey bin the detector calls a backpack is 0.35 m deep, deeper than any backpack).
 """
 
 from __future__ import annotations
@@ -47,6 +50,72 @@ SIZE_PRIORS: dict[str, tuple[float, float]] = {
     "trash can": (0.15, 0.2),
     "bookshelf": (0.3, 0.5),
 }
+
+
+#: The largest a common indoor object of a class is, metres: (footprint's longer side, footprint's
+#: shorter side, height), from furniture catalogues and everyday sizes, kept generous (a backpack is
+#: at most 0.3 m deep, a trash can 0.6 m across, a table 1.2 m deep). With :data:`SIZE_PRIORS` (the
+#: least sizes) they bound the sizes a class is plausible at (:func:`size_likelihood`). Classes not
+#: listed are not checked.
+SIZE_LIMITS: dict[str, tuple[float, float, float]] = {
+    "chair": (0.9, 0.9, 1.3),
+    "sofa": (3.2, 1.3, 1.2),
+    "bed": (2.4, 2.2, 1.3),
+    "table": (2.6, 1.3, 1.2),
+    "dining table": (3.0, 1.5, 1.1),
+    "bottle": (0.2, 0.2, 0.5),
+    "cup": (0.2, 0.2, 0.25),
+    "backpack": (0.5, 0.3, 0.7),
+    "laptop": (0.5, 0.4, 0.4),
+    "umbrella": (1.3, 1.3, 1.3),
+    "potted plant": (1.2, 1.2, 2.2),
+    "tv": (2.0, 0.5, 1.3),
+    "refrigerator": (1.1, 1.0, 2.1),
+    "trash can": (0.7, 0.7, 1.1),
+    "bookshelf": (2.2, 0.6, 2.5),
+}
+
+
+def footprint_sides(
+    cells: Counter[tuple[int, int]], centre: Sequence[float], reach: float, cell: float, views: int = 2
+) -> tuple[float, float] | None:
+    """(longer, shorter) side of the smallest rectangle round the surface cells near ``centre``.
+
+    Cells seen in at least ``views`` views and within ``reach`` of ``centre`` count (cell centres:
+    the sides are about a cell short of the object's). None while fewer than 6 such cells exist.
+    One face seen gives a thin rectangle: the shorter side only grows once another face is seen,
+    so it never overstates the object's depth.
+    """
+    keys = [key for key, n in cells.items() if n >= views]
+    if len(keys) < 6:
+        return None
+    pts = (np.array(keys, dtype=float) + 0.5) * cell
+    pts = pts[np.hypot(pts[:, 0] - centre[0], pts[:, 1] - centre[1]) <= reach]
+    if len(pts) < 6:
+        return None
+    _, (w, h), _ = cv2.minAreaRect(pts.astype(np.float32))
+    return float(max(w, h)), float(min(w, h))
+
+
+def size_likelihood(label: str, shorter: float, height: float) -> float | None:
+    """How likely a class is at a measured footprint's shorter side and height; None: not listed.
+
+    Zero when the footprint's shorter side is wider than the class's largest (:data:`SIZE_LIMITS`),
+    or the height is outside its least (:data:`SIZE_PRIORS`) and largest; else one over the volume
+    of its range of sizes (longer side from its least width to its largest, shorter side up to its
+    largest, height from its least to its largest): a uniform density over the sizes the class
+    comes in, so a class of narrowly bounded size (a trash can) that fits explains a measurement
+    better than one of almost any size (a table). The longer side is not checked: the surface
+    cells of a neighbour seen behind an object lengthen it.
+    """
+    limits = SIZE_LIMITS.get(label)
+    least = SIZE_PRIORS.get(label)
+    if limits is None or least is None:
+        return None
+    if shorter > limits[1] or not least[1] <= height <= limits[2]:
+        return 0.0
+    volume = max(limits[0] - least[0], 0.05) * limits[1] * max(limits[2] - least[1], 0.05)
+    return 1.0 / volume
 
 
 def plausible_size(label: str, projections: Sequence[Projection], margin: float) -> bool:

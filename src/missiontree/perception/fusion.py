@@ -33,7 +33,15 @@ import numpy as np
 
 from missiontree.perception.absence import AbsenceJudge
 from missiontree.perception.colour import dominant_colour
-from missiontree.perception.footprint import outline_centre, plausible_size, stands_out, surface_cells
+from missiontree.perception.detectors import CLASS_SCORES
+from missiontree.perception.footprint import (
+    footprint_sides,
+    outline_centre,
+    plausible_size,
+    size_likelihood,
+    stands_out,
+    surface_cells,
+)
 from missiontree.perception.projection import Projection, to_camera
 from missiontree.perception.tracking import Candidate, NaisFilterParams, NaisTracker, TemporalVoting
 from missiontree.semantics.semantic_map import Instance, SemanticMap
@@ -104,6 +112,15 @@ class FusionParams:
         edge_step: Depth step (metres) at a box's side that shows an object standing out.
         min_bounded_share: Least share of a candidate's views in which it stands out in depth at an
             uncut side (a wall boxed as a refrigerator never does); 0 turns the check off.
+        runner_up_share: An instance's label is reconsidered from its class evidence (each box's
+            score for every class, summed over the views that refined it): when the footprint its
+            surface points outline (several views) or its height is implausible for the class the
+            detector names (:func:`~missiontree.perception.footprint.size_likelihood`: a 0.35 m deep
+            "backpack"), the runner-up classes whose summed score reaches this share of the named
+            class's are weighed, each by its score times how likely it is at the measured size,
+            and the best that fits takes over (the instance is relabelled; boxes of the old label
+            keep refining it). 0 turns relabelling off.
+        relabel_views: Views of an instance (observations) before its label is reconsidered.
     """
 
     filters: NaisFilterParams = field(default_factory=NaisFilterParams)
@@ -134,6 +151,8 @@ class FusionParams:
     edge_band: int = 6
     edge_step: float = 0.15
     min_bounded_share: float = 0.2
+    runner_up_share: float = 0.01
+    relabel_views: int = 10
 
 
 @dataclass
@@ -148,6 +167,13 @@ class _Track:
     clipped: list[tuple[float, float, float]] = field(default_factory=list)
     cells: Counter[tuple[int, int]] = field(default_factory=Counter)
     checked: float = -math.inf
+    #: Each class's score summed over the boxes that refined the instance (its class evidence).
+    evidence: Counter[str] = field(default_factory=Counter)
+    #: Labels the detector gives this instance besides its own (it was relabelled from them).
+    seen_as: set[str] = field(default_factory=set)
+
+
+_NO_TRACK = _Track()
 
 
 class InstanceFusion:
@@ -224,6 +250,7 @@ class InstanceFusion:
             instance = self._associate(p, seen)
             if instance is not None:
                 self._refine(instance, p, colour, frame)
+                instance = self._reconsider_label(instance, stamp)
                 seen.add(instance.id)
                 self.observed[instance.id] = p.detection
                 for other in self._held_by_box(p, instance, seen):
@@ -264,9 +291,17 @@ class InstanceFusion:
 
     # -- association and refinement --------------------------------------------------------------
 
+    def _of_label(self, label: str) -> list[Instance]:
+        """Instances a box of ``label`` may show: of that label, or relabelled from it."""
+        return [i for i in self.map if i.label == label or label in self.tracks.get(i.id, _NO_TRACK).seen_as]
+
+    def labels_of(self, inst: Instance) -> set[str]:
+        """The labels a box showing ``inst`` may carry: its own and those it was relabelled from."""
+        return {inst.label} | self.tracks.get(inst.id, _NO_TRACK).seen_as
+
     def _associate(self, p: Projection, taken: set[str]) -> Instance | None:
         best, best_d = None, math.inf
-        for inst in self.map.by_label(p.label):
+        for inst in self._of_label(p.label):
             if inst.id in taken:
                 continue
             radius = max(self.params.associate_radius, 0.5 * max(inst.size[0], inst.size[1]))
@@ -275,7 +310,7 @@ class InstanceFusion:
                 best, best_d = inst, d
         if best is not None:
             return best
-        offsets = [(self._box_offset(p, i), i) for i in self.map.by_label(p.label) if i.id not in taken]
+        offsets = [(self._box_offset(p, i), i) for i in self._of_label(p.label) if i.id not in taken]
         held = [(off, inst) for off, inst in offsets if off is not None]
         return min(held, key=lambda e: e[0])[1] if held else None
 
@@ -362,12 +397,15 @@ class InstanceFusion:
         del track.sizes[: -self.params.memory]
         if colour:
             track.colours[colour] += 1
+        track.evidence.update(_class_scores(p))
         position = tuple(float(v) for v in np.median(np.array(track.xs or track.clipped), axis=0))
         if frame is not None and self._large(p, inst):
             self._add_surface(track, frame, p)
             outline = self._outline_centre(track, position, inst)
             if outline is not None:
                 position = (outline[0], outline[1], position[2])
+        elif frame is not None and not self._clipped(p) and self._runner_ups(track):
+            self._add_surface(track, frame, p)  # its footprint may tell the runner-up class
         size = tuple(float(v) for v in np.max(np.array(track.sizes), axis=0))
         confidence = inst.confidence + self.params.hit_gain * (1.0 - inst.confidence)
         self.map.update(
@@ -407,6 +445,8 @@ class InstanceFusion:
         track.clipped.extend(dropped.clipped)
         track.cells.update(dropped.cells)
         track.colours.update(dropped.colours)
+        track.evidence.update(dropped.evidence)
+        track.seen_as |= dropped.seen_as
         points = np.array(track.xs or track.clipped or [keep.position])
         position = tuple(float(v) for v in np.median(points, axis=0))
         outline = self._outline_centre(track, position, keep)
@@ -490,14 +530,73 @@ class InstanceFusion:
             first_seen=cand.projections[0].stamp if cand.projections else stamp,
             reason=f"seen in {cand.frames} frames",
         )
+        evidence: Counter[str] = Counter()
+        for q in cand.projections:
+            evidence.update(_class_scores(q))
         self.tracks[inst.id] = _Track(
             colours=Counter(colours),
             xs=[q.position for q in uncut],
             clipped=[q.position for q in cut],
             sizes=[q.size for q in cand.projections],
             checked=stamp,
+            evidence=evidence,
         )
         return inst
+
+    # -- class evidence --------------------------------------------------------------------------
+
+    def _runner_ups(self, track: _Track) -> list[tuple[str, float]]:
+        """Classes other than the evidence's best whose summed score reaches ``runner_up_share`` of it."""
+        ranked = track.evidence.most_common()
+        share = self.params.runner_up_share
+        if share <= 0 or len(ranked) < 2:
+            return []
+        top = ranked[0][1]
+        return [(label, mass) for label, mass in ranked[1:] if mass >= share * top]
+
+    def _reconsider_label(self, inst: Instance, stamp: float) -> Instance:
+        """``inst``, or the instance that replaces it under a runner-up label (see ``runner_up_share``)."""
+        track = self.tracks.get(inst.id)
+        if track is None or inst.observations < self.params.relabel_views or not track.evidence:
+            return inst
+        top = track.evidence.most_common(1)[0][0]
+        runner_ups = self._runner_ups(track)
+        if inst.label != top or not runner_ups:
+            return inst  # relabelled already, or nothing else has real score mass
+        extent = max(inst.size[0], inst.size[1])
+        sides = footprint_sides(track.cells, inst.position, 0.5 * extent + 0.3, self.params.surface_cell)
+        if sides is None or not track.sizes:
+            return inst  # too few views of its surface yet
+        shorter = sides[1]
+        height = float(np.median([s[2] for s in track.sizes]))
+        if size_likelihood(top, shorter, height) != 0.0:
+            return inst  # the named class fits (or its sizes are not known): kept
+        best, best_weight = None, 0.0
+        for label, mass in runner_ups:
+            weight = mass * (size_likelihood(label, shorter, height) or 0.0)
+            if weight > best_weight:
+                best, best_weight = label, weight
+        if best is None:
+            return inst
+        why = (
+            f"{shorter:.2f} m deep and {height:.2f} m high: too large for a {top}; "
+            f"a {best} by its class scores ({track.evidence[best]:.2f} against {track.evidence[top]:.2f})"
+        )
+        self.map.remove(inst.id, stamp, reason=f"relabelled a {best}: {why}")
+        new = self.map.add(
+            best,
+            inst.position,
+            stamp,
+            size=inst.size,
+            colour=inst.colour,
+            observations=inst.observations,
+            confidence=inst.confidence,
+            first_seen=inst.first_seen,
+            reason=f"relabelled from {inst.id}: {why}",
+        )
+        track.seen_as.add(top)
+        self.tracks[new.id] = self.tracks.pop(inst.id)
+        return new
 
     def same_object(self, a: Instance, b: Instance) -> bool:
         """Whether two instances are one object seen twice.
@@ -551,9 +650,19 @@ class InstanceFusion:
                 dropped = self.tracks.pop(drop.id, _Track())
                 track.xs.extend(dropped.xs)
                 track.clipped.extend(dropped.clipped)
+                track.evidence.update(dropped.evidence)
+                track.seen_as |= dropped.seen_as
                 gone.add(drop.id)
                 if drop is a:
                     break
+
+
+def _class_scores(p: Projection) -> dict[str, float]:
+    """The box's score per class (:data:`~.detectors.CLASS_SCORES`), or its label's score alone."""
+    scores = p.detection.attributes.get(CLASS_SCORES)
+    if isinstance(scores, dict) and scores:
+        return {str(k): float(v) for k, v in scores.items()}
+    return {p.label: p.score}
 
 
 def _colour(frame: RGBDFrame, detection: Detection) -> str | None:
