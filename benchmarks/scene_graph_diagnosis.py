@@ -62,10 +62,12 @@ class Diagnosis:
     shown: Counter[str] = field(default_factory=Counter)
     changes: list[Change] = field(default_factory=list)
     verdicts: defaultdict[str, Counter[str]] = field(default_factory=lambda: defaultdict(Counter))
+    fusion: Any = None
 
     def watch(self, semantic_map: Any, fusion: Any = None) -> None:
         """Record every change of ``semantic_map`` and, with ``fusion``, its judgements of unseen places."""
         semantic_map.subscribe(self.changes.append)
+        self.fusion = fusion
         if fusion is None:
             return
         judge = fusion.absence  # the fusion's misses and moves (perception/absence.py)
@@ -158,10 +160,15 @@ class Diagnosis:
                 continue
             x, y = p["position"][0], p["position"][1]
             radius = max(0.6, 0.5 * max(p.get("size", (0, 0, 0))[:2] or (0,)))
+            track = self.fusion.tracks.get(p["id"]) if self.fusion is not None else None
+            labels = {p["label"]} | (track.seen_as if track is not None else set())
+            evidence = (
+                {k: round(v, 2) for k, v in track.evidence.most_common(3)} if track is not None else {}
+            )
             mine = [
                 s
                 for s in self.sights
-                if s.label == p["label"]
+                if s.label in labels
                 and s.xy is not None
                 and math.hypot(s.xy[0] - x, s.xy[1] - y) <= radius
             ]
@@ -188,7 +195,7 @@ class Diagnosis:
             lines.append(
                 f"{world_name} {phase} FP {p['id']} {p['label']} ({x:.2f}, {y:.2f}) size "
                 f"{[round(v, 2) for v in p.get('size', ())]}: {cause}; boxes cover {covered}; "
-                f"{len(mine)} sights, {views} viewpoints, cut {cut:.0%} {cuts}"
+                f"{len(mine)} sights, {views} viewpoints, cut {cut:.0%} {cuts}; class evidence {evidence}"
             )
         for j, t in enumerate(truths):
             if j in matched_t:

@@ -121,3 +121,16 @@ def test_size_likelihood_prefers_the_class_of_narrower_sizes() -> None:
     bin_, table = size_likelihood("trash can", 0.35, 0.5), size_likelihood("table", 0.35, 0.5)
     assert bin_ and table and bin_ > 4 * table
     assert size_likelihood("sink", 0.35, 0.5) is None  # sizes not known: not judged
+
+
+def test_an_early_runner_up_gives_way_to_one_that_explains_the_views_better() -> None:
+    """A table, the only runner-up at first, becomes a trash can once the bin's own scores add up."""
+    fusion, _ = seen_backpack(0.35, 0.35, {"backpack": 9.6, "table": 0.3, "trash can": 0.05})
+    fusion.process(frame(1.0), [projection(1.0, "backpack", {"backpack": 0.8})])
+    assert [i.label for i in fusion.map] == ["table"]
+    scores = {"backpack": 0.8, "trash can": 0.1}
+    for k in range(2, 5):
+        fusion.process(frame(float(k)), [projection(float(k), "backpack", scores)])
+    assert [i.label for i in fusion.map] == ["trash can"]
+    (bin_,) = fusion.map.by_label("trash can")
+    assert fusion.labels_of(bin_) == {"trash can", "table", "backpack"}

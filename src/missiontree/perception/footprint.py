@@ -54,7 +54,10 @@ SIZE_PRIORS: dict[str, tuple[float, float]] = {
 
 #: The largest a common indoor object of a class is, metres: (footprint's longer side, footprint's
 #: shorter side, height), from furniture catalogues and everyday sizes, kept generous (a backpack is
-#: at most 0.3 m deep, a trash can 0.6 m across, a table 1.2 m deep). With :data:`SIZE_PRIORS` (the
+#: 0.15-0.25 m deep: at most 0.27 here; a trash can up to 0.6 m across, a table 1.2 m deep). A
+#: footprint is measured to about a surface cell (5 cm), so a limit is a few centimetres above the
+#: catalogues' largest, not more: a measured 0.3 m deep "backpack" is something else. With
+#: :data:`SIZE_PRIORS` (the
 #: least sizes) they bound the sizes a class is plausible at (:func:`size_likelihood`). Classes not
 #: listed are not checked.
 SIZE_LIMITS: dict[str, tuple[float, float, float]] = {
@@ -65,7 +68,7 @@ SIZE_LIMITS: dict[str, tuple[float, float, float]] = {
     "dining table": (3.0, 1.5, 1.1),
     "bottle": (0.2, 0.2, 0.5),
     "cup": (0.2, 0.2, 0.25),
-    "backpack": (0.5, 0.3, 0.7),
+    "backpack": (0.5, 0.27, 0.7),
     "laptop": (0.5, 0.4, 0.4),
     "umbrella": (1.3, 1.3, 1.3),
     "potted plant": (1.2, 1.2, 2.2),
@@ -81,8 +84,9 @@ def footprint_sides(
 ) -> tuple[float, float] | None:
     """(longer, shorter) side of the smallest rectangle round the surface cells near ``centre``.
 
-    Cells seen in at least ``views`` views and within ``reach`` of ``centre`` count (cell centres:
-    the sides are about a cell short of the object's). None while fewer than 6 such cells exist.
+    Cells seen in at least ``views`` views and within ``reach`` of ``centre`` count; the rectangle
+    spans their centres, which measures a side to about a cell either way. None while fewer than 6
+    such cells exist.
     One face seen gives a thin rectangle: the shorter side only grows once another face is seen,
     so it never overstates the object's depth.
     """

@@ -555,14 +555,18 @@ class InstanceFusion:
         return [(label, mass) for label, mass in ranked[1:] if mass >= share * top]
 
     def _reconsider_label(self, inst: Instance, stamp: float) -> Instance:
-        """``inst``, or the instance that replaces it under a runner-up label (see ``runner_up_share``)."""
+        """``inst``, or the instance that replaces it under a runner-up label (see ``runner_up_share``).
+
+        Judged again as evidence comes in: a runner-up chosen early (a table, the only other class
+        with score mass after a few views) gives way to one that explains the views better later.
+        """
         track = self.tracks.get(inst.id)
         if track is None or inst.observations < self.params.relabel_views or not track.evidence:
             return inst
         top = track.evidence.most_common(1)[0][0]
         runner_ups = self._runner_ups(track)
-        if inst.label != top or not runner_ups:
-            return inst  # relabelled already, or nothing else has real score mass
+        if not runner_ups:
+            return inst  # nothing else has real score mass
         extent = max(inst.size[0], inst.size[1])
         sides = footprint_sides(track.cells, inst.position, 0.5 * extent + 0.3, self.params.surface_cell)
         if sides is None or not track.sizes:
@@ -576,7 +580,7 @@ class InstanceFusion:
             weight = mass * (size_likelihood(label, shorter, height) or 0.0)
             if weight > best_weight:
                 best, best_weight = label, weight
-        if best is None:
+        if best is None or best == inst.label:
             return inst
         why = (
             f"{shorter:.2f} m deep and {height:.2f} m high: too large for a {top}; "
@@ -594,7 +598,7 @@ class InstanceFusion:
             first_seen=inst.first_seen,
             reason=f"relabelled from {inst.id}: {why}",
         )
-        track.seen_as.add(top)
+        track.seen_as |= {top, inst.label}
         self.tracks[new.id] = self.tracks.pop(inst.id)
         return new
 
