@@ -94,7 +94,7 @@ def test_a_real_backpack_keeps_its_label() -> None:
 
 def test_no_runner_up_with_score_mass_keeps_the_label() -> None:
     """Too deep for a backpack, but no other class had real score mass: nothing to take over."""
-    fusion, old = seen_backpack(0.35, 0.35, {"backpack": 9.6, "trash can": 0.05})
+    fusion, old = seen_backpack(0.35, 0.35, {"backpack": 9.6, "trash can": 0.02})
     fusion.process(frame(1.0), [projection(1.0, "backpack", {"backpack": 0.8})])
     assert [i.id for i in fusion.map] == [old]
 
@@ -125,7 +125,7 @@ def test_size_likelihood_prefers_the_class_of_narrower_sizes() -> None:
 
 def test_an_early_runner_up_gives_way_to_one_that_explains_the_views_better() -> None:
     """A table, the only runner-up at first, becomes a trash can once the bin's own scores add up."""
-    fusion, _ = seen_backpack(0.35, 0.35, {"backpack": 9.6, "table": 0.3, "trash can": 0.05})
+    fusion, _ = seen_backpack(0.35, 0.35, {"backpack": 9.6, "table": 0.3, "trash can": 0.02})
     fusion.process(frame(1.0), [projection(1.0, "backpack", {"backpack": 0.8})])
     assert [i.label for i in fusion.map] == ["table"]
     scores = {"backpack": 0.8, "trash can": 0.1}
@@ -134,3 +134,17 @@ def test_an_early_runner_up_gives_way_to_one_that_explains_the_views_better() ->
     assert [i.label for i in fusion.map] == ["trash can"]
     (bin_,) = fusion.map.by_label("trash can")
     assert fusion.labels_of(bin_) == {"trash can", "table", "backpack"}
+
+
+def test_a_large_instance_is_not_judged_by_its_surface_cells() -> None:
+    """A tv's cells hold the cabinet beside it (1 m "deep"): a large instance keeps the detector's label."""
+    smap = SemanticMap()
+    fusion = InstanceFusion(smap, FusionParams(min_bounded_share=0))
+    inst = smap.add("tv", (*PLACE, 0.3), 0.0, size=(1.1, 1.1, 0.6), colour="black", observations=12)
+    track = fusion.track(inst.id)
+    track.evidence.update({"tv": 9.6, "table": 0.7})
+    track.cells.update(outline(1.0, 1.0))
+    track.sizes = [(1.1, 1.1, 0.6)] * 12
+    track.xs = [(*PLACE, 0.3)] * 12
+    fusion.process(frame(1.0), [projection(1.0, "tv", {"tv": 0.8, "table": 0.05})])
+    assert [i.id for i in fusion.map] == [inst.id]
