@@ -148,3 +148,15 @@ def test_a_large_instance_is_not_judged_by_its_surface_cells() -> None:
     track.xs = [(*PLACE, 0.3)] * 12
     fusion.process(frame(1.0), [projection(1.0, "tv", {"tv": 0.8, "table": 0.05})])
     assert [i.id for i in fusion.map] == [inst.id]
+
+
+def test_a_box_of_the_old_label_covering_a_relabelled_instance_is_no_miss() -> None:
+    """The bin is still boxed as a "backpack" where depth places nothing: it was seen, not missed."""
+    fusion, _ = seen_backpack(0.35, 0.35, {"backpack": 9.6, "table": 0.66, "trash can": 0.23})
+    fusion.process(frame(1.0), [projection(1.0, "backpack", BIN_SCORES)])
+    (bin_,) = fusion.map.by_label("trash can")
+    box = projection(2.0, "backpack", BIN_SCORES).detection
+    for k in range(2, 10):
+        fusion.process(frame(float(k)), [], [box])
+    kept = fusion.map.get(bin_.id)
+    assert kept is not None and kept.misses == 0 and not kept.doubtful
