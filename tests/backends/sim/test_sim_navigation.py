@@ -251,3 +251,27 @@ def test_door_with_a_person_pacing_through_it_is_passed(tmp_path):
     goal = Pose2D(5.22, 1.08, 0.0)
     result = _run(robot, robot.navigate_to(goal, ANY), 120.0)
     assert result.succeeded, result
+
+
+def test_something_off_the_map_just_past_a_door_is_passed_round(tmp_path):
+    """Something the map lacks stands 1 m past a door (generated world 107): the robot goes round it.
+
+    After backing away from it the follower used to plan on the map alone, straight into it again,
+    and replans around it passed closer than the follower keeps from unmapped things: back and forth
+    until "no progress for 30 s".
+    """
+    import yaml
+
+    import missiontree.backends.sim.generator  # noqa: F401 - registers generated: worlds
+    from missiontree.backends.sim import load_world
+
+    spec = load_world("generated:107").spec.model_dump(mode="json", exclude_none=True)
+    spec["robot"]["start"] = {"x": 3.0, "y": 5.6, "yaw": math.pi}
+    spec["people"] = [{"id": "stander", "route": [[1.73, 5.28]], "speed": 0.0}]
+    path = tmp_path / "world.yaml"
+    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
+    robot = create_robot({"world": str(path), "seed": 1})
+    goal = Pose2D(1.2, 3.6, 0.0)
+    result = _run(robot, robot.navigate_to(goal, ANY), 90.0)
+    assert result.succeeded, result
+    assert robot.bumps == 0

@@ -327,7 +327,11 @@ class Navigator:
             if now < follow.backing_until:
                 return -_BACKUP_SPEED, 0.0
             follow.backing_until = None
-            path = self._plan(self.costmap, pose, h.goal)
+            # plan around what the lidar sees as well (as a blocked path's replan does): on the map
+            # alone the new path runs into what pinned the robot again, back and forth
+            path = self._plan_around(scan, pose, h.goal)
+            if path is None:
+                path = self._plan(self.costmap, pose, h.goal)
             if path is not None:
                 follow.set_path(path)
                 remaining = self._remaining(follow, pose)
@@ -430,6 +434,15 @@ class Navigator:
         self.plan_ms.append((time.perf_counter() - t0) * 1000.0)
         return None if path is None else path.points
 
+    def _plan_around(self, scan: LaserScan | None, pose: Pose2D, goal: Pose2D) -> np.ndarray | None:
+        """A plan that keeps as clear of what the lidar sees now as the follower will.
+
+        The follower keeps ``_UNMAPPED_MARGIN`` beside its radius from what the map does not hold;
+        a plan passing closer (the planner's default discs are smaller) is blocked again at once.
+        """
+        seen = self._scan_points(scan, pose)
+        return self._plan(self.costmap.with_points(seen, radius=_UNMAPPED_MARGIN + _SIDE_MARGIN), pose, goal)
+
     def _remaining(self, follow: _Follow, pose: Pose2D) -> float:
         """Distance along the path from the robot; moves the progress index to the nearest point ahead."""
         points = follow.points
@@ -479,9 +492,8 @@ class Navigator:
                                f"an obstacle at ({ox:.2f}, {oy:.2f})", BLOCKED)
         if now - follow.last_replan >= self.spec.replan_period and now - follow.blocked_since >= 0.5:
             follow.last_replan = now
-            seen = self._scan_points(scan, pose)
             goal = self.handle.goal if self.handle else None
-            path2 = self._plan(self.costmap.with_points(seen), pose, goal) if goal else None
+            path2 = self._plan_around(scan, pose, goal) if goal else None
             self.replans += 1
             if path2 is not None:
                 follow.set_path(path2)
