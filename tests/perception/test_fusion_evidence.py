@@ -51,7 +51,7 @@ def test_a_floor_object_taken_away_is_seen_gone_though_the_floor_behind_it_is_ne
 
 def test_something_else_at_the_place_removes_only_after_many_frames() -> None:
     """Depth shows an object where the cup was and no cup is detected: doubtful, removed only much later."""
-    fusion, cup = fusion_with_cup(miss_frames=3, present_miss_frames=8)
+    fusion, cup = fusion_with_cup(miss_frames=3, present_miss_frames=8, present_min_pixels=20)
     depth = floor_depth()
     u0, u1 = int(K.cx - 30), int(K.cx + 30)
     depth[int(K.cy) : K.height, u0:u1] = 1.2  # a box standing at the cup's place, taller than it
@@ -63,6 +63,28 @@ def test_something_else_at_the_place_removes_only_after_many_frames() -> None:
     assert cup not in fusion.map
     removed = [c for c in fusion.map.drain_changes() if c.kind == "removed"]
     assert removed and "something else" in removed[0].reason
+
+
+def test_views_too_small_for_the_detector_never_remove_what_stands_there() -> None:
+    """The cup 21 px tall (1.2 m away), depth showing something at its place: no detection says nothing.
+
+    Below ``present_min_pixels`` the detector misses a cup that is there; such views leave it doubtful
+    but count nothing towards its removal. Closer (0.9 m, 28 px) the same views remove it.
+    """
+    fusion, cup = fusion_with_cup(miss_frames=3, present_miss_frames=8)
+    depth = floor_depth()
+    depth[int(K.cy) : K.height, int(K.cx - 30) : int(K.cx + 30)] = 1.2
+    for k in range(40):
+        fusion.process(frame(1.0 + k, depth), [])
+    inst = fusion.map.get(cup)
+    assert inst is not None and inst.doubtful
+    near = InstanceFusion(SemanticMap(), FusionParams(present_miss_frames=8))
+    close = near.map.add("cup", (0.9, 0.0, 0.05), 0.0, size=(0.09, 0.09, 0.11), colour="red", observations=10)
+    depth = floor_depth()
+    depth[int(K.cy) : K.height, int(K.cx - 40) : int(K.cx + 40)] = 0.9
+    for k in range(9):
+        near.process(frame(1.0 + k, depth), [])
+    assert close.id not in near.map
 
 
 def test_a_detection_resets_the_unexplained_count() -> None:

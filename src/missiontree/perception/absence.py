@@ -67,8 +67,7 @@ class AbsenceJudge:
         margin = params.edge_margin * k.width
         if not (margin <= u <= k.width - margin and 0 <= v < k.height):
             return None
-        width_px = max(inst.size[0], inst.size[1], 0.05) * k.fx / forward
-        height_px = max(inst.size[2], 0.05) * k.fy / forward
+        width_px, height_px = _image_size(frame, inst, forward)
         if max(width_px, height_px) < params.min_pixels or min(width_px, height_px) < params.min_pixels / 3:
             return None
         return u, v, forward
@@ -148,8 +147,10 @@ class AbsenceJudge:
             confidence = inst.confidence * params.miss_decay
             if verdict == "present":
                 # depth shows something where it should be, the detector did not name it: doubt; only
-                # after many such frames is it removed (what stands there is not it)
-                if forward <= params.present_range:
+                # after many such frames near enough, and large enough on the image for the detector
+                # to find it, is it removed (what stands there is not it)
+                large = max(_image_size(frame, inst, forward)) >= params.present_min_pixels
+                if forward <= params.present_range and large:
                     track.unexplained += 1
                 smap.update(inst.id, doubtful=True, confidence=max(confidence, 0.2))
                 if track.unexplained >= params.present_miss_frames:
@@ -248,3 +249,9 @@ class AbsenceJudge:
             if inst.first_seen < stamp
             and (inst.doubtful or (tracks[inst.id].checked if inst.id in tracks else -math.inf) < stamp)
         ]
+
+
+def _image_size(frame: RGBDFrame, inst: Instance, forward: float) -> tuple[float, float]:
+    """How wide and high ``inst`` would appear at ``forward`` metres in ``frame``, pixels."""
+    k = frame.intrinsics
+    return max(inst.size[0], inst.size[1], 0.05) * k.fx / forward, max(inst.size[2], 0.05) * k.fy / forward

@@ -83,6 +83,9 @@ class FusionParams:
             now is not it: an object taken off a desk leaves the desk).
         present_range: Only frames closer than this count towards ``present_miss_frames`` (farther,
             a small object is often missed by the detector while it is there), metres.
+        present_min_pixels: Nor do frames where the instance would be smaller than this on the image
+            (its larger side, pixels): the shipped detector finds a cup or a bottle in every frame
+            from about 24 pixels and in none below 14, so a smaller view that misses it says nothing.
         place_margin: The depth patch judged at an instance's place is this much wider on each side
             than the instance (its position is an estimate), metres.
         edge_clip: A box within this many pixels of the image's left or right border is cut by it:
@@ -142,6 +145,7 @@ class FusionParams:
     floor_height: float = 0.04
     present_miss_frames: int = 30
     present_range: float = 2.5
+    present_min_pixels: float = 24.0
     place_margin: float = 0.05
     edge_clip: float = 2.0
     candidate_memory: float = 300.0
