@@ -42,6 +42,15 @@ small crop and turns down most true small objects).
 ``--diagnose`` prints each false and missed object of ours with its cause and each change of the
 dynamic phase with what the fusion judged at its places (``scene_graph_diagnosis.py``).
 
+Each world is one run of the batch runner (:func:`missiontree.evaluation.run_batch`, the wiring every
+evaluation benchmark shares): a mission that ends at its first tick, before the robot's clock moves,
+opens the session (the world's robot with its seed, the ``--models``), and a probe
+(:class:`SceneEvalProbe`) runs the world's whole evaluation in the worker on them — visit, score,
+change the world, patrol, score — and hands back the world's figures and what it printed
+(``--debug``, ``--diagnose``), which are printed here per world, in order, and aggregated.
+``--workers N`` runs worlds on a process pool of N (one world a task), ``--workers 1`` in this process.
+A world whose evaluation raised is reported on stderr and left out (exit 1).
+
 Scoring reads the simulator's truth; both pipelines see only frames, detections, poses and the
 map. The last line is one JSON object. ``--quick`` runs 3 generated worlds and the office world.
 """
@@ -49,6 +58,7 @@ map. The last line is one JSON object. ``--quick`` runs 3 generated worlds and t
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import math
@@ -62,7 +72,6 @@ import numpy as np
 from scene_rebuild import rebuild_figures  # benchmarks/scene_rebuild.py, beside this script
 from scipy.optimize import linear_sum_assignment
 
-from missiontree.backends.sim import create_robot
 from missiontree.backends.sim.raycast import BOX, CYLINDER, Primitives
 from missiontree.backends.sim.schema import ObjectSpec
 from missiontree.backends.sim.world import InstanceInfo, World, _make_object
@@ -76,7 +85,6 @@ from missiontree.reasoning.schemas import ObjectDescription, RoomClassification
 from missiontree.semantics.builder import BuilderParams, SceneBuilder
 from missiontree.semantics.relations import Body, compute_relations
 from missiontree.semantics.rooms import segment_rooms
-from missiontree.session.models import build_models
 from missiontree.types import Pose2D, Tolerance
 
 #: Truth labels the simulator draws as another class's prism (the detector's README).
@@ -510,8 +518,11 @@ def change_reflected(preds: list[dict[str, Any]], change: dict[str, Any]) -> boo
 # -- one world -----------------------------------------------------------------------------------------
 
 
-def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -> dict[str, Any]:
-    robot = create_robot({"world": name, "seed": seed})
+def run_world(name: str, seed: int, robot: Any, models: dict[str, Any], changes_seed: int) -> dict[str, Any]:
+    """One world's whole evaluation on ``robot`` (the session's): visit, score, change, patrol, score.
+
+    The robot is the batch run's (its session closes it); the row returned is plain JSON data.
+    """
     detector, vlm = models["detector"], models["vlm"]
     classes = set(detector.labels) - {"person"}
 
@@ -621,7 +632,6 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
                     print(f"  FN {m} {t.id} {t.label} ({t.pose.x:.2f}, {t.pose.y:.2f}) elev {t.elevation}")
 
     if SINGLE_PASS:
-        robot.close()
         return {
             "world": name,
             "frames": state["frames"],
@@ -714,7 +724,6 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
                 f"  change {c['kind']} {c['id']} {c['label']} from {c.get('from')} to {c.get('to')}: "
                 f"ours {change_reflected(after['ours'], c)} nais {change_reflected(after['nais'], c)}"
             )
-    robot.close()
     out = {
         "world": name,
         "frames": state["frames"],
@@ -736,19 +745,135 @@ def run_world(name: str, seed: int, models: dict[str, Any], changes_seed: int) -
     return out
 
 
-_MODELS: dict[str, Any] = {}
+# -- one world as a run of the batch runner -------------------------------------------------------------
+
+#: The mission each world's batch run opens: it ends at its first tick (``Succeed``, before the robot's
+#: clock moves), so the session has built the robot (world and seed of the run) and the models, and the
+#: probe then runs the world's whole evaluation on them in the worker (:class:`SceneEvalProbe`).
+MISSION = """version: 1
+description: >
+  One world of the scene-graph evaluation (benchmarks/scene_graph_eval.py): the session builds the
+  robot and the models; the evaluation's probe drives the robot once this mission has ended.
+run:
+  backend: sim
+  tick_hz: 10
+root:
+  Succeed: {name: session_open}
+"""
 
 
-def _job(job: tuple[str, int, str, int, bool, bool, bool, bool, str]) -> dict[str, Any]:
-    """One world in a worker process (models built once per process)."""
-    global DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE, DEPTH_METHOD
-    name, seed, models_name, changes_seed, DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE, DEPTH_METHOD = job
-    if models_name not in _MODELS:
-        _MODELS[models_name] = build_models(models_name)
-    t0 = time.perf_counter()
-    row = run_world(name, seed, _MODELS[models_name], changes_seed)
-    row["wall_s"] = time.perf_counter() - t0
-    return row
+@dataclasses.dataclass(frozen=True)
+class EvalOptions:
+    """The flags a worker's evaluation needs (picklable, handed to every probe)."""
+
+    changes_seed: int = 7
+    debug: bool = False
+    single_pass: bool = False
+    verify: bool = False
+    diagnose: bool = False
+    depth_method: str = "centre"
+
+
+class SceneEvalProbe:
+    """Runs one world's evaluation in the batch worker, on the run's robot and models.
+
+    The mission ends at its first tick; :meth:`finish` then visits, scores, changes the world, patrols
+    and scores again (:func:`run_world`), and returns the world's row and everything it printed (the
+    ``--debug`` and ``--diagnose`` lines) as the run's figures: the caller prints them per world, so
+    they read the same whether the world ran here, in a pool worker or on a Dask worker.
+    """
+
+    def __init__(self, options: EvalOptions) -> None:
+        self.options = options
+
+    def on_tick(self, session: Any) -> None:
+        """Nothing between ticks (the mission has one)."""
+
+    def finish(self, session: Any, result: Any) -> dict[str, Any]:
+        """The world's row (``scene_eval``) and its printed lines (``scene_eval_output``)."""
+        import io
+
+        global DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE, DEPTH_METHOD
+        o = self.options
+        DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE, DEPTH_METHOD = (
+            o.debug,
+            o.single_pass,
+            o.verify,
+            o.diagnose,
+            o.depth_method,
+        )
+        name = str(session.request.world)
+        seed = int(session.settings["seed"])
+        printed = io.StringIO()
+        t0 = time.perf_counter()
+        try:
+            with contextlib.redirect_stdout(printed):
+                row = run_world(name, seed, session.robot, session.models, o.changes_seed)
+        except BaseException:
+            sys.stdout.write(printed.getvalue())  # what the world printed before it failed
+            sys.stdout.flush()
+            raise
+        row["wall_s"] = time.perf_counter() - t0
+        return {"scene_eval": row, "scene_eval_output": printed.getvalue()}
+
+
+def run_worlds(
+    worlds: list[tuple[int, str]], models: str, workers: int, options: EvalOptions, on_row: Any
+) -> list[dict[str, Any]]:
+    """Each (seed, world) on the batch runner (a pool of ``workers``, or this process for 1).
+
+    ``on_row(row, printed)`` is called in plan order as rows arrive (a world waits for the ones before
+    it). A world whose run did not succeed is reported on stderr and left out. Returns the rows.
+    """
+    import functools
+    import tempfile
+    from pathlib import Path
+
+    from missiontree.evaluation import BatchPlan, PoolEngine, RunSpec, SerialEngine, run_batch
+
+    specs = [RunSpec(world=name, seed=seed, run_seed=seed) for seed, name in worlds]
+    arrived: dict[str, Any] = {}
+    rows: list[dict[str, Any]] = []
+    shown = 0
+
+    with tempfile.TemporaryDirectory(prefix="scene_graph_eval_") as tmp:
+        folder = Path(tmp)
+        out = folder / "batch"
+
+        def take(record: Any, skipped: bool) -> None:
+            nonlocal shown
+            arrived[record.run_id] = record
+            while shown < len(specs) and specs[shown].run_id in arrived:
+                done = arrived[specs[shown].run_id]
+                shown += 1
+                if done.status == "SUCCESS" and "scene_eval" in done.figures:
+                    rows.append(done.figures["scene_eval"])
+                    on_row(done.figures["scene_eval"], done.figures.get("scene_eval_output", ""))
+                    continue
+                trace = ""
+                if done.run_dir is not None:
+                    with contextlib.suppress(OSError, ValueError):
+                        record_file = out / done.run_dir / "record.json"
+                        trace = json.loads(record_file.read_text(encoding="utf-8")).get("traceback", "")
+                why = f"{done.status}: {done.reason}"
+                print(f"{done.world}: the evaluation did not finish ({why})", file=sys.stderr)
+                if trace:
+                    print(trace, file=sys.stderr, end="")
+
+        mission = folder / "scene_graph_eval_world.yaml"
+        mission.write_text(MISSION, encoding="utf-8")
+        plan = BatchPlan(mission=mission, runs=specs, request={"models": models})
+        engine = PoolEngine(workers) if workers > 1 else SerialEngine()
+        with engine:
+            run_batch(
+                plan,
+                engine,
+                out,
+                probe=functools.partial(SceneEvalProbe, options),
+                write_log=False,
+                on_record=take,
+            )
+    return rows
 
 
 # -- rebuild time at 300 objects -------------------------------------------------------------------------
@@ -797,32 +922,19 @@ def main(argv: list[str] | None = None) -> int:
         [] if args.no_office else ["office"]
     )
     started = time.perf_counter()
-    rows = []
-    jobs = [
-        (
-            name,
-            k,
-            args.models,
-            args.changes_seed,
-            DEBUG,
-            SINGLE_PASS,
-            args.verify,
-            args.diagnose,
-            args.depth_method,
-        )
-        for k, name in enumerate(names)
-        if not args.only or name in args.only.split(",")
-    ]
-    if args.workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
+    worlds = [(k, name) for k, name in enumerate(names) if not args.only or name in args.only.split(",")]
+    options = EvalOptions(
+        changes_seed=args.changes_seed,
+        debug=DEBUG,
+        single_pass=SINGLE_PASS,
+        verify=args.verify,
+        diagnose=args.diagnose,
+        depth_method=args.depth_method,
+    )
 
-        pool = ProcessPoolExecutor(args.workers)
-        results = pool.map(_job, jobs)
-    else:
-        pool = None
-        results = map(_job, jobs)
-    for row in results:
-        rows.append(row)
+    def show(row: dict[str, Any], printed: str) -> None:
+        if printed:
+            print(printed, end="", flush=True)  # the world's --debug / --diagnose lines
         name = row["world"]
         o, n = row["ours"], row["nais"]
         print(
@@ -833,8 +945,12 @@ def main(argv: list[str] | None = None) -> int:
             f"colour {n['colour_ok']}, changes {n['reflected']}/{row['changes']}",
             flush=True,
         )
-    if pool is not None:
-        pool.shutdown()
+
+    rows = run_worlds(worlds, args.models, args.workers, options, show)
+    failed = len(worlds) - len(rows)
+    if not rows:
+        print("no world finished its evaluation", file=sys.stderr)
+        return 1
     result: dict[str, Any] = {"worlds": len(rows), "wall_s": round(time.perf_counter() - started, 1)}
     for m in ("ours", "nais"):
         tot = Counter()
@@ -864,6 +980,9 @@ def main(argv: list[str] | None = None) -> int:
         round(max(ratio), 3),
     ]
     print(json.dumps(result))
+    if failed:
+        print(f"{failed} of {len(worlds)} worlds did not finish (left out of the figures)", file=sys.stderr)
+        return 1
     return 0
 
 
