@@ -223,7 +223,8 @@ class AbsenceJudge:
                 f"a {inst.colour} {inst.label} was seen here",
             )
             smap.update(inst.id, observations=inst.observations + observations, confidence=0.8)
-            fusion.tracks[inst.id] = fusion.tracks.pop(twin.id, None) or fusion.new_track()
+            kept = fusion.tracks.pop(twin.id, None)
+            fusion.tracks[inst.id] = kept if kept is not None else fusion.new_track()
             return
         params = fusion.params
         smap.remove(
