@@ -160,3 +160,13 @@ def test_a_box_of_the_old_label_covering_a_relabelled_instance_is_no_miss() -> N
         fusion.process(frame(float(k)), [], [box])
     kept = fusion.map.get(bin_.id)
     assert kept is not None and kept.misses == 0 and not kept.doubtful
+
+
+def test_what_stands_behind_a_small_instance_does_not_deepen_its_footprint() -> None:
+    """A cabinet face 0.42 m behind a backpack's centre is outside its footprint: still a backpack."""
+    fusion, old = seen_backpack(0.32, 0.2, {"backpack": 9.6, "table": 0.66, "trash can": 0.23})
+    row = int(np.floor((PLACE[0] + 0.42) / CELL))
+    cabinet = {(row, int(np.floor(y / CELL))): 3 for y in np.arange(-0.3, 0.3, CELL)}
+    fusion.track(old).cells.update(cabinet)
+    fusion.process(frame(1.0), [projection(1.0, "backpack", BIN_SCORES)])
+    assert [i.id for i in fusion.map] == [old]

@@ -129,6 +129,9 @@ class FusionParams:
             named class) makes a class that beats it in a third of the views reach 0.3 %.
             0 turns relabelling off.
         relabel_views: Views of an instance (observations) before its label is reconsidered.
+        footprint_reach: Surface cells count towards a small instance's footprint within half its
+            largest measured width plus this of its position, metres (farther ones are what stands
+            beside it: a backpack against a cabinet measured 0.39 m deep with 0.3 m, 0.2 m with 0.1 m).
     """
 
     filters: NaisFilterParams = field(default_factory=NaisFilterParams)
@@ -162,6 +165,7 @@ class FusionParams:
     min_bounded_share: float = 0.2
     runner_up_share: float = 0.003
     relabel_views: int = 10
+    footprint_reach: float = 0.15
 
 
 @dataclass
@@ -579,7 +583,8 @@ class InstanceFusion:
         if not runner_ups:
             return inst  # nothing else has real score mass
         extent = max(inst.size[0], inst.size[1])
-        sides = footprint_sides(track.cells, inst.position, 0.5 * extent + 0.3, self.params.surface_cell)
+        reach = 0.5 * extent + self.params.footprint_reach
+        sides = footprint_sides(track.cells, inst.position, reach, self.params.surface_cell)
         if sides is None or not track.sizes:
             return inst  # too few views of its surface yet
         shorter = sides[1]
