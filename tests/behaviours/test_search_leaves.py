@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 import yaml
 
+from missiontree.behaviours.search_approach import view_height
 from missiontree.reasoning.search_priors import parse_target, region_score, room_priors
 from missiontree.session import MissionRequest, Session
 
@@ -240,3 +241,47 @@ def test_locate_takes_a_candidate_from_a_loaded_scene_graph_before_exploring(tmp
     picked = of(events, "search_candidate")[0]
     assert (picked["id"], picked["source"]) == ("bp_red", "scene graph")
     assert not of(events, "explore_goal")
+
+
+def test_approach_then_verify_confirms_an_object_believed_beyond_where_it_stands(tmp_path: Path) -> None:
+    """A belief half a metre beyond the backpack (as fused over a network): still found, not rejected.
+
+    The standoff pose must let the camera see the object down to its bottom: chosen for its centre,
+    the robot stood so close to the real backpack that the detector saw a laptop, and Verify
+    rejected the right object (the ROS 2 search's flaky failure).
+    """
+    world = room(tmp_path, (1.0, 2.5, 0.0), [backpack("red_bag", "red", RED)])
+    candidate = {
+        "id": "backpack_1",
+        "label": "backpack",
+        "colour": "red",
+        "x": RED[0] + 0.5,
+        "y": RED[1],
+        "z": 0.2,
+        "height": 0.45,
+    }
+    root = {
+        "Sequence": {
+            "name": "approach_verify",
+            "memory": True,
+            "children": [
+                {"Approach": {"name": "approach"}},
+                {"Verify": {"name": "verify", "target": "red backpack"}},
+            ],
+        }
+    }
+    status, events, final = run(
+        tmp_path, world, root, blackboard={"search_candidate": candidate}, max_duration=120
+    )
+    assert status == "SUCCESS", [e.get("reason") for e in of(events, "candidate_rejected")]
+    assert not of(events, "candidate_rejected")
+    assert of(events, "object_found")[0]["id"] == "backpack_1"
+    assert math.hypot(RED[0] - final.x, RED[1] - final.y) > 0.6
+
+
+def test_view_height_is_the_candidates_bottom() -> None:
+    """The camera must see down to the bottom: centre less half the height, else the floor."""
+    assert view_height({"z": 0.2, "height": 0.45}) == 0.0
+    assert view_height({"z": 0.8, "height": 0.1}) == pytest.approx(0.75)
+    assert view_height({"z": 0.8}) == 0.0
+    assert view_height({"z": float("nan"), "height": 0.2}) == 0.0

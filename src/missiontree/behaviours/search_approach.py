@@ -47,6 +47,23 @@ FACING, FACE_TIMEOUT = 0.1, 10.0
 SAME_PLACE = 0.25
 
 
+def view_height(cand: dict[str, Any]) -> float:
+    """The height the camera must see down to at the standoff pose: the candidate's bottom.
+
+    The standoff pose is chosen far enough for the camera to see this point (the intent leaf's
+    view distance). Seeing only the object's centre leaves its lower half below the view at the
+    nearest such pose, and the detector then misreads the cut-off object (a backpack as a laptop
+    or a sofa): with a belief a few decimetres beyond the real object, as positions fused over a
+    network can be, Verify then rejected the right object. The bottom is the centre ``z`` less
+    half the ``height`` when the candidate carries one, else the floor.
+    """
+    z = float(cand.get("z", 0.0) or 0.0)
+    height = float(cand.get("height", 0.0) or 0.0)
+    if not (math.isfinite(z) and math.isfinite(height)):
+        return 0.0
+    return max(0.0, z - height / 2.0) if height > 0.0 else 0.0
+
+
 def standoff_goal(
     obj: GraphObject,
     grid: OccupancyGrid | None,
@@ -206,7 +223,7 @@ class Approach(Leaf):
             if stamped is None:
                 return self.running("waiting for a pose")
             c = self.cand
-            obj = GraphObject(str(c["id"]), str(c["label"]), xy=(c["x"], c["y"]), z=float(c.get("z", 0.0)))
+            obj = GraphObject(str(c["id"]), str(c["label"]), xy=(c["x"], c["y"]), z=view_height(c))
             radius = self.params.robot_radius + self.params.clearance_step * len(self.failed)
             self.call = model_caller(self.context).submit(
                 "planner",

@@ -508,6 +508,7 @@ class Locate(ResumeExplore):
                 "x": round(inst.position[0], 3),
                 "y": round(inst.position[1], 3),
                 "z": round(inst.position[2], 3),
+                "height": round(inst.size[2], 3),
                 "source": "semantic map",
                 "observations": inst.observations,
             }
