@@ -246,7 +246,7 @@ def test_locate_takes_a_candidate_from_a_loaded_scene_graph_before_exploring(tmp
 def test_approach_then_verify_confirms_an_object_believed_beyond_where_it_stands(tmp_path: Path) -> None:
     """A belief half a metre beyond the backpack (as fused over a network): still found, not rejected.
 
-    The standoff pose must let the camera see the object down to its bottom: chosen for its centre,
+    The standoff pose must let the camera see the object's lower part: chosen for its centre,
     the robot stood so close to the real backpack that the detector saw a laptop, and Verify
     rejected the right object (the ROS 2 search's flaky failure).
     """
@@ -280,8 +280,8 @@ def test_approach_then_verify_confirms_an_object_believed_beyond_where_it_stands
 
 
 def test_view_height_is_the_candidates_bottom() -> None:
-    """The camera must see down to the bottom: centre less half the height, else the floor."""
-    assert view_height({"z": 0.2, "height": 0.45}) == 0.0
-    assert view_height({"z": 0.8, "height": 0.1}) == pytest.approx(0.75)
-    assert view_height({"z": 0.8}) == 0.0
+    """The camera must see the lower quarter: centre less a quarter of the height, else half the centre."""
+    assert view_height({"z": 0.2, "height": 0.4}) == pytest.approx(0.1)
+    assert view_height({"z": 0.1, "height": 0.8}) == 0.0
+    assert view_height({"z": 0.8}) == pytest.approx(0.4)
     assert view_height({"z": float("nan"), "height": 0.2}) == 0.0
