@@ -118,7 +118,8 @@ def test_pool_dask_and_serial_give_the_same_results(tmp_path: Path) -> None:
     mission = _mission(tmp_path, NAV_MISSION)
     plan = expand_plan(mission, seeds=[0, 1], sweeps={"x": ["6.5", "3.5"]})
     outputs = {}
-    engines = (("pool", PoolEngine(2)), ("dask", DaskEngine("local", 2)), ("serial", SerialEngine()))
+    engines = (("pool", PoolEngine(2)), ("dask", DaskEngine("local", 2)), ("serial", SerialEngine()),
+               ("dask_chunks", DaskEngine("local", 1, chunk=3)))
     for name, engine in engines:
         with engine:
             records = run_batch(plan, engine, tmp_path / name)
@@ -127,7 +128,52 @@ def test_pool_dask_and_serial_give_the_same_results(tmp_path: Path) -> None:
     assert len(outputs["pool"]) == 4
     assert all(r["status"] == "SUCCESS" and r["path_length_m"] > 0.5 for r in outputs["pool"])
     assert {r["robot_time_s"] for r in outputs["pool"]} != {outputs["pool"][0]["robot_time_s"]}  # x matters
-    assert outputs["pool"] == outputs["dask"] == outputs["serial"]
+    assert outputs["pool"] == outputs["dask"] == outputs["serial"] == outputs["dask_chunks"]
+    assert engines[3][1].chunk_sizes == [2, 1, 1]  # several runs in one Dask task change nothing
+
+
+def kill_own_process_on_seed_1(task: RunTask) -> dict[str, Any]:
+    """Seed 1's worker kills itself with SIGKILL, every attempt."""
+    if task.spec.seed == 1:
+        Path(task.runs_dir, f".{task.spec.run_id}.{os.getpid()}.{task.attempt}.partial").mkdir()
+        os.kill(os.getpid(), signal.SIGKILL)
+    return execute_run(task)
+
+
+@pytest.mark.slow
+def test_a_chunk_whose_worker_dies_keeps_its_finished_runs_and_runs_the_rest_one_by_one(
+        tmp_path: Path) -> None:
+    """Dask chunks of 4 runs: the run that killed its worker is the crash (INFRA after its retry).
+
+    The chunk's run finished before it keeps its record; the ones after it run again alone, as first
+    attempts.
+    """
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    plan = expand_plan(_mission(tmp_path, WAIT_MISSION.format(realtime="false")), seeds=range(7))
+    with DaskEngine("local", 1, chunk=4) as engine:
+        records = run_batch(plan, engine, tmp_path / "out", fn=kill_own_process_on_seed_1)
+        sizes = engine.chunk_sizes
+    assert [r.status for r in records] == ["SUCCESS", INFRA, "SUCCESS", "SUCCESS", "SUCCESS", "SUCCESS",
+                                           "SUCCESS"]
+    assert "KilledWorker" in records[1].reason and records[1].attempt == 2
+    assert [r.attempt for r in records[:4] if r.status == "SUCCESS"] == [1, 1, 1]  # seed 0 ran once
+    assert sizes[:2] == [3, 2] and sizes.count(1) >= 4  # 5 and 6 alone, 2 again alone, 1's retry
+    runs = tmp_path / "out" / RUNS_DIR
+    assert sorted(p.name for p in runs.iterdir()) == sorted(r.run_id for r in records if r.status != INFRA)
+
+
+@pytest.mark.slow
+def test_dask_auto_chunks_short_runs_after_one_run_per_worker(tmp_path: Path) -> None:
+    """chunk="auto": a first run per worker alone; short runs then go several to a task, the last alone."""
+    plan = expand_plan(_mission(tmp_path, WAIT_MISSION.format(realtime="false")), seeds=range(12))
+    with DaskEngine("local", 2) as engine:
+        records = run_batch(plan, engine, tmp_path / "out")
+        sizes = engine.chunk_sizes
+    assert all(r.status == "SUCCESS" for r in records) and len(records) == 12
+    assert sizes[:2] == [1, 1] and sum(sizes) == 12
+    assert max(sizes) > 1 and sizes[-1] == 1
 
 
 @pytest.mark.slow

@@ -13,14 +13,14 @@ run's own and not a neighbour's).
   their threads before importing anything numerical. When a worker dies the pool breaks for every
   task in it: the runs that had started (their staging directory exists) are reported as crashed,
   the others are simply submitted again to a new pool.
-- :class:`DaskEngine` — Dask distributed through ``Client.get_executor(pure=False)`` (``pure=False``:
-  identical tasks are not deduplicated). ``local`` starts a ``LocalCluster`` with one thread per
-  worker process; any other address connects to a running scheduler (``dask scheduler`` and
-  ``dask worker tcp://HOST:8786``). A task whose worker died comes back as ``KilledWorker``
-  once the scheduler gives up on it (the local cluster gives up at the first death, so the
-  batch's own single retry is the only one; a remote scheduler applies its own
-  ``distributed.scheduler.allowed-failures`` first). Workers write run directories themselves: on
-  a cluster of several machines the batch's ``--out`` must be on a filesystem they all share, and
+- :class:`DaskEngine` — Dask distributed through ``Client.map(pure=False)`` (``pure=False``: identical
+  tasks are not deduplicated), short runs several to a task (below). ``local`` starts a ``LocalCluster``
+  with one thread per worker process; any other address connects to a running scheduler (``dask
+  scheduler`` and ``dask worker tcp://HOST:8786``). A task whose worker died comes back as
+  ``KilledWorker`` once the scheduler gives up on it (the local cluster gives up at the first death, so
+  the batch's own single retry is the only one; a remote scheduler applies its own
+  ``distributed.scheduler.allowed-failures`` first). Workers write run directories themselves: on a
+  cluster of several machines the batch's ``--out`` must be on a filesystem they all share, and
   missiontree (with the plugins the mission needs) must be installed in every worker's environment.
 
 A mission in a Dask worker used to cost 28 % more than in a pool worker (82.5 ms serial, 85.8 ms
@@ -46,6 +46,21 @@ difference; the local cluster changes them (:data:`LOCAL_CLUSTER_CONFIG`, applie
   side by side, they cost 20-35 ms of CPU a mission beyond the mission's own thread; with the
   profiler off, the check every second and the monitor every 5 s, about 10 ms. They feed the
   dashboard, which a local batch does not start.
+
+The rest of Dask's cost is per task, in this process (the scheduler of a local cluster and the
+client run here, on the cores the workers need): each task is a graph update, a scheduling decision,
+a result sent back. For short runs (the 0.1 s missions of benchmarks/batch_scaling.py) that is a few
+per cent of every run, so the engine sends them several to a task (``chunk``, default ``"auto"``):
+the first run of each worker goes alone and, as soon as one comes back shorter than
+:data:`SHORT_RUN_S` (a worker's first run, slow with its imports, does not count against it), the
+rest go at once (one ``client.map``), in chunks of about :data:`CHUNK_S` seconds of runs that shrink
+to single runs at the end, so no worker waits long for another (guided self-scheduling). Longer
+runs stay one a task. Results come back with their completion (``as_completed(with_results=True)``,
+no round trip per result). Each run in a chunk is still one :func:`~.worker.execute_run` (its own
+run directory, record and seed: results are those of the pool); a run whose harness raises is its
+own crash; when a chunk's worker dies, the runs it finished keep their records, the run it had begun
+is the crash (retried once by the batch, alone) and the runs it had not begun are sent again, one a
+task. Retries (``isolated``) always go one a task. The pool stays one run a task.
 
 On a remote cluster the workers read their own configuration; to get the same speed set, in a
 Dask config file on every worker machine (e.g. ``~/.config/dask/missiontree.yaml``) before starting
@@ -83,7 +98,7 @@ from pathlib import Path
 from typing import Any
 
 from missiontree.errors import BackendUnavailableError, ConfigError
-from missiontree.evaluation.worker import THREAD_ENV, RunTask, ignore_interrupts
+from missiontree.evaluation.worker import RECORD_FILE, THREAD_ENV, RunTask, ignore_interrupts
 
 __all__ = ["LOCAL_CLUSTER_CONFIG", "Crash", "DaskEngine", "Engine", "PoolEngine", "SerialEngine",
            "make_engine"]
@@ -102,6 +117,11 @@ LOCAL_CLUSTER_CONFIG: dict[str, Any] = {
     "distributed.admin.tick.interval": "1s",
     "distributed.admin.system-monitor.interval": "5s",
 }
+#: ``chunk="auto"``: runs shorter than this (wall seconds, the first run's) go several to a Dask task.
+SHORT_RUN_S = 0.5
+#: ``chunk="auto"``: a chunk holds about this many seconds of runs (and at most MAX_CHUNK runs).
+CHUNK_S = 1.0
+MAX_CHUNK = 32
 
 
 @dataclass(frozen=True)
@@ -245,11 +265,19 @@ class PoolEngine(Engine):
 
 
 class DaskEngine(Engine):
-    """Dask distributed: a ``LocalCluster`` (``address="local"``) or a running scheduler."""
+    """Dask distributed: a ``LocalCluster`` (``address="local"``) or a running scheduler.
+
+    Args:
+        address: ``local`` or the scheduler's address.
+        workers: Worker processes of a local cluster (default: the cores).
+        chunk: Runs per Dask task: ``"auto"`` (default) sends one run per worker first and, when the
+            first of them took less than :data:`SHORT_RUN_S`, the rest in chunks (see the module
+            docstring); a number fixes the chunk size (1: one run per task, always).
+    """
 
     name = "dask"
 
-    def __init__(self, address: str, workers: int | None = None) -> None:
+    def __init__(self, address: str, workers: int | None = None, chunk: int | str = "auto") -> None:
         try:
             import dask
             from distributed import Client, LocalCluster
@@ -257,7 +285,12 @@ class DaskEngine(Engine):
             raise BackendUnavailableError(
                 f"--dask needs the '{DASK_EXTRA}' extra (Dask distributed), which is not installed "
                 f"({error}); install it with: pip install 'missiontree[{DASK_EXTRA}]'") from None
+        if chunk != "auto" and (isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1):
+            raise ConfigError(f"Dask chunk: expected 'auto' or a whole number >= 1, found {chunk!r}")
         self.address = address
+        self.chunk = chunk
+        #: Runs in each Dask task submitted so far, in order (for reports and tests).
+        self.chunk_sizes: list[int] = []
         self.cluster: Any = None
         try:
             if address == "local":
@@ -275,36 +308,71 @@ class DaskEngine(Engine):
             raise ConfigError(f"--dask {address}: cannot reach the Dask scheduler ({error}); start one "
                               "with `dask scheduler` and workers with `dask worker tcp://HOST:8786`, "
                               "or use --dask local") from None
-        self.executor = self.client.get_executor(pure=False)
 
     def describe(self) -> dict[str, Any]:
         """The engine for reports, with the scheduler's address."""
-        return {"name": self.name, "workers": self.workers, "address": self.address}
+        return {"name": self.name, "workers": self.workers, "address": self.address, "chunk": self.chunk}
 
     def run(self, fn: TaskFn, tasks: Iterable[RunTask], isolated: bool = False
             ) -> Iterator[tuple[RunTask, Outcome | Crash]]:
-        """Submit every task to the cluster (``isolated`` changes nothing: a worker runs one at a time)."""
-        from distributed import KilledWorker
+        """Run the tasks on the cluster, several runs a Dask task when they are short (``chunk``).
 
-        futures = {self.executor.submit(fn, task): task for task in tasks}
-        pending = set(futures)
+        ``isolated`` (the retry of crashed runs): one run a task, whatever ``chunk`` says.
+        """
+        from distributed import as_completed
+
+        queue = list(tasks)
+        if isolated or self.chunk == 1 or len(queue) <= self.workers:
+            first, queue = [[task] for task in queue], []
+        elif isinstance(self.chunk, int):
+            first, queue = _guided_chunks(queue, self.workers, self.chunk), []
+        else:  # auto: one run per worker first; the first answer tells whether runs are short
+            first, queue = [[task] for task in queue[:self.workers]], queue[self.workers:]
+        chunk_of: dict[str, list[RunTask]] = {}
+        every: list[Any] = []
+        answers = 0
+
+        def submit(chunks: list[list[RunTask]]) -> list[Any]:
+            # one graph update for all of them (client.map), not one round trip a run
+            futures = self.client.map(_run_chunk, [fn] * len(chunks), chunks, pure=False)
+            self.chunk_sizes.extend(len(chunk) for chunk in chunks)
+            for future, chunk in zip(futures, chunks, strict=True):
+                chunk_of[future.key] = chunk
+            every.extend(futures)
+            return futures
+
+        pending = as_completed(submit(first), with_results=True, raise_errors=False)
         try:
-            while pending:
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for future in done:
-                    task = futures[future]
-                    error = future.exception()
-                    if isinstance(error, KilledWorker):
-                        _clear_partials(task)
-                        yield task, Crash(f"the Dask worker died while running it (KilledWorker: {error})")
-                    elif error is not None:  # the harness failed, not the mission (disk full, ...)
-                        _clear_partials(task)
-                        yield task, Crash(f"{type(error).__name__}: {error}")
-                    else:
-                        yield task, future.result()
+            for future, result in pending:  # results come with the completion: no extra round trip
+                chunk = chunk_of.pop(future.key)
+                if future.status == "error":
+                    again: list[RunTask] = []
+                    error = _error_of(result)
+                    for task, outcome in _crashed_chunk(chunk, error):
+                        if outcome is None:
+                            again.append(task)
+                        else:
+                            yield task, outcome
+                    if again:  # runs of a crashed chunk that had not begun: again, one by one
+                        pending.update(submit([[task] for task in again]))
+                else:
+                    yield from zip(chunk, result, strict=True)
+                if queue:  # auto, undecided: a short run sends the rest in chunks
+                    answers += 1
+                    seconds = _run_seconds(result if future.status != "error" else None)
+                    if seconds < SHORT_RUN_S:
+                        size = max(1, min(MAX_CHUNK, int(CHUNK_S / seconds)))
+                        pending.update(submit(_guided_chunks(queue, self.workers, size)))
+                        queue = []
+                    elif answers >= 2 * self.workers:  # long runs (each worker's second): one a task
+                        pending.update(submit([[task] for task in queue]))
+                        queue = []
+                    else:  # perhaps a worker's first run, slow with its imports: one more alone
+                        pending.update(submit([[queue.pop(0)]]))
         finally:
-            for future in pending:
-                future.cancel()
+            left = [future for future in every if not future.done()]
+            if left:
+                self.client.cancel(left)
 
     def warm_up(self) -> None:
         """Import the mission engine on every worker of the cluster."""
@@ -319,6 +387,90 @@ class DaskEngine(Engine):
         if self.cluster is not None:
             self.cluster.close()
             self.cluster = None
+
+
+def _run_chunk(fn: TaskFn, tasks: list[RunTask]) -> list[Outcome | Crash]:
+    """A Dask task: the runs one after another in this worker; a run's harness error is its own Crash."""
+    outcomes: list[Outcome | Crash] = []
+    for task in tasks:
+        try:
+            outcomes.append(fn(task))
+        except Exception as error:  # noqa: BLE001 - the harness failed, not the mission (disk full, ...)
+            _clear_partials(task)
+            outcomes.append(Crash(f"{type(error).__name__}: {error}"))
+    return outcomes
+
+
+def _error_of(result: Any) -> BaseException:
+    """The exception of a failed future as ``as_completed(..., raise_errors=False)`` hands it over."""
+    if isinstance(result, BaseException):
+        return result
+    if isinstance(result, tuple) and len(result) == 3 and isinstance(result[1], BaseException):
+        return result[1]
+    return RuntimeError(repr(result))
+
+
+def _crashed_chunk(chunk: list[RunTask], error: BaseException
+                   ) -> Iterator[tuple[RunTask, Outcome | Crash | None]]:
+    """What became of each run of a chunk whose Dask task failed (its worker died, mostly).
+
+    A run that completed before the death keeps its record (its run directory is final); the run
+    that had begun is the crash (a :class:`Crash`, retried once by the batch), and so is a task of
+    one run (as before chunks: Dask cannot tell a run queued in the dead worker from one that died
+    before writing anything); a run of a chunk that had not begun yet is ``None``: the engine
+    submits it again, alone.
+    """
+    reason = _crash_reason(error)
+    for task in chunk:
+        done = _final_record(task)
+        if done is not None:
+            yield task, done
+        elif len(chunk) == 1 or _started(task):
+            _clear_partials(task)
+            yield task, Crash(reason)
+        else:
+            yield task, None
+
+
+def _crash_reason(error: BaseException) -> str:
+    from distributed import KilledWorker
+
+    if isinstance(error, KilledWorker):
+        return f"the Dask worker died while running it (KilledWorker: {error})"
+    return f"{type(error).__name__}: {error}"
+
+
+def _final_record(task: RunTask) -> Outcome | None:
+    import json
+
+    try:
+        path = Path(task.runs_dir) / task.spec.run_id / RECORD_FILE
+        return dict(json.loads(path.read_text(encoding="utf-8")))
+    except (OSError, ValueError):
+        return None
+
+
+def _run_seconds(outcomes: list[Outcome | Crash] | None) -> float:
+    """Wall seconds of the first run among ``outcomes`` that has them (inf when none: not short)."""
+    for outcome in outcomes or []:
+        if isinstance(outcome, dict) and isinstance(outcome.get("wall_time_s"), int | float):
+            return max(float(outcome["wall_time_s"]), 1e-3)
+    return float("inf")
+
+
+def _guided_chunks(tasks: list[RunTask], workers: int, most: int) -> list[list[RunTask]]:
+    """Consecutive chunks of at most ``most`` runs, shrinking to single runs at the end.
+
+    Each chunk holds at most the runs left over twice the workers, so the last tasks are small and
+    no worker waits long for another to finish a big one (guided self-scheduling).
+    """
+    chunks: list[list[RunTask]] = []
+    index = 0
+    while index < len(tasks):
+        size = max(1, min(most, (len(tasks) - index) // (2 * workers)))
+        chunks.append(tasks[index:index + size])
+        index += size
+    return chunks
 
 
 def make_engine(dask: str | None, jobs: int | None) -> Engine:

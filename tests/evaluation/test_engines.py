@@ -1,0 +1,36 @@
+"""Engine helpers that need no workers: Dask's chunking of runs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from missiontree.errors import ConfigError
+from missiontree.evaluation.engines import DaskEngine, _guided_chunks
+from missiontree.evaluation.plan import RunSpec
+from missiontree.evaluation.worker import RunTask
+
+
+def _tasks(count: int) -> list[RunTask]:
+    runs = str(Path("runs"))
+    return [RunTask(RunSpec(world=None, seed=s, run_seed=s), "m.yaml", runs) for s in range(count)]
+
+
+def test_guided_chunks_shrink_to_single_runs_and_keep_the_order() -> None:
+    tasks = _tasks(23)
+    chunks = _guided_chunks(tasks, workers=2, most=32)
+    assert [len(c) for c in chunks] == [5, 4, 3, 2, 2, 1, 1, 1, 1, 1, 1, 1]
+    assert [t for c in chunks for t in c] == tasks
+
+
+def test_guided_chunks_respect_the_most_runs_a_chunk() -> None:
+    assert max(len(c) for c in _guided_chunks(_tasks(100), workers=2, most=3)) == 3
+    assert [len(c) for c in _guided_chunks(_tasks(3), workers=2, most=8)] == [1, 1, 1]
+
+
+@pytest.mark.parametrize("chunk", [0, -1, "big", True, 1.5])
+def test_dask_engine_refuses_a_bad_chunk(chunk: object) -> None:
+    pytest.importorskip("distributed")
+    with pytest.raises(ConfigError, match="chunk"):
+        DaskEngine("local", 1, chunk=chunk)  # type: ignore[arg-type]
