@@ -8,6 +8,10 @@ once (their start-up is printed apart) and stay up between rounds.
 
 - ``speedup_pool`` / ``speedup_dask``: serial wall time over the engine's, summed over the rounds
   (min/median/max of the per-round ratios printed as well).
+- ``speedup_dask_one_per_task`` (unless ``--no-reference``): the same Dask cluster settings with one
+  run a Dask task (``chunk=1``, the engine before it sent short runs several to a task), a fourth
+  engine in the same rounds: what chunking gives, measured beside it. The Dask engine's chunk sizes
+  of each round are printed.
 - ``overhead_ms_per_run_*``: worker time not spent in missions, per run:
   (workers × engine wall − Σ missions' own wall time in the workers) / runs. It holds dispatch,
   pickling, result transfer and the idle tail of a round (workers waiting for the last run).
@@ -91,6 +95,8 @@ def main() -> int:
     parser.add_argument("--runs", type=int, default=200, help="missions per engine (default 200)")
     parser.add_argument("--rounds", type=int, default=8, help="rounds the runs are split into (default 8)")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="workers (default: the cores)")
+    parser.add_argument("--no-reference", action="store_true",
+                        help="leave out the Dask engine with one run a task (chunk=1), chunking's reference")
     args = parser.parse_args()
     load_before = os.getloadavg()
     print(f"{os.cpu_count()} cores, {args.jobs} workers; load average before: "
@@ -112,6 +118,9 @@ def main() -> int:
         dask.warm_up()
         dask_start_s = time.perf_counter() - started
         engines: dict[str, Engine] = {"serial": SerialEngine(), "pool": pool, "dask": dask}
+        if not args.no_reference:  # the Dask engine as it was: one run a task, alone
+            engines["dask_one_per_task"] = DaskEngine("local", args.jobs, chunk=1)
+            engines["dask_one_per_task"].warm_up()
         print(f"start-up: pool {pool_start_s:.2f} s, dask {dask_start_s:.2f} s", flush=True)
         # warm-up round: the first run in a process loads the world, the models and the plugins
         for name, engine in engines.items():
@@ -119,12 +128,14 @@ def main() -> int:
             run_round(engine, mission, list(range(2 * args.jobs)), tmp / f"warm_{name}")
             print(f"warm-up {name}: {time.perf_counter() - began:.2f} s", flush=True)
         totals = {name: {"wall": 0.0, "inside": 0.0, "failed": 0} for name in engines}
-        ratios: dict[str, list[float]] = {"pool": [], "dask": []}
+        ratios: dict[str, list[float]] = {name: [] for name in engines if name != "serial"}
         seed = 1000
         for index, count in enumerate(per_round):
             seeds = list(range(seed, seed + count))
             seed += count
-            order = list(engines)[index % 3:] + list(engines)[:index % 3]  # rotate who goes first
+            turn = index % len(engines)
+            order = list(engines)[turn:] + list(engines)[:turn]  # rotate who goes first
+            dask.chunk_sizes.clear()
             walls: dict[str, float] = {}
             for name in order:
                 wall, inside, failed = run_round(engines[name], mission, seeds, tmp / f"r{index}_{name}")
@@ -137,7 +148,8 @@ def main() -> int:
             ceilings.append(ceiling(spinner, args.jobs))
             print(f"round {index + 1}: {count} runs each, order {'/'.join(order)}: "
                   + "  ".join(f"{n} {w:.1f} s" for n, w in walls.items())
-                  + f"  speed-up pool {ratios['pool'][-1]:.2f} dask {ratios['dask'][-1]:.2f}"
+                  + "  speed-up " + " ".join(f"{n} {r[-1]:.2f}" for n, r in ratios.items())
+                  + f"  dask runs a task {dask.chunk_sizes}"
                   + f"  machine ceiling {ceilings[-1]:.2f}", flush=True)
         for engine in engines.values():
             engine.close()
@@ -148,7 +160,7 @@ def main() -> int:
     result["parallel_ceiling_rounds"] = {"min": round(min(ceilings), 3), "max": round(max(ceilings), 3)}
     print(f"machine ceiling (busy loop, serial / pool of {args.jobs}): median "
           f"{statistics.median(ceilings):.2f} min {min(ceilings):.2f} max {max(ceilings):.2f}")
-    for name in ("pool", "dask"):
+    for name in ratios:
         speedup = totals["serial"]["wall"] / totals[name]["wall"]
         result[f"scaling_{name}"] = round(speedup / result["parallel_ceiling"], 3)
         overhead = (args.jobs * totals[name]["wall"] - totals[name]["inside"]) / runs * 1000

@@ -165,15 +165,28 @@ def test_a_chunk_whose_worker_dies_keeps_its_finished_runs_and_runs_the_rest_one
 
 
 @pytest.mark.slow
-def test_dask_auto_chunks_short_runs_after_one_run_per_worker(tmp_path: Path) -> None:
-    """chunk="auto": a first run per worker alone; short runs then go several to a task, the last alone."""
+def test_dask_auto_chunks_short_runs_after_one_run_per_worker(tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """chunk="auto": a first run per worker alone; short runs then go several to a task, the last alone.
+
+    Long runs stay one a task. ("Short" is moved for each batch, so the machine's load does not decide.)
+    """
+    from missiontree.evaluation import engines
+
     plan = expand_plan(_mission(tmp_path, WAIT_MISSION.format(realtime="false")), seeds=range(12))
     with DaskEngine("local", 2) as engine:
-        records = run_batch(plan, engine, tmp_path / "out")
-        sizes = engine.chunk_sizes
-    assert all(r.status == "SUCCESS" for r in records) and len(records) == 12
-    assert sizes[:2] == [1, 1] and sum(sizes) == 12
-    assert max(sizes) > 1 and sizes[-1] == 1
+        monkeypatch.setattr(engines, "SHORT_RUN_S", 60.0)
+        monkeypatch.setattr(engines, "CHUNK_S", 600.0)  # chunks as large as guided scheduling allows
+        records = run_batch(plan, engine, tmp_path / "short")
+        short = list(engine.chunk_sizes)
+        engine.chunk_sizes.clear()
+        monkeypatch.setattr(engines, "SHORT_RUN_S", 0.0)
+        long_records = run_batch(plan, engine, tmp_path / "long")
+        long = engine.chunk_sizes
+    assert all(r.status == "SUCCESS" for r in records + long_records) and len(records) == 12
+    assert short[:2] == [1, 1] and sum(short) == 12
+    assert short == [1, 1, 2, 2, 1, 1, 1, 1, 1, 1]  # 10 left: 10 // 4, 8 // 4, then the rest alone
+    assert long == [1] * 12
 
 
 @pytest.mark.slow

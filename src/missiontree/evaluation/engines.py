@@ -47,20 +47,21 @@ difference; the local cluster changes them (:data:`LOCAL_CLUSTER_CONFIG`, applie
   profiler off, the check every second and the monitor every 5 s, about 10 ms. They feed the
   dashboard, which a local batch does not start.
 
-The rest of Dask's cost is per task, in this process (the scheduler of a local cluster and the
-client run here, on the cores the workers need): each task is a graph update, a scheduling decision,
-a result sent back. For short runs (the 0.1 s missions of benchmarks/batch_scaling.py) that is a few
-per cent of every run, so the engine sends them several to a task (``chunk``, default ``"auto"``):
-the first run of each worker goes alone and, as soon as one comes back shorter than
-:data:`SHORT_RUN_S` (a worker's first run, slow with its imports, does not count against it), the
-rest go at once (one ``client.map``), in chunks of about :data:`CHUNK_S` seconds of runs that shrink
-to single runs at the end, so no worker waits long for another (guided self-scheduling). Longer
-runs stay one a task. Results come back with their completion (``as_completed(with_results=True)``,
-no round trip per result). Each run in a chunk is still one :func:`~.worker.execute_run` (its own
-run directory, record and seed: results are those of the pool); a run whose harness raises is its
-own crash; when a chunk's worker dies, the runs it finished keep their records, the run it had begun
-is the crash (retried once by the batch, alone) and the runs it had not begun are sent again, one a
-task. Retries (``isolated``) always go one a task. The pool stays one run a task.
+The rest of Dask's cost is per task, in this process (the scheduler of a local cluster and the client
+run here, on the cores the workers need): each task is a graph update, a scheduling decision, a result
+sent back. For short runs (the 0.1 s missions of benchmarks/batch_scaling.py) that is a few per cent of
+every run, so the engine sends them several to a task (``chunk``, default ``"auto"``): the first run of
+each worker goes alone and, as soon as one comes back shorter than :data:`SHORT_RUN_S` (a worker's first
+run, slow with its imports, does not count against it), the rest go at once (one ``client.map``), in
+chunks of about :data:`CHUNK_S` seconds of runs that shrink to single runs at the end, so no worker
+waits long for another (guided self-scheduling). Longer runs stay one a task. The results of every task
+done since the last look come back in one gather (``as_completed(...).batches()``; not
+``with_results=True``, whose concurrent gathers trip an assertion in tornado's stream writes under load
+and leave the batch waiting forever). Each run in a chunk is still one :func:`~.worker.execute_run` (its
+own run directory, record and seed: results are those of the pool); a run whose harness raises is its
+own crash; when a chunk's worker dies, the runs it finished keep their records, the run it had begun is
+the crash (retried once by the batch, alone) and the runs it had not begun are sent again, one a task.
+Retries (``isolated``) always go one a task. The pool stays one run a task.
 
 On a remote cluster the workers read their own configuration; to get the same speed set, in a
 Dask config file on every worker machine (e.g. ``~/.config/dask/missiontree.yaml``) before starting
@@ -341,38 +342,58 @@ class DaskEngine(Engine):
             every.extend(futures)
             return futures
 
-        pending = as_completed(submit(first), with_results=True, raise_errors=False)
+        pending = as_completed(submit(first))
         try:
-            for future, result in pending:  # results come with the completion: no extra round trip
-                chunk = chunk_of.pop(future.key)
-                if future.status == "error":
-                    again: list[RunTask] = []
-                    error = _error_of(result)
-                    for task, outcome in _crashed_chunk(chunk, error):
-                        if outcome is None:
-                            again.append(task)
-                        else:
-                            yield task, outcome
-                    if again:  # runs of a crashed chunk that had not begun: again, one by one
-                        pending.update(submit([[task] for task in again]))
-                else:
-                    yield from zip(chunk, result, strict=True)
-                if queue:  # auto, undecided: a short run sends the rest in chunks
-                    answers += 1
-                    seconds = _run_seconds(result if future.status != "error" else None)
-                    if seconds < SHORT_RUN_S:
-                        size = max(1, min(MAX_CHUNK, int(CHUNK_S / seconds)))
-                        pending.update(submit(_guided_chunks(queue, self.workers, size)))
-                        queue = []
-                    elif answers >= 2 * self.workers:  # long runs (each worker's second): one a task
-                        pending.update(submit([[task] for task in queue]))
-                        queue = []
-                    else:  # perhaps a worker's first run, slow with its imports: one more alone
-                        pending.update(submit([[queue.pop(0)]]))
+            for batch in pending.batches():  # every task done since the last look: one gather for them
+                for future, result, error in self._gathered(batch):
+                    chunk = chunk_of.pop(future.key)
+                    if error is not None:
+                        again: list[RunTask] = []
+                        for task, outcome in _crashed_chunk(chunk, error):
+                            if outcome is None:
+                                again.append(task)
+                            else:
+                                yield task, outcome
+                        if again:  # runs of a crashed chunk that had not begun: again, one by one
+                            pending.update(submit([[task] for task in again]))
+                    else:
+                        yield from zip(chunk, result, strict=True)
+                    if queue:  # auto, undecided: a short run sends the rest in chunks
+                        answers += 1
+                        seconds = _run_seconds(result)
+                        if seconds < SHORT_RUN_S:
+                            size = max(1, min(MAX_CHUNK, int(CHUNK_S / seconds)))
+                            pending.update(submit(_guided_chunks(queue, self.workers, size)))
+                            queue = []
+                        elif answers >= 2 * self.workers:  # long runs (each worker's second): one a task
+                            pending.update(submit([[task] for task in queue]))
+                            queue = []
+                        else:  # perhaps a worker's first run, slow with its imports: one more alone
+                            pending.update(submit([[queue.pop(0)]]))
         finally:
             left = [future for future in every if not future.done()]
             if left:
                 self.client.cancel(left)
+
+    def _gathered(self, batch: list[Any]) -> Iterator[tuple[Any, Any, BaseException | None]]:
+        """(future, its result or None, its error or None) for done futures; one gather for the results."""
+        finished = [future for future in batch if future.status == "finished"]
+        results: dict[Any, Any] = {}
+        if finished:
+            try:
+                results = dict(zip([f.key for f in finished], self.client.gather(finished), strict=True))
+            except Exception:  # noqa: BLE001, S110 - a result lost meanwhile: each future on its own below
+                pass
+        import asyncio
+
+        for future in batch:
+            result, error = results.get(future.key), None
+            if future.key not in results:
+                try:
+                    result = future.result()
+                except (Exception, asyncio.CancelledError) as failed:  # noqa: BLE001 - KilledWorker, ...
+                    error = failed
+            yield future, result, error
 
     def warm_up(self) -> None:
         """Import the mission engine on every worker of the cluster."""
@@ -399,15 +420,6 @@ def _run_chunk(fn: TaskFn, tasks: list[RunTask]) -> list[Outcome | Crash]:
             _clear_partials(task)
             outcomes.append(Crash(f"{type(error).__name__}: {error}"))
     return outcomes
-
-
-def _error_of(result: Any) -> BaseException:
-    """The exception of a failed future as ``as_completed(..., raise_errors=False)`` hands it over."""
-    if isinstance(result, BaseException):
-        return result
-    if isinstance(result, tuple) and len(result) == 3 and isinstance(result[1], BaseException):
-        return result[1]
-    return RuntimeError(repr(result))
 
 
 def _crashed_chunk(chunk: list[RunTask], error: BaseException
