@@ -251,3 +251,36 @@ def test_model_caller_binds_providers_that_need_the_robot() -> None:
     assert good.bound == [robot]
     assert isinstance(context.models["other"], BrokenProvider)
     assert "simulation-only" in context.models["other"].reason
+
+
+def test_a_failed_call_is_freed_with_its_images_without_the_garbage_collector() -> None:
+    """A provider's exception must not tie the call into a cycle that holds its images until a gc pass."""
+    import gc
+    import weakref
+
+    import numpy as np
+
+    class Image(np.ndarray):
+        """An ndarray subclass, so a weak reference can watch it."""
+
+    def broken(images: list[np.ndarray]) -> None:
+        raise ModelError("flaky: injected fault")
+
+    gc.collect()
+    gc.disable()
+    try:
+        for simulated in (True, False):
+            caller = ModelCaller(Clock() if simulated else time.monotonic, Events(), simulated=simulated)
+            image = np.zeros((240, 320, 3), np.uint8).view(Image)
+            watch = weakref.ref(image)
+            call = caller.submit("vlm", broken, [image])
+            deadline = time.monotonic() + 5.0
+            while not call.status().done and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert call.status() is CallStatus.FAILED
+            del image, call
+            caller.close()
+            time.sleep(0.05)
+            assert watch() is None, f"the failed call's image outlived it (simulated={simulated})"
+    finally:
+        gc.enable()

@@ -46,6 +46,7 @@ from __future__ import annotations
 import enum
 import random
 import threading
+import weakref
 from collections.abc import Callable, Collection, Mapping, Sequence
 from concurrent.futures import CancelledError, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
@@ -298,15 +299,17 @@ class ModelCall:
                 "raise the timeout or use a faster model")
 
     def _finish_from_future(self, latency: float) -> CallStatus:
+        # The exception is read, not raised here: raising it (Future.result) would add this frame,
+        # which holds the call, to its traceback, a cycle keeping the call's images until a gc pass.
         try:
-            value = self._future.result(timeout=0)
+            exc = self._future.exception(timeout=0)
         except CancelledError:
             return self._finish(CallStatus.CANCELLED, latency, error="cancelled")
-        except BaseException as exc:  # noqa: BLE001 - any provider failure is this call's outcome
+        if exc is not None:
             self._exception = exc
             status = CallStatus.TIMED_OUT if isinstance(exc, ModelTimeoutError) else CallStatus.FAILED
             return self._finish(status, latency, error=_describe(exc, self.provider))
-        self._result = value
+        self._result = self._future.result(timeout=0)
         return self._finish(CallStatus.SUCCEEDED, latency)
 
     def _finish(self, status: CallStatus, latency: float, error: str = "") -> CallStatus:
@@ -460,19 +463,24 @@ class ModelCaller:
         if self.simulated:
             model = self.latency.get(role)
             simulated_latency = model.draw(self._rng(role)) if model is not None else 0.0
-        holder: list[ModelCall] = []
+        # A weak reference: a provider's exception keeps this function's frame in its traceback, and
+        # the call keeps the exception; a strong one made a cycle holding the call's images (frames)
+        # until the cyclic garbage collector ran (numpy buffers do not count towards its thresholds:
+        # the two-hour soak held up to ~9 MiB of frames of failed calls at a time).
+        holder: list[weakref.ref[ModelCall]] = []
 
         def run() -> Any:
             try:
                 return fn(*args, **kwargs)
             finally:
-                if not self.simulated and holder:
-                    holder[0].finished_at = self.clock()
+                done = holder[0]() if holder else None
+                if not self.simulated and done is not None:
+                    done.finished_at = self.clock()
 
         future = self._executor().submit(run)
         call = ModelCall(self, role, name, node, future, submitted, limit, simulated_latency)
         call.log_success = log_success
-        holder.append(call)
+        holder.append(weakref.ref(call))
         return call
 
     def call(self, role: str, method: str, *args: Any, timeout: float | None | str = "default",
