@@ -263,7 +263,10 @@ def test_a_failed_call_is_freed_with_its_images_without_the_garbage_collector() 
     class Image(np.ndarray):
         """An ndarray subclass, so a weak reference can watch it."""
 
+    gate = threading.Event()
+
     def broken(images: list[np.ndarray]) -> None:
+        gate.wait(5.0)  # fails after submit() returned (the call's handle exists)
         raise ModelError("flaky: injected fault")
 
     gc.collect()
@@ -273,7 +276,9 @@ def test_a_failed_call_is_freed_with_its_images_without_the_garbage_collector() 
             caller = ModelCaller(Clock() if simulated else time.monotonic, Events(), simulated=simulated)
             image = np.zeros((240, 320, 3), np.uint8).view(Image)
             watch = weakref.ref(image)
+            gate.clear()
             call = caller.submit("vlm", broken, [image])
+            gate.set()
             deadline = time.monotonic() + 5.0
             while not call.status().done and time.monotonic() < deadline:
                 time.sleep(0.01)

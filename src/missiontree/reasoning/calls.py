@@ -373,6 +373,13 @@ class ModelCall:
         self._finish(CallStatus.CANCELLED, max(0.0, now - self.submitted_at), error="cancelled")
 
 
+def _stamp_finished(holder: list[weakref.ref[ModelCall]], clock: Callable[[], float]) -> None:
+    """Note when a real call's worker finished, if the call is still wanted."""
+    call = holder[0]() if holder else None
+    if call is not None:
+        call.finished_at = clock()
+
+
 class ModelCaller:
     """Runs model calls on a worker pool and hands out :class:`ModelCall` handles.
 
@@ -473,9 +480,8 @@ class ModelCaller:
             try:
                 return fn(*args, **kwargs)
             finally:
-                done = holder[0]() if holder else None
-                if not self.simulated and done is not None:
-                    done.finished_at = self.clock()
+                if not self.simulated:
+                    _stamp_finished(holder, self.clock)  # no local here may hold the call
 
         future = self._executor().submit(run)
         call = ModelCall(self, role, name, node, future, submitted, limit, simulated_latency)
