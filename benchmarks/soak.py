@@ -22,11 +22,12 @@ On glibc the heap's in-use and free MiB (``mallinfo2``) are sampled with the RSS
 over time: growth in the free part is fragmentation, growth in the in-use part is memory kept
 (the runner pins glibc's mmap threshold against the former: ``missiontree.engine.native_memory``).
 ``heap_inuse_growth_mib`` and ``heap_free_growth_mib`` are their changes over the same span as
-``rss_growth_mib``. A single sample carries what is in flight at that instant: the heap's in-use
-part swings by 5-9 MiB from one sample to the next, and under tracemalloc the swing is rendered
-frames held by model calls still in flight (between the lowest and the highest sample of minutes
-10-18: +102 frame buffers, 7.5 MiB, with 22 more futures pending; the simulator's 10 s of instance
-masks sit in one fixed buffer). ``rss_floor_growth_mib`` is the retained part, the lowest RSS
+``rss_growth_mib``. A single sample carries what is in flight at that instant (frames held by model
+calls, the oracle detector's recent frames; the simulator's 10 s of instance masks sit in one fixed
+buffer). The heap's in-use part used to swing by 5-9 MiB between samples: every failed model call
+(every 7th here) sat in a reference cycle with its traceback and its frames until the cyclic
+garbage collector ran, which numpy buffers do not hasten (fixed in ``missiontree.reasoning.calls``).
+``rss_floor_growth_mib`` is the retained part, the lowest RSS
 of the last 10 simulated minutes minus the lowest of minutes 10-20 (RSS read every 5 ticks).
 
 The warnings the run prints (one per rejected model answer) go to ``<out>.warnings.log``.
