@@ -54,9 +54,9 @@ SIZE_PRIORS: dict[str, tuple[float, float]] = {
 
 #: The largest a common indoor object of a class is, metres: (footprint's longer side, footprint's
 #: shorter side, height), from furniture catalogues and everyday sizes, kept generous (a backpack is
-#: 0.15-0.25 m deep: at most 0.27 here; a trash can up to 0.6 m across, a table 1.2 m deep). A
-#: footprint is measured to about a surface cell (5 cm), so a limit is a few centimetres above the
-#: catalogues' largest, not more: a measured 0.3 m deep "backpack" is something else. With
+#: 0.15-0.25 m deep: at most 0.3 here; a trash can up to 0.6 m across, a table 1.2 m deep). A
+#: footprint is measured to about a surface cell (5 cm), so a limit is one cell above the
+#: catalogues' largest: a real backpack measured 0.29 m deep, a grey bin 0.30-0.35 m. With
 #: :data:`SIZE_PRIORS` (the
 #: least sizes) they bound the sizes a class is plausible at (:func:`size_likelihood`). Classes not
 #: listed are not checked.
@@ -68,7 +68,7 @@ SIZE_LIMITS: dict[str, tuple[float, float, float]] = {
     "dining table": (3.0, 1.5, 1.1),
     "bottle": (0.2, 0.2, 0.5),
     "cup": (0.2, 0.2, 0.25),
-    "backpack": (0.5, 0.27, 0.7),
+    "backpack": (0.5, 0.3, 0.7),
     "laptop": (0.5, 0.4, 0.4),
     "umbrella": (1.3, 1.3, 1.3),
     "potted plant": (1.2, 1.2, 2.2),
