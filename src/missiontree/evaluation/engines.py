@@ -334,7 +334,7 @@ class DaskEngine(Engine):
             first, queue = _guided_chunks(queue, self.workers, self.chunk), []
         else:  # auto: one run per worker first; the first answer tells whether runs are short
             first, queue = [[task] for task in queue[:self.workers]], queue[self.workers:]
-        chunk_of: dict[str, list[RunTask]] = {}
+        chunk_of: dict[object, list[RunTask]] = {}  # by future key (a str or tuple)
         every: list[Any] = []
         answers = 0
 
