@@ -285,3 +285,22 @@ def test_view_height_is_the_candidates_bottom() -> None:
     assert view_height({"z": 0.1, "height": 0.8}) == 0.0
     assert view_height({"z": 0.8}) == pytest.approx(0.4)
     assert view_height({"z": float("nan"), "height": 0.2}) == 0.0
+
+
+def test_a_goal_aborted_short_counts_as_reached_only_within_reach_of_the_candidate() -> None:
+    """Stopped just short of the standoff pose but beyond ``reach`` of the object: not reached.
+
+    On a half-learned map a standoff pose can turn out to hug an obstacle; the stack aborts a few
+    decimetres short. Counted as reached, the search ended 1.05 m from a bottle (past what a
+    search counts as reached); now another pose is tried.
+    """
+    from missiontree.behaviours.search_approach import Approach
+    from missiontree.types import Pose2D, PoseStamped
+
+    leaf = Approach("approach", Approach.Params(reach=1.0))
+    leaf.cand = {"id": "bottle_2", "label": "bottle", "x": 9.13, "y": 1.53}
+    assert leaf._within_reach(PoseStamped(0.0, Pose2D(8.41, 2.36, 0.0))) is False  # 1.10 m away
+    assert leaf._within_reach(PoseStamped(0.0, Pose2D(8.63, 2.12, 0.0))) is True   # 0.77 m away
+    assert leaf._within_reach(None) is False
+    report = Approach("approach", Approach.Params(mode="box_area"))
+    assert report._within_reach(PoseStamped(0.0, Pose2D(0.0, 0.0, 0.0))) is True  # the report's steps

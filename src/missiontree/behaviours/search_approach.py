@@ -37,7 +37,7 @@ from missiontree.reasoning.intent import (
 from missiontree.reasoning.phrases import fold_label
 from missiontree.reasoning.search_priors import Target
 from missiontree.robot.actions import ActionHandle, ActionStatus
-from missiontree.types import Detection, OccupancyGrid, Pose2D, RGBDFrame, Tolerance
+from missiontree.types import Detection, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
 
 #: A goal aborted with the robot this close to it (m) counts as reached (the stack stopped just short).
 NEAR_ENOUGH = 0.4
@@ -142,6 +142,12 @@ class Approach(Leaf):
             0.35,
             gt=0,
             description="Step again when the depth image puts the object this far from the belief (m).",
+        )
+        reach: float = Field(
+            1.0,
+            gt=0,
+            description="A standoff goal the stack aborted just short of counts as reached only when "
+            "the robot stands within this distance of the candidate (m); else another pose is tried.",
         )
         goal_timeout: float = Field(120.0, gt=0, description="Give up a goal not reached in this many s.")
         step: float = Field(0.5, gt=0, description="box_area: length of one approach step (m).")
@@ -284,11 +290,20 @@ class Approach(Leaf):
         self.handle = None
         stamped = robot.pose()
         off = stamped.pose.distance_to(self.goal_pose) if stamped is not None else math.inf
-        ok = status is ActionStatus.SUCCEEDED or off <= NEAR_ENOUGH
+        ok = status is ActionStatus.SUCCEEDED or (off <= NEAR_ENOUGH and self._within_reach(stamped))
         why = (
             f"{status.value}: {result.reason if result is not None and result.reason else 'no reason given'}"
         )
         return self._after_drive(ok, why)
+
+    def _within_reach(self, stamped: PoseStamped | None) -> bool:
+        """Whether the robot stands within ``reach`` of the candidate (always, in box_area mode)."""
+        if self.params.mode == "box_area" or self.cand is None:
+            return True
+        if stamped is None:
+            return False
+        away = math.hypot(stamped.pose.x - self.cand["x"], stamped.pose.y - self.cand["y"])
+        return away <= self.params.reach
 
     def _after_drive(self, ok: bool, why: str) -> Status:
         if self.params.mode == "box_area":
