@@ -17,6 +17,7 @@ from collections.abc import Sequence
 
 from missiontree import __version__
 from missiontree.errors import BackendUnavailableError, ConfigError, PluginError, ProblemsError
+from missiontree.startup import interrupted
 
 #: Subcommand modules, in the order ``missiontree --help`` lists them.
 SUBCOMMANDS: list[str] = [
@@ -57,6 +58,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser = build_parser()
         args = parser.parse_args(argv)
     except KeyboardInterrupt:  # Ctrl-C while the subcommands' modules are imported
+        print("missiontree: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if interrupted():  # a Ctrl-C whose KeyboardInterrupt an import swallowed (missiontree.startup)
         print("missiontree: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     try:

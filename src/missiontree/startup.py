@@ -1,0 +1,35 @@
+"""Ctrl-C while the command starts: never a traceback, and never lost.
+
+The default SIGINT handler raises KeyboardInterrupt wherever the main thread is, and some places
+swallow it: a weakref callback of the import system ("Exception ignored in ... _get_module_lock"),
+or an extension module's import that clears errors. A Ctrl-C there used to vanish, and the run
+went on to its end (exit 1 for a run that did not succeed) as if nothing had been pressed.
+:func:`guard` installs a handler that records the signal before raising, so the command line can
+ask :func:`interrupted` once start-up is over and exit 130 all the same. The run itself installs
+its own handlers (:mod:`missiontree.engine.runner`) and puts this one back when it ends.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from types import FrameType
+
+_pending = False
+
+
+def _on_sigint(signum: int, frame: FrameType | None) -> None:
+    global _pending
+    _pending = True
+    raise KeyboardInterrupt
+
+
+def guard() -> None:
+    """Record SIGINT from now on (and raise KeyboardInterrupt as Python's default handler does)."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, _on_sigint)
+
+
+def interrupted() -> bool:
+    """Whether SIGINT arrived since :func:`guard` (even if its KeyboardInterrupt was swallowed)."""
+    return _pending
