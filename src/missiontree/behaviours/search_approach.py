@@ -147,7 +147,8 @@ class Approach(Leaf):
             1.0,
             gt=0,
             description="A standoff goal the stack aborted just short of counts as reached only when "
-            "the robot stands within this distance of the candidate (m); else another pose is tried.",
+            "the robot stands within this distance of the candidate (m), else another pose is tried; "
+            "and when the depth image places it farther than this, another step is made.",
         )
         goal_timeout: float = Field(120.0, gt=0, description="Give up a goal not reached in this many s.")
         step: float = Field(0.5, gt=0, description="box_area: length of one approach step (m).")
@@ -379,9 +380,13 @@ class Approach(Leaf):
         moved = math.hypot(where.xy[0] - self.cand["x"], where.xy[1] - self.cand["y"])
         self.cand.update(x=round(where.xy[0], 3), y=round(where.xy[1], 3), z=round(where.position[2], 3))
         self.write("candidate", dict(self.cand))
-        if moved > self.params.refine_distance and self.attempts < self.params.max_attempts:
-            self.step = _Step.PLAN
-            return self.running(f"the depth image puts it {moved:.2f} m from the belief: another step")
+        if self.attempts < self.params.max_attempts:
+            if moved > self.params.refine_distance:
+                self.step = _Step.PLAN
+                return self.running(f"the depth image puts it {moved:.2f} m from the belief: another step")
+            if not self._within_reach(self.context.robot.pose()):
+                self.step = _Step.PLAN
+                return self.running(f"beyond reach ({self.params.reach:g} m) of it: another step")
         return self.succeed(f"facing {self.cand['id']} at {where.range:.2f} m (depth image)")
 
     # -- box area (the report) ----------------------------------------------------------------------
