@@ -42,3 +42,33 @@ def test_the_command_line_exits_130_after_a_swallowed_ctrl_c(
     assert not (tmp_path / "run").exists()  # nothing ran
     monkeypatch.setattr(startup, "_pending", False)
     assert cli_main(["validate", str(REPO / "trees" / "patrol.yaml")]) == 0  # not pending: runs
+
+
+def test_an_error_raised_while_a_ctrl_c_is_recorded_is_the_interrupt(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A KeyboardInterrupt in a class body's __set_name__ surfaces as a RuntimeError: still exit 130."""
+    import argparse
+
+    ctrl_c = {"pressed": False}
+
+    def wrapped(args: argparse.Namespace) -> int:
+        startup._pending = ctrl_c["pressed"]  # the Ctrl-C comes while the command imports
+        raise RuntimeError("Error calling __set_name__ on 'Field' instance 'blackboard' in '_File'")
+
+    monkeypatch.setattr(startup, "_pending", False)
+    monkeypatch.setattr("missiontree.cli.main.build_parser", lambda: _parser(wrapped))
+    with pytest.raises(RuntimeError):  # no Ctrl-C recorded: the error is the error
+        cli_main(["run"])
+    ctrl_c["pressed"] = True
+    assert cli_main(["run"]) == 130
+    assert capsys.readouterr().err.strip() == "missiontree run: interrupted"
+
+
+def _parser(func):  # noqa: ANN001, ANN202
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="missiontree")
+    sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("run").set_defaults(func=func)
+    return parser

@@ -14,15 +14,12 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT
 
 def main() -> int:
     """Import and run the command line; Ctrl-C during start-up exits 130 quietly."""
-    from missiontree.startup import guard, interrupted
+    from missiontree.startup import guard
 
-    guard()
+    guard()  # a Ctrl-C an import swallows is still seen: cli.main checks once start-up is over
     try:
         from missiontree.cli.main import main as cli_main
     except KeyboardInterrupt:
-        print("missiontree: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    if interrupted():  # raised where an import swallowed it
         print("missiontree: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     return cli_main()

@@ -57,10 +57,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
+        # a Ctrl-C during start-up whose KeyboardInterrupt an import swallowed (missiontree.startup)
+        stopped = interrupted()
     except KeyboardInterrupt:  # Ctrl-C while the subcommands' modules are imported
-        print("missiontree: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    if interrupted():  # a Ctrl-C whose KeyboardInterrupt an import swallowed (missiontree.startup)
+        stopped = True
+    if stopped:
         print("missiontree: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     try:
@@ -76,6 +77,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"missiontree {args.command}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except Exception:
+        # a Ctrl-C during the command's own imports can surface as another error (a class body's
+        # __set_name__ wraps it in a RuntimeError): with one recorded, it is the interrupt
+        if interrupted():
+            print(f"missiontree {args.command}: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        raise
     except BrokenPipeError:  # output piped into `head` and the like
         sys.stderr.close()
         return 0
