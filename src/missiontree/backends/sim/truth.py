@@ -93,13 +93,14 @@ class MaskRing:
     """The instance masks of the last ``horizon`` seconds of frames, in one buffer allocated once.
 
     A long run renders five frames a second and the ground truth keeps each frame's mask for the
-    horizon (10 s: about 50 masks of 150 KB). Kept as separate arrays, each mask was a heap block
-    living for the horizon, freed among the run's short-lived buffers: that mix is what fragments
-    the C heap (the two-hour soak's resident memory grew by 10-14 MiB with the heap's free part).
-    Here the masks are copied into the slots of one array (``(capacity, height, width)``), which
-    grows (by a quarter, plus a few slots) only while more frames fall inside the horizon than
-    it holds, so a run of constant frame rate allocates it a few times in its first seconds and
-    then never again. :meth:`nearest` returns a copy: a slot is reused once it leaves the horizon.
+    horizon (10 s: about 50 masks of 150 KB). Kept as separate arrays, each mask is a heap block
+    living for the horizon among the run's short-lived buffers. Here the masks are copied into the
+    slots of one array (``(capacity, height, width)``), so their memory is fixed; on its own this
+    made no difference to the soak's RSS growth measurable against its noise (that growth was
+    failed model calls' frames held in reference cycles, see :mod:`missiontree.reasoning.calls`).
+    The array grows (by a quarter, plus a few slots) only while more frames fall inside the
+    horizon than it holds, so a run of constant frame rate allocates it a few times in its first
+    seconds and then never again. :meth:`nearest` returns a copy: a slot is reused once it leaves the horizon.
 
     Args:
         horizon: Seconds of frames kept (a frame older than the newest minus this is dropped).
@@ -182,7 +183,7 @@ class GroundTruth:
         self._poses: StampedHistory[Pose2D] = StampedHistory(horizon=max(horizon, 60.0), maxlen=100_000)
         # The kept masks are the simulator's largest buffer on long runs (a horizon of frames): with
         # fewer than 65,536 instance ids they are kept as uint16, half the memory of the camera's int32,
-        # in one ring buffer (see MaskRing: kept as separate arrays they fragmented the C heap).
+        # in one ring buffer of fixed memory (MaskRing).
         small = max(world.instances, default=0) <= np.iinfo(np.uint16).max
         self._masks = MaskRing(horizon, np.uint16 if small else np.int32)
         self._visibility = VisibilityLog(world.instances)
