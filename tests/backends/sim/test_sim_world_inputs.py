@@ -61,6 +61,18 @@ def test_a_map_outside_the_world_folder_is_refused_and_never_echoed(write_world,
         assert "outside" in problem and "root:" not in problem
 
 
+@pytest.mark.parametrize("broken_valid", [False, True])
+def test_a_map_path_with_a_nul_byte_is_a_problem_not_a_crash(write_world, broken_valid):
+    """A NUL byte in `map: {yaml: ...}` is reported as an invalid path, also beside other mistakes.
+
+    Found by the world-loader fuzz: the path reached ``Path.resolve``, whose ValueError escaped.
+    """
+    other = "objects: [{id: a, label: chair, size: [1, 1, 1], pose: {x: nan, y: 1}}]\n" if broken_valid else ""
+    path = write_world('name: m\nrobot: {start: {x: 1, y: 1}}\nmap: {yaml: "maps/a\\0b.yaml"}\n' + other)
+    problems = " ".join(_problems(path))
+    assert "not a valid path" in problems
+
+
 def test_a_map_yaml_that_is_not_one_is_not_echoed(write_world, tmp_path):
     """A text file named as the map yaml is reported by its line count, not its content."""
     (tmp_path / "notes.yaml").write_text("root:x:0:0:root:/root:/bin/bash secret-token-123\n")

@@ -40,7 +40,12 @@ def resolve_reference(doc: Located, key: tuple[str | int, ...], target: str, bas
 
     The problem never shows the file's content, and names the resolved path only when it is allowed.
     """
-    resolved = (base / target).resolve()
+    try:
+        resolved = (base / target).resolve()
+    except (OSError, ValueError, RuntimeError):  # a NUL byte, a symlink loop
+        problems.append(doc.problem_at(key, f"expected a path to a {what}, found {target!r}, which is not a "
+                                       "valid path", "give a path relative to the file that names it"))
+        return None
     allowed = [base.resolve(), *map_dirs()]
     if not any(resolved.is_relative_to(d) for d in allowed):
         problems.append(doc.problem_at(
