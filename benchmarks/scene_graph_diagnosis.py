@@ -35,6 +35,9 @@ SHOWN_PIXELS = 100
 DETAIL = bool(__import__("os").environ.get("SCENE_DIAG_DETAIL"))
 #: Border, pixels, within which a box counts as cut by the image's edge.
 EDGE = 2.0
+#: Directory to pickle, per world and phase, the fusion's instances and tracks beside the truth (for
+#: studying merging and centring rules offline on what a run saw); unset: no dump.
+DUMP = __import__("os").environ.get("SCENE_DIAG_DUMP")
 
 
 @dataclass
@@ -153,6 +156,8 @@ class Diagnosis:
         """Lines for each false and missed object of a scored phase (see module docstring)."""
         lines: list[str] = []
         preds, truths, pairs = scored["preds"], scored["truths"], scored["pairs"]
+        if DUMP:
+            self.dump(f"{DUMP}/{world_name.replace(':', '_')}_{phase}.pkl", scored, world)
         matched_p = {i for i, _ in pairs}
         matched_t = {j for _, j in pairs}
         for i, p in enumerate(preds):
@@ -229,6 +234,50 @@ class Diagnosis:
                 f"detected as {labels}; {spread}; graph near {near_preds}; map changes {near_changes[-4:]}"
             )
         return lines
+
+    def dump(self, path: str, scored: dict[str, Any], world: Any) -> None:
+        """Pickle the fusion's instances and tracks, the truth and the sights to ``path`` (see ``DUMP``)."""
+        import pickle
+        from pathlib import Path
+
+        fusion = self.fusion
+        instances = [
+            {
+                "id": i.id,
+                "label": i.label,
+                "position": tuple(i.position),
+                "size": tuple(i.size),
+                "observations": i.observations,
+                "colour": i.colour,
+            }
+            for i in (fusion.map if fusion is not None else [])
+        ]
+        tracks = {
+            key: {
+                "xs": list(t.xs),
+                "clipped": list(t.clipped),
+                "sizes": list(t.sizes),
+                "cells": dict(t.cells),
+                "evidence": dict(t.evidence),
+                "seen_as": set(t.seen_as),
+            }
+            for key, t in (fusion.tracks.items() if fusion is not None else [])
+        }
+        truths = [
+            {
+                "id": o.id,
+                "label": o.label,
+                "pose": (o.pose.x, o.pose.y, o.pose.yaw),
+                "size": tuple(o.size),
+                "elevation": o.elevation,
+            }
+            for o in world.objects
+        ]
+        pairs = [(scored["preds"][i]["id"], scored["truths"][j].id) for i, j in scored["pairs"]]
+        data = {"instances": instances, "tracks": tracks, "truths": truths, "pairs": pairs, "sights": self.sights}
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "wb") as fh:
+            pickle.dump(data, fh)
 
     def report_changes(
         self, world_name: str, changes: list[dict[str, Any]], preds: list[dict[str, Any]], reflected: Any

@@ -246,3 +246,24 @@ def test_a_box_on_a_flat_wall_is_not_an_object_but_one_standing_out_is() -> None
         q = projection("sofa", stamp, face_box, (2.9, 0.0, 0.4), 2.5, (1.0, 1.0, 0.8))
         face.process(frame(stamp, room_depth(2.5)), [q])
     assert len(wall.map) == 0 and [i.label for i in face.map] == ["sofa"]
+
+
+def test_the_outline_leaves_out_the_surface_of_a_smaller_instance_in_front() -> None:
+    """A 0.9 x 0.6 table at (2, 1), its near and left faces seen, a laptop on the floor before it.
+
+    The table's boxes held the laptop's surface too; the laptop is an instance of its own, so its
+    cells are left out and the outline's centre is the table's. Without the rule it is pulled forward.
+    """
+    near_face = [(float(x), 0.72) for x in np.arange(1.56, 2.45, 0.02)]
+    left_face = [(1.56, float(y)) for y in np.arange(0.72, 1.29, 0.02)]
+    laptop = [(float(x), float(y)) for x in np.arange(1.84, 2.16, 0.02) for y in np.arange(0.26, 0.46, 0.02)]
+    cells = _cells(near_face + left_face + laptop)
+    centres = {}
+    for margin in (0.05, None):
+        fusion = InstanceFusion(SemanticMap(), FusionParams(explained_margin=margin))
+        table = fusion.map.add("table", (2.0, 0.9, 0.2), 0.0, size=(0.95, 0.95, 0.4))
+        fusion.map.add("laptop", (2.0, 0.36, 0.1), 0.0, size=(0.34, 0.34, 0.22))
+        centres[margin] = fusion._outline_centre(_Track(cells=Counter(cells)), (2.0, 0.9, 0.2), table)
+    kept, off = centres[0.05], centres[None]
+    assert kept is not None and math.hypot(kept[0] - 2.0, kept[1] - 1.0) < 0.06
+    assert off is not None and math.hypot(off[0] - 2.0, off[1] - 1.0) > 0.15

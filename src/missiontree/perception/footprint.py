@@ -179,7 +179,11 @@ def surface_cells(
 
 
 def outline_centre(
-    cells: Counter[tuple[int, int]], fused: Sequence[float], extent: float, cell: float
+    cells: Counter[tuple[int, int]],
+    fused: Sequence[float],
+    extent: float,
+    cell: float,
+    exclude: Sequence[tuple[float, float, float]] = (),
 ) -> tuple[float, float] | None:
     """The centre of the footprint the surface cells outline, None while they outline too little.
 
@@ -188,6 +192,14 @@ def outline_centre(
     thin rectangle): the point on the face's perpendicular bisector as far behind it as the fused
     position. A centre more than 1 m from the fused position means the cells hold something else
     too: None.
+
+    Args:
+        cells: Surface cells and the views that saw each (:func:`surface_cells`).
+        fused: The fused position (x, y, ...).
+        extent: The object's largest measured width, metres.
+        cell: Cell size, metres.
+        exclude: Discs (x, y, radius) whose cells are not counted: the surface of other objects
+            the boxes held in front of or beside this one (a laptop on the floor before a table).
     """
     keys = [key for key, n in cells.items() if n >= 2]
     if len(keys) < 8:
@@ -195,6 +207,8 @@ def outline_centre(
     pts = (np.array(keys, dtype=float) + 0.5) * cell
     reach = 0.5 * extent + 0.6
     pts = pts[np.hypot(pts[:, 0] - fused[0], pts[:, 1] - fused[1]) <= reach]
+    for x, y, radius in exclude:
+        pts = pts[np.hypot(pts[:, 0] - x, pts[:, 1] - y) > radius]
     if len(pts) < 8:
         return None
     (cx, cy), (w, h), angle = cv2.minAreaRect(pts.astype(np.float32))
