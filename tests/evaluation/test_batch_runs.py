@@ -165,9 +165,9 @@ def test_a_chunk_whose_worker_dies_keeps_its_finished_runs_and_runs_the_rest_one
 
 
 @pytest.mark.slow
-def test_dask_auto_chunks_short_runs_after_one_run_per_worker(tmp_path: Path,
-                                                               monkeypatch: pytest.MonkeyPatch) -> None:
-    """chunk="auto": a first run per worker alone; short runs then go several to a task, the last alone.
+def test_dask_auto_chunks_short_runs_after_two_runs_per_worker(tmp_path: Path,
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """chunk="auto": two first runs per worker alone; short runs then go several to a task, the last alone.
 
     Long runs stay one a task. ("Short" is moved for each batch, so the machine's load does not decide.)
     """
@@ -184,8 +184,8 @@ def test_dask_auto_chunks_short_runs_after_one_run_per_worker(tmp_path: Path,
         long_records = run_batch(plan, engine, tmp_path / "long")
         long = engine.chunk_sizes
     assert all(r.status == "SUCCESS" for r in records + long_records) and len(records) == 12
-    assert short[:2] == [1, 1] and sum(short) == 12
-    assert short == [1, 1, 2, 2, 1, 1, 1, 1, 1, 1]  # 10 left: 10 // 4, 8 // 4, then the rest alone
+    assert short[:4] == [1, 1, 1, 1] and sum(short) == 12
+    assert short == [1, 1, 1, 1, 2, 1, 1, 1, 1, 1, 1]  # 8 left: 8 // 4, then the rest alone
     assert long == [1] * 12
 
 
@@ -263,7 +263,14 @@ def _worker_settings(dask_worker: Any) -> dict[str, Any]:
     return {"malloc_trim": os.environ.get("MALLOC_TRIM_THRESHOLD_"),
             "omp_threads": os.environ.get("OMP_NUM_THREADS"),
             "callbacks": sorted(dask_worker.periodic_callbacks),
-            "tick_ms": dask_worker.periodic_callbacks["tick"].callback_time}
+            "tick_ms": dask_worker.periodic_callbacks["tick"].callback_time,
+            "memory_monitor_ms": dask_worker.periodic_callbacks["memory_monitor"].callback_time}
+
+
+def _scheduler_settings(dask_scheduler: Any) -> dict[str, Any]:
+    """What the local cluster's scheduler runs besides scheduling (run by Client.run_on_scheduler)."""
+    return {"stealing": "stealing" in dask_scheduler.extensions,
+            "amm_running": dask_scheduler.extensions["amm"].running}
 
 
 @pytest.mark.slow
@@ -276,7 +283,10 @@ def test_a_local_dask_cluster_runs_missions_without_the_profiler_or_a_frozen_mal
     cloudpickle.register_pickle_by_value(sys.modules[__name__])
     with DaskEngine("local", 1) as engine:
         settings = list(engine.client.run(_worker_settings).values())
+        scheduler = engine.client.run_on_scheduler(_scheduler_settings)
+    assert scheduler == {"stealing": False, "amm_running": False}
     assert len(settings) == 1
+    assert settings[0]["memory_monitor_ms"] >= 1000
     assert settings[0]["malloc_trim"] is None
     assert settings[0]["omp_threads"] == "1"
     assert "profile" not in settings[0]["callbacks"]

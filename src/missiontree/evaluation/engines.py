@@ -122,6 +122,12 @@ LOCAL_CLUSTER_CONFIG: dict[str, Any] = {
     "distributed.worker.profile.enabled": False,
     "distributed.admin.tick.interval": "1s",
     "distributed.admin.system-monitor.interval": "5s",
+    # the memory monitors (each worker's, and its nanny's here) every second, not every 100 ms
+    "distributed.worker.memory.monitor-interval": "1s",
+    # tasks wait in the scheduler's queue until a worker has room (queuing): nothing to steal
+    "distributed.scheduler.work-stealing": False,
+    # results are gathered and released at once: no replicas for the active memory manager to drop
+    "distributed.scheduler.active-memory-manager.start": False,
 }
 #: ``chunk="auto"``: runs shorter than this (wall seconds, the first run's) go several to a Dask task.
 SHORT_RUN_S = 0.5
@@ -332,8 +338,9 @@ class DaskEngine(Engine):
             first, queue = [[task] for task in queue], []
         elif isinstance(self.chunk, int):
             first, queue = _guided_chunks(queue, self.workers, self.chunk), []
-        else:  # auto: one run per worker first; the first answer tells whether runs are short
-            first, queue = [[task] for task in queue[:self.workers]], queue[self.workers:]
+        else:  # auto: two runs per worker alone first (each worker has its second while the first answer
+            # comes back and decides); that answer tells whether runs are short
+            first, queue = [[task] for task in queue[:2 * self.workers]], queue[2 * self.workers:]
         chunk_of: dict[object, list[RunTask]] = {}  # by future key (a str or tuple)
         every: list[Any] = []
         answers = 0
