@@ -17,6 +17,8 @@
 4. judges, through its :class:`~missiontree.perception.absence.AbsenceJudge` (``absence``), every
    instance the frame should show and did not: misses, removals, and moves of an object of the same
    label and colour confirmed elsewhere while its old place is seen empty.
+5. joins, through its :class:`~missiontree.perception.merge.InstanceMerger` (``merger``), instances
+   that are one object seen twice.
 
 Every decision changes the :class:`~missiontree.semantics.semantic_map.SemanticMap`, which records
 the changes. Nothing here reads ground truth.
@@ -42,6 +44,7 @@ from missiontree.perception.footprint import (
     stands_out,
     surface_cells,
 )
+from missiontree.perception.merge import InstanceMerger
 from missiontree.perception.projection import Projection, to_camera
 from missiontree.perception.tracking import Candidate, NaisFilterParams, NaisTracker, TemporalVoting
 from missiontree.semantics.semantic_map import Instance, SemanticMap
@@ -230,6 +233,8 @@ class InstanceFusion:
         self.observed: dict[str, Detection] = {}
         #: Misses, removals and moves of its instances (:mod:`missiontree.perception.absence`).
         self.absence = AbsenceJudge(self)
+        #: Joins instances that are one object (:mod:`missiontree.perception.merge`).
+        self.merger = InstanceMerger(self)
 
     @property
     def dropped(self) -> dict[str, int]:
@@ -272,7 +277,7 @@ class InstanceFusion:
                 seen.add(instance.id)
                 self.observed[instance.id] = p.detection
                 for other in self._held_by_box(p, instance, seen):
-                    kept_id = self._merge_pair(instance, other, stamp)
+                    kept_id = self.merger.merge_pair(instance, other, stamp)
                     if kept_id != instance.id:  # the other was seen more often: it stays
                         seen.discard(instance.id)
                         self.observed.pop(instance.id, None)
@@ -461,27 +466,6 @@ class InstanceFusion:
         ]
         return outline_centre(track.cells, fused, extent, self.params.surface_cell, others)
 
-    def _merge_pair(self, keep: Instance, drop: Instance, stamp: float) -> str:
-        """One object seen as two instances of its label: the less often seen joins the other; its id."""
-        if keep.observations < drop.observations:
-            keep, drop = drop, keep
-        self.map.remove(drop.id, stamp, reason=f"the same {drop.label} as {keep.id} (one box holds both)")
-        track = self.tracks.setdefault(keep.id, _Track())
-        dropped = self.tracks.pop(drop.id, _Track())
-        track.xs.extend(dropped.xs)
-        track.clipped.extend(dropped.clipped)
-        track.cells.update(dropped.cells)
-        track.colours.update(dropped.colours)
-        track.evidence.update(dropped.evidence)
-        track.seen_as |= dropped.seen_as
-        points = np.array(track.xs or track.clipped or [keep.position])
-        position = tuple(float(v) for v in np.median(points, axis=0))
-        outline = self._outline_centre(track, position, keep)
-        if outline is not None:
-            position = (outline[0], outline[1], position[2])
-        self.map.update(keep.id, position=position, observations=keep.observations + drop.observations)
-        return keep.id
-
     def unchecked_since(self, stamp: float) -> list[Instance]:
         """Instances to look at again since ``stamp`` (:meth:`.AbsenceJudge.unchecked_since`)."""
         return self.absence.unchecked_since(stamp)
@@ -633,62 +617,12 @@ class InstanceFusion:
         return new
 
     def same_object(self, a: Instance, b: Instance) -> bool:
-        """Whether two instances are one object seen twice.
-
-        Same label: their centres within 0.9 of the larger half-footprint (``associate_radius`` at
-        least), or within half of it when the colours differ (big furniture looks another colour
-        from another side).
-        Different labels (the detector named one object two ways): centres within a quarter of the
-        smaller footprint's larger side and heights overlapping over half of the lower one, so a cup
-        on a table or a chair beside it stays apart.
-        """
-        d = a.distance_to(*b.xy)
-        if a.label == b.label:
-            half = max(0.5 * max(a.size[0], a.size[1]), 0.5 * max(b.size[0], b.size[1]))
-            if a.colour == b.colour:
-                return d <= 0.9 * max(self.params.associate_radius, half)
-            return d <= 0.5 * half
-        if d > 0.25 * min(max(a.size[0], a.size[1]), max(b.size[0], b.size[1])):
-            return False
-        lo = max(a.position[2] - a.size[2] / 2, b.position[2] - b.size[2] / 2)
-        hi = min(a.position[2] + a.size[2] / 2, b.position[2] + b.size[2] / 2)
-        return hi - lo >= 0.5 * max(min(a.size[2], b.size[2]), 1e-3)
+        """Whether two instances are one object seen twice (:meth:`.merge.InstanceMerger.same_object`)."""
+        return self.merger.same_object(a, b)
 
     def merge_overlapping(self, stamp: float) -> None:
-        """Join instances that are one object (:meth:`same_object`); the more often seen one stays."""
-        items = list(self.map)
-        gone: set[str] = set()
-        for i, a in enumerate(items):
-            if a.id in gone:
-                continue
-            for b in items[i + 1 :]:
-                if b.id in gone or not self.same_object(a, b):
-                    continue
-                keep, drop = (a, b) if a.observations >= b.observations else (b, a)
-                if keep.label != drop.label:
-                    why = f"the same object as {keep.id}, seen as a {keep.label} more often"
-                    self.map.remove(drop.id, stamp, reason=why)
-                    self.tracks.pop(drop.id, None)
-                    gone.add(drop.id)
-                    if drop is a:
-                        break
-                    continue
-                self.map.remove(drop.id, stamp, reason=f"the same {drop.label} as {keep.id}")
-                total = keep.observations + drop.observations
-                position = tuple(
-                    (keep.position[k] * keep.observations + drop.position[k] * drop.observations) / total
-                    for k in range(3)
-                )
-                self.map.update(keep.id, position=position, observations=total)
-                track = self.tracks.setdefault(keep.id, _Track())
-                dropped = self.tracks.pop(drop.id, _Track())
-                track.xs.extend(dropped.xs)
-                track.clipped.extend(dropped.clipped)
-                track.evidence.update(dropped.evidence)
-                track.seen_as |= dropped.seen_as
-                gone.add(drop.id)
-                if drop is a:
-                    break
+        """Join instances that are one object (:meth:`.merge.InstanceMerger.merge_overlapping`)."""
+        self.merger.merge_overlapping(stamp)
 
 
 def _class_scores(p: Projection) -> dict[str, float]:

@@ -1,0 +1,124 @@
+"""Joining instances that are one object seen twice.
+
+:class:`InstanceMerger` is held by :class:`~missiontree.perception.fusion.InstanceFusion`
+(``fusion.merger``) and reads its state (the semantic map, the per-instance tracks and the
+parameters). Two instances are one object when:
+
+1. one box of their label holds both centres (a sofa seen end-on from two sides places its near
+   faces a metre apart: :meth:`InstanceMerger.merge_pair`, called from the fusion's frame loop);
+2. they are of one label and close for their size (:meth:`InstanceMerger.same_object`);
+3. they are of two labels the detector gave one object (a cup also boxed as a bottle): their
+   centres closer than a quarter of the smaller footprint at overlapping heights.
+
+The instance seen more often stays and takes the other's observations and evidence; the other is
+removed with the reason. Nothing here reads ground truth.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from missiontree.semantics.semantic_map import Instance
+
+if TYPE_CHECKING:
+    from missiontree.perception.fusion import InstanceFusion, _Track
+
+
+class InstanceMerger:
+    """Joins a fusion's instances that are one object (see module docstring).
+
+    Args:
+        fusion: The fusion whose map, tracks and parameters are read.
+    """
+
+    def __init__(self, fusion: InstanceFusion) -> None:
+        self.fusion = fusion
+
+    def _absorb(self, keep: Instance, drop: Instance) -> _Track:
+        """``drop``'s track joined into ``keep``'s (positions, cells, colours, evidence); ``keep``'s track."""
+        tracks = self.fusion.tracks
+        track = self.fusion.track(keep.id)
+        dropped = tracks.pop(drop.id, None) or self.fusion.new_track()
+        track.xs.extend(dropped.xs)
+        track.clipped.extend(dropped.clipped)
+        track.cells.update(dropped.cells)
+        track.colours.update(dropped.colours)
+        track.evidence.update(dropped.evidence)
+        track.seen_as |= dropped.seen_as
+        return track
+
+    def merge_pair(self, keep: Instance, drop: Instance, stamp: float) -> str:
+        """One object seen as two instances of its label: the less often seen joins the other; its id."""
+        fusion = self.fusion
+        if keep.observations < drop.observations:
+            keep, drop = drop, keep
+        fusion.map.remove(drop.id, stamp, reason=f"the same {drop.label} as {keep.id} (one box holds both)")
+        track = self._absorb(keep, drop)
+        points = np.array(track.xs or track.clipped or [keep.position])
+        position = tuple(float(v) for v in np.median(points, axis=0))
+        outline = fusion._outline_centre(track, position, keep)
+        if outline is not None:
+            position = (outline[0], outline[1], position[2])
+        fusion.map.update(keep.id, position=position, observations=keep.observations + drop.observations)
+        return keep.id
+
+    def same_object(self, a: Instance, b: Instance) -> bool:
+        """Whether two instances are one object seen twice.
+
+        Same label: their centres within 0.9 of the larger half-footprint (``associate_radius`` at
+        least), or within half of it when the colours differ (big furniture looks another colour
+        from another side).
+        Different labels (the detector named one object two ways): centres within a quarter of the
+        smaller footprint's larger side and heights overlapping over half of the lower one, so a cup
+        on a table or a chair beside it stays apart.
+        """
+        d = a.distance_to(*b.xy)
+        if a.label == b.label:
+            half = max(0.5 * max(a.size[0], a.size[1]), 0.5 * max(b.size[0], b.size[1]))
+            if a.colour == b.colour:
+                return d <= 0.9 * max(self.fusion.params.associate_radius, half)
+            return d <= 0.5 * half
+        if d > 0.25 * min(max(a.size[0], a.size[1]), max(b.size[0], b.size[1])):
+            return False
+        lo = max(a.position[2] - a.size[2] / 2, b.position[2] - b.size[2] / 2)
+        hi = min(a.position[2] + a.size[2] / 2, b.position[2] + b.size[2] / 2)
+        return hi - lo >= 0.5 * max(min(a.size[2], b.size[2]), 1e-3)
+
+    def merge_overlapping(self, stamp: float) -> None:
+        """Join instances that are one object (:meth:`same_object`); the more often seen one stays."""
+        fusion = self.fusion
+        items = list(fusion.map)
+        gone: set[str] = set()
+        for i, a in enumerate(items):
+            if a.id in gone:
+                continue
+            for b in items[i + 1 :]:
+                if b.id in gone or not self.same_object(a, b):
+                    continue
+                keep, drop = (a, b) if a.observations >= b.observations else (b, a)
+                if keep.label != drop.label:
+                    why = f"the same object as {keep.id}, seen as a {keep.label} more often"
+                    fusion.map.remove(drop.id, stamp, reason=why)
+                    fusion.tracks.pop(drop.id, None)
+                    gone.add(drop.id)
+                    if drop is a:
+                        break
+                    continue
+                fusion.map.remove(drop.id, stamp, reason=f"the same {drop.label} as {keep.id}")
+                total = keep.observations + drop.observations
+                position = tuple(
+                    (keep.position[k] * keep.observations + drop.position[k] * drop.observations) / total
+                    for k in range(3)
+                )
+                fusion.map.update(keep.id, position=position, observations=total)
+                track = fusion.track(keep.id)
+                dropped = fusion.tracks.pop(drop.id, None) or fusion.new_track()
+                track.xs.extend(dropped.xs)
+                track.clipped.extend(dropped.clipped)
+                track.evidence.update(dropped.evidence)
+                track.seen_as |= dropped.seen_as
+                gone.add(drop.id)
+                if drop is a:
+                    break
