@@ -67,7 +67,8 @@ def test_a_map_path_with_a_nul_byte_is_a_problem_not_a_crash(write_world, broken
 
     Found by the world-loader fuzz: the path reached ``Path.resolve``, whose ValueError escaped.
     """
-    other = "objects: [{id: a, label: chair, size: [1, 1, 1], pose: {x: nan, y: 1}}]\n" if broken_valid else ""
+    broken = "objects: [{id: a, label: chair, size: [1, 1, 1], pose: {x: nan, y: 1}}]\n"
+    other = broken if broken_valid else ""
     path = write_world('name: m\nrobot: {start: {x: 1, y: 1}}\nmap: {yaml: "maps/a\\0b.yaml"}\n' + other)
     problems = " ".join(_problems(path))
     assert "not a valid path" in problems
