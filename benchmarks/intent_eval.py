@@ -491,7 +491,8 @@ def navfn_tolerance(world: Any, goal: Any, radius: float,
 
 
 def _score(bench: Bench, trial: Trial, final: Any, graph_reach: float) -> None:
-    from missiontree.reasoning.intent import STANDOFF_REACH, graph_objects
+    from missiontree.reasoning.intent import graph_objects
+    from missiontree.reasoning.standoff import STANDOFF_REACH
 
     truth = bench.truth(trial.case)
     scene = graph_objects(bench.graph(trial.case).read_text(encoding="utf-8"))

@@ -31,33 +31,23 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import cv2
 import numpy as np
 
-from missiontree.mapping.planner import Costmap, path_lengths
+from missiontree.mapping.planner import path_lengths
 from missiontree.perception.colour import ALIASES, COLOUR_NAMES, canonical_colour
 from missiontree.reasoning.phrases import colour_words, fold_label, size_words, split_relation
+from missiontree.reasoning.standoff import (
+    STANDOFF_REACH,
+    cell_path_lengths,
+    outside_known_map,
+    prepare_space,
+    standoff_cells,
+    view_distance,
+)
 from missiontree.types import Detection, OccupancyGrid, Pose2D, RGBDFrame, wrap_angle
 
 #: Relations of the graph that are containment, not spatial relations between objects.
 CONTAINS = "contains"
-#: Occupancy values at or above this are obstacles (Nav2's map_server threshold, as the simulator plans).
-OCCUPIED = 50
-#: Extra clearance a standoff pose keeps beyond the robot's radius (m).
-STANDOFF_MARGIN = 0.08
-#: How far beyond the object's edge a standoff pose may be (m): the robot stands close to what it fetches.
-STANDOFF_REACH = 0.5
-#: A ray from a standoff pose must reach this close to the object's edge before hitting anything (m).
-SIGHT_SLACK = 0.15
-#: Metres of path a standoff pose may cost for each metre closer to the object.
-NEAR_WEIGHT = 2.0
-#: Clearance from other obstacles a standoff pose should have beyond the robot's radius (m), and the
-#: metres of path each missing metre of it costs.
-CLEAR_WANTED, CLEAR_WEIGHT = 0.25, 4.0
-#: Extra distance beyond the camera's lower view limit (m): the camera sits ahead of the base's centre.
-VIEW_MARGIN = 0.12
-#: An object whose cell and surroundings (this radius, m) are all unknown is outside the known map.
-KNOWN_RADIUS = 0.5
 #: A second look comes from a side at least this far round the object (rad) ...
 OTHER_SIDE = math.radians(60.0)
 #: ... or, when the object is seen from one side only, this much nearer or farther (m).
@@ -308,116 +298,6 @@ def look_for(label: str, attributes: Sequence[str] = ()) -> str:
 # -- checks and ranking --------------------------------------------------------------------------------
 
 
-@dataclass
-class _Space:
-    """The map prepared for standoff search and path lengths (cached per map content)."""
-
-    grid: OccupancyGrid
-    occupied: np.ndarray  # bool, obstacle cells
-    known: np.ndarray  # bool, cells that are not unknown
-    clearance: np.ndarray  # float, metres from each cell to the nearest obstacle
-    inside: np.ndarray  # float, metres from each obstacle cell to the nearest free cell
-    costmap: Costmap  # the planner's inflated costmap (path lengths as the navigation stack drives)
-
-
-_SPACE_CACHE: dict[tuple[Any, ...], _Space] = {}
-
-
-def prepare_space(grid: OccupancyGrid, robot_radius: float, allow_unknown: bool = False) -> _Space:
-    """Obstacles, clearance and the planner's costmap of ``grid`` for a robot of ``robot_radius``.
-
-    Cached by map content, so a static map is prepared once per process.
-    """
-    data = np.asarray(grid.data)
-    key = (
-        data.shape,
-        grid.resolution,
-        grid.origin.x,
-        grid.origin.y,
-        round(robot_radius, 4),
-        allow_unknown,
-        hash(data.tobytes()),
-    )
-    cached = _SPACE_CACHE.get(key)
-    if cached is not None:
-        return cached
-    res = float(grid.resolution)
-    occupied = data >= OCCUPIED
-    known = data >= 0
-    blocked = occupied | (~known if not allow_unknown else np.zeros_like(occupied))
-    clearance = cv2.distanceTransform((~blocked).astype(np.uint8), cv2.DIST_L2, 5) * res
-    inside = cv2.distanceTransform(occupied.astype(np.uint8), cv2.DIST_L2, 5) * res
-    costmap = Costmap(grid, robot_radius, allow_unknown=allow_unknown)
-    space = _Space(grid, occupied, known, clearance, inside, costmap)
-    if len(_SPACE_CACHE) > 16:
-        _SPACE_CACHE.clear()
-    _SPACE_CACHE[key] = space
-    return space
-
-
-def object_extent(space: _Space, xy: tuple[float, float]) -> float:
-    """How far the object's footprint reaches from its position (m): 0 when the cell is free."""
-    row, col = space.grid.world_to_cell(*xy)
-    rows, cols = space.occupied.shape
-    if not (0 <= row < rows and 0 <= col < cols) or not space.occupied[row, col]:
-        return 0.0
-    return float(space.inside[row, col])
-
-
-def standoff_cells(
-    space: _Space, xy: tuple[float, float], robot_radius: float, min_distance: float = 0.0
-) -> list[tuple[int, int, float]]:
-    """Free cells near the object from which it is in sight: (row, col, penalty in metres).
-
-    A cell qualifies when the robot fits there with a margin, it lies between the object's edge plus
-    the robot's radius and :data:`STANDOFF_REACH` beyond, and a ray from it towards the object meets
-    no obstacle before coming within :data:`SIGHT_SLACK` of the object's edge (no wall between).
-    The penalty, added to the path length when choosing among them, prefers cells close to the
-    object (what sits on a table is reached across its edge) and clear of other obstacles (a goal
-    hugging a wall makes the navigation stack stop short). ``min_distance`` keeps the robot at
-    least that far from the object's position (so that the camera sees down to it).
-    """
-    grid = space.grid
-    res = grid.resolution
-    extent = object_extent(space, xy)
-    near = max(extent + robot_radius + 0.02, min_distance)
-    far = max(extent + robot_radius + STANDOFF_REACH, near + 0.3)
-    rows, cols = space.occupied.shape
-    r_c, c_c = grid.world_to_cell(*xy)
-    span = int(math.ceil(far / res)) + 1
-    r0, r1 = max(0, r_c - span), min(rows, r_c + span + 1)
-    c0, c1 = max(0, c_c - span), min(cols, c_c + span + 1)
-    if r0 >= r1 or c0 >= c1:
-        return []
-    rr, cc = np.mgrid[r0:r1, c0:c1]
-    cx = grid.origin.x + (cc + 0.5) * res
-    cy = grid.origin.y + (rr + 0.5) * res
-    d = np.hypot(cx - xy[0], cy - xy[1])
-    clear = space.clearance[r0:r1, c0:c1]
-    ok = (d >= near) & (d <= far) & (clear >= robot_radius + STANDOFF_MARGIN)
-    penalty = NEAR_WEIGHT * (d - near) + CLEAR_WEIGHT * np.maximum(0.0, robot_radius + CLEAR_WANTED - clear)
-    found: list[tuple[int, int, float]] = []
-    for row, col, cost in zip(rr[ok], cc[ok], penalty[ok], strict=True):
-        if _in_sight(space, int(row), int(col), xy, extent):
-            found.append((int(row), int(col), float(cost)))
-    # every other cell each way is enough choice (10 cm at 5 cm cells) and a quarter of the goals to search
-    return [c for c in found if c[0] % 2 == 0 and c[1] % 2 == 0] or found
-
-
-def _in_sight(space: _Space, row: int, col: int, xy: tuple[float, float], extent: float) -> bool:
-    grid = space.grid
-    x0, y0 = grid.cell_to_world(row, col)
-    length = math.hypot(xy[0] - x0, xy[1] - y0)
-    steps = max(1, int(length / (grid.resolution * 0.5)))
-    for i in range(1, steps + 1):
-        t = i / steps
-        x, y = x0 + t * (xy[0] - x0), y0 + t * (xy[1] - y0)
-        r, c = grid.world_to_cell(x, y)
-        if space.occupied[r, c]:
-            return (1.0 - t) * length <= extent + SIGHT_SLACK
-    return True
-
-
 def plan_candidates(
     ids: Sequence[str],
     scene: SceneObjects,
@@ -467,11 +347,11 @@ def plan_candidates(
     places: list[tuple[int, GraphObject, list[tuple[int, int, float]]]] = []
     for order, obj in enumerate(wanted):
         assert obj.xy is not None
-        where = _outside_known_map(space, obj.xy)
+        where = outside_known_map(space, obj.xy)
         if where:
             rejected.append(Rejection(obj.id, where))
             continue
-        cells = standoff_cells(space, obj.xy, robot_radius, _view_distance(camera, obj.z))
+        cells = standoff_cells(space, obj.xy, robot_radius, view_distance(camera, obj.z))
         if not cells:
             rejected.append(
                 Rejection(
@@ -522,15 +402,16 @@ def other_viewpoint(
 
     A detector misses a small object seen edge-on, against a clutter of others or cut by the view's
     edge; another side shows it differently. Among the object's standoff cells (those
-    :func:`standoff_cells` gives, far enough for the camera to see its height), the reachable one of
-    least path length plus penalty whose bearing from the object differs from the first pose's by at
-    least :data:`OTHER_SIDE` is chosen; failing that, one at least :data:`OTHER_RANGE` nearer or farther.
+    :func:`~missiontree.reasoning.standoff.standoff_cells` gives, far enough for the camera to see its
+    height), the reachable one of least path length plus penalty whose bearing from the object
+    differs from the first pose's by at least :data:`OTHER_SIDE` is chosen; failing that, one at
+    least :data:`OTHER_RANGE` nearer or farther.
     None when there is no such place (then the object is doubted as before).
     """
     if obj.xy is None:
         return None
     space = prepare_space(grid, robot_radius, allow_unknown)
-    cells = standoff_cells(space, obj.xy, robot_radius, _view_distance(camera, obj.z))
+    cells = standoff_cells(space, obj.xy, robot_radius, view_distance(camera, obj.z))
     if not cells:
         return None
     ox, oy = obj.xy
@@ -551,47 +432,6 @@ def other_viewpoint(
         return None
     _, (gx, gy) = min(scored, key=lambda item: item[0])
     return Pose2D(gx, gy, math.atan2(oy - gy, ox - gx))
-
-
-def _view_distance(camera: tuple[float, float] | None, z: float) -> float:
-    """How far the camera must stand for a point ``z`` high to be in view (0: no camera given)."""
-    if camera is None or camera[1] <= 0:
-        return 0.0
-    height, tan_down = camera
-    return max(0.0, (height - z) / tan_down) + VIEW_MARGIN
-
-
-def cell_path_lengths(
-    space: _Space, robot: Pose2D, cells: Sequence[tuple[int, int, float]]
-) -> list[float] | None:
-    """Path length from the robot to each (row, col) cell (inf: unreachable); None when boxed in.
-
-    One Dijkstra search of :func:`missiontree.mapping.planner.path_lengths` on the planner's costmap,
-    so a length is that of the path the navigation stack would plan.
-    """
-    goals = [space.grid.cell_to_world(r, c) for r, c, _ in cells]
-    lengths = path_lengths(space.costmap, robot, goals)
-    if goals and all(v is None for v in lengths):
-        return None
-    return [math.inf if v is None else float(v) for v in lengths]
-
-
-def _outside_known_map(space: _Space, xy: tuple[float, float]) -> str:
-    grid = space.grid
-    rows, cols = space.occupied.shape
-    row, col = grid.world_to_cell(*xy)
-    if not (0 <= row < rows and 0 <= col < cols):
-        x0, y0 = grid.origin.x, grid.origin.y
-        x1, y1 = x0 + cols * grid.resolution, y0 + rows * grid.resolution
-        return (
-            f"outside the known map: ({xy[0]:.2f}, {xy[1]:.2f}) is not in "
-            f"[{x0:.2f}, {x1:.2f}] x [{y0:.2f}, {y1:.2f}]"
-        )
-    reach = int(math.ceil(KNOWN_RADIUS / grid.resolution))
-    window = space.known[max(0, row - reach) : row + reach + 1, max(0, col - reach) : col + reach + 1]
-    if not window.any():
-        return f"outside the known map: ({xy[0]:.2f}, {xy[1]:.2f}) lies in unexplored space"
-    return ""
 
 
 def nearest_note(ranking: Ranking, scene: SceneObjects) -> str:
