@@ -58,7 +58,8 @@ def test_view_distance_keeps_a_low_object_in_the_cameras_view():
     assert near_floor > on_table > 0.0
     space = prepare_space(_room(table=False), RADIUS)
     cells = standoff_cells(space, (2.0, 2.0), RADIUS, near_floor)
-    distances = [math.hypot(x - 2.0, y - 2.0) for x, y in (space.grid.cell_to_world(r, c) for r, c, _ in cells)]
+    places = [space.grid.cell_to_world(r, c) for r, c, _ in cells]
+    distances = [math.hypot(x - 2.0, y - 2.0) for x, y in places]
     assert distances and min(distances) >= near_floor - RES
 
 
