@@ -3,7 +3,9 @@
 :class:`SceneBuilder` is the pipeline the ``BuildSceneGraph`` leaf runs and the scene-graph
 benchmark measures. Each camera frame with its detections goes through
 :func:`~missiontree.perception.projection.project` (depth at the box centre, the camera pose of
-the frame's instant) and :class:`~missiontree.perception.fusion.InstanceFusion` (the NAIS filters,
+the frame's instant), a check of its depth support against the latest map
+(:mod:`~missiontree.perception.plausibility`: a wall boxed as a refrigerator is dropped) and
+:class:`~missiontree.perception.fusion.InstanceFusion` (the NAIS filters,
 association, removal and moves). Rooms come from segmenting the occupancy map every
 ``segment_every`` seconds (or from fixed polygons); each instance is placed in the room holding it,
 rooms are typed by an injected ``room_typer`` (the vision-language model's votes, or the offline
@@ -28,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from missiontree.perception.fusion import FusionParams, InstanceFusion, Verifier
+from missiontree.perception.plausibility import SupportParams, plausible
 from missiontree.perception.projection import DepthMethod, project
 from missiontree.semantics.live import LiveScene
 from missiontree.semantics.relations import RelationParams, relations_of
@@ -64,6 +67,9 @@ class BuilderParams:
         segment_every: Seconds between re-segmentations of a changing map.
         relations: Relation thresholds.
         refresh: Seconds between rebuilds while only positions are refined.
+        support: A projection whose depth support the latest map shows thinner than its class's
+            least depth (a wall boxed as a refrigerator) is dropped before fusion
+            (:mod:`~missiontree.perception.plausibility`).
     """
 
     fusion: FusionParams = field(default_factory=FusionParams)
@@ -73,6 +79,7 @@ class BuilderParams:
     segment_every: float = 5.0
     relations: RelationParams = field(default_factory=RelationParams)
     refresh: float = 5.0
+    support: SupportParams = field(default_factory=SupportParams)
 
 
 @dataclass
@@ -106,6 +113,8 @@ class SceneBuilder:
         self.describer = describer
         self.times = BuildTimes()
         self._grid_stamp = -math.inf
+        #: The latest occupancy map given to :meth:`update_rooms` (projections are judged against it).
+        self.grid: OccupancyGrid | None = None
         self._last_segment = -math.inf
         self._last_rebuild = -math.inf
         self._last_check = -math.inf
@@ -123,6 +132,9 @@ class SceneBuilder:
         t0 = time.perf_counter()
         opts = {"method": self.params.depth_method, "window": self.params.window}
         projections = [p for p in (project(frame, d, **opts) for d in detections) if p is not None]  # type: ignore[arg-type]
+        projections, thin = plausible(projections, self.grid, self.params.support)
+        if thin:
+            self.fusion.dropped["thin support"] = self.fusion.dropped.get("thin support", 0) + len(thin)
         self.fusion.process(frame, projections, detections)
         self._dirty = self._dirty or bool(projections)
         self.times.fusion.append((time.perf_counter() - t0) * 1000.0)
@@ -133,6 +145,7 @@ class SceneBuilder:
         """Segment the map again if it is new and ``segment_every`` has passed; return True if done."""
         if grid is None:
             return False
+        self.grid = grid
         if self.fixed_rooms is not None:
             if self.segmentation is None:
                 self.segmentation = polygon_segmentation(grid, self.fixed_rooms)
