@@ -42,3 +42,30 @@ def test_small_objects_side_by_side_and_large_ones_stay_apart() -> None:
     _with_mass(fusion, "backpack", (3.35, 1.0), 0.22, (0.36, 0.36, 0.45), 10, {"backpack": 8.0})
     fusion.merge_overlapping(1.0)
     assert sorted(i.label for i in fusion.map) == ["backpack", "bottle", "chair", "cup"]
+
+
+def test_an_instance_placed_on_something_before_another_of_its_label_is_that_one() -> None:
+    """Boxes round a chair 3.5 m ahead whose depth fell on a face 2 m ahead made a second chair there.
+
+    Every view of the front chair held the established chair behind it in the box, and none
+    refined that one: the front chair goes, and later such boxes at its place start no candidate.
+    With front_share 0 it stays.
+    """
+    from test_fusion_views import K, frame, projection, room_depth
+
+    box = (K.cx - 40, 60.0, K.cx + 40, 180.0)
+    left: dict[float, list[str]] = {}
+    for share in (0.8, 0.0):
+        fusion = InstanceFusion(SemanticMap(), FusionParams(front_share=share))
+        behind = fusion.map.add("chair", (3.5, 0.0, 0.45), 0.0, size=(0.5, 0.5, 0.9), observations=60)
+        front = fusion.map.add("chair", (2.0, 0.0, 0.45), 0.0, size=(0.45, 0.45, 0.9), observations=10)
+        for k in range(8):
+            stamp = 1.0 + k
+            p = projection("chair", stamp, box, (2.0, 0.0, 0.45), 2.0, (0.45, 0.45, 0.9))
+            fusion.process(frame(stamp, room_depth(2.0)), [p])
+        left[share] = sorted(i.id for i in fusion.map)
+        if share:
+            assert not fusion.voting.candidates
+            removed = [c for c in fusion.map.drain_changes() if c.kind == "removed"]
+            assert [c.id for c in removed] == [front.id] and behind.id in removed[0].reason
+    assert left == {0.8: [behind.id], 0.0: sorted([behind.id, front.id])}

@@ -146,6 +146,14 @@ class FusionParams:
             two ways (two real objects at most touch: a share of 1; a bottle box on a cup came 4 cm
             from the 9 cm cup's centre); the one with less score mass for its label is removed.
             0 keeps only the general rule (a quarter of the smaller width).
+        front_share: An instance is an object of its label seen on something in front of it (a box
+            round a chair seen past a door frame, its centre's depth on the frame) when at least
+            this share of the views that refined it held, inside the box's inner part and at least
+            ``front_gap`` behind its measured depth, one instance of its label seen more often
+            that the frame did not refine; it is removed, and later boxes of the label at its place
+            that hold that instance again are dropped. 0 turns the rule off.
+        front_views: Views an instance is judged in before ``front_share`` applies.
+        front_gap: How far behind a box's measured depth the other instance's centre lies, metres.
     """
 
     filters: NaisFilterParams = field(default_factory=NaisFilterParams)
@@ -183,6 +191,9 @@ class FusionParams:
     explained_margin: float | None = 0.05
     twin_size: float = 0.45
     twin_overlap: float = 0.5
+    front_share: float = 0.8
+    front_views: int = 5
+    front_gap: float = 0.5
 
 
 @dataclass
@@ -201,6 +212,12 @@ class _Track:
     evidence: Counter[str] = field(default_factory=Counter)
     #: Labels the detector gives this instance besides its own (it was relabelled from them).
     seen_as: set[str] = field(default_factory=set)
+    #: Views that refined it judged for an instance of its label behind it in the box, and the
+    #: instances found so (:meth:`.merge.InstanceMerger.note_fronted`).
+    judged: int = 0
+    fronted: Counter[str] = field(default_factory=Counter)
+    #: Places where boxes of its label fell on something before it (a removed front instance).
+    shadows: list[tuple[float, float]] = field(default_factory=list)
 
 
 _NO_TRACK = _Track()
@@ -294,6 +311,8 @@ class InstanceFusion:
                         self.observed[kept_id] = p.detection
                         break
                 continue
+            if self.merger.shadowed(p):
+                continue  # its depth fell on something before an instance of its label (merge.py)
             cand = self.voting.vote(p)
             votes = self._candidate_colours.setdefault(id(self._candidate_of(p, cand)), Counter())
             if colour:
@@ -306,6 +325,8 @@ class InstanceFusion:
                 new = self._confirm(cand, colours, stamp)
                 seen.add(new.id)
                 self.observed[new.id] = p.detection
+        by_box = {id(p.detection): p for p in kept}
+        self.merger.note_fronted({i: by_box[id(d)] for i, d in self.observed.items() if id(d) in by_box})
         boxes = detections if detections is not None else [p.detection for p in projections]
         floor_score = self.params.filters.min_confidence * 0.7
         self.absence.judge_unseen(frame, seen, [d for d in boxes if d.score >= floor_score])

@@ -9,7 +9,10 @@ parameters). Two instances are one object when:
 2. they are of one label and close for their size (:meth:`InstanceMerger.same_object`);
 3. they are of two labels the detector gave one object (a cup also boxed as a bottle): their
    centres closer than a quarter of the smaller footprint, or, both small, their footprints
-   overlapping, at overlapping heights.
+   overlapping, at overlapping heights;
+4. one's views nearly all held the other, of its label and seen more often, behind it in the box:
+   the box's depth fell on something in front of the object (a door frame, a desk's edge), so it
+   is that object again (:meth:`InstanceMerger.drop_fronted`).
 
 Of one label, the instance seen more often stays and takes the other's observations and evidence;
 of two, the one with more score mass for its label stays. The other is removed with the reason.
@@ -22,6 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from missiontree.perception.projection import Projection, to_camera
 from missiontree.semantics.semantic_map import Instance
 
 if TYPE_CHECKING:
@@ -103,9 +107,85 @@ class InstanceMerger:
         hi = min(a.position[2] + a.size[2] / 2, b.position[2] + b.size[2] / 2)
         return hi - lo >= 0.5 * max(min(a.size[2], b.size[2]), 1e-3)
 
-    def merge_overlapping(self, stamp: float) -> None:
-        """Join instances that are one object (:meth:`same_object`); the more often seen one stays."""
+    # -- an object seen on something in front of it ------------------------------------------------
+
+    def _behind(self, p: Projection, other: Instance) -> bool:
+        """Whether ``other``'s centre lies in the inner part of ``p``'s box, ``front_gap`` past its depth."""
+        k, params = self.fusion._k, self.fusion.params
+        if k is None:
+            return False
+        forward, left = to_camera(p.camera_pose, *other.xy)
+        if forward <= 0.2 or forward < p.depth + params.front_gap:
+            return False
+        u = k.cx - left * k.fx / forward
+        x1, _, x2, _ = p.box
+        inset = params.inner_share * max(x2 - x1, 1.0)
+        return x1 + inset <= u <= x2 - inset
+
+    def note_fronted(self, refined: dict[str, Projection]) -> None:
+        """Count, for each instance a frame refined, whether its box held one of its label behind it.
+
+        Args:
+            refined: Instance id → the projection that refined it in this frame.
+        """
         fusion = self.fusion
+        if fusion.params.front_share <= 0:
+            return
+        for inst_id, p in refined.items():
+            inst = fusion.map.get(inst_id)
+            if inst is None:
+                continue
+            track = fusion.track(inst_id)
+            track.judged += 1
+            for other in fusion.map.by_label(inst.label):
+                if other.id in refined or other.observations <= inst.observations:
+                    continue
+                if self._behind(p, other):
+                    track.fronted[other.id] += 1
+                    break
+
+    def drop_fronted(self, stamp: float) -> None:
+        """Remove instances whose views mostly held another of their label behind them (``front_share``)."""
+        fusion = self.fusion
+        params = fusion.params
+        if params.front_share <= 0:
+            return
+        for inst in list(fusion.map):
+            track = fusion.tracks.get(inst.id)
+            if track is None or track.judged < params.front_views or not track.fronted:
+                continue
+            behind_id, count = track.fronted.most_common(1)[0]
+            behind = fusion.map.get(behind_id)
+            if behind is None or sum(track.fronted.values()) < params.front_share * track.judged:
+                continue
+            why = (
+                f"the {inst.label} {behind.id} seen on something before it: {count} of the "
+                f"{track.judged} views that placed it here held {behind.id} behind in the box"
+            )
+            fusion.map.remove(inst.id, stamp, reason=why)
+            fusion.tracks.pop(inst.id, None)
+            fusion.track(behind.id).shadows.append(inst.xy)
+
+    def shadowed(self, p: Projection) -> bool:
+        """Whether ``p`` falls where a front instance was removed, its box holding the one behind again."""
+        fusion = self.fusion
+        radius = fusion.params.associate_radius
+        for inst in fusion.map.by_label(p.label):
+            shadows = fusion.tracks[inst.id].shadows if inst.id in fusion.tracks else []
+            for sx, sy in shadows:
+                if abs(p.xy[0] - sx) <= radius and abs(p.xy[1] - sy) <= radius and self._behind(p, inst):
+                    return True
+        return False
+
+    # -- close instances --------------------------------------------------------------------------
+
+    def merge_overlapping(self, stamp: float) -> None:
+        """Join instances that are one object (:meth:`same_object`); the more often seen one stays.
+
+        Instances seen on something in front of another of their label go first (:meth:`drop_fronted`).
+        """
+        fusion = self.fusion
+        self.drop_fronted(stamp)
         items = list(fusion.map)
         gone: set[str] = set()
         for i, a in enumerate(items):
