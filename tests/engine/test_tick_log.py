@@ -18,8 +18,9 @@ from pydantic import BaseModel
 
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Leaf, Status
+from missiontree.engine.node_words import node_paths
 from missiontree.engine.ports import Output
-from missiontree.engine.tick_log import TickLog, TickRecorder, node_paths, plain, read_log
+from missiontree.engine.tick_log import TickLog, TickRecorder, plain, read_log
 from missiontree.errors import ConfigError
 from missiontree.testing import ClockRobot, ScriptedLeaf, capture_tick_log, clean_state
 

@@ -11,7 +11,7 @@ found among the same tick's changes.
 Counts are status *transitions*, as in the run's ``summary.json``: a node failing on many ticks in
 a row turned FAILURE once. Each failure is either one that *decided the outcome* (FAILURE reached
 the root) or one an ancestor *absorbed* by design (a Selector moving on, a Retry, a ForceFailure's
-Selector parent), by the same rule as the summary (:func:`~missiontree.engine.tick_log.absorber`),
+Selector parent), by the same rule as the summary (:func:`~missiontree.engine.node_words.absorber`),
 so ``failures`` here and in ``summary.json`` agree on ``count``, ``decided`` and ``absorbed_by``.
 """
 
@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from missiontree.cli import print_json
-from missiontree.engine.tick_log import absorber, read_log
+from missiontree.engine.node_words import absorber
+from missiontree.engine.tick_log import read_log
 from missiontree.errors import ConfigError
 
 #: Runner lines that are not leaf events.

@@ -43,7 +43,8 @@ import py_trees
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Leaf
 from missiontree.engine.native_memory import pin_mmap_threshold
-from missiontree.engine.tick_log import TickLog, TickRecorder, node_paths, plain
+from missiontree.engine.node_words import node_paths
+from missiontree.engine.tick_log import TickLog, TickRecorder, plain
 from missiontree.errors import ConfigError, MissionTreeError, PluginError
 from missiontree.robot.interface import Drawable
 

@@ -92,7 +92,7 @@ class NodeState:
 def declared_tree(spec: Any) -> dict[str, Any]:
     """The tree of a checked mission spec as plain data (names, types, parameters, sources).
 
-    Paths follow :func:`missiontree.engine.tick_log.node_paths` (``[i]`` added to repeated names).
+    Paths follow :func:`missiontree.engine.node_words.node_paths` (``[i]`` added to repeated names).
     """
     from missiontree.engine.tick_log import plain
 
