@@ -36,37 +36,42 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from missiontree.mapping.grid_search import (
+    BLOCK,
+    BLOCK_BITS,
+    CLOSED,
+    FOUND,
+    HAVE_NUMBA,
+    INSCRIBED,
+    LETHAL,
+    MAX_FREE,
+    NEED_COST,
+    NEED_HEAP,
+    NEED_STATE,
+    NO_INFORMATION,
+    S_EXPANDED,
+    S_HEAP,
+    S_LEFT,
+    S_SLOTS,
+    S_TILE,
+    START,
+    TILE,
+    TILE_BITS,
+    TILE_MASK,
+    coarse_jit,
+    coarse_loops,
+    search_jit,
+    search_loops,
+    trace_jit,
+    trace_loops,
+)
 from missiontree.types import OccupancyGrid, Pose2D
 
-try:  # numba is the ``accel`` extra; the loops below also run as plain Python
-    import numba
 
-    HAVE_NUMBA = True
-except ImportError:  # pragma: no cover - exercised where numba is absent
-    numba = None
-    HAVE_NUMBA = False
-
-LETHAL = 254
-INSCRIBED = 253
-NO_INFORMATION = 255
-#: Highest cost a cell can have and still be entered.
-MAX_FREE = 252
-TILE_BITS = 6
-TILE = 1 << TILE_BITS
-_TILE_MASK = TILE - 1
-
-# search kernel return codes
-_FOUND, _NONE, _NEED_COST, _NEED_STATE, _NEED_HEAP = 0, 1, 2, 3, 4
-# state vector slots
-_S_HEAP, _S_SLOTS, _S_TILE, _S_LEFT, _S_EXPANDED, _S_REACHED = 0, 1, 2, 3, 4, 5
-_CLOSED = 16
-_BLOCK_BITS = 3
-_BLOCK = 1 << _BLOCK_BITS
 #: Weighted A*: the heuristic counts this much (1.0 is optimal; 1.2 expands ~20x fewer cells on a
 #: warehouse map for paths within a few per cent of the optimum's length, never worse than 1.2x its cost).
 HEURISTIC_WEIGHT = 1.2
 _NO_COARSE = np.full((1, 1), np.inf, np.float32)
-_START = 8
 
 
 @dataclass(frozen=True)
@@ -84,237 +89,6 @@ class Path:
     length: float
     cost: float
     expanded: int
-
-
-def _sift_down_py(heap_k, heap_v, size):  # noqa: ANN001, ANN202
-    """Sift the root of the min-heap (keys ``heap_k``, values ``heap_v``, ``size`` entries) down."""
-    i = 0
-    while True:
-        left = 2 * i + 1
-        if left >= size:
-            return
-        child = left
-        if left + 1 < size and heap_k[left + 1] < heap_k[left]:
-            child = left + 1
-        if not heap_k[child] < heap_k[i]:
-            return
-        tk = heap_k[i]
-        heap_k[i] = heap_k[child]
-        heap_k[child] = tk
-        tv = heap_v[i]
-        heap_v[i] = heap_v[child]
-        heap_v[child] = tv
-        i = child
-
-
-def _push_py(heap_k, heap_v, size, key, value):  # noqa: ANN001, ANN202
-    """Add ``key``/``value`` as entry ``size`` of the min-heap and sift it up (room must exist)."""
-    j = size
-    heap_k[j] = key
-    heap_v[j] = value
-    while j > 0:
-        up = (j - 1) // 2
-        if not heap_k[up] > heap_k[j]:
-            return
-        tk = heap_k[up]
-        heap_k[up] = heap_k[j]
-        heap_k[j] = tk
-        tv = heap_v[up]
-        heap_v[up] = heap_v[j]
-        heap_v[j] = tv
-        j = up
-
-
-# The kernels below call the heap steps by these names: compiled (inlined into each kernel) with
-# numba, plain Python without it.
-if HAVE_NUMBA:
-    _sift_down = numba.njit(cache=True, nogil=True, inline="always")(_sift_down_py)
-    _push = numba.njit(cache=True, nogil=True, inline="always")(_push_py)
-else:  # pragma: no cover - exercised where numba is absent
-    _sift_down, _push = _sift_down_py, _push_py
-
-
-def _search_loops(cost_slot, cost_pool, g_slot, g_pool, l_pool, par_pool, heap_k, heap_v,  # noqa: ANN001, ANN201, PLR0912, PLR0913, PLR0915
-                  state, h, w, ntc, sr, sc, escape2, goals, weight, heuristic, hweight, coarse, cfar):
-    """Resumable A* (``heuristic``) or Dijkstra to every cell in sorted ``goals`` (flat indices).
-
-    Returns a code: found, none, or a request (cost tile ``state[_S_TILE]``, more state tiles,
-    a bigger heap) after which Python provides what was asked and calls again with the same state.
-    """
-    drs = (-1, -1, -1, 0, 0, 1, 1, 1)
-    dcs = (-1, 0, 1, -1, 1, -1, 0, 1)
-    n_goals = goals.shape[0]
-    gr = goals[0] // w
-    gc = goals[0] % w
-    while state[_S_HEAP] > 0:
-        cur = heap_v[0]
-        r = cur // w
-        c = cur % w
-        tile = (r >> TILE_BITS) * ntc + (c >> TILE_BITS)
-        slot = g_slot[tile]
-        off = (r & _TILE_MASK) * TILE + (c & _TILE_MASK)
-        closed = par_pool[slot, off] >= _CLOSED
-        if not closed:
-            # everything the expansion will need, before popping (so a request can resume here)
-            for tr in range(max(r - 1, 0) >> TILE_BITS, (min(r + 1, h - 1) >> TILE_BITS) + 1):
-                for tc in range(max(c - 1, 0) >> TILE_BITS, (min(c + 1, w - 1) >> TILE_BITS) + 1):
-                    if cost_slot[tr * ntc + tc] < 0:
-                        state[_S_TILE] = tr * ntc + tc
-                        return _NEED_COST
-            if g_pool.shape[0] - state[_S_SLOTS] < 4:
-                return _NEED_STATE
-            if heap_k.shape[0] - state[_S_HEAP] < 9:
-                return _NEED_HEAP
-        # pop
-        size = state[_S_HEAP] - 1
-        state[_S_HEAP] = size
-        heap_k[0] = heap_k[size]
-        heap_v[0] = heap_v[size]
-        _sift_down(heap_k, heap_v, size)
-        if closed:
-            continue
-        par_pool[slot, off] += _CLOSED
-        state[_S_EXPANDED] += 1
-        g_cur = g_pool[slot, off]
-        l_cur = l_pool[slot, off]
-        # goal test: binary search in the sorted goals
-        lo = 0
-        hi = n_goals
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if goals[mid] < cur:
-                lo = mid + 1
-            else:
-                hi = mid
-        if lo < n_goals and goals[lo] == cur:
-            state[_S_REACHED] += 1
-            state[_S_LEFT] -= 1
-            if state[_S_LEFT] <= 0:
-                return _FOUND
-        for k in range(8):
-            nr = r + drs[k]
-            nc = c + dcs[k]
-            if nr < 0 or nr >= h or nc < 0 or nc >= w:
-                continue
-            ntile = (nr >> TILE_BITS) * ntc + (nc >> TILE_BITS)
-            noff = (nr & _TILE_MASK) * TILE + (nc & _TILE_MASK)
-            cost = cost_pool[cost_slot[ntile], nr & _TILE_MASK, nc & _TILE_MASK]
-            if cost == INSCRIBED and (nr - sr) * (nr - sr) + (nc - sc) * (nc - sc) <= escape2:
-                cost = MAX_FREE  # the robot may leave the inscribed zone it stands in
-            if cost > MAX_FREE:
-                continue
-            nslot = g_slot[ntile]
-            if nslot < 0:
-                nslot = state[_S_SLOTS]
-                state[_S_SLOTS] = nslot + 1
-                g_slot[ntile] = nslot
-                for j in range(TILE * TILE):
-                    g_pool[nslot, j] = np.inf
-                    par_pool[nslot, j] = -1
-            elif par_pool[nslot, noff] >= _CLOSED:
-                continue
-            diagonal = drs[k] != 0 and dcs[k] != 0
-            step = 1.4142135623730951 if diagonal else 1.0
-            ng = g_cur + step * (1.0 + weight * cost / 252.0)
-            if ng < g_pool[nslot, noff]:
-                g_pool[nslot, noff] = ng
-                l_pool[nslot, noff] = l_cur + step
-                par_pool[nslot, noff] = k
-                f = ng
-                if heuristic:
-                    # octile distance (exact on an empty 8-connected grid) or, when larger, the
-                    # coarse distance around obstacles less a block's slack; a hair heavier to
-                    # break ties toward deeper cells instead of flooding plateaus of equal cost
-                    ar = abs(nr - gr)
-                    ac = abs(nc - gc)
-                    est = max(ar, ac) + 0.41421356237309515 * min(ar, ac)
-                    hc = coarse[nr >> _BLOCK_BITS, nc >> _BLOCK_BITS]
-                    if hc == np.inf:
-                        hc = cfar
-                    hc = (hc - 1.5) * _BLOCK
-                    if hc > est:
-                        est = hc
-                    f = ng + est * hweight
-                _push(heap_k, heap_v, state[_S_HEAP], f, nr * w + nc)
-                state[_S_HEAP] += 1
-    return _NONE
-
-
-def _coarse_loops(blocked, goal, start, dist, heap_k, heap_v):  # noqa: ANN001, ANN201
-    """Dijkstra in blocks from ``goal`` over the coarse grid until ``start`` is settled; its distance.
-
-    ``dist`` (inf on entry) receives the settled distances in blocks; returns inf when the start
-    cannot be reached at this scale (the fine search then uses the octile distance alone).
-    """
-    h, w = blocked.shape
-    drs = (-1, -1, -1, 0, 0, 1, 1, 1)
-    dcs = (-1, 0, 1, -1, 1, -1, 0, 1)
-    tent = np.full(h * w, np.inf, np.float32)
-    size = 1
-    heap_k[0] = 0.0
-    heap_v[0] = goal
-    tent[goal] = 0.0
-    while size > 0:
-        key = heap_k[0]
-        cur = heap_v[0]
-        size -= 1
-        heap_k[0] = heap_k[size]
-        heap_v[0] = heap_v[size]
-        _sift_down(heap_k, heap_v, size)
-        r = cur // w
-        c = cur % w
-        if dist[r, c] != np.inf:
-            continue
-        dist[r, c] = key
-        if cur == start:
-            return key
-        for k in range(8):
-            nr = r + drs[k]
-            nc = c + dcs[k]
-            if nr < 0 or nr >= h or nc < 0 or nc >= w or blocked[nr, nc] or dist[nr, nc] != np.inf:
-                continue
-            nk = key + (1.4142135623730951 if drs[k] != 0 and dcs[k] != 0 else 1.0)
-            nxt = nr * w + nc
-            if nk >= tent[nxt]:
-                continue
-            tent[nxt] = nk
-            if size >= heap_k.shape[0]:
-                return np.inf  # out of room: fall back to the octile distance
-            _push(heap_k, heap_v, size, nk, nxt)
-            size += 1
-    return np.inf
-
-
-def _trace_loops(g_slot, par_pool, w, ntc, start, goal):  # noqa: ANN001, ANN201
-    """The cells from ``goal`` back to ``start`` (goal first), following the steps stored in the search."""
-    drs = (-1, -1, -1, 0, 0, 1, 1, 1)
-    dcs = (-1, 0, 1, -1, 1, -1, 0, 1)
-    n = 0
-    cur = goal
-    out = np.empty(1024, np.int64)
-    while True:
-        if n >= out.shape[0]:
-            bigger = np.empty(out.shape[0] * 2, np.int64)
-            bigger[:n] = out[:n]
-            out = bigger
-        out[n] = cur
-        n += 1
-        if cur == start:
-            break
-        r = cur // w
-        c = cur % w
-        k = par_pool[g_slot[(r >> TILE_BITS) * ntc + (c >> TILE_BITS)],
-                     (r & _TILE_MASK) * TILE + (c & _TILE_MASK)] % _CLOSED
-        cur = (r - drs[k]) * w + (c - dcs[k])
-    return out[:n]
-
-
-if HAVE_NUMBA:
-    _search_jit = numba.njit(cache=True, nogil=True)(_search_loops)
-    _trace_jit = numba.njit(cache=True, nogil=True)(_trace_loops)
-    _coarse_jit = numba.njit(cache=True, nogil=True)(_coarse_loops)
-else:  # pragma: no cover
-    _search_jit, _trace_jit, _coarse_jit = _search_loops, _trace_loops, _coarse_loops
 
 
 class Costmap:
@@ -361,27 +135,27 @@ class Costmap:
         """Blocks of 8 x 8 cells that hold an obstacle (computed once, then kept up to date)."""
         if self._blocks is None:
             h, w = self.shape
-            rows, cols = (h + _BLOCK - 1) >> _BLOCK_BITS, (w + _BLOCK - 1) >> _BLOCK_BITS
+            rows, cols = (h + BLOCK - 1) >> BLOCK_BITS, (w + BLOCK - 1) >> BLOCK_BITS
             self._blocks = np.zeros((rows, cols), np.bool_)
-            for r0 in range(0, h, 64 * _BLOCK):  # in stripes: no whole-grid temporaries
-                self._refresh_blocks(r0, min(r0 + 64 * _BLOCK, h), 0, w)
+            for r0 in range(0, h, 64 * BLOCK):  # in stripes: no whole-grid temporaries
+                self._refresh_blocks(r0, min(r0 + 64 * BLOCK, h), 0, w)
         return self._blocks
 
     def _refresh_blocks(self, r0: int, r1: int, c0: int, c1: int) -> None:
         assert self._blocks is not None
         h, w = self.shape
-        br0, bc0 = max(r0, 0) >> _BLOCK_BITS, max(c0, 0) >> _BLOCK_BITS
-        br1, bc1 = (min(r1, h) + _BLOCK - 1) >> _BLOCK_BITS, (min(c1, w) + _BLOCK - 1) >> _BLOCK_BITS
+        br0, bc0 = max(r0, 0) >> BLOCK_BITS, max(c0, 0) >> BLOCK_BITS
+        br1, bc1 = (min(r1, h) + BLOCK - 1) >> BLOCK_BITS, (min(c1, w) + BLOCK - 1) >> BLOCK_BITS
         if br1 <= br0 or bc1 <= bc0:
             return
-        window = self.grid.data[br0 * _BLOCK: br1 * _BLOCK, bc0 * _BLOCK: bc1 * _BLOCK]
+        window = self.grid.data[br0 * BLOCK: br1 * BLOCK, bc0 * BLOCK: bc1 * BLOCK]
         bad = window >= 50
         if not self.allow_unknown:
             bad |= window < 0
-        ph, pw = (br1 - br0) * _BLOCK, (bc1 - bc0) * _BLOCK
+        ph, pw = (br1 - br0) * BLOCK, (bc1 - bc0) * BLOCK
         if bad.shape != (ph, pw):
             bad = np.pad(bad, ((0, ph - bad.shape[0]), (0, pw - bad.shape[1])))
-        self._blocks[br0:br1, bc0:bc1] = bad.reshape(br1 - br0, _BLOCK, bc1 - bc0, _BLOCK).any(axis=(1, 3))
+        self._blocks[br0:br1, bc0:bc1] = bad.reshape(br1 - br0, BLOCK, bc1 - bc0, BLOCK).any(axis=(1, 3))
 
     # -- the map -----------------------------------------------------------------------------------
 
@@ -460,8 +234,8 @@ class Costmap:
             self._invalidate(row - reach - self._pad, row + reach + self._pad + 1,
                              col - reach - self._pad, col + reach + self._pad + 1)
             if self._blocks is not None:
-                self._blocks[max(row, 0) >> _BLOCK_BITS: (max(row, 0) >> _BLOCK_BITS) + 1,
-                             max(col, 0) >> _BLOCK_BITS: (max(col, 0) >> _BLOCK_BITS) + 1] = True
+                self._blocks[max(row, 0) >> BLOCK_BITS: (max(row, 0) >> BLOCK_BITS) + 1,
+                             max(col, 0) >> BLOCK_BITS: (max(col, 0) >> BLOCK_BITS) + 1] = True
 
     def ensure_tile(self, tile: int) -> None:
         """Compute the costs of tile ``tile`` (row-major tile index) if not yet known."""
@@ -524,7 +298,7 @@ class Costmap:
             return LETHAL
         tile = (row >> TILE_BITS) * self.ntc + (col >> TILE_BITS)
         self.ensure_tile(tile)
-        return int(self.cost_pool[self.cost_slot[tile], row & _TILE_MASK, col & _TILE_MASK])
+        return int(self.cost_pool[self.cost_slot[tile], row & TILE_MASK, col & TILE_MASK])
 
     def cost_at(self, x: float, y: float) -> int:
         """Cost at a map point; LETHAL outside the map."""
@@ -556,7 +330,7 @@ class Costmap:
             tiles = (r >> TILE_BITS) * self.ntc + (c >> TILE_BITS)
             for tile in np.unique(tiles).tolist():
                 self.ensure_tile(tile)
-            costs[inside] = self.cost_pool[self.cost_slot[tiles], r & _TILE_MASK, c & _TILE_MASK]
+            costs[inside] = self.cost_pool[self.cost_slot[tiles], r & TILE_MASK, c & TILE_MASK]
         return costs
 
     def dense(self) -> np.ndarray:
@@ -577,25 +351,25 @@ class Costmap:
         start = sr * w + sc
         tile = (sr >> TILE_BITS) * self.ntc + (sc >> TILE_BITS)
         s.g_slot[tile] = 0
-        s.state[_S_SLOTS] = 1
+        s.state[S_SLOTS] = 1
         s.g_pool[0] = np.inf
         s.par_pool[0] = -1
-        off = (sr & _TILE_MASK) * TILE + (sc & _TILE_MASK)
-        s.g_pool[0, off], s.l_pool[0, off], s.par_pool[0, off] = 0.0, 0.0, _START
-        s.heap_k[0], s.heap_v[0], s.state[_S_HEAP] = 0.0, start, 1
-        s.state[_S_LEFT] = len(goal_cells)
+        off = (sr & TILE_MASK) * TILE + (sc & TILE_MASK)
+        s.g_pool[0, off], s.l_pool[0, off], s.par_pool[0, off] = 0.0, 0.0, START
+        s.heap_k[0], s.heap_v[0], s.state[S_HEAP] = 0.0, start, 1
+        s.state[S_LEFT] = len(goal_cells)
         escape = int(math.ceil((self.radius + 0.1) / self.grid.resolution))
         escape2 = escape * escape if self.cell_cost(sr, sc) >= INSCRIBED else -1
-        fn = _search_jit if self.accelerate else _search_loops
+        fn = search_jit if self.accelerate else search_loops
         coarse, cfar = _NO_COARSE, 0.0
         if heuristic:
             blocks = self._coarse()
             coarse = np.full(blocks.shape, np.inf, np.float32)
             n = blocks.size
             g_row, g_col = divmod(int(goal_cells[0]), w)
-            gb = (g_row >> _BLOCK_BITS) * blocks.shape[1] + (g_col >> _BLOCK_BITS)
-            sb = (sr >> _BLOCK_BITS) * blocks.shape[1] + (sc >> _BLOCK_BITS)
-            cfn = _coarse_jit if self.accelerate else _coarse_loops
+            gb = (g_row >> BLOCK_BITS) * blocks.shape[1] + (g_col >> BLOCK_BITS)
+            sb = (sr >> BLOCK_BITS) * blocks.shape[1] + (sc >> BLOCK_BITS)
+            cfn = coarse_jit if self.accelerate else coarse_loops
             heap_k, heap_v = np.empty(4 * n + 16, np.float32), np.empty(4 * n + 16, np.int64)
             cfar = float(cfn(blocks, gb, sb, coarse, heap_k, heap_v))
             if not math.isfinite(cfar):  # no way around at block scale (narrow door): octile only
@@ -605,11 +379,11 @@ class Costmap:
             code = fn(self.cost_slot, self.cost_pool, s.g_slot, s.g_pool, s.l_pool, s.par_pool, s.heap_k,
                       s.heap_v, s.state, h, w, self.ntc, sr, sc, escape2, goal_cells, weight, heuristic,
                       self.heuristic_weight, coarse, cfar)
-            if code == _NEED_COST:
-                self.ensure_tile(int(s.state[_S_TILE]))
-            elif code == _NEED_STATE:
+            if code == NEED_COST:
+                self.ensure_tile(int(s.state[S_TILE]))
+            elif code == NEED_STATE:
                 s.grow_state()
-            elif code == _NEED_HEAP:
+            elif code == NEED_HEAP:
                 s.grow_heap()
             else:
                 return s, code
@@ -631,9 +405,9 @@ class Costmap:
             return None
         goal_cell = gr * w + gc
         s, code = self._run((sr, sc), np.array([goal_cell], np.int64), True, cost_weight)
-        if code != _FOUND:
+        if code != FOUND:
             return None
-        trace = _trace_jit if self.accelerate else _trace_loops
+        trace = trace_jit if self.accelerate else trace_loops
         cells = trace(s.g_slot, s.par_pool, w, self.ntc, sr * w + sc, goal_cell)[::-1]
         rows, cols = cells // w, cells % w
         res, origin = self.grid.resolution, self.grid.origin
@@ -642,7 +416,7 @@ class Costmap:
         pts[-1] = (gx, gy)
         length = float(np.hypot(*np.diff(pts, axis=0).T).sum()) if len(pts) > 1 else 0.0
         slot, off = s.lookup(gr, gc, self.ntc)
-        return Path(pts, length, float(s.g_pool[slot, off]), int(s.state[_S_EXPANDED]))
+        return Path(pts, length, float(s.g_pool[slot, off]), int(s.state[S_EXPANDED]))
 
     def path_lengths(self, start: Pose2D | tuple[float, float],
                      goals: Sequence[Pose2D | tuple[float, float]],
@@ -666,7 +440,7 @@ class Costmap:
         res = self.grid.resolution
         for cell, idx in cells.items():
             slot, off = s.lookup(cell // w, cell % w, self.ntc)
-            if slot >= 0 and s.par_pool[slot, off] >= _CLOSED:
+            if slot >= 0 and s.par_pool[slot, off] >= CLOSED:
                 cx, cy = self.grid.cell_to_world(cell // w, cell % w)
                 for i in idx:
                     # cell steps in metres, plus the goal point's offset from its cell centre
@@ -700,7 +474,7 @@ class _SearchState:
 
     def lookup(self, row: int, col: int, ntc: int) -> tuple[int, int]:
         return (int(self.g_slot[(row >> TILE_BITS) * ntc + (col >> TILE_BITS)]),
-                (row & _TILE_MASK) * TILE + (col & _TILE_MASK))
+                (row & TILE_MASK) * TILE + (col & TILE_MASK))
 
 
 def _xy(p: Pose2D | tuple[float, float]) -> tuple[float, float]:
