@@ -12,6 +12,10 @@ once (their start-up is printed apart) and stay up between rounds.
   run a Dask task (``chunk=1``, the engine before it sent short runs several to a task), a fourth
   engine in the same rounds: what chunking gives, measured beside it. The Dask engine's chunk sizes
   of each round are printed.
+- ``cpu_ms_per_run_*`` / ``caller_cpu_ms_per_run_*`` (Linux): CPU time of this process and all its
+  descendants (every engine's workers, idle ones too) during an engine's rounds, per run, and of this
+  process alone (where a local Dask cluster's scheduler, nannies and client live). Unlike wall time it
+  does not depend on what else the machine runs: what an engine costs beside the missions themselves.
 - ``overhead_ms_per_run_*``: worker time not spent in missions, per run:
   (workers × engine wall − Σ missions' own wall time in the workers) / runs. It holds dispatch,
   pickling, result transfer and the idle tail of a round (workers waiting for the last run).
@@ -81,6 +85,40 @@ def cpu_pressure() -> str:
         return "n/a"
 
 
+def cpu_seconds() -> tuple[float, float] | None:
+    """CPU seconds used so far by this process and by all its descendants (Linux /proc), or None.
+
+    The descendants are every engine's workers (Dask's nannies live in this process, its workers are
+    children of it); idle engines count too, alike in every engine's rounds.
+    """
+    tick = os.sysconf("SC_CLK_TCK")
+    parents: dict[int, int] = {}
+    cpu: dict[int, float] = {}
+    try:
+        entries = [entry.name for entry in os.scandir("/proc") if entry.name.isdigit()]
+    except OSError:
+        return None
+    for name in entries:
+        try:
+            fields = Path(f"/proc/{name}/stat").read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue  # gone meanwhile
+        parents[int(name)] = int(fields[1])
+        cpu[int(name)] = (int(fields[11]) + int(fields[12])) / tick
+    me = os.getpid()
+    if me not in cpu:
+        return None
+    children: dict[int, list[int]] = {}
+    for pid, parent in parents.items():
+        children.setdefault(parent, []).append(pid)
+    found, stack = 0.0, list(children.get(me, []))
+    while stack:
+        pid = stack.pop()
+        found += cpu.get(pid, 0.0)
+        stack.extend(children.get(pid, []))
+    return cpu[me], found
+
+
 def run_round(engine: Engine, mission: Path, seeds: list[int], out: Path) -> tuple[float, float, int]:
     """Run the seeds on the engine; return (wall s, Σ in-worker mission wall s, failures)."""
     plan = expand_plan(mission, seeds=seeds)
@@ -127,7 +165,8 @@ def main() -> int:
             began = time.perf_counter()
             run_round(engine, mission, list(range(2 * args.jobs)), tmp / f"warm_{name}")
             print(f"warm-up {name}: {time.perf_counter() - began:.2f} s", flush=True)
-        totals = {name: {"wall": 0.0, "inside": 0.0, "failed": 0} for name in engines}
+        totals = {name: {"wall": 0.0, "inside": 0.0, "failed": 0, "caller_cpu": 0.0, "workers_cpu": 0.0}
+                  for name in engines}
         ratios: dict[str, list[float]] = {name: [] for name in engines if name != "serial"}
         seed = 1000
         for index, count in enumerate(per_round):
@@ -138,7 +177,12 @@ def main() -> int:
             dask.chunk_sizes.clear()
             walls: dict[str, float] = {}
             for name in order:
+                cpu_before = cpu_seconds()
                 wall, inside, failed = run_round(engines[name], mission, seeds, tmp / f"r{index}_{name}")
+                cpu_after = cpu_seconds()
+                if cpu_before is not None and cpu_after is not None:
+                    totals[name]["caller_cpu"] += cpu_after[0] - cpu_before[0]
+                    totals[name]["workers_cpu"] += cpu_after[1] - cpu_before[1]
                 walls[name] = wall
                 totals[name]["wall"] += wall
                 totals[name]["inside"] += inside
@@ -176,6 +220,9 @@ def main() -> int:
         result[f"wall_s_{name}"] = round(total["wall"], 2)
         result[f"mission_wall_ms_{name}"] = round(total["inside"] / runs * 1000, 1)
         result[f"failed_{name}"] = total["failed"]
+        cpu = total["caller_cpu"] + total["workers_cpu"]
+        result[f"cpu_ms_per_run_{name}"] = round(cpu / runs * 1000, 1)
+        result[f"caller_cpu_ms_per_run_{name}"] = round(total["caller_cpu"] / runs * 1000, 1)
     result["startup_s_pool"] = round(pool_start_s, 2)
     result["startup_s_dask"] = round(dask_start_s, 2)
     result["load_average_before"] = [round(v, 2) for v in load_before]
@@ -184,6 +231,9 @@ def main() -> int:
     print(f"mean mission wall time in a worker: serial {result['mission_wall_ms_serial']} ms, pool "
           f"{result['mission_wall_ms_pool']} ms, dask {result['mission_wall_ms_dask']} ms; load average "
           f"after {' '.join(f'{v:.1f}' for v in os.getloadavg())}")
+    print("CPU a run, this process and every worker (idle engines included), of which this process: "
+          + "; ".join(f"{name} {result[f'cpu_ms_per_run_{name}']} ms "
+                      f"({result[f'caller_cpu_ms_per_run_{name}']} ms)" for name in totals))
     print(json.dumps(result, sort_keys=True))
     return 0
 

@@ -270,6 +270,7 @@ def _worker_settings(dask_worker: Any) -> dict[str, Any]:
 def _scheduler_settings(dask_scheduler: Any) -> dict[str, Any]:
     """What the local cluster's scheduler runs besides scheduling (run by Client.run_on_scheduler)."""
     return {"stealing": "stealing" in dask_scheduler.extensions,
+            "saturation": dask_scheduler.WORKER_SATURATION,
             "amm_running": dask_scheduler.extensions["amm"].running}
 
 
@@ -284,7 +285,7 @@ def test_a_local_dask_cluster_runs_missions_without_the_profiler_or_a_frozen_mal
     with DaskEngine("local", 1) as engine:
         settings = list(engine.client.run(_worker_settings).values())
         scheduler = engine.client.run_on_scheduler(_scheduler_settings)
-    assert scheduler == {"stealing": False, "amm_running": False}
+    assert scheduler == {"stealing": False, "saturation": 1.0, "amm_running": False}
     assert len(settings) == 1
     assert settings[0]["memory_monitor_ms"] >= 1000
     assert settings[0]["malloc_trim"] is None

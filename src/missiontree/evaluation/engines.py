@@ -124,6 +124,9 @@ LOCAL_CLUSTER_CONFIG: dict[str, Any] = {
     "distributed.admin.system-monitor.interval": "5s",
     # the memory monitors (each worker's, and its nanny's here) every second, not every 100 ms
     "distributed.worker.memory.monitor-interval": "1s",
+    # a worker is sent its next task when it finishes one (Dask's default 1.1 sends a second ahead): the
+    # last runs go to whichever worker is free first, so a batch does not wait on a worker's backlog
+    "distributed.scheduler.worker-saturation": 1.0,
     # tasks wait in the scheduler's queue until a worker has room (queuing): nothing to steal
     "distributed.scheduler.work-stealing": False,
     # results are gathered and released at once: no replicas for the active memory manager to drop
