@@ -274,7 +274,15 @@ class Diagnosis:
             for o in world.objects
         ]
         pairs = [(scored["preds"][i]["id"], scored["truths"][j].id) for i, j in scored["pairs"]]
-        data = {"instances": instances, "tracks": tracks, "truths": truths, "pairs": pairs, "sights": self.sights}
+        changes = [(c.kind, c.id, c.label, tuple(c.position), c.reason) for c in self.changes]
+        data = {
+            "instances": instances,
+            "tracks": tracks,
+            "truths": truths,
+            "pairs": pairs,
+            "sights": self.sights,
+            "changes": changes,
+        }
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         with open(path, "wb") as fh:
             pickle.dump(data, fh)

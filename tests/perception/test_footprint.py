@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from missiontree.perception.footprint import SIZE_PRIORS, plausible_size, stands_out
@@ -46,3 +48,23 @@ def test_a_box_stands_out_where_the_depth_steps_at_an_uncut_side() -> None:
     depth[:, 100:181] = 2.5  # an object 1.5 m in front of the wall fills the box
     assert stands_out(frame, box, 6, 0.15)
     assert not stands_out(frame, (0.0, 60.0, 319.0, 180.0), 6, 0.15)  # both sides cut: no evidence
+
+
+def test_an_outline_that_does_not_hold_the_fused_position_is_a_neighbours() -> None:
+    """Cells outlining a 0.6 x 0.5 object whose rectangle passes 0.57 m from the fused position.
+
+    The boxes' centre points (at most 0.45 m behind the surface seen) lie outside it: the cells are
+    a neighbour's, no centre. Without the check the centre would move 0.8 m onto the neighbour.
+    """
+    from collections import Counter
+
+    from missiontree.perception.footprint import outline_centre
+
+    cell = 0.05
+    points = [(10.9 + 0.02 * k, 0.7) for k in range(31)] + [(10.9, 0.7 + 0.02 * k) for k in range(26)]
+    cells = Counter({(int(x // cell), int(y // cell)): 3 for x, y in points})
+    fused = (11.9, 0.3, 0.35)
+    moved = outline_centre(cells, fused, 1.26, cell)
+    assert moved is not None and math.hypot(moved[0] - fused[0], moved[1] - fused[1]) > 0.75
+    assert outline_centre(cells, fused, 1.26, cell, holds_fused=0.45) is None
+    assert outline_centre(cells, (11.6, 0.9, 0.35), 1.26, cell, holds_fused=0.45) is not None

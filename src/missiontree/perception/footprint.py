@@ -184,6 +184,7 @@ def outline_centre(
     extent: float,
     cell: float,
     exclude: Sequence[tuple[float, float, float]] = (),
+    holds_fused: float | None = None,
 ) -> tuple[float, float] | None:
     """The centre of the footprint the surface cells outline, None while they outline too little.
 
@@ -191,7 +192,10 @@ def outline_centre(
     with the smallest rectangle. Two faces seen (the rectangle has depth): its centre. One face (a
     thin rectangle): the point on the face's perpendicular bisector as far behind it as the fused
     position. A centre more than 1 m from the fused position means the cells hold something else
-    too: None.
+    too: None. So does, with ``holds_fused``, a rectangle that does not hold the fused position
+    (grown by that margin): the fused position lies on the surface the boxes' centres showed, so
+    the object's outline holds it; one that does not outlines a neighbour (a desk's cells taken
+    from the bookshelf beside it moved its centre 0.7 m onto the bookshelf).
 
     Args:
         cells: Surface cells and the views that saw each (:func:`surface_cells`).
@@ -200,6 +204,8 @@ def outline_centre(
         cell: Cell size, metres.
         exclude: Discs (x, y, radius) whose cells are not counted: the surface of other objects
             the boxes held in front of or beside this one (a laptop on the floor before a table).
+        holds_fused: Margin, metres, by which the rectangle must hold the fused position; None:
+            not checked.
     """
     keys = [key for key, n in cells.items() if n >= 2]
     if len(keys) < 8:
@@ -211,7 +217,12 @@ def outline_centre(
         pts = pts[np.hypot(pts[:, 0] - x, pts[:, 1] - y) > radius]
     if len(pts) < 8:
         return None
-    (cx, cy), (w, h), angle = cv2.minAreaRect(pts.astype(np.float32))
+    rect = cv2.minAreaRect(pts.astype(np.float32))
+    (cx, cy), (w, h), angle = rect
+    if holds_fused is not None:
+        grown = cv2.boxPoints(((cx, cy), (w + 2 * holds_fused, h + 2 * holds_fused), angle))
+        if cv2.pointPolygonTest(grown.astype(np.float32), (float(fused[0]), float(fused[1])), False) < 0:
+            return None
     long_side, short_side = max(w, h), min(w, h)
     if short_side >= max(0.25, 0.3 * long_side):
         centre = (float(cx), float(cy))

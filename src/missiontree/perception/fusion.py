@@ -139,6 +139,10 @@ class FusionParams:
             largest measured width plus this of another, smaller instance's centre: its box's
             nearest surface was that object (a laptop on the floor before a table pulled the
             table's centre 0.6 m forward), metres; None turns the rule off.
+        outline_margin: A large instance's outline is only used when its rectangle, grown by this,
+            holds the fused position (the median of the boxes' centre points, which projection puts
+            at most its ``max_surface_offset``, 0.45 m, behind the surface seen); else the cells
+            outline a neighbour and the fused position stays, metres; None: not checked.
         twin_size: Two instances of different labels both at most this wide (metres) are small:
             one object when their footprints overlap (see ``twin_overlap``).
         twin_overlap: Two small instances of different labels at overlapping heights whose centres
@@ -189,6 +193,7 @@ class FusionParams:
     relabel_views: int = 10
     footprint_reach: float = 0.15
     explained_margin: float | None = 0.05
+    outline_margin: float | None = 0.45
     twin_size: float = 0.45
     twin_overlap: float = 0.5
     front_share: float = 0.8
@@ -494,7 +499,9 @@ class InstanceFusion:
             for o in self.map
             if o.id != inst.id and max(o.size[0], o.size[1]) < extent
         ]
-        return outline_centre(track.cells, fused, extent, self.params.surface_cell, others)
+        return outline_centre(
+            track.cells, fused, extent, self.params.surface_cell, others, self.params.outline_margin
+        )
 
     def unchecked_since(self, stamp: float) -> list[Instance]:
         """Instances to look at again since ``stamp`` (:meth:`.AbsenceJudge.unchecked_since`)."""
