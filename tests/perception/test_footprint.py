@@ -51,10 +51,10 @@ def test_a_box_stands_out_where_the_depth_steps_at_an_uncut_side() -> None:
 
 
 def test_an_outline_that_does_not_hold_the_fused_position_is_a_neighbours() -> None:
-    """Cells outlining a 0.6 x 0.5 object whose rectangle passes 0.57 m from the fused position.
+    """Cells outlining a 0.6 x 0.5 object whose rectangle ends 0.52 m before the fused position.
 
     The boxes' centre points (at most 0.45 m behind the surface seen) lie outside it: the cells are
-    a neighbour's, no centre. Without the check the centre would move 0.8 m onto the neighbour.
+    a neighbour's, no centre. Without the check the centre would move 0.85 m onto the neighbour.
     """
     from collections import Counter
 
@@ -63,7 +63,7 @@ def test_an_outline_that_does_not_hold_the_fused_position_is_a_neighbours() -> N
     cell = 0.05
     points = [(10.9 + 0.02 * k, 0.7) for k in range(31)] + [(10.9, 0.7 + 0.02 * k) for k in range(26)]
     cells = Counter({(int(x // cell), int(y // cell)): 3 for x, y in points})
-    fused = (11.9, 0.3, 0.35)
+    fused = (12.05, 0.95, 0.35)
     moved = outline_centre(cells, fused, 1.26, cell)
     assert moved is not None and math.hypot(moved[0] - fused[0], moved[1] - fused[1]) > 0.75
     assert outline_centre(cells, fused, 1.26, cell, holds_fused=0.45) is None
