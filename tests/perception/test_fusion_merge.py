@@ -69,3 +69,30 @@ def test_an_instance_placed_on_something_before_another_of_its_label_is_that_one
             removed = [c for c in fusion.map.drain_changes() if c.kind == "removed"]
             assert [c.id for c in removed] == [front.id] and behind.id in removed[0].reason
     assert left == {0.8: [behind.id], 0.0: sorted([behind.id, front.id])}
+
+
+def test_a_large_instance_placed_by_cut_boxes_beside_one_of_its_label_is_that_one() -> None:
+    """A dining table (80 views, whole) and a 'table' 0.93 m away placed by 11 cut boxes of 14: one.
+
+    Two chairs side by side, both seen whole, stay two. Without the rule (cut_share None) the
+    tables stay two as well.
+    """
+    counts: dict[float | None, int] = {}
+    for share in (0.5, None):
+        fusion = InstanceFusion(SemanticMap(), FusionParams(cut_share=share))
+        add = fusion.map.add
+        table = add("table", (4.48, 3.05, 0.37), 0.0, size=(1.44, 1.44, 1.0), colour="brown", observations=80)
+        fusion.track(table.id).xs.extend([(4.48, 3.05, 0.37)] * 29)
+        edge = add("table", (3.56, 2.85, 0.38), 0.0, size=(0.97, 0.97, 0.95), colour="black", observations=14)
+        fusion.track(edge.id).xs.extend([(3.56, 2.85, 0.38)] * 3)
+        fusion.track(edge.id).clipped.extend([(3.5, 2.9, 0.38)] * 11)
+        for k, y in enumerate((6.0, 6.6)):
+            size = (0.65, 0.65, 0.9)
+            chair = add("chair", (5.0, y, 0.45), 0.0, size=size, colour="red", observations=30 + k)
+            fusion.track(chair.id).xs.extend([(5.0, y, 0.45)] * 20)
+        fusion.merge_overlapping(1.0)
+        counts[share] = len(fusion.map)
+        if share:
+            assert fusion.map.get(table.id) is not None and fusion.map.get(edge.id) is None
+            assert sorted(i.label for i in fusion.map) == ["chair", "chair", "table"]
+    assert counts == {0.5: 3, None: 4}

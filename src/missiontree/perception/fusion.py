@@ -158,6 +158,10 @@ class FusionParams:
             that hold that instance again are dropped. 0 turns the rule off.
         front_views: Views an instance is judged in before ``front_share`` applies.
         front_gap: How far behind a box's measured depth the other instance's centre lies, metres.
+        cut_share: Two large instances of a label whose footprints overlap (centres closer than
+            their half widths summed) are one object when at least this share of the less often
+            seen one's placements came from boxes the image's left or right border cut (their
+            centres are not the object's); None turns the rule off.
     """
 
     filters: NaisFilterParams = field(default_factory=NaisFilterParams)
@@ -199,6 +203,7 @@ class FusionParams:
     front_share: float = 0.8
     front_views: int = 5
     front_gap: float = 0.5
+    cut_share: float | None = 0.5
 
 
 @dataclass

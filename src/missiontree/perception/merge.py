@@ -55,6 +55,25 @@ class InstanceMerger:
         track.seen_as |= dropped.seen_as
         return track
 
+    def _cut_beside(self, a: Instance, b: Instance, d: float) -> bool:
+        """Whether two large instances of a label overlap and the less seen one stands on cut boxes.
+
+        Footprints overlap: centres closer than the sum of their half widths. A box cut by the
+        image's side places its centre off the object's (a dining table seen at the image's edge
+        made a second table at its end, 11 of 14 views cut), so such an instance beside one of its
+        label is that one; two objects seen whole stay apart (dining chairs side by side).
+        """
+        params = self.fusion.params
+        wa, wb = max(a.size[0], a.size[1]), max(b.size[0], b.size[1])
+        if params.cut_share is None or max(wa, wb) < params.large_size or d > 0.5 * (wa + wb):
+            return False
+        less = a if a.observations < b.observations else b
+        track = self.fusion.tracks.get(less.id)
+        if track is None:
+            return False
+        placed = len(track.xs) + len(track.clipped)
+        return placed > 0 and len(track.clipped) >= params.cut_share * placed
+
     def _mass(self, inst: Instance) -> float:
         """The instance's score mass for its own label (its observations without class evidence)."""
         track = self.fusion.tracks.get(inst.id)
@@ -82,7 +101,8 @@ class InstanceMerger:
 
         Same label: their centres within 0.9 of the larger half-footprint (``associate_radius`` at
         least), or within half of it when the colours differ (big furniture looks another colour
-        from another side).
+        from another side); or, large, their footprints overlapping while the less often seen one
+        was placed mostly by boxes the image's border cut (see ``cut_share``).
         Different labels (the detector named one object two ways): centres within a quarter of the
         smaller footprint's larger side and heights overlapping over half of the lower one, so a cup
         on a table or a chair beside it stays apart. Two small instances (both at most ``twin_size``
@@ -93,6 +113,8 @@ class InstanceMerger:
         params = self.fusion.params
         d = a.distance_to(*b.xy)
         wa, wb = max(a.size[0], a.size[1]), max(b.size[0], b.size[1])
+        if a.label == b.label and self._cut_beside(a, b, d):
+            return True
         if a.label == b.label:
             half = max(0.5 * wa, 0.5 * wb)
             if a.colour == b.colour:
