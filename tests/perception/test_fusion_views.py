@@ -267,3 +267,22 @@ def test_the_outline_leaves_out_the_surface_of_a_smaller_instance_in_front() -> 
     kept, off = centres[0.05], centres[None]
     assert kept is not None and math.hypot(kept[0] - 2.0, kept[1] - 1.0) < 0.06
     assert off is not None and math.hypot(off[0] - 2.0, off[1] - 1.0) > 0.15
+
+
+def test_the_outline_keeps_the_cells_of_a_large_instance_at_its_place() -> None:
+    """A 1.1 x 0.4 tv also boxed as a 0.93 m 'table' at its place: the table's cells are the tv's.
+
+    A large instance is not left out of the outline (it may be the same object under another
+    name): the centre is the one found without the rule. A 0.4 m one there would be left out.
+    """
+    front = [(float(x), 7.12) for x in np.arange(6.88, 7.97, 0.02)]
+    side = [(6.88, float(y)) for y in np.arange(7.12, 7.51, 0.02)]
+    cells = _cells(front + side)
+    centres = {}
+    for size, margin in ((0.93, 0.05), (0.93, None), (0.4, 0.05)):
+        fusion = InstanceFusion(SemanticMap(), FusionParams(explained_margin=margin))
+        tv = fusion.map.add("tv", (7.45, 7.3, 0.3), 0.0, size=(1.13, 1.13, 0.69))
+        fusion.map.add("table", (7.05, 7.25, 0.3), 0.0, size=(size, size, 0.72))
+        centres[(size, margin)] = fusion._outline_centre(_Track(cells=Counter(cells)), (7.45, 7.3, 0.3), tv)
+    assert centres[(0.93, 0.05)] == centres[(0.93, None)] is not None
+    assert centres[(0.4, 0.05)] != centres[(0.93, None)]

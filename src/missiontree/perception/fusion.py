@@ -136,9 +136,11 @@ class FusionParams:
             largest measured width plus this of its position, metres (farther ones are what stands
             beside it: a backpack against a cabinet measured 0.39 m deep with 0.3 m, 0.2 m with 0.1 m).
         explained_margin: A large instance's outline leaves out the surface cells within half the
-            largest measured width plus this of another, smaller instance's centre: its box's
-            nearest surface was that object (a laptop on the floor before a table pulled the
-            table's centre 0.6 m forward), metres; None turns the rule off.
+            largest measured width plus this of another instance's centre that is smaller and not
+            large itself (narrower than ``large_size``): its box's nearest surface was that object
+            (a laptop on the floor before a table pulled the table's centre 0.6 m forward). A large
+            one is not left out: it may be this object under another name (a tv also boxed as a
+            table), and its own outline is no surer, metres; None turns the rule off.
         outline_margin: A large instance's outline is only used when its rectangle, grown by this,
             holds the fused position (the median of the boxes' centre points, which projection puts
             at most its ``max_surface_offset``, 0.45 m, behind the surface seen); else the cells
@@ -495,14 +497,14 @@ class InstanceFusion:
     ) -> tuple[float, float] | None:
         """The centre of the footprint its surface cells outline (:func:`.footprint.outline_centre`).
 
-        Cells of smaller instances are left out (see ``explained_margin``).
+        Cells of smaller instances that are not large are left out (see ``explained_margin``).
         """
         extent = max(inst.size[0], inst.size[1])
         margin = self.params.explained_margin
         others = [] if margin is None else [
             (o.position[0], o.position[1], 0.5 * max(o.size[0], o.size[1]) + margin)
             for o in self.map
-            if o.id != inst.id and max(o.size[0], o.size[1]) < extent
+            if o.id != inst.id and max(o.size[0], o.size[1]) < min(extent, self.params.large_size)
         ]
         return outline_centre(
             track.cells, fused, extent, self.params.surface_cell, others, self.params.outline_margin
