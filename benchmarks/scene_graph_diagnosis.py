@@ -16,6 +16,10 @@ showed each object) and every change the semantic map made. After each phase it 
 - ``change``: each change of the dynamic phase, reflected or not, with the graph objects of its label
   near its old and new place.
 
+With ``SCENE_DIAG_DUMP=<folder>`` it also pickles, per world and phase, the fusion's instances and
+tracks (positions, surface cells, class evidence), the truth, the sights and the map's changes, to
+study merging and centring rules offline on what a run saw.
+
 Truth is read here for the diagnosis only, as for scoring; the pipelines never see it.
 """
 
