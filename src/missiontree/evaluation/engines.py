@@ -94,7 +94,13 @@ benchmarks/batch_scaling.py (200 runs of 0.1 s, 2 cores, load average 3 falling 
 tasks for 25 runs) 1.73 speed-up, rounds median 1.74, against one run a task, median 1.73, the pool
 1.86: chunking saves little here. The gap to the pool is about half inside the missions (124 ms a
 mission in a Dask worker, 119 ms in the pool's: the scheduler, client and nannies take the CPU from
-them) and half dispatch and the rounds' idle tails (10 against 6 ms a run).
+them) and half dispatch and the rounds' idle tails (10 against 6 ms a run). A Dask task costs about
+1.5 ms of CPU in this process and 2 ms in its worker (100 tasks of a 50 ms sleep, load average 3-5;
+the worker's share is its state machine and messages, seen with cProfile), which chunks share out.
+With the settings above (the previous ones beside them in alternating rounds, 8 × 25 runs, load
+average 4-5, where the machine had no second core to give: every engine near 1.0) the Dask engine
+read 1.01 (rounds median 1.01) against 0.99 (0.98) and the pool 0.97 (0.96); CPU a run, workers
+and this process together, 131.3 against 132.2 ms, the pool 127.7, serial 121.1.
 
 On a remote cluster the workers read their own configuration; to get the same speed set, in a
 Dask config file on every worker machine (e.g. ``~/.config/dask/missiontree.yaml``) before starting
