@@ -67,7 +67,6 @@ from missiontree.mapping.grid_search import (
 )
 from missiontree.types import OccupancyGrid, Pose2D
 
-
 #: Weighted A*: the heuristic counts this much (1.0 is optimal; 1.2 expands ~20x fewer cells on a
 #: warehouse map for paths within a few per cent of the optimum's length, never worse than 1.2x its cost).
 HEURISTIC_WEIGHT = 1.2
