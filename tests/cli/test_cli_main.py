@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import io
 import subprocess
 import sys
 
@@ -52,6 +53,17 @@ def test_keyboard_interrupt_exits_130(monkeypatch: pytest.MonkeyPatch) -> None:
 
     monkeypatch.setattr(log_command, "run", interrupted)
     assert main(["log", "summarize", "x"]) == main_module.EXIT_INTERRUPTED == 130
+
+
+def test_output_piped_into_a_closed_reader_exits_0(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Output piped into `head` (the reader gone: BrokenPipeError) ends quietly with exit 0."""
+
+    def piped(args: argparse.Namespace) -> int:
+        raise BrokenPipeError
+
+    monkeypatch.setattr(log_command, "run", piped)
+    monkeypatch.setattr(sys, "stderr", io.StringIO())  # the handler closes stderr
+    assert main(["log", "summarize", "x"]) == 0
 
 
 def test_console_script_runs_as_a_program() -> None:

@@ -77,6 +77,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"missiontree {args.command}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:  # output piped into `head` and the like
+        sys.stderr.close()
+        return 0
     except Exception:
         # a Ctrl-C during the command's own imports can surface as another error (a class body's
         # __set_name__ wraps it in a RuntimeError): with one recorded, it is the interrupt
@@ -84,9 +87,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"missiontree {args.command}: interrupted", file=sys.stderr)
             return EXIT_INTERRUPTED
         raise
-    except BrokenPipeError:  # output piped into `head` and the like
-        sys.stderr.close()
-        return 0
 
 
 if __name__ == "__main__":
