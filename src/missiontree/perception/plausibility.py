@@ -29,6 +29,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from missiontree.mapping.grid import FREE_BELOW, OCCUPIED_FROM
 from missiontree.perception.projection import Projection
 from missiontree.types import OccupancyGrid
 
@@ -40,9 +41,6 @@ from missiontree.types import OccupancyGrid
 LEAST_DEPTH: dict[str, float] = {
     "refrigerator": 0.45,
 }
-
-#: Occupancy at or above which a cell is an obstacle (Nav2's trinary maps use 100; a log-odds map 65).
-OCCUPIED = 50
 
 
 @dataclass(frozen=True)
@@ -91,7 +89,9 @@ def thin_support(
     Along the ray from the camera through the measured surface point, sampled every half cell: an
     occupied cell within ``surface_band`` of the surface, the occupied run it belongs to, then at
     least ``free_run`` of known-free cells beginning no farther than ``least_depth - free_run``
-    behind the surface. Unknown cells or the grid's edge break the free run (no evidence).
+    behind the surface. Unknown cells or the grid's edge break the free run (no evidence). Cells read
+    as every map is read (:mod:`missiontree.mapping.grid`: occupied from ``OCCUPIED_FROM``, free below
+    ``FREE_BELOW``, map_server's thresholds), so trinary and scaled maps judge alike.
     """
     cx, cy = p.camera_pose.x, p.camera_pose.y
     sx, sy = surface_point(p)
@@ -110,7 +110,7 @@ def thin_support(
     hit = None
     for k in sorted(range(-n_band, n_band + 1), key=abs):
         value = at(k * step)
-        if value is not None and value >= OCCUPIED:
+        if value is not None and value >= OCCUPIED_FROM:
             hit = k * step
             break
     if hit is None:
@@ -122,7 +122,7 @@ def thin_support(
         value = at(t)
         if value is None or value < 0:
             return False  # unknown or off the map: no evidence of a far side
-        if value < OCCUPIED:
+        if value < OCCUPIED_FROM:
             break
         t += step
     else:
@@ -130,7 +130,7 @@ def thin_support(
     end = t + free_run
     while t <= end:
         value = at(t)
-        if value is None or value != 0:
+        if value is None or not 0 <= value < FREE_BELOW:
             return False
         t += step
     return True
