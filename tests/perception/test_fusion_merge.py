@@ -96,3 +96,24 @@ def test_a_large_instance_placed_by_cut_boxes_beside_one_of_its_label_is_that_on
             assert fusion.map.get(table.id) is not None and fusion.map.get(edge.id) is None
             assert sorted(i.label for i in fusion.map) == ["chair", "chair", "table"]
     assert counts == {0.5: 3, None: 4}
+
+
+def test_one_object_seen_twice_keeps_both_instances_surface_cells_and_colours() -> None:
+    """Two chairs of one colour 0.2 m apart are one chair.
+
+    The one seen more often stays and takes the other's positions, surface cells (its outline),
+    colours and class evidence.
+    """
+    fusion = InstanceFusion(SemanticMap())
+    keep = _with_mass(fusion, "chair", (2.0, 2.0), 0.45, (0.5, 0.5, 0.9), 20, {"chair": 15.0})
+    drop = _with_mass(fusion, "chair", (2.2, 2.0), 0.45, (0.5, 0.5, 0.9), 5, {"chair": 4.0, "sofa": 0.5})
+    fusion.track(drop.id).cells.update({(44, 40): 3, (45, 40): 2})
+    fusion.track(drop.id).colours.update({"white": 5})
+    fusion.track(drop.id).xs.append((2.2, 2.0, 0.45))
+    fusion.merge_overlapping(1.0)
+    assert [i.id for i in fusion.map] == [keep.id]
+    track = fusion.track(keep.id)
+    assert track.cells == {(44, 40): 3, (45, 40): 2}
+    assert track.colours["white"] == 5
+    assert track.xs == [(2.2, 2.0, 0.45)]
+    assert track.evidence == {"chair": 19.0, "sofa": 0.5}

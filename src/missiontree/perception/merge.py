@@ -233,12 +233,7 @@ class InstanceMerger:
                     for k in range(3)
                 )
                 fusion.map.update(keep.id, position=position, observations=total)
-                track = fusion.track(keep.id)
-                dropped = fusion.tracks.pop(drop.id, None) or fusion.new_track()
-                track.xs.extend(dropped.xs)
-                track.clipped.extend(dropped.clipped)
-                track.evidence.update(dropped.evidence)
-                track.seen_as |= dropped.seen_as
+                self._absorb(keep, drop)
                 gone.add(drop.id)
                 if drop is a:
                     break
