@@ -137,6 +137,7 @@ Dask is an optional extra: importing this module never imports it; :class:`DaskE
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import multiprocessing
 import os
@@ -443,8 +444,6 @@ class DaskEngine(Engine):
                 results = dict(zip([f.key for f in finished], self.client.gather(finished), strict=True))
             except Exception:  # noqa: BLE001, S110 - a result lost meanwhile: each future on its own below
                 pass
-        import asyncio
-
         for future in batch:
             result, error = results.get(future.key), None
             if future.key not in results:
