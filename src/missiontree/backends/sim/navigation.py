@@ -49,6 +49,9 @@ _ROTATE_FIRST = 0.7        # rad of heading error above which the follower turns
 _NO_PROGRESS_TIME = 30.0
 _PINNED_TIME = 1.0         # s driving forward without moving before backing up
 _BACKUP_TIME, _BACKUP_SPEED = 1.0, 0.1
+_RECOVER_AFTER = 2.0       # s blocked with something inside the kept clearance before backing away from it
+_RECOVERY_BACKUP = 0.25    # m the blocked recovery reverses at most (less when something is behind)
+_MAX_RECOVERIES = 3        # blocked recoveries per goal (then the goal aborts when blocked_timeout runs out)
 _HAZARD_LIFETIME = 60.0   # s a bumper hit stays in the costmap
 _MAX_HAZARDS = 2_000
 _STOP_TIME = 0.5          # s of travel at the commanded speed kept clear ahead (stopping distance)
@@ -172,6 +175,7 @@ class _Follow:
     anchor: tuple[float, float] | None = None   # where the robot was when it last moved
     still_since: float = 0.0
     backing_until: float | None = None
+    blocked_recoveries: int = 0   # back-ups made for this goal because the way stayed blocked
     unreachable_since: float | None = None   # learned map: no way to the goal since (waiting for one)
     why: tuple[str, int] = ("", 0)
 
@@ -324,7 +328,8 @@ class Navigator:
             return self._abort(ActionStatus.ABORTED, f"no progress for {_NO_PROGRESS_TIME:.0f} s "
                                f"({remaining:.2f} m from the goal)", NO_PROGRESS)
         if follow.backing_until is not None:
-            if now < follow.backing_until:
+            # reverse until the time is up or something comes near behind (people walk there too)
+            if now < follow.backing_until and self._rear_room(scan) > _BACKUP_SPEED * _STOP_TIME:
                 return -_BACKUP_SPEED, 0.0
             follow.backing_until = None
             # plan around what the lidar sees as well (as a blocked path's replan does): on the map
@@ -488,8 +493,14 @@ class Navigator:
             follow.blocked_since = now
         if now - follow.blocked_since >= self.spec.blocked_timeout:
             ox, oy = pose.transform(*obstacle[1:])
+            n = follow.blocked_recoveries
+            tried = f" (backed away {n} time{'s' if n > 1 else ''})" if n else ""
             return self._abort(ActionStatus.ABORTED, f"path blocked for {self.spec.blocked_timeout:.1f} s by "
-                               f"an obstacle at ({ox:.2f}, {oy:.2f})", BLOCKED)
+                               f"an obstacle at ({ox:.2f}, {oy:.2f}){tried}", BLOCKED)
+        if now - follow.blocked_since >= _RECOVER_AFTER:
+            recovery = self._recover(follow, now, scan, obstacle)
+            if recovery is not None:
+                return recovery
         if now - follow.last_replan >= self.spec.replan_period and now - follow.blocked_since >= 0.5:
             follow.last_replan = now
             goal = self.handle.goal if self.handle else None
@@ -585,6 +596,48 @@ class Navigator:
             follow.anchor, follow.still_since = (pose.x, pose.y), now
             return False
         return now - follow.still_since > _PINNED_TIME
+
+    def _recover(self, follow: _Follow, now: float, scan: LaserScan | None,
+                 obstacle: tuple[float, float, float]) -> tuple[float, float] | None:
+        """Nav2's BackUp recovery for a robot stuck inside the clearance it keeps: the command, or None.
+
+        The follower keeps ``_UNMAPPED_MARGIN`` beside its footprint clear of what the map lacks; a
+        robot already closer than that to something (it came in on a swerve, or the thing was put
+        there) finds every arc towards its path blocked, and replans there start inside the
+        obstacle's zone too: it would stand still until ``blocked_timeout``, goal after goal. When
+        what blocks the arc lies within that clearance, it reverses away from it (the blocking point
+        is ahead, so reversing opens the gap) by up to ``_RECOVERY_BACKUP``, as far as the scan
+        behind allows; the back-up's end replans around what the lidar sees. At most
+        ``_MAX_RECOVERIES`` a goal; the blocked timer runs on, so a way that stays shut still aborts.
+        """
+        if follow.blocked_recoveries >= _MAX_RECOVERIES:
+            return None
+        if math.hypot(obstacle[1], obstacle[2]) >= self.radius + _UNMAPPED_MARGIN:
+            return None   # an ordinary stop before something: wait, replan, abort as before
+        room = min(self._rear_room(scan), _RECOVERY_BACKUP)
+        if room <= _BACKUP_SPEED * _STOP_TIME:
+            return None   # boxed in behind as well
+        follow.blocked_recoveries += 1
+        follow.backing_until = now + room / _BACKUP_SPEED
+        follow.anchor = None
+        follow.best_time = now   # the progress checker starts again after a recovery, as Nav2's
+        self.recoveries += 1
+        return -_BACKUP_SPEED, 0.0
+
+    def _rear_room(self, scan: LaserScan | None) -> float:
+        """How far the robot can reverse straight before its footprint (and side margin) meets a scan point.
+
+        Infinite without a scan (nothing known behind).
+        """
+        if scan is None:
+            return math.inf
+        x, y = self._scan_xy(scan)
+        side = self.radius + _SIDE_MARGIN
+        behind = (x < 0.0) & (np.abs(y) < side)
+        if not behind.any():
+            return math.inf
+        room = -x[behind] - np.sqrt(side * side - y[behind] ** 2)
+        return max(0.0, float(room.min()))
 
     def _back_up(self, follow: _Follow, now: float) -> tuple[float, float]:
         """Nav2's BackUp recovery: reverse a little, then plan again from there."""
