@@ -159,7 +159,7 @@ def test_a_chunk_whose_worker_dies_keeps_its_finished_runs_and_runs_the_rest_one
                                            "SUCCESS"]
     assert "KilledWorker" in records[1].reason and records[1].attempt == 2
     assert [r.attempt for r in records[:4] if r.status == "SUCCESS"] == [1, 1, 1]  # seed 0 ran once
-    assert sizes[:2] == [3, 2] and sizes.count(1) >= 4  # 5 and 6 alone, 2 again alone, 1's retry
+    assert sizes[:3] == [4, 2, 1] and sizes.count(1) >= 4  # 6 alone, 2 and 3 again alone, 1's retry
     runs = tmp_path / "out" / RUNS_DIR
     assert sorted(p.name for p in runs.iterdir()) == sorted(r.run_id for r in records if r.status != INFRA)
 
@@ -185,7 +185,7 @@ def test_dask_auto_chunks_short_runs_after_two_runs_per_worker(tmp_path: Path,
         long = engine.chunk_sizes
     assert all(r.status == "SUCCESS" for r in records + long_records) and len(records) == 12
     assert short[:4] == [1, 1, 1, 1] and sum(short) == 12
-    assert short == [1, 1, 1, 1, 2, 1, 1, 1, 1, 1, 1]  # 8 left: 8 // 4, then the rest alone
+    assert short == [1, 1, 1, 1, 2, 2, 1, 1, 1, 1]  # 8 left: two while over 4 are left, then alone
     assert long == [1] * 12
 
 
