@@ -2,8 +2,9 @@
 
 Each engine runs the same missions (a one-metre NavigateTo in the office world, through the session,
 every run writing its run directory) — ``--runs`` (200) per engine in all, split into ``--rounds``
-rounds; in every round the three engines run the round's share one after another, the order
-rotated between rounds, so the machine's load falls on all of them alike. Pool and cluster start
+rounds (sized in whole multiples of the workers, so a round's last run does not leave a worker idle:
+:func:`round_sizes`); in every round the three engines run the round's share one after another, the
+order rotated between rounds, so the machine's load falls on all of them alike. Pool and cluster start
 once (their start-up is printed apart) and stay up between rounds.
 
 - ``speedup_pool`` / ``speedup_dask``: serial wall time over the engine's, summed over the rounds
@@ -121,6 +122,21 @@ def cpu_seconds() -> tuple[float, float] | None:
     return cpu[me], found
 
 
+def round_sizes(runs: int, rounds: int, workers: int) -> list[int]:
+    """Split ``runs`` into ``rounds`` batches whose sizes are whole multiples of ``workers``.
+
+    A batch of 25 runs on 2 workers ends with one worker running its 13th run while the other has
+    none left: no engine can beat 25 / 13 = 1.92 on it, where the issue's single batch of 200 allows
+    2.0. Sizes in multiples of the workers give every round the whole batch's ceiling; the runs that
+    do not fill a multiple (``runs % workers``) go to the last round.
+    """
+    rounds = max(1, min(rounds, runs // max(1, workers) or 1))
+    units, spare = divmod(runs, workers)
+    sizes = [workers * (units // rounds + (i < units % rounds)) for i in range(rounds)]
+    sizes[-1] += spare
+    return [size for size in sizes if size]
+
+
 def run_round(engine: Engine, mission: Path, seeds: list[int], out: Path) -> tuple[float, float, int]:
     """Run the seeds on the engine; return (wall s, Σ in-worker mission wall s, failures)."""
     plan = expand_plan(mission, seeds=seeds)
@@ -145,7 +161,7 @@ def main() -> int:
     spinner = ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn"))
     list(spinner.map(spin, [1] * args.jobs))
     ceilings: list[float] = []
-    per_round = [args.runs // args.rounds + (i < args.runs % args.rounds) for i in range(args.rounds)]
+    per_round = round_sizes(args.runs, args.rounds, args.jobs)
     with tempfile.TemporaryDirectory(prefix="batch_scaling_") as tmp_name:
         tmp = Path(tmp_name)
         mission = tmp / "hop.yaml"
