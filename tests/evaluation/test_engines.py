@@ -42,3 +42,32 @@ def test_dask_engine_refuses_a_bad_chunk(chunk: object) -> None:
     pytest.importorskip("distributed")
     with pytest.raises(ConfigError, match="chunk"):
         DaskEngine("local", 1, chunk=chunk)  # type: ignore[arg-type]
+
+
+TWO_CLUSTERS = """\
+from missiontree.evaluation import DaskEngine
+
+if __name__ == "__main__":
+    first, second = DaskEngine("local", 1), DaskEngine("local", 1)
+    first.close()
+    second.close()
+    print("closed")
+"""
+
+
+@pytest.mark.slow
+def test_two_local_clusters_start_and_close_without_a_word(tmp_path: Path) -> None:
+    """No 'Port 8787 is already in use' warning, no INFO lines of the second's shutdown, no traceback.
+
+    In a process of its own: what a user of two engines sees on the terminal.
+    """
+    pytest.importorskip("distributed")
+    import subprocess
+    import sys
+
+    script = tmp_path / "two_clusters.py"
+    script.write_text(TWO_CLUSTERS, encoding="utf-8")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120,
+                          cwd=tmp_path, check=False)
+    assert done.returncode == 0 and done.stdout.strip() == "closed", done.stderr
+    assert done.stderr == "", done.stderr

@@ -464,14 +464,24 @@ class DaskEngine(Engine):
         self.client.run(_warm, None)
 
     def close(self) -> None:
-        """Close the client, and the local cluster when this engine started it."""
+        """Close the client, and the local cluster when this engine started it.
+
+        A local cluster closes as quietly as it ran: its log level is set again for the close, since
+        a second local cluster closed before it (a benchmark's reference engine) has put Dask's
+        handlers back to INFO, which printed a dozen lines of its shutdown.
+        """
         client = getattr(self, "client", None)
-        if client is not None:
-            if self.cluster is not None:  # our own workers: no heartbeat in flight while they close
+        if self.cluster is None:
+            if client is not None:
+                client.close()
+            return
+        from distributed.utils import silence_logging_cmgr
+
+        with silence_logging_cmgr(logging.ERROR):
+            if client is not None:
                 with suppress(Exception):  # a worker gone already: nothing of it to quiet
-                    client.run(_stop_heartbeat, timeout="5s")
-            client.close()
-        if self.cluster is not None:
+                    client.run(_stop_heartbeat, timeout="5s")  # no heartbeat in flight while they close
+                client.close()
             self.cluster.close()
             self.cluster = None
 
