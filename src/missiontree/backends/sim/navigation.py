@@ -13,7 +13,9 @@ DWB-style local planner) or turns in place towards the path, which a round base 
 The goal is reached within ``tolerance.xy`` and, unless ``tolerance.yaw``
 is a full turn (the thesis §3.6), after turning to the goal heading. What the lidar sees ahead
 (people) stops the robot; the planner then replans around it, and the goal aborts when the way
-stays blocked for ``blocked_timeout`` seconds.
+stays blocked for ``blocked_timeout`` seconds. A robot blocked while already inside the clearance it
+keeps from something (every arc towards its path sweeps it) first backs away from it as far as the
+scan behind allows, Nav2's BackUp recovery, and replans from there.
 
 The navigator is built from what it needs -- the map, the footprint radius, the robot profile's
 limits and step, the navigation settings -- not from the robot. On a learned map
@@ -601,18 +603,22 @@ class Navigator:
                  obstacle: tuple[float, float, float]) -> tuple[float, float] | None:
         """Nav2's BackUp recovery for a robot stuck inside the clearance it keeps: the command, or None.
 
-        The follower keeps ``_UNMAPPED_MARGIN`` beside its footprint clear of what the map lacks; a
-        robot already closer than that to something (it came in on a swerve, or the thing was put
-        there) finds every arc towards its path blocked, and replans there start inside the
-        obstacle's zone too: it would stand still until ``blocked_timeout``, goal after goal. When
-        what blocks the arc lies within that clearance, it reverses away from it (the blocking point
-        is ahead, so reversing opens the gap) by up to ``_RECOVERY_BACKUP``, as far as the scan
-        behind allows; the back-up's end replans around what the lidar sees. At most
-        ``_MAX_RECOVERIES`` a goal; the blocked timer runs on, so a way that stays shut still aborts.
+        The follower keeps ``_UNMAPPED_MARGIN`` beside its footprint clear of what the map lacks
+        (``_SIDE_MARGIN`` of the map's own obstacles); a robot already closer than that to
+        something (it came in on a swerve, or the thing was put there) finds every arc towards its
+        path blocked, and replans there start inside the obstacle's zone too: it would stand still
+        until ``blocked_timeout``, goal after goal. When what blocks the arc lies within that
+        clearance, it reverses away from it (the blocking point is ahead, so reversing opens the
+        gap) by up to ``_RECOVERY_BACKUP``, as far as the scan behind allows; the back-up's end
+        replans around what the lidar sees. At most ``_MAX_RECOVERIES`` a goal; the blocked timer
+        runs on, so a way that stays shut still aborts.
         """
         if follow.blocked_recoveries >= _MAX_RECOVERIES:
             return None
-        if math.hypot(obstacle[1], obstacle[2]) >= self.radius + _UNMAPPED_MARGIN:
+        ox, oy = self._scan_pose.transform(obstacle[1], obstacle[2])
+        mapped = self.costmap.cost_at(ox, oy) >= INSCRIBED   # as _mapped judges scan points
+        kept = self.radius + (_SIDE_MARGIN if mapped else _UNMAPPED_MARGIN)
+        if math.hypot(obstacle[1], obstacle[2]) >= kept:
             return None   # an ordinary stop before something: wait, replan, abort as before
         room = min(self._rear_room(scan), _RECOVERY_BACKUP)
         if room <= _BACKUP_SPEED * _STOP_TIME:
