@@ -60,6 +60,7 @@ _STOP_TIME = 0.5          # s of travel at the commanded speed kept clear ahead 
 _CREEP_SPEED = 0.05        # m/s: the slowest approach the speed regulation allows
 _SIDE_MARGIN = 0.03        # m beside the footprint the swept arc keeps clear of mapped obstacles
 _UNMAPPED_MARGIN = 0.12    # m it keeps clear of what the map does not hold (people reach past their legs)
+_CLOSER_SLACK = 0.01       # m an arc may come nearer to what the robot is already too close to
 _TURN_WHEN_BLOCKED = 0.15  # rad: blocked with the path this far off the heading, turn in place
 _COST_SLACK = 12           # costmap units a lookahead line may exceed the path's own cost by (~2 cm)
 _SWERVE_SPEEDS = (0.05, 0.1)          # m/s: the arcs tried when the pure-pursuit arc is blocked
@@ -463,7 +464,7 @@ class Navigator:
 
     def _drive(self, follow: _Follow, now: float, pose: Pose2D, scan: LaserScan | None,
                remaining: float) -> tuple[float, float]:
-        target = self._target(follow, pose)
+        target = self._target(follow, pose, scan)
         err = wrap_angle(math.atan2(target[1] - pose.y, target[0] - pose.x) - pose.yaw)
         lim = self.limits
         w = max(-lim.max_w, min(lim.max_w, self.spec.heading_gain * err))
@@ -552,14 +553,16 @@ class Navigator:
                     best = (gap, v, w)
         return None if best is None else (best[1], best[2])
 
-    def _target(self, follow: _Follow, pose: Pose2D) -> tuple[float, float]:
+    def _target(self, follow: _Follow, pose: Pose2D, scan: LaserScan | None = None) -> tuple[float, float]:
         """The pure-pursuit point: the farthest path point in the lookahead a straight line reaches safely.
 
         The line must not come nearer to obstacles than the path itself does there.
         The straight line to a point past a bend cuts the bend's inside; near a door post or a
         corner that is where the costmap's inflation cost rises. A line whose cost exceeds the path's
         own over that stretch (plus a little slack) would clip the post, so a nearer point is
-        taken, down to ``_SHORT_LOOKAHEAD`` (in the open the full lookahead stands).
+        taken, down to ``_SHORT_LOOKAHEAD`` (in the open the full lookahead stands). What the map
+        lacks has no cost there: round it, the line must also keep the clearance the arc check
+        keeps from it (or, already nearer, come no nearer), else the arc towards it is blocked.
         """
         points = follow.points
         start = follow.index
@@ -580,8 +583,9 @@ class Navigator:
         line_cost = line_cost.reshape(len(_CORNER_SAMPLES), -1).max(axis=0)
         path_cost = np.maximum.accumulate(follow.costs[start:stop + 1])
         allowed = np.maximum(path_cost, here) + _COST_SLACK
+        clear = self._lines_clear(scan, pose, ends)
         for k in range(len(chosen) - 1, -1, -1):
-            if line_cost[k] <= allowed[k] and line_cost[k] <= MAX_FREE:
+            if line_cost[k] <= allowed[k] and line_cost[k] <= MAX_FREE and clear[k]:
                 far_enough = math.hypot(ends[k][0] - pose.x, ends[k][1] - pose.y) >= _SHORT_LOOKAHEAD
                 if far_enough or k == len(chosen) - 1:
                     return points[chosen[k]]
@@ -591,6 +595,29 @@ class Navigator:
             if math.hypot(px - pose.x, py - pose.y) >= _SHORT_LOOKAHEAD:
                 return points[i]
         return points[-1]
+
+    def _lines_clear(self, scan: LaserScan | None, pose: Pose2D, ends: np.ndarray) -> np.ndarray:
+        """Per end point (K, 2): whether the straight line to it keeps clear of what the map lacks.
+
+        Clear means the arc check's clearance (radius plus ``_UNMAPPED_MARGIN``) from every scan point
+        off the map, or for a point already nearer, no nearer than now (less ``_CLOSER_SLACK``).
+        """
+        if scan is None:
+            return np.ones(len(ends), bool)
+        x, y = self._scan_xy(scan)
+        reach = self.spec.lookahead + self.radius + _UNMAPPED_MARGIN
+        near = (np.abs(x) < reach) & (np.abs(y) < reach) & ~self._mapped(scan)
+        if not near.any():
+            return np.ones(len(ends), bool)
+        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+        qx, qy = pose.x + c * x[near] - s * y[near], pose.y + s * x[near] + c * y[near]
+        need = np.minimum(self.radius + _UNMAPPED_MARGIN, np.hypot(x[near], y[near]) - _CLOSER_SLACK)
+        dx, dy = ends[:, 0] - pose.x, ends[:, 1] - pose.y                       # (K,)
+        length2 = np.maximum(dx * dx + dy * dy, 1e-12)
+        t = ((qx[None, :] - pose.x) * dx[:, None] + (qy[None, :] - pose.y) * dy[:, None]) / length2[:, None]
+        t = np.clip(t, 0.0, 1.0)                                                # (K, N)
+        gap = np.hypot(pose.x + t * dx[:, None] - qx[None, :], pose.y + t * dy[:, None] - qy[None, :])
+        return (gap >= need[None, :]).all(axis=1)
 
     def _pinned(self, follow: _Follow, now: float, pose: Pose2D) -> bool:
         """Whether the robot has been driving forward without moving (pinned against something)."""
@@ -626,7 +653,6 @@ class Navigator:
         follow.blocked_recoveries += 1
         follow.backing_until = now + room / _BACKUP_SPEED
         follow.anchor = None
-        follow.best_time = now   # the progress checker starts again after a recovery, as Nav2's
         self.recoveries += 1
         return -_BACKUP_SPEED, 0.0
 
@@ -672,6 +698,13 @@ class Navigator:
             return None
         x, y = x[near], y[near]
         side = self.radius + np.where(self._mapped(scan)[near], _SIDE_MARGIN, _UNMAPPED_MARGIN)
+        # already inside a point's margin (it was put beside the robot, or the robot came in on a
+        # swerve): an arc may keep or widen the gap but not narrow it, nor come within the side
+        # margin -- else every arc out of there counts as blocked and the robot stands still
+        gap = np.hypot(x, y)
+        inside = gap < side
+        if inside.any():
+            side = np.where(inside, np.maximum(self.radius + _SIDE_MARGIN, gap - _CLOSER_SLACK), side)
         k = w / v if v > 1e-3 else 0.0
         mirrored = k < 0.0
         if abs(k) < 1e-3:
