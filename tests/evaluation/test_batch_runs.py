@@ -169,7 +169,9 @@ def test_dask_auto_chunks_short_runs_after_two_runs_per_worker(tmp_path: Path,
                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     """chunk="auto": two first runs per worker alone; short runs then go several to a task, the last alone.
 
-    Long runs stay one a task. ("Short" is moved for each batch, so the machine's load does not decide.)
+    Long runs stay one a task. A later batch of the same mission starts from the run time the engine
+    saw, without the single runs. ("Short" is moved for each batch, so the machine's load does not
+    decide.)
     """
     from missiontree.evaluation import engines
 
@@ -182,11 +184,16 @@ def test_dask_auto_chunks_short_runs_after_two_runs_per_worker(tmp_path: Path,
         engine.chunk_sizes.clear()
         monkeypatch.setattr(engines, "SHORT_RUN_S", 0.0)
         long_records = run_batch(plan, engine, tmp_path / "long")
-        long = engine.chunk_sizes
-    assert all(r.status == "SUCCESS" for r in records + long_records) and len(records) == 12
+        long = list(engine.chunk_sizes)
+        engine.chunk_sizes.clear()
+        monkeypatch.setattr(engines, "SHORT_RUN_S", 60.0)
+        again = run_batch(plan, engine, tmp_path / "again")  # the engine has seen this mission's runs
+        known = engine.chunk_sizes
+    assert all(r.status == "SUCCESS" for r in records + long_records + again) and len(again) == 12
     assert short[:4] == [1, 1, 1, 1] and sum(short) == 12
-    assert short == [1, 1, 1, 1, 2, 2, 1, 1, 1, 1]  # 8 left: two while over 4 are left, then alone
+    assert short == [1, 1, 1, 1, 3, 2, 1, 1, 1]  # 8 left: 8 over 3 rounded up, ..., the last 3 alone
     assert long == [1] * 12
+    assert known == [4, 3, 2, 1, 1, 1]  # no single runs first: chunked from the run time seen
 
 
 @pytest.mark.slow

@@ -78,29 +78,31 @@ The rest of Dask's cost is per task, in this process (the scheduler of a local c
 run here, on the cores the workers need): each task is a graph update, a scheduling decision, a result
 sent back. For short runs (the 0.1 s missions of benchmarks/batch_scaling.py) that is a few per cent of
 every run, so the engine sends them several to a task (``chunk``, default ``"auto"``): the first two
-runs of each worker go alone (so no worker waits while the first answer comes back) and, as soon as
-one comes back shorter than :data:`SHORT_RUN_S` (a worker's first run, slow with its imports, does not
-count against it), the rest go at once (one ``client.map``), in
-chunks of about :data:`CHUNK_S` seconds of runs that shrink to single runs at the end, so no worker
-waits long for another (guided self-scheduling). Longer runs stay one a task. The results of every task
-done since the last look come back in one gather (``as_completed(...).batches()``; not
-``with_results=True``, whose concurrent gathers trip an assertion in tornado's stream writes under load
-and leave the batch waiting forever). Each run in a chunk is still one :func:`~.worker.execute_run` (its
-own run directory, record and seed: results are those of the pool); a run whose harness raises is its
-own crash; when a chunk's worker dies, the runs it finished keep their records, the run it had begun is
-the crash (retried once by the batch, alone) and the runs it had not begun are sent again, one a task.
-Retries (``isolated``) always go one a task. The pool stays one run a task. Measured in
-benchmarks/batch_scaling.py (200 runs of 0.1 s, 2 cores, load average 3 falling to 1.7): chunks (14
-tasks for 25 runs) 1.73 speed-up, rounds median 1.74, against one run a task, median 1.73, the pool
-1.86: chunking saves little here. The gap to the pool is about half inside the missions (124 ms a
-mission in a Dask worker, 119 ms in the pool's: the scheduler, client and nannies take the CPU from
-them) and half dispatch and the rounds' idle tails (10 against 6 ms a run). A Dask task costs about
-1.5 ms of CPU in this process and 2 ms in its worker (100 tasks of a 50 ms sleep, load average 3-5;
-the worker's share is its state machine and messages, seen with cProfile), which chunks share out.
-With the settings above (the previous ones beside them in alternating rounds, 8 × 25 runs, load
-average 4-5, where the machine had no second core to give: every engine near 1.0) the Dask engine
-read 1.01 (rounds median 1.01) against 0.99 (0.98) and the pool 0.97 (0.96); CPU a run, workers
-and this process together, 131.3 against 132.2 ms, the pool 127.7, serial 121.1.
+runs of each worker go alone (so no worker waits while the first answer comes back) and, as soon as one
+comes back shorter than :data:`SHORT_RUN_S` (a worker's first run, slow with its imports, does not count
+against it), the rest go at once (one ``client.map``), in chunks of about :data:`CHUNK_S` seconds of
+runs that shrink to single runs at the end, so no worker waits long for another (guided
+self-scheduling). Longer runs stay one a task. The engine keeps the run time it saw of each mission file
+(:attr:`DaskEngine.run_seconds`, as Dask's scheduler keeps a duration for each kind of task), so a later
+batch of that mission on the same engine (an evaluation's next world, a benchmark's next round) is
+chunked at once, without the single runs first. The results of every task done since the last look come
+back in one gather (``as_completed(...).batches()``; not ``with_results=True``, whose concurrent gathers
+trip an assertion in tornado's stream writes under load and leave the batch waiting forever). Each run
+in a chunk is still one :func:`~.worker.execute_run` (its own run directory, record and seed: results
+are those of the pool); a run whose harness raises is its own crash; when a chunk's worker dies, the
+runs it finished keep their records, the run it had begun is the crash (retried once by the batch,
+alone) and the runs it had not begun are sent again, one a task. Retries (``isolated``) always go one a
+task. The pool stays one run a task. Measured in benchmarks/batch_scaling.py (200 runs of 0.1 s, 2
+cores, load average 3 falling to 1.7): chunks (14 tasks for 25 runs) 1.73 speed-up, rounds median 1.74,
+against one run a task, median 1.73, the pool 1.86: chunking saves little here. The gap to the pool is
+about half inside the missions (124 ms a mission in a Dask worker, 119 ms in the pool's: the scheduler,
+client and nannies take the CPU from them) and half dispatch and the rounds' idle tails (10 against 6 ms
+a run). A Dask task costs about 1.5 ms of CPU in this process and 2 ms in its worker (100 tasks of a 50
+ms sleep, load average 3-5; the worker's share is its state machine and messages, seen with cProfile),
+which chunks share out. With the settings above (the previous ones beside them in alternating rounds, 8
+× 25 runs, load average 4-5, where the machine had no second core to give: every engine near 1.0) the
+Dask engine read 1.01 (rounds median 1.01) against 0.99 (0.98) and the pool 0.97 (0.96); CPU a run,
+workers and this process together, 131.3 against 132.2 ms, the pool 127.7, serial 121.1.
 
 On a remote cluster the workers read their own configuration; to get the same speed set, in a
 Dask config file on every worker machine (e.g. ``~/.config/dask/missiontree.yaml``) before starting
@@ -331,9 +333,11 @@ class DaskEngine(Engine):
     Args:
         address: ``local`` or the scheduler's address.
         workers: Worker processes of a local cluster (default: the cores).
-        chunk: Runs per Dask task: ``"auto"`` (default) sends one run per worker first and, when the
-            first of them took less than :data:`SHORT_RUN_S`, the rest in chunks (see the module
-            docstring); a number fixes the chunk size (1: one run per task, always).
+        chunk: Runs per Dask task: ``"auto"`` (default) sends two runs per worker alone first and,
+            when the first answer took less than :data:`SHORT_RUN_S`, the rest in chunks (see the
+            module docstring); a later batch of a mission this engine has run starts from the run
+            time it saw (:attr:`run_seconds`) without those single runs; a number fixes the chunk
+            size (1: one run per task, always).
     """
 
     name = "dask"
@@ -352,6 +356,9 @@ class DaskEngine(Engine):
         self.chunk = chunk
         #: Runs in each Dask task submitted so far, in order (for reports and tests).
         self.chunk_sizes: list[int] = []
+        #: ``chunk="auto"``: wall seconds of the latest run seen of each mission file, as Dask's scheduler
+        #: keeps a duration for each kind of task: a later batch of that mission is chunked from it at once.
+        self.run_seconds: dict[str, float] = {}
         self.cluster: Any = None
         try:
             if address == "local":
@@ -387,10 +394,13 @@ class DaskEngine(Engine):
         from distributed import as_completed
 
         queue = list(tasks)
+        seen = self.run_seconds.get(queue[0].mission) if queue else None
         if isolated or self.chunk == 1 or len(queue) <= self.workers:
             first, queue = [[task] for task in queue], []
         elif isinstance(self.chunk, int):
             first, queue = _guided_chunks(queue, self.workers, self.chunk), []
+        elif seen is not None:  # auto, a mission run before on this engine: chunked from its run time
+            first, queue = self._chunks_for(queue, seen), []
         else:  # auto: two runs per worker alone first (each worker has its second while the first answer
             # comes back and decides); that answer tells whether runs are short
             first, queue = [[task] for task in queue[:2 * self.workers]], queue[2 * self.workers:]
@@ -423,12 +433,13 @@ class DaskEngine(Engine):
                             pending.update(submit([[task] for task in again]))
                     else:
                         yield from zip(chunk, result, strict=True)
+                    seconds = _run_seconds(result)
+                    if seconds < float("inf"):
+                        self.run_seconds[chunk[0].mission] = seconds
                     if queue:  # auto, undecided: a short run sends the rest in chunks
                         answers += 1
-                        seconds = _run_seconds(result)
                         if seconds < SHORT_RUN_S:
-                            size = max(1, min(MAX_CHUNK, int(CHUNK_S / seconds)))
-                            pending.update(submit(_guided_chunks(queue, self.workers, size)))
+                            pending.update(submit(self._chunks_for(queue, seconds)))
                             queue = []
                         elif answers >= 2 * self.workers:  # long runs (each worker's second): one a task
                             pending.update(submit([[task] for task in queue]))
@@ -439,6 +450,12 @@ class DaskEngine(Engine):
             left = [future for future in every if not future.done()]
             if left:
                 self.client.cancel(left)
+
+    def _chunks_for(self, tasks: list[RunTask], seconds: float) -> list[list[RunTask]]:
+        """``chunk="auto"``: runs of ``seconds`` in guided chunks of about CHUNK_S when short, else alone."""
+        if seconds >= SHORT_RUN_S:
+            return [[task] for task in tasks]
+        return _guided_chunks(tasks, self.workers, max(1, min(MAX_CHUNK, int(CHUNK_S / seconds))))
 
     def _gathered(self, batch: list[Any]) -> Iterator[tuple[Any, Any, BaseException | None]]:
         """(future, its result or None, its error or None) for done futures; one gather for the results."""
@@ -549,15 +566,16 @@ def _run_seconds(outcomes: list[Outcome | Crash] | None) -> float:
 def _guided_chunks(tasks: list[RunTask], workers: int, most: int) -> list[list[RunTask]]:
     """Consecutive chunks of at most ``most`` runs, shrinking to single runs at the end.
 
-    Each chunk holds the runs left over twice the workers, rounded up, so the last tasks are small and
-    no worker waits long for another to finish a big one (guided self-scheduling); a chunk of two is
-    sent only while more than two runs a worker are left, so at most twice the workers go alone at the
-    end (rounding down instead sent the last 7 of 23 runs on two workers alone: 16 tasks, now 9).
+    Guided self-scheduling: each chunk holds the runs left over one more than the workers, rounded
+    up, so the last tasks are small and no worker waits long for another to finish a big one; at most
+    ``workers + 1`` runs go alone at the end. (Over twice the workers, rounded down, 23 runs on two
+    workers took 12 tasks, the last 7 alone; now 7, the last 2 alone. Each task costs a few ms of
+    CPU in the scheduler and its worker, and a worker waits for its next one.)
     """
     chunks: list[list[RunTask]] = []
     index = 0
     while index < len(tasks):
-        size = max(1, min(most, -(-(len(tasks) - index) // (2 * workers))))
+        size = max(1, min(most, -(-(len(tasks) - index) // (workers + 1))))
         chunks.append(tasks[index:index + size])
         index += size
     return chunks
