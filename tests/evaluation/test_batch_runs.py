@@ -188,12 +188,18 @@ def test_dask_auto_chunks_short_runs_after_two_runs_per_worker(tmp_path: Path,
         engine.chunk_sizes.clear()
         monkeypatch.setattr(engines, "SHORT_RUN_S", 60.0)
         again = run_batch(plan, engine, tmp_path / "again")  # the engine has seen this mission's runs
-        known = engine.chunk_sizes
+        known = list(engine.chunk_sizes)
+        engine.chunk_sizes.clear()
+        (recent,) = engine.run_seconds.values()
+        recent.append(120.0)  # one run slowed by the machine: the median of the latest decides
+        run_batch(plan, engine, tmp_path / "outlier")
+        after_outlier = engine.chunk_sizes
     assert all(r.status == "SUCCESS" for r in records + long_records + again) and len(again) == 12
     assert short[:4] == [1, 1, 1, 1] and sum(short) == 12
     assert short == [1, 1, 1, 1, 3, 2, 1, 1, 1]  # 8 left: 8 over 3 rounded up, ..., the last 3 alone
     assert long == [1] * 12
     assert known == [4, 3, 2, 1, 1, 1]  # no single runs first: chunked from the run time seen
+    assert after_outlier == known
 
 
 @pytest.mark.slow

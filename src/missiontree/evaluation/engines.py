@@ -82,27 +82,28 @@ runs of each worker go alone (so no worker waits while the first answer comes ba
 comes back shorter than :data:`SHORT_RUN_S` (a worker's first run, slow with its imports, does not count
 against it), the rest go at once (one ``client.map``), in chunks of about :data:`CHUNK_S` seconds of
 runs that shrink to single runs at the end, so no worker waits long for another (guided
-self-scheduling). Longer runs stay one a task. The engine keeps the run time it saw of each mission file
-(:attr:`DaskEngine.run_seconds`, as Dask's scheduler keeps a duration for each kind of task), so a later
-batch of that mission on the same engine (an evaluation's next world, a benchmark's next round) is
-chunked at once, without the single runs first. The results of every task done since the last look come
-back in one gather (``as_completed(...).batches()``; not ``with_results=True``, whose concurrent gathers
-trip an assertion in tornado's stream writes under load and leave the batch waiting forever). Each run
-in a chunk is still one :func:`~.worker.execute_run` (its own run directory, record and seed: results
-are those of the pool); a run whose harness raises is its own crash; when a chunk's worker dies, the
-runs it finished keep their records, the run it had begun is the crash (retried once by the batch,
-alone) and the runs it had not begun are sent again, one a task. Retries (``isolated``) always go one a
-task. The pool stays one run a task. Measured in benchmarks/batch_scaling.py (200 runs of 0.1 s, 2
-cores, load average 3 falling to 1.7): chunks (14 tasks for 25 runs) 1.73 speed-up, rounds median 1.74,
-against one run a task, median 1.73, the pool 1.86: chunking saves little here. The gap to the pool is
-about half inside the missions (124 ms a mission in a Dask worker, 119 ms in the pool's: the scheduler,
-client and nannies take the CPU from them) and half dispatch and the rounds' idle tails (10 against 6 ms
-a run). A Dask task costs about 1.5 ms of CPU in this process and 2 ms in its worker (100 tasks of a 50
-ms sleep, load average 3-5; the worker's share is its state machine and messages, seen with cProfile),
-which chunks share out. With the settings above (the previous ones beside them in alternating rounds, 8
-× 25 runs, load average 4-5, where the machine had no second core to give: every engine near 1.0) the
-Dask engine read 1.01 (rounds median 1.01) against 0.99 (0.98) and the pool 0.97 (0.96); CPU a run,
-workers and this process together, 131.3 against 132.2 ms, the pool 127.7, serial 121.1.
+self-scheduling). Longer runs stay one a task. The engine keeps the latest run times it saw of each
+mission file (:attr:`DaskEngine.run_seconds`, as Dask's scheduler keeps a duration for each kind of
+task), so a later batch of that mission on the same engine (an evaluation's next world, a benchmark's
+next round) is chunked at once from their median, without the single runs first. The results of every
+task done since the last look come back in one gather (``as_completed(...).batches()``; not
+``with_results=True``, whose concurrent gathers trip an assertion in tornado's stream writes under load
+and leave the batch waiting forever). Each run in a chunk is still one :func:`~.worker.execute_run` (its
+own run directory, record and seed: results are those of the pool); a run whose harness raises is its
+own crash; when a chunk's worker dies, the runs it finished keep their records, the run it had begun is
+the crash (retried once by the batch, alone) and the runs it had not begun are sent again, one a task.
+Retries (``isolated``) always go one a task. The pool stays one run a task. Measured in
+benchmarks/batch_scaling.py (200 runs of 0.1 s, 2 cores, load average 3 falling to 1.7): chunks (14
+tasks for 25 runs) 1.73 speed-up, rounds median 1.74, against one run a task, median 1.73, the pool
+1.86: chunking saves little here. The gap to the pool is about half inside the missions (124 ms a
+mission in a Dask worker, 119 ms in the pool's: the scheduler, client and nannies take the CPU from
+them) and half dispatch and the rounds' idle tails (10 against 6 ms a run). A Dask task costs about 1.5
+ms of CPU in this process and 2 ms in its worker (100 tasks of a 50 ms sleep, load average 3-5; the
+worker's share is its state machine and messages, seen with cProfile), which chunks share out. With the
+settings above (the previous ones beside them in alternating rounds, 8 × 25 runs, load average 4-5,
+where the machine had no second core to give: every engine near 1.0) the Dask engine read 1.01 (rounds
+median 1.01) against 0.99 (0.98) and the pool 0.97 (0.96); CPU a run, workers and this process together,
+131.3 against 132.2 ms, the pool 127.7, serial 121.1.
 
 On a remote cluster the workers read their own configuration; to get the same speed set, in a
 Dask config file on every worker machine (e.g. ``~/.config/dask/missiontree.yaml``) before starting
@@ -143,6 +144,8 @@ import asyncio
 import logging
 import multiprocessing
 import os
+import statistics
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -185,6 +188,8 @@ SHORT_RUN_S = 0.5
 #: ``chunk="auto"``: a chunk holds about this many seconds of runs (and at most MAX_CHUNK runs).
 CHUNK_S = 1.0
 MAX_CHUNK = 32
+#: ``chunk="auto"``: how many of a mission's latest run times the engine keeps for its next batch.
+RECENT_RUNS = 16
 
 
 @dataclass(frozen=True)
@@ -356,9 +361,10 @@ class DaskEngine(Engine):
         self.chunk = chunk
         #: Runs in each Dask task submitted so far, in order (for reports and tests).
         self.chunk_sizes: list[int] = []
-        #: ``chunk="auto"``: wall seconds of the latest run seen of each mission file, as Dask's scheduler
-        #: keeps a duration for each kind of task: a later batch of that mission is chunked from it at once.
-        self.run_seconds: dict[str, float] = {}
+        #: ``chunk="auto"``: wall seconds of the latest runs (:data:`RECENT_RUNS`) seen of each mission
+        #: file, as Dask's scheduler keeps a duration for each kind of task: a later batch of that mission
+        #: is chunked at once from their median (one run slowed by the machine's load decides nothing).
+        self.run_seconds: dict[str, deque[float]] = {}
         self.cluster: Any = None
         try:
             if address == "local":
@@ -394,7 +400,8 @@ class DaskEngine(Engine):
         from distributed import as_completed
 
         queue = list(tasks)
-        seen = self.run_seconds.get(queue[0].mission) if queue else None
+        recent = self.run_seconds.get(queue[0].mission) if queue else None
+        seen = statistics.median(recent) if recent else None
         if isolated or self.chunk == 1 or len(queue) <= self.workers:
             first, queue = [[task] for task in queue], []
         elif isinstance(self.chunk, int):
@@ -434,8 +441,8 @@ class DaskEngine(Engine):
                     else:
                         yield from zip(chunk, result, strict=True)
                     seconds = _run_seconds(result)
-                    if seconds < float("inf"):
-                        self.run_seconds[chunk[0].mission] = seconds
+                    self.run_seconds.setdefault(chunk[0].mission, deque(maxlen=RECENT_RUNS)).extend(
+                        _every_run_seconds(result))
                     if queue:  # auto, undecided: a short run sends the rest in chunks
                         answers += 1
                         if seconds < SHORT_RUN_S:
@@ -561,6 +568,12 @@ def _run_seconds(outcomes: list[Outcome | Crash] | None) -> float:
         if isinstance(outcome, dict) and isinstance(outcome.get("wall_time_s"), int | float):
             return max(float(outcome["wall_time_s"]), 1e-3)
     return float("inf")
+
+
+def _every_run_seconds(outcomes: list[Outcome | Crash] | None) -> list[float]:
+    """Wall seconds of every run among ``outcomes`` that has them."""
+    return [max(float(outcome["wall_time_s"]), 1e-3) for outcome in outcomes or []
+            if isinstance(outcome, dict) and isinstance(outcome.get("wall_time_s"), int | float)]
 
 
 def _guided_chunks(tasks: list[RunTask], workers: int, most: int) -> list[list[RunTask]]:
