@@ -60,6 +60,7 @@ _STOP_TIME = 0.5          # s of travel at the commanded speed kept clear ahead 
 _CREEP_SPEED = 0.05        # m/s: the slowest approach the speed regulation allows
 _SIDE_MARGIN = 0.03        # m beside the footprint the swept arc keeps clear of mapped obstacles
 _UNMAPPED_MARGIN = 0.12    # m it keeps clear of what the map does not hold (people reach past their legs)
+_WARY_TIME = 3.0           # s the follower aims round what the map lacks after a recovery (or a blocked arc)
 _CLOSER_SLACK = 0.01       # m an arc may come nearer to what the robot is already too close to
 _TURN_WHEN_BLOCKED = 0.15  # rad: blocked with the path this far off the heading, turn in place
 _COST_SLACK = 12           # costmap units a lookahead line may exceed the path's own cost by (~2 cm)
@@ -178,6 +179,7 @@ class _Follow:
     anchor: tuple[float, float] | None = None   # where the robot was when it last moved
     still_since: float = 0.0
     backing_until: float | None = None
+    wary_until: float = -math.inf   # after a recovery: the pure-pursuit line keeps clear of unmapped things
     blocked_recoveries: int = 0   # back-ups made for this goal because the way stayed blocked
     unreachable_since: float | None = None   # learned map: no way to the goal since (waiting for one)
     why: tuple[str, int] = ("", 0)
@@ -464,15 +466,18 @@ class Navigator:
 
     def _drive(self, follow: _Follow, now: float, pose: Pose2D, scan: LaserScan | None,
                remaining: float) -> tuple[float, float]:
-        target = self._target(follow, pose, scan)
-        err = wrap_angle(math.atan2(target[1] - pose.y, target[0] - pose.x) - pose.yaw)
-        lim = self.limits
-        w = max(-lim.max_w, min(lim.max_w, self.spec.heading_gain * err))
+        # after a recovery the pure-pursuit line keeps the clearance the arc check keeps from what
+        # the map lacks (round it the line cut the bend, the arc was blocked and swerves crept back
+        # in), until the way has been clear for _WARY_TIME
+        wary = now < follow.wary_until
+        target = self._target(follow, pose, scan if wary else None)
+        err, v, w = self._aim(pose, target, remaining)
         if abs(err) > _ROTATE_FIRST:
             follow.blocked_since = None
             return 0.0, w
-        v = lim.max_v * max(0.0, math.cos(err)) * min(1.0, 0.3 + remaining / 0.6)
         obstacle = self._obstacle_ahead(scan, v, w)
+        if obstacle is not None and wary:
+            follow.wary_until = now + _WARY_TIME
         if obstacle is not None:
             # regulate the speed to what lidar sees ahead (as Nav2's regulated pure pursuit): creep
             # on while the stopping distance at a lower speed keeps clear of it
@@ -516,6 +521,15 @@ class Navigator:
             # a round base turns in place without sweeping anything new, then the arc is checked again
             return 0.0, w
         return 0.0, 0.0
+
+    def _aim(self, pose: Pose2D, target: tuple[float, float], remaining: float) -> tuple[float, float, float]:
+        """Heading error to ``target`` and the pure-pursuit command (v, w) to it (v 0: turn in place)."""
+        err = wrap_angle(math.atan2(target[1] - pose.y, target[0] - pose.x) - pose.yaw)
+        lim = self.limits
+        w = max(-lim.max_w, min(lim.max_w, self.spec.heading_gain * err))
+        if abs(err) > _ROTATE_FIRST:
+            return err, 0.0, w
+        return err, lim.max_v * max(0.0, math.cos(err)) * min(1.0, 0.3 + remaining / 0.6), w
 
     def _swerve(self, follow: _Follow, pose: Pose2D, scan: LaserScan | None) -> tuple[float, float] | None:
         """When the pure-pursuit arc is blocked: the best free arc back towards the path, or None.
@@ -561,8 +575,9 @@ class Navigator:
         corner that is where the costmap's inflation cost rises. A line whose cost exceeds the path's
         own over that stretch (plus a little slack) would clip the post, so a nearer point is
         taken, down to ``_SHORT_LOOKAHEAD`` (in the open the full lookahead stands). What the map
-        lacks has no cost there: round it, the line must also keep the clearance the arc check
-        keeps from it (or, already nearer, come no nearer), else the arc towards it is blocked.
+        lacks has no cost there: given ``scan`` (for a while after a recovery), the
+        line must also keep the clearance the arc check keeps from it (or, already nearer, come no
+        nearer).
         """
         points = follow.points
         start = follow.index
@@ -600,7 +615,8 @@ class Navigator:
         """Per end point (K, 2): whether the straight line to it keeps clear of what the map lacks.
 
         Clear means the arc check's clearance (radius plus ``_UNMAPPED_MARGIN``) from every scan point
-        off the map, or for a point already nearer, no nearer than now (less ``_CLOSER_SLACK``).
+        off the map, or for a point already nearer, no nearer than now (less ``_CLOSER_SLACK``) and
+        never within the side margin, as :meth:`_obstacle_ahead` judges it.
         """
         if scan is None:
             return np.ones(len(ends), bool)
@@ -611,7 +627,9 @@ class Navigator:
             return np.ones(len(ends), bool)
         c, s = math.cos(pose.yaw), math.sin(pose.yaw)
         qx, qy = pose.x + c * x[near] - s * y[near], pose.y + s * x[near] + c * y[near]
-        need = np.minimum(self.radius + _UNMAPPED_MARGIN, np.hypot(x[near], y[near]) - _CLOSER_SLACK)
+        kept = self.radius + _UNMAPPED_MARGIN
+        now_gap = np.hypot(x[near], y[near])
+        need = np.where(now_gap < kept, np.maximum(self.radius + _SIDE_MARGIN, now_gap - _CLOSER_SLACK), kept)
         dx, dy = ends[:, 0] - pose.x, ends[:, 1] - pose.y                       # (K,)
         length2 = np.maximum(dx * dx + dy * dy, 1e-12)
         t = ((qx[None, :] - pose.x) * dx[:, None] + (qy[None, :] - pose.y) * dy[:, None]) / length2[:, None]
@@ -652,6 +670,7 @@ class Navigator:
             return None   # boxed in behind as well
         follow.blocked_recoveries += 1
         follow.backing_until = now + room / _BACKUP_SPEED
+        follow.wary_until = follow.backing_until + _WARY_TIME
         follow.anchor = None
         self.recoveries += 1
         return -_BACKUP_SPEED, 0.0
@@ -674,6 +693,7 @@ class Navigator:
     def _back_up(self, follow: _Follow, now: float) -> tuple[float, float]:
         """Nav2's BackUp recovery: reverse a little, then plan again from there."""
         follow.backing_until = now + _BACKUP_TIME
+        follow.wary_until = follow.backing_until + _WARY_TIME
         follow.anchor = None
         self.recoveries += 1
         return -_BACKUP_SPEED, 0.0
