@@ -61,7 +61,7 @@ _CREEP_SPEED = 0.05        # m/s: the slowest approach the speed regulation allo
 _SIDE_MARGIN = 0.03        # m beside the footprint the swept arc keeps clear of mapped obstacles
 _UNMAPPED_MARGIN = 0.12    # m it keeps clear of what the map does not hold (people reach past their legs)
 _WARY_TIME = 3.0           # s the follower aims round what the map lacks after a recovery (or a blocked arc)
-_CLOSER_SLACK = 0.01       # m an arc may come nearer to what the robot is already too close to
+_CLOSER_SLACK = 0.01       # m a line may come nearer to what the robot is already too close to
 _TURN_WHEN_BLOCKED = 0.15  # rad: blocked with the path this far off the heading, turn in place
 _COST_SLACK = 12           # costmap units a lookahead line may exceed the path's own cost by (~2 cm)
 _SWERVE_SPEEDS = (0.05, 0.1)          # m/s: the arcs tried when the pure-pursuit arc is blocked
@@ -616,7 +616,7 @@ class Navigator:
 
         Clear means the arc check's clearance (radius plus ``_UNMAPPED_MARGIN``) from every scan point
         off the map, or for a point already nearer, no nearer than now (less ``_CLOSER_SLACK``) and
-        never within the side margin, as :meth:`_obstacle_ahead` judges it.
+        never within the side margin (a line out of there is not ruled out before the arc check).
         """
         if scan is None:
             return np.ones(len(ends), bool)
@@ -718,13 +718,6 @@ class Navigator:
             return None
         x, y = x[near], y[near]
         side = self.radius + np.where(self._mapped(scan)[near], _SIDE_MARGIN, _UNMAPPED_MARGIN)
-        # already inside a point's margin (it was put beside the robot, or the robot came in on a
-        # swerve): an arc may keep or widen the gap but not narrow it, nor come within the side
-        # margin -- else every arc out of there counts as blocked and the robot stands still
-        gap = np.hypot(x, y)
-        inside = gap < side
-        if inside.any():
-            side = np.where(inside, np.maximum(self.radius + _SIDE_MARGIN, gap - _CLOSER_SLACK), side)
         k = w / v if v > 1e-3 else 0.0
         mirrored = k < 0.0
         if abs(k) < 1e-3:
