@@ -15,7 +15,8 @@ is a full turn (the thesis §3.6), after turning to the goal heading. What the l
 (people) stops the robot; the planner then replans around it, and the goal aborts when the way
 stays blocked for ``blocked_timeout`` seconds. A robot blocked while already inside the clearance it
 keeps from something (every arc towards its path sweeps it) first backs away from it as far as the
-scan behind allows, Nav2's BackUp recovery, and replans from there.
+scan behind allows, Nav2's BackUp recovery, and replans from there; for a while after a recovery the
+pure-pursuit line also keeps that clearance from what the map lacks (it no longer cuts the bend round it).
 
 The navigator is built from what it needs -- the map, the footprint radius, the robot profile's
 limits and step, the navigation settings -- not from the robot. On a learned map
