@@ -71,3 +71,25 @@ def test_two_local_clusters_start_and_close_without_a_word(tmp_path: Path) -> No
                           cwd=tmp_path, check=False)
     assert done.returncode == 0 and done.stdout.strip() == "closed", done.stderr
     assert done.stderr == "", done.stderr
+
+
+def _sizer(workers: int) -> DaskEngine:
+    engine = object.__new__(DaskEngine)  # no cluster: only the sizing rule
+    engine.workers = workers
+    return engine
+
+
+def test_auto_chunks_are_single_runs_until_run_times_say_they_are_short() -> None:
+    from collections import deque
+
+    from missiontree.evaluation import engines
+
+    sizer = _sizer(2)
+    assert sizer._chunk_size(100, deque()) == 1  # nothing known yet
+    assert sizer._chunk_size(100, deque([engines.SHORT_RUN_S * 2] * 4)) == 1  # long runs: alone
+    short = engines.CHUNK_S / 8  # eight runs make a chunk's worth
+    assert sizer._chunk_size(100, deque([short] * 4)) == 8
+    assert sizer._chunk_size(10, deque([short] * 4)) == 4  # 10 left over 3: guided, rounded up
+    assert sizer._chunk_size(2, deque([short] * 4)) == 1
+    # two workers' first runs, slow with their imports, beside two ordinary ones: the quartile decides
+    assert sizer._chunk_size(100, deque([0.45, 0.4, short, short])) >= 4

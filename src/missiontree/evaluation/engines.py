@@ -77,33 +77,33 @@ the same cores.
 The rest of Dask's cost is per task, in this process (the scheduler of a local cluster and the client
 run here, on the cores the workers need): each task is a graph update, a scheduling decision, a result
 sent back. For short runs (the 0.1 s missions of benchmarks/batch_scaling.py) that is a few per cent of
-every run, so the engine sends them several to a task (``chunk``, default ``"auto"``): the first two
-runs of each worker go alone (so no worker waits while the first answer comes back) and, as soon as one
-comes back shorter than :data:`SHORT_RUN_S` (a worker's first run, slow with its imports, does not count
-against it), the rest go at once (one ``client.map``), in chunks of about :data:`CHUNK_S` seconds of
-runs that shrink to single runs at the end, so no worker waits long for another (guided
-self-scheduling). Longer runs stay one a task. The engine keeps the latest run times it saw of each
-mission file (:attr:`DaskEngine.run_seconds`, as Dask's scheduler keeps a duration for each kind of
-task), so a later batch of that mission on the same engine (an evaluation's next world, a benchmark's
-next round) is chunked at once from their median, without the single runs first. The results of every
-task done since the last look come back in one gather (``as_completed(...).batches()``; not
-``with_results=True``, whose concurrent gathers trip an assertion in tornado's stream writes under load
-and leave the batch waiting forever). Each run in a chunk is still one :func:`~.worker.execute_run` (its
-own run directory, record and seed: results are those of the pool); a run whose harness raises is its
-own crash; when a chunk's worker dies, the runs it finished keep their records, the run it had begun is
-the crash (retried once by the batch, alone) and the runs it had not begun are sent again, one a task.
-Retries (``isolated``) always go one a task. The pool stays one run a task. Measured in
-benchmarks/batch_scaling.py (200 runs of 0.1 s, 2 cores, load average 3 falling to 1.7): chunks (14
-tasks for 25 runs) 1.73 speed-up, rounds median 1.74, against one run a task, median 1.73, the pool
-1.86: chunking saves little here. The gap to the pool is about half inside the missions (124 ms a
-mission in a Dask worker, 119 ms in the pool's: the scheduler, client and nannies take the CPU from
-them) and half dispatch and the rounds' idle tails (10 against 6 ms a run). A Dask task costs about 1.5
-ms of CPU in this process and 2 ms in its worker (100 tasks of a 50 ms sleep, load average 3-5; the
-worker's share is its state machine and messages, seen with cProfile), which chunks share out. With the
-settings above (the previous ones beside them in alternating rounds, 8 × 25 runs, load average 4-5,
-where the machine had no second core to give: every engine near 1.0) the Dask engine read 1.01 (rounds
-median 1.01) against 0.99 (0.98) and the pool 0.97 (0.96); CPU a run, workers and this process together,
-131.3 against 132.2 ms, the pool 127.7, serial 121.1.
+every run, so the engine sends them several to a task (``chunk``, default ``"auto"``), and sends them as
+tasks finish, keeping two tasks a worker out (one running, one waiting in the scheduler's queue, so no
+worker waits for the client): each chunk holds about :data:`CHUNK_S` seconds of runs (at most
+:data:`MAX_CHUNK`), and no more than the runs left over one more than the workers, so the chunks shrink
+to single runs at the end and no worker waits long for another (guided self-scheduling). Run times come
+from the runs done: the lower quartile of the latest :data:`RECENT_RUNS` of the mission (a worker's
+first run, slow with its imports, weighs little); with none known yet, or runs of :data:`SHORT_RUN_S`
+and more, runs go one a task. The engine keeps those run times for each mission file
+(:attr:`DaskEngine.run_seconds`, as Dask's scheduler keeps a duration for each kind of task), so a later
+batch of that mission on the same engine (an evaluation's next world, a benchmark's next round) starts
+with its chunks. Each task costs CPU in the scheduler, the client and its worker while the other
+workers' missions run on the same cores: measured in one batch of 200 runs of 0.1 s on two workers,
+chunks of 3 runs (67 tasks) made each mission 10 % slower than in the pool (117 against 106 ms), chunks
+of 8 (27 tasks) 1 %. The results of every task done since the last look come back in one gather
+(``as_completed(...).batches()``; not ``with_results=True``, whose concurrent gathers trip an assertion
+in tornado's stream writes under load and leave the batch waiting forever). Each run in a chunk is still
+one :func:`~.worker.execute_run` (its own run directory, record and seed: results are those of the
+pool); a run whose harness raises is its own crash; when a chunk's worker dies, the runs it finished
+keep their records, the run it had begun is the crash (retried once by the batch, alone) and the runs it
+had not begun are sent again, one a task. Retries (``isolated``) always go one a task. The pool stays
+one run a task. A Dask task alone costs about 1.5 ms of CPU in this process and 2 ms in its worker (100
+tasks of a 50 ms sleep, load average 3-5; the worker's share is its state machine and messages, seen
+with cProfile); beside two busy workers it costs their missions several times that (above), which chunks
+share out. With the settings above (the previous ones beside them in alternating rounds, 8 × 25 runs,
+load average 4-5, where the machine had no second core to give: every engine near 1.0) the Dask engine
+read 1.01 (rounds median 1.01) against 0.99 (0.98) and the pool 0.97 (0.96); CPU a run, workers and this
+process together, 131.3 against 132.2 ms, the pool 127.7, serial 121.1.
 
 On a remote cluster the workers read their own configuration; to get the same speed set, in a
 Dask config file on every worker machine (e.g. ``~/.config/dask/missiontree.yaml``) before starting
@@ -183,7 +183,7 @@ LOCAL_CLUSTER_CONFIG: dict[str, Any] = {
     # results are gathered and released at once: no replicas for the active memory manager to drop
     "distributed.scheduler.active-memory-manager.start": False,
 }
-#: ``chunk="auto"``: runs shorter than this (wall seconds, the first run's) go several to a Dask task.
+#: ``chunk="auto"``: runs shorter than this (wall seconds, lower quartile of the latest) go several a task.
 SHORT_RUN_S = 0.5
 #: ``chunk="auto"``: a chunk holds about this many seconds of runs (and at most MAX_CHUNK runs).
 CHUNK_S = 1.0
@@ -338,11 +338,10 @@ class DaskEngine(Engine):
     Args:
         address: ``local`` or the scheduler's address.
         workers: Worker processes of a local cluster (default: the cores).
-        chunk: Runs per Dask task: ``"auto"`` (default) sends two runs per worker alone first and,
-            when the first answer took less than :data:`SHORT_RUN_S`, the rest in chunks (see the
-            module docstring); a later batch of a mission this engine has run starts from the run
-            time it saw (:attr:`run_seconds`) without those single runs; a number fixes the chunk
-            size (1: one run per task, always).
+        chunk: Runs per Dask task: ``"auto"`` (default) sends runs as tasks finish, in chunks sized
+            from the run times seen (:attr:`run_seconds`; one run a task while none is known or runs
+            are long; see the module docstring); a number fixes the chunk size, all sent at once
+            (1: one run per task, always).
     """
 
     name = "dask"
@@ -362,8 +361,8 @@ class DaskEngine(Engine):
         #: Runs in each Dask task submitted so far, in order (for reports and tests).
         self.chunk_sizes: list[int] = []
         #: ``chunk="auto"``: wall seconds of the latest runs (:data:`RECENT_RUNS`) seen of each mission
-        #: file, as Dask's scheduler keeps a duration for each kind of task: a later batch of that mission
-        #: is chunked at once from their median (one run slowed by the machine's load decides nothing).
+        #: file, as Dask's scheduler keeps a duration for each kind of task; chunks are sized from their
+        #: lower quartile (a worker's first run, or one slowed by the machine's load, weighs little).
         self.run_seconds: dict[str, deque[float]] = {}
         self.cluster: Any = None
         try:
@@ -400,20 +399,14 @@ class DaskEngine(Engine):
         from distributed import as_completed
 
         queue = list(tasks)
-        recent = self.run_seconds.get(queue[0].mission) if queue else None
-        seen = statistics.median(recent) if recent else None
+        recent = self.run_seconds.setdefault(queue[0].mission if queue else "", deque(maxlen=RECENT_RUNS))
+        first: list[list[RunTask]] = []  # auto: none; chunks go as tasks finish (refill, below)
         if isolated or self.chunk == 1 or len(queue) <= self.workers:
             first, queue = [[task] for task in queue], []
         elif isinstance(self.chunk, int):
             first, queue = _guided_chunks(queue, self.workers, self.chunk), []
-        elif seen is not None:  # auto, a mission run before on this engine: chunked from its run time
-            first, queue = self._chunks_for(queue, seen), []
-        else:  # auto: two runs per worker alone first (each worker has its second while the first answer
-            # comes back and decides); that answer tells whether runs are short
-            first, queue = [[task] for task in queue[:2 * self.workers]], queue[2 * self.workers:]
         chunk_of: dict[object, list[RunTask]] = {}  # by future key (a str or tuple)
-        every: list[Any] = []
-        answers = 0
+        running: dict[object, Any] = {}  # the futures not done yet, by key
 
         def submit(chunks: list[list[RunTask]]) -> list[Any]:
             # one graph update for all of them (client.map), not one round trip a run
@@ -421,14 +414,25 @@ class DaskEngine(Engine):
             self.chunk_sizes.extend(len(chunk) for chunk in chunks)
             for future, chunk in zip(futures, chunks, strict=True):
                 chunk_of[future.key] = chunk
-            every.extend(futures)
+                running[future.key] = future
             return futures
 
-        pending = as_completed(submit(first))
+        def refill() -> list[list[RunTask]]:
+            # two tasks a worker out (one running, one waiting in the scheduler's queue for it)
+            nonlocal queue
+            chunks: list[list[RunTask]] = []
+            while queue and len(running) + len(chunks) < 2 * self.workers:
+                size = self._chunk_size(len(queue), recent)
+                chunks.append(queue[:size])
+                queue = queue[size:]
+            return chunks
+
+        pending = as_completed(submit(first + refill()))
         try:
             for batch in pending.batches():  # every task done since the last look: one gather for them
                 for future, result, error in self._gathered(batch):
                     chunk = chunk_of.pop(future.key)
+                    running.pop(future.key, None)
                     if error is not None:
                         again: list[RunTask] = []
                         for task, outcome in _crashed_chunk(chunk, error):
@@ -439,30 +443,30 @@ class DaskEngine(Engine):
                         if again:  # runs of a crashed chunk that had not begun: again, one by one
                             pending.update(submit([[task] for task in again]))
                     else:
+                        recent.extend(_every_run_seconds(result))
                         yield from zip(chunk, result, strict=True)
-                    seconds = _run_seconds(result)
-                    self.run_seconds.setdefault(chunk[0].mission, deque(maxlen=RECENT_RUNS)).extend(
-                        _every_run_seconds(result))
-                    if queue:  # auto, undecided: a short run sends the rest in chunks
-                        answers += 1
-                        if seconds < SHORT_RUN_S:
-                            pending.update(submit(self._chunks_for(queue, seconds)))
-                            queue = []
-                        elif answers >= 2 * self.workers:  # long runs (each worker's second): one a task
-                            pending.update(submit([[task] for task in queue]))
-                            queue = []
-                        else:  # perhaps a worker's first run, slow with its imports: one more alone
-                            pending.update(submit([[queue.pop(0)]]))
+                if queue:
+                    pending.update(submit(refill()))
         finally:
-            left = [future for future in every if not future.done()]
+            left = [future for future in running.values() if not future.done()]
             if left:
                 self.client.cancel(left)
 
-    def _chunks_for(self, tasks: list[RunTask], seconds: float) -> list[list[RunTask]]:
-        """``chunk="auto"``: runs of ``seconds`` in guided chunks of about CHUNK_S when short, else alone."""
+    def _chunk_size(self, left: int, recent: deque[float]) -> int:
+        """``chunk="auto"``: runs in the next task, from the run times seen and the runs ``left``.
+
+        One while no run time is known or runs are long (the lower quartile of the latest at least
+        :data:`SHORT_RUN_S`: a worker's first run, slow with its imports, weighs little); else about
+        :data:`CHUNK_S` seconds of runs (at most :data:`MAX_CHUNK`), and no more than the runs left over
+        one more than the workers (guided self-scheduling: the last tasks are small).
+        """
+        if not recent:
+            return 1
+        seconds = statistics.quantiles(recent, n=4, method="inclusive")[0] if len(recent) > 1 else recent[0]
         if seconds >= SHORT_RUN_S:
-            return [[task] for task in tasks]
-        return _guided_chunks(tasks, self.workers, max(1, min(MAX_CHUNK, int(CHUNK_S / seconds))))
+            return 1
+        most = max(1, min(MAX_CHUNK, int(CHUNK_S / max(seconds, 1e-3))))
+        return max(1, min(most, -(-left // (self.workers + 1))))
 
     def _gathered(self, batch: list[Any]) -> Iterator[tuple[Any, Any, BaseException | None]]:
         """(future, its result or None, its error or None) for done futures; one gather for the results."""
@@ -560,14 +564,6 @@ def _final_record(task: RunTask) -> Outcome | None:
         return dict(json.loads(path.read_text(encoding="utf-8")))
     except (OSError, ValueError):
         return None
-
-
-def _run_seconds(outcomes: list[Outcome | Crash] | None) -> float:
-    """Wall seconds of the first run among ``outcomes`` that has them (inf when none: not short)."""
-    for outcome in outcomes or []:
-        if isinstance(outcome, dict) and isinstance(outcome.get("wall_time_s"), int | float):
-            return max(float(outcome["wall_time_s"]), 1e-3)
-    return float("inf")
 
 
 def _every_run_seconds(outcomes: list[Outcome | Crash] | None) -> list[float]:
