@@ -89,21 +89,22 @@ and more, runs go one a task. The engine keeps those run times for each mission 
 batch of that mission on the same engine (an evaluation's next world, a benchmark's next round) starts
 with its chunks. Each task costs CPU in the scheduler, the client and its worker while the other
 workers' missions run on the same cores: measured in one batch of 200 runs of 0.1 s on two workers,
-chunks of 3 runs (67 tasks) made each mission 10 % slower than in the pool (117 against 106 ms), chunks
-of 8 (27 tasks) 1 %. The results of every task done since the last look come back in one gather
-(``as_completed(...).batches()``; not ``with_results=True``, whose concurrent gathers trip an assertion
-in tornado's stream writes under load and leave the batch waiting forever). Each run in a chunk is still
-one :func:`~.worker.execute_run` (its own run directory, record and seed: results are those of the
-pool); a run whose harness raises is its own crash; when a chunk's worker dies, the runs it finished
-keep their records, the run it had begun is the crash (retried once by the batch, alone) and the runs it
-had not begun are sent again, one a task. Retries (``isolated``) always go one a task. The pool stays
-one run a task. A Dask task alone costs about 1.5 ms of CPU in this process and 2 ms in its worker (100
-tasks of a 50 ms sleep, load average 3-5; the worker's share is its state machine and messages, seen
-with cProfile); beside two busy workers it costs their missions several times that (above), which chunks
-share out. With the settings above (the previous ones beside them in alternating rounds, 8 × 25 runs,
-load average 4-5, where the machine had no second core to give: every engine near 1.0) the Dask engine
-read 1.01 (rounds median 1.01) against 0.99 (0.98) and the pool 0.97 (0.96); CPU a run, workers and this
-process together, 131.3 against 132.2 ms, the pool 127.7, serial 121.1.
+chunks of 3 runs (67 tasks) made each mission 10 % slower than in the pool (117 against 105-108 ms),
+chunks of 8 (27 tasks) about 3 % (106 against 103 ms, a separate run). The results of every task done
+since the last look come back in one gather (``as_completed(...).batches()``; not ``with_results=True``,
+whose concurrent gathers trip an assertion in tornado's stream writes under load and leave the batch
+waiting forever). Each run in a chunk is still one :func:`~.worker.execute_run` (its own run directory,
+record and seed: results are those of the pool); a run whose harness raises is its own crash; when a
+chunk's worker dies, the runs it finished keep their records, the run it had begun is the crash (retried
+once by the batch, alone) and the runs it had not begun are sent again, one a task. Retries
+(``isolated``) always go one a task. The pool stays one run a task. A Dask task alone costs about 1.5 ms
+of CPU in this process and 2 ms in its worker (100 tasks of a 50 ms sleep, load average 3-5; the
+worker's share is its state machine and messages, seen with cProfile); beside two busy workers it costs
+their missions several times that (above), which chunks share out. With the settings above (the previous
+ones beside them in alternating rounds, 8 × 25 runs, load average 4-5, where the machine had no second
+core to give: every engine near 1.0) the Dask engine read 1.01 (rounds median 1.01) against 0.99 (0.98)
+and the pool 0.97 (0.96); CPU a run, workers and this process together, 131.3 against 132.2 ms, the pool
+127.7, serial 121.1.
 
 On a remote cluster the workers read their own configuration; to get the same speed set, in a
 Dask config file on every worker machine (e.g. ``~/.config/dask/missiontree.yaml``) before starting
