@@ -406,16 +406,14 @@ class DaskEngine(Engine):
             first, queue = [[task] for task in queue], []
         elif isinstance(self.chunk, int):
             first, queue = _guided_chunks(queue, self.workers, self.chunk), []
-        chunk_of: dict[object, list[RunTask]] = {}  # by future key (a str or tuple)
-        running: dict[object, Any] = {}  # the futures not done yet, by key
+        running: dict[object, tuple[Any, list[RunTask]]] = {}  # (future, its runs) by key, until it is back
 
         def submit(chunks: list[list[RunTask]]) -> list[Any]:
             # one graph update for all of them (client.map), not one round trip a run
             futures = self.client.map(_run_chunk, [fn] * len(chunks), chunks, pure=False)
             self.chunk_sizes.extend(len(chunk) for chunk in chunks)
             for future, chunk in zip(futures, chunks, strict=True):
-                chunk_of[future.key] = chunk
-                running[future.key] = future
+                running[future.key] = (future, chunk)
             return futures
 
         def refill() -> list[list[RunTask]]:
@@ -432,8 +430,7 @@ class DaskEngine(Engine):
         try:
             for batch in pending.batches():  # every task done since the last look: one gather for them
                 for future, result, error in self._gathered(batch):
-                    chunk = chunk_of.pop(future.key)
-                    running.pop(future.key, None)
+                    chunk = running.pop(future.key)[1]
                     if error is not None:
                         again: list[RunTask] = []
                         for task, outcome in _crashed_chunk(chunk, error):
@@ -449,7 +446,7 @@ class DaskEngine(Engine):
                 if queue:
                     pending.update(submit(refill()))
         finally:
-            left = [future for future in running.values() if not future.done()]
+            left = [future for future, _ in running.values() if not future.done()]
             if left:
                 self.client.cancel(left)
 
@@ -467,7 +464,7 @@ class DaskEngine(Engine):
         if seconds >= SHORT_RUN_S:
             return 1
         most = max(1, min(MAX_CHUNK, int(CHUNK_S / max(seconds, 1e-3))))
-        return max(1, min(most, -(-left // (self.workers + 1))))
+        return _guided_size(left, self.workers, most)
 
     def _gathered(self, batch: list[Any]) -> Iterator[tuple[Any, Any, BaseException | None]]:
         """(future, its result or None, its error or None) for done futures; one gather for the results."""
@@ -573,6 +570,11 @@ def _every_run_seconds(outcomes: list[Outcome | Crash] | None) -> list[float]:
             if isinstance(outcome, dict) and isinstance(outcome.get("wall_time_s"), int | float)]
 
 
+def _guided_size(left: int, workers: int, most: int) -> int:
+    """Guided self-scheduling: the runs ``left`` over one more than the workers, rounded up, 1 to ``most``."""
+    return max(1, min(most, -(-left // (workers + 1))))
+
+
 def _guided_chunks(tasks: list[RunTask], workers: int, most: int) -> list[list[RunTask]]:
     """Consecutive chunks of at most ``most`` runs, shrinking to single runs at the end.
 
@@ -585,7 +587,7 @@ def _guided_chunks(tasks: list[RunTask], workers: int, most: int) -> list[list[R
     chunks: list[list[RunTask]] = []
     index = 0
     while index < len(tasks):
-        size = max(1, min(most, -(-(len(tasks) - index) // (workers + 1))))
+        size = _guided_size(len(tasks) - index, workers, most)
         chunks.append(tasks[index:index + size])
         index += size
     return chunks
