@@ -36,11 +36,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from missiontree.backends.sim.nav_costmap import Costmap, path_length, plan
+from missiontree.backends.sim.nav_handle import SimNavHandle
 from missiontree.backends.sim.schema import NavigationSpec, RobotProfile
 from missiontree.backends.sim.timing import TimingLog
 from missiontree.mapping import planner
 from missiontree.mapping.planner import INSCRIBED, LETHAL, MAX_FREE
-from missiontree.robot.actions import UNREACHABLE, ActionResult, ActionStatus, NavFeedback
+from missiontree.robot.actions import ActionStatus, NavFeedback
 from missiontree.types import LaserScan, OccupancyGrid, Pose2D, Tolerance, wrap_angle
 
 __all__ = ["BLOCKED", "GOAL_IN_OBSTACLE", "INSCRIBED", "LETHAL", "NO_PROGRESS", "NO_VALID_PATH", "OUT_OF_MAP",
@@ -71,95 +73,6 @@ _SWERVE_TIME = 0.6         # s: how far along each tried arc its end point is ju
 _SHORT_LOOKAHEAD = 0.12    # m: the follower's target when the lookahead line would cut a corner
 _CORNER_SAMPLES = np.linspace(0.2, 1.0, 5)
 _MAX_GOALS_KEPT = 10_000   # goals remembered for pictures (the oldest are dropped on very long runs)
-
-
-class Costmap:
-    """The whole-grid view of a map's costmap (for world checks and tests; planning uses the tiles).
-
-    Args:
-        grid: The map.
-        robot_radius: Footprint radius (m).
-        spec: Inflation settings.
-    """
-
-    def __init__(self, grid: OccupancyGrid, robot_radius: float, spec: NavigationSpec,
-                 allow_unknown: bool = False) -> None:
-        self.grid = grid
-        self.radius = robot_radius
-        self.spec = spec
-        self.tiled = planner.Costmap(grid, robot_radius, spec.inflation_radius, spec.cost_scaling,
-                                     allow_unknown)
-        self._dense: np.ndarray | None = None
-
-    @property
-    def cost(self) -> np.ndarray:
-        """The whole cost array (0 free .. 252 inflated, 253 inscribed, 254 lethal), computed once."""
-        if self._dense is None:
-            self._dense = self.tiled.dense()
-        return self._dense
-
-    def cell_cost(self, cost: np.ndarray, x: float, y: float) -> int:
-        """Cost at a map point; LETHAL outside the map."""
-        row, col = self.grid.world_to_cell(x, y)
-        if not (0 <= row < cost.shape[0] and 0 <= col < cost.shape[1]):
-            return LETHAL
-        return int(cost[row, col])
-
-
-def plan(costmap: Costmap, cost: np.ndarray, start: Pose2D, goal: Pose2D, accelerate: bool = True,
-         cost_weight: float = 3.0) -> np.ndarray | None:
-    """A path of map points (N, 2) from ``start`` to ``goal`` on ``costmap``, or None when there is none.
-
-    ``cost`` is accepted for the old signature; the plan runs on the costmap's tiles.
-    """
-    del cost
-    costmap.tiled.accelerate = accelerate and planner.HAVE_NUMBA
-    path = costmap.tiled.plan(start, goal, cost_weight)
-    return None if path is None else path.points
-
-
-def path_length(points: np.ndarray) -> float:
-    """Length of a polyline."""
-    if len(points) < 2:
-        return 0.0
-    return float(np.hypot(*np.diff(points, axis=0).T).sum())
-
-
-class SimNavHandle:
-    """The ActionHandle of one simulated NavigateToPose goal."""
-
-    def __init__(self, goal: Pose2D, tolerance: Tolerance, sent: float) -> None:
-        self.goal = goal
-        self.tolerance = tolerance
-        self.sent = sent
-        self._status = ActionStatus.ACCEPTED
-        self._feedback: NavFeedback | None = None
-        self._result: ActionResult | None = None
-        self.cancel_requested = False
-
-    def status(self) -> ActionStatus:
-        """Current status."""
-        return self._status
-
-    def feedback(self) -> NavFeedback | None:
-        """Latest feedback (distance remaining along the path), None before the first."""
-        return self._feedback
-
-    def result(self) -> ActionResult | None:
-        """The result once done."""
-        return self._result
-
-    def cancel(self) -> None:
-        """Ask to cancel; takes effect at the simulator's next step (idempotent)."""
-        if not self._status.done:
-            self.cancel_requested = True
-
-    def _finish(self, status: ActionStatus, reason: str = "", code: int = 0) -> None:
-        if not self._status.done:
-            self._status = status
-            # every abort of the in-process navigator is about the goal (no server to lose)
-            kind = UNREACHABLE if status is ActionStatus.ABORTED else ""
-            self._result = ActionResult(status, reason, code, kind=kind)
 
 
 @dataclass
