@@ -72,3 +72,41 @@ def _parser(func):  # noqa: ANN001, ANN202
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("run").set_defaults(func=func)
     return parser
+
+
+def test_a_swallowed_ctrl_c_prints_no_exception_ignored_traceback(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An interrupt Python swallows in a weakref callback is recorded, not printed as a traceback."""
+    import sys
+    import weakref
+
+    monkeypatch.setattr(startup, "_pending", False)
+    monkeypatch.setattr(sys, "unraisablehook", sys.__unraisablehook__)
+    previous = signal.getsignal(signal.SIGINT)
+
+    class Target:
+        pass
+
+    def callback(_ref: object) -> None:  # as the import system's module-lock callback meets it
+        signal.raise_signal(signal.SIGINT)
+
+    try:
+        startup.guard()
+        target = Target()
+        ref = weakref.ref(target, callback)
+        del target  # the callback runs, raises KeyboardInterrupt, and Python swallows it
+        assert ref() is None
+        assert startup.interrupted()
+        assert "Traceback" not in capsys.readouterr().err
+        other = Target()
+        other_ref = weakref.ref(other, _raise_value_error)
+        del other  # anything else Python swallows is still printed
+        assert other_ref() is None
+        assert "ValueError" in capsys.readouterr().err
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _raise_value_error(_ref: object) -> None:
+    raise ValueError("other")

@@ -14,10 +14,10 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT
 
 def main() -> int:
     """Import and run the command line; Ctrl-C during start-up exits 130 quietly."""
-    from missiontree.startup import guard
-
-    guard()  # a Ctrl-C an import swallows is still seen: cli.main checks once start-up is over
     try:
+        from missiontree.startup import guard
+
+        guard()  # a Ctrl-C an import swallows is still seen: cli.main checks once start-up is over
         from missiontree.cli.main import main as cli_main
     except KeyboardInterrupt:
         print("missiontree: interrupted", file=sys.stderr)

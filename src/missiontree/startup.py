@@ -7,11 +7,16 @@ went on to its end (exit 1 for a run that did not succeed) as if nothing had bee
 :func:`guard` installs a handler that records the signal before raising, so the command line can
 ask :func:`interrupted` once start-up is over and exit 130 all the same. The run itself installs
 its own handlers (:mod:`missiontree.engine.runner`) and puts this one back when it ends.
+
+Where Python swallows the KeyboardInterrupt it still prints it ("Exception ignored in ...", a
+traceback through :func:`_on_sigint`) by way of :data:`sys.unraisablehook`; :func:`guard` wraps
+that hook so an interrupt it already recorded is not printed, and anything else still is.
 """
 
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from types import FrameType
 
@@ -24,10 +29,18 @@ def _on_sigint(signum: int, frame: FrameType | None) -> None:
     raise KeyboardInterrupt
 
 
+def _quiet_unraisable(unraisable: sys.UnraisableHookArgs) -> None:
+    """Drop a swallowed KeyboardInterrupt (it is recorded); print anything else as Python would."""
+    if isinstance(unraisable.exc_value, KeyboardInterrupt) and _pending:
+        return
+    sys.__unraisablehook__(unraisable)
+
+
 def guard() -> None:
     """Record SIGINT from now on (and raise KeyboardInterrupt as Python's default handler does)."""
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, _on_sigint)
+        sys.unraisablehook = _quiet_unraisable
 
 
 def interrupted() -> bool:
