@@ -137,3 +137,17 @@ def test_a_waypoint_file_alone_is_checked_against_the_world_it_names(
     path.write_text(text)
     code, _, err = _validate(capsys, path)
     assert code == 2 and "expected waypoints in the world 'office'" in err and "outside the map" in err
+
+
+@pytest.mark.parametrize("command", [["validate"], ["render"], ["run"], ["batch", "--out", "OUT"]])
+def test_a_text_file_read_as_a_mission_is_not_echoed(
+        command: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A text file that parses as one YAML scalar (like /etc/passwd) is refused without printing its text."""
+    secret = "root:x:0:0:root:/root:/bin/bash daemon:x:1:1:hunter2-password-line " * 20
+    path = tmp_path / "passwd"
+    path.write_text(secret.replace(" daemon", "\ndaemon"), encoding="utf-8")
+    argv = [c.replace("OUT", str(tmp_path / "out")) for c in command]
+    assert main([argv[0], "--no-plugins", str(path), *argv[1:]]) == 2
+    captured = capsys.readouterr()
+    assert "hunter2" not in captured.err + captured.out
+    assert "text of 1,3" in captured.err  # says what it found, not the text

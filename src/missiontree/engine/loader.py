@@ -39,6 +39,7 @@ from missiontree.engine.validate import check_tree, non_finite_issues
 from missiontree.errors import MissionFileError, Problem
 from missiontree.paths import REPO_ROOT
 from missiontree.yamlio import Located, load_yaml
+from missiontree.yamlio import short_repr as shown
 
 #: The node type name the loader handles itself: a subtree from another file.
 INCLUDE = "Include"
@@ -168,7 +169,7 @@ class _Loader:
     def _check_top(self, doc: Located, *, is_subtree: bool) -> bool:
         data = doc.data
         if not isinstance(data, dict):
-            found = "a list" if isinstance(data, list) else f"the single value {data!r}"
+            found = "a list" if isinstance(data, list) else f"the single value {shown(data)}"
             self.problems.append(doc.problem_at(
                 (), f"expected a mapping with `root:` at the top of the file, found {found}",
                 "start the file with `root:` followed by the root node, indented below it", where="",
@@ -179,7 +180,8 @@ class _Loader:
             if key not in TOP_LEVEL_KEYS:
                 near = difflib.get_close_matches(key, TOP_LEVEL_KEYS, n=1)
                 self.problems.append(doc.problem_at(
-                    (key,), f"expected one of the top-level keys {', '.join(TOP_LEVEL_KEYS)}; found {key!r}",
+                    (key,),
+                    f"expected one of the top-level keys {', '.join(TOP_LEVEL_KEYS)}; found {shown(key)}",
                     f"did you mean {near[0]!r}?" if near else "remove it, or put the node under `root:`",
                     key=True, where="",
                 ))
@@ -195,7 +197,7 @@ class _Loader:
         version = data.get("version", 1)
         if version != 1:
             self.problems.append(doc.problem_at(
-                ("version",), f"expected format version 1, found {version!r}", "write `version: 1`",
+                ("version",), f"expected format version 1, found {shown(version)}", "write `version: 1`",
                 where=""))
         return ok
 
@@ -219,7 +221,7 @@ class _Loader:
         for name in [*declared, *required]:
             if not _IDENT_RE.match(name):
                 self.problems.append(doc.problem_at(
-                    ("params", name), f"expected a parameter name (letters, digits, _), found {name!r}",
+                    ("params", name), f"expected a parameter name (letters, digits, _), found {shown(name)}",
                     "rename it", key=True, where=""))
         values.update(declared)
         given = dict(given or {})
@@ -232,7 +234,7 @@ class _Loader:
                     self.problems.append(site.problem_at(
                         ("params", name),
                         f"expected one of the subtree's parameters ({', '.join(known) or 'none'}), "
-                        f"found {name!r}",
+                        f"found {shown(name)}",
                         f"did you mean {near[0]!r}?" if near else "remove it or declare it under `params:` "
                         "in the subtree", key=True, where=where))
             for name in required:
@@ -263,7 +265,7 @@ class _Loader:
             if not _KEY_RE.match(key):
                 self.problems.append(file.doc.problem_at(
                     ("blackboard", key), f"expected a blackboard key (letters, digits, _ and / for "
-                    f"namespaces), found {key!r}", "rename the key", key=True, where="blackboard"))
+                    f"namespaces), found {shown(key)}", "rename the key", key=True, where="blackboard"))
         for issue in non_finite_issues(values):
             self.problems.append(file.doc.problem_at(
                 ("blackboard", *issue.loc), issue.message, issue.hint, where="blackboard"))
@@ -282,7 +284,7 @@ class _Loader:
                     known = list(RunSection.model_fields)
                     near = difflib.get_close_matches(str(loc[-1]), known, n=1)
                     self.problems.append(doc.problem_at(
-                        ("run", *loc), f"expected one of {', '.join(known)}; found {loc[-1]!r}",
+                        ("run", *loc), f"expected one of {', '.join(known)}; found {shown(loc[-1])}",
                         f"did you mean {near[0]!r}?" if near else "remove it", key=True, where="run"))
                 elif not loc:
                     self.problems.append(doc.problem_at(
@@ -290,7 +292,8 @@ class _Loader:
                         "write `run: {backend: sim, tick_hz: 10}`", where="run"))
                 else:
                     self.problems.append(doc.problem_at(
-                        ("run", *loc), f"{loc[-1]}: expected {_expected(err)}, found {err.get('input')!r}",
+                        ("run", *loc),
+                        f"{loc[-1]}: expected {_expected(err)}, found {shown(err.get('input'))}",
                         "fix the value", where="run"))
             return RunSection()
 
@@ -346,7 +349,8 @@ class _Loader:
         source = Source(doc.file, line, col, file.chain)
         if not isinstance(name, str) or not name:
             self.problems.append(doc.problem_at(
-                (*params_path, NAME_KEY), f"expected a non-empty text name, found {name!r}", "quote the name",
+                (*params_path, NAME_KEY), f"expected a non-empty text name, found {shown(name)}",
+                "quote the name",
                 where=path))
             name = type_name
         if type_name == INCLUDE:
@@ -386,12 +390,13 @@ class _Loader:
         for key in params:
             if key not in ("file", "params", NAME_KEY):
                 self.problems.append(doc.problem_at(
-                    (*params_path, key), f"expected `file`, `params` or `name` in an Include, found {key!r}",
+                    (*params_path, key),
+                    f"expected `file`, `params` or `name` in an Include, found {shown(key)}",
                     "an Include takes `file: path.yaml` and optional `params: {...}`", key=True, where=path))
         target = params.get("file")
         if not isinstance(target, str) or not target:
             self.problems.append(doc.problem_at(
-                params_path, f"expected `file:` naming the subtree file, found {target!r}",
+                params_path, f"expected `file:` naming the subtree file, found {shown(target)}",
                 "write `Include: {file: subtrees/name.yaml}`", where=path))
             return None
         given = params.get("params") or {}
@@ -460,14 +465,14 @@ class _Loader:
         if found is None:
             tried = ", ".join(_display(c) for c in candidates[:3])
             self.problems.append(file.doc.problem_at(
-                key_path, f"expected an existing subtree file, found no {target!r} (looked at {tried})",
+                key_path, f"expected an existing subtree file, found no {shown(target)} (looked at {tried})",
                 "check the path; it is relative to the including file or to the trees/ folder", where=path))
             return None
         roots = [self.mission_dir, *trusted]
         if not self.allow_outside and not any(found.is_relative_to(r) for r in roots):
             self.problems.append(file.doc.problem_at(
                 key_path, f"expected a subtree inside the mission's folder {_display(self.mission_dir)}, "
-                f"found {target!r} which resolves to {_display(found)}",
+                f"found {shown(target)} which resolves to {_display(found)}",
                 "move the subtree next to the mission, or allow it (--allow-outside)", where=path))
             return None
         return found
@@ -532,7 +537,7 @@ def _kind(value: Any) -> str:
         return "a list"
     if value is None:
         return "nothing"
-    return f"{type(value).__name__} {value!r}"
+    return f"{type(value).__name__} {shown(value)}"
 
 
 def _expected(err: Any) -> str:

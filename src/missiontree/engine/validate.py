@@ -76,7 +76,7 @@ def validate_params(
             near = difflib.get_close_matches(key, list(by_name), n=1)
             known = ", ".join(by_name) or "none"
             issues.append(ParamIssue(
-                (key,), f"expected one of the parameters ({known}), found {key!r}",
+                (key,), f"expected one of the parameters ({known}), found {short_repr(key)}",
                 f"did you mean {near[0]!r}?" if near else "remove it (`missiontree nodes` lists parameters)",
                 at_key=True,
             ))
@@ -296,7 +296,7 @@ def _unknown_type(node: NodeSpec, registry: NodeRegistry) -> Problem:
     else:
         hint = "`missiontree nodes` lists every known type; a plugin that provides it may not be installed"
     return Problem(node.source.file, node.source.line, node.source.col, node.path,
-                   f"expected a known node type, found {node.type!r}", hint)
+                   f"expected a known node type, found {short_repr(node.type)}", hint)
 
 
 def _structure(node: NodeSpec, node_type: NodeType) -> list[Problem]:
