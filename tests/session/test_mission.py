@@ -227,6 +227,7 @@ def test_summary_records_the_final_and_the_true_pose_on_the_simulator(tmp_path: 
     assert summary == result.summary
     assert set(summary["final_pose"]) == {"x", "y", "yaw", "stamp"}
     assert set(summary["true_final_pose"]) == {"x", "y", "yaw"}
+    assert summary["bumps"]["contacts"] == 0 and summary["bumps"]["where"] == []  # turning touches nothing
     assert summary["final_pose"]["yaw"] != 0.0  # it turned
 
 

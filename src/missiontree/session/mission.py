@@ -259,13 +259,17 @@ class Session:
             self.request.on_tick(self)
 
     def _final_state(self) -> dict[str, Any]:
-        """The simulator's true final pose, for the summary (scoring only; never seen by leaves)."""
+        """The simulator's true final pose and contacts, for the summary (scoring only, unseen by leaves)."""
         truth = getattr(self.robot, "truth", None)
         true_pose = getattr(truth, "robot_pose", None)
         if not callable(true_pose):
             return {}
         pose = true_pose()
-        return {"true_final_pose": {"x": pose.x, "y": pose.y, "yaw": pose.yaw}}
+        state: dict[str, Any] = {"true_final_pose": {"x": pose.x, "y": pose.y, "yaw": pose.yaw}}
+        bump_report = getattr(self.robot, "bump_report", None)
+        if callable(bump_report):  # the simulator's contacts: where the body touched something
+            state["bumps"] = bump_report()
+        return state
 
     # -- running ---------------------------------------------------------------------------------
 

@@ -92,6 +92,18 @@ def test_collisions_stop_the_robot_at_the_wall():
     assert 0.17 <= gap < 0.17 + 0.1
 
 
+
+def test_a_push_against_a_wall_is_one_contact_with_its_place():
+    """Many refused steps against one wall are one contact, reported with where and when it began."""
+    robot = create_robot({"world": "conformance"})
+    robot.drive(0.31, 0.0)
+    robot.spin_until(20.0)
+    report = robot.bump_report()
+    assert report["refused_moves"] > 1 and report["contacts"] == 1
+    (place,) = report["where"]
+    assert abs(place["x"] - robot.true_pose.x) < 0.05 and 0.0 < place["t"] < 20.0
+    assert "touched" in report["meaning"]
+
 def test_history_forgets_beyond_its_horizon():
     """pose_at and scan_at answer within the history horizon and None beyond it."""
     robot = create_robot({"world": "conformance", "config": {"history_horizon": 2.0}})

@@ -36,7 +36,8 @@ _MARKER_BGR = {"goal": GOAL_BGR, "detection": (0, 140, 255), "alarm": (30, 30, 2
 _OTHER_BGR = (200, 0, 200)
 _UNMAPPED_BGR = (190, 190, 190)
 #: What ``bumps`` means, for the picture and run summaries.
-BUMPS_MEANING = "bumps: moves the simulator refused because the robot's body would have hit something"
+BUMPS_MEANING = ("contacts: times the robot's body touched a wall or object (the simulator refused the "
+                 "move instead of letting it pass through); refused_moves: the physics steps refused")
 
 
 @dataclass(frozen=True)
@@ -76,7 +77,7 @@ class Scene:
     grid: OccupancyGrid
     now: float
     seed: int
-    bumps: int
+    bumps: int                                  # contacts: times the body touched something
     robot_pose: Pose2D
     robot_radius: float
     rooms: list[SceneRoom] = field(default_factory=list)
@@ -186,8 +187,8 @@ def draw_topdown(scene: Scene, markers: list[Marker], path: Path,
             canvas.label(marker.label, p, colour)
     for obj in scene.objects:
         canvas.label(obj.id, canvas.px(*obj.label_at), (70, 70, 70), 0.3)
-    title = (f"{scene.name}   t = {scene.now:.1f} s   seed {scene.seed}   bumps {scene.bumps} "
-             "(moves refused: the body would have hit something)")
+    title = (f"{scene.name}   t = {scene.now:.1f} s   seed {scene.seed}   contacts {scene.bumps} "
+             "(the body touched something; where: summary.json 'bumps')")
     cv2.putText(img, title, (8, 19), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (30, 30, 30), 1, cv2.LINE_AA)
     _draw_scale(canvas, scene.bounds)
     _draw_legend(canvas, scene, kinds)

@@ -23,6 +23,7 @@ import math
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -32,7 +33,7 @@ from missiontree.backends.sim.lidar import Lidar
 from missiontree.backends.sim.navigation import Navigator, SimNavHandle
 from missiontree.backends.sim.people import BODY_RADIUS
 from missiontree.backends.sim.raycast import HAVE_NUMBA, Primitives
-from missiontree.backends.sim.render import Scene, SceneObject, ScenePerson, SceneRoom
+from missiontree.backends.sim.render import BUMPS_MEANING, Scene, SceneObject, ScenePerson, SceneRoom
 from missiontree.backends.sim.schema import RobotProfile
 from missiontree.backends.sim.timing import TimingLog
 from missiontree.backends.sim.truth import GroundTruth
@@ -46,6 +47,8 @@ from missiontree.types import LaserScan, Marker, OccupancyGrid, Pose2D, PoseStam
 _TIME_EPS = 1e-9
 _TRAJECTORY_PERIOD = 0.25   # s between trajectory points at most...
 _TRAJECTORY_STEP = 0.05     # ...and only once the robot moved this far (m) or turned 0.2 rad
+_CONTACT_GAP = 1.0          # s without a refused move before the next one is a new contact
+_CONTACTS_KEPT = 50         # contacts listed with their place in the summary (all are counted)
 _TRAJECTORY_MAX = 5_000     # points kept; past it every other point goes and the spacing doubles
 _render_pool: ThreadPoolExecutor | None = None
 
@@ -116,7 +119,12 @@ class SimRobot:
         self.plugin_sensors = SimSensors(list(sensors or []), world.spec.plugins, seed)
         self.odometer = 0.0  # metres driven (true motion), for plugin sensor models
         self._v = self._w = 0.0
-        self.bumps = 0
+        self.bumps = 0  # physics steps whose move was refused (the body would have hit something)
+        #: Contacts: runs of refused moves (no gap over _CONTACT_GAP), each as (t, x, y) of the true
+        #: pose where it began (the first _CONTACTS_KEPT); the summary's ``bumps`` reports them.
+        self.contacts: list[tuple[float, float, float]] = []
+        self.contact_count = 0
+        self._last_refused = -math.inf
         self._pending: tuple[Future[tuple[Rendering, float]], float, Pose2D] | None = None
         self._background = accel and profile.camera_thread
         self.truth = GroundTruth(world, lambda: self._base.pose, profile.history_horizon, self._finish_frame)
@@ -253,6 +261,15 @@ class SimRobot:
         draw_topdown(self.scene(), markers, path)
         return [path]
 
+    def bump_report(self) -> dict[str, Any]:
+        """Contacts for the run summary: how many, where they began, and what a bump is."""
+        return {
+            "contacts": self.contact_count,
+            "refused_moves": self.bumps,
+            "where": [{"t": t, "x": x, "y": y} for t, x, y in self.contacts],
+            "meaning": BUMPS_MEANING,
+        }
+
     def scene(self) -> Scene:
         """What the top-down picture shows of the run so far: a plain value (the truth, for pictures)."""
         world, now = self.world, self._t
@@ -266,7 +283,7 @@ class SimRobot:
             people.append(ScenePerson(person.id, track, (state.x, state.y) if state.present else None))
         return Scene(
             name=world.name, bounds=world.bounds(), grid=world.grid, now=now, seed=self.seed,
-            bumps=self.bumps,
+            bumps=self.contact_count,
             robot_pose=self._base.pose, robot_radius=self.profile.body.radius,
             rooms=[SceneRoom(r.name, r.type, r.polygon) for r in world.rooms],
             walls=list(world.wall_segments),
@@ -326,6 +343,12 @@ class SimRobot:
                     self._nav.mark_hazard(hx, hy, self._t)
             self._base.halt()
             self.bumps += 1
+            if self._t - self._last_refused > _CONTACT_GAP:  # pushing on against the same thing is one
+                self.contact_count += 1
+                if len(self.contacts) < _CONTACTS_KEPT:
+                    here = self._base.pose
+                    self.contacts.append((round(self._t, 2), round(here.x, 2), round(here.y, 2)))
+            self._last_refused = self._t
             v = w = 0.0
         else:
             self._base.accept(proposed, v, w)
