@@ -103,3 +103,25 @@ root:
     graph = SceneGraph.load(tmp_path / "run" / "scene_graph.json")
     assert [r for r in graph.rooms() if r["label"] != "room"], "no room was typed by the VLM"
     assert all(o["description"] for o in graph.objects())
+
+
+def test_the_scene_mission_reports_its_explored_share_from_its_own_map(tmp_path: Path) -> None:
+    """A short run on an unknown map reports a share below one, in an event and scene_coverage.json."""
+    mission = tmp_path / "turn_and_map.yaml"
+    mission.write_text("""version: 1
+run: {backend: sim, world: office, map: unknown, tick_hz: 10, seed: 4}
+root:
+  Parallel:
+    name: turn_and_map
+    policy: success_on_one
+    children:
+      - Rotate: {name: turn, angle: 3.1, max_speed: 0.5, timeout: 30}
+      - BuildSceneGraph: {name: scene}
+""")
+    result = run_mission(MissionRequest(mission=mission, out=tmp_path / "run", quiet=True))
+    assert result.status.name == "SUCCESS"
+    reported = json.loads((tmp_path / "run" / "scene_coverage.json").read_text())
+    assert 0.0 < reported["explored_share"] < 0.9 and reported["open_frontiers"] >= 1
+    assert reported["known_free_m2"] > 1.0
+    (event,) = events(tmp_path / "run", "scene_graph_explored")
+    assert event["explored_share"] == reported["explored_share"]

@@ -43,11 +43,14 @@ from missiontree.reasoning.prompts import object_description_prompt, room_prompt
 from missiontree.reasoning.scene_prompts import SemanticRelations, expanded_crop, semantic_relations_messages
 from missiontree.reasoning.schemas import ObjectDescription, RoomClassification
 from missiontree.semantics.builder import BuilderParams, SceneBuilder
+from missiontree.semantics.coverage import Coverage, explored_share
 from missiontree.semantics.rooms import RoomRegion, SegmentationParams, load_room_polygons
 from missiontree.semantics.semantic_map import Change, Instance
 
 SCENE_GRAPH_FILE = "scene_graph.json"
 SCENE_PICTURE_FILE = "scene_graph.png"
+#: The explored share when the leaf stops (``explored_share``, areas, open frontiers), as JSON.
+SCENE_COVERAGE_FILE = "scene_coverage.json"
 #: Least seconds between two ``scene_graph`` events after changes (a burst of changes sends one graph).
 PUBLISH_GAP = 1.0
 
@@ -118,6 +121,8 @@ class BuildSceneGraph(Leaf):
         self.last_room_query = -math.inf
         self.semantic_edges: list[dict[str, Any]] = []
         self.publish_due = False
+        self.coverage: Coverage | None = None
+        self.last_coverage = -math.inf
 
     # -- lifecycle -------------------------------------------------------------------------------
 
@@ -155,6 +160,8 @@ class BuildSceneGraph(Leaf):
         self.context.scene = self.builder.scene
         self.last_frame = -math.inf
         self.last_publish = -math.inf
+        self.coverage = None
+        self.last_coverage = -math.inf
         if p.room_types == "vlm" or p.describe == "vlm" or p.semantic_relations:
             model_caller(self.context)
 
@@ -173,7 +180,11 @@ class BuildSceneGraph(Leaf):
             self._ask_about(frame, now)
         pose = robot.pose()
         inside = (pose.pose.x, pose.pose.y) if pose is not None else None
-        self.builder.update_rooms(robot.occupancy(), inside, now)
+        grid = robot.occupancy()
+        self.builder.update_rooms(grid, inside, now)
+        if grid is not None and now - self.last_coverage >= self.params.segment_every:
+            self.last_coverage = now
+            self.coverage = explored_share(grid, inside)
         changes = self.builder.step(now)
         if changes is not None:
             self._record(changes, now)
@@ -181,9 +192,10 @@ class BuildSceneGraph(Leaf):
         if since >= self.params.publish_every or (self.publish_due and since >= PUBLISH_GAP):
             self._publish(now)
         scene = self.builder.scene
+        explored = f", {self.coverage.share:.0%} explored" if self.coverage is not None else ""
         return self.running(
             f"{len(scene.map)} objects in {len(scene.rooms)} rooms, {self.changes} changes, "
-            f"{self.frames} frames"
+            f"{self.frames} frames{explored}"
         )
 
     def terminate(self, new_status: Status) -> None:
@@ -195,6 +207,7 @@ class BuildSceneGraph(Leaf):
             return
         self.builder.rebuild(self.context.robot.now())
         self._save()
+        self._report_coverage()
         scene = self.builder.scene
         for inst in scene.map:  # the run's top-down picture shows what the robot believes is where
             self.context.mark("scene_object", inst.position[0], inst.position[1], inst.id)
@@ -238,6 +251,32 @@ class BuildSceneGraph(Leaf):
         self.last_publish = now
         self.publish_due = False
         self.emit("scene_graph", version=self.builder.scene.version, graph=self.builder.scene.graph.to_dict())
+
+    def _report_coverage(self) -> None:
+        """The explored share of the robot's own map as the leaf stops: an event and a file.
+
+        The graph holds only what the camera saw, so its reader needs to know how much of the place
+        that was: known reachable floor against the unknown still bounded by frontiers (no truth).
+        """
+        robot = self.context.robot
+        grid = robot.occupancy()
+        if grid is None:
+            return
+        pose = robot.pose()
+        self.coverage = explored_share(grid, (pose.pose.x, pose.pose.y) if pose is not None else None)
+        figures = self.coverage.to_dict()
+        assert self.builder is not None
+        scene = self.builder.scene
+        self.emit("scene_graph_explored", objects=len(scene.map), rooms=len(scene.rooms), **figures)
+        run_dir = self.context.run_dir
+        if run_dir is not None:
+            import json
+
+            path = Path(run_dir) / SCENE_COVERAGE_FILE
+            path.write_text(
+                json.dumps({**figures, "objects": len(scene.map), "rooms": len(scene.rooms)}) + "\n",
+                encoding="utf-8",
+            )
 
     def _save(self) -> None:
         run_dir = self.context.run_dir
