@@ -196,3 +196,45 @@ def test_mission_reacts_to_a_plugin_sensor_and_the_log_and_viewer_show_it(
     data = page_data(open_run(tmp_path / "run"), tmp_path / "run")
     kinds = {data["s"][e[1]] for e in data["events"]}
     assert "sensor" in kinds
+
+
+class NotANumber:
+    """A test sensor model that reads NaN (a broken sensor driver)."""
+
+    def __init__(self, options: Mapping[str, Any], seed: int) -> None:
+        pass
+
+    def sample(self, state: SimState) -> float:
+        return float("nan")
+
+
+BROKEN = SensorKind(name="broken", value_type=float, sim=SimSource(model=NotANumber, rate=5.0))
+
+INVERTED = """\
+version: 1
+description: Succeed when the broken sensor is NOT below 1 (a NaN reading is an error, not "not below").
+run: {backend: sim, world: conformance, tick_hz: 10, max_duration: 5}
+root:
+  Sequence:
+    memory: true
+    children:
+      - Wait: {seconds: 0.5}
+      - DECORATOR:
+          child:
+            SensorCondition: {name: low, sensor: broken, threshold: 1.0}
+"""
+
+
+@pytest.mark.parametrize("decorator", ["Inverter", "ForceSuccess"])
+def test_a_nan_reading_under_an_inverter_is_a_fault_not_success(
+        decorator: str, entry_points: Callable, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A non-finite plugin reading under Inverter/ForceSuccess ends the run FAILURE with a fault, exit 1."""
+    from missiontree.cli.main import main
+
+    entry_points(broken=_sensor_plugin("mt_test_broken_sensor", BROKEN))
+    mission = tmp_path / "inverted.yaml"
+    mission.write_text(INVERTED.replace("DECORATOR", decorator), encoding="utf-8")
+    assert main(["run", str(mission), "--out", str(tmp_path / "run"), "--quiet"]) == 1
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text(encoding="utf-8"))
+    assert summary["status"] == "FAILURE"
+    assert summary["fault"]["node"].endswith("low") and "non-finite" in summary["fault"]["error"]

@@ -122,6 +122,9 @@ def describe(result: RunResult) -> str:
     """One line: how the run ended and where its directory is."""
     why = {"status": "", "limit": " (duration limit reached)", "error": " (stopped by an error)",
            "signal": f" (stopped by {result.summary.get('signal') or 'a signal'})"}[result.stopped_by]
+    fault = result.summary.get("fault")
+    if isinstance(fault, dict):  # failed because of an error, not because a condition was false
+        why += f" (fault in {fault.get('node')}: {fault.get('error')})"
     where = f"; run directory {result.run_dir}" if result.run_dir is not None else ""
     return (f"{result.summary.get('mission', 'mission')}: {result.status.name}{why} after {result.ticks} "
             f"ticks, {result.duration:.1f} s on the robot clock{where}")

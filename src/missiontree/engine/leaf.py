@@ -11,7 +11,8 @@ Lifecycle, as in py_trees (STYLE §1):
 - ``terminate(new_status)`` cancels what ``initialise()`` started when halted.
 
 An exception raised in any of them becomes FAILURE of this leaf with the error as the reason,
-and an ``error`` event; the run goes on.
+an ``error`` event and a fault (:mod:`missiontree.engine.faults`: no Inverter or ForceSuccess
+turns it into SUCCESS); the run goes on.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import py_trees
 from pydantic import BaseModel, TypeAdapter
 
 from missiontree.engine.context import MissionContext
+from missiontree.engine.faults import clear_fault, mark_fault
 from missiontree.engine.ports import BlackboardRef, ports_of
 
 Status = py_trees.common.Status
@@ -71,7 +73,9 @@ class Leaf(py_trees.behaviour.Behaviour):
         """Connect and check; override. ``self.ctx`` is set when a context was given."""
 
     def tick(self) -> Iterator[py_trees.behaviour.Behaviour]:
-        """Tick as py_trees does, turning an exception into FAILURE of this leaf."""
+        """Tick as py_trees does, turning an exception into FAILURE of this leaf (a fault)."""
+        if self.status != Status.RUNNING:
+            clear_fault(self)
         try:
             yield from super().tick()
         except Exception as error:  # noqa: BLE001 - a leaf's bug must not kill the mission
@@ -108,6 +112,7 @@ class Leaf(py_trees.behaviour.Behaviour):
 
     def _fail_on_exception(self, error: Exception) -> None:
         self.failure_reason = self._report_error(error)
+        mark_fault(self, self.failure_reason)
         try:
             if self.status == Status.RUNNING:
                 self.terminate(Status.FAILURE)

@@ -13,7 +13,9 @@ so each running leaf's ``terminate()`` cancels its work) and then calls ``robot.
 Ticking walks only the nodes the tick reaches (the root's tick generator, as ``tick_once()``
 does), never the whole tree as ``BehaviourTree.tick()`` does after every tick.
 An exception escaping a behaviour that is not a :class:`~missiontree.engine.leaf.Leaf` (those
-handle their own) becomes FAILURE of that node with an ``error`` event; the run goes on. A halt
+handle their own) becomes FAILURE of that node with an ``error`` event and a fault
+(:mod:`missiontree.engine.faults`); the run goes on. A run that ends FAILURE because of a fault
+says so in the summary (``fault``: the node and the error). A halt
 whose cancel raises is reported the same way. py_trees' own composites and decorators, which only
 manage their children, are trusted and ticked without a wrapper (:data:`TRUSTED_TYPES`).
 
@@ -41,6 +43,13 @@ from typing import Any, TextIO
 import py_trees
 
 from missiontree.engine.context import MissionContext
+from missiontree.engine.faults import (
+    FaultKeepingForceSuccess,
+    FaultKeepingInverter,
+    clear_fault,
+    fault_of,
+    mark_fault,
+)
 from missiontree.engine.leaf import Leaf
 from missiontree.engine.native_memory import pin_mmap_threshold
 from missiontree.engine.node_words import node_paths
@@ -102,7 +111,7 @@ TRUSTED_TYPES: frozenset[type] = frozenset({
     py_trees.decorators.SuccessIsFailure, py_trees.decorators.SuccessIsRunning,
     py_trees.decorators.RunningIsFailure, py_trees.decorators.RunningIsSuccess,
     py_trees.behaviours.Success, py_trees.behaviours.Failure, py_trees.behaviours.Running,
-    py_trees.behaviours.Dummy,
+    py_trees.behaviours.Dummy, FaultKeepingInverter, FaultKeepingForceSuccess,
 })
 
 
@@ -128,6 +137,8 @@ def _guarded_tick(
     on_error: Callable[[Behaviour, Exception], None],
 ) -> Callable[[], Iterator[Behaviour]]:
     def tick() -> Iterator[Behaviour]:
+        if node.status != Status.RUNNING:
+            clear_fault(node)
         try:
             yield from original()
         except Exception as error:  # noqa: BLE001 - a node's bug must not kill the mission
@@ -138,6 +149,7 @@ def _guarded_tick(
                 pass
             node.feedback_message = reason
             node.status = Status.FAILURE
+            mark_fault(node, reason)
             node.iterator = node.tick()
             on_error(node, error)
             yield node
@@ -226,6 +238,7 @@ class Runner:
         self._interrupted = False
         #: Why the run ended when stopped_by is ``error`` (written as the summary's ``reason``).
         self._reason = ""
+        self._fault: tuple[Behaviour, str] | None = None
         #: The run directory was deleted during the run (the log is recovered from the open file).
         self._dir_lost = False
         #: Writing the summary or the log failed: (what, error); the run then raises ConfigError.
@@ -363,6 +376,8 @@ class Runner:
         finally:
             self._phase = "stopping"
             duration = self.robot.now() - start
+            # before the halt resets every status: the faulted node behind a FAILURE
+            self._fault = fault_of(self.root) if status == Status.FAILURE else None
             try:
                 if self._set_up:
                     self.halt()
@@ -493,6 +508,11 @@ class Runner:
         }
         if stopped_by == STOPPED_BY_ERROR and self._reason:
             summary["reason"] = self._reason
+        faulted = self._fault
+        if faulted is not None:  # failed because of an error, not because a condition was false
+            node, cause = faulted
+            summary["fault"] = {"node": self.recorder.path(node) if self.recorder else node.name,
+                                "error": cause}
         if self.recorder is not None:
             summary.update(self.recorder.summary())
         summary.update(self._final_pose())
@@ -501,7 +521,8 @@ class Runner:
             self.recorder.close()
         if self.log is not None:
             self.log.line("mission_finished", status=status.name, stopped_by=stopped_by,
-                          ticks=summary["ticks"], duration=duration, reason=summary.get("reason"))
+                          ticks=summary["ticks"], duration=duration, reason=summary.get("reason"),
+                          fault=summary.get("fault"))
             self.log.unbind()
             self.log.flush()
         if self.run_dir is not None and self._write_failure is None:

@@ -151,3 +151,23 @@ def test_guard_compares_with_another_key(build: Callable[[str], Nodes]) -> None:
     py_trees.blackboard.Blackboard.set("/limit", 0.5)
     nodes["root"].tick_once()
     assert nodes["root"].status == Status.FAILURE
+
+
+@pytest.mark.parametrize("node", ["Inverter", "ForceSuccess"])
+def test_a_child_failing_by_an_error_is_not_turned_into_success(
+        build: Callable[[str], Nodes], node: str) -> None:
+    """A child that raised (a fault, not a false condition) stays FAILURE under Inverter and ForceSuccess."""
+    nodes = build(f"root:\n  {node}:\n    child:\n      ScriptedLeaf: {{name: broken, script: X}}\n")
+    nodes["root"].tick_once()
+    assert nodes["root"].status == Status.FAILURE
+    assert "error" in nodes["root"].feedback_message
+
+
+def test_a_fault_is_forgotten_when_the_child_runs_again(build: Callable[[str], Nodes]) -> None:
+    """A leaf that raised once and then fails normally is inverted again on its next run."""
+    nodes = build("root:\n  Inverter:\n    child:\n"
+                  "      ScriptedLeaf: {name: flaky, script: XF, restart: false}\n")
+    nodes["root"].tick_once()  # tick 1: raises -> FAILURE with a fault, kept as FAILURE
+    assert nodes["root"].status == Status.FAILURE
+    nodes["root"].tick_once()  # tick 2: an ordinary FAILURE -> SUCCESS
+    assert nodes["root"].status == Status.SUCCESS

@@ -13,6 +13,7 @@ from typing import Any, Literal
 import py_trees
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from missiontree.engine.faults import FaultKeepingForceSuccess, FaultKeepingInverter
 from missiontree.engine.nodes.clock import Clock, clock_of
 from missiontree.engine.nodes.conditions import ConditionFields, evaluate, read_key
 from missiontree.engine.ports import BlackboardRef
@@ -198,8 +199,8 @@ DECORATORS = [
              lambda n, p, c: ClockedTimeout(n, _one(c), duration=p.seconds),  # type: ignore
              "Fail and halt the child when it runs longer than `seconds` (mission clock)."),
     NodeType("Inverter", "decorator", _NoParams,
-             lambda n, p, c: py_trees.decorators.Inverter(n, _one(c)),
-             "Swap the child's SUCCESS and FAILURE."),
+             lambda n, p, c: FaultKeepingInverter(n, _one(c)),
+             "Swap the child's SUCCESS and FAILURE (a FAILURE caused by an error stays FAILURE)."),
     NodeType("RateLimit", "decorator", RateLimitParams,
              lambda n, p, c: RateLimit(n, _one(c), period=p.period),  # type: ignore
              "Tick the child at most every `period` seconds; in between, repeat its last result."),
@@ -209,8 +210,9 @@ DECORATORS = [
              lambda n, p, c: Guard(n, _one(c), p),  # type: ignore
              "Tick the child only while a blackboard condition holds; halt it and fail once it does not."),
     NodeType("ForceSuccess", "decorator", _NoParams,
-             lambda n, p, c: py_trees.decorators.FailureIsSuccess(n, _one(c)),
-             "Turn the child's FAILURE into SUCCESS (RUNNING stays RUNNING)."),
+             lambda n, p, c: FaultKeepingForceSuccess(n, _one(c)),
+             "Turn the child's FAILURE into SUCCESS (RUNNING stays RUNNING; a FAILURE caused by an error "
+             "stays FAILURE)."),
     NodeType("ForceFailure", "decorator", _NoParams,
              lambda n, p, c: py_trees.decorators.SuccessIsFailure(n, _one(c)),
              "Turn the child's SUCCESS into FAILURE (RUNNING stays RUNNING)."),
