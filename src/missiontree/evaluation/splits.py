@@ -1,0 +1,163 @@
+"""The worlds every evaluation benchmark runs on: a ``dev`` split to tune on, a ``test`` split to report.
+
+- **dev**: the apartment generator's worlds, ``generated:<seed>`` for seeds ``first_seed`` on.
+- **test**: different in kind, not only in seed. It cycles through :data:`TEST_CYCLE`: the seven
+  floorplan kinds of :mod:`missiontree.backends.sim.floorplans` (long corridors with many 0.8-0.9 m
+  doors, L- and T-shaped corridors, open plan, suites of rooms off rooms, clutter beside doors,
+  warehouse floors up to 30 x 50 m) interleaved with the real SLAM maps under config/worlds/maps
+  (TurtleBot 4's maze, depot and warehouse, Nav2's tb3_sandbox), whose rooms are found by room
+  segmentation and typed, and whose objects (with same-class and same-colour decoys) come from
+  :func:`missiontree.backends.sim.placement.place_objects`.
+
+Test world ``i`` (seed ``s = first_seed + i``) is ``TEST_CYCLE[s % len(TEST_CYCLE)]``: a floorplan
+named ``floorplan:<7 s + kind>`` or a map world named ``map:<map>:<s>``. Every world is built and
+checked here (valid, every room reachable by a TurtleBot 4) before it is handed out.
+
+Nobody tunes on ``test``: run it once at the end of a change and report it beside ``dev``.
+"""
+
+from __future__ import annotations
+
+import copy
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from missiontree.backends.sim.floorplans import FLOORPLAN_PREFIX, KINDS, floorplan_world
+from missiontree.backends.sim.generator import GENERATED_PREFIX, generate_world
+from missiontree.backends.sim.placement import map_world, place_objects, small_kinds
+from missiontree.paths import config_dirs
+
+#: The split names.
+SPLITS = ("dev", "test")
+#: Family of each split's worlds.
+DEV_FAMILY, FLOORPLAN_FAMILY, MAP_FAMILY = "generated", "floorplan", "real map"
+#: Real maps of the test split: names of Nav2 map yamls in config/worlds/maps.
+TEST_MAPS = ("tb3_sandbox", "depot", "maze", "warehouse")
+#: What the test split cycles through: ("floorplan", kind) and ("map", map name).
+TEST_CYCLE: tuple[tuple[str, str], ...] = (
+    ("floorplan", "corridor"),
+    ("map", "tb3_sandbox"),
+    ("floorplan", "l_corridor"),
+    ("floorplan", "open_plan"),
+    ("map", "depot"),
+    ("floorplan", "t_corridor"),
+    ("floorplan", "suites"),
+    ("map", "maze"),
+    ("floorplan", "clutter"),
+    ("floorplan", "warehouse"),
+    ("map", "warehouse"),
+)
+
+
+@dataclass(frozen=True)
+class SplitWorld:
+    """One world of a split.
+
+    Attributes:
+        name: ``generated:12``, ``floorplan:1003`` or ``map:tb3_sandbox:2``.
+        family: ``generated`` (dev), ``floorplan`` or ``real map``.
+        data: World-file data (as ``generate_world`` returns); map paths absolute.
+    """
+
+    name: str
+    family: str
+    data: dict[str, Any]
+
+
+def map_yaml(name: str) -> Path:
+    """The shipped map_server map ``name`` (config/worlds/maps/<name>.yaml), absolute.
+
+    Raises:
+        FileNotFoundError: No configuration folder holds it.
+    """
+    for folder in config_dirs():
+        candidate = folder / "worlds" / "maps" / f"{name}.yaml"
+        if candidate.is_file():
+            return candidate.resolve()
+    raise FileNotFoundError(f"no map {name!r} under worlds/maps of {', '.join(map(str, config_dirs()))}")
+
+
+def split_worlds(
+    split: str, count: int, *, first_seed: int = 0, people: bool = False, min_objects: int = 0
+) -> list[SplitWorld]:
+    """``count`` worlds of ``split`` from seed ``first_seed`` on (see the module docstring).
+
+    Args:
+        split: ``dev`` or ``test``.
+        count: How many worlds.
+        first_seed: Seed of the first world.
+        people: Keep (dev, floorplans) or add (real maps) people walking; without, no one walks.
+        min_objects: At least this many small (findable) objects in every world.
+
+    Raises:
+        ValueError: An unknown split, a negative count or seed.
+    """
+    if split not in SPLITS:
+        raise ValueError(f"expected a split in {', '.join(SPLITS)}, found {split!r}")
+    if count < 0 or first_seed < 0:
+        raise ValueError(f"expected a count and first seed from 0, found {count} and {first_seed}")
+    seeds = range(first_seed, first_seed + count)
+    if split == "dev":
+        return [_dev(s, people, min_objects) for s in seeds]
+    return [_test(s, people, min_objects) for s in seeds]
+
+
+def _dev(seed: int, people: bool, min_objects: int) -> SplitWorld:
+    data = generate_world(seed, people=2 if people else 0)
+    return SplitWorld(f"{GENERATED_PREFIX}{seed}", DEV_FAMILY, _top_up(data, seed, min_objects))
+
+
+def _test(seed: int, people: bool, min_objects: int) -> SplitWorld:
+    family, what = TEST_CYCLE[seed % len(TEST_CYCLE)]
+    if family == "floorplan":
+        fseed = 7 * seed + KINDS.index(what)
+        data = floorplan_world(fseed, people=2 if people else 0)
+        return SplitWorld(f"{FLOORPLAN_PREFIX}{fseed}", FLOORPLAN_FAMILY, _top_up(data, seed, min_objects))
+    data = map_world(
+        map_yaml(what), seed, name=f"map_{what}_{seed}", small=min_objects, people=2 if people else 0
+    )
+    return SplitWorld(f"map:{what}:{seed}", MAP_FAMILY, data)
+
+
+def small_objects(data: dict[str, Any]) -> list[dict[str, Any]]:
+    """The small (findable) objects of world data: the generator's small classes, not fixed furniture."""
+    kinds = small_kinds()
+    return [o for o in data.get("objects", []) if o.get("label") in kinds and o.get("movable", True)]
+
+
+def _top_up(data: dict[str, Any], seed: int, min_objects: int) -> dict[str, Any]:
+    have = len(small_objects(data))
+    if have >= min_objects:
+        return data
+    return place_objects(data, seed, furniture=False, small=min_objects - have, decoys=False)
+
+
+def write_split_world(world: SplitWorld, directory: Path) -> Path:
+    """Write the world as ``<directory>/<name>.yaml`` (loadable by ``--world PATH``); returns the path.
+
+    A map world's map yaml and image are copied into ``<directory>/maps/`` and named by absolute
+    path, since the world loader reads maps only beside the world file (or on $MISSIONTREE_MAP_PATH).
+    """
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    data = copy.deepcopy(world.data)
+    section = data.get("map")
+    if isinstance(section, dict) and isinstance(section.get("yaml"), str):
+        source = Path(section["yaml"])
+        target_dir = (directory / "maps").resolve()
+        target_dir.mkdir(exist_ok=True)
+        image = yaml.safe_load(source.read_text(encoding="utf-8"))["image"]
+        shutil.copyfile(source, target_dir / source.name)
+        shutil.copyfile(source.parent / image, target_dir / Path(image).name)
+        section["yaml"] = str(target_dir / source.name)
+    path = directory / f"{world.name.replace(':', '_')}.yaml"
+    path.write_text(
+        f"# {world.family} world {world.name} of the evaluation splits "
+        "(missiontree.evaluation.splits)\n" + yaml.safe_dump(data, sort_keys=False),
+        encoding="utf-8",
+    )
+    return path
