@@ -4,11 +4,14 @@ It answers the NAIS interpretation conversation (:func:`missiontree.reasoning.pr
 with an :class:`~missiontree.reasoning.schemas.IntentResolution` naming scene object ids, with no
 network and no GPU:
 
-- A **need** ("I am thirsty") is matched to the scene's object classes through one-line affordance
-  descriptions (what an object is for), ranked by text-embedding similarity to the request
-  (measured: bare labels rank badly — "thirsty" puts sink first; descriptions put bottle and
-  cup first). Every class scoring within ``margin`` of the best (and at least ``min_score``) is a
-  candidate; its objects are the answer, best class first.
+- A **need** ("I am thirsty", "I need to answer some emails") is read with the shipped knowledge
+  (:mod:`missiontree.reasoning.knowledge`: WordNet words of each need, affordances written per label):
+  each class of the scene scores how well it serves what the request says (a bottle 1.0 for thirst, a
+  sink 0.4); classes within ``KNOWN_MARGIN`` of the best and at least ``SERVE_MIN`` are candidates,
+  best class first. A request none of whose words the knowledge knows is matched to a need's
+  description by MiniLM embedding, and only a clear match counts (``NEED_MATCH``), at a weaker
+  strength. A request that expresses no need and names no known object ("bring me a unicorn") is
+  served by nothing; so is one whose need only a class the scene lacks serves ("take a shower").
 - A **reference** ("the grey backpack in front of the sofa") is parsed into label + attributes +
   spatial relation (:mod:`missiontree.reasoning.phrases`) and the objects are filtered by label,
   by colour/size attribute and by the relation to an anchor object or room.
@@ -16,14 +19,10 @@ network and no GPU:
 Which object is nearest, and so the goal, is the caller's choice (NAIS node 5).
 
 Provider name ``offline_llm``; options: ``embedder`` (role of the embedder, default ``embedder``),
-``affordances`` (label → description, added to the defaults), ``margin`` (0.05),
-``min_score`` (0.25: at 0.2 "I want to fly to the moon" still found a laptop);
-the constructor also takes ``absent_margin`` (0.1, below).
-
-Saying "nothing fits" takes more than a similarity floor: "I want to take a shower" scores 0.40 with
-the cup ("water") while a shower, which the scene lacks, scores 0.64. The affordance table also
-describes common things scenes often lack; when the best of those beats the best present class by
-``absent_margin``, the need goes unserved with a reason naming what it calls for.
+``affordances`` (label → description, added to the defaults; kept for referential class names),
+``margin`` (0.05: how far the embedding fallback's best need must lead the next), ``min_score``
+(kept for configuration compatibility); the constructor also takes ``absent_margin`` (0.1: a class the
+scene lacks that serves the request this much better than anything present means nothing serves it).
 """
 
 from __future__ import annotations
@@ -37,6 +36,7 @@ from pydantic import BaseModel
 from missiontree.errors import ModelError
 from missiontree.perception.colour import canonical_colour
 from missiontree.reasoning.embedder import similarity
+from missiontree.reasoning.knowledge import Knowledge, Reading, knowledge
 from missiontree.reasoning.phrases import fold_label, parse_reference, split_relation
 from missiontree.reasoning.prompts import parse_intent_messages
 from missiontree.reasoning.protocols import Embedder, Message
@@ -87,6 +87,16 @@ AFFORDANCES: dict[str, str] = {
     "dog": "a pet dog to play with and walk",
 }
 
+#: A label must serve the request at least this well (knowledge score in [0, 1]) to be a candidate ...
+SERVE_MIN = 0.35
+#: ... and within this of the best present label (a bottle 1.0 and a cup 1.0 for thirst, not a sink 0.4).
+KNOWN_MARGIN = 0.25
+#: A request the knowledge's words do not cover is matched to a need's description by embedding only
+#: at this similarity or more ...
+NEED_MATCH = 0.45
+#: ... and then read at this strength (weaker than a word the knowledge knows).
+EMBEDDED_STRENGTH = 0.6
+
 #: Metres within which "near" / "next to" / "on" hold.
 RELATION_DISTANCE = {"near": 2.0, "next_to": 1.2, "on": 0.6, "in": 1.0}
 
@@ -119,6 +129,7 @@ class OfflineLanguageModel:
         self.margin = float(margin)
         self.min_score = float(min_score)
         self.absent_margin = float(absent_margin)
+        self.knowledge: Knowledge = knowledge()
 
     def check(self) -> str:
         """Check the embedder; return a one-line description."""
@@ -160,33 +171,55 @@ class OfflineLanguageModel:
                       labels: list[str]) -> IntentResolution:
         if not labels:
             return IntentResolution(candidates=[], reason="the scene holds no objects")
-        present = {fold_label(label) for label in labels}
-        absent = sorted(k for k in self.affordances if k not in present)
-        texts = [self.affordances.get(fold_label(label), f"a {label}") for label in labels]
-        all_scores = similarity(self.embedder, request, texts + [self.affordances[k] for k in absent])
-        scores = all_scores[:len(labels)]
-        order = sorted(range(len(labels)), key=lambda i: (-float(scores[i]), labels[i]))
-        best = float(scores[order[0]])
-        if best < self.min_score:
+        kb = self.knowledge
+        reading = kb.read(request)
+        how = "knowledge"
+        if reading.empty:
+            reading, how = self._embedded_reading(request, reading), "embedding"
+        if reading.empty:
+            unknown = f" (words it does not know: {', '.join(reading.unknown)})" if reading.unknown else ""
             return IntentResolution(candidates=[], reason=(
-                f"no object in the scene serves {request!r} (best: {labels[order[0]]}, "
-                f"similarity {best:.2f} < {self.min_score:.2f})"))
-        if absent:
-            # the need calls for something the scene lacks: a present class far behind it is only
-            # a word-level echo ("take a shower" and a cup share "water"), not a way to serve it
-            j = max(range(len(absent)), key=lambda i: float(all_scores[len(labels) + i]))
-            lacking = float(all_scores[len(labels) + j])
-            if lacking >= best + self.absent_margin:
-                return IntentResolution(candidates=[], reason=(
-                    f"no object in the scene serves {request!r}: it calls for a {absent[j]} (similarity "
-                    f"{lacking:.2f}), which the scene lacks; the best present, {labels[order[0]]}, "
-                    f"scores {best:.2f}"))
-        chosen = [labels[i] for i in order if float(scores[i]) >= max(self.min_score, best - self.margin)]
+                f"no object in the scene serves {request!r}: it expresses no need and names no object "
+                f"this reasoner knows{unknown}"))
+        present = {label for label in labels} | {fold_label(label) for label in labels}
+        scores = {label: kb.score(label if label in kb.serves else fold_label(label), reading)
+                  for label in labels}
+        order = sorted(labels, key=lambda label: (-scores[label][0], label))
+        best = scores[order[0]][0]
+        absent = [(kb.score(label, reading), label) for label in kb.labels if label not in present]
+        (lacking, lacking_why), lacking_label = max(absent, default=((0.0, ""), ""))
+        said = ", ".join(f"{need} ({word})" for need, (_, word) in sorted(reading.needs.items()))
+        said = said or ", ".join(sorted({word for _, word in reading.named.values()}))
+        if best < SERVE_MIN or lacking > best + self.absent_margin:
+            ranked = ", ".join(f"{label} {scores[label][0]:.2f}" for label in order[:3])
+            wants = (f"; it calls for a {lacking_label} ({lacking_why}), which the scene lacks"
+                     if lacking > max(SERVE_MIN, best + self.absent_margin) else "")
+            return IntentResolution(candidates=[], reason=(
+                f"no object in the scene serves {request!r}: it asks for {said}{wants} (best present: "
+                f"{ranked}; {SERVE_MIN:.2f} needed, by {how})"))
+        chosen = [label for label in order if scores[label][0] >= max(SERVE_MIN, best - KNOWN_MARGIN)]
         ids = [str(o["id"]) for label in chosen for o in objects if o["label"] == label]
-        ranked = ", ".join(f"{labels[i]} {float(scores[i]):.2f}" for i in order[:4])
+        ranked = ", ".join(f"{label} {scores[label][0]:.2f}" for label in order[:4])
         serve = "serves" if len(chosen) == 1 else "serve"
-        reason = f"{'/'.join(chosen)} {serve} the need (ranked: {ranked})"
+        why = scores[chosen[0]][1]
+        reason = f"{'/'.join(chosen)} {serve} {why} (by {how}; ranked: {ranked})"
         return IntentResolution(candidates=ids, reason=reason)
+
+    def _embedded_reading(self, request: str, known: Reading) -> Reading:
+        """The need a request's words leave unsaid, by embedding similarity to each need's description.
+
+        Only a clear match counts (at least :data:`NEED_MATCH` and ``margin`` ahead of the next need),
+        and it counts as a weaker reading than the knowledge's own words (:data:`EMBEDDED_STRENGTH`).
+        """
+        needs = list(self.knowledge.needs)
+        scores = similarity(self.embedder, request, [self.knowledge.needs[n] for n in needs])
+        order = sorted(range(len(needs)), key=lambda i: -float(scores[i]))
+        best = float(scores[order[0]])
+        second = float(scores[order[1]]) if len(order) > 1 else -1.0
+        if best < NEED_MATCH or best - second < self.margin:
+            return known
+        return Reading(needs={needs[order[0]]: (EMBEDDED_STRENGTH, f"similarity {best:.2f}")},
+                       unknown=known.unknown)
 
     def _resolve_reference(
         self, ref: ReferenceParse, objects: Sequence[Mapping[str, Any]]

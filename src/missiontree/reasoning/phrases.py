@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterable
+from functools import lru_cache
 
 from missiontree.perception.colour import ALIASES, COLOUR_NAMES, canonical_colour
 from missiontree.reasoning.schemas import ReferenceParse
@@ -20,7 +21,7 @@ SYNONYMS: dict[str, str] = {
     "couch": "sofa", "settee": "sofa", "mug": "cup", "glass": "cup", "television": "tv",
     "telly": "tv", "fridge": "refrigerator", "rucksack": "backpack", "bag": "backpack",
     "notebook": "laptop", "computer": "laptop", "plant": "potted plant", "desk": "table",
-    "water bottle": "bottle", "flask": "bottle", "armchair": "chair", "seat": "chair",
+    "water bottle": "bottle", "flask": "bottle", "armchair": "chair",
     "human": "person", "man": "person", "woman": "person", "people": "person",
 }
 
@@ -48,13 +49,41 @@ def normalise(text: str) -> str:
 
 
 def fold_label(label: str) -> str:
-    """The canonical name of a class word: synonyms folded, a plural 's' dropped when that helps."""
+    """The canonical name of a class word: synonyms folded, a plural 's' dropped when that helps.
+
+    Beyond :data:`SYNONYMS`, the words WordNet gives a known class (its synonyms and kinds: settee,
+    armchair) fold to it too (:func:`label_words`).
+    """
     word = normalise(label).replace("_", " ")
     if word in SYNONYMS:
         return SYNONYMS[word]
     if word.endswith("s") and word[:-1] in SYNONYMS:
         return SYNONYMS[word[:-1]]
-    return word
+    words = _lexicon()
+    if word not in words and word.endswith("s") and word[:-1] in words:
+        return words[word[:-1]]
+    return words.get(word, word)
+
+
+@lru_cache(maxsize=1)
+def _lexicon() -> dict[str, str]:
+    """Map each word to the label it names, from the shipped knowledge (empty when it cannot be read)."""
+    try:
+        from missiontree.reasoning.knowledge import knowledge
+
+        return dict(knowledge().label_words)
+    except (OSError, ValueError, KeyError):
+        return {}
+
+
+@lru_cache(maxsize=1)
+def label_words() -> dict[str, tuple[str, ...]]:
+    """Map each label to the other words that name it (from the shipped knowledge)."""
+    by_label: dict[str, list[str]] = {}
+    for word, label in _lexicon().items():
+        if word != label:
+            by_label.setdefault(label, []).append(word)
+    return {label: tuple(words) for label, words in by_label.items()}
 
 
 def find_label(text: str, labels: Iterable[str]) -> tuple[str, int] | None:
@@ -73,6 +102,11 @@ def find_label(text: str, labels: Iterable[str]) -> tuple[str, int] | None:
             if fold_label(label) == canonical:
                 forms.setdefault(synonym, label)
                 forms.setdefault(synonym + "s", label)
+    known = label_words()
+    for label in labels:
+        for word in known.get(fold_label(label), ()):
+            forms.setdefault(word, label)
+            forms.setdefault(word + "s", label)
     for form, label in forms.items():
         at = padded.find(f" {form} ")
         if at >= 0 and form:

@@ -1,0 +1,66 @@
+"""The shipped intent knowledge and how the offline reasoner uses it (WordNet words, per-label affordances)."""
+
+from __future__ import annotations
+
+import pytest
+
+from missiontree.reasoning.embedder import MiniLMEmbedder
+from missiontree.reasoning.knowledge import knowledge
+from missiontree.reasoning.offline_llm import OfflineLanguageModel
+
+LABELS = ["bottle", "cup", "sofa", "chair", "bed", "tv", "laptop", "backpack", "umbrella", "sink", "book"]
+
+
+@pytest.fixture(scope="module")
+def model() -> OfflineLanguageModel:
+    return OfflineLanguageModel(MiniLMEmbedder())
+
+
+def scene() -> list[dict[str, str]]:
+    return [{"id": f"{label}_1", "label": label} for label in LABELS]
+
+
+def test_inflected_word_is_read_through_its_dictionary_form() -> None:
+    """"emails" is read as the e-mail word of the work need."""
+    reading = knowledge().read("I need to answer some emails")
+    assert reading.needs["work"][1] == "emails"
+
+
+def test_wordnet_neighbour_of_a_need_word_is_understood(model: OfflineLanguageModel) -> None:
+    """"famished" (WordNet: similar to hungry) and "beverage" reach the right classes."""
+    assert model.resolve("I could use a beverage", scene()).candidates == ["bottle_1", "cup_1"]
+    answer = model.resolve("I am famished", [*scene(), {"id": "fridge", "label": "refrigerator"}])
+    assert answer.candidates == ["fridge"]
+
+
+def test_answering_emails_goes_to_the_laptop(model: OfflineLanguageModel) -> None:
+    """A need the embedding alone missed (similarity 0.19) goes to the laptop, naming the word."""
+    answer = model.resolve("I need to answer some emails", scene())
+    assert answer.candidates == ["laptop_1"]
+    assert "emails" in answer.reason
+
+
+def test_unknown_thing_is_served_by_nothing(model: OfflineLanguageModel) -> None:
+    """"bring me a unicorn" names no need and no known object: no candidate, and the reason says so."""
+    answer = model.resolve("bring me a unicorn", scene())
+    assert answer.candidates == []
+    assert "unicorn" in answer.reason
+
+
+def test_general_word_covers_every_label_under_it(model: OfflineLanguageModel) -> None:
+    """A WordNet hypernym of several labels ("seat") offers each of them present."""
+    answer = model.resolve("take me to some kind of seat", scene())
+    assert set(answer.candidates) == {"sofa_1", "chair_1"}
+
+
+def test_weak_stand_in_is_not_offered_beside_strong_ones(model: OfflineLanguageModel) -> None:
+    """For thirst the bottle and cup are offered, the sink (0.4) is not."""
+    assert "sink_1" not in model.resolve("I am thirsty", scene()).candidates
+
+
+def test_synonym_from_wordnet_names_the_class() -> None:
+    """A WordNet word of a class (settee) folds to it, a colour word never does."""
+    from missiontree.reasoning.phrases import fold_label
+
+    assert fold_label("settee") == "sofa"
+    assert fold_label("red") == "red"

@@ -1,0 +1,497 @@
+"""Build ``missiontree/data/intent_knowledge.json``: what each object class is for, and the words of needs.
+
+    apt-get install wordnet-base                       # WordNet 3.0 under /usr/share/wordnet
+    python -m tools.build_intent_knowledge             # writes the knowledge file
+    python -m tools.build_intent_knowledge --show      # also prints the seed senses, for review
+
+The offline intent reasoner (:mod:`missiontree.reasoning.knowledge`) reads the file and needs nothing
+else at run time. Two sources, both written per *label* or per *need*, never per command:
+
+- **Affordances** (:data:`LABELS`): for each object class the system knows, its WordNet sense and the
+  needs it serves with a strength (a bottle serves ``drink`` fully, a sink a little).
+- **Need senses** (:data:`NEEDS`): for each need, a short description (the embedding fallback compares
+  requests with it) and the WordNet senses that express it (``thirsty.a.2``: "feeling a need or desire
+  to drink"). The lexicon is grown from them through WordNet's relations: the sense's own words,
+  similar-to, derivations, attributes, also-see and entailments, and hyponyms to a stated depth
+  (``beverage.n.1`` down to coffee, lemonade and cocoa), each step weaker.
+- **Label words**: each label's sense's words and its hyponyms' words name that label (couch, armchair);
+  its hypernyms up to two levels name every label under them (seat: chair, sofa, bench, stool).
+
+Senses are written ``word.pos.N`` (the N-th sense of ``word`` as WordNet orders them, most frequent
+first) and printed with their glosses by ``--show``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from missiontree.perception.colour import ALIASES, COLOUR_NAMES
+from tools.wordnet_db import DEFAULT_ROOT, Synset, WordNet
+
+OUT = Path(__file__).resolve().parents[1] / "src" / "missiontree" / "data" / "intent_knowledge.json"
+
+#: need -> (description for the embedding fallback, [(sense, hyponym depth)]).
+NEEDS: dict[str, tuple[str, list[tuple[str, int]]]] = {
+    "drink": (
+        "thirsty: wanting a drink of water, juice, coffee or tea",
+        [
+            ("thirsty.a.2", 0),
+            ("thirst.n.1", 1),
+            ("water.n.6", 0),
+            ("drinking water.n.1", 0),
+            ("drink.v.1", 2),
+            ("beverage.n.1", 3),
+            ("sip.v.1", 0),
+            ("quench.v.1", 0),
+        ],
+    ),
+    "eat": (
+        "hungry: wanting to eat food, a meal or a snack",
+        [
+            ("hungry.a.1", 0),
+            ("hunger.n.1", 1),
+            ("eat.v.1", 2),
+            ("eat.v.2", 1),
+            ("food.n.2", 2),
+            ("meal.n.1", 2),
+            ("snack.v.1", 0),
+            ("starve.v.1", 0),
+        ],
+    ),
+    "rest": (
+        "tired: wanting to sit down, relax and rest",
+        [
+            ("tired.a.1", 0),
+            ("fatigue.n.1", 1),
+            ("rest.v.2", 1),
+            ("sit.v.1", 1),
+            ("sit.v.3", 1),
+            ("relax.v.1", 1),
+            ("seat.v.1", 0),
+            ("tire.v.2", 0),
+            ("exhausted.s.2", 0),
+            ("weary.a.1", 0),
+        ],
+    ),
+    "sleep": (
+        "sleepy: wanting to lie down and sleep or nap",
+        [
+            ("sleepy.s.1", 0),
+            ("sleep.v.1", 2),
+            ("sleep.n.1", 1),
+            ("nap.v.1", 0),
+            ("lie down.v.1", 0),
+            ("drowsy.s.1", 0),
+            ("sleepiness.n.1", 0),
+        ],
+    ),
+    "entertainment": (
+        "bored: wanting entertainment, a film, a show or a game",
+        [
+            ("bored.s.1", 0),
+            ("boredom.n.1", 0),
+            ("entertainment.n.1", 2),
+            ("play.v.5", 0),
+            ("amuse.v.2", 0),
+            ("movie.n.1", 2),
+            ("television program.n.1", 1),
+            ("watch.v.3", 0),
+            ("game.n.2", 1),
+            ("fun.n.1", 0),
+            ("play.v.1", 1),
+        ],
+    ),
+    "read": (
+        "wanting to read a book, a novel or a story",
+        [("read.v.1", 1), ("novel.n.1", 0), ("reading.n.1", 0), ("literature.n.1", 0)],
+    ),
+    "work": (
+        "wanting to work on a computer: write emails, documents, browse the internet",
+        [
+            ("work.v.1", 0),
+            ("electronic mail.n.1", 0),
+            ("e-mail.v.1", 0),
+            ("computer.n.1", 0),
+            ("browse.v.3", 0),
+            ("internet.n.1", 0),
+            ("type.v.1", 0),
+            ("compute.v.1", 0),
+            ("program.v.2", 0),
+            ("study.v.5", 0),
+            ("homework.n.1", 0),
+            ("spreadsheet.n.1", 0),
+            ("online.a.2", 0),
+        ],
+    ),
+    "print": (
+        "wanting to print a document on paper",
+        [("print.v.4", 1), ("printout.n.1", 0), ("document.n.1", 0), ("photocopy.v.1", 0)],
+    ),
+    "wash": (
+        "wanting to wash hands, rinse or clean dishes with tap water",
+        [
+            ("wash.v.2", 1),
+            ("wash.v.1", 0),
+            ("rinse.v.1", 0),
+            ("dirty.a.1", 0),
+            ("tap water.n.1", 0),
+            ("dishwashing.n.1", 0),
+        ],
+    ),
+    "bathe": (
+        "wanting to take a shower or a bath",
+        [("bathe.v.1", 0), ("shower.v.3", 0), ("bath.n.1", 0), ("shower.n.1", 0), ("bathe.v.3", 0)],
+    ),
+    "toilet": (
+        "needing the toilet",
+        [("urinate.v.1", 1), ("defecate.v.1", 0), ("toilet.n.2", 0), ("toilet.n.1", 0)],
+    ),
+    "rain": (
+        "keeping dry in the rain",
+        [("rain.n.1", 1), ("rain.v.1", 1), ("wet.a.1", 0), ("drizzle.n.1", 0)],
+    ),
+    "carry": (
+        "carrying belongings on a trip",
+        [("carry.v.1", 0), ("pack.v.1", 0), ("luggage.n.1", 0), ("belongings.n.1", 0), ("hike.v.2", 0)],
+    ),
+    "dispose": (
+        "throwing rubbish away",
+        [("rubbish.n.1", 1), ("discard.v.1", 0), ("litter.n.2", 0), ("waste.n.1", 0)],
+    ),
+    "cook": (
+        "cooking or heating food",
+        [
+            ("cook.v.1", 1),
+            ("cook.v.2", 0),
+            ("bake.v.1", 0),
+            ("reheat.v.1", 0),
+            ("heat.v.1", 0),
+            ("roast.v.1", 0),
+            ("toast.v.1", 0),
+        ],
+    ),
+    "clothes": ("storing or changing clothes", [("clothing.n.1", 1), ("dress.v.1", 0), ("change.v.5", 0)]),
+    "plant": (
+        "looking at or watering plants",
+        [("plant.n.2", 0), ("flower.n.1", 0), ("greenery.n.1", 0), ("houseplant.n.1", 0)],
+    ),
+    "communicate": (
+        "calling or messaging someone",
+        [("call.v.3", 0), ("telephone.v.1", 0), ("phone call.n.1", 0)],
+    ),
+    "talk": (
+        "talking to someone",
+        [("talk.v.1", 0), ("chat.v.1", 0), ("conversation.n.1", 0), ("lonely.a.1", 0)],
+    ),
+    "travel": (
+        "travelling far away by car, plane or bike",
+        [
+            ("travel.v.2", 1),
+            ("travel.v.3", 0),
+            ("fly.v.1", 0),
+            ("fly.v.3", 0),
+            ("drive.v.1", 0),
+            ("ride.v.2", 0),
+            ("trip.n.1", 0),
+            ("journey.n.1", 0),
+        ],
+    ),
+    "swim": ("swimming", [("swim.v.1", 0), ("swimming.n.1", 0)]),
+    "music": (
+        "playing or listening to music",
+        [("music.n.1", 1), ("sing.v.2", 0), ("play.v.3", 0), ("play.v.7", 0)],
+    ),
+    "medical": (
+        "being hurt or sick and needing medicine",
+        [
+            ("hurt.v.6", 0),
+            ("sick.a.1", 0),
+            ("medicine.n.2", 1),
+            ("bleed.v.1", 0),
+            ("ill.a.1", 0),
+            ("headache.n.2", 0),
+            ("nauseated.a.1", 0),
+        ],
+    ),
+    "groom": (
+        "looking at oneself, brushing teeth or hair",
+        [("brush.v.1", 0), ("toothbrush.n.1", 0), ("comb.v.1", 0), ("shave.v.1", 0), ("groom.v.2", 0)],
+    ),
+    "laundry": ("washing dirty clothes", [("laundry.n.1", 0), ("launder.v.1", 0)]),
+    "leave": ("going out of the building", [("leave.v.1", 0), ("go out.v.1", 0), ("go out.v.2", 0)]),
+    "pet": ("playing with or walking a pet", [("pet.n.1", 1)]),
+    "time": ("knowing the time", [("clock time.n.1", 0), ("late.a.2", 0)]),
+    "decorate": ("decorating a room", [("decorate.v.1", 0), ("decoration.n.1", 0)]),
+}
+
+#: label -> (WordNet sense, {need: strength}, present in scenes the robot maps (False: only named to
+#: say that a need calls for something the scene lacks)).
+LABELS: dict[str, tuple[str, dict[str, float]]] = {
+    "bottle": ("bottle.n.1", {"drink": 1.0}),
+    "cup": ("cup.n.1", {"drink": 1.0}),
+    "wine glass": ("wineglass.n.1", {"drink": 0.9}),
+    "bowl": ("bowl.n.3", {"eat": 0.6}),
+    "refrigerator": ("refrigerator.n.1", {"eat": 1.0, "drink": 0.7}),
+    "sink": ("sink.n.1", {"wash": 1.0, "drink": 0.4, "groom": 0.4}),
+    "sofa": ("sofa.n.1", {"rest": 1.0, "sleep": 0.7, "entertainment": 0.2}),
+    "chair": ("chair.n.1", {"rest": 1.0}),
+    "bench": ("bench.n.1", {"rest": 1.0}),
+    "stool": ("stool.n.1", {"rest": 0.8}),
+    "bed": ("bed.n.1", {"sleep": 1.0, "rest": 0.8}),
+    "tv": ("television receiver.n.1", {"entertainment": 1.0}),
+    "laptop": ("laptop.n.1", {"work": 1.0, "entertainment": 0.7, "communicate": 0.6, "print": 0.3}),
+    "book": ("book.n.2", {"read": 1.0, "entertainment": 0.7}),
+    "bookshelf": ("bookshelf.n.1", {"read": 0.9, "entertainment": 0.6}),
+    "backpack": ("backpack.n.1", {"carry": 1.0}),
+    "handbag": ("bag.n.4", {"carry": 0.9}),
+    "suitcase": ("bag.n.6", {"carry": 1.0, "travel": 0.4}),
+    "umbrella": ("umbrella.n.1", {"rain": 1.0}),
+    "potted plant": ("pot plant.n.1", {"plant": 1.0, "decorate": 0.8}),
+    "vase": ("vase.n.1", {"plant": 0.6, "decorate": 0.8}),
+    "table": ("table.n.2", {"eat": 0.5, "work": 0.5}),
+    "dining table": ("dining table.n.1", {"eat": 0.75}),
+    "desk": ("desk.n.1", {"work": 0.75}),
+    "counter": ("counter.n.1", {"cook": 0.6, "eat": 0.4}),
+    "oven": ("oven.n.1", {"cook": 1.0, "eat": 0.7}),
+    "microwave": ("microwave.n.2", {"cook": 1.0, "eat": 0.8}),
+    "toaster": ("toaster.n.2", {"cook": 0.8, "eat": 0.6}),
+    "toilet": ("toilet.n.2", {"toilet": 1.0}),
+    "trash can": ("ashcan.n.1", {"dispose": 1.0}),
+    "printer": ("printer.n.3", {"print": 1.0}),
+    "wardrobe": ("wardrobe.n.1", {"clothes": 1.0}),
+    "cell phone": ("cellular telephone.n.1", {"communicate": 1.0, "entertainment": 0.4}),
+    "clock": ("clock.n.1", {"time": 1.0}),
+    "remote": ("remote control.n.1", {"entertainment": 0.5}),
+    "keyboard": ("computer keyboard.n.1", {"work": 0.5}),
+    "mouse": ("mouse.n.4", {"work": 0.4}),
+    "person": ("person.n.1", {"talk": 1.0}),
+    "teddy bear": ("teddy.n.1", {"entertainment": 0.5}),
+    "sports ball": ("ball.n.1", {"entertainment": 0.6}),
+    "toothbrush": ("toothbrush.n.1", {"groom": 1.0}),
+    # common things scenes often lack: a need they serve better than anything present goes unserved
+    "shower": ("shower.n.1", {"bathe": 1.0, "wash": 0.5}),
+    "bathtub": ("bathtub.n.1", {"bathe": 1.0}),
+    "washing machine": ("washer.n.3", {"laundry": 1.0, "clothes": 0.5}),
+    "swimming pool": ("swimming pool.n.1", {"swim": 1.0}),
+    "car": ("car.n.1", {"travel": 1.0}),
+    "airplane": ("airplane.n.1", {"travel": 1.0}),
+    "bicycle": ("bicycle.n.1", {"travel": 0.8}),
+    "telephone": ("telephone.n.1", {"communicate": 1.0}),
+    "piano": ("piano.n.1", {"music": 1.0}),
+    "stove": ("stove.n.1", {"cook": 1.0, "eat": 0.6}),
+    "mirror": ("mirror.n.1", {"groom": 0.8}),
+    "door": ("door.n.1", {"leave": 1.0}),
+    "first aid kit": ("first-aid kit.n.1", {"medical": 1.0}),
+    "dog": ("dog.n.1", {"pet": 1.0}),
+}
+
+#: Colour words are attributes, never the name of a class.
+COLOURS = frozenset(COLOUR_NAMES) | frozenset(ALIASES)
+#: Weight of a word by how it was reached from a need's sense.
+OWN, RELATED, SECOND, HYPONYM = 1.0, 0.85, 0.7, (0.85, 0.7, 0.6)
+#: Relations from a sense to senses whose words mean the same need.
+RELATIONS = ("&", "+", "=", "^", "*", ">", "$", "\\")
+#: Words too general to say anything about a need on their own (light verbs, quantities).
+GENERAL = frozenset(
+    {
+        "be",
+        "have",
+        "get",
+        "take",
+        "make",
+        "do",
+        "go",
+        "come",
+        "give",
+        "put",
+        "set",
+        "use",
+        "want",
+        "need",
+        "like",
+        "feel",
+        "let",
+        "keep",
+        "run",
+        "turn",
+        "hold",
+        "move",
+        "place",
+        "thing",
+        "something",
+        "some",
+        "one",
+        "time",
+        "way",
+        "part",
+        "piece",
+        "bit",
+        "lot",
+        "stuff",
+        "kind",
+        "sort",
+        "work",
+        "act",
+        "up",
+        "out",
+        "down",
+        "off",
+        "state",
+        "see",
+        "catch",
+        "can",
+        "wear",
+        "fix",
+        "ready",
+        "go away",
+        "john",
+        "product",
+        "production",
+        "creation",
+        "cause",
+        "causal agent",
+        "causal agency",
+        "being",
+        "organism",
+        "support",
+        "instrumentation",
+        "artefact",
+        "matter",
+        "object",
+        "unit",
+        "whole",
+        "artifact",
+        "instrumentality",
+        "device",
+        "container",
+        "structure",
+        "system",
+        "equipment",
+        "article",
+        "point",
+        "line",
+        "order",
+    }
+)
+
+
+def sense(wn: WordNet, spec: str) -> Synset:
+    """The synset of ``word.pos.N``."""
+    word, pos, number = spec.rsplit(".", 2)
+    found = wn.synsets(word, pos)
+    index = int(number) - 1
+    if index >= len(found):
+        raise SystemExit(f"{spec}: WordNet has {len(found)} senses of {word!r} as {pos}")
+    return found[index]
+
+
+def _add(table: dict[str, dict[str, float]], word: str, key: str, weight: float) -> None:
+    if word in GENERAL or len(word) < 2:
+        return
+    entry = table.setdefault(word, {})
+    entry[key] = round(max(entry.get(key, 0.0), weight), 2)
+
+
+def need_words(wn: WordNet, show: bool) -> dict[str, dict[str, float]]:
+    """Map words to {need: weight}, grown from the need senses through WordNet's relations."""
+    words: dict[str, dict[str, float]] = {}
+    for need, (_, seeds) in NEEDS.items():
+        for spec, depth in seeds:
+            synset = sense(wn, spec)
+            if show:
+                print(f"{need:14} {spec:26} {synset.lemmas[:4]} -- {synset.gloss[:70]}")
+            for lemma in synset.lemmas:
+                _add(words, lemma, need, OWN)
+            for near in wn.related(synset, *RELATIONS):
+                for lemma in near.lemmas:
+                    _add(words, lemma, need, RELATED)
+                if near.pos in ("a", "s"):
+                    for far in wn.related(near, "&"):
+                        for lemma in far.lemmas:
+                            _add(words, lemma, need, SECOND)
+            for hyponym, level in wn.hyponyms(synset, depth):
+                for lemma in hyponym.lemmas:
+                    _add(words, lemma, need, HYPONYM[level - 1])
+    # a word means the need(s) it is closest to: "tired" is a seed of rest, and only echoes boredom
+    return {w: {n: v for n, v in needs.items() if v == max(needs.values())} for w, needs in words.items()}
+
+
+def label_words(wn: WordNet) -> tuple[dict[str, str], dict[str, list[str]]]:
+    """(word -> label it names, word -> labels a more general word covers)."""
+    names: dict[str, str] = {}
+    general: dict[str, set[str]] = {}
+    nearest: dict[str, int] = {}
+    synsets = {label: sense(wn, spec) for label, (spec, _) in LABELS.items()}
+    for label in synsets:
+        names.setdefault(label, label)
+    for label, synset in synsets.items():  # a label's own words first, then hyponyms' words
+        for lemma in synset.lemmas:
+            if lemma not in GENERAL:
+                names.setdefault(lemma, label)
+    for label, synset in synsets.items():
+        # kinds of people are roles, not what a camera sees ("red" is a kind of radical)
+        for hyponym, _ in wn.hyponyms(synset, 0 if label == "person" else 2):
+            for lemma in hyponym.lemmas:
+                if lemma not in GENERAL and lemma not in COLOURS:
+                    names.setdefault(lemma, label)
+    for label, synset in synsets.items():
+        for level, hypernym in enumerate(wn.hypernym_closure(synset)):
+            if level >= 2:
+                break
+            for lemma in hypernym.lemmas:
+                if lemma not in GENERAL and lemma not in names:
+                    general.setdefault(lemma, set()).add(label)
+                    nearest.setdefault(lemma, level)
+    # a word two levels up names a family only when it covers several labels (seat, furniture)
+    return names, {w: sorted(ls) for w, ls in general.items() if len(ls) > 1 or nearest[w] == 0}
+
+
+def irregular_forms(wn: WordNet, words: set[str]) -> dict[str, str]:
+    """Irregular inflections (WordNet's exception lists) of lexicon words: "slept" -> "sleep"."""
+    forms: dict[str, str] = {}
+    for pos in ("n", "v", "a"):
+        for inflected, bases in wn._exc[pos].items():  # noqa: SLF001 - the reader's own table
+            for base in bases:
+                text = base.replace("_", " ")
+                if text in words and inflected.replace("_", " ") not in words:
+                    forms.setdefault(inflected.replace("_", " "), text)
+    return forms
+
+
+def build(root: Path, show: bool = False) -> dict[str, object]:
+    """The knowledge document."""
+    wn = WordNet(root)
+    words = need_words(wn, show)
+    names, general = label_words(wn)
+    forms = irregular_forms(wn, set(words) | set(names) | set(general))
+    return {
+        "about": "Built by tools/build_intent_knowledge.py from WordNet 3.0 (Princeton University, "
+        "WordNet 3.0 license) and per-label affordances; do not edit by hand.",
+        "needs": {need: description for need, (description, _) in NEEDS.items()},
+        "labels": {label: {"serves": serves} for label, (_, serves) in LABELS.items()},
+        "need_words": dict(sorted(words.items())),
+        "label_words": dict(sorted(names.items())),
+        "general_words": dict(sorted(general.items())),
+        "forms": dict(sorted(forms.items())),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Build and write the knowledge file."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--wordnet", type=Path, default=DEFAULT_ROOT)
+    parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--show", action="store_true", help="print each need sense with its gloss")
+    args = parser.parse_args(argv)
+    document = build(args.wordnet, args.show)
+    args.out.write_text(json.dumps(document, sort_keys=False, separators=(",", ":")) + "\n", encoding="utf-8")
+    sizes = {k: len(v) for k, v in document.items() if isinstance(v, dict)}
+    print(f"wrote {args.out} ({args.out.stat().st_size // 1024} KiB): {sizes}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
