@@ -176,3 +176,57 @@ def test_map_server_world_reads_occupied_free_and_unknown():
     right = int(np.argmin(np.abs(angles + math.pi / 2)))
     assert scan.ranges[ahead] == pytest.approx(2.0, abs=0.02)  # inner wall face at x = 4.0, start x = 2.0
     assert scan.ranges[right] == pytest.approx(1.6, abs=0.02)  # south wall face at y = 0.4, start y = 2.0
+
+
+def test_wall_overlap_checks_agree_with_whole_map_checks_on_a_real_map():
+    """The windowed and pre-filtered overlap checks give the whole-map answers for objects anywhere."""
+    import dataclasses
+    import math
+
+    import cv2
+    import numpy as np
+
+    from missiontree.backends.sim import world as world_module
+
+    world = load_world(REPO_ROOT / "config" / "worlds" / "map_example.yaml")
+    grid = world.grid
+    walls = grid.data >= 50
+    segs = np.asarray(world.wall_segments, float).reshape(-1, 4)
+    rng = np.random.default_rng(3)
+    template = world.objects[0]
+    hits = 0
+    for _ in range(300):
+        obj = dataclasses.replace(
+            template, shape=str(rng.choice(["box", "cylinder"])),
+            size=(float(rng.uniform(0.1, 1.5)), float(rng.uniform(0.1, 1.5)), 0.5),
+            pose=Pose2D(float(rng.uniform(-0.5, 8.5)), float(rng.uniform(-0.5, 6.5)), float(rng.uniform(-3, 3))))
+        mask = np.zeros(walls.shape, np.uint8)  # the whole-map reference
+        poly = ((obj.footprint() - [grid.origin.x, grid.origin.y]) / grid.resolution * 16).astype(np.int32)
+        cv2.fillPoly(mask, [poly], 1, cv2.LINE_8, shift=4)
+        expected_grid = bool((cv2.erode(mask, np.ones((3, 3), np.uint8)).astype(bool) & walls).any())
+        assert world_module._footprint_hits_grid(obj, walls, grid) == expected_grid, obj.pose
+        assert world_module._footprint_hits_walls(obj, segs) == _box_hits_any_segment(obj, segs), obj.pose
+        hits += expected_grid
+    assert 0 < hits < 300  # both answers occur
+
+
+def _box_hits_any_segment(obj, segs):  # noqa: ANN001, ANN202
+    """The reference: every segment clipped against the (shrunk) outline, none filtered out first."""
+    import math
+
+    from missiontree.backends.sim import world as world_module
+
+    slack = world_module._CONTACT_SLACK
+    if obj.shape == "cylinder":
+        r = obj.size[0] / 2 - slack
+        return bool((world_module._point_segment_distance(obj.pose.x, obj.pose.y, segs) < r).any())
+    c, s = math.cos(obj.pose.yaw), math.sin(obj.pose.yaw)
+    hx, hy = obj.size[0] / 2 - slack, obj.size[1] / 2 - slack
+    for x1, y1, x2, y2 in segs:
+        ax, ay = c * (x1 - obj.pose.x) + s * (y1 - obj.pose.y), -s * (x1 - obj.pose.x) + c * (y1 - obj.pose.y)
+        bx, by = c * (x2 - obj.pose.x) + s * (y2 - obj.pose.y), -s * (x2 - obj.pose.x) + c * (y2 - obj.pose.y)
+        for k in range(201):  # dense points along the segment, inside the box?
+            t = k / 200
+            if abs(ax + t * (bx - ax)) < hx and abs(ay + t * (by - ay)) < hy:
+                return True
+    return False

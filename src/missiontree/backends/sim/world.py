@@ -556,8 +556,15 @@ def _footprint_hits_walls(obj: WorldObject, segs: np.ndarray) -> bool:
     hx, hy = obj.size[0] / 2 - _CONTACT_SLACK, obj.size[1] / 2 - _CONTACT_SLACK
     if hx <= 0 or hy <= 0:
         return False
+    # only segments whose bounding box meets the outline's circumscribed square can cross it: on a
+    # real map's thousands of contour segments this keeps a check per object to a handful
+    reach = math.hypot(hx, hy)
+    near = ((np.minimum(segs[:, 0], segs[:, 2]) <= obj.pose.x + reach)
+            & (np.maximum(segs[:, 0], segs[:, 2]) >= obj.pose.x - reach)
+            & (np.minimum(segs[:, 1], segs[:, 3]) <= obj.pose.y + reach)
+            & (np.maximum(segs[:, 1], segs[:, 3]) >= obj.pose.y - reach))
     # segment endpoints in the box frame; Liang-Barsky clip against the box
-    for x1, y1, x2, y2 in segs:
+    for x1, y1, x2, y2 in segs[near].tolist():
         ax, ay = c * (x1 - obj.pose.x) + s * (y1 - obj.pose.y), -s * (x1 - obj.pose.x) + c * (y1 - obj.pose.y)
         bx, by = c * (x2 - obj.pose.x) + s * (y2 - obj.pose.y), -s * (x2 - obj.pose.x) + c * (y2 - obj.pose.y)
         t0, t1 = 0.0, 1.0
@@ -582,11 +589,22 @@ def _footprint_hits_walls(obj: WorldObject, segs: np.ndarray) -> bool:
 
 
 def _footprint_hits_grid(obj: WorldObject, walls_grid: np.ndarray, grid: OccupancyGrid) -> bool:
-    mask: np.ndarray = np.zeros(walls_grid.shape, np.uint8)
-    poly = ((obj.footprint() - [grid.origin.x, grid.origin.y]) / grid.resolution * 16).astype(np.int32)
+    """Whether occupied map cells lie under the object's outline (eroded by one cell of slack).
+
+    Drawn in a window round the outline (two cells of margin), not on a map-sized mask per object.
+    """
+    cells = (obj.footprint() - [grid.origin.x, grid.origin.y]) / grid.resolution
+    rows, cols = walls_grid.shape
+    c0, r0 = (max(0, int(math.floor(v)) - 2) for v in cells.min(axis=0))
+    c1, r1 = (int(math.ceil(v)) + 3 for v in cells.max(axis=0))
+    c1, r1 = min(c1, cols), min(r1, rows)
+    if c0 >= c1 or r0 >= r1:
+        return False
+    mask: np.ndarray = np.zeros((r1 - r0, c1 - c0), np.uint8)
+    poly = ((cells - [c0, r0]) * 16).astype(np.int32)
     cv2.fillPoly(mask, [poly], 1, cv2.LINE_8, shift=4)
     mask = cv2.erode(mask, np.ones((3, 3), np.uint8))
-    return bool((mask.astype(bool) & walls_grid).any())
+    return bool((mask.astype(bool) & walls_grid[r0:r1, c0:c1]).any())
 
 
 def _point_segment_distance(x: float, y: float, segs: np.ndarray) -> np.ndarray:
