@@ -181,7 +181,6 @@ def test_map_server_world_reads_occupied_free_and_unknown():
 def test_wall_overlap_checks_agree_with_whole_map_checks_on_a_real_map():
     """The windowed and pre-filtered overlap checks give the whole-map answers for objects anywhere."""
     import dataclasses
-    import math
 
     import cv2
     import numpy as np
@@ -199,7 +198,8 @@ def test_wall_overlap_checks_agree_with_whole_map_checks_on_a_real_map():
         obj = dataclasses.replace(
             template, shape=str(rng.choice(["box", "cylinder"])),
             size=(float(rng.uniform(0.1, 1.5)), float(rng.uniform(0.1, 1.5)), 0.5),
-            pose=Pose2D(float(rng.uniform(-0.5, 8.5)), float(rng.uniform(-0.5, 6.5)), float(rng.uniform(-3, 3))))
+            pose=Pose2D(float(rng.uniform(-0.5, 8.5)), float(rng.uniform(-0.5, 6.5)),
+                        float(rng.uniform(-3, 3))))
         mask = np.zeros(walls.shape, np.uint8)  # the whole-map reference
         poly = ((obj.footprint() - [grid.origin.x, grid.origin.y]) / grid.resolution * 16).astype(np.int32)
         cv2.fillPoly(mask, [poly], 1, cv2.LINE_8, shift=4)
