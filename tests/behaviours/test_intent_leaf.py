@@ -116,3 +116,20 @@ def test_serve_commands_takes_stdin_lines_in_turn_and_ends_with_the_stream() -> 
     assert seen == ["first", "second"]
     assert [e["command"] for e in of(log, "command_served")] == ["first", "second"]
     assert result.status.value == "SUCCESS"
+
+
+def test_a_weak_choice_nothing_can_confirm_is_not_served() -> None:
+    """The model sends "I'm parched" to the printer, which no detector can confirm: doubted, FAILURE."""
+    status, log = run_leaf(["printer_1"], command="I'm parched", look=True)
+    assert status == "FAILURE" and not of(log, "intent_served")
+    [doubt] = of(log, "object_doubtful")
+    assert "weak choice" in doubt["reason"] and "printer" in doubt["reason"]
+
+
+def test_a_strong_choice_nothing_can_confirm_is_served_and_says_so() -> None:
+    """A printer to print a document is served unconfirmed: the record names it, why, and confirmed false."""
+    status, log = run_leaf(["printer_1"], command="I need to print a document", look=True)
+    [served] = of(log, "intent_served")
+    assert status == "SUCCESS" and served["object"] == "printer_1" and served["confirmed"] is False
+    assert served["chosen_because"] == "scripted" and "print (print)" in served["note"]
+    assert "NOT confirmed" in of(log, "command_served")[0]["reason"]

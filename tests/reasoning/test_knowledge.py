@@ -1,4 +1,4 @@
-"""The shipped intent knowledge and how the offline reasoner uses it (WordNet words, per-label affordances)."""
+"""The shipped intent knowledge and how the offline reasoner uses it (WordNet words, affordances)."""
 
 from __future__ import annotations
 

@@ -11,8 +11,14 @@ crop of it. If not, the object is marked doubtful and the next candidate is trie
 where the robot now is). No candidate left → FAILURE with the reason. Goals come only from graph
 coordinates and the map, never from the model's text.
 
+An arrival nothing can confirm (the detector knows no such class) is served only when the choice is
+strong — the command names the class, or the shipped knowledge says the class serves it at least
+:data:`~missiontree.reasoning.knowledge.STRONG` — and otherwise doubted like a failed look. What was
+served goes to the ``served`` blackboard key and the ``intent_served`` event: object, label, the
+model's reason for choosing it, whether it was confirmed.
+
 Tick-log events: ``intent_interpreted``, ``candidate_rejected``, ``intent_ambiguous``,
-``goal_sent``, ``goal_result``, ``object_verified``, ``object_doubtful``.
+``goal_sent``, ``goal_result``, ``object_verified``, ``object_doubtful``, ``intent_served``.
 """
 
 from __future__ import annotations
@@ -42,6 +48,7 @@ from missiontree.reasoning.intent import (
     plan_candidates,
     prompt_objects,
 )
+from missiontree.reasoning.knowledge import STRONG, knowledge
 from missiontree.reasoning.phrases import fold_label
 from missiontree.reasoning.prompts import crop_match_prompt, intent_messages
 from missiontree.reasoning.schemas import CropMatch, IntentResolution
@@ -146,6 +153,10 @@ class GoToIntent(Leaf):
         goal: Annotated[str, Output("the object and standoff goal being driven to", type="dict")] = (
             "intent_goal"
         )
+        served: Annotated[
+            str, Output("the command served: object, label, why it was chosen, whether it was confirmed",
+                        type="dict")
+        ] = "intent_served"
 
     params: Params
 
@@ -170,6 +181,8 @@ class GoToIntent(Leaf):
         self.started = 0.0
         self.second_look = False   # the current candidate has been looked at from a second place
         self.first_miss = ""
+        self.because = ""          # the language model's reason for its candidates
+        self.named = ""            # the class a referential command names ("" for a need)
 
     def on_setup(self) -> None:
         """Load the graph file (a missing or malformed file fails here, before the first tick)."""
@@ -250,6 +263,8 @@ class GoToIntent(Leaf):
         ids = [str(i) for i in answer.candidates]
         attributes = list(answer.reference.attributes) if answer.reference is not None else []
         self.wanted = " ".join(attributes)
+        self.because = answer.reason
+        self.named = answer.reference.label if answer.reference is not None else ""
         self.emit(
             "intent_interpreted",
             command=self.text,
@@ -376,7 +391,7 @@ class GoToIntent(Leaf):
         ):
             return self._next(f"not reached ({status.value}: {reason or 'no reason given'})")
         if not self.params.look:
-            return self.succeed(f"at {self.target.id} (not looked at: look is off)")
+            return self._served(False, "not looked at: look is off")
         self.started = robot.now()
         self.looks = 0
         self.step = _Step.FACE
@@ -408,9 +423,12 @@ class GoToIntent(Leaf):
         detector = self.context.model("detector")
         unseen = self._unverifiable(detector, frame)
         if unseen:
-            # Nothing here can check it; say so rather than doubt an object no model could see.
+            # Nothing here can check it: only a strong choice is served unconfirmed, a weak one is doubted
+            strength, why = self._strength()
+            if strength < STRONG:
+                return self._doubt(f"{unseen}, and it was a weak choice ({why}, {strength:.2f} < {STRONG:g})")
             self.emit("object_unverifiable", command=self.text, object=self.target.id, reason=unseen)
-            return self.succeed(f"at {self.target.id} (not confirmed: {unseen})")
+            return self._served(False, f"not confirmed: {unseen}; a strong choice: {why} {strength:.2f}")
         self.call = model_caller(self.context).submit(
             "detector", detection_job(detector, frame), node=self.name
         )
@@ -471,7 +489,36 @@ class GoToIntent(Leaf):
             reason=verdict.reason,
             confidence=verdict.confidence,
         )
-        return self.succeed(f"at {self.target.id}: a {wanted} seen ({verdict.reason})")
+        return self._served(True, f"a {wanted} seen ({verdict.reason})")
+
+    # -- serving ---------------------------------------------------------------------------------
+
+    def _served(self, confirmed: bool, note: str) -> Status:
+        """SUCCESS at the target, recorded on the blackboard and in the tick log with why it was chosen."""
+        assert self.target is not None
+        record = {"command": self.text, "object": self.target.id, "label": self.target.label,
+                  "chosen_because": self.because, "confirmed": confirmed, "note": note}
+        self.write("served", record)
+        self.emit("intent_served", **record)
+        state = "confirmed" if confirmed else "NOT confirmed"
+        return self.succeed(f"at {self.target.id} ({self.target.label}, {state}: {note}); chosen because "
+                            f"{self.because or 'the model named it'}")
+
+    def _strength(self) -> tuple[float, str]:
+        """How surely the target serves the command, by the shipped knowledge (not by the model's word).
+
+        A referential command that names the target's class is served by it outright; a need is
+        scored by :meth:`~missiontree.reasoning.knowledge.Knowledge.score` (0 when the knowledge does
+        not understand the command: then nothing vouches for the choice).
+        """
+        assert self.target is not None
+        label = fold_label(self.target.label)
+        if self.named and fold_label(self.named) == label:
+            return 1.0, f"the command names a {self.target.label}"
+        kb = knowledge()
+        score, why = kb.score(label if label in kb.serves else self.target.label, kb.read(self.text))
+        return score, (f"{self.target.label} serves {why}" if why
+                       else f"nothing known says a {self.target.label} serves {self.text!r}")
 
     # -- failing over ----------------------------------------------------------------------------
 
