@@ -32,10 +32,11 @@ from pydantic import BaseModel, Field
 from missiontree.behaviours.explore import Explore
 from missiontree.behaviours.intent import find_scene_graph
 from missiontree.behaviours.search_common import REJECT_RADIUS, read_target, rejected_entries
+from missiontree.behaviours.search_coverage import ViewCoverage, ViewGoal, view_goals
 from missiontree.engine.leaf import Status
 from missiontree.engine.ports import Output
 from missiontree.errors import MissionTreeError
-from missiontree.mapping.exploration import Blacklisted, ExplorationPlanner
+from missiontree.mapping.exploration import Blacklisted, ExplorationPlanner, planner_path_lengths
 from missiontree.mapping.exploration import Candidate as Frontier
 from missiontree.mapping.grid import free_mask, occupied_mask, unknown_mask
 from missiontree.perception.colour import canonical_colour
@@ -51,7 +52,8 @@ from missiontree.reasoning.search_priors import (
     room_ranking_messages,
     room_types,
 )
-from missiontree.types import OccupancyGrid, Pose2D
+from missiontree.robot.actions import ActionHandle, ActionStatus
+from missiontree.types import OccupancyGrid, Pose2D, Tolerance, wrap_angle
 
 #: Known area (m^2) counted around a goal given up, to tell whether the map there has grown since.
 AROUND_M = 1.5
@@ -77,9 +79,11 @@ class PriorPlanner(ExplorationPlanner):
         self.bias = bias
         self.weight = weight
 
-    def candidates(self, grid: Any, robot_xy: tuple[float, float]) -> list[Frontier]:
-        """The planner's candidates (goals given room), best first after the prior."""
-        found = super().candidates(grid, robot_xy)
+    def candidates(
+        self, grid: Any, robot_xy: tuple[float, float], *args: Any, **kwargs: Any
+    ) -> list[Frontier]:
+        """The planner's candidates (goals given room), best first after the prior (options passed on)."""
+        found = super().candidates(grid, robot_xy, *args, **kwargs)
         if not found:
             return found
         room = self.footprint_radius + self.goal_margin
@@ -277,9 +281,7 @@ class ResumeExplore(Explore):
         ]
         if not open_:
             return []
-        grown = [
-            g for g in open_ if _known_around(grid, g.entry) - g.known_m2 >= self.params.retry_growth
-        ]
+        grown = [g for g in open_ if _known_around(grid, g.entry) - g.known_m2 >= self.params.retry_growth]
         rest = [g for g in open_ if g not in grown]
         if not rest:
             return grown
@@ -360,6 +362,23 @@ class Locate(ResumeExplore):
         prior_weight: float = Field(
             2.0, ge=0, description="How much the prior multiplies a frontier's score."
         )
+        view_coverage: bool = Field(
+            True,
+            description="Once no frontier is left, go and look at the reachable floor the camera has "
+            "not had within view_range (the lidar maps a large floor long before the camera saw it).",
+        )
+        view_range: float = Field(
+            3.0, gt=0, description="Range (m) within which the camera counts as having looked at the floor."
+        )
+        view_min_area: float = Field(
+            0.75, ge=0, description="Unseen patches of floor smaller than this are not gone to (m^2)."
+        )
+        view_timeout: float = Field(
+            20.0,
+            gt=0,
+            description="Give up a place to look from the robot got no closer to for this long (s).",
+        )
+        look_speed: float = Field(1.0, gt=0, description="Turn rate of the look at a view goal (rad/s).")
         rejected: Annotated[
             str, Output("candidates rejected so far (emptied when the mission starts)", type="list")
         ] = "search_rejected"
@@ -376,12 +395,26 @@ class Locate(ResumeExplore):
         self.prior_call: ModelCall | None = None
         self.asked = False
         self.offered_again: set[str] = set()
+        self.coverage: ViewCoverage | None = None
+        self.last_view = -math.inf
+        self.frontiers_done = False
+        self.cover_state = "select"
+        self.cover_goal: ViewGoal | None = None
+        self.cover_handle: ActionHandle | None = None
+        self.cover_best = math.inf
+        self.cover_best_at = 0.0
+        self.look_turned = 0.0
+        self.look_yaw = 0.0
+        self.look_started = 0.0
+        self.cover_goals = 0
+        self.cover_skipped = 0
 
     def on_setup(self) -> None:
         """Read the target against the detector's classes and load the graph file, if any."""
         # py_trees' blackboard outlives a mission in the same process (batch runs, benchmarks): the
         # rejected candidates start empty with each mission, never inherited from another one.
         self.write("rejected", [])
+        self.coverage = ViewCoverage(self.params.view_range)
         if self.ctx is None:
             return
         self.goal = read_target(self.ctx, self.params.target)
@@ -415,6 +448,12 @@ class Locate(ResumeExplore):
             self.prior_call.cancel()
             self.prior_call = None
             self._priors_fallback("the search moved on before the language model answered")
+        if self.cover_handle is not None:
+            self.cover_handle.cancel()
+            self.cover_handle = None
+        if self.cover_state == "look" and self.ctx is not None:
+            self.ctx.robot.drive(0.0, 0.0)
+        self.cover_state = "select"
         super().terminate(new_status)
 
     def _poll_priors(self) -> None:
@@ -445,24 +484,175 @@ class Locate(ResumeExplore):
         )
 
     def update(self) -> Status:
-        """A known candidate ends the leaf; else one step of exploration."""
+        """A known candidate ends the leaf; else one step of exploration, then of looking at the floor."""
         self._poll_priors()
+        self._view()
         found = self._pick(with_mismatch=self.exhausted)
         if found is not None:
             return self._found(found)
         if self.exhausted:
             return self._not_found()
-        status = self.explore_step()
+        if not self.frontiers_done:
+            status = self.explore_step()
+            partial = status == Status.FAILURE and str(self.failure_reason).startswith("partial:")
+            if status == Status.FAILURE and not partial:
+                return self.fail(
+                    f"searching for the {self.goal.text if self.goal else '?'}: {self.failure_reason}"
+                )
+            if status != Status.SUCCESS:
+                return status
+            # a partial exploration (frontiers the map shows a way to were left) goes on to look
+            # at the floor like a complete one; what is left is named in the not-found reason
+            self.frontiers_done = True
+            self.exhausted = False
+            self.emit("search_explored", reason=self.failure_reason if partial else self.feedback_message)
+            if not self.params.view_coverage:
+                return self._exhausted()
+        status = self._cover()
         if status == Status.SUCCESS:
-            self.exhausted = True
-            self.emit("search_explored", reason=self.feedback_message)
-            found = self._pick(with_mismatch=True)
-            return self._found(found) if found is not None else self._not_found()
-        if status == Status.FAILURE:
-            return self.fail(
-                f"searching for the {self.goal.text if self.goal else '?'}: {self.failure_reason}"
-            )
+            return self._exhausted()
         return status
+
+    def _exhausted(self) -> Status:
+        """Nothing left to explore or look at: a candidate once more, or not found."""
+        self.exhausted = True
+        found = self._pick(with_mismatch=True)
+        return self._found(found) if found is not None else self._not_found()
+
+    # -- looking at the floor the camera has not seen -------------------------------------------------
+
+    def _view(self) -> None:
+        """Add the newest camera frame's view to the coverage."""
+        robot = self.context.robot
+        frame = robot.rgbd()
+        if self.coverage is None or frame is None or frame.stamp <= self.last_view:
+            return
+        grid = robot.occupancy()
+        if grid is None:
+            return
+        self.last_view = frame.stamp
+        self.coverage.add_view(grid, frame.camera_pose, frame.intrinsics.hfov)
+
+    def _cover(self) -> Status:
+        """One step of select -> drive -> look at the floor not yet seen; SUCCESS when none is left."""
+        assert self.coverage is not None
+        robot = self.context.robot
+        grid, stamped = robot.occupancy(), robot.pose()
+        if grid is None or stamped is None:
+            return self.running("waiting for the map")
+        pose, now = stamped.pose, robot.now()
+        if self.cover_state == "drive":
+            return self._cover_drive(grid, pose, now)
+        if self.cover_state == "look":
+            return self._cover_look(grid, pose, now)
+        goals, unplaced = view_goals(
+            self.coverage,
+            grid,
+            (pose.x, pose.y),
+            planner_path_lengths,
+            self.params.footprint_radius,
+            min_area_m2=self.params.view_min_area,
+            cost_rate=self.params.cost_rate,
+        )
+        for patch in unplaced:
+            self.coverage.skip(patch)
+            self.cover_skipped += 1
+        if not goals:
+            seen, floor = self.coverage.seen_share(grid, (pose.x, pose.y))
+            self.emit(
+                "search_covered",
+                seen_m2=round(seen, 1),
+                floor_m2=round(floor, 1),
+                goals=self.cover_goals,
+                given_up=self.cover_skipped,
+            )
+            return self.succeed("looked at the reachable floor")
+        goal = goals[0]
+        yaw = math.atan2(goal.target[1] - goal.y, goal.target[0] - goal.x)
+        self.cover_goal = goal
+        self.cover_goals += 1
+        self.cover_handle = robot.navigate_to(Pose2D(goal.x, goal.y, yaw), Tolerance(0.3, 2.0 * math.pi))
+        self.cover_best, self.cover_best_at = math.inf, now
+        self.cover_state = "drive"
+        self.emit(
+            "search_view_goal",
+            x=round(goal.x, 3),
+            y=round(goal.y, 3),
+            unseen_m2=round(goal.area_m2, 2),
+            path_m=round(goal.path_m, 2),
+        )
+        self.context.mark("goal", goal.x, goal.y, "view")
+        return self.running(f"to look at {goal.area_m2:.1f} m^2 of floor not yet seen")
+
+    def _cover_drive(self, grid: OccupancyGrid, pose: Pose2D, now: float) -> Status:
+        assert self.cover_handle is not None and self.cover_goal is not None
+        goal = self.cover_goal
+        distance = math.hypot(goal.x - pose.x, goal.y - pose.y)
+        status = self.cover_handle.status()
+        if status.done:
+            self.cover_handle = None
+            if status is ActionStatus.SUCCEEDED or distance <= 0.5:
+                return self._start_cover_look(pose, now)
+            return self._give_up_view(grid, pose, f"goal {status.value}")
+        if distance < self.cover_best - 0.1:
+            self.cover_best, self.cover_best_at = distance, now
+        elif now - self.cover_best_at > self.params.view_timeout:
+            self.cover_handle.cancel()
+            self.cover_handle = None
+            return self._give_up_view(grid, pose, f"no progress for {self.params.view_timeout:g} s")
+        return self.running(f"to look at the floor not yet seen: {distance:.1f} m to go")
+
+    def _start_cover_look(self, pose: Pose2D, now: float) -> Status:
+        self.cover_state = "look"
+        self.look_turned, self.look_yaw, self.look_started = 0.0, pose.yaw, now
+        return self.running("looking around")
+
+    def _cover_look(self, grid: OccupancyGrid, pose: Pose2D, now: float) -> Status:
+        """A full turn where the goal was reached; then what stayed unseen near it is given up."""
+        assert self.coverage is not None and self.cover_goal is not None
+        robot = self.context.robot
+        self.look_turned += abs(wrap_angle(pose.yaw - self.look_yaw))
+        self.look_yaw = pose.yaw
+        limit = 2.0 * (2.0 * math.pi / self.params.look_speed) + 5.0
+        if self.look_turned < 2.0 * math.pi - 0.05 and now - self.look_started < limit:
+            robot.drive(0.0, self.params.look_speed)
+            return self.running(f"looking around: {math.degrees(self.look_turned):.0f} deg")
+        robot.drive(0.0, 0.0)
+        self.cover_state = "select"
+        # what the camera still has not seen within reach of here is hidden from the floor: given up
+        r = self.coverage.view_range
+        hidden = {
+            k
+            for k in self.coverage.unseen(grid, (pose.x, pose.y))
+            if math.hypot(
+                (k[0] + 0.5) * self.coverage.cell - pose.x, (k[1] + 0.5) * self.coverage.cell - pose.y
+            )
+            <= r
+        }
+        self.coverage.skip(hidden)
+        target = self.coverage.key(*self.cover_goal.target)
+        if target not in self.coverage.seen:
+            self.coverage.skip({target})
+        return self.running("looked around")
+
+    def _give_up_view(self, grid: OccupancyGrid, pose: Pose2D, why: str) -> Status:
+        """The place to look from was not reached: the unseen cells near its patch's centre are given up."""
+        assert self.coverage is not None and self.cover_goal is not None
+        goal = self.cover_goal
+        near = {
+            k
+            for k in self.coverage.unseen(grid, (pose.x, pose.y))
+            if math.hypot(
+                (k[0] + 0.5) * self.coverage.cell - goal.target[0],
+                (k[1] + 0.5) * self.coverage.cell - goal.target[1],
+            )
+            <= self.coverage.view_range / 2.0
+        }
+        self.coverage.skip(near | {self.coverage.key(*goal.target)})
+        self.cover_skipped += 1
+        self.cover_state = "select"
+        self.emit("search_view_given_up", x=round(goal.x, 3), y=round(goal.y, 3), reason=why)
+        return self.running(f"gave up a place to look from ({why})")
 
     def _found(self, found: dict[str, Any]) -> Status:
         if found.pop("again", False):
@@ -480,6 +670,15 @@ class Locate(ResumeExplore):
         shown = "; ".join(f"{e.get('id')}: {e.get('reason', '')}" for e in tried[:4])
         grid = self.last_grid
         known = f", {self.summary(grid)}" if grid is not None and self.planner is not None else ""
+        stamped = self.context.robot.pose()
+        if (
+            grid is not None
+            and stamped is not None
+            and self.coverage is not None
+            and self.params.view_coverage
+        ):
+            seen, floor = self.coverage.seen_share(grid, (stamped.pose.x, stamped.pose.y))
+            known += f"; the camera looked at {seen:.0f} of {floor:.0f} m^2 of reachable floor"
         return self.fail(
             f"not found: no {self.goal.text} in the reachable space explored{known}"
             + (f" ({len(tried)} candidates rejected: {shown})" if tried else "")

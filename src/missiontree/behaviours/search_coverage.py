@@ -1,0 +1,212 @@
+"""What the camera has looked at, and where to go to look at the rest (the search's view coverage).
+
+The lidar maps a large floor long before the camera has looked at it: on a 30 x 15 m depot the
+frontiers ran out after 200 s with most of the floor never within the detector's range of the
+camera, and a red backpack 4-5 m off the path was never detected. So the search keeps
+:class:`ViewCoverage`: the floor cells (``cell`` m squares in map coordinates, so a growing map
+does not move them) that a camera frame had in its field of view within ``view_range``, rays
+stopped by occupied cells. Once no frontier is left, :func:`view_goals` gives places from which
+the unseen reachable floor can be looked at, biggest unseen patch per metre of path first; a
+target is reported absent only when the camera has looked at all of it (or what is left could not
+be reached).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from missiontree.mapping.grid import free_mask, occupied_mask
+from missiontree.types import OccupancyGrid, Pose2D
+
+#: path_lengths(grid, start, goals, radius) -> metres or None per goal (the exploration planner's).
+PathLengths = Callable[
+    [OccupancyGrid, tuple[float, float], Sequence[tuple[float, float]], float], list[float | None]
+]
+
+
+@dataclass(frozen=True)
+class ViewGoal:
+    """A place to look from: the goal (x, y), the unseen patch's centre and area, the path to it."""
+
+    x: float
+    y: float
+    target: tuple[float, float]
+    area_m2: float
+    path_m: float
+    score: float
+
+
+class ViewCoverage:
+    """The floor the camera has looked at, in square cells of ``cell`` m on the map's axes.
+
+    Args:
+        view_range: How far (m) the camera counts as having looked: the range at which the detector
+            still finds the small objects searched for.
+        cell: Side of a coverage cell (m).
+    """
+
+    def __init__(self, view_range: float = 3.0, cell: float = 0.25) -> None:
+        self.view_range = view_range
+        self.cell = cell
+        self.seen: set[tuple[int, int]] = set()
+        self.skipped: set[tuple[int, int]] = set()
+
+    def key(self, x: float, y: float) -> tuple[int, int]:
+        """The coverage cell holding (x, y)."""
+        return math.floor(x / self.cell), math.floor(y / self.cell)
+
+    def add_view(self, grid: OccupancyGrid, pose: Pose2D, hfov: float) -> int:
+        """Mark what a camera at ``pose`` with ``hfov`` (rad) sees of the floor; the cells newly seen.
+
+        Rays (spaced at most half a cell apart at ``view_range``) go out in grid steps and stop at the
+        first occupied cell (that cell is seen, what is behind it is not).
+        """
+        res = grid.resolution
+        n_rays = max(2, int(math.ceil(hfov * self.view_range / (self.cell / 2.0))) + 1)
+        n_steps = max(1, int(math.ceil(self.view_range / res)))
+        angles = pose.yaw + np.linspace(-hfov / 2.0, hfov / 2.0, n_rays)
+        dist = (np.arange(1, n_steps + 1) * res)[None, :]
+        xs = pose.x + np.cos(angles)[:, None] * dist
+        ys = pose.y + np.sin(angles)[:, None] * dist
+        rows = np.floor((ys - grid.origin.y) / res).astype(int)
+        cols = np.floor((xs - grid.origin.x) / res).astype(int)
+        h, w = grid.data.shape
+        inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        blocked = np.zeros_like(inside)
+        occ = occupied_mask(grid)
+        blocked[inside] = occ[rows[inside], cols[inside]]
+        # everything up to and including the first occupied cell (or the map's edge) of each ray
+        stop = np.cumsum(blocked | ~inside, axis=1)
+        visible = (stop == 0) | ((stop == 1) & blocked)
+        kx = np.floor(xs[visible] / self.cell).astype(int)
+        ky = np.floor(ys[visible] / self.cell).astype(int)
+        before = len(self.seen)
+        self.seen.update(zip(kx.tolist(), ky.tolist(), strict=True))
+        return len(self.seen) - before
+
+    def floor(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> set[tuple[int, int]]:
+        """The coverage cells of the free floor connected to the robot (most of the cell known free)."""
+        free = free_mask(grid)
+        n, labels = cv2.connectedComponents(free.astype(np.uint8), connectivity=8)
+        r0, c0 = grid.world_to_cell(*robot_xy)
+        h, w = free.shape
+        if not (0 <= r0 < h and 0 <= c0 < w) or n <= 1:
+            return set()
+        own = labels[r0, c0]
+        if own == 0:  # the robot's own cell is not free on the map: the free component nearest to it
+            rr, cc = np.nonzero(labels > 0)
+            if not len(rr):
+                return set()
+            j = int(np.argmin((rr - r0) ** 2 + (cc - c0) ** 2))
+            own = labels[rr[j], cc[j]]
+        rr, cc = np.nonzero(labels == own)
+        xs = grid.origin.x + (cc + 0.5) * grid.resolution
+        ys = grid.origin.y + (rr + 0.5) * grid.resolution
+        kx = np.floor(xs / self.cell).astype(int)
+        ky = np.floor(ys / self.cell).astype(int)
+        keys, counts = np.unique(np.stack([kx, ky], axis=1), axis=0, return_counts=True)
+        per_cell = (self.cell / grid.resolution) ** 2
+        return {(int(k[0]), int(k[1])) for k, c in zip(keys, counts, strict=True) if c >= 0.5 * per_cell}
+
+    def unseen(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> set[tuple[int, int]]:
+        """The reachable floor's cells the camera has not looked at (and not given up)."""
+        return self.floor(grid, robot_xy) - self.seen - self.skipped
+
+    def seen_share(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> tuple[float, float]:
+        """(m^2 of the reachable floor looked at, m^2 of that floor)."""
+        floor = self.floor(grid, robot_xy)
+        a = self.cell * self.cell
+        return len(floor & self.seen) * a, len(floor) * a
+
+    def skip(self, cells: set[tuple[int, int]]) -> None:
+        """Give up looking at ``cells`` (no place to look from was reached)."""
+        self.skipped |= cells
+
+
+def unseen_patches(
+    coverage: ViewCoverage, cells: set[tuple[int, int]], min_cells: int
+) -> list[set[tuple[int, int]]]:
+    """The unseen cells in 8-connected patches of at least ``min_cells`` cells, largest first."""
+    if not cells:
+        return []
+    keys = np.array(sorted(cells))
+    x0, y0 = keys.min(axis=0)
+    shape = tuple(keys.max(axis=0) - (x0, y0) + 1)
+    img = np.zeros((int(shape[0]), int(shape[1])), np.uint8)
+    img[keys[:, 0] - x0, keys[:, 1] - y0] = 1
+    n, labels = cv2.connectedComponents(img, connectivity=8)
+    patches: list[set[tuple[int, int]]] = []
+    for k in range(1, n):
+        xs, ys = np.nonzero(labels == k)
+        if len(xs) >= min_cells:
+            patches.append({(int(a + x0), int(b + y0)) for a, b in zip(xs, ys, strict=True)})
+    return sorted(patches, key=len, reverse=True)
+
+
+def view_goals(
+    coverage: ViewCoverage,
+    grid: OccupancyGrid,
+    robot_xy: tuple[float, float],
+    path_lengths: PathLengths,
+    robot_radius: float,
+    *,
+    room: float = 0.35,
+    min_area_m2: float = 0.5,
+    cost_rate: float = 0.15,
+    max_patches: int = 8,
+) -> tuple[list[ViewGoal], list[set[tuple[int, int]]]]:
+    """Places to look at the unseen floor from, best first; and the patches none of whose goals is reachable.
+
+    Each patch of unseen floor (at least ``min_area_m2``) gets a goal: the free cell with ``room`` m of
+    clearance nearest the patch's cell nearest its centroid, at most ``view_range`` / 2 from it.
+    Scored area / (1 + cost_rate x path length) on the planner's path (a patch too big for one look
+    is cut to the cells within ``view_range`` of its goal by the next choice).
+    """
+    cells = coverage.unseen(grid, robot_xy)
+    per = coverage.cell * coverage.cell
+    patches = unseen_patches(coverage, cells, max(1, int(math.ceil(min_area_m2 / per))))[:max_patches]
+    if not patches:
+        return [], []
+    res = grid.resolution
+    occupied = occupied_mask(grid)
+    clear = cv2.distanceTransform((~occupied).astype(np.uint8), cv2.DIST_L2, 5) * res
+    ok = free_mask(grid) & (clear >= room)
+    rr, cc = np.nonzero(ok)
+    if not len(rr):
+        return [], patches
+    wx = grid.origin.x + (cc + 0.5) * res
+    wy = grid.origin.y + (rr + 0.5) * res
+    goals: list[tuple[tuple[float, float], tuple[float, float], set[tuple[int, int]]]] = []
+    unplaced: list[set[tuple[int, int]]] = []
+    reach = coverage.view_range / 2.0
+    for patch in patches:
+        pts = (np.array(sorted(patch), dtype=float) + 0.5) * coverage.cell
+        centre = pts.mean(axis=0)
+        anchor = pts[int(np.argmin(((pts - centre) ** 2).sum(axis=1)))]
+        d2 = (wx - anchor[0]) ** 2 + (wy - anchor[1]) ** 2
+        j = int(np.argmin(d2))
+        if d2[j] > reach * reach:
+            unplaced.append(patch)
+            continue
+        goals.append(((float(wx[j]), float(wy[j])), (float(anchor[0]), float(anchor[1])), patch))
+    lengths = path_lengths(grid, robot_xy, [g[0] for g in goals], robot_radius) if goals else []
+    out: list[ViewGoal] = []
+    for (xy, target, patch), length in zip(goals, lengths, strict=True):
+        if length is None:
+            unplaced.append(patch)
+            continue
+        area = len(patch) * per
+        out.append(ViewGoal(xy[0], xy[1], target, area, float(length), area / (1.0 + cost_rate * length)))
+    return sorted(out, key=lambda g: -g.score), unplaced
+
+
+def straight_lengths(
+    grid: OccupancyGrid, start: tuple[float, float], goals: Sequence[tuple[float, float]], radius: float
+) -> list[float | None]:
+    """Straight-line distances to ``goals`` (every one counts as reachable): for tests and quick looks."""
+    return [math.hypot(g[0] - start[0], g[1] - start[1]) for g in goals]

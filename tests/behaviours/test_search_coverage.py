@@ -1,0 +1,103 @@
+"""The search's view coverage: what the camera looked at, and going to look at the rest before 'not found'."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from patrol_doubles import Events, FakeHandle, FakeRobot
+
+from missiontree.behaviours.search_coverage import ViewCoverage, straight_lengths, view_goals
+from missiontree.behaviours.search_locate import Locate
+from missiontree.engine.context import MissionContext
+from missiontree.engine.leaf import Status
+from missiontree.robot.actions import ActionStatus
+from missiontree.types import CameraIntrinsics, OccupancyGrid, Pose2D, RGBDFrame, Tolerance
+
+RES = 0.05
+K = CameraIntrinsics(64, 48, 40.0, 40.0, 32.0, 24.0)  # about 77 degrees across
+
+
+def hall(length: float = 9.0, width: float = 2.0) -> np.ndarray:
+    """A closed hall ``length`` x ``width`` m, all of it known: walls round a free floor."""
+    data = np.zeros((int(width / RES), int(length / RES)), np.int8)
+    data[0, :] = data[-1, :] = 100
+    data[:, 0] = data[:, -1] = 100
+    return data
+
+
+def grid_of(data: np.ndarray) -> OccupancyGrid:
+    return OccupancyGrid(0.0, RES, Pose2D(0.0, 0.0), data)
+
+
+class CameraRobot(FakeRobot):
+    """A robot on a known map that reaches every goal at once and sends a frame from where it stands."""
+
+    def __init__(self, data: np.ndarray, start: Pose2D) -> None:
+        super().__init__()
+        self.data = data
+        self.set_pose(start)
+
+    def occupancy(self) -> OccupancyGrid | None:  # type: ignore[override]
+        return OccupancyGrid(self.time, RES, Pose2D(0.0, 0.0), self.data.copy())
+
+    def rgbd(self) -> RGBDFrame | None:
+        image = np.zeros((K.height, K.width, 3), np.uint8)
+        return RGBDFrame(self.time, image, np.ones((K.height, K.width), np.float32), K, self.current)
+
+    def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> FakeHandle:
+        self.set_pose(goal)
+        handle = FakeHandle(goal, tolerance, ActionStatus.SUCCEEDED, "", 1)
+        self.goals.append(handle)
+        return handle
+
+
+class Detector:
+    """Only its class list is read (the target phrase against the detector's classes)."""
+
+    labels = ["backpack", "bottle"]
+
+
+def test_the_camera_sees_up_to_the_first_wall_and_within_its_range() -> None:
+    """Cells in the field of view up to view_range are seen; behind the robot and past a wall they are not."""
+    data = hall()
+    data[:, 60] = 100  # a wall across the hall at x = 3 m
+    cov = ViewCoverage(view_range=4.0, cell=0.25)
+    cov.add_view(grid_of(data), Pose2D(1.5, 1.0, 0.0), K.hfov)
+    assert cov.key(2.5, 1.0) in cov.seen
+    assert cov.key(3.0, 1.0) in cov.seen  # the wall itself
+    assert cov.key(3.6, 1.0) not in cov.seen  # behind it
+    assert cov.key(0.6, 1.0) not in cov.seen  # behind the camera
+
+
+def test_view_goals_lead_to_the_unseen_floor_and_end_when_all_is_seen() -> None:
+    """The goal lies toward the part of the floor not looked at; none once the whole floor was seen."""
+    grid = grid_of(hall())
+    cov = ViewCoverage(view_range=3.0)
+    cov.add_view(grid, Pose2D(1.0, 1.0, math.pi), K.hfov)  # looking at the west wall
+    goals, _ = view_goals(cov, grid, (1.0, 1.0), straight_lengths, 0.17)
+    assert goals and goals[0].x > 2.5
+    for x in np.arange(0.5, 9.0, 1.0):
+        for yaw in np.linspace(-math.pi, math.pi, 8, endpoint=False):
+            cov.add_view(grid, Pose2D(float(x), 1.0, float(yaw)), K.hfov)
+    goals, _ = view_goals(cov, grid, (1.0, 1.0), straight_lengths, 0.17)
+    assert goals == []
+
+
+def test_with_no_frontier_left_the_search_looks_at_the_unseen_floor_before_not_found() -> None:
+    """A hall mapped whole, a metre of it seen by the camera: view goals first, then 'not found'."""
+    robot = CameraRobot(hall(), Pose2D(1.0, 1.0, math.pi))
+    events = Events()
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+    models = {"detector": Detector()}
+    leaf.setup(context=MissionContext(robot=robot, events=events, models=models))  # type: ignore[arg-type]
+    for _ in range(3000):
+        leaf.tick_once()
+        if leaf.status in (Status.SUCCESS, Status.FAILURE):
+            break
+        robot.advance(0.1)
+    assert leaf.status == Status.FAILURE
+    assert events.of("search_view_goal"), "went nowhere to look"
+    assert "not found" in leaf.feedback_message and "the camera looked at" in leaf.feedback_message
+    covered = events.of("search_covered")[-1]
+    assert covered["seen_m2"] >= 0.9 * covered["floor_m2"]
