@@ -1,16 +1,27 @@
 """Object search: ours (trees/find_object.yaml) against the vision-language object-search report's method.
 
-    python benchmarks/search_eval.py               # 50 worlds with the target + 10 without
-    python benchmarks/search_eval.py --quick       # 6 + 2 (tractable on a loaded 2-core machine)
-    python benchmarks/search_eval.py --workers 2   # two missions at once (one of each method)
+    python benchmarks/search_eval.py                   # both splits: dev 50 + 10 absent, test 20 + 5
+    python benchmarks/search_eval.py --split dev       # tuning: the dev split only
+    python benchmarks/search_eval.py --split test      # reporting: the held-out split, once a change is done
+    python benchmarks/search_eval.py --quick           # dev 6 + 2, test 6 + 2 (a loaded 2-core machine)
+    python benchmarks/search_eval.py --workers 2       # two missions at once
 
-Worlds. Apartments from :mod:`missiontree.backends.sim.generator` (4 rooms, no people), edited here
-for the search (benchmark-side world editing, the generator is untouched): a target (class and
-colour, e.g. "red backpack") is chosen per world among the small objects; decoys of both kinds are
-made sure of — an object of the same class in another colour and one of the same colour in another
-class (the generated furnishings already hold some; missing ones are made by recolouring another
-small object); any second object matching the target is recoloured, so exactly one is right. In the
-``absent`` cases the target itself is recoloured into one more decoy: nothing matches.
+Splits. ``dev`` (what the search is tuned on): apartments from
+:mod:`missiontree.backends.sim.generator` (4 rooms, no people), seeds from ``--first-seed`` (100).
+``test`` (nobody tunes on it; report it once at the end of a change): the worlds of
+:func:`missiontree.evaluation.splits.split_worlds` ("test") -- a second generator family (long
+corridors with many 0.8-0.9 m doors, L and T corridors, open plan, rooms off rooms, clutter near
+doors, warehouse floors) and real SLAM maps with objects placed by a placement generator. The test
+figures are printed with 95 % Wilson intervals, beside dev's, with the dev - test gap.
+
+Worlds are edited here for the search (benchmark-side editing; the generators are untouched), the
+same way on both splits: a target (class and colour, e.g. "red backpack") is chosen per world among
+the small objects (those the generator describes, or any object under 0.6 m across and 1 m high);
+when no small object is of a target class, one is made into one. Decoys of both kinds are made sure
+of -- an object of the same class in another colour and one of the same colour in another class
+(missing ones are made by recolouring or relabelling another small object); any second object
+matching the target is recoloured, so exactly one is right. In the ``absent`` cases the target itself
+is recoloured into one more decoy: nothing matches. A world without a small object is skipped (counted).
 
 Methods, each through the batch runner (:func:`missiontree.evaluation.run_batch`, a probe reading the
 true final pose in the worker) with its mission's own ``run:`` section (map mode included), the worlds
@@ -22,7 +33,10 @@ in chunks run by one method then the other, alternating which goes first:
 - ``report``: ``trees/examples/report_search.yaml`` on the known map (the report localises with AMCL
   on a map SLAM built beforehand, so its scan points cover the whole place from the start): scan
   points with 360-degree scans, colour trigger, box-area approach steps, whole-frame VLM check,
-  rounds without memory. The known map is a head start for the reference, not for ours.
+  rounds without memory. The known map is a head start for the reference, not for ours. By default
+  the reference runs on dev only (``--reference dev``): on the test split's large floors its
+  rounds without memory take most of the time limit, and it is not what the issue's targets are on;
+  ``--reference both`` runs it on both.
 
 Scoring reads the simulator's ground truth after the run (never the leaves): a run *finds* the
 target when it ends SUCCESS with the robot within ``REACH`` m of the target's footprint and facing
@@ -30,8 +44,10 @@ it (bearing error under ``FACING_DEG``). A *false found* is a SUCCESS anywhere e
 in an absent case); ``false_found_wrong_object`` counts those where the target was not even in view
 (farther than ``VIEW_RANGE`` or outside the camera's half field of view): another object was taken
 for it. The time comparison is also given paired: ours / report on the cases both found.
-An absent case is *correct* when the run ends FAILURE by the tree's own verdict
-(not the time limit). Time to find is robot-clock seconds of the successful runs. Last line: JSON.
+An absent case is *correct* when the run ends FAILURE by the tree's own verdict (not the time
+limit) with a reason ("not found: ..."). Time to find is robot-clock seconds of the successful runs.
+The time limit is ``--max-duration`` (600 s on dev; on test the mission's own 900 s, as its floors
+are up to 30 x 50 m). Last line: JSON, ``{"dev": {...}, "test": {...}, "gap": {...}}``.
 """
 
 from __future__ import annotations
@@ -73,6 +89,17 @@ FACING_DEG = 30.0
 VIEW_RANGE, HALF_FOV_DEG = 3.0, 35.0
 
 
+#: Size and shape of a target class, for a small object made into one (the generator's).
+CLASS_SHAPES = {
+    "backpack": ([0.32, 0.22, 0.45], "box"),
+    "bottle": ([0.08, 0.08, 0.3], "cylinder"),
+    "umbrella": ([0.1, 0.1, 0.9], "cylinder"),
+}
+#: An object this small across (m) and this low (m) may be a target or a decoy.
+SMALL_ACROSS, SMALL_HEIGHT = 0.6, 1.0
+SPLITS = ("dev", "test")
+
+
 @dataclass
 class Case:
     """One world and what is searched in it."""
@@ -83,6 +110,8 @@ class Case:
     colour: str
     absent: bool
     target_id: str = ""
+    split: str = "dev"
+    world: str = ""
 
     @property
     def target(self) -> str:
@@ -99,6 +128,7 @@ class Trial:
     seed: int
     target: str
     absent: bool
+    split: str = "dev"
     status: str = ""
     stopped_by: str = ""
     reason: str = ""
@@ -113,45 +143,110 @@ class Trial:
     absent_correct: bool = False
 
 
-def make_case(index: int, seed: int, absent: bool, folder: Path) -> tuple[Case, Path]:
-    """Generate, edit and write the world of one case; return the case and the world file."""
-    from missiontree.backends.sim.generator import generate_world
+def small_objects(objects: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The objects a target or decoy may be: described by the generator, or small and movable."""
+    out = []
+    for o in objects:
+        size = [float(v) for v in o.get("size", [1.0, 1.0, 1.0])]
+        small = max(size[:2]) <= SMALL_ACROSS and size[2] <= SMALL_HEIGHT and o.get("movable", True)
+        if "description" in o or small:
+            out.append(o)
+    return out
 
-    data = generate_world(seed, rooms=4, people=0)
-    objects = data["objects"]
-    small = [o for o in objects if "description" in o]
+
+def edit_world(data: dict[str, Any], seed: int, absent: bool) -> tuple[str, str, str]:
+    """Edit a world's objects for one search (in place); return (label, colour, target id).
+
+    Works on any world of the generator's format (dev apartments, the test split's placed objects).
+
+    Raises:
+        ValueError: The world has no small object to search for.
+    """
+    objects = data.setdefault("objects", [])
+    small = small_objects(objects)
+    if not small:
+        raise ValueError(f"{data.get('name', '?')}: no small object to search for")
     rng = np.random.default_rng(seed + 7919)
     options = [t for t in TARGETS if any(o["label"] == t[0] for o in small)]
+    if not options:  # no object of a target class: one small object becomes one
+        label, colour = TARGETS[int(rng.integers(len(TARGETS)))]
+        _relabel(small[int(rng.integers(len(small)))], label, colour)
+        options = [(label, colour)]
     label, colour = options[int(rng.integers(len(options)))]
     same_class = [o for o in small if o["label"] == label]
-    target = next((o for o in same_class if o["color"] == colour), same_class[0])
+    target = next((o for o in same_class if o.get("color") == colour), same_class[0])
     target["color"] = colour
     for o in same_class:  # exactly one right object
-        if o is not target and o["color"] == colour:
+        if o is not target and o.get("color") == colour:
             o["color"] = next(c for c in PALETTE if c != colour)
     others = [o for o in small if o["label"] != label]
     if len(same_class) < 2 and others:  # a same-class decoy: another small object becomes one
         decoy = others.pop(int(rng.integers(len(others))))
-        decoy.update(
-            label=label,
-            color=next(c for c in PALETTE if c != colour),
-            size=list(target["size"]),
-            shape=target.get("shape", "box"),
-        )
-    if not any(o["color"] == colour for o in others) and others:  # a same-colour decoy of another class
+        _relabel(decoy, label, next(c for c in PALETTE if c != colour), like=target)
+    if not any(o.get("color") == colour for o in others) and others:  # same colour, another class
         others[int(rng.integers(len(others)))]["color"] = colour
-    if absent:
-        target["color"] = next(
-            c
-            for c in PALETTE
-            if c != colour and not any(o["color"] == c and o["label"] == label for o in same_class)
-        )
+    # any object outside the small ones that matches the target is recoloured too
+    for o in objects:
+        if o is not target and o["label"] == label and o.get("color") == colour:
+            o["color"] = next(c for c in PALETTE if c != colour)
+    if absent:  # another colour, one no object of the class has when there is one
+        unused = [c for c in PALETTE if c != colour and not any(o.get("color") == c for o in same_class)]
+        target["color"] = unused[0] if unused else next(c for c in PALETTE if c != colour)
     for o in small:
-        o["description"] = f"a {o['color']} {o['label']}"
-    case = Case(index, seed, label, colour, absent, target_id=target["id"])
-    path = folder / f"world_{index:03d}.yaml"
+        o["description"] = f"a {o.get('color', '')} {o['label']}".replace("  ", " ")
+    return label, colour, str(target["id"])
+
+
+def _relabel(obj: dict[str, Any], label: str, colour: str, like: dict[str, Any] | None = None) -> None:
+    """Make ``obj`` an object of ``label`` in ``colour``, sized like ``like`` or the class's usual size."""
+    size, shape = CLASS_SHAPES.get(label, ([0.3, 0.3, 0.4], "box"))
+    if like is not None:
+        size, shape = list(like["size"]), like.get("shape", shape)
+    obj.update(label=label, color=colour, size=list(size), shape=shape)
+
+
+def make_case(index: int, seed: int, absent: bool, folder: Path) -> tuple[Case, Path]:
+    """A dev case: generate, edit and write the apartment of ``seed``; return the case and its file."""
+    from missiontree.backends.sim.generator import generate_world
+
+    data = generate_world(seed, rooms=4, people=0)
+    label, colour, target_id = edit_world(data, seed, absent)
+    case = Case(index, seed, label, colour, absent, target_id, "dev", f"generated:{seed}")
+    path = folder / f"dev_{index:03d}.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return case, path
+
+
+def held_out_cases(
+    n_present: int, n_absent: int, first_seed: int, folder: Path
+) -> tuple[list[tuple[Case, Path]], list[str]]:
+    """The test split's cases (the splits API's held-out worlds, edited) and the worlds skipped."""
+    import copy
+    from dataclasses import replace
+
+    from missiontree.evaluation.splits import split_worlds, write_split_world
+
+    n = n_present + n_absent
+    worlds = split_worlds("test", n + 4, first_seed=first_seed, people=False, min_objects=3)
+    cases: list[tuple[Case, Path]] = []
+    skipped: list[str] = []
+    for world in worlds:
+        if len(cases) >= n:
+            break
+        index = len(cases)
+        absent = index >= n_present
+        data = copy.deepcopy(world.data)
+        seed = first_seed + index
+        try:
+            label, colour, target_id = edit_world(data, seed, absent)
+        except ValueError as error:
+            skipped.append(f"{world.name}: {error}")
+            continue
+        sub = folder / f"test_{index:03d}"
+        sub.mkdir(parents=True, exist_ok=True)
+        path = write_split_world(replace(world, data=data), sub)
+        cases.append((Case(index, seed, label, colour, absent, target_id, "test", world.name), path))
+    return cases, skipped
 
 
 class SearchProbe:
@@ -257,25 +352,33 @@ def _reason(log: str) -> str:
 
 
 def summarise(trials: list[Trial], method: str) -> dict[str, Any]:
-    """Rates and medians of one method's trials."""
+    """Rates (with 95 % Wilson intervals) and medians of one method's trials."""
+    from missiontree.evaluation.report import wilson
+
     mine = [t for t in trials if t.method == method]
     present = [t for t in mine if not t.absent]
     absent = [t for t in mine if t.absent]
     found = [t for t in present if t.found]
     times = sorted(t.sim_s for t in found)
     claimed = [t for t in present if t.status == "SUCCESS"]
+    n_ok = sum(t.absent_correct for t in absent)
 
     def med(values: list[float]) -> float | None:
         return round(statistics.median(values), 3) if values else None
 
+    def ci(k: int, n: int) -> list[float] | None:
+        return [round(v, 4) for v in wilson(k, n)] if n else None
+
     return {
         "runs": len(mine),
+        "present": len(present),
+        "absent": len(absent),
         "success_rate": round(len(found) / len(present), 4) if present else None,
+        "success_ci95": ci(len(found), len(present)),
         "false_found": sum(t.false_found for t in mine),
         "false_found_wrong_object": sum(t.wrong_object for t in mine),
-        "absent_correct_rate": round(sum(t.absent_correct for t in absent) / len(absent), 4)
-        if absent
-        else None,
+        "absent_correct_rate": round(n_ok / len(absent), 4) if absent else None,
+        "absent_correct_ci95": ci(n_ok, len(absent)),
         "time_to_find_s_median": med(times),
         "time_to_find_s_p90": round(float(np.percentile(times, 90)), 3) if times else None,
         "path_length_m_median": med([t.path_m for t in found]),
@@ -304,78 +407,199 @@ def paired_ratios(trials: list[Trial]) -> dict[str, Any]:
     }
 
 
+#: Figures whose dev - test gap is reported (rates; the issue's targets are on test).
+GAP_KEYS = ("success_rate", "absent_correct_rate")
+
+
+def gaps(dev: dict[str, Any], test: dict[str, Any]) -> dict[str, Any]:
+    """Dev - test of ours' rates (positive: test is worse), and test / dev of the median time."""
+    out: dict[str, Any] = {}
+    d, t = dev.get("ours", {}), test.get("ours", {})
+    for key in GAP_KEYS:
+        if d.get(key) is not None and t.get(key) is not None:
+            out[key] = round(d[key] - t[key], 4)
+    if d.get("time_to_find_s_median") and t.get("time_to_find_s_median"):
+        out["time_to_find_ratio_test_vs_dev"] = round(
+            t["time_to_find_s_median"] / d["time_to_find_s_median"], 3
+        )
+    return out
+
+
+def markdown_table(results: dict[str, Any]) -> str:
+    """A short markdown table of ours (and the reference where run) per split."""
+
+    def rate(s: dict[str, Any], key: str) -> str:
+        value, ci = s.get(key), s.get(key.replace("_rate", "_ci95"))
+        if value is None:
+            return "-"
+        return f"{value:.3f} [{ci[0]:.2f}, {ci[1]:.2f}]" if ci else f"{value:.3f}"
+
+    lines = [
+        "| split | method | runs | success [95 % CI] | false found | absent reported [95 % CI] "
+        "| time to find (median s) | timeouts |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for split in SPLITS:
+        for method in MISSIONS:
+            s = results.get(split, {}).get(method)
+            if not s or not s.get("runs"):
+                continue
+            lines.append(
+                f"| {split} | {method} | {s['present']} + {s['absent']} absent | "
+                f"{rate(s, 'success_rate')} | {s['false_found']} | {rate(s, 'absent_correct_rate')} | "
+                f"{s['time_to_find_s_median']} | {s['timeouts']} |"
+            )
+    gap = results.get("gap") or {}
+    if gap:
+        lines.append("")
+        lines.append("dev - test gap (ours): " + ", ".join(f"{k} {v}" for k, v in gap.items()))
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     from missiontree.backends.sim import load_world
-    from missiontree.evaluation import PoolEngine, SerialEngine
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="6 worlds with the target + 2 without")
-    parser.add_argument("--worlds", type=int, default=None, help="worlds with the target (default 50)")
-    parser.add_argument("--absent", type=int, default=None, help="worlds without it (default 10)")
-    parser.add_argument("--max-duration", type=float, default=None, help="robot seconds per mission")
+    parser.add_argument("--split", choices=["dev", "test", "both"], default="both")
+    parser.add_argument("--quick", action="store_true", help="6 worlds with the target + 2 without, a split")
+    parser.add_argument("--worlds", type=int, default=None, help="dev worlds with the target (default 50)")
+    parser.add_argument("--absent", type=int, default=None, help="dev worlds without it (default 10)")
+    parser.add_argument("--test-worlds", type=int, default=None, help="test worlds with the target (20)")
+    parser.add_argument("--test-absent", type=int, default=None, help="test worlds without it (default 5)")
+    parser.add_argument("--max-duration", type=float, default=None, help="robot s a mission (dev 600)")
+    parser.add_argument("--test-max-duration", type=float, default=900.0, help="robot s a test mission")
     parser.add_argument("--workers", type=int, default=1, help="missions run at once")
-    parser.add_argument("--first-seed", type=int, default=100)
+    parser.add_argument("--first-seed", type=int, default=100, help="dev: the first generator seed")
+    parser.add_argument("--test-first-seed", type=int, default=0, help="test: the splits API's first seed")
+    parser.add_argument(
+        "--reference",
+        choices=["dev", "test", "both", "none"],
+        default="dev",
+        help="splits the report's method runs on (dev: the test floors take it most of the limit)",
+    )
     args = parser.parse_args(argv)
-    n_present = args.worlds if args.worlds is not None else (6 if args.quick else 50)
-    n_absent = args.absent if args.absent is not None else (2 if args.quick else 10)
-    max_duration = args.max_duration or 600.0
+    splits = list(SPLITS) if args.split == "both" else [args.split]
+    counts = {
+        "dev": (
+            args.worlds if args.worlds is not None else (6 if args.quick else 50),
+            args.absent if args.absent is not None else (2 if args.quick else 10),
+        ),
+        "test": (
+            args.test_worlds if args.test_worlds is not None else (6 if args.quick else 20),
+            args.test_absent if args.test_absent is not None else (2 if args.quick else 5),
+        ),
+    }
+    limits = {"dev": args.max_duration or 600.0, "test": args.test_max_duration}
     trials: list[Trial] = []
+    results: dict[str, Any] = {}
+    started = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp)
-        n = n_present + n_absent
-        cases = [make_case(i, args.first_seed + i, i >= n_present, folder) for i in range(n)]
-        by_path = {str(path): case for case, path in cases}
-        worlds = {case.index: load_world(path) for case, path in cases}
-        lock = threading.Lock()
-
-        def report(method: str, record: Any) -> None:  # printed as they come
-            case = by_path[str(record.world)]
-            t = score(Trial(method, case.index, case.seed, case.target, case.absent), case,
-                      worlds[case.index], record)
-            with lock:
-                trials.append(t)
+        for split in splits:
+            folder = Path(tmp) / split
+            folder.mkdir()
+            n_present, n_absent = counts[split]
+            skipped: list[str] = []
+            if split == "dev":
+                n = n_present + n_absent
+                cases = [make_case(i, args.first_seed + i, i >= n_present, folder) for i in range(n)]
+            else:
+                cases, skipped = held_out_cases(n_present, n_absent, args.test_first_seed, folder)
+            for line in skipped:
+                print(f"{split}: skipped {line}", flush=True)
+            methods = ["ours"] + (["report"] if args.reference in (split, "both") else [])
+            mine = run_split(split, cases, methods, args.workers, folder, limits[split], load_world)
+            trials += mine
+            results[split] = {
+                "worlds": sum(not c.absent for c, _ in cases),
+                "absent_cases": sum(c.absent for c, _ in cases),
+                "skipped": len(skipped),
+                "max_duration_s": limits[split],
+                "families": sorted({c.world.split(":")[0] for c, _ in cases}),
+            }
+            for method in methods:
+                results[split][method] = summarise(mine, method)
+                s = results[split][method]
                 print(
-                    f"{t.method:6s} case {t.case:3d} {'absent ' if t.absent else ''}{t.target:16s} "
-                    f"{t.status:8s} {t.stopped_by:8s} {t.sim_s:6.1f} s  d={t.distance_m:5.2f} m  "
-                    f"bearing={t.bearing_deg:5.1f}  found={t.found!s:5s} false={t.false_found!s:5s}  "
-                    f"{t.reason[:90]}",
+                    f"{split} {method}: success {s['success_rate']} {s['success_ci95']}, false found "
+                    f"{s['false_found']}, absent correct {s['absent_correct_rate']} "
+                    f"{s['absent_correct_ci95']}, time to find median {s['time_to_find_s_median']} s "
+                    f"(p90 {s['time_to_find_s_p90']}), path {s['path_length_m_median']} m, final "
+                    f"distance {s['final_distance_error_m_median']} m, bearing "
+                    f"{s['final_bearing_error_deg_median']} deg",
                     flush=True,
                 )
-
-        started = time.perf_counter()
-        # the worlds in chunks, each run by one method then the other (which goes first alternates),
-        # every chunk on the batch runner with all the workers
-        size = 2 * max(1, args.workers)
-        engines = {m: PoolEngine(args.workers) if args.workers > 1 else SerialEngine() for m in MISSIONS}
-        with engines["ours"], engines["report"]:
-            for k, at in enumerate(range(0, n, size)):
-                chunk = cases[at : at + size]
-                for m in ("ours", "report") if k % 2 == 0 else ("report", "ours"):
-                    run_chunk(m, chunk, engines[m], folder, max_duration, report)
-        wall = time.perf_counter() - started
-    out: dict[str, Any] = {
-        "worlds": n_present,
-        "absent_cases": n_absent,
-        "max_duration_s": max_duration,
-        "wall_s": round(wall, 1),
-    }
-    for method in ("ours", "report"):
-        out[method] = summarise(trials, method)
-        s = out[method]
-        print(
-            f"{method}: success {s['success_rate']}, false found {s['false_found']}, absent correct "
-            f"{s['absent_correct_rate']}, time to find median {s['time_to_find_s_median']} s "
-            f"(p90 {s['time_to_find_s_p90']}), path {s['path_length_m_median']} m, final distance "
-            f"{s['final_distance_error_m_median']} m, bearing {s['final_bearing_error_deg_median']} deg"
-        )
-    ours, report = out["ours"]["time_to_find_s_median"], out["report"]["time_to_find_s_median"]
-    out["time_ratio_ours_vs_report"] = round(ours / report, 3) if ours and report else None
-    out["time_ratio_paired"] = paired_ratios(trials)
-    print(f"time to find, ours / report on the cases both found: {out['time_ratio_paired']}")
-    absent_ok = out["ours"]["absent_correct_rate"]
-    out["absent_correct_rate"] = absent_ok
-    print(json.dumps(out))
+            if "report" in methods:
+                ours, ref = s_get(results[split], "ours"), s_get(results[split], "report")
+                results[split]["time_ratio_ours_vs_report"] = round(ours / ref, 3) if ours and ref else None
+                results[split]["time_ratio_paired"] = paired_ratios(mine)
+                print(
+                    f"{split}: time to find, ours / report on the cases both found: "
+                    f"{results[split]['time_ratio_paired']}"
+                )
+    results["wall_s"] = round(time.perf_counter() - started, 1)
+    if "dev" in results and "test" in results:
+        results["gap"] = gaps(results["dev"], results["test"])
+    print()
+    print(markdown_table(results))
+    print(json.dumps(results))
     return 0
+
+
+def s_get(split: dict[str, Any], method: str) -> float | None:
+    """A method's median time to find in one split's results."""
+    value = split.get(method, {}).get("time_to_find_s_median")
+    return float(value) if value else None
+
+
+def run_split(
+    split: str,
+    cases: list[tuple[Case, Path]],
+    methods: list[str],
+    workers: int,
+    folder: Path,
+    max_duration: float,
+    load_world: Any,
+) -> list[Trial]:
+    """Run ``methods`` on one split's cases in chunks (alternating which goes first); the trials."""
+    from missiontree.evaluation import PoolEngine, SerialEngine
+
+    trials: list[Trial] = []
+    by_path = {str(path): case for case, path in cases}
+    worlds = {case.index: load_world(path) for case, path in cases}
+    lock = threading.Lock()
+
+    def report(method: str, record: Any) -> None:  # printed as they come
+        case = by_path[str(record.world)]
+        t = score(
+            Trial(method, case.index, case.seed, case.target, case.absent, split),
+            case,
+            worlds[case.index],
+            record,
+        )
+        with lock:
+            trials.append(t)
+            print(
+                f"{split:4s} {t.method:6s} case {t.case:3d} {case.world[:22]:22s} "
+                f"{'absent ' if t.absent else ''}{t.target:16s} "
+                f"{t.status:8s} {t.stopped_by:8s} {t.sim_s:6.1f} s  d={t.distance_m:5.2f} m  "
+                f"bearing={t.bearing_deg:5.1f}  found={t.found!s:5s} false={t.false_found!s:5s}  "
+                f"{t.reason[:90]}",
+                flush=True,
+            )
+
+    size = 2 * max(1, workers)
+    engines = {m: PoolEngine(workers) if workers > 1 else SerialEngine() for m in methods}
+    try:
+        for engine in engines.values():
+            engine.__enter__()
+        for k, at in enumerate(range(0, len(cases), size)):
+            chunk = cases[at : at + size]
+            for m in methods if k % 2 == 0 else list(reversed(methods)):
+                run_chunk(m, chunk, engines[m], folder, max_duration, report)
+    finally:
+        for engine in engines.values():
+            engine.__exit__(None, None, None)
+    return trials
 
 
 if __name__ == "__main__":
