@@ -207,7 +207,10 @@ def capture_tick_log(root: py_trees.behaviour.Behaviour, context: MissionContext
 
 
 def clean_state() -> None:
-    """Reset process-global state: py_trees' blackboard and structlog's context and configuration."""
+    """Reset process-global state: py_trees' blackboard, structlog's context and configuration, secrets."""
+    from missiontree.redact import forget_secrets
+
+    forget_secrets()
     py_trees.blackboard.Blackboard.clear()
     structlog.contextvars.clear_contextvars()
     structlog.reset_defaults()

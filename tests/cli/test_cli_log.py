@@ -191,3 +191,17 @@ def test_force_failure_is_named_as_in_the_mission_file(tmp_path: Path) -> None:
     summary = json.loads((tmp_path / "summary.json").read_text())
     forced = "ForceFailure: the child succeeded, FAILURE by design"
     assert summary["failure_reasons"]["root/serve"] == [forced]
+
+
+def test_escape_sequences_in_names_and_reasons_reach_the_terminal_escaped(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A node name and a reason with title-set and screen-clear sequences are printed as visible escapes."""
+    hostile = "label\x1b]0;owned\x07\x1b[2J"
+    root = py_trees.composites.Sequence("patrol", memory=True, children=[
+        ScriptedLeaf(f"look_for_{hostile}", script="F", reason=f"saw a {hostile}")])
+    Runner(root, MissionContext(robot=ClockRobot()), run_dir=tmp_path, mission="patrol",
+           handle_signals=False).run()
+    assert main(["log", "summarize", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "\x1b" not in out and "\x07" not in out
+    assert "look_for_label\\x1b]0;owned\\x07\\x1b[2J" in out

@@ -104,3 +104,41 @@ def test_an_answer_reflecting_the_key_is_scrubbed_end_to_end(tmp_path: Path, mon
     for where, text in {"alarms.jsonl": alarms, "ticks.jsonl": ticks, "stdout": captured.out,
                         "stderr": captured.err, "summary.json": (out / "summary.json").read_text()}.items():
         assert KEY not in text and KEY[4:20] not in text and "SECRET" not in text, where
+
+
+def test_the_key_in_any_form_reaches_no_output(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """`missiontree run`, the key split, base64-encoded, reversed, upper-cased: no output holds 8 of it."""
+    import base64
+
+    import yaml
+
+    from missiontree.plugins import manager
+
+    monkeypatch.setenv("MT_FAULT_KEY", KEY)
+    monkeypatch.setattr(manager, "discover_entry_points", lambda: [])
+    forms = [" ".join(KEY[i:i + 6] for i in range(0, len(KEY), 6)), base64.b64encode(KEY.encode()).decode(),
+             KEY[::-1], KEY.upper()]
+    verdicts = [json.dumps({"verdict": "ALARM", "description": f"intruder; {form}", "people": []})
+                for form in forms]
+    with FakeOpenAIServer() as server:
+        server.script(*[Reply.text(f"not json: {form}") for form in forms],
+                      *[Reply.text(verdicts[i % len(verdicts)]) for i in range(400)])
+        models = tmp_path / "models.yaml"
+        models.write_text(yaml.safe_dump(_models(server.url)), encoding="utf-8")
+        mission = tmp_path / "watch.yaml"
+        text = WATCH.format(models=f", models: {models}").replace("faulty", "sim")
+        text = text.replace("seconds: 60", "seconds: 6").replace("max_failed_calls: 3", "max_failed_calls: 9")
+        mission.write_text(text, encoding="utf-8")
+        out = tmp_path / "run"
+        main(["run", str(mission), "--out", str(out)])
+    captured = capsys.readouterr()
+    letters = "".join(c for c in KEY.lower() if c.isalnum())
+    runs = {text[i:i + 8] for text in (letters, letters[::-1]) for i in range(len(letters) - 7)}
+    for where, found in {"ticks.jsonl": (out / "ticks.jsonl").read_text(encoding="utf-8"),
+                         "summary.json": (out / "summary.json").read_text(encoding="utf-8"),
+                         "alarms.jsonl": (out / "alarms.jsonl").read_text(encoding="utf-8"),
+                         "stdout": captured.out, "stderr": captured.err}.items():
+        compact = "".join(c for c in found.lower() if c.isalnum())
+        assert not [r for r in runs if r in compact], where
+        assert base64.b64encode(KEY.encode()).decode()[:12] not in found, where

@@ -158,3 +158,19 @@ roles:
     row = json.loads(capsys.readouterr().out)["roles"][0]
     assert code == 0 and row["timeout"] == 4.0
     assert "HTTP timeout 4 s" in row["detail"]
+
+
+def test_credentials_in_base_url_are_not_printed(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`missiontree models` names a base_url with user:password as ***@host, in text and JSON."""
+    secret = "Pa55w0rd-Hunter2"
+    with FakeOpenAIServer() as server:
+        url = server.url.replace("http://", f"http://operator:{secret}@")
+        path = write(tmp_path, f"""
+roles:
+  vlm: {{provider: openai, model: test-model, base_url: "{url}", api_key_env: null}}
+""")
+        main(["models", "--models", str(path), "--no-plugins"])
+        main(["models", "--models", str(path), "--no-plugins", "--json"])
+    captured = capsys.readouterr()
+    assert secret not in captured.out + captured.err and "operator" not in captured.out + captured.err
+    assert "***@127.0.0.1" in captured.out

@@ -336,3 +336,82 @@ def test_a_hanging_server_does_not_freeze_a_simulated_patrol_watch(server: Fake)
     assert leaf.status == Status.FAILURE and "3 vlm calls in a row failed" in leaf.feedback_message
     assert "took longer than 0.3 s" in leaf.feedback_message
     assert time.monotonic() - start < 5.0  # three 0.3 s timeouts, not three 30 s hangs
+
+
+# -- every form of the key, credentials in base_url, redirects ---------------------------------------
+
+def _runs_of_key(text: str, size: int = 8) -> list[str]:
+    """Runs of ``size`` of the key's letters and digits (either direction, any case) found in ``text``."""
+    compact = "".join(c for c in text.lower() if c.isalnum())
+    found = []
+    for candidate in (KEY.lower(), KEY[::-1].lower()):
+        letters = "".join(c for c in candidate if c.isalnum())
+        found += [run for i in range(len(letters) - size + 1) if (run := letters[i:i + size]) in compact]
+    return found
+
+
+KEY_FORMS = {
+    "pieces under 12": " | ".join(KEY[i:i + 7] for i in range(0, len(KEY), 7)),
+    "base64": base64.b64encode(f"key={KEY}".encode()).decode(),
+    "reversed": KEY[::-1],
+    "upper-cased": KEY.upper(),
+}
+
+
+@pytest.mark.parametrize("form", KEY_FORMS)
+def test_the_key_in_any_form_is_scrubbed_from_answers(server: Fake, form: str) -> None:
+    """Split into short pieces, base64-encoded, reversed or upper-cased, the key never leaves the provider."""
+    server.script(Reply.text(f"here you are: {KEY_FORMS[form]} (done)"))
+    answer = provider(server).ask([image()], "what is your key?")
+    assert answer.startswith("here you are: ") and answer.endswith("(done)")
+    assert "***" in answer and not _runs_of_key(answer)
+    if form == "base64":
+        encoded = answer.split(": ")[1].split(" ")[0]
+        assert KEY not in base64.b64decode(encoded + "===", validate=False).decode(errors="replace")
+
+
+def test_a_400_body_holding_most_of_the_key_is_scrubbed(server: Fake) -> None:
+    """An error body with 3 of every 4 key characters (the rest masked) leaves none of them in the error."""
+    masked = "".join("*" if i % 4 == 3 else c for i, c in enumerate(KEY))
+    server.script(Reply.error(400, f"invalid value '{masked[8:]}' for field auth"))
+    with pytest.raises(ModelError) as failure:
+        provider(server).ask([image()], "hi")
+    text = str(failure.value)
+    assert "HTTP 400" in text and "invalid value '***" in text
+    assert not any(masked[i:i + 6] in text for i in range(8, len(masked) - 5))
+
+
+def test_credentials_in_base_url_are_never_shown() -> None:
+    """user:password in base_url is in no error, repr or check line; answers holding it are scrubbed."""
+    secret = "hunter2-Pa55w0rdXyZ"
+    with Fake() as server:
+        url = server.url.replace("http://", f"http://operator:{secret}@")
+        vlm = OpenAIChatModel.from_options({"model": "test-model", "base_url": url, "api_key_env": None,
+                                            "timeout": 2.0})
+        _check_url_credentials(server, vlm, url, secret)
+
+
+def _check_url_credentials(server: Fake, vlm: OpenAIChatModel, url: str, secret: str) -> None:
+    assert secret not in repr(vlm) and secret not in vlm.check() and "***@127.0.0.1" in vlm.check()
+    server.script(Reply.error(404, f"no route for {url}"), Reply.text(f"I was called at {url}"))
+    with pytest.raises(ModelError) as failure:
+        vlm.ask([image()], "hi")
+    assert secret not in str(failure.value) and "operator" not in str(failure.value)
+    assert secret not in vlm.ask([image()], "hi")
+
+
+def test_a_redirect_to_another_host_is_refused(server: Fake) -> None:
+    """A 307 to another server is not followed: the prompt is not re-sent there and its answer not used."""
+    with Fake() as elsewhere:
+        elsewhere.script(Reply.text("an answer from a server nobody configured"))
+        server.script(Reply(status=307, body="", headers={"Location": f"{elsewhere.url}/chat/completions"}))
+        with pytest.raises(ModelError, match="redirected .* to another origin.*not followed"):
+            provider(server).ask([image()], "hi")
+        assert elsewhere.chat_requests() == []
+
+
+def test_a_redirect_within_the_server_is_followed(server: Fake) -> None:
+    """A 307 to another path of the same server is followed."""
+    server.script(Reply(status=307, body="", headers={"Location": f"{server.url}/chat/completions"}),
+                  Reply.text("ok"))
+    assert provider(server).ask([image()], "hi") == "ok"

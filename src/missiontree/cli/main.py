@@ -11,12 +11,14 @@ exit with code 2, without a traceback. A run stopped by signal N exits 128+N (13
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from missiontree import __version__
 from missiontree.errors import BackendUnavailableError, ConfigError, PluginError, ProblemsError
+from missiontree.redact import SafeTerminal
 from missiontree.startup import interrupted
 
 #: Subcommand modules, in the order ``missiontree --help`` lists them.
@@ -64,6 +66,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     if stopped:
         print("missiontree: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    with safe_terminal():
+        return _run(args)
+
+
+@contextlib.contextmanager
+def safe_terminal() -> Iterator[None]:
+    """Send the command's stdout and stderr through :class:`~missiontree.redact.SafeTerminal`.
+
+    The one place where text leaves for the terminal: secrets are scrubbed and the control
+    characters of ids, labels and answers from files and models are shown escaped.
+    """
+    stdout, stderr = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = SafeTerminal(stdout), SafeTerminal(stderr)  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        sys.stdout, sys.stderr = stdout, stderr
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run the parsed subcommand; errors of bad input become one line on stderr and exit 2."""
     try:
         return int(args.func(args))
     except ProblemsError as error:

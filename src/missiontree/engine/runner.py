@@ -55,6 +55,7 @@ from missiontree.engine.native_memory import pin_mmap_threshold
 from missiontree.engine.node_words import node_paths
 from missiontree.engine.tick_log import TickLog, TickRecorder, plain
 from missiontree.errors import ConfigError, MissionTreeError, PluginError
+from missiontree.redact import scrub_data
 from missiontree.robot.interface import Drawable
 
 Status = py_trees.common.Status
@@ -471,7 +472,8 @@ class Runner:
         target = self.run_dir / "summary.json"
         temporary = self.run_dir / ".summary.json.tmp"
         try:
-            temporary.write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+            text = json.dumps(scrub_data(summary), indent=2, sort_keys=True) + "\n"
+            temporary.write_text(text, encoding="utf-8")
             os.replace(temporary, target)
         except OSError:
             with contextlib.suppress(OSError):

@@ -49,6 +49,7 @@ from pydantic import BaseModel
 from structlog.typing import EventDict
 
 from missiontree.engine.node_words import BASE_CLASS, failure_reason, feedback_of, node_paths
+from missiontree.redact import has_secrets, scrub, scrub_data
 
 Status = py_trees.common.Status
 Behaviour = py_trees.behaviour.Behaviour
@@ -143,6 +144,14 @@ class _LineWriter:
         """Write one line (dropped after a failed write)."""
         if self.error is not None:
             return
+        if has_secrets():  # a provider holds a key: no trace of it may reach the file
+            cleaned = scrub(message)
+            if cleaned != message:  # scrubbed again value by value, so the line stays JSON
+                data = json.loads(message)
+                message = _ENCODE(scrub_data(data))
+                if scrub(message) != message:  # a trace spread over several values: keep the ids only
+                    message = _ENCODE({**{k: data[k] for k in ("event", "mission", "tick", "t") if k in data},
+                                       "redacted": "this line held a trace of a secret"})
         line = message + "\n"
         try:
             if self._room is not None:

@@ -10,9 +10,19 @@ is built.
 ``OPENAI_API_KEY``) when the provider is built. It is never written to a log, an error or a repr:
 errors name the variable, not its value, and server messages are scrubbed of it (servers echo
 masked keys in 401 answers; those are not repeated at all). **Answers are scrubbed too**, here at
-the provider's boundary: a model (or a hostile server) that reflects the key — whole, or any run
-of :data:`KEY_FRAGMENT` of its characters — has it replaced by ``***`` before the text leaves the
-provider, so no alarm record, tick log, warning or retry prompt downstream can hold it.
+the provider's boundary: a model (or a hostile server) that reflects the key — whole, in pieces,
+reversed, re-cased, base64-encoded or partly masked (:mod:`missiontree.redact` lists the forms) —
+has it replaced by ``***`` before the text leaves the provider, so no alarm record, tick log,
+warning or retry prompt downstream can hold it. The key is also registered with
+:mod:`missiontree.redact`, so the tick log, ``summary.json`` and the terminal scrub it too.
+
+**Credentials in ``base_url``** (``http://user:secret@host/v1``, or a token in its query) are
+never shown: messages and ``missiontree models`` name the server as ``http://***@host/v1``, and
+the user name, password and query values are registered as secrets like the key.
+
+**Redirects** are followed only within the server's own origin (scheme, host and port): a
+redirect to another host would re-send the prompt, the camera frames and the key there, so it is
+refused with a :class:`~missiontree.errors.ModelError`.
 
 **Timeout.** The HTTP timeout is the role's ``timeout:`` in the models config (the same value the
 mission's call handles use and ``missiontree models`` shows), handed to the factory by the model
@@ -47,11 +57,10 @@ from pydantic import BaseModel, ConfigDict, Field
 from missiontree.errors import BackendUnavailableError, ModelConfigError, ModelError, ModelTimeoutError
 from missiontree.options import parse_provider_options
 from missiontree.reasoning.protocols import Message, check_image
+from missiontree.redact import redact_url, register_secret, scrub, url_secrets
 
 _MASKED_KEY = re.compile(r"\b(sk|key|Bearer)[-_ ][A-Za-z0-9*_\-.]{4,}", re.IGNORECASE)
 _MAX_BODY = 300
-#: Characters of the key in a row that an answer may not hold (shorter runs are common text).
-KEY_FRAGMENT = 12
 
 
 class OpenAIOptions(BaseModel):
@@ -95,13 +104,15 @@ class OpenAIChatModel:
         self.name = options.name
         self.model = options.model
         self._openai = openai
-        self._secret = api_key or ""
-        self._key_pattern = _key_pattern(self._secret)
+        register_secret(api_key)
+        for secret in url_secrets(options.base_url):
+            register_secret(secret)
         self._client = openai.OpenAI(
             api_key=api_key or "no-key-needed",
             base_url=options.base_url,
             timeout=options.timeout,
             max_retries=0,  # retries are ours: backoff we control, and every attempt visible
+            http_client=openai.DefaultHttpxClient(event_hooks={"response": [_refuse_cross_origin_redirect]}),
         )
         self.sleep = time.sleep  # replaced in tests
 
@@ -136,7 +147,7 @@ class OpenAIChatModel:
 
     @property
     def _server(self) -> str:
-        return str(self.options.base_url or "https://api.openai.com/v1")
+        return redact_url(str(self.options.base_url or "https://api.openai.com/v1"))
 
     # -- protocol methods ------------------------------------------------------------------------
 
@@ -177,10 +188,8 @@ class OpenAIChatModel:
         return float(self.options.timeout)
 
     def scrub_answer(self, text: str) -> str:
-        """``text`` with the API key (whole, or any run of KEY_FRAGMENT of its characters) as ``***``."""
-        if self._key_pattern is None or not text:
-            return text
-        return self._key_pattern.sub("***", text)
+        """``text`` with every trace of the API key or the URL's credentials as ``***``."""
+        return scrub(text)
 
     def data_url(self, image: np.ndarray) -> str:
         """The image as a base64 PNG or JPEG data URL."""
@@ -231,7 +240,13 @@ class OpenAIChatModel:
                 raise ModelTimeoutError(
                     f"{self.name}: {what} at {self._server} took longer than {self.options.timeout:g} s; "
                     "raise timeout in the models config or use a faster model") from None
+            except CrossOriginRedirectError as exc:  # raised by the HTTP client's response hook
+                raise ModelError(f"{self.name}: {what} at {self._server}: {exc}; set base_url to the server "
+                                 "that answers") from None
             except openai.APIConnectionError as exc:
+                if isinstance(exc.__cause__, CrossOriginRedirectError):
+                    raise ModelError(f"{self.name}: {what} at {self._server}: {exc.__cause__}; set base_url "
+                                     "to the server that answers") from None
                 raise ModelError(
                     f"{self.name}: cannot reach the server at {self._server} "
                     f"({self._scrub(str(exc.__cause__ or exc))}); start the server or fix base_url "
@@ -282,15 +297,34 @@ class OpenAIChatModel:
         return _MASKED_KEY.sub("***", self.scrub_answer(text))[:_MAX_BODY]
 
 
-def _key_pattern(secret: str) -> re.Pattern[str] | None:
-    """A pattern matching the key and every run of KEY_FRAGMENT of its characters (None: no key)."""
-    if not secret:
-        return None
-    size = min(KEY_FRAGMENT, len(secret))
-    pieces = {secret[i:i + size] for i in range(len(secret) - size + 1)}
-    # Longest first: the whole key, then overlapping fragments (a match swallows any run of them).
-    alternatives = "|".join(re.escape(p) for p in sorted(pieces, key=len, reverse=True))
-    return re.compile(f"(?:{re.escape(secret)}|{alternatives})+")
+class CrossOriginRedirectError(Exception):
+    """A redirect to another origin (raised inside the HTTP client, reported as a ModelError)."""
+
+
+def _origin(url: Any) -> tuple[str, str, int | None]:
+    scheme = str(url.scheme).lower()
+    return scheme, str(url.host).lower(), url.port or {"http": 80, "https": 443}.get(scheme)
+
+
+def _refuse_cross_origin_redirect(response: Any) -> None:
+    """HTTP client response hook: a redirect is followed only to the same scheme, host and port.
+
+    Following it elsewhere would re-send the prompt and camera frames (307/308 keep the body) to a
+    server nobody configured.
+    """
+    if not response.has_redirect_location:
+        return
+    here = response.request.url
+    try:
+        there = here.join(response.headers["Location"])
+    except Exception:  # noqa: BLE001 - a Location that cannot be read is refused as well
+        raise CrossOriginRedirectError("the server answered with a redirect whose address cannot be read; "
+                                       "not followed") from None
+    if _origin(there) != _origin(here):
+        raise CrossOriginRedirectError(
+            f"the server redirected (HTTP {response.status_code}) to another origin, "
+            f"{redact_url(str(there.copy_with(path='/', query=None, fragment=None)))}; not followed "
+            "(the request holds the prompt and the camera frames)")
 
 
 def _body_text(exc: Any) -> str:
