@@ -70,13 +70,17 @@ def test_the_camera_sees_up_to_the_first_wall_and_within_its_range() -> None:
     assert cov.key(0.6, 1.0) not in cov.seen  # behind the camera
 
 
-def test_view_goals_lead_to_the_unseen_floor_and_end_when_all_is_seen() -> None:
-    """The goal lies toward the part of the floor not looked at; none once the whole floor was seen."""
+def test_view_goals_sweep_out_from_the_robot_and_end_when_all_is_seen() -> None:
+    """Unseen floor behind the robot: look from here first; then farther on; none once all was seen."""
     grid = grid_of(hall())
     cov = ViewCoverage(view_range=3.0)
     cov.add_view(grid, Pose2D(1.0, 1.0, math.pi), K.hfov)  # looking at the west wall
     goals, _ = view_goals(cov, grid, (1.0, 1.0), straight_lengths, 0.17)
-    assert goals and goals[0].x > 2.5
+    assert goals and math.hypot(goals[0].x - 1.0, goals[0].y - 1.0) < 0.5
+    for yaw in np.linspace(-math.pi, math.pi, 8, endpoint=False):  # a turn where it stands
+        cov.add_view(grid, Pose2D(1.0, 1.0, float(yaw)), K.hfov)
+    goals, _ = view_goals(cov, grid, (1.0, 1.0), straight_lengths, 0.17)
+    assert goals and 2.5 < goals[0].x < 5.0
     for x in np.arange(0.5, 9.0, 1.0):
         for yaw in np.linspace(-math.pi, math.pi, 8, endpoint=False):
             cov.add_view(grid, Pose2D(float(x), 1.0, float(yaw)), K.hfov)
@@ -101,3 +105,14 @@ def test_with_no_frontier_left_the_search_looks_at_the_unseen_floor_before_not_f
     assert "not found" in leaf.feedback_message and "the camera looked at" in leaf.feedback_message
     covered = events.of("search_covered")[-1]
     assert covered["seen_m2"] >= 0.9 * covered["floor_m2"]
+
+
+def test_a_cell_counts_as_seen_only_after_enough_frames() -> None:
+    """With min_views 3, two frames leave the floor unseen and the third marks it seen."""
+    grid = grid_of(hall())
+    cov = ViewCoverage(view_range=3.0, min_views=3)
+    for _ in range(2):
+        cov.add_view(grid, Pose2D(1.0, 1.0, 0.0), K.hfov)
+    assert cov.key(2.5, 1.0) not in cov.seen
+    cov.add_view(grid, Pose2D(1.0, 1.0, 0.0), K.hfov)
+    assert cov.key(2.5, 1.0) in cov.seen

@@ -6,9 +6,12 @@ camera, and a red backpack 4-5 m off the path was never detected. So the search 
 :class:`ViewCoverage`: the floor cells (``cell`` m squares in map coordinates, so a growing map
 does not move them) that a camera frame had in its field of view within ``view_range``, rays
 stopped by occupied cells. Once no frontier is left, :func:`view_goals` gives places from which
-the unseen reachable floor can be looked at, biggest unseen patch per metre of path first; a
-target is reported absent only when the camera has looked at all of it (or what is left could not
-be reached).
+the unseen reachable floor can be looked at: for each unseen patch, a place beside its cell
+nearest the robot (the floor is swept from where the robot is, not crossed back and forth), ranked
+by the unseen floor within ``view_range`` of it per metre of path. A cell counts as looked at once
+``min_views`` frames had it in view (the semantic map wants a few frames of an object before it
+believes in it). A target is reported absent only when the camera has looked at all of the
+reachable floor (or what is left could not be reached, or is hidden from every place reached).
 """
 
 from __future__ import annotations
@@ -48,11 +51,14 @@ class ViewCoverage:
         view_range: How far (m) the camera counts as having looked: the range at which the detector
             still finds the small objects searched for.
         cell: Side of a coverage cell (m).
+        min_views: Frames that must have had a cell in view before it counts as looked at.
     """
 
-    def __init__(self, view_range: float = 3.0, cell: float = 0.25) -> None:
+    def __init__(self, view_range: float = 3.0, cell: float = 0.25, min_views: int = 1) -> None:
         self.view_range = view_range
         self.cell = cell
+        self.min_views = min_views
+        self.views: dict[tuple[int, int], int] = {}
         self.seen: set[tuple[int, int]] = set()
         self.skipped: set[tuple[int, int]] = set()
 
@@ -86,7 +92,13 @@ class ViewCoverage:
         kx = np.floor(xs[visible] / self.cell).astype(int)
         ky = np.floor(ys[visible] / self.cell).astype(int)
         before = len(self.seen)
-        self.seen.update(zip(kx.tolist(), ky.tolist(), strict=True))
+        keys = np.unique(np.stack([kx, ky], axis=1), axis=0) if len(kx) else np.zeros((0, 2), int)
+        for a, b in keys.tolist():
+            k = (a, b)
+            n = self.views.get(k, 0) + 1
+            self.views[k] = n
+            if n >= self.min_views:
+                self.seen.add(k)
         return len(self.seen) - before
 
     def floor(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> set[tuple[int, int]]:
@@ -160,12 +172,12 @@ def view_goals(
     cost_rate: float = 0.15,
     max_patches: int = 8,
 ) -> tuple[list[ViewGoal], list[set[tuple[int, int]]]]:
-    """Places to look at the unseen floor from, best first; and the patches none of whose goals is reachable.
+    """Places to look at the unseen floor from, best first; and the patches no place was found for.
 
-    Each patch of unseen floor (at least ``min_area_m2``) gets a goal: the free cell with ``room`` m of
-    clearance nearest the patch's cell nearest its centroid, at most ``view_range`` / 2 from it.
-    Scored area / (1 + cost_rate x path length) on the planner's path (a patch too big for one look
-    is cut to the cells within ``view_range`` of its goal by the next choice).
+    Each patch of unseen floor (at least ``min_area_m2``) gets a goal: the free cell with ``room`` m
+    of clearance nearest the patch's cell nearest the robot, at most ``view_range`` / 2 from it (the
+    floor is swept outward from the robot). Scored by the patch's unseen floor within
+    ``view_range`` of the goal over (1 + cost_rate x path length) on the planner's path.
     """
     cells = coverage.unseen(grid, robot_xy)
     per = coverage.cell * coverage.cell
@@ -181,27 +193,30 @@ def view_goals(
         return [], patches
     wx = grid.origin.x + (cc + 0.5) * res
     wy = grid.origin.y + (rr + 0.5) * res
-    goals: list[tuple[tuple[float, float], tuple[float, float], set[tuple[int, int]]]] = []
+    goals: list[tuple[tuple[float, float], tuple[float, float], float]] = []
+    placed: list[set[tuple[int, int]]] = []
     unplaced: list[set[tuple[int, int]]] = []
     reach = coverage.view_range / 2.0
+    here = np.asarray(robot_xy, dtype=float)
     for patch in patches:
         pts = (np.array(sorted(patch), dtype=float) + 0.5) * coverage.cell
-        centre = pts.mean(axis=0)
-        anchor = pts[int(np.argmin(((pts - centre) ** 2).sum(axis=1)))]
+        anchor = pts[int(np.argmin(((pts - here) ** 2).sum(axis=1)))]
         d2 = (wx - anchor[0]) ** 2 + (wy - anchor[1]) ** 2
         j = int(np.argmin(d2))
         if d2[j] > reach * reach:
             unplaced.append(patch)
             continue
-        goals.append(((float(wx[j]), float(wy[j])), (float(anchor[0]), float(anchor[1])), patch))
+        goal = np.array([wx[j], wy[j]])
+        within = float(np.count_nonzero(((pts - goal) ** 2).sum(axis=1) <= coverage.view_range**2))
+        goals.append(((float(goal[0]), float(goal[1])), (float(anchor[0]), float(anchor[1])), within * per))
+        placed.append(patch)
     lengths = path_lengths(grid, robot_xy, [g[0] for g in goals], robot_radius) if goals else []
     out: list[ViewGoal] = []
-    for (xy, target, patch), length in zip(goals, lengths, strict=True):
+    for (xy, target, gain), patch, length in zip(goals, placed, lengths, strict=True):
         if length is None:
             unplaced.append(patch)
             continue
-        area = len(patch) * per
-        out.append(ViewGoal(xy[0], xy[1], target, area, float(length), area / (1.0 + cost_rate * length)))
+        out.append(ViewGoal(xy[0], xy[1], target, gain, float(length), gain / (1.0 + cost_rate * length)))
     return sorted(out, key=lambda g: -g.score), unplaced
 
 
