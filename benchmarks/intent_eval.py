@@ -1,7 +1,28 @@
-"""Intent navigation against the NAIS paper's method: Table II and a wider command set, in one run.
+"""Intent navigation against the NAIS paper's method: Table II and a wider command set, on two splits.
 
-    python benchmarks/intent_eval.py            # Table II x 10 start poses + the written commands
-    python benchmarks/intent_eval.py --quick    # fewer start poses (a minute or two)
+    python benchmarks/intent_eval.py                  # both splits (dev: Table II x 10 starts + written)
+    python benchmarks/intent_eval.py --split dev      # tune here
+    python benchmarks/intent_eval.py --split test     # report here, once at the end of a change
+    python benchmarks/intent_eval.py --quick          # fewer starts, 2 test worlds (a few minutes)
+
+Splits.
+
+- ``dev`` (tuned on): the 49 commands the team wrote (Table II's five, intuitive, referential, nothing
+  satisfies, injected descriptions) on the office world and ``generated:3``, ours beside the NAIS
+  reference from the same starts.
+- ``test`` (never tuned on): commands from a source outside the team on worlds of another kind — the
+  test worlds of :mod:`missiontree.evaluation.splits` (floorplans of corridors, open plans, suites,
+  warehouses; real SLAM maps with placed objects and decoys), ``--test-worlds`` of them. The commands:
+  WordNet paraphrases of the dev commands' need words and WordNet synonyms and hypernyms of object
+  names, in templates no dev command uses (``benchmarks/data/intent_test_words.json``, generated once
+  by ``tools/build_intent_test_commands.py`` and judged by the dev need's satisfying objects or by the
+  WordNet taxonomy), artifacts no scene has, and from each world's own objects commands by colour,
+  room and "sitting on" relation plus colours the world lacks. World ``i`` of ``n`` takes every
+  ``n``-th WordNet command from offset ``i``. Only ours runs on test.
+
+Per split: success with its 95 % Wilson interval, ``wrong_objects_served`` (runs that ended SUCCESS
+at an object that does not satisfy the command, or when nothing does), success per group; the
+dev - test gap; a markdown table; the last line is one JSON object with ``dev``, ``test`` and ``gap``.
 
 Inputs. Each world's scene graph is built from the simulator's ground truth in the NAIS JSON shape
 (building -> rooms -> objects with their descriptions; spatial edges where a description names
@@ -22,7 +43,8 @@ Methods, each trial alternating between them from the same start pose:
   0.5 m of the object, and fails when there is none.
 
 Success: the run ends SUCCESS with the robot within 1 m of an object that satisfies the command (the
-distance to the object's footprint), or, for a command nothing satisfies, the run ends FAILURE.
+distance to the object's footprint), or, for a command nothing satisfies, the run ends FAILURE. The
+object served is the one the leaf's ``intent_served`` event names.
 ``invented_goals``: goals not within reach of a graph object. ``nearest_by_path_rate``: trials in
 which the object driven to first is the satisfying object with the shortest path from the start (of
 the trials where one exists). ``command_to_goal_ms_median``: wall time from the command to the
@@ -277,6 +299,8 @@ class Trial:
     nearest_by_path: bool | None = None
     ms: float = 0.0
     reason: str = ""
+    served: dict[str, Any] = field(default_factory=dict)
+    wrong_served: bool = False   # ended SUCCESS at an object that does not satisfy the command
 
 
 def footprint_distance(obj: Any, x: float, y: float) -> float:
@@ -402,14 +426,18 @@ class IntentProbe:
         """The run's goals, the reason it was served with, and the true final pose."""
         goals: list[dict[str, Any]] = []
         reason = ""
+        served: dict[str, Any] = {}
         for line in (session.run_dir / "ticks.jsonl").read_text(encoding="utf-8").splitlines():
             event = json.loads(line) if line.strip() else {}
             if event.get("event") == "goal_sent":
                 goals.append(event)
             if event.get("event") == "command_served":
                 reason = event.get("reason", "")
+            if event.get("event") == "intent_served":
+                served = {k: event.get(k) for k in ("object", "label", "confirmed", "chosen_because")}
         pose = session.robot.truth.robot_pose()
-        return {"goals": goals, "served_reason": reason, "final_pose": [pose.x, pose.y, pose.yaw]}
+        return {"goals": goals, "served_reason": reason, "served": served,
+                "final_pose": [pose.x, pose.y, pose.yaw]}
 
 
 def run_ours(bench: Bench, wanted: Sequence[tuple[Case, tuple[float, float, float]]],
@@ -431,6 +459,7 @@ def run_ours(bench: Bench, wanted: Sequence[tuple[Case, tuple[float, float, floa
         trial.goals = list(record.figures.get("goals", []))
         served = record.figures.get("served_reason", "")
         trial.reason = served or (record.reason if record.status in ("ERROR", "INFRA") else "")
+        trial.served = dict(record.figures.get("served", {}) or {})
         final = Pose2D(*record.figures.get("final_pose", start))
         _score(bench, trial, final, graph_reach=1.0)
         trials.append(trial)
@@ -465,7 +494,8 @@ def run_nais(bench: Bench, case: Case, start: tuple[float, float, float]) -> Tri
                     robot.spin_until(t)
                 ok = handle.status() is ActionStatus.SUCCEEDED
                 trial.status = "SUCCESS" if ok else "FAILURE"
-                trial.reason = "" if ok else (handle.result().reason if handle.result() else "timeout")
+                outcome = handle.result()
+                trial.reason = "" if ok else (outcome.reason if outcome is not None else "timeout")
         final = robot.truth.robot_pose()
     finally:
         robot.close()
@@ -513,6 +543,10 @@ def _score(bench: Bench, trial: Trial, final: Any, graph_reach: float) -> None:
             trial.invented += 1
     if trial.goals:
         trial.first_object = str(trial.goals[0].get("object"))
+    if trial.method == "ours" and trial.status == "SUCCESS":
+        # served: the object the leaf says it served (its last goal when the record lacks it)
+        served = trial.served.get("object") or (trial.goals[-1].get("object") if trial.goals else None)
+        trial.wrong_served = str(served) not in {o.id for o in truth}
     if truth:
         best = bench.path_nearest(trial.case, trial.start)
         if best is not None:
@@ -552,52 +586,204 @@ def summarise(trials: Sequence[Trial]) -> dict[str, Any]:
     return out
 
 
+# -- the test split: commands from outside the team, on worlds of another kind ----------------------------
+
+WORDS = REPO / "benchmarks" / "data" / "intent_test_words.json"
+#: Colours a referential test command may ask for (one the scene lacks makes a nothing-satisfies case).
+PALETTE = ("red", "green", "blue", "yellow", "white", "black", "grey", "brown", "pink", "purple", "orange")
+#: Referential test commands of each kind per world.
+REFERENTIAL_PER_WORLD = 3
+
+
+def test_world_names(count: int, first_seed: int, folder: Path) -> list[str]:
+    """The test split's first ``count`` worlds, written to ``folder`` (their paths are their names here)."""
+    from missiontree.evaluation.splits import split_worlds, write_split_world
+
+    folder.mkdir(parents=True, exist_ok=True)
+    return [str(write_split_world(w, folder)) for w in split_worlds("test", count, first_seed=first_seed)]
+
+
+def test_cases(bench: Bench, worlds: Sequence[str]) -> list[Case]:
+    """The test split's commands on ``worlds`` (see the module docstring): WordNet words and the graph's own.
+
+    World ``i`` of ``n`` gets every ``n``-th need paraphrase and absent thing from offset ``i``, and of
+    the object names whose label it holds, every ``n``-th too; then its referential commands.
+    """
+    words = json.loads(WORDS.read_text(encoding="utf-8"))
+    cases: list[Case] = []
+    n = len(worlds)
+    for i, name in enumerate(worlds):
+        world = bench.world(name)
+        present = {o.label for o in world.objects}
+        for entry in words["needs"][i::n]:
+            cases.append(Case(name, entry["command"], "test_need", _labels(*entry["satisfied_by"])))
+        named = [e for e in words["objects"] if present & set(e["satisfied_by"])]
+        for entry in named[i::n]:
+            cases.append(Case(name, entry["command"], "test_object", _labels(*entry["satisfied_by"])))
+        for entry in words["absent"][i::n]:
+            cases.append(Case(name, entry["command"], "none", _nothing))
+        cases += referential_cases(world, name)
+    return cases
+
+
+def _spread(items: Sequence[Any], k: int) -> list[Any]:
+    """``k`` items spread evenly over ``items`` (all of them when there are fewer)."""
+    if len(items) <= k:
+        return list(items)
+    return [items[j * len(items) // k] for j in range(k)]
+
+
+def referential_cases(world: Any, name: str, k: int = REFERENTIAL_PER_WORLD) -> list[Case]:
+    """Commands by colour, room and relation from the world's objects, and colours it lacks.
+
+    Their templates are none the dev split uses.
+    """
+    by_label: dict[str, list[Any]] = {}
+    for obj in sorted(world.objects, key=lambda o: o.id):
+        by_label.setdefault(obj.label, []).append(obj)
+    labels = sorted(by_label)
+    cases: list[Case] = []
+    coloured = [(label, c) for label in labels
+                for c in sorted({_colour(o.color) for o in by_label[label]}) if c in PALETTE]
+    for label, colour in _spread(coloured, k):
+        cases.append(Case(name, f"Please head over to the {colour} {label}.", "test_referential",
+                          _ref(label, colour)))
+    roomed = sorted({(o.label, room.type.replace("_", " ")) for o in world.objects
+                     if (room := world.room_at(o.pose.x, o.pose.y)) is not None})
+    for label, room in _spread(roomed, k):
+        cases.append(Case(name, f"I'm after the {label} that's in the {room}.", "test_referential",
+                          _ref(label, room=room)))
+    resting = sorted({(o.label, b.label) for o in world.objects if o.elevation > 0.1 for b in world.objects
+                      if b.id != o.id and abs(b.top - o.elevation) < 0.1
+                      and math.hypot(b.pose.x - o.pose.x, b.pose.y - o.pose.y) < 0.5 and b.label != o.label})
+    for label, anchor in _spread(resting, k):
+        cases.append(Case(name, f"Could you go to the {label} sitting on the {anchor}?", "test_referential",
+                          _ref(label, near=anchor, within=0.6)))
+    lacking = [(label, c) for label in labels for c in PALETTE
+               if c not in {_colour(o.color) for o in by_label[label]}]
+    for label, colour in _spread(lacking, k):
+        cases.append(Case(name, f"Please head over to the {colour} {label}.", "none", _nothing))
+    return cases
+
+
+def split_figures(trials: Sequence[Trial]) -> dict[str, Any]:
+    """Success with its 95 % Wilson interval, wrong objects served, and success per group (ours only)."""
+    from missiontree.evaluation.report import wilson
+
+    mine = [t for t in trials if t.method == "ours"]
+    ok = sum(t.success for t in mine)
+    low, high = wilson(ok, len(mine))
+    groups = sorted({t.case.group for t in mine})
+    return {
+        "trials": len(mine),
+        "success": round(ok / len(mine), 4) if mine else None,
+        "success_ci95": [round(low, 4), round(high, 4)],
+        "wrong_objects_served": sum(t.wrong_served for t in mine),
+        "groups": {g: {"trials": sum(t.case.group == g for t in mine),
+                       "success": round(sum(t.success for t in mine if t.case.group == g)
+                                        / sum(t.case.group == g for t in mine), 4)} for g in groups},
+    }
+
+
+def markdown_table(figures: dict[str, dict[str, Any]]) -> str:
+    """A table a user can paste: per split, commands run, success with its interval, wrong objects served."""
+    lines = ["| split | runs | success | 95 % CI | wrong objects served |", "|---|---:|---:|---|---:|"]
+    for split, f in figures.items():
+        lo, hi = f["success_ci95"]
+        lines.append(f"| {split} | {f['trials']} | {f['success']:.3f} | {lo:.3f}-{hi:.3f} | "
+                     f"{f['wrong_objects_served']} |")
+    return "\n".join(lines)
+
+
+def _print_trial(trial: Trial) -> None:
+    case = trial.case
+    world = Path(case.world).stem if "/" in case.world else case.world
+    print(f"{trial.method:4} {case.group:16} {world[:20]:20} {case.command[:48]:48} {trial.status:7} "
+          f"{'ok ' if trial.success else 'MISS'}{' WRONG' if trial.wrong_served else ''} "
+          f"first={trial.first_object} served={trial.served.get('object')} {trial.reason[:200]}", flush=True)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the evaluation; print per-trial lines, a table and the JSON summary last."""
+    """Run the evaluation; print per-trial lines, tables and the JSON summary last."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="3 start poses for Table II, 1 for the rest")
+    parser.add_argument("--split", choices=("dev", "test", "both"), default="both")
+    parser.add_argument("--quick", action="store_true",
+                        help="dev: 3 start poses for Table II, 1 for the rest; test: 2 worlds")
     parser.add_argument("--starts", type=int, default=None, help="start poses per Table II command (10)")
     parser.add_argument("--written-starts", type=int, default=None,
                         help="start poses per written command (2)")
+    parser.add_argument("--test-worlds", type=int, default=None, help="test-split worlds (4; 2 with --quick)")
+    parser.add_argument("--test-first-seed", type=int, default=0)
     parser.add_argument("--seed", type=int, default=18)
     parser.add_argument("--jobs", type=int, default=None,
                         help="batch workers for our runs (default: the cores)")
     args = parser.parse_args(argv)
     n_table = args.starts or (3 if args.quick else 10)
     n_written = args.written_starts or (1 if args.quick else 2)
-    trials: list[Trial] = []
+    jobs = args.jobs or os.cpu_count() or 1
+    figures: dict[str, dict[str, Any]] = {}
+    out: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix="intent_eval_") as tmp:
         bench = Bench(Path(tmp))
-        plan: list[tuple[Case, tuple[float, float, float]]] = []
-        for cases, n in ((TABLE2, n_table), (WRITTEN, n_written)):
+        if args.split in ("dev", "both"):
+            trials = run_dev(bench, n_table, n_written, args.seed, jobs)
+            summary = summarise(trials)
+            ours, nais = summary["ours"], summary["nais"]
+            for key in ("table2_success", "referential_success", "overall_success", "nearest_by_path_rate",
+                        "command_to_goal_ms_median"):
+                ratio = (ours[key] / nais[key]) if ours[key] is not None and nais[key] else None
+                shown = None if ratio is None else round(ratio, 3)
+                print(f"{key:28} ours {ours[key]!s:8} nais {nais[key]!s:8} ratio (ours/nais) {shown}")
+            figures["dev"] = split_figures(trials)
+            out["dev"] = {**figures["dev"], "methods": summary}
+        if args.split in ("test", "both"):
+            worlds = test_world_names(args.test_worlds or (2 if args.quick else 4), args.test_first_seed,
+                                      Path(tmp) / "test_worlds")
+            cases = test_cases(bench, worlds)
+            plan = []
             for i, case in enumerate(cases):
-                poses = start_poses(bench.world(case.world), max(n_table, n_written), args.seed)
-                plan += [(case, poses[(i + k) % len(poses)]) for k in range(n)]
-        bench.resolve(plan[0][0], plan[0][1], "ours")   # warm the embedder once, outside the timings
-        timings: dict[tuple[int, str], float] = {}
-        nais_trials: dict[int, Trial] = {}
-        for k, (case, start) in enumerate(plan):        # the command-to-goal timings alternate methods
-            for method in (("ours", "nais") if k % 2 == 0 else ("nais", "ours")):
-                timings[k, method], _ = bench.resolve(case, start, method)
-            nais_trials[k] = run_nais(bench, case, start)
-        our_trials = run_ours(bench, plan, args.jobs or os.cpu_count() or 1)  # missions on the batch runner
-        for k, (case, start) in enumerate(plan):
-            for trial in (our_trials[k], nais_trials[k]):
-                trial.ms = timings[k, trial.method]
-                trials.append(trial)
-                print(f"{trial.method:4} {case.group:11} {case.world:12} {case.command[:44]:44} "
-                      f"start={start} "
-                      f"{trial.status:7} {'ok ' if trial.success else 'MISS'} first={trial.first_object} "
-                      f"invented={trial.invented} {trial.ms:6.1f} ms {trial.reason[:240]}", flush=True)
-    summary = summarise(trials)
-    ours, nais = summary["ours"], summary["nais"]
-    for key in ("table2_success", "referential_success", "overall_success", "nearest_by_path_rate",
-                "command_to_goal_ms_median"):
-        ratio = (ours[key] / nais[key]) if ours[key] is not None and nais[key] else None
-        shown = None if ratio is None else round(ratio, 3)
-        print(f"{key:28} ours {ours[key]!s:8} nais {nais[key]!s:8} ratio (ours/nais) {shown}")
-    print(json.dumps(summary, sort_keys=True))
+                poses = start_poses(bench.world(case.world), 6, args.seed)
+                plan.append((case, poses[i % len(poses)]))
+            trials = run_ours(bench, plan, jobs)
+            for trial in trials:
+                _print_trial(trial)
+            figures["test"] = split_figures(trials)
+            out["test"] = {**figures["test"], "worlds": [Path(w).stem for w in worlds]}
+    for split, f in figures.items():
+        lo, hi = f["success_ci95"]
+        print(f"{split:4} success {f['success']} (95 % CI {lo:.3f}-{hi:.3f}, {f['trials']} runs), "
+              f"wrong objects served {f['wrong_objects_served']}, by group: "
+              + ", ".join(f"{g} {v['success']} ({v['trials']})" for g, v in f["groups"].items()))
+    if "dev" in figures and "test" in figures:
+        out["gap"] = {"success": round(figures["dev"]["success"] - figures["test"]["success"], 4)}
+        print(f"dev - test gap in success: {out['gap']['success']}")
+    print(markdown_table(figures))
+    print(json.dumps(out, sort_keys=True))
     return 0
+
+
+def run_dev(bench: Bench, n_table: int, n_written: int, seed: int, jobs: int) -> list[Trial]:
+    """The dev split: Table II and the written commands, ours and the NAIS reference from the same starts."""
+    trials: list[Trial] = []
+    plan: list[tuple[Case, tuple[float, float, float]]] = []
+    for cases, n in ((TABLE2, n_table), (WRITTEN, n_written)):
+        for i, case in enumerate(cases):
+            poses = start_poses(bench.world(case.world), max(n_table, n_written), seed)
+            plan += [(case, poses[(i + k) % len(poses)]) for k in range(n)]
+    bench.resolve(plan[0][0], plan[0][1], "ours")   # warm the embedder once, outside the timings
+    timings: dict[tuple[int, str], float] = {}
+    nais_trials: dict[int, Trial] = {}
+    for k, (case, start) in enumerate(plan):        # the command-to-goal timings alternate methods
+        for method in (("ours", "nais") if k % 2 == 0 else ("nais", "ours")):
+            timings[k, method], _ = bench.resolve(case, start, method)
+        nais_trials[k] = run_nais(bench, case, start)
+    our_trials = run_ours(bench, plan, jobs)  # missions on the batch runner
+    for k in range(len(plan)):
+        for trial in (our_trials[k], nais_trials[k]):
+            trial.ms = timings[k, trial.method]
+            trials.append(trial)
+            _print_trial(trial)
+    return trials
 
 
 if __name__ == "__main__":
