@@ -80,25 +80,70 @@ def run(leaf: Explore, robot: FakeRobot, max_ticks: int = 400, on_tick: object =
 
 
 @pytest.mark.parametrize("strategy", ["gain", "nearest"])
-def test_unreachable_frontier_is_blacklisted_and_exploring_ends_without_it(strategy: str) -> None:
-    """The west goal aborts: blacklisted with the reason, never sent again; the east end is explored."""
+def test_a_frontier_the_map_proves_closed_is_given_up_and_exploring_ends_explored(strategy: str) -> None:
+    """The west goal aborts and the map then shows a wall across the corridor: given up as closed, SUCCESS."""
+    robot = MapRobot(corridor_map(), block_x=2.0)
+    leaf, events = make(robot, strategy=strategy)
+
+    def watch() -> None:
+        if any(g.goal.x < 2.0 and g.status().done for g in robot.goals):
+            robot.data[:, 50] = 100  # the west of the corridor turns out walled off at x 2.5
+        if any(g.goal.x > 4.0 and g.polls <= 1 for g in robot.goals):  # arriving there: it sees the end
+            robot.reveal_east()
+
+    run(leaf, robot, on_tick=watch)
+    assert leaf.status == Status.SUCCESS, leaf.feedback_message
+    blacklisted = events.of("explore_blacklist")
+    assert len(blacklisted) == 1 and blacklisted[0]["x"] < 2.0 and blacklisted[0]["proved_closed"]
+    assert "no path to it on the map" in blacklisted[0]["reason"]
+    assert "the map shows no way to it" in blacklisted[0]["reason"]
+    assert len([g for g in robot.goals if g.goal.x < 2.0]) == 1  # never offered again once closed
+    assert any(g.goal.x > 4.0 for g in robot.goals)
+    assert "no reachable frontier remains" in leaf.feedback_message
+    assert "1 unreachable" in leaf.feedback_message
+    assert leaf.bb.get("explore_complete") is True
+
+
+@pytest.mark.parametrize("strategy", ["gain", "nearest"])
+def test_a_frontier_the_map_shows_open_is_retried_then_the_exploration_is_partial(strategy: str) -> None:
+    """West goals abort while the map shows a way: three tries from new places, then FAILURE 'partial'."""
     robot = MapRobot(corridor_map(), block_x=2.0)
     leaf, events = make(robot, strategy=strategy)
 
     def reveal() -> None:
-        if any(g.goal.x > 4.0 and g.polls <= 1 for g in robot.goals):  # arriving there: it sees the end
+        if any(g.goal.x > 4.0 and g.polls <= 1 for g in robot.goals):
             robot.reveal_east()
 
     run(leaf, robot, on_tick=reveal)
-    assert leaf.status == Status.SUCCESS, leaf.feedback_message
+    assert leaf.status == Status.FAILURE
+    west = [g.goal for g in robot.goals if g.goal.x < 2.0]
+    assert len(west) == 3  # max_attempts
+    assert len({(round(g.x, 2), round(g.y, 2)) for g in west}) == 3  # each from another approach
+    assert any(g.x < 1.5 for g in west)  # one goes through the frontier into the unknown
+    assert len(events.of("explore_try_failed")) == 2
     blacklisted = events.of("explore_blacklist")
-    assert len(blacklisted) == 1 and blacklisted[0]["x"] < 2.0
-    assert "no path to it on the map" in blacklisted[0]["reason"]
-    west = [g for g in robot.goals if g.goal.x < 2.0]
-    assert len(west) == 1  # never offered again once blacklisted
-    assert any(g.goal.x > 4.0 for g in robot.goals)
-    assert "no reachable frontier remains" in leaf.feedback_message
-    assert "1 unreachable" in leaf.feedback_message
+    assert len(blacklisted) == 1 and not blacklisted[0]["proved_closed"]
+    message = leaf.feedback_message
+    assert message.startswith("partial: 1 frontier left unexplored")
+    assert "(1.5" in message and "m^2 unknown behind it" in message and "1 given up open" in message
+    assert leaf.bb.get("explore_complete") is False
+    left = leaf.bb.get("unexplored")
+    assert len(left) == 1 and left[0]["x"] < 2.0
+
+
+def test_partial_is_success_when_asked_and_still_says_partial() -> None:
+    """With partial_is_success the same run ends SUCCESS, its reason still starting 'partial:'."""
+    robot = MapRobot(corridor_map(), block_x=2.0)
+    leaf, _ = make(robot, partial_is_success=True)
+
+    def reveal() -> None:
+        if any(g.goal.x > 4.0 and g.polls <= 1 for g in robot.goals):
+            robot.reveal_east()
+
+    run(leaf, robot, on_tick=reveal)
+    assert leaf.status == Status.SUCCESS
+    assert leaf.feedback_message.startswith("partial:")
+    assert leaf.bb.get("explore_complete") is False
 
 
 def test_goals_keep_clear_of_walls_and_unknown_cells() -> None:

@@ -9,17 +9,31 @@ report's scan points, largest region first).
 
 While driving it re-plans every ``replan_period`` seconds: a goal whose frontier has been seen
 meanwhile is dropped for the next one (the lidar reaches far ahead of the robot), and the
-``gain`` strategy also switches when another goal scores clearly (1.3 times) better. A goal that
-the navigation stack aborts, that the robot makes no progress toward for ``no_progress_timeout``
-seconds, or whose frontier stays unknown once reached, is blacklisted with its reason and never
-offered again (nor any goal for the same frontier place). With ``look_around`` the robot
-turns a full circle at each goal reached, in ``look_steps`` steps with a pause at each (the
-report's 360° scan), by ``drive`` commands.
+``gain`` strategy also switches when another goal scores clearly (1.3 times) better.
 
-Ends SUCCESS when no reachable frontier (or unvisited scan point) remains; FAILURE with a reason
-when no map arrives within ``map_timeout`` or the robot is stuck (neither the known area grew nor
-the robot moved for ``stuck_timeout`` seconds). On every end, halts included, the learned map is
-written into the run directory as ``map.pgm`` + ``map.yaml`` (Nav2 map_server format).
+A frontier is given up only when the map proves it closed. A try fails when the navigation stack
+aborts the goal, when the path left to it (the navigator's feedback; the straight line without
+one) has not shrunk for ``no_progress_timeout`` seconds, or when its frontier stays unknown once
+reached. The map is then asked: no way to the frontier on it (or the frontier is no longer worth a
+trip) -- given up as closed, with the reason; a way -- the frontier is tried again from another
+approach (through the doorway, or from another place; :mod:`missiontree.mapping.exploration`),
+after the frontiers not tried yet, and given up *open* after ``max_attempts`` tries. A frontier
+given up as closed that the map opens again later is tried again (up to ``max_attempts`` in all).
+With ``look_around`` the robot turns a full circle at each goal reached, in ``look_steps`` steps
+with a pause at each (the report's 360° scan), by ``drive`` commands.
+
+Ends SUCCESS ("explored") only when no reachable frontier (or unvisited scan point) remains and
+no frontier was given up open. When some were (the map still shows a way to a frontier the robot
+could not get to), the exploration is *partial*: FAILURE (or SUCCESS with
+``partial_is_success``) whose reason starts with ``partial:`` and names each such frontier (its
+position and why it was left) and the unknown area left behind them (m^2). FAILURE with a reason
+also when no map arrives within ``map_timeout`` or the robot is stuck (neither the known area grew
+nor the robot moved for ``stuck_timeout`` seconds). The reason is the node's failure reason in the
+run's summary.json. On every end, halts included, the learned map is written into the run
+directory as ``map.pgm`` + ``map.yaml`` (Nav2 map_server format) beside ``exploration.json``: how
+it ended (``explored``, ``partial``, ``failed`` or ``halted``), ``complete``, the frontiers left
+(positions, why) and the unknown area behind them, the frontiers given up and why; the blackboard
+gets ``explore_complete`` and ``unexplored`` (the frontiers left).
 
 Leaves built on Explore (the search's ``ResumeExplore`` and ``Locate``) use its public interface:
 :meth:`Explore.planner_options` and :meth:`Explore.make_planner` (the planner a run uses),
@@ -29,6 +43,7 @@ Leaves built on Explore (the search's ``ResumeExplore`` and ``Locate``) use its 
 
 from __future__ import annotations
 
+import json
 import math
 from typing import Annotated, Any, Literal
 
@@ -37,7 +52,7 @@ from pydantic import BaseModel, Field
 
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Output
-from missiontree.mapping.exploration import Candidate, ExplorationPlanner
+from missiontree.mapping.exploration import Candidate, ExplorationPlanner, LeftOpen
 from missiontree.mapping.grid import free_mask, unknown_mask
 from missiontree.mapping.mapfile import write_map
 from missiontree.robot.actions import ActionHandle, ActionStatus
@@ -78,7 +93,14 @@ class Explore(Leaf):
         replan_period: float = Field(
             2.0, gt=0, description="Re-evaluate the goal this often while driving (s).")
         no_progress_timeout: float = Field(
-            15.0, gt=0, description="Blacklist a goal the robot got no closer to for this long (s).")
+            30.0, gt=0, description="End a try when the path left to its goal (navigation feedback) has "
+            "not shrunk for this long (s); the frontier is tried again from another approach.")
+        max_attempts: int = Field(
+            3, ge=1, le=10, description="Tries of a frontier the map still shows a way to (each from "
+            "another approach) before it is given up, leaving the exploration partial.")
+        partial_is_success: bool = Field(
+            False, description="End SUCCESS (the reason still starting 'partial:') when frontiers were "
+            "given up while the map showed a way to them; default FAILURE.")
         stuck_timeout: float = Field(
             60.0, gt=0, description="Fail when neither the map grew nor the robot moved for this long (s).")
         map_timeout: float = Field(
@@ -88,6 +110,11 @@ class Explore(Leaf):
         explored_area: Annotated[str, Output("known map area when the leaf ended (m^2)", type="float")] = (
             "explored_area")
         map_yaml: Annotated[str, Output("path of the map.yaml written", type="str")] = "map_yaml"
+        explore_complete: Annotated[str, Output(
+            "True when the leaf ended with nothing reachable left unexplored", type="bool")] = (
+            "explore_complete")
+        unexplored: Annotated[str, Output(
+            "frontiers left unexplored when the leaf ended: [{x, y, reason}]", type="list")] = "unexplored"
 
     params: Params
 
@@ -100,6 +127,9 @@ class Explore(Leaf):
         self.started = 0.0
         self.goals = 0
         self.last_grid: OccupancyGrid | None = None
+        self.left: list[LeftOpen] | None = None   # set when nothing is left but frontiers given up open
+        #: explored | partial | failed | stopped (halted, or ended by a subclass's own rule)
+        self.outcome = "stopped"
         self._reset_timers(0.0)
 
     def _reset_timers(self, now: float) -> None:
@@ -126,6 +156,8 @@ class Explore(Leaf):
         self.state = _SELECT
         self.goals = 0
         self.last_grid = None
+        self.left = None
+        self.outcome = "stopped"
         self.started = self.context.robot.now()
         self._reset_timers(self.started)
 
@@ -155,8 +187,17 @@ class Explore(Leaf):
             if status is not None:
                 return status
         if self.state == _SELECT:
-            return self.select_goal(now, grid, pose)
+            return self._ended(self.select_goal(now, grid, pose), grid)
         return self.running(self._feedback(pose))
+
+    def _ended(self, status: Status, grid: OccupancyGrid) -> Status:
+        """A SUCCESS that left frontiers given up open is partial: FAILURE unless ``partial_is_success``."""
+        if status != Status.SUCCESS or self.left is None or self.state != _SELECT:
+            return status
+        text = self.partial_text(grid, self.left)
+        if self.params.partial_is_success:
+            return self.succeed(text)
+        return self.fail(text)
 
     def terminate(self, new_status: Status) -> None:
         """Cancel the goal, stop turning and write the learned map into the run directory."""
@@ -186,13 +227,47 @@ class Explore(Leaf):
         return ExplorationPlanner(**self.planner_options())
 
     def select_goal(self, now: float, grid: OccupancyGrid, pose: Pose2D) -> Status:
-        """Send the best candidate goal (RUNNING), or SUCCESS when no reachable one remains."""
-        assert self.planner is not None
-        candidates = self.planner.candidates(grid, (pose.x, pose.y))
+        """Send the best candidate goal (RUNNING), or SUCCESS when no reachable one remains.
+
+        When none remains, frontiers given up that the map now offers a way to are tried again
+        while they have tries left; those left over set :attr:`left` (the exploration is partial:
+        :meth:`update` turns the SUCCESS into FAILURE, subclasses may first try them their way).
+        """
+        planner = self.planner
+        assert planner is not None
+        candidates = planner.candidates(grid, (pose.x, pose.y))
+        self.left = None
+        if not candidates and planner.blacklist:
+            left = planner.left_open(grid, (pose.x, pose.y))
+            again = [o for o in left if len(planner.tries(o.entry.target)) < self.params.max_attempts]
+            if again:
+                self.emit("explore_reopen", goals=[
+                    {"x": round(o.candidate.x, 3), "y": round(o.candidate.y, 3), "was": o.entry.reason}
+                    for o in again])
+                for o in again:  # still counted as a try, and still steering the next approach
+                    planner.blacklist.remove(o.entry)
+                    planner.failures.append(o.entry)
+                candidates = planner.candidates(grid, (pose.x, pose.y))
+                left = [o for o in left if o not in again]
+            if not candidates and left:
+                self.left = left
         if not candidates:
+            self.outcome = "explored" if self.left is None else "partial"
             return self.succeed(f"explored: no reachable {self._what()} remains ({self.summary(grid)})")
         self._send(now, candidates[0])
         return self.running(self._feedback(pose))
+
+    def partial_text(self, grid: OccupancyGrid, left: list[LeftOpen]) -> str:
+        """'partial: N frontiers left ... at (x, y) (why) ...; about A m^2 unknown behind them (summary)'."""
+        assert self.planner is not None
+        area = self.planner.unknown_behind(grid, [o.candidate.target for o in left])
+        where = "; ".join(f"({o.candidate.target[0]:.2f}, {o.candidate.target[1]:.2f}): {o.entry.reason}"
+                          for o in left[:5])
+        more = f"; and {len(left) - 5} more" if len(left) > 5 else ""
+        n = len(left)
+        return (f"partial: {n} frontier{'s' if n > 1 else ''} left unexplored though the map shows a way "
+                f"({where}{more}); about {area:.1f} m^2 unknown behind "
+                f"{'them' if n > 1 else 'it'} ({self.summary(grid)})")
 
     def on_goal_reached(self, goal: Candidate) -> None:
         """Called when the robot reached ``goal`` (before any look-around); nothing here."""
@@ -201,11 +276,19 @@ class Explore(Leaf):
         """Called when ``goal`` was blacklisted (``self.last_grid`` is the map then); nothing here."""
 
     def summary(self, grid: OccupancyGrid) -> str:
-        """Known area, goals sent and goals given up, e.g. '20.8 m^2 known, 3 goals, 2 unreachable'."""
+        """Known area, goals sent and places given up, e.g. '20.8 m^2 known, 3 goals, 2 unreachable'.
+
+        ``unreachable``: given up as the map proved them closed; ``given up open``: while it
+        showed a way (after ``max_attempts`` tries).
+        """
         assert self.planner is not None
         text = f"{known_area(grid):.1f} m^2 known, {self.goals} goals"
-        if self.planner.blacklist:
-            text += f", {len(self.planner.blacklist)} unreachable"
+        closed = sum(b.proved_closed for b in self.planner.blacklist)
+        opened = len(self.planner.blacklist) - closed
+        if closed:
+            text += f", {closed} unreachable"
+        if opened:
+            text += f", {opened} given up open"
         return text
 
     # -- states ------------------------------------------------------------------------------------
@@ -224,23 +307,29 @@ class Explore(Leaf):
                 self.on_goal_reached(target)
                 if target.kind == "frontier" and not self.params.look_around \
                         and self.planner.still_frontier(grid, *target.target):
-                    # standing there did not reveal it (a gap the lidar cannot look into): never again
-                    self._give_up(target, "reached, but its frontier stays unknown from there")
+                    # standing there did not reveal it (a gap the lidar cannot look into from there)
+                    self._try_failed(target, "reached, but its frontier stays unknown from there", grid, pose)
                 if self.params.look_around:
                     self._start_look(now, pose)
                     return self.running("looking around")
             else:
                 reason = (result.reason if result is not None and result.reason else status.value)
-                self._give_up(target, f"goal {status.value}: {reason}")
+                self._try_failed(target, f"goal {status.value}: {reason}", grid, pose)
             self.state = _SELECT
             return None
-        distance = math.hypot(target.x - pose.x, target.y - pose.y)
+        feedback = self.handle.feedback()
+        # progress is the path left (Nav2's distance_remaining): the straight line grows while the
+        # path leads out of a room and round to a door
+        distance = (feedback.distance_remaining if feedback is not None
+                    and math.isfinite(feedback.distance_remaining) else math.hypot(target.x - pose.x,
+                                                                                   target.y - pose.y))
         if distance < self.goal_best - 0.1:
             self.goal_best, self.goal_best_at = distance, now
         elif now - self.goal_best_at > self.params.no_progress_timeout:
             self.handle.cancel()
             self.handle = None
-            self._give_up(target, f"no progress toward it for {self.params.no_progress_timeout:g} s")
+            self._try_failed(target, f"no progress along the path for {self.params.no_progress_timeout:g} s",
+                             grid, pose)
             self.state = _SELECT
             return None
         if now >= self.next_replan and target.kind == "frontier":
@@ -266,6 +355,7 @@ class Explore(Leaf):
         robot = self.context.robot
         if self.handle is not None:
             self.handle.cancel()
+        self.outcome, self.left = "stopped", None
         self.target = candidate
         self.handle = robot.navigate_to(Pose2D(candidate.x, candidate.y, 0.0),
                                         Tolerance(self.params.xy_tolerance, 2.0 * math.pi))
@@ -279,12 +369,36 @@ class Explore(Leaf):
                   path_m=round(candidate.path_m, 3), score=round(candidate.score, 4))
         self.context.mark("goal", candidate.x, candidate.y, candidate.kind)
 
-    def _give_up(self, target: Candidate, reason: str) -> None:
+    def _try_failed(self, target: Candidate, reason: str, grid: OccupancyGrid, pose: Pose2D) -> None:
+        """A try failed: give the place up when the map proves it closed or its tries are used up.
+
+        Otherwise the try is recorded (:meth:`ExplorationPlanner.fail`) and the place stays on offer,
+        from another approach.
+        """
+        planner = self.planner
+        assert planner is not None
+        if target.kind != "frontier":
+            self._give_up(target, reason, proved_closed=True)
+            return
+        tries = len(planner.tries(target.target)) + 1
+        offered = planner.candidates(grid, (pose.x, pose.y), ignore_blacklist=True) \
+            if planner.still_frontier(grid, *target.target) else None  # None: seen (or moved) meanwhile
+        if offered is not None and not any(math.dist(c.target, target.target) <= planner.blacklist_radius
+                                           for c in offered):
+            self._give_up(target, f"{reason}; the map shows no way to it", proved_closed=True)
+        elif tries >= self.params.max_attempts:
+            self._give_up(target, f"{reason} (after {tries} tr{'ies' if tries > 1 else 'y'}; the map still "
+                          f"shows a way)", proved_closed=False)
+        else:
+            planner.fail(target.x, target.y, reason, target.target)
+            self.emit("explore_try_failed", x=target.x, y=target.y, reason=reason, tries=tries)
+
+    def _give_up(self, target: Candidate, reason: str, proved_closed: bool = True) -> None:
         assert self.planner is not None
-        self.planner.give_up(target.x, target.y, reason, target.target)
+        self.planner.give_up(target.x, target.y, reason, target.target, proved_closed=proved_closed)
         if target.kind == "scan_point":
             self.planner.visit(target.x, target.y)
-        self.emit("explore_blacklist", x=target.x, y=target.y, reason=reason)
+        self.emit("explore_blacklist", x=target.x, y=target.y, reason=reason, proved_closed=proved_closed)
         self.on_give_up(target, reason)
 
     def _start_look(self, now: float, pose: Pose2D) -> None:
@@ -347,12 +461,44 @@ class Explore(Leaf):
         if grid is None:
             return
         self.write("explored_area", round(known_area(grid), 3))
+        report = self._report(grid)
+        self.write("explore_complete", report["complete"])
+        self.write("unexplored", report["frontiers_left"])
         run_dir = self.ctx.run_dir if self.ctx is not None else None
         if run_dir is None:
             return
         _, yaml_path = write_map(grid, run_dir, self.params.map_name)
         self.write("map_yaml", str(yaml_path))
         self.emit("map_saved", path=str(yaml_path), known_m2=round(known_area(grid), 3))
+        stem = "" if self.params.map_name == "map" else f"{self.params.map_name}_"
+        name = f"{stem}exploration.json"
+        (run_dir / name).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+
+    def _report(self, grid: OccupancyGrid) -> dict[str, Any]:
+        """How the exploration ended, what is left (positions, why, unknown area) and what was given up."""
+        planner = self.planner
+        left: list[dict[str, Any]] = []
+        unknown_left = 0.0
+        if planner is not None:
+            if self.outcome == "partial" and self.left:
+                left = [{"x": round(o.candidate.target[0], 3), "y": round(o.candidate.target[1], 3),
+                         "reason": o.entry.reason} for o in self.left]
+                unknown_left = planner.unknown_behind(grid, [o.candidate.target for o in self.left])
+            elif self.outcome in ("stopped", "failed") and self.ctx is not None:
+                stamped = self.ctx.robot.pose()
+                if stamped is not None:  # what it would have gone to next
+                    offered = planner.candidates(grid, (stamped.pose.x, stamped.pose.y))
+                    left = [{"x": round(c.target[0], 3), "y": round(c.target[1], 3),
+                             "reason": "not explored yet"} for c in offered]
+                    unknown_left = planner.unknown_behind(grid, [c.target for c in offered])
+        return {
+            "outcome": self.outcome, "complete": self.outcome == "explored",
+            "known_m2": round(known_area(grid), 3),
+            "goals": self.goals, "frontiers_left": left, "unknown_left_m2": round(unknown_left, 2),
+            "given_up": [] if planner is None else [
+                {"x": round(b.x, 3), "y": round(b.y, 3), "reason": b.reason, "proved_closed": b.proved_closed}
+                for b in planner.blacklist],
+        }
 
 
 def known_area(grid: OccupancyGrid) -> float:

@@ -25,10 +25,20 @@ unknown side of a frontier often turns out to be a wall.
 
 Path lengths come from :func:`missiontree.mapping.planner.path_lengths` (one Dijkstra from the
 robot over the inflated costmap, unknown cells traversable as with a SLAM map); a goal it cannot
-reach is no candidate. Goals the robot failed to reach are *blacklisted* (with the reason), and no
-candidate within ``blacklist_radius`` of one is offered again. Nothing here talks to a robot: the
-Explore leaf (:mod:`missiontree.behaviours.explore`) feeds it maps and poses, and the exploration
-benchmark uses it the same way.
+reach is no candidate.
+
+A try that fails is not the end of a frontier. :meth:`ExplorationPlanner.fail` records it, and the
+frontier is offered again from another approach: the first try stands back from it as above, the
+second goes *through* it (a goal ``through_m`` past the frontier, in the unknown it faces: the path
+then leads through the doorway, and the robot sees the room from inside), later ones stand back at
+another place, away from the poses that failed. A frontier place is *blacklisted* (no candidate
+within ``blacklist_radius`` of it is offered again) only when the map proves it closed (no way to
+it, or the goal inside an obstacle: ``give_up(..., proved_closed=True)``), or after
+``max_attempts`` failed tries while the map still shows a way (given up *open*).
+:meth:`ExplorationPlanner.left_open` lists what was given up open and is still worth going to on
+the current map: exploring is complete only when that list is empty. Nothing here talks to a
+robot: the Explore leaf (:mod:`missiontree.behaviours.explore`) feeds it maps and poses, and the
+exploration benchmark uses it the same way.
 """
 
 from __future__ import annotations
@@ -98,12 +108,31 @@ class Candidate:
 
 @dataclass(frozen=True)
 class Blacklisted:
-    """A goal given up, the place it was to see (its frontier), and why."""
+    """A goal given up (or a try that failed), the place it was to see (its frontier), and why.
+
+    Attributes:
+        proved_closed: The map showed the frontier closed (no way to it) when it was given up;
+            False: given up while the map still showed a way (unexplored, possibly reachable).
+    """
 
     x: float
     y: float
     reason: str
     target: tuple[float, float] = (math.nan, math.nan)
+    proved_closed: bool = False
+
+
+@dataclass(frozen=True)
+class LeftOpen:
+    """A frontier given up while the map still shows a way to it: what makes exploring incomplete.
+
+    Attributes:
+        entry: The blacklist entry.
+        candidate: The goal the planner would offer for it now (ignoring the blacklist).
+    """
+
+    entry: Blacklisted
+    candidate: Candidate
 
 
 @dataclass
@@ -130,6 +159,12 @@ class ExplorationPlanner:
         wall_gap_m: Unknown gaps this narrow (m) between occupied cells are taken for wall (cells a
             wall seen at a grazing angle left unknown; else every such gap would be a frontier
             onto the unknown outside the building).
+        max_attempts: Failed tries (each from another approach) before a frontier the map still
+            shows open is given up.
+        retry_separation: A retry's goal stands at least this far (m) from the goals that failed.
+        through_m: How far past the frontier (m) the second try's goal lies, in the unknown.
+        retry_discount: A frontier's score is multiplied by this per failed try (``gain``), so
+            other frontiers go first and the map around it can grow meanwhile.
         path_lengths: How path lengths are measured (default: the planner).
     """
 
@@ -148,9 +183,14 @@ class ExplorationPlanner:
     approach_m: float = 1.0
     gain_beams: int = 48
     wall_gap_m: float = 0.1
+    max_attempts: int = 3
+    retry_separation: float = 0.5
+    through_m: float = 0.6
+    retry_discount: float = 0.5
     path_lengths: PathLengths = planner_path_lengths
     blacklist: list[Blacklisted] = field(default_factory=list)
     visited: list[tuple[float, float]] = field(default_factory=list)
+    failures: list[Blacklisted] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
@@ -160,10 +200,30 @@ class ExplorationPlanner:
     # -- bookkeeping -------------------------------------------------------------------------------
 
     def give_up(self, x: float, y: float, reason: str,
-                target: tuple[float, float] | None = None) -> None:
-        """Blacklist the goal (x, y) and the frontier place it was to see: it proved unreachable."""
+                target: tuple[float, float] | None = None, proved_closed: bool = False) -> None:
+        """Blacklist the goal (x, y) and the frontier place it was to see.
+
+        ``proved_closed``: the map shows no way to it (else it is given up *open*, and exploring
+        that leaves it is incomplete, see :meth:`left_open`).
+        """
         where = (float(target[0]), float(target[1])) if target is not None else (math.nan, math.nan)
-        self.blacklist.append(Blacklisted(float(x), float(y), reason, where))
+        self.blacklist.append(Blacklisted(float(x), float(y), reason, where, proved_closed))
+
+    def fail(self, x: float, y: float, reason: str, target: tuple[float, float]) -> int:
+        """Record a failed try at goal (x, y) for the frontier place ``target``; the tries there so far.
+
+        The frontier stays on offer, from another approach (see :meth:`frontier_goals`).
+        """
+        self.failures.append(Blacklisted(float(x), float(y), reason, (float(target[0]), float(target[1]))))
+        return len(self.tries(target))
+
+    def tries(self, target: tuple[float, float]) -> list[Blacklisted]:
+        """Failed tries and blacklist entries for the frontier place ``target`` (``blacklist_radius``)."""
+        return self._near(self.failures, target) + self._near(self.blacklist, target)
+
+    def _near(self, entries: list[Blacklisted], target: tuple[float, float]) -> list[Blacklisted]:
+        r2 = self.blacklist_radius ** 2
+        return [b for b in entries if (b.target[0] - target[0]) ** 2 + (b.target[1] - target[1]) ** 2 <= r2]
 
     def visit(self, x: float, y: float) -> None:
         """Record that the robot stood (and looked) at (x, y)."""
@@ -181,8 +241,18 @@ class ExplorationPlanner:
 
     # -- ranking -----------------------------------------------------------------------------------
 
-    def candidates(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[Candidate]:
-        """Reachable, not blacklisted goals, best first (empty: nothing reachable is left to explore)."""
+    def candidates(self, grid: OccupancyGrid, robot_xy: tuple[float, float],
+                   ignore_blacklist: bool = False) -> list[Candidate]:
+        """Reachable, not blacklisted goals, best first (empty: nothing reachable is left to explore).
+
+        ``ignore_blacklist``: offer blacklisted places too (what :meth:`left_open` checks).
+        """
+        if ignore_blacklist:
+            kept, self.blacklist = self.blacklist, []
+            try:
+                return self.candidates(grid, robot_xy)
+            finally:
+                self.blacklist = kept
         grid = self.close_wall_gaps(grid)
         if self.strategy == "scan_points":
             points = [(p.x, p.y, p.cells, p.x, p.y) for p in scan_points(grid, self.erosion_m)]
@@ -207,17 +277,74 @@ class ExplorationPlanner:
         for (p, length), gain in zip(reachable, gains, strict=True):
             if self.strategy == "gain" and gain < self.min_gain_m2:
                 continue
+            failed = len(self.tries((p[3], p[4]))) if kind == "frontier" and self.failures else 0
             out.append(Candidate(p[0], p[1], kind, int(p[2]), float(gain), float(length),
-                                 self._score(float(gain), float(length), int(p[2])), (p[3], p[4])))
+                                 self._score(float(gain), float(length), int(p[2]), failed), (p[3], p[4])))
         out.sort(key=lambda c: (-c.score, c.path_m, c.x, c.y))
         return out
 
-    def _score(self, gain: float, path: float, size: int) -> float:
+    def _score(self, gain: float, path: float, size: int, failed: int = 0) -> float:
         if self.strategy == "gain":
-            return gain * math.exp(-self.cost_rate * path)
+            return gain * math.exp(-self.cost_rate * path) * self.retry_discount ** failed
         if self.strategy == "nearest":
-            return -path
+            return -path - 5.0 * failed  # a frontier tried before waits for the ones not tried yet
         return float(size)  # scan points: the report ranks them by region size
+
+    def left_open(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[LeftOpen]:
+        """Blacklisted frontier places the map still offers a way to (and that are still worth going to).
+
+        Each pairs its blacklist entry with the candidate the planner would offer for it now,
+        ignoring the blacklist: a reachable frontier that would reveal enough unknown area. An
+        entry given up as proved closed shows up here when the map has opened since.
+        """
+        if not self.blacklist or self.strategy == "scan_points":
+            return []
+        r2 = self.blacklist_radius ** 2
+        out: list[LeftOpen] = []
+        for c in self.candidates(grid, robot_xy, ignore_blacklist=True):
+            for b in self.blacklist:
+                near_target = (b.target[0] - c.target[0]) ** 2 + (b.target[1] - c.target[1]) ** 2 <= r2
+                if near_target or (b.x - c.x) ** 2 + (b.y - c.y) ** 2 <= r2:
+                    if all(o.entry is not b for o in out):
+                        out.append(LeftOpen(b, c))
+                    break
+        return out
+
+    def unknown_behind(self, grid: OccupancyGrid, places: Sequence[tuple[float, float]]) -> float:
+        """Unknown area (m^2) within ``sensor_range`` of ``places``, connected to them through unknown cells.
+
+        The area a set of frontiers left unexplored would reveal, at most: walls already known
+        bound it, the sensor range bounds the rest (each place counted once where they overlap).
+        """
+        if not places:
+            return 0.0
+        grid = self.close_wall_gaps(grid)
+        res = grid.resolution
+        h, w = grid.data.shape
+        k = int(math.ceil(self.sensor_range / res))
+        cells = [grid.world_to_cell(x, y) for x, y in places]
+        r0 = max(0, min(r for r, _ in cells) - k)
+        r1 = min(h, max(r for r, _ in cells) + k + 1)
+        c0 = max(0, min(c for _, c in cells) - k)
+        c1 = min(w, max(c for _, c in cells) + k + 1)
+        if r0 >= r1 or c0 >= c1:
+            return 0.0
+        window = grid.data[r0:r1, c0:c1]
+        rr, cc = np.mgrid[r0:r1, c0:c1]
+        near = np.zeros(window.shape, bool)
+        for r, c in cells:
+            near |= (rr - r) ** 2 + (cc - c) ** 2 <= k * k
+        unknown = (window < 0) & near
+        labels, _ = ndimage.label(unknown, structure=ndimage.generate_binary_structure(2, 1))
+        seeds: set[int] = set()
+        m = 2
+        for r, c in cells:
+            r, c = r - r0, c - c0
+            box = labels[max(0, r - m): max(0, r + m + 1), max(0, c - m): max(0, c + m + 1)]
+            seeds.update(int(v) for v in np.unique(box) if v)
+        if not seeds:
+            return 0.0
+        return float(np.count_nonzero(np.isin(labels, list(seeds)))) * res * res
 
     def better(self, best: Candidate, current: Candidate | None, margin: float = 1.3) -> bool:
         """Whether to leave the current goal for ``best`` (hysteresis against dithering)."""
@@ -256,6 +383,8 @@ class ExplorationPlanner:
         goal_margin`` from every cell not known to be free (the unknown side of a frontier often
         turns out to be a wall), within ``approach_m`` of the centroid and in line of sight of the
         frontier. Where there is none, it is the frontier cell farthest from known obstacles.
+        A frontier tried before (:meth:`fail`) gets another approach: after one failed try a goal
+        through it (:meth:`_through`), after more a standing place away from the goals that failed.
         """
         res = grid.resolution
         min_cells = max(1, int(math.ceil(self.min_frontier_m / res)))
@@ -271,33 +400,86 @@ class ExplorationPlanner:
         to_unfree = cv2.distanceTransform(np.pad(free, 1).astype(np.uint8), cv2.DIST_L2, 5)[1:-1, 1:-1] * res
         to_occupied = cv2.distanceTransform((~occupied).astype(np.uint8), cv2.DIST_L2, 5) * res
         safe = to_unfree >= want
-        k = int(math.ceil(self.approach_m / res))
-        h, w = grid.data.shape
         out = []
         for f in frontiers:
-            rows, cols = f.cells[:, 0], f.cells[:, 1]
-            cr = min(h - 1, max(0, int(math.floor((f.centroid[1] - grid.origin.y) / res))))
-            cc = min(w - 1, max(0, int(math.floor((f.centroid[0] - grid.origin.x) / res))))
+            failed = self._near(self.failures, f.goal) if self.failures else []
+            avoid = [(b.x, b.y) for b in failed]
             goal = None
-            r0, c0 = max(0, cr - k), max(0, cc - k)
-            sr, sc = np.nonzero(safe[r0:cr + k + 1, c0:cc + k + 1])
-            if len(sr):
-                sr, sc = sr + r0, sc + c0
-                d2 = (sr - cr) ** 2 + (sc - cc) ** 2
-                for j in np.argsort(d2, kind="stable")[:8]:  # the nearest few that see the frontier
-                    if d2[j] > k * k:
-                        break
-                    m = int(np.argmin((rows - sr[j]) ** 2 + (cols - sc[j]) ** 2))
-                    if _clear_line(occupied, (int(sr[j]), int(sc[j])), (int(rows[m]), int(cols[m]))):
-                        goal = grid.cell_to_world(int(sr[j]), int(sc[j]))
-                        break
+            if len(failed) == 1:
+                goal = self._through(grid, f, occupied, to_occupied)
             if goal is None:
+                goal = self._stand_back(grid, f, safe, occupied, avoid)
+            if goal is None and len(failed) > 1:
+                goal = self._through(grid, f, occupied, to_occupied)
+            if goal is None:
+                rows, cols = f.cells[:, 0], f.cells[:, 1]
                 m = int(np.argmax(to_occupied[rows, cols]))
                 if to_occupied[rows[m], cols[m]] < self.footprint_radius:
                     continue  # no place to stand near it: leave it
                 goal = grid.cell_to_world(int(rows[m]), int(cols[m]))
             out.append((f, (float(goal[0]), float(goal[1]))))
         return out
+
+    def _stand_back(self, grid: OccupancyGrid, f: Frontier, safe: np.ndarray, occupied: np.ndarray,
+                    avoid: Sequence[tuple[float, float]]) -> tuple[float, float] | None:
+        """The safe free cell nearest the frontier's centroid that sees it, away from ``avoid``; or None."""
+        res = grid.resolution
+        h, w = grid.data.shape
+        k = int(math.ceil(self.approach_m / res))
+        rows, cols = f.cells[:, 0], f.cells[:, 1]
+        cr = min(h - 1, max(0, int(math.floor((f.centroid[1] - grid.origin.y) / res))))
+        cc = min(w - 1, max(0, int(math.floor((f.centroid[0] - grid.origin.x) / res))))
+        r0, c0 = max(0, cr - k), max(0, cc - k)
+        sr, sc = np.nonzero(safe[r0:cr + k + 1, c0:cc + k + 1])
+        if not len(sr):
+            return None
+        sr, sc = sr + r0, sc + c0
+        d2 = (sr - cr) ** 2 + (sc - cc) ** 2
+        keep = d2 <= k * k
+        if avoid:
+            sep = (self.retry_separation / res) ** 2
+            for ax, ay in avoid:
+                ar, ac = (ay - grid.origin.y) / res - 0.5, (ax - grid.origin.x) / res - 0.5
+                keep &= (sr - ar) ** 2 + (sc - ac) ** 2 > sep
+        sr, sc, d2 = sr[keep], sc[keep], d2[keep]
+        for j in np.argsort(d2, kind="stable")[:8]:  # the nearest few that see the frontier
+            m = int(np.argmin((rows - sr[j]) ** 2 + (cols - sc[j]) ** 2))
+            if _clear_line(occupied, (int(sr[j]), int(sc[j])), (int(rows[m]), int(cols[m]))):
+                return grid.cell_to_world(int(sr[j]), int(sc[j]))
+        return None
+
+    def _through(self, grid: OccupancyGrid, f: Frontier, occupied: np.ndarray,
+                 to_occupied: np.ndarray) -> tuple[float, float] | None:
+        """A goal ``through_m`` past the frontier, in the unknown it faces (a doorway: inside the room).
+
+        The direction is the frontier's normal, from its free side towards its unknown side; the
+        goal keeps the robot's radius (plus the margin) from every occupied cell and lies on the
+        map, in straight line of sight from the frontier. Slightly shorter, longer or turned
+        places are tried when the first is not clear; None when none is.
+        """
+        res = grid.resolution
+        h, w = grid.data.shape
+        unknown = np.pad(unknown_mask(grid), 1, constant_values=True)
+        rows, cols = f.cells[:, 0] + 1, f.cells[:, 1] + 1
+        nr = nc = 0.0
+        for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            hits = float(np.count_nonzero(unknown[rows + dr, cols + dc]))
+            nr, nc = nr + dr * hits, nc + dc * hits
+        norm = math.hypot(nr, nc)
+        if norm < 1e-9:
+            return None
+        base = math.atan2(nr, nc)
+        gr, gc = grid.world_to_cell(*f.goal)
+        want = self.footprint_radius + self.goal_margin
+        for turn in (0.0, 0.35, -0.35, 0.7, -0.7):
+            for depth in (self.through_m, self.through_m + 0.3, self.through_m - 0.2):
+                r = int(round(gr + math.sin(base + turn) * depth / res))
+                c = int(round(gc + math.cos(base + turn) * depth / res))
+                if not (0 <= r < h and 0 <= c < w) or to_occupied[r, c] < want:
+                    continue
+                if _clear_line(occupied, (gr, gc), (r, c)):
+                    return grid.cell_to_world(r, c)
+        return None
 
     def still_frontier(self, grid: OccupancyGrid, x: float, y: float, radius: float = 0.3) -> bool:
         """Whether there is still frontier within ``radius`` of (x, y) (else that goal has been seen)."""
