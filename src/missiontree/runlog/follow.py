@@ -5,6 +5,11 @@ now) and ``/data.json`` (the data again, which the page polls once a second). Th
 incrementally: each request reads only the bytes written since the last one, and the data is
 rebuilt only when new lines arrived. A line still being written (no newline yet) waits for the
 next read.
+
+The server answers only requests whose ``Host`` (and ``Origin``, when sent) name its own loopback
+address, so a page on another site, a DNS-rebinding domain included, cannot read the run's data.
+It serves at most :data:`MAX_CONNECTIONS` connections at once (others get 503 at once) and drops a
+connection silent for :data:`READ_TIMEOUT_S` while its request is read.
 """
 
 from __future__ import annotations
@@ -14,7 +19,7 @@ import threading
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from missiontree.runlog.html import page_data, render_page
 from missiontree.runlog.replay import (
@@ -117,12 +122,69 @@ class LiveRun:
             return self._encoded[1]
 
 
+#: Requests served at once; a connection beyond this is answered 503 at once (no thread held).
+MAX_CONNECTIONS = 32
+#: Seconds a connection may stay silent while its request is read (a partial request then ends).
+READ_TIMEOUT_S = 10.0
+#: Connections the operating system queues before the server accepts them.
+LISTEN_BACKLOG = 128
+
+
+class ViewerServer(ThreadingHTTPServer):
+    """The viewer's HTTP server: loopback only, a bounded number of connections served at once."""
+
+    daemon_threads = True
+    request_queue_size = LISTEN_BACKLOG
+
+    def __init__(self, address: tuple[str, int], handler: type[BaseHTTPRequestHandler]) -> None:
+        super().__init__(address, handler)
+        self._slots = threading.BoundedSemaphore(MAX_CONNECTIONS)
+
+    def allowed_hosts(self) -> set[str]:
+        """The Host header values a request may carry: the bound address by IP or as localhost."""
+        port = self.server_address[1]
+        hosts = {f"127.0.0.1:{port}", f"localhost:{port}"}
+        if port == 80:
+            hosts |= {"127.0.0.1", "localhost"}
+        return hosts
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        """Serve the connection on a thread of its own, or answer 503 when all slots are taken."""
+        if not self._slots.acquire(blocking=False):
+            try:
+                request.sendall(b"HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\n"
+                                b"Connection: close\r\nRetry-After: 1\r\n\r\n")
+            except OSError:
+                pass
+            self.shutdown_request(request)
+            return
+        super().process_request(request, client_address)
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        """Serve one connection, then free its slot."""
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._slots.release()
+
+
 def make_server(run_dir: Path, port: int = 0, mission: Path | None = None) -> ThreadingHTTPServer:
-    """A server for ``run_dir`` on 127.0.0.1 (``port`` 0 picks a free one: see ``server.server_address``)."""
+    """A server for ``run_dir`` on 127.0.0.1 (``port`` 0 picks a free one: see ``server.server_address``).
+
+    It answers only requests addressed to it: the ``Host`` header must name the bound address
+    (127.0.0.1 or localhost with its port) and an ``Origin``, when sent, must be that address too,
+    so a web page on another site (a DNS-rebinding domain included) cannot read the run's data.
+    """
     live = LiveRun(run_dir, mission)
 
     class Handler(BaseHTTPRequestHandler):
+        timeout = READ_TIMEOUT_S  # socket timeout while the request is read: a stalled client ends
+
         def do_GET(self) -> None:  # noqa: N802 - http.server's naming
+            refusal = self._refusal()
+            if refusal:
+                self.send_error(403, refusal)
+                return
             route = self.path.split("?", 1)[0]
             if route in ("/", "/index.html"):
                 body = render_page(live.data()).encode("utf-8")
@@ -137,15 +199,25 @@ def make_server(run_dir: Path, port: int = 0, mission: Path | None = None) -> Th
             self.send_header("Content-Type", kind)
             self.send_header("Content-Length", str(len(body)))
             self.send_header("Cache-Control", "no-store")
+            self.send_header("X-Content-Type-Options", "nosniff")
             self.end_headers()
             self.wfile.write(body)
+
+        def _refusal(self) -> str:
+            """Why this request is not served ("" to serve it): a foreign Host or Origin."""
+            allowed = cast(ViewerServer, self.server).allowed_hosts()
+            host = (self.headers.get("Host") or "").strip().lower()
+            if host not in allowed:
+                return "the viewer answers only requests addressed to 127.0.0.1 or localhost"
+            origin = self.headers.get("Origin")
+            if origin is not None and origin.strip().lower() not in {f"http://{h}" for h in allowed}:
+                return "the viewer answers no other site's pages"
+            return ""
 
         def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - http.server's signature
             """Keep polls off the terminal."""
 
-    server = ThreadingHTTPServer(("127.0.0.1", port), Handler)
-    server.daemon_threads = True
-    return server
+    return ViewerServer(("127.0.0.1", port), Handler)
 
 
 def serve_in_background(run_dir: Path, port: int = 0, mission: Path | None = None) -> ThreadingHTTPServer:
