@@ -210,7 +210,7 @@ class Diagnosis:
             if j in matched_t:
                 continue
             mine = [s for s in self.sights if s.truth == t.id]
-            labels = Counter(s.label for s in mine).most_common(3)
+            seen = Counter(s.label for s in mine).most_common(3)
             right = [s for s in mine if s.label == truth_label(t.label) and s.xy is not None]
             dists = sorted(math.hypot(s.xy[0] - t.pose.x, s.xy[1] - t.pose.y) for s in right)  # type: ignore[index]
             views = len({(round(s.camera[0] / 0.5), round(s.camera[1] / 0.5)) for s in right})
@@ -235,7 +235,7 @@ class Diagnosis:
             lines.append(
                 f"{world_name} {phase} FN {t.id} {t.label} ({t.pose.x:.2f}, {t.pose.y:.2f}) size "
                 f"{[round(v, 2) for v in t.size]} elev {t.elevation}: shown in {self.shown[t.id]} frames; "
-                f"detected as {labels}; {spread}; graph near {near_preds}; map changes {near_changes[-4:]}"
+                f"detected as {seen}; {spread}; graph near {near_preds}; map changes {near_changes[-4:]}"
             )
         return lines
 

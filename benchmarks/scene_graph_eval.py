@@ -1,7 +1,23 @@
 """Scene graph quality: missiontree's live graph against the NAIS pipeline as published, same frames.
 
-For each world (``--worlds`` generated apartments from ``--first-seed`` plus the shipped office
-world) the simulated robot visits viewpoints chosen from its map alone (rooms segmented from the
+Two splits (``--split dev|test|both``, default both), reported side by side:
+
+- ``dev`` (what the fusion is tuned on): ``--worlds`` generated apartments from ``--first-seed``
+  (``generated:<seed>``) plus the shipped office world;
+- ``test`` (held out; run once at the end of a change, to report): ``--test-worlds`` worlds of the
+  test split of :mod:`missiontree.evaluation.splits` from ``--test-first-seed`` -- a second
+  generator family (long corridors with many 0.8-0.9 m doors, L and T corridors, open plan, rooms
+  off rooms, clutter by doors, warehouse floors) and real SLAM maps, their objects placed by the
+  placement generator (on floors, on tables, against walls, in corners, with same-class and
+  same-colour decoys).
+
+Each split prints ours' figures; the test figures with 95 % Wilson intervals (counts beside them),
+the dev - test gap, and a markdown table of both; the last line is one JSON object with ``dev``,
+``test`` and ``gap`` (each split: ours' figures flat, ``ci95`` and ``counts`` of every rate,
+``nais`` nested). ``--world-file PATH`` (repeatable) runs given world files instead, as split
+``files`` (diagnostics on worlds built by hand).
+
+For each world the simulated robot visits viewpoints chosen from its map alone (rooms segmented from the
 occupancy map, free cells with room to turn, spread over each room) and turns a slow full circle
 at each; every camera frame is detected once and handed to both methods:
 
@@ -52,7 +68,7 @@ change the world, patrol, score — and hands back the world's figures and what 
 A world whose evaluation raised is reported on stderr and left out (exit 1).
 
 Scoring reads the simulator's truth; both pipelines see only frames, detections, poses and the
-map. The last line is one JSON object. ``--quick`` runs 3 generated worlds and the office world.
+map. ``--quick`` runs 3 generated worlds and the office world (dev) and 4 test worlds.
 """
 
 from __future__ import annotations
@@ -328,6 +344,7 @@ def add_object(
     oid = f"added_{label.replace(' ', '_')}"
     spec = ObjectSpec(id=oid, label=label, color=colour, size=size, shape=shape, pose={"x": x, "y": y})
     obj = _make_object(spec, oid, inst)
+    row: tuple[Any, ...]
     if obj.shape == "cylinder":
         row = (CYLINDER, (x, y, obj.size[0] / 2), obj.elevation, obj.top, obj.rgb, inst, obj.pattern)
     else:
@@ -346,16 +363,37 @@ def add_object(
     return oid
 
 
-def free_spot(
-    world: World, rng: np.random.Generator, avoid: list[tuple[float, float]]
-) -> tuple[float, float]:
-    """A free floor point away from walls, objects and the route's viewpoints (the evaluator's choice)."""
+def reachable_floor(world: World, x: float, y: float) -> np.ndarray:
+    """The world's free cells connected to (x, y) (the evaluator's truth: where a changed object may go).
+
+    A real map's free cells include pockets the robot cannot reach (behind glass, outside the
+    building's scan); a changed object must stand where the robot could see it.
+    """
+    from scipy import ndimage
+
     g = world.grid
-    rows, cols = np.nonzero(g.data == 0)
+    free = g.data == 0
+    labels, _ = ndimage.label(free)
+    row, col = g.world_to_cell(x, y)
+    if not (0 <= row < free.shape[0] and 0 <= col < free.shape[1]) or labels[row, col] == 0:
+        return free
+    return labels == labels[row, col]
+
+
+def free_spot(
+    world: World, rng: np.random.Generator, avoid: list[tuple[float, float]], floor: np.ndarray | None = None
+) -> tuple[float, float]:
+    """A free floor point away from walls, objects and the route's viewpoints (the evaluator's choice).
+
+    ``floor`` (cells) limits the choice to where the robot can go; a world without rooms (a real map
+    with placed objects) takes any free point with the clearance.
+    """
+    g = world.grid
+    rows, cols = np.nonzero((g.data == 0) if floor is None else floor)
     for _ in range(2000):
         i = int(rng.integers(len(rows)))
         x, y = g.cell_to_world(int(rows[i]), int(cols[i]))
-        if world.room_at(x, y) is None or world.clearance(x, y) < 0.6:
+        if (world.rooms and world.room_at(x, y) is None) or world.clearance(x, y) < 0.6:
             continue
         if any(math.hypot(x - a, y - b) < 1.0 for a, b in avoid):
             continue
@@ -561,7 +599,7 @@ def run_world(name: str, seed: int, robot: Any, models: dict[str, Any], changes_
             if diag is not None:
                 diag.frame(frame, detections)
             # alternate which method goes first, so machine load falls on both alike
-            order = [(ours, "wall_ours"), (nais, "wall_nais")]
+            order: list[tuple[Any, str]] = [(ours, "wall_ours"), (nais, "wall_nais")]
             for method, key in order if state["frames"] % 2 else order[::-1]:
                 t0 = time.perf_counter()
                 method.add_frame(frame, detections)
@@ -676,8 +714,10 @@ def run_world(name: str, seed: int, robot: Any, models: dict[str, Any], changes_
     candidates.sort(key=lambda o: id(o) not in seen)
     changes: list[dict[str, Any]] = []
     avoid = list(route)
+    here = robot.pose().pose
+    floor = reachable_floor(world, here.x, here.y)
     for obj in candidates[:3]:
-        to = free_spot(world, rng, avoid)
+        to = free_spot(world, rng, avoid, floor)
         avoid.append(to)
         changes.append(
             {
@@ -699,7 +739,7 @@ def run_world(name: str, seed: int, robot: Any, models: dict[str, Any], changes_
             }
         )
         remove_object(world, obj.id)
-    to = free_spot(world, rng, avoid)
+    to = free_spot(world, rng, avoid, floor)
     oid = add_object(world, "backpack", "green", (0.32, 0.22, 0.45), "box", *to)
     changes.append({"kind": "added", "label": "backpack", "id": oid, "to": to})
     # the pass of the dynamic phase looks again at every place the robot's graph holds an object
@@ -882,14 +922,135 @@ def run_worlds(
 # (timed by benchmarks/scene_rebuild.py, beside the previous implementation: rebuild_figures)
 
 
+#: Figures of ours that are rates (successes over trials): the keys of their counts in a split's totals.
+RATES = {
+    "object_precision": ("tp", "pred"),
+    "object_recall": ("tp", "truth"),
+    "room_accuracy": ("in_room", "tp"),
+    "room_type_accuracy": ("types_ok", "rooms"),
+    "colour_accuracy": ("colour_ok", "tp"),
+    "changes_reflected": ("reflected", "changes"),
+}
+#: The figures the dev-test gap and the markdown table show.
+HEADLINE = (
+    "object_precision",
+    "object_recall",
+    "changes_reflected",
+    "room_accuracy",
+    "room_type_accuracy",
+    "colour_accuracy",
+    "relation_precision",
+)
+
+
+def split_figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """One split's figures: ours (with 95 % Wilson intervals and counts of every rate) and nais."""
+    from missiontree.evaluation.report import wilson
+
+    out: dict[str, Any] = {"worlds": len(rows)}
+    for m in ("ours", "nais"):
+        tot: Counter[str] = Counter()
+        for row in rows:
+            tot.update({k: v for k, v in row[m].items()})
+            tot["changes"] += row["changes"]
+        ms = [row["ms_per_frame"][m] for row in rows]
+        figures: dict[str, Any] = {
+            "object_precision": round(tot["tp"] / max(tot["pred"], 1), 4),
+            "object_precision_strict": round(tot["tp"] / max(tot["pred_all"], 1), 4),
+            "object_recall": round(tot["tp"] / max(tot["truth"], 1), 4),
+            "room_accuracy": round(tot["in_room"] / max(tot["tp"], 1), 4),
+            "room_type_accuracy": round(tot["types_ok"] / max(tot["rooms"], 1), 4),
+            "colour_accuracy": round(tot["colour_ok"] / max(tot["tp"], 1), 4),
+            "changes_reflected": round(tot["reflected"] / max(tot["changes"], 1), 4),
+            "ms_per_frame_median": round(statistics.median(ms), 3) if ms else None,
+        }
+        if m == "ours":
+            figures["ci95"] = {
+                k: [round(v, 4) for v in wilson(tot[a], tot[b])] for k, (a, b) in RATES.items()
+            }
+            figures["counts"] = {k: [tot[a], tot[b]] for k, (a, b) in RATES.items()}
+            good = sum(r["relations_good"] for r in rows)
+            total = sum(r["relations"] for r in rows)
+            figures["relation_precision"] = round(good / max(total, 1), 4)
+            figures["ci95"]["relation_precision"] = [round(v, 4) for v in wilson(good, total)]
+            figures["counts"]["relation_precision"] = [good, total]
+            out.update(figures)
+        else:
+            figures["relation_precision"] = None  # its relations come from GPT-4 reading descriptions
+            out["nais"] = figures
+    return out
+
+
+def markdown_table(result: dict[str, Any]) -> list[str]:
+    """Ours per split (test with its 95 % interval) and the dev-test gap, as a markdown table."""
+    splits = [s for s in ("dev", "test") if s in result]
+    head = "| figure | " + " | ".join(f"{s} ({result[s]['worlds']} worlds)" for s in splits)
+    head += " | gap dev-test |" if "gap" in result else " |"
+    lines = [head, "|---" * (len(splits) + 1 + ("gap" in result)) + "|"]
+    for key in HEADLINE:
+        cells = []
+        for s in splits:
+            value = result[s].get(key)
+            ci = result[s].get("ci95", {}).get(key)
+            counts = result[s].get("counts", {}).get(key)
+            text = "-" if value is None else f"{value:.3f}"
+            if ci is not None and counts is not None:
+                text += f" [{ci[0]:.3f}, {ci[1]:.3f}] ({counts[0]}/{counts[1]})"
+            cells.append(text)
+        gap = result.get("gap", {}).get(key)
+        row = f"| {key} | " + " | ".join(cells)
+        row += (f" | {gap:+.3f} |" if gap is not None else " | - |") if "gap" in result else " |"
+        lines.append(row)
+    return lines
+
+
+def dev_worlds(args: argparse.Namespace) -> list[tuple[str, str]]:
+    """The dev split: generated apartments from ``--first-seed`` and the shipped office world."""
+    count = 3 if args.quick else args.worlds
+    names = [f"generated:{args.first_seed + i}" for i in range(count)]
+    return [(n, n) for n in names] + ([] if args.no_office else [("office", "office")])
+
+
+def test_worlds(args: argparse.Namespace, folder: Any) -> list[tuple[str, str]]:
+    """The test split (``missiontree.evaluation.splits``), each world written to ``folder``: (name, path)."""
+    try:
+        from missiontree.evaluation.splits import split_worlds, write_split_world
+    except ImportError as exc:  # the splits module is not in this checkout
+        raise SystemExit(f"the test split needs missiontree.evaluation.splits: {exc}") from None
+    count = 4 if args.quick else args.test_worlds
+    worlds = split_worlds("test", count, first_seed=args.test_first_seed, min_objects=6)
+    return [(w.name, str(write_split_world(w, folder))) for w in worlds]
+
+
 def main(argv: list[str] | None = None) -> int:
+    import tempfile
+    from pathlib import Path
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--worlds", type=int, default=20, help="generated worlds (default 20)")
-    parser.add_argument("--first-seed", type=int, default=100, help="seed of the first generated world")
-    parser.add_argument("--no-office", action="store_true", help="leave out the shipped office world")
+    parser.add_argument(
+        "--split",
+        choices=("dev", "test", "both"),
+        default="both",
+        help="dev (generated apartments and the office, tuned on), test (held out), or both",
+    )
+    parser.add_argument("--worlds", type=int, default=20, help="dev: generated worlds (default 20)")
+    parser.add_argument("--first-seed", type=int, default=100, help="dev: seed of the first generated world")
+    parser.add_argument("--no-office", action="store_true", help="dev: leave out the shipped office world")
+    parser.add_argument(
+        "--test-worlds", type=int, default=12, help="test: worlds of the test split (default 12)"
+    )
+    parser.add_argument("--test-first-seed", type=int, default=0, help="test: the split's first seed")
+    parser.add_argument(
+        "--world-file",
+        action="append",
+        default=[],
+        help="run these world files instead of the splits, reported as split 'files' (diagnostics)",
+    )
     parser.add_argument("--models", default="offline", help="models config (default offline)")
     parser.add_argument("--changes-seed", type=int, default=7, help="seed of the dynamic phase's changes")
-    parser.add_argument("--quick", action="store_true", help="3 generated worlds and the office world")
+    parser.add_argument(
+        "--quick", action="store_true", help="dev: 3 generated worlds and the office; test: 4"
+    )
     parser.add_argument("--workers", type=int, default=2, help="worlds run at once (processes, default 2)")
     parser.add_argument("--debug", action="store_true", help="list each world's false and missed objects")
     parser.add_argument(
@@ -917,12 +1078,7 @@ def main(argv: list[str] | None = None) -> int:
     global DEBUG, SINGLE_PASS
     DEBUG = args.debug
     SINGLE_PASS = args.single_pass
-    count = 3 if args.quick else args.worlds
-    names = [f"generated:{args.first_seed + i}" for i in range(count)] + (
-        [] if args.no_office else ["office"]
-    )
     started = time.perf_counter()
-    worlds = [(k, name) for k, name in enumerate(names) if not args.only or name in args.only.split(",")]
     options = EvalOptions(
         changes_seed=args.changes_seed,
         debug=DEBUG,
@@ -931,57 +1087,76 @@ def main(argv: list[str] | None = None) -> int:
         diagnose=args.diagnose,
         depth_method=args.depth_method,
     )
+    result: dict[str, Any] = {}
+    failed = 0
+    with tempfile.TemporaryDirectory(prefix="scene_graph_eval_worlds_") as tmp:
+        plans: dict[str, list[tuple[str, str]]] = {}
+        if args.world_file:
+            plans["files"] = [(Path(f).stem, str(Path(f).resolve())) for f in args.world_file]
+        else:
+            if args.split in ("dev", "both"):
+                plans["dev"] = dev_worlds(args)
+            if args.split in ("test", "both"):
+                plans["test"] = test_worlds(args, Path(tmp))
+        for split, named in plans.items():
+            if args.only:
+                named = [(n, w) for n, w in named if n in args.only.split(",")]
+            display = {w: n for n, w in named}
 
-    def show(row: dict[str, Any], printed: str) -> None:
-        if printed:
-            print(printed, end="", flush=True)  # the world's --debug / --diagnose lines
-        name = row["world"]
-        o, n = row["ours"], row["nais"]
-        print(
-            f"{name:14s} {row['wall_s']:5.1f} s wall, {row['sim_s']:5.0f} s sim, {row['frames']} frames | "
-            f"ours tp {o['tp']}/{o['pred']} of {o['truth']}, rooms {o['in_room']}, colour {o['colour_ok']}, "
-            f"changes {o['reflected']}/{row['changes']} | "
-            f"nais tp {n['tp']}/{n['pred']}, rooms {n['in_room']}, "
-            f"colour {n['colour_ok']}, changes {n['reflected']}/{row['changes']}",
-            flush=True,
-        )
+            def show(row: dict[str, Any], printed: str, split: str = split, display: dict = display) -> None:
+                if printed:
+                    print(printed, end="", flush=True)  # the world's --debug / --diagnose lines
+                row["world"] = display.get(row["world"], row["world"])
+                o, n = row["ours"], row["nais"]
+                print(
+                    f"{split:4s} {row['world']:22s} {row['wall_s']:5.1f} s wall, {row['sim_s']:5.0f} s sim, "
+                    f"{row['frames']} frames | ours tp {o['tp']}/{o['pred']} of {o['truth']}, "
+                    f"rooms {o['in_room']}, colour {o['colour_ok']}, "
+                    f"changes {o['reflected']}/{row['changes']} | "
+                    f"nais tp {n['tp']}/{n['pred']}, rooms {n['in_room']}, "
+                    f"colour {n['colour_ok']}, changes {n['reflected']}/{row['changes']}",
+                    flush=True,
+                )
 
-    rows = run_worlds(worlds, args.models, args.workers, options, show)
-    failed = len(worlds) - len(rows)
-    if not rows:
+            worlds = [(k, w) for k, (_, w) in enumerate(named)]
+            rows = run_worlds(worlds, args.models, args.workers, options, show)
+            failed += len(worlds) - len(rows)
+            if rows:
+                result[split] = split_figures(rows)
+    if not result:
         print("no world finished its evaluation", file=sys.stderr)
         return 1
-    result: dict[str, Any] = {"worlds": len(rows), "wall_s": round(time.perf_counter() - started, 1)}
-    for m in ("ours", "nais"):
-        tot = Counter()
-        for row in rows:
-            tot.update({k: v for k, v in row[m].items()})
-            tot["changes"] += row["changes"]
-        ms = [row["ms_per_frame"][m] for row in rows]
-        result[m] = {
-            "object_precision": round(tot["tp"] / max(tot["pred"], 1), 4),
-            "object_precision_strict": round(tot["tp"] / max(tot["pred_all"], 1), 4),
-            "object_recall": round(tot["tp"] / max(tot["truth"], 1), 4),
-            "room_accuracy": round(tot["in_room"] / max(tot["tp"], 1), 4),
-            "room_type_accuracy": round(tot["types_ok"] / max(tot["rooms"], 1), 4),
-            "colour_accuracy": round(tot["colour_ok"] / max(tot["tp"], 1), 4),
-            "changes_reflected": round(tot["reflected"] / max(tot["changes"], 1), 4),
-            "ms_per_frame_median": round(statistics.median(ms), 3),
+    if "dev" in result and "test" in result:
+        result["gap"] = {
+            k: round(result["dev"][k] - result["test"][k], 4)
+            for k in HEADLINE
+            if result["dev"].get(k) is not None and result["test"].get(k) is not None
         }
-    rel_good = sum(r["relations_good"] for r in rows)
-    rel_total = sum(r["relations"] for r in rows)
-    result["ours"]["relation_precision"] = round(rel_good / max(rel_total, 1), 4)
-    result["nais"]["relation_precision"] = None  # its relations come from GPT-4 reading descriptions
+    for split in ("files", "dev", "test"):
+        if split in result:
+            r = result[split]
+            print(
+                f"{split}: {r['worlds']} worlds, ours precision {r['object_precision']:.3f} recall "
+                f"{r['object_recall']:.3f} changes {r['changes_reflected']:.3f} | nais precision "
+                f"{r['nais']['object_precision']:.3f} recall {r['nais']['object_recall']:.3f}"
+            )
+    if "test" in result:
+        ci = result["test"]["ci95"]
+        print(
+            "test, 95 % Wilson intervals: " + ", ".join(f"{k} {v[0]:.3f}-{v[1]:.3f}" for k, v in ci.items())
+        )
+    if "gap" in result:
+        print("dev - test gap: " + ", ".join(f"{k} {v:+.3f}" for k, v in result["gap"].items()))
+    if "files" not in result:
+        print()
+        for line in markdown_table(result):
+            print(line)
+        print()
     result.update(rebuild_figures())  # rebuild_ms_300 and its min/median/max, printed too
-    ratio = [row["ms_per_frame"]["ours"] / max(row["ms_per_frame"]["nais"], 1e-9) for row in rows]
-    result["ms_per_frame_ratio_ours_to_nais_min_median_max"] = [
-        round(min(ratio), 3),
-        round(statistics.median(ratio), 3),
-        round(max(ratio), 3),
-    ]
+    result["wall_s"] = round(time.perf_counter() - started, 1)
     print(json.dumps(result))
     if failed:
-        print(f"{failed} of {len(worlds)} worlds did not finish (left out of the figures)", file=sys.stderr)
+        print(f"{failed} worlds did not finish (left out of the figures)", file=sys.stderr)
         return 1
     return 0
 
