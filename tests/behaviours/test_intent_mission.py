@@ -104,3 +104,18 @@ def test_an_object_no_model_can_see_is_reached_and_reported_unverifiable() -> No
     assert unverifiable["object"] == "printer_1" and "knows no printer" in unverifiable["reason"]
     assert not of(events, "object_doubtful") and status == "SUCCESS"
     assert math.hypot(final.x - 10.2, final.y - 0.4) < 1.3
+
+
+def test_each_command_outcome_is_written_to_the_run_directory(tmp_path: Path) -> None:
+    """intent_served.json lists each command: the served object, why and confirmed; the unserved, why not."""
+    log = io.StringIO()
+    request = MissionRequest(mission=MISSION, params={"command": ""}, quiet=True, log_stream=log,
+                             handle_signals=False, max_duration=300, out=tmp_path)
+    with Session.open(request) as session:
+        lines = "I need to print a document\nbring me a unicorn\n"
+        session.robot.command_input = LineCommands(io.StringIO(lines))
+        session.run()
+    served, unserved = json.loads((tmp_path / "intent_served.json").read_text(encoding="utf-8"))
+    assert served["status"] == "served" and served["object"] == "printer_1" and served["confirmed"] is False
+    assert "print" in served["chosen_because"]
+    assert unserved["status"] == "not served" and "unicorn" in unserved["reason"]

@@ -14,7 +14,8 @@ coordinates and the map, never from the model's text.
 An arrival nothing can confirm (the detector knows no such class) is served only when the choice is
 strong — the command names the class, or the shipped knowledge says the class serves it at least
 :data:`~missiontree.reasoning.knowledge.STRONG` — and otherwise doubted like a failed look. What was
-served goes to the ``served`` blackboard key and the ``intent_served`` event: object, label, the
+served goes to the ``served`` blackboard key, the ``intent_served`` event and
+``<run_dir>/intent_served.json`` (one entry per command, served or not and why): object, label, the
 model's reason for choosing it, whether it was confirmed.
 
 Tick-log events: ``intent_interpreted``, ``candidate_rejected``, ``intent_ambiguous``,
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import json
 import math
 from pathlib import Path
 from typing import Annotated, Any
@@ -55,6 +57,8 @@ from missiontree.reasoning.schemas import CropMatch, IntentResolution
 from missiontree.robot.actions import ActionHandle, ActionStatus
 from missiontree.types import RGBDFrame, Tolerance
 
+#: The run-directory file listing each command's outcome: served object, why, confirmed (or why not).
+SERVED_FILE = "intent_served.json"
 #: A goal aborted with the robot this close to it (m) counts as reached: the stack stopped just short.
 NEAR_ENOUGH = 0.4
 #: Heading error (rad) at which the robot counts as facing the object, and the time allowed to turn (s).
@@ -273,7 +277,9 @@ class GoToIntent(Leaf):
             reference=answer.reference.model_dump() if answer.reference is not None else None,
         )
         if not ids:
-            return self.fail(f"nothing in the map satisfies {self.text!r}: {answer.reason or 'no candidate'}")
+            why = f"nothing in the map satisfies {self.text!r}: {answer.reason or 'no candidate'}"
+            self._record({"command": self.text, "status": "not served", "reason": why})
+            return self.fail(why)
         self.remaining = ids
         return self._plan()
 
@@ -500,6 +506,7 @@ class GoToIntent(Leaf):
                   "chosen_because": self.because, "confirmed": confirmed, "note": note}
         self.write("served", record)
         self.emit("intent_served", **record)
+        self._record({**record, "status": "served"})
         state = "confirmed" if confirmed else "NOT confirmed"
         return self.succeed(f"at {self.target.id} ({self.target.label}, {state}: {note}); chosen because "
                             f"{self.because or 'the model named it'}")
@@ -582,10 +589,28 @@ class GoToIntent(Leaf):
 
     def _give_up(self) -> Status:
         if not self.tried:
-            return self.fail(f"nothing in the map satisfies {self.text!r}")
-        shown = "; ".join(f"{oid}: {why}" for oid, why in self.tried[:6])
-        more = f" and {len(self.tried) - 6} more" if len(self.tried) > 6 else ""
-        return self.fail(f"no candidate for {self.text!r} could be reached and confirmed ({shown}{more})")
+            why = f"nothing in the map satisfies {self.text!r}"
+        else:
+            shown = "; ".join(f"{oid}: {why}" for oid, why in self.tried[:6])
+            more = f" and {len(self.tried) - 6} more" if len(self.tried) > 6 else ""
+            why = f"no candidate for {self.text!r} could be reached and confirmed ({shown}{more})"
+        tried = [{"object": oid, "why": reason} for oid, reason in self.tried]
+        self._record({"command": self.text, "status": "not served", "reason": why,
+                      "chosen_because": self.because, "tried": tried})
+        return self.fail(why)
+
+    def _record(self, record: dict[str, Any]) -> None:
+        """Add the command's outcome to ``<run_dir>/intent_served.json`` (one entry per command)."""
+        run_dir = getattr(self.ctx, "run_dir", None)
+        if run_dir is None:
+            return
+        path = Path(run_dir) / SERVED_FILE
+        try:
+            fresh = self.context.starts(path) or not path.is_file()
+            entries = [] if fresh else json.loads(path.read_text(encoding="utf-8"))
+            path.write_text(json.dumps([*entries, record], indent=1, default=str) + "\n", encoding="utf-8")
+        except (OSError, ValueError) as error:
+            self.emit("intent_record_failed", path=str(path), error=str(error))
 
     def _unverifiable(self, detector: Any, frame: RGBDFrame) -> str:
         """Why nothing could confirm the target from here ("" when a look can)."""
