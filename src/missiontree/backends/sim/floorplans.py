@@ -42,7 +42,7 @@ import numpy as np
 import yaml
 
 from missiontree.backends.sim.generator import MAX_SEED
-from missiontree.backends.sim.placement import build, place_objects, unreachable_rooms
+from missiontree.backends.sim.placement import build, keep_fitting, place_objects, unreachable_rooms
 from missiontree.backends.sim.world import register_world_source
 from missiontree.errors import Problem, WorldFileError
 from missiontree.yamlio import Located, parse_yaml
@@ -163,13 +163,14 @@ def _corridor(rng: np.random.Generator, suites: bool = False) -> _Plan:
     return plan
 
 
+#: What a suite's back room may be, by the front room's type.
 _BACK_ROOMS = {
-    "bedroom": "bathroom",
-    "office": "storage",
-    "kitchen": "storage",
-    "living room": "bedroom",
-    "bathroom": "storage",
-    "storage": "storage",
+    "bedroom": ["bathroom", "storage"],
+    "office": ["storage", "office"],
+    "kitchen": ["storage"],
+    "living room": ["bedroom", "office"],
+    "bathroom": ["storage"],
+    "storage": ["storage", "office"],
 }
 
 
@@ -180,14 +181,16 @@ def _split_suite(plan: _Plan, rng: np.random.Generator, index: int, back_at_sout
     x1, y1 = poly[2]
     depth = y1 - y0
     back = float(rng.uniform(2.4, depth - 2.8))
+    choices = _BACK_ROOMS.get(kind, ["storage"])
+    back_type = choices[int(rng.integers(len(choices)))]
     if back_at_south:
         y = y0 + back
         plan.rooms[index] = (kind, [(x0, y), (x1, y), (x1, y1), (x0, y1)])
-        plan.room(_BACK_ROOMS.get(kind, "storage"), (x0, y0, x1, y))
+        plan.room(back_type, (x0, y0, x1, y))
     else:
         y = y1 - back
         plan.rooms[index] = (kind, [(x0, y0), (x1, y0), (x1, y), (x0, y)])
-        plan.room(_BACK_ROOMS.get(kind, "storage"), (x0, y, x1, y1))
+        plan.room(back_type, (x0, y, x1, y1))
     plan.door(rng, (x0, y), (x1, y))
 
 
@@ -468,9 +471,13 @@ def _clutter_objects(plan: _Plan, rng: np.random.Generator) -> list[dict[str, An
     return objects
 
 
-def _draw_world(seed: int, rng: np.random.Generator, people: int) -> dict[str, Any]:
+def _draw_world(
+    seed: int, rng: np.random.Generator, people: int
+) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """The world's walls, rooms, start and people, and the clutter to try beside its doors."""
     kind = kind_of(seed)
     plan = _DRAW[kind](rng)
+    clutter = _clutter_objects(plan, rng) if plan.clutter else []
     sx, sy = _start(plan, rng)
     walls = _walls(plan)
     rooms = _names(plan)
@@ -492,10 +499,10 @@ def _draw_world(seed: int, rng: np.random.Generator, people: int) -> dict[str, A
             "polygons": [[[round(x, 3), round(y, 3)] for x, y in s] for s in plan.solids],
         },
         "rooms": rooms,
-        "objects": _clutter_objects(plan, rng) if plan.clutter else [],
+        "objects": [],
         "people": _people(plan, rng, people),
     }
-    return data
+    return data, clutter
 
 
 def floorplan_world(seed: int, people: int = 2, objects: bool = True) -> dict[str, Any]:
@@ -515,8 +522,10 @@ def floorplan_world(seed: int, people: int = 2, objects: bool = True) -> dict[st
     rng = np.random.default_rng(seed)
     data: dict[str, Any] = {}
     for _ in range(_ATTEMPTS):
-        data = _draw_world(seed, rng, people)
+        data, clutter = _draw_world(seed, rng, people)
         try:
+            if clutter:
+                data = keep_fitting(data, clutter)
             if objects:
                 data = place_objects(data, int(rng.integers(2**31)), decoys=True)
             world = build(data)
@@ -551,8 +560,9 @@ def floorplan_document(argument: str) -> tuple[Located, Path]:
     name = f"{FLOORPLAN_PREFIX}{argument}"
     if not argument.isdigit() or len(argument) > 19 or int(argument) > MAX_SEED:
         raise WorldFileError([_seed_problem(name, argument)])
-    text = yaml.safe_dump(floorplan_world(int(argument)), sort_keys=False)
+    text = yaml.dump(floorplan_world(int(argument)), Dumper=_DUMPER, sort_keys=False)
     return parse_yaml(text, f"<{name}>", error=WorldFileError), Path.cwd() / "floorplan.yaml"
 
 
 register_world_source(FLOORPLAN_PREFIX, floorplan_document)
+_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)

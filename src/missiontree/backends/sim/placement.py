@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,6 +29,7 @@ from typing import Any
 import cv2
 import numpy as np
 import yaml
+from scipy import ndimage
 
 from missiontree.backends.sim.generator import _FURNITURE, _SMALL
 from missiontree.backends.sim.mapimage import read_map_image
@@ -35,10 +37,9 @@ from missiontree.backends.sim.navigation import INSCRIBED, Costmap, plan
 from missiontree.backends.sim.navmap import map_cells
 from missiontree.backends.sim.schema import NavMapYaml
 from missiontree.backends.sim.world import World, build_world, load_robot_profile
-from missiontree.errors import WorldFileError
 from missiontree.semantics.rooms import segment_rooms
 from missiontree.types import OccupancyGrid, Pose2D
-from missiontree.yamlio import parse_yaml
+from missiontree.yamlio import Located
 
 #: Footprint radius of the robot that must pass (TurtleBot 4: 0.34 m wide).
 ROBOT_RADIUS = 0.17
@@ -49,6 +50,10 @@ MAX_TOP = 0.8
 #: Furniture keeps this far from a door or an opening between rooms; small objects keep ``SMALL_DOOR_GAP``.
 FURNITURE_DOOR_GAP = 0.9
 SMALL_DOOR_GAP = 0.6
+#: Distances to objects are kept up to this (m): no placement rule looks farther.
+DIST_CAP = 1.2
+#: No object comes nearer than this to the robot's start (m).
+START_CLEAR = 0.6
 #: Room types handed to rooms that have none (rooms found on a real map), after the largest.
 SEGMENTED_TYPES = ["kitchen", "office", "bedroom", "bathroom", "storage", "living room", "hall"]
 
@@ -57,6 +62,8 @@ EXTRA_FURNITURE: dict[str, list[tuple[str, str, tuple[float, float, float]]]] = 
     "storage": [("bookshelf", "brown", (1.2, 0.35, 1.9)), ("trash can", "grey", (0.35, 0.35, 0.5))],
     "corridor": [("potted plant", "green", (0.45, 0.45, 0.9)), ("bench", "brown", (1.2, 0.4, 0.45))],
 }
+#: A room gets one small object of a random class beyond its type's own per this many m².
+SMALL_AREA = 40.0
 #: Colours small objects and their decoys are drawn from.
 DECOY_COLOURS = ["red", "blue", "green", "black", "white", "grey", "yellow", "pink", "silver", "orange"]
 
@@ -91,7 +98,10 @@ class Scene:
         wall_dist: Distance (m) of each cell to the nearest wall or unknown cell.
         rooms: Room index + 1 per cell (0: no room).
         reach: Cells the robot's centre reaches from the start with :data:`PASS_MARGIN` to spare.
-        doors: Free cells near an opening between two rooms (no furniture there).
+        doors: Free cells beside an opening between two rooms (no furniture near them).
+        robot_free: Cells the robot's centre may take with the margin (reached or not).
+        floor: Free cells joined to the robot's start (not the inside of a closed shelf or a pocket).
+        keep_clear: Cells no object may cover: around the robot's start.
     """
 
     world: World
@@ -101,6 +111,9 @@ class Scene:
     rooms: np.ndarray
     reach: np.ndarray
     doors: np.ndarray
+    robot_free: np.ndarray
+    floor: np.ndarray
+    keep_clear: np.ndarray
     tops: list[dict[str, Any]] = field(default_factory=list)
 
     def cell(self, x: float, y: float) -> tuple[int, int]:
@@ -127,11 +140,13 @@ def world_path(data: dict[str, Any]) -> Path:
 def build(data: dict[str, Any]) -> World:
     """Build world-file data (checked as a file is), resolving an absolute map path beside itself.
 
+    The data is handed to the loader as it is, without a round trip through YAML text (which cost
+    a third of a floorplan's making); problems then point at the document, not at lines.
+
     Raises:
         WorldFileError: The data is not a valid world.
     """
-    text = yaml.safe_dump(data, sort_keys=False)
-    doc = parse_yaml(text, f"<{data.get('name', 'world')}>", error=WorldFileError)
+    doc = Located(copy.deepcopy(data), f"<{data.get('name', 'world')}>", {}, {})
     return build_world(doc, world_path(data))
 
 
@@ -186,9 +201,17 @@ def scene_of(world: World) -> Scene:
     for i in range(len(world.rooms) - 1, -1, -1):  # the first room wins, as World.room_at
         rooms[_footprint_mask(shape, grid, world.rooms[i].polygon)] = i + 1
     rooms[walls] = 0
-    reach = _robot_reach(blocked, grid, world)
-    doors = _door_cells(rooms, ~blocked, grid.resolution)
-    return Scene(world, grid, blocked, wall_dist, rooms, reach, doors)
+    robot_free = _robot_free(blocked, grid.resolution)
+    reach = reachable(robot_free, grid.world_to_cell(world.start.x, world.start.y))
+    doors = _door_cells(rooms, ~walls)
+    _, comp = cv2.connectedComponents((~blocked).astype(np.uint8), connectivity=4)
+    floor = np.isin(comp, np.unique(comp[reach & ~blocked])) & ~blocked
+    keep_clear = np.zeros(shape, bool)
+    row, col = grid.world_to_cell(world.start.x, world.start.y)
+    if 0 <= row < shape[0] and 0 <= col < shape[1]:
+        keep_clear[row, col] = True
+        keep_clear = _near(keep_clear, START_CLEAR, grid.resolution)
+    return Scene(world, grid, blocked, wall_dist, rooms, reach, doors, robot_free, floor, keep_clear)
 
 
 def _robot_free(blocked: np.ndarray, res: float) -> np.ndarray:
@@ -196,16 +219,15 @@ def _robot_free(blocked: np.ndarray, res: float) -> np.ndarray:
     return dist > ROBOT_RADIUS + PASS_MARGIN
 
 
-def _robot_reach(blocked: np.ndarray, grid: OccupancyGrid, world: World) -> np.ndarray:
-    return reachable(_robot_free(blocked, grid.resolution), grid.world_to_cell(world.start.x, world.start.y))
-
-
-def _door_cells(rooms: np.ndarray, free: np.ndarray, res: float) -> np.ndarray:
-    """Free cells within reach of a place where two rooms (or a room and no room) meet on free floor."""
-    kernel = np.ones((3, 3), np.uint8)
-    hi = cv2.dilate(rooms.astype(np.float32), kernel)
-    lo = -cv2.dilate(-rooms.astype(np.float32), kernel)
-    border = free & (hi != lo) & (rooms > 0)
+def _door_cells(rooms: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Free cells beside a free cell of another room (or of no room): doors and openings."""
+    border = np.zeros_like(free)
+    for dr, dc in ((0, 1), (1, 0)):
+        a = (slice(0, rooms.shape[0] - dr), slice(0, rooms.shape[1] - dc))
+        b = (slice(dr, None), slice(dc, None))
+        differ = free[a] & free[b] & (rooms[a] != rooms[b])
+        border[a] |= differ
+        border[b] |= differ
     return border
 
 
@@ -213,6 +235,35 @@ def _near(mask: np.ndarray, metres: float, res: float) -> np.ndarray:
     if not mask.any():
         return mask
     return cv2.dilate(mask.astype(np.uint8), _disk(metres / res)).astype(bool)
+
+
+#: A window of the grid: (rows, cols) slices.
+Window = tuple[slice, slice]
+
+
+@dataclass
+class _Footprint:
+    """An outline rasterised in a window of the grid: ``mask`` covers ``window``'s cells."""
+
+    window: tuple[slice, slice]
+    mask: np.ndarray
+    lost: np.ndarray | None = None
+
+    @staticmethod
+    def of(poly: np.ndarray, grid: OccupancyGrid, shape: tuple[int, ...], pad: int) -> _Footprint | None:
+        """The outline's cells in its bounding box grown by ``pad`` cells; None if it leaves the grid."""
+        res = grid.resolution
+        lo = np.floor((poly.min(axis=0) - [grid.origin.x, grid.origin.y]) / res).astype(int) - pad
+        hi = np.ceil((poly.max(axis=0) - [grid.origin.x, grid.origin.y]) / res).astype(int) + pad + 1
+        if lo[0] < 0 or lo[1] < 0 or hi[0] > shape[1] or hi[1] > shape[0]:
+            return None
+        window = (slice(int(lo[1]), int(hi[1])), slice(int(lo[0]), int(hi[0])))
+        mask = np.zeros((int(hi[1] - lo[1]), int(hi[0] - lo[0])), np.uint8)
+        pts = ((poly - [grid.origin.x + lo[0] * res, grid.origin.y + lo[1] * res]) / res * 16).astype(
+            np.int32
+        )
+        cv2.fillPoly(mask, [pts], 1, cv2.LINE_8, shift=4)
+        return _Footprint(window, mask.astype(bool))
 
 
 class _Placer:
@@ -225,16 +276,16 @@ class _Placer:
         self.res = scene.grid.resolution
         self.near_door_furniture = _near(scene.doors, FURNITURE_DOOR_GAP, self.res)
         self.near_door_small = _near(scene.doors, SMALL_DOOR_GAP, self.res)
-        self.reach_near = _near(scene.reach, 0.9, self.res)
-        self._dist_dirty = True
-        self._free_dist: np.ndarray = np.zeros(0)
+        self.reach_near = _near(scene.reach, 0.9, self.res) & scene.floor
+        self._free_dist: np.ndarray | None = None
+        self._corner_cache: dict[int, np.ndarray] = {}
+        self._boxes: list[Window | None] | None = None
 
     def free_dist(self) -> np.ndarray:
-        if self._dist_dirty:
-            self._free_dist = (
-                cv2.distanceTransform((~self.s.blocked).astype(np.uint8), cv2.DIST_L2, 5) * self.res
-            )
-            self._dist_dirty = False
+        """Distance (m, at most :data:`DIST_CAP`) of each cell to the nearest blocked one."""
+        if self._free_dist is None:
+            dist = cv2.distanceTransform((~self.s.blocked).astype(np.uint8), cv2.DIST_L2, 5) * self.res
+            self._free_dist = np.minimum(dist, DIST_CAP)
         return self._free_dist
 
     def new_id(self, label: str) -> str:
@@ -245,39 +296,77 @@ class _Placer:
         self.ids.add(f"{base}_{n}")
         return f"{base}_{n}"
 
-    def fits(self, poly: np.ndarray, obstacle: bool) -> np.ndarray | None:
-        """The footprint's cells if it covers only free, unblocked cells (and keeps the reach)."""
-        mask = _footprint_mask(self.s.blocked.shape, self.s.grid, poly)
-        if not mask.any() or (mask & self.s.blocked).any():
+    def fits(self, poly: np.ndarray, obstacle: bool) -> _Footprint | None:
+        """The footprint if it covers only free, unblocked cells (and, an obstacle, keeps the reach)."""
+        pad = int(math.ceil((ROBOT_RADIUS + PASS_MARGIN) / self.res)) + 2
+        foot = _Footprint.of(poly, self.s.grid, self.s.blocked.shape, pad)
+        if foot is None or not foot.mask.any():
             return None
-        lo = poly.min(axis=0)
-        hi = poly.max(axis=0)
-        xmin, ymin, xmax, ymax = self.s.world.bounds()
-        if lo[0] < xmin or lo[1] < ymin or hi[0] > xmax or hi[1] > ymax:
+        if (foot.mask & (self.s.blocked[foot.window] | self.s.keep_clear[foot.window])).any():
             return None
-        if obstacle and not self._keeps_reach(mask):
-            return None
-        return mask
-
-    def _keeps_reach(self, mask: np.ndarray) -> bool:
-        blocked = self.s.blocked | mask
-        lost = _near(mask, ROBOT_RADIUS + PASS_MARGIN + self.res, self.res)
-        start = self.s.grid.world_to_cell(self.s.world.start.x, self.s.world.start.y)
-        if lost[start] if 0 <= start[0] < lost.shape[0] and 0 <= start[1] < lost.shape[1] else False:
-            return False
-        reach = reachable(_robot_free(blocked, self.res), start)
-        return not (self.s.reach & ~lost & ~reach).any()
-
-    def commit(self, mask: np.ndarray, obstacle: bool) -> None:
-        self.s.blocked |= mask
-        self._dist_dirty = True
         if obstacle:
-            self.s.reach = _robot_reach(self.s.blocked, self.s.grid, self.s.world)
+            foot.lost = cv2.dilate(
+                foot.mask.astype(np.uint8), _disk((ROBOT_RADIUS + PASS_MARGIN) / self.res)
+            ).astype(bool)
+            if not self._keeps_reach(foot):
+                return None
+        return foot
 
-    def candidates(self, room: int, where: np.ndarray) -> np.ndarray:
-        """Cells (K, 2) of ``room`` (index + 1; 0: any room) satisfying ``where``, shuffled."""
-        ok = where & (self.s.rooms == room) if room else where & (self.s.rooms > 0)
-        cells = np.argwhere(ok)
+    def _keeps_reach(self, foot: _Footprint) -> bool:
+        """Whether every cell the robot reached, but those beside the footprint, is still reached.
+
+        Sufficient locally: the reached cells of the window around the footprint still form one
+        piece inside it. Otherwise (a window spanning a wall between two rooms) the whole map decides.
+        """
+        lost = foot.lost if foot.lost is not None else np.zeros_like(foot.mask)
+        start = self.s.grid.world_to_cell(self.s.world.start.x, self.s.world.start.y)
+        (rs, cs) = foot.window
+        if rs.start <= start[0] < rs.stop and cs.start <= start[1] < cs.stop:
+            if lost[start[0] - rs.start, start[1] - cs.start]:
+                return False
+        free = self.s.robot_free[foot.window] & ~lost
+        before = self.s.reach[foot.window] & ~lost
+        if not before.any():
+            return True
+        _, comp = cv2.connectedComponents(free.astype(np.uint8), connectivity=8)
+        if len(np.unique(comp[before])) == 1:
+            return True
+        robot_free = self.s.robot_free.copy()
+        robot_free[foot.window] &= ~lost
+        after = reachable(robot_free, start)
+        kept = self.s.reach.copy()
+        kept[foot.window] &= ~lost
+        return not (kept & ~after).any()
+
+    def commit(self, foot: _Footprint) -> None:
+        """Mark the footprint taken (and, an obstacle, the places beside it no longer reached)."""
+        self.s.blocked[foot.window] |= foot.mask
+        if self._free_dist is not None:  # lower the distances near the footprint, in a window
+            pad = int(math.ceil(DIST_CAP / self.res)) + 1
+            rs, cs = foot.window
+            h, w = self.s.blocked.shape
+            r0, r1 = max(rs.start - pad, 0), min(rs.stop + pad, h)
+            c0, c1 = max(cs.start - pad, 0), min(cs.stop + pad, w)
+            local = np.ones((r1 - r0, c1 - c0), np.uint8)
+            local[rs.start - r0 : rs.stop - r0, cs.start - c0 : cs.stop - c0][foot.mask] = 0
+            near = cv2.distanceTransform(local, cv2.DIST_L2, 5) * self.res
+            self._free_dist[r0:r1, c0:c1] = np.minimum(self._free_dist[r0:r1, c0:c1], near)
+        if foot.lost is not None:
+            self.s.robot_free[foot.window] &= ~foot.lost
+            self.s.reach[foot.window] &= ~foot.lost
+
+    def candidates(self, room: int, where: Callable[[Window], np.ndarray]) -> np.ndarray:
+        """Cells (K, 2) of ``room`` (index + 1) where ``where`` (of a window of the grid) holds, shuffled.
+
+        ``where`` is computed on the room's bounding box only: a room is a small part of a large map.
+        """
+        if self._boxes is None:
+            self._boxes = ndimage.find_objects(self.s.rooms)
+        box = self._boxes[room - 1] if 0 < room <= len(self._boxes) else None
+        if box is None:
+            return np.zeros((0, 2), int)
+        ok = where(box) & (self.s.rooms[box] == room)
+        cells = np.argwhere(ok) + [box[0].start, box[1].start]
         if len(cells) > 400:
             cells = cells[self.rng.choice(len(cells), 400, replace=False)]
         else:
@@ -287,21 +376,28 @@ class _Placer:
     # -- furniture --------------------------------------------------------------------------
 
     def furniture(
-        self, room: int, label: str, colour: str, size: tuple[float, float, float], against: bool = True
+        self, room: int, label: str, colour: str, size: tuple[float, float, float]
     ) -> dict[str, Any] | None:
         """Furniture against a wall of ``room`` (its long side to the wall), away from doors."""
         sx, sy, sz = size
         depth = sy
-        band = (self.s.wall_dist >= depth / 2 + 0.03) & (self.s.wall_dist <= depth / 2 + 0.12)
-        where = band & ~self.near_door_furniture & ~self.s.blocked & self.reach_near
+
+        def where(w: Window) -> np.ndarray:
+            wall = self.s.wall_dist[w]
+            band = (wall >= depth / 2 + 0.03) & (wall <= depth / 2 + 0.12)
+            return band & ~self.near_door_furniture[w] & ~self.s.blocked[w] & self.reach_near[w]
+
         for row, col in self.candidates(room, where)[:60]:
             yaw = self._wall_yaw(int(row), int(col))
             x, y = self.s.point(int(row), int(col))
             poly = _box(x, y, yaw, sx, sy)
-            mask = self.fits(_box(x, y, yaw, sx, sy, 0.05), obstacle=True)
-            if mask is None or (self.s.rooms[_footprint_mask(mask.shape, self.s.grid, poly)] != room).any():
+            foot = self.fits(_box(x, y, yaw, sx, sy, 0.05), obstacle=True)
+            if foot is None:
                 continue
-            self.commit(mask, True)
+            inner = _Footprint.of(poly, self.s.grid, self.s.blocked.shape, 0)
+            if inner is None or (self.s.rooms[inner.window][inner.mask] != room).any():
+                continue
+            self.commit(foot)
             obj = {
                 "id": self.new_id(label),
                 "label": label,
@@ -347,15 +443,19 @@ class _Placer:
         sx, sy, sz = size
         half = math.hypot(sx, sy) / 2
         dist = self.free_dist()
-        base = ~self.s.blocked & ~self.near_door_small & self.reach_near
-        if mode == "floor":
-            where = base & (dist >= half + 0.3)
-        elif mode == "wall":
-            where = (
-                base & (self.s.wall_dist >= half + 0.02) & (self.s.wall_dist <= half + 0.1) & (dist >= half)
-            )
-        else:  # corner
-            where = base & self._corners(half + 0.15) & (self.s.wall_dist >= half + 0.02) & (dist >= half)
+        corners = self._corners(half + 0.15) if mode == "corner" else None
+
+        def where(w: Window) -> np.ndarray:
+            ok = ~self.s.blocked[w] & ~self.near_door_small[w] & self.reach_near[w]
+            wall = self.s.wall_dist[w]
+            if mode == "floor":
+                return ok & (dist[w] >= half + 0.3)
+            ok &= (wall >= half + 0.02) & (dist[w] >= half)
+            if mode == "wall":
+                return ok & (wall <= half + 0.1)
+            assert corners is not None
+            return ok & corners[w]
+
         for row, col in self.candidates(room, where)[:40]:
             x, y = self.s.point(int(row), int(col))
             yaw = (
@@ -363,16 +463,22 @@ class _Placer:
                 if mode != "floor"
                 else float(self.rng.uniform(-math.pi, math.pi))
             )
-            mask = self.fits(_box(x, y, yaw, sx, sy, 0.03), obstacle=True)
-            if mask is None:
+            foot = self.fits(_box(x, y, yaw, sx, sy, 0.03), obstacle=True)
+            if foot is None:
                 continue
-            self.commit(mask, True)
+            self.commit(foot)
             where_text = {"floor": "on the floor", "wall": "against a wall", "corner": "in a corner"}[mode]
             return self._small_dict(label, colour, size, shape, x, y, yaw, 0.0, where_text)
         return None
 
     def _corners(self, reach: float) -> np.ndarray:
         """Cells with a wall within ``reach`` along an x direction and along a y direction."""
+        key = int(round(reach / self.res))
+        if key not in self._corner_cache:
+            self._corner_cache[key] = self._find_corners(reach)
+        return self._corner_cache[key]
+
+    def _find_corners(self, reach: float) -> np.ndarray:
         walls = (self.s.grid.data >= 50) | (self.s.grid.data < 0)
         k = max(1, int(round(reach / self.res)))
         near_x = np.zeros_like(walls)
@@ -484,19 +590,32 @@ def place_objects(
     objects: list[dict[str, Any]] = list(out.get("objects") or [])
     rooms = list(world.rooms)
     if furniture:
-        for i, room in enumerate(rooms, start=1):
-            for label, colour, size in furniture_for(room.type):
-                obj = placer.furniture(i, label, colour, size)
-                if obj is not None:
-                    objects.append(obj)
+        # round by round (every room's first piece, then every room's second): when space runs
+        # out, every room still has its main piece
+        lists = [furniture_for(room.type) for room in rooms]
+        for k in range(max((len(f) for f in lists), default=0)):
+            for i, pieces in enumerate(lists, start=1):
+                if k < len(pieces):
+                    label, colour, size = pieces[k]
+                    obj = placer.furniture(i, label, colour, size)
+                    if obj is not None:
+                        objects.append(obj)
     kinds = small_kinds()
     placed_small: list[dict[str, Any]] = []
+    labels = sorted(kinds)
+    areas = np.bincount(scene.rooms.ravel(), minlength=len(rooms) + 1) * scene.grid.resolution**2
     for i, room in enumerate(rooms, start=1):
-        for label, colour, size, shape in small_for(room.type):
+        own = small_for(room.type)
+        take = min(len(own), 1 + int(rng.integers(2)))
+        wanted = [own[int(k)] for k in rng.permutation(len(own))[:take]]
+        for _ in range(int(areas[i] // SMALL_AREA)):  # large rooms: one more per SMALL_AREA m²
+            label = labels[int(rng.integers(len(labels)))]
+            size, shape = kinds[label]
+            wanted.append((label, DECOY_COLOURS[int(rng.integers(len(DECOY_COLOURS)))], size, shape))
+        for label, colour, size, shape in wanted:
             obj = placer.small(i, label, colour, size, shape, MODES[int(rng.integers(len(MODES)))])
             if obj is not None:
                 placed_small.append(obj)
-    labels = sorted(kinds)
     tries = 0
     while len(placed_small) < small and tries < 20 * max(small, 1) and rooms:
         tries += 1
@@ -508,9 +627,37 @@ def place_objects(
         if obj is not None:
             placed_small.append(obj)
     if decoys and rooms:
-        for target in list(placed_small)[: max(2, len(placed_small) // 3)]:
+        for target in list(placed_small)[: max(2, len(placed_small) // 4)]:
             placed_small += _decoys(placer, target, kinds, rng, len(rooms))
     out["objects"] = objects + placed_small
+    return out
+
+
+def keep_fitting(data: dict[str, Any], candidates: list[dict[str, Any]]) -> dict[str, Any]:
+    """``data`` with those ``candidates`` (object dicts, in order) that fit, as placed objects do.
+
+    An object fits when it covers only free floor no other object covers, and (reaching below
+    0.3 m, an obstacle) every place the robot reached before is still reached with the margin.
+    """
+    out = copy.deepcopy(data)
+    world = build(out)
+    placer = _Placer(scene_of(world), np.random.default_rng(0), {o.id for o in world.objects})
+    kept = []
+    for obj in candidates:
+        sx, sy, _ = obj["size"]
+        pose = obj["pose"]
+        if obj.get("shape") == "cylinder":
+            a = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+            r = sx / 2 + 0.03
+            poly = np.stack([pose["x"] + r * np.cos(a), pose["y"] + r * np.sin(a)], axis=1)
+        else:
+            poly = _box(pose["x"], pose["y"], pose.get("yaw", 0.0), sx, sy, 0.03)
+        foot = placer.fits(poly, obstacle=float(obj.get("elevation", 0.0)) < 0.3)
+        if foot is not None and obj["id"] not in placer.ids:
+            placer.commit(foot)
+            placer.ids.add(obj["id"])
+            kept.append(obj)
+    out["objects"] = list(out.get("objects") or []) + kept
     return out
 
 
@@ -542,33 +689,85 @@ def _decoys(
 def rooms_from_map(world: World, rng: np.random.Generator) -> list[dict[str, Any]]:
     """Rooms for a world without any: its free space segmented at doors, each given a type.
 
-    The largest room is a hall; the others take :data:`SEGMENTED_TYPES` in a seeded order (rooms
-    under 6 m² a bathroom or storage). Polygons are simplified to about 10 cm.
+    A segmented room larger than :data:`ZONE_AREA` twice over (an open hall or warehouse floor
+    with no doors to split it) is cut into zones of about that size, as a person would name the
+    parts of an open floor. The largest room is a hall; the others take :data:`SEGMENTED_TYPES`
+    in a seeded order (rooms under 6 m² a bathroom or storage). Polygons are simplified to 10 cm.
     """
     seg = segment_rooms(world.grid, inside=(world.start.x, world.start.y))
-    regions = sorted((r for r in seg.rooms if len(r.polygon) >= 3), key=lambda r: -r.area)
+    res = world.grid.resolution
+    pieces: list[np.ndarray] = []
+    for label in range(1, int(seg.labels.max()) + 1):
+        region = seg.labels == label
+        area = float(region.sum()) * res * res
+        pieces += _zones(region, res) if area > 2 * ZONE_AREA else [region]
+    pieces.sort(key=lambda m: -int(m.sum()))
     order = [SEGMENTED_TYPES[int(k)] for k in rng.permutation(len(SEGMENTED_TYPES))]
     rooms: list[dict[str, Any]] = []
     counts: dict[str, int] = {}
-    for n, region in enumerate(regions):
+    for n, piece in enumerate(pieces):
+        poly = _outline(piece, world.grid)
+        if poly is None:
+            continue
+        area = float(piece.sum()) * res * res
         if n == 0:
             kind = "hall"
-        elif region.area < 6.0:
+        elif area < 6.0:
             kind = "bathroom" if n % 2 else "storage"
         else:
             kind = order[(n - 1) % len(order)]
+            if kind == "bathroom" and area > 25.0:  # no bathroom of an open floor's size
+                kind = "storage"
         counts[kind] = counts.get(kind, 0) + 1
-        poly = cv2.approxPolyDP(region.polygon.astype(np.float32).reshape(-1, 1, 2), 0.1, True).reshape(-1, 2)
-        if len(poly) < 3:
-            continue
-        rooms.append(
-            {
-                "name": f"{kind} {counts[kind]}",
-                "type": kind,
-                "polygon": [[round(float(x), 3), round(float(y), 3)] for x, y in poly],
-            }
-        )
+        rooms.append({"name": f"{kind} {counts[kind]}", "type": kind, "polygon": poly})
     return rooms
+
+
+#: Open floors (a segmented room over twice this, m²) are cut into zones of about this area.
+ZONE_AREA = 60.0
+
+
+def _zones(region: np.ndarray, res: float) -> list[np.ndarray]:
+    """``region`` cut into zones of about :data:`ZONE_AREA`: cells to the nearest of seeds on a grid."""
+    rows, cols = np.nonzero(region)
+    r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
+    h, w = (r1 - r0) * res, (c1 - c0) * res
+    area = float(region.sum()) * res * res
+    count = max(2, int(round(area / ZONE_AREA)))
+    # a grid of ny x nx seeds with about square zones
+    nx = max(1, int(round(math.sqrt(count * w / max(h, 1e-6)))))
+    ny = max(1, int(math.ceil(count / nx)))
+    seeds = np.zeros(region.shape, bool)
+    for i in range(ny):
+        for j in range(nx):
+            sr = int(r0 + (i + 0.5) * (r1 - r0) / ny)
+            sc = int(c0 + (j + 0.5) * (c1 - c0) / nx)
+            seeds[sr, sc] = True
+    _, (ir, ic) = ndimage.distance_transform_edt(~seeds, return_indices=True)
+    owner = ir * region.shape[1] + ic
+    zones = []
+    for key in np.unique(owner[region]):
+        zone = region & (owner == key)
+        if float(zone.sum()) * res * res >= 3.0:
+            zones.append(zone)
+    return zones
+
+
+def _outline(mask: np.ndarray, grid: OccupancyGrid) -> list[list[float]] | None:
+    """The outline of a mask's largest piece as a polygon simplified to 10 cm (None if too small)."""
+    res = grid.resolution
+    closed = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
+    contours, _ = cv2.findContours(closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
+        return None
+    outline = max(contours, key=cv2.contourArea).reshape(-1, 1, 2).astype(np.float32)
+    pts = cv2.approxPolyDP(outline, 0.1 / res, True).reshape(-1, 2)
+    if len(pts) < 3:
+        return None
+    return [
+        [round(float(grid.origin.x + (x + 0.5) * res), 3), round(float(grid.origin.y + (y + 0.5) * res), 3)]
+        for x, y in pts
+    ]
 
 
 def unreachable_rooms(world: World) -> list[str]:
@@ -605,8 +804,12 @@ def _map_cells(map_yaml: Path) -> tuple[np.ndarray, float, tuple[float, float]]:
     return map_cells(image, meta), meta.resolution, (meta.origin[0], meta.origin[1])
 
 
-def map_start(map_yaml: Path, rng: np.random.Generator, clearance: float = 0.5) -> tuple[float, float]:
-    """A start point on a map: known free floor ``clearance`` from anything, in its largest open piece."""
+def map_start(map_yaml: Path, rng: np.random.Generator, clearance: float = 0.5) -> tuple[float, float, float]:
+    """A start point on a map, and the area (m²) it reaches.
+
+    The point lies on known free floor ``clearance`` from anything, in the map's largest piece of
+    floor a robot can drive (with :data:`PASS_MARGIN`); the area is that piece's.
+    """
     cells, res, (ox, oy) = _map_cells(map_yaml)
     free = cells == 0
     dist = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, 5) * res
@@ -619,7 +822,8 @@ def map_start(map_yaml: Path, rng: np.random.Generator, clearance: float = 0.5) 
     if not len(rows):
         rows, cols = np.nonzero(piece)
     k = int(rng.integers(len(rows)))
-    return float(ox + (cols[k] + 0.5) * res), float(oy + (rows[k] + 0.5) * res)
+    area = float(piece.sum()) * res * res
+    return float(ox + (cols[k] + 0.5) * res), float(oy + (rows[k] + 0.5) * res), area
 
 
 def map_world(
@@ -632,7 +836,7 @@ def map_world(
     """
     map_yaml = Path(map_yaml).resolve()
     rng = np.random.default_rng(seed)
-    x, y = map_start(map_yaml, rng)
+    x, y, area = map_start(map_yaml, rng)
     label = name or f"{map_yaml.stem}_{seed}"
     data: dict[str, Any] = {
         "name": label,
@@ -650,9 +854,15 @@ def map_world(
         "objects": [],
         "people": [],
     }
-    data = place_objects(data, int(rng.integers(2**31)), small=small)
+    # about one small object per 25 m² of floor the robot reaches (4 to 30), or as many as asked
+    data = place_objects(data, int(rng.integers(2**31)), small=max(small, min(30, 4 + int(area / 25))))
+    world = build(data)
+    missing = set(unreachable_rooms(world))
+    if missing:  # a piece of floor the segmentation kept but the robot cannot drive to
+        data["rooms"] = [r for r in data["rooms"] if r["name"] not in missing]
+        world = build(data)
     if people:
-        data["people"] = walkers(build(data), rng, people)
+        data["people"] = walkers(world, rng, people)
     return data
 
 
