@@ -43,3 +43,22 @@ def test_a_queue_stamps_on_arrival_and_reports_closed_only_when_drained() -> Non
     [command] = queue.poll(now=5.0)
     assert (command.text, command.stamp, command.source) == ("first", 1.0, "/command")
     assert queue.closed
+
+
+def _binary(data: bytes) -> io.TextIOWrapper:
+    return io.TextIOWrapper(io.BytesIO(data), encoding="utf-8", errors="strict")
+
+
+def test_a_line_that_is_not_utf8_is_refused_and_reading_goes_on() -> None:
+    """A line with an undecodable byte arrives as a refused command naming it; the next lines still come."""
+    got = _drain(LineCommands(_binary(b"one\n\xfe\xff\ntwo\n")), now=1.0)
+    assert [(c.text, c.error[:30]) for c in got] == [("one", ""), ("", "line 2 on stdin is not UTF-8 t"),
+                                                      ("two", "")]
+
+
+def test_a_line_longer_than_the_limit_is_refused_without_being_held() -> None:
+    """A line past MAX_LINE_BYTES is skipped to its end and refused; the line after it is a command."""
+    from missiontree.robot.commands import MAX_LINE_BYTES
+
+    got = _drain(LineCommands(_binary(b"x" * (3 * MAX_LINE_BYTES) + b"\nnext\n")), now=1.0)
+    assert [c.text for c in got] == ["", "next"] and "longer than" in got[0].error

@@ -5,7 +5,9 @@ thirsty"``), or one after another from the robot's command channel (stdin in the
 ``/command`` on ROS 2, see :mod:`missiontree.robot.commands`) — writes each to the blackboard and
 runs its child (e.g. :class:`~missiontree.behaviours.intent.GoToIntent`) once per command.
 
-Tick-log events: ``command_received``, ``command_served``.
+Tick-log events: ``command_received``, ``command_served``, ``command_refused`` (input the channel
+could not read as a command, such as a line that is not UTF-8: it counts as a failed command, so the
+node cannot end SUCCESS with "every command served" while one was lost).
 """
 
 from __future__ import annotations
@@ -111,6 +113,11 @@ class ServeCommands(py_trees.decorators.Decorator):
         poll = getattr(robot, "commands", None)
         if callable(poll):
             for command in poll():
+                if getattr(command, "error", ""):  # input that is not a command: reported, never dropped
+                    self.served.append(("(unreadable input)", False, command.error))
+                    self._emit("command_refused", error=command.error, stamp=command.stamp,
+                               source=command.source)
+                    continue
                 self.waiting.append((command.stamp, command.text))
                 self._emit(
                     "command_received", command=command.text, stamp=command.stamp, source=command.source

@@ -20,6 +20,9 @@ from typing import Protocol, TextIO, runtime_checkable
 
 #: Longest command kept (characters); longer text is cut, so a runaway stream cannot flood a prompt.
 MAX_COMMAND_CHARS = 500
+#: Longest line read from a stream (bytes); the rest of a longer line is skipped and the line refused,
+#: so a stream without newlines cannot fill the memory.
+MAX_LINE_BYTES = 64 * 1024
 
 
 @dataclass(frozen=True)
@@ -28,13 +31,16 @@ class Command:
 
     Attributes:
         stamp: Robot-clock time it was received.
-        text: What the user said (stripped, at most :data:`MAX_COMMAND_CHARS`).
+        text: What the user said (stripped, at most :data:`MAX_COMMAND_CHARS`); empty when refused.
         source: Where it came from (``stdin``, ``/command``, ...).
+        error: Why the input could not be read as a command (not UTF-8, too long); empty for a
+            command. A refused input is still delivered, so it is reported, never dropped silently.
     """
 
     stamp: float
     text: str
     source: str = ""
+    error: str = ""
 
 
 @runtime_checkable
@@ -68,7 +74,7 @@ class CommandQueue:
         self.clock = clock
         self.source = source
         self._lock = threading.Lock()
-        self._waiting: deque[tuple[float | None, str]] = deque()
+        self._waiting: deque[tuple[float | None, str, str]] = deque()
         self._closed = False
 
     def push(self, text: str) -> bool:
@@ -78,8 +84,14 @@ class CommandQueue:
             return False
         stamp = self.clock() if self.clock is not None else None
         with self._lock:
-            self._waiting.append((stamp, clean))
+            self._waiting.append((stamp, clean, ""))
         return True
+
+    def refuse(self, error: str) -> None:
+        """Queue an input that could not be read as a command, with why (delivered as an error)."""
+        stamp = self.clock() if self.clock is not None else None
+        with self._lock:
+            self._waiting.append((stamp, "", error))
 
     def close(self) -> None:
         """No more commands will be pushed."""
@@ -91,7 +103,8 @@ class CommandQueue:
         with self._lock:
             taken = list(self._waiting)
             self._waiting.clear()
-        return [Command(now if stamp is None else stamp, text, self.source) for stamp, text in taken]
+        return [Command(now if stamp is None else stamp, text, self.source, error)
+                for stamp, text, error in taken]
 
     @property
     def closed(self) -> bool:
@@ -104,7 +117,10 @@ class LineCommands(CommandQueue):
     """Commands read line by line from a text stream (stdin) on a daemon thread, started on first poll.
 
     Reading starts only when a mission first asks for commands, so missions that never do leave stdin
-    alone. At the end of the stream the channel closes.
+    alone. At the end of the stream the channel closes. Lines are read as bytes and decoded one by one:
+    a line that is not UTF-8 (or longer than :data:`MAX_LINE_BYTES`) is delivered as a refused
+    command naming the line, and the lines after it are read as usual. A stream that fails to read
+    is delivered as a refused command too before the channel closes.
 
     Args:
         stream: The text stream (default: ``sys.stdin`` at first poll).
@@ -137,12 +153,33 @@ class LineCommands(CommandQueue):
         self._reader.start()
 
     def _read(self, stream: TextIO | None) -> None:
+        number = 0
         try:
             if stream is None:
                 return
-            for line in stream:
-                self.push(line)
-        except (OSError, ValueError):  # closed or unreadable stream: no more commands
-            pass
+            binary = getattr(stream, "buffer", None)
+            if binary is None:  # a text stream of its own (tests): already decoded
+                for number, line in enumerate(stream, start=1):  # noqa: B007 - kept for the error below
+                    self.push(line)
+                return
+            while raw := binary.readline(MAX_LINE_BYTES):
+                number += 1
+                if len(raw) == MAX_LINE_BYTES and not raw.endswith(b"\n"):
+                    while (rest := binary.readline(MAX_LINE_BYTES)) and not rest.endswith(b"\n"):
+                        pass  # skip the rest of the long line
+                    self.refuse(f"line {number} on {self.source} is longer than {MAX_LINE_BYTES:,} bytes; "
+                                "not read as a command")
+                    continue
+                try:
+                    text = raw.decode("utf-8")
+                except UnicodeDecodeError as error:
+                    self.refuse(f"line {number} on {self.source} is not UTF-8 text (byte "
+                                f"0x{raw[error.start]:02x} at position {error.start + 1}); not read as a "
+                                "command")
+                    continue
+                self.push(text)
+        except (OSError, ValueError) as error:  # closed or unreadable stream: no more commands
+            self.refuse(f"{self.source} could not be read after line {number}: "
+                        f"{type(error).__name__}: {error}")
         finally:
             self.close()
