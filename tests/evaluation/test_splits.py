@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from missiontree.backends.sim import load_world
+from missiontree.backends.sim.floorplans import KINDS
 from missiontree.evaluation.splits import TEST_CYCLE, split_worlds, write_split_world
 
 
@@ -19,11 +20,13 @@ def test_dev_split_is_the_generated_apartments() -> None:
 
 
 def test_test_split_is_deterministic_and_differs_in_kind() -> None:
-    """The same seeds give the same test worlds, and none of them is a generated apartment."""
-    a = split_worlds("test", 2, first_seed=0)
-    b = split_worlds("test", 2, first_seed=0)
-    assert [w.data for w in a] == [w.data for w in b]
-    assert [w.family for w in a] == ["floorplan", "real map"]
+    """The same seed gives the same test world, and the cycle holds floorplans and real maps only."""
+    (a,) = split_worlds("test", 1, first_seed=3)
+    (b,) = split_worlds("test", 1, first_seed=3)
+    assert a == b
+    assert a.family == "floorplan" and a.name.startswith("floorplan:")
+    assert {family for family, _ in TEST_CYCLE} == {"floorplan", "map"}
+    assert {what for family, what in TEST_CYCLE if family == "floorplan"} == set(KINDS)
 
 
 def test_real_map_test_world_writes_and_loads(tmp_path: Path) -> None:

@@ -1,0 +1,135 @@
+"""Placement: objects added to any world (drawn walls or a real map) without blocking the robot."""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+
+from missiontree.backends.sim.generator import _FURNITURE, generate_world
+from missiontree.backends.sim.placement import (
+    EXTRA_FURNITURE,
+    SEGMENTED_TYPES,
+    build,
+    keep_fitting,
+    map_world,
+    place_objects,
+    small_kinds,
+    unreachable_rooms,
+)
+from missiontree.backends.sim.world import World
+from missiontree.paths import REPO_ROOT
+
+MAZE = REPO_ROOT / "config" / "worlds" / "maps" / "maze.yaml"
+TWO_ROOMS: dict[str, Any] = {
+    "name": "two_rooms",
+    "robot": {"profile": "turtlebot4", "start": {"x": 1.5, "y": 1.5}},
+    "walls": {"segments": [[[0, 0], [8, 0]], [[8, 0], [8, 4]], [[8, 4], [0, 4]], [[0, 4], [0, 0]],
+                           [[4, 0], [4, 1.575]], [[4, 2.425], [4, 4]]]},  # a 0.85 m door at y 2
+    "rooms": [{"name": "west", "type": "office", "polygon": [[0, 0], [4, 0], [4, 4], [0, 4]]},
+              {"name": "east", "type": "kitchen", "polygon": [[4, 0], [8, 0], [8, 4], [4, 4]]}],
+}
+
+
+@pytest.fixture(scope="module")
+def maze_world() -> tuple[dict[str, Any], World]:
+    """TurtleBot 4's maze map with a seeded start, segmented rooms and placed objects."""
+    data = map_world(MAZE, 3, small=12)
+    return data, build(data)
+
+
+def _chair(x: float, y: float, name: str) -> dict[str, Any]:
+    return {"id": name, "label": "chair", "color": "black", "size": [0.5, 0.5, 1.0], "pose": {"x": x, "y": y}}
+
+
+def _overlap(a: Any, b: Any) -> float:
+    area, _ = cv2.intersectConvexConvex(a.footprint().astype(np.float32), b.footprint().astype(np.float32))
+    return float(area)
+
+
+def _assert_clear(world: World) -> None:
+    """No object covers a wall cell (shrunk by one cell) and no two objects on one level overlap."""
+    grid = world.grid
+    for obj in world.objects:
+        mask = np.zeros(grid.data.shape, np.uint8)
+        pts = ((obj.footprint() - [grid.origin.x, grid.origin.y]) / grid.resolution * 16).astype(np.int32)
+        cv2.fillPoly(mask, [pts], 1, cv2.LINE_8, shift=4)
+        mask = cv2.erode(mask, np.ones((3, 3), np.uint8))
+        assert not (mask.astype(bool) & world.walls_grid).any(), obj.id
+        assert not (mask.astype(bool) & (grid.data < 0)).any(), obj.id
+    for a, b in itertools.combinations(world.objects, 2):
+        if a.elevation == b.elevation:
+            assert _overlap(a, b) < 1e-4, (a.id, b.id)
+
+
+def test_map_world_is_seeded_with_typed_rooms_and_objects(maze_world: tuple[dict[str, Any], World]) -> None:
+    """A real map gets rooms from segmentation, each typed, and objects in them."""
+    data, world = maze_world
+    assert len(world.rooms) >= 3
+    assert {r.type for r in world.rooms} <= set(SEGMENTED_TYPES)
+    assert len([o for o in world.objects if o.label in small_kinds()]) >= 12
+    assert Path(data["map"]["yaml"]).is_absolute()
+
+
+def test_objects_on_a_real_map_clear_walls_unknown_and_each_other(
+    maze_world: tuple[dict[str, Any], World],
+) -> None:
+    """No placed object overlaps a wall, unknown space or another object on its level."""
+    _assert_clear(maze_world[1])
+
+
+def test_every_room_of_a_real_map_stays_reachable(maze_world: tuple[dict[str, Any], World]) -> None:
+    """After placement the planner still reaches every room of the map."""
+    assert unreachable_rooms(maze_world[1]) == []
+
+
+def test_same_seed_same_objects_other_seed_other_objects() -> None:
+    """Placement depends on the world and the seed alone."""
+    assert place_objects(TWO_ROOMS, 7, small=6) == place_objects(TWO_ROOMS, 7, small=6)
+    assert place_objects(TWO_ROOMS, 7, small=6) != place_objects(TWO_ROOMS, 8, small=6)
+
+
+def test_placement_on_a_generated_world_keeps_it_valid_and_connected() -> None:
+    """Placing many more objects into a generated apartment keeps it loadable and every room reachable."""
+    data = generate_world(4, people=0)
+    placed = place_objects(data, 4, small=30)
+    world = build(placed)
+    assert len(world.objects) > len(data["objects"]) + 20
+    assert unreachable_rooms(world) == []
+    _assert_clear(world)
+
+
+def test_objects_stand_on_furniture_against_walls_and_in_corners() -> None:
+    """Small objects are placed on low furniture, against walls and in corners, not only on open floor."""
+    placed = place_objects(generate_world(5, people=0), 5, small=40)
+    text = " ".join(o.get("description", "") for o in placed["objects"])
+    assert "against a wall" in text and "in a corner" in text
+    assert any(o.get("elevation", 0) > 0.3 for o in placed["objects"])
+
+
+def test_decoys_share_the_class_or_the_colour() -> None:
+    """A decoy of the same class in another colour and one of the same colour of another class exist."""
+    placed = place_objects(TWO_ROOMS, 1, furniture=False, small=4, decoys=True)
+    small = [o for o in placed["objects"] if o["label"] in small_kinds()]
+    pairs = list(itertools.combinations(small, 2))
+    assert any(a["label"] == b["label"] and a["color"] != b["color"] for a, b in pairs)
+    assert any(a["color"] == b["color"] and a["label"] != b["label"] for a, b in pairs)
+
+
+def test_an_object_that_would_block_the_door_is_not_kept() -> None:
+    """A chair in the only door is dropped; one in the open room is kept."""
+    kept = keep_fitting(TWO_ROOMS, [_chair(4.2, 2.0, "in_door"), _chair(6.0, 3.0, "in_room")])
+    assert [o["id"] for o in kept["objects"]] == ["in_room"]
+
+
+def test_furniture_uses_the_generator_classes() -> None:
+    """Every furniture label placed is one of the apartment generator's (the detector knows only those)."""
+    placed = place_objects(TWO_ROOMS, 2, small=0, decoys=False)
+    generator = {f[0] for items in _FURNITURE.values() for f in items}
+    assert {f[0] for items in EXTRA_FURNITURE.values() for f in items} <= generator
+    assert placed["objects"]
+    assert {o["label"] for o in placed["objects"]} <= generator | set(small_kinds())
