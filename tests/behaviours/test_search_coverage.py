@@ -116,3 +116,28 @@ def test_a_cell_counts_as_seen_only_after_enough_frames() -> None:
     assert cov.key(2.5, 1.0) not in cov.seen
     cov.add_view(grid, Pose2D(1.0, 1.0, 0.0), K.hfov)
     assert cov.key(2.5, 1.0) in cov.seen
+
+
+def test_frontiers_that_appear_while_looking_are_explored_first() -> None:
+    """A door opens onto unknown floor during the looks: the search goes back to exploring frontiers."""
+    data = np.full((40, 240), -1, np.int8)
+    data[:, :180] = hall()
+    data[:, 180] = 100  # the hall's east wall at x = 9 m; unknown beyond
+
+    class Opening(CameraRobot):
+        def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> FakeHandle:
+            self.data[10:30, 179:181] = 0  # a doorway onto the unknown
+            return super().navigate_to(goal, tolerance)
+
+    robot = Opening(data, Pose2D(1.0, 1.0, math.pi))
+    events = Events()
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+    models = {"detector": Detector()}
+    leaf.setup(context=MissionContext(robot=robot, events=events, models=models))  # type: ignore[arg-type]
+    for _ in range(3000):
+        leaf.tick_once()
+        if leaf.status in (Status.SUCCESS, Status.FAILURE) or events.of("explore_goal"):
+            break
+        robot.advance(0.1)
+    assert events.of("search_view_goal") and events.of("search_frontiers_again")
+    assert events.of("explore_goal"), leaf.feedback_message

@@ -119,11 +119,14 @@ class ViewCoverage:
         rr, cc = np.nonzero(labels == own)
         xs = grid.origin.x + (cc + 0.5) * grid.resolution
         ys = grid.origin.y + (rr + 0.5) * grid.resolution
-        kx = np.floor(xs / self.cell).astype(int)
-        ky = np.floor(ys / self.cell).astype(int)
-        keys, counts = np.unique(np.stack([kx, ky], axis=1), axis=0, return_counts=True)
+        kx = np.floor(xs / self.cell).astype(np.int64)
+        ky = np.floor(ys / self.cell).astype(np.int64)
+        x0, y0 = int(kx.min()), int(ky.min())
+        span = int(ky.max()) - y0 + 1
+        counts = np.bincount((kx - x0) * span + (ky - y0))  # free fine cells in each coverage cell
         per_cell = (self.cell / grid.resolution) ** 2
-        return {(int(k[0]), int(k[1])) for k, c in zip(keys, counts, strict=True) if c >= 0.5 * per_cell}
+        full = np.nonzero(counts >= 0.5 * per_cell)[0]
+        return {(int(i // span) + x0, int(i % span) + y0) for i in full}
 
     def unseen(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> set[tuple[int, int]]:
         """The reachable floor's cells the camera has not looked at (and not given up)."""

@@ -61,6 +61,8 @@ AROUND_M = 1.5
 MOVED_M = 0.1
 #: How far (m) a frontier goal too near an obstacle may be moved to give the robot room.
 NUDGE_M = 0.6
+#: Times the search goes back from looking at the floor to exploring frontiers that appeared meanwhile.
+MAX_FRONTIER_ROUNDS = 5
 #: After a full turn at a view goal, floor still unseen within this share of the view range is hidden
 #: from there (behind furniture) and given up; farther floor is left for a later goal.
 HIDDEN_WITHIN = 0.8
@@ -417,6 +419,7 @@ class Locate(ResumeExplore):
         self.look_started = 0.0
         self.cover_goals = 0
         self.cover_skipped = 0
+        self.frontier_rounds = 0
 
     def on_setup(self) -> None:
         """Read the target against the detector's classes and load the graph file, if any."""
@@ -554,6 +557,13 @@ class Locate(ResumeExplore):
             return self._cover_drive(grid, pose, now)
         if self.cover_state == "look":
             return self._cover_look(grid, pose, now)
+        if self.planner is not None and self.frontier_rounds < MAX_FRONTIER_ROUNDS:
+            # the map grew while looking (a room seen through a door): its frontiers come first
+            if self.planner.candidates(grid, (pose.x, pose.y)):
+                self.frontier_rounds += 1
+                self.frontiers_done = False
+                self.emit("search_frontiers_again", round=self.frontier_rounds)
+                return self.running("new frontiers on the map: exploring on")
         goals, unplaced = view_goals(
             self.coverage,
             grid,
