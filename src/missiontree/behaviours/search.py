@@ -13,8 +13,9 @@ SCANNING -> APPROACHING -> VERIFYING -> DONE. Here each state is a leaf a tree c
   ``BuildSceneGraph`` fuses every frame into (a candidate seen once is not forgotten when the robot
   turns away) or a loaded scene graph — else exploration (the ``Explore`` leaf's frontiers) ordered
   by where the target is likely (:mod:`missiontree.reasoning.search_priors`: a cup -> kitchen first)
-  and by the frontiers' gain, until a candidate appears. FAILURE "not found" when the reachable
-  space is explored and no candidate is left.
+  and by the frontiers' gain, then going to look at the reachable floor the camera has not seen
+  (:mod:`~missiontree.behaviours.search_coverage`), until a candidate appears. FAILURE "not found"
+  when the reachable space is explored and looked at and no candidate is left.
 - :class:`Approach`: to a standoff pose facing the candidate (the intent leaf's standoff search on
   the learned map), then a look that measures the object's place from the depth image; when it is
   elsewhere than believed, another step (bounded attempts). ``mode: box_area`` is the report's
@@ -27,12 +28,14 @@ SCANNING -> APPROACHING -> VERIFYING -> DONE. Here each state is a leaf a tree c
   verification: the whole frame asked about.
 
 The leaves live in modules of one concept each: :mod:`~missiontree.behaviours.search_scan`
-(ScanRotate, ColourAttention), :mod:`~missiontree.behaviours.search_locate` (ResumeExplore, Locate),
+(ScanRotate, ColourAttention), :mod:`~missiontree.behaviours.search_locate` (ResumeExplore, Locate;
+what the camera looked at in :mod:`~missiontree.behaviours.search_coverage`),
 :mod:`~missiontree.behaviours.search_approach` (Approach), this module (Verify) and
 :mod:`~missiontree.behaviours.search_common` (what they share: the target, frames, rejected
 candidates). All are importable from here.
 
 Tick-log events: ``scan_look``, ``colour_attention``, ``search_candidate``, ``search_explored``,
+``search_view_goal``, ``search_view_given_up``, ``search_covered``, ``search_frontiers_again``,
 ``explore_retry``, ``approach_step``, ``object_found``, ``candidate_rejected``.
 """
 

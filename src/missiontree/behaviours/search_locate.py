@@ -9,14 +9,19 @@
   ``BuildSceneGraph`` fuses every frame into (a candidate seen once is not forgotten when the robot
   turns away) or a loaded scene graph — else exploration ordered by where the target is likely
   (:mod:`missiontree.reasoning.search_priors`: a cup -> kitchen first) and by the frontiers' gain,
-  until a candidate appears. A candidate that could not be reached is offered once more when nothing
-  is left to explore. FAILURE "not found" when the reachable space is explored and no candidate is left.
+  until a candidate appears; then, once no frontier is left (or the exploration ended partial), it
+  goes to look at the reachable floor the camera has not had in view
+  (:mod:`~missiontree.behaviours.search_coverage`), back to frontiers that appear meanwhile. A
+  candidate that could not be reached is offered once more when nothing is left to explore or look
+  at. FAILURE "not found" when the reachable space is explored and looked at and no candidate is left.
 
 Both use ``Explore`` through its public interface only (``make_planner``, ``select_goal``, the
 ``on_goal_reached`` / ``on_give_up`` hooks, ``summary``).
 
-Tick-log events: ``search_candidate``, ``search_explored``, ``search_priors`` (whose ranking of the
-rooms is used: the language model's, or the offline table's and why), ``explore_retry`` (and Explore's).
+Tick-log events: ``search_candidate``, ``search_explored``, ``search_view_goal``,
+``search_view_given_up``, ``search_covered``, ``search_frontiers_again``, ``search_priors`` (whose
+ranking of the rooms is used: the language model's, or the offline table's and why), ``explore_retry``
+(and Explore's).
 """
 
 from __future__ import annotations
