@@ -6,7 +6,7 @@ What it shows:
   ahead until the lidar's front distance falls under a threshold, then stops. Its ``Params`` model
   declares the parameters (typed, bounded, documented) and the blackboard ports in one place: an
   ``Input`` (a speed limit some other node may set) and an ``Output`` (the last front distance).
-- Where each piece of work goes (STYLE §1): the constructor only stores the validated parameters
+- Where each piece of work goes (py_trees' lifecycle): the constructor only stores the validated parameters
   (so the tree builds and renders with no robot); ``on_setup()`` (called by ``setup``) checks the
   robot can do what the leaf needs; ``initialise()`` starts the work; ``update()`` reads one scan,
   decides and returns at once — it never blocks; ``terminate()`` stops the wheels whether the leaf

@@ -1,4 +1,4 @@
-"""Test helpers shipped with missiontree (STYLE §13): use them in your own plugin's tests too.
+"""Test helpers shipped in the package, not only in its test suite: use them in your own plugin's tests too.
 
 - :class:`ClockRobot`: a test double of the Robot protocol with only a clock — enough for engine
   and blackboard-only trees. Its sensors are empty and navigation is refused; it records the

@@ -1,9 +1,9 @@
 """Motion leaves: go to a pose through the navigation stack, or turn in place.
 
-:class:`NavigateTo` is Nav2's NavigateToPose as a leaf, in the simple commander's shape
-(STYLE §2): ``initialise`` sends the goal, ``update`` polls the handle and returns at once,
-``terminate`` cancels the goal when the leaf is halted. :class:`Rotate` turns the robot by an
-angle with ``drive`` and a proportional controller on the remaining angle.
+:class:`NavigateTo` is Nav2's NavigateToPose as a leaf, in the simple commander's shape (send,
+poll, cancel; never blocking the tick): ``initialise`` sends the goal, ``update`` polls the handle
+and returns at once, ``terminate`` cancels the goal when the leaf is halted. :class:`Rotate` turns
+the robot by an angle with ``drive`` and a proportional controller on the remaining angle.
 """
 
 from __future__ import annotations

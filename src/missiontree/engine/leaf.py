@@ -1,6 +1,6 @@
 """The base class of missiontree leaves: py_trees' lifecycle plus context, ports and safe failure.
 
-Lifecycle, as in py_trees (STYLE §1):
+Lifecycle, as in py_trees' ``Behaviour``, each piece of work in the method where it belongs:
 
 - ``__init__(name, params)`` only stores the validated parameters; no robot is needed.
 - ``setup(context=...)`` receives the :class:`~missiontree.engine.context.MissionContext`

@@ -1,7 +1,8 @@
 """missiontree's own plugin: built-in node types, model providers and robot backends.
 
-It registers through the same hooks as any plugin (STYLE §8), but the plugin manager adds it
-directly rather than through an entry point, so switching autoloading off keeps the built-ins.
+It registers through the same hooks as any plugin (no private path for built-ins), but the plugin
+manager adds it directly rather than through an entry point, so switching autoloading off keeps the
+built-ins.
 
 Everything it pulls in is listed here, in one place:
 
