@@ -94,16 +94,24 @@ def split_worlds(
         min_objects: At least this many small (findable) objects in every world.
 
     Raises:
-        ValueError: An unknown split, a negative count or seed.
+        ValueError: An unknown split, a negative count or seed; or a world with no room for
+            ``min_objects`` small objects.
     """
     if split not in SPLITS:
         raise ValueError(f"expected a split in {', '.join(SPLITS)}, found {split!r}")
     if count < 0 or first_seed < 0:
         raise ValueError(f"expected a count and first seed from 0, found {count} and {first_seed}")
     seeds = range(first_seed, first_seed + count)
-    if split == "dev":
-        return [_dev(s, people, min_objects) for s in seeds]
-    return [_test(s, people, min_objects) for s in seeds]
+    worlds = [
+        _dev(s, people, min_objects) if split == "dev" else _test(s, people, min_objects) for s in seeds
+    ]
+    for world in worlds:
+        found = len(small_objects(world.data))
+        if found < min_objects:
+            raise ValueError(
+                f"{world.name}: expected at least {min_objects} small objects, could place {found}"
+            )
+    return worlds
 
 
 def _dev(seed: int, people: bool, min_objects: int) -> SplitWorld:
@@ -133,7 +141,7 @@ def _top_up(data: dict[str, Any], seed: int, min_objects: int) -> dict[str, Any]
     have = len(small_objects(data))
     if have >= min_objects:
         return data
-    return place_objects(data, seed, furniture=False, small=min_objects - have, decoys=False)
+    return place_objects(data, seed, furniture=False, small=min_objects - have, decoys=False, per_room=False)
 
 
 def write_split_world(world: SplitWorld, directory: Path) -> Path:

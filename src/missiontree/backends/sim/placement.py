@@ -20,6 +20,8 @@ from :func:`missiontree.semantics.rooms.segment_rooms`, each given a type.
 from __future__ import annotations
 
 import copy
+import dataclasses
+import hashlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -36,7 +38,7 @@ from missiontree.backends.sim.mapimage import read_map_image
 from missiontree.backends.sim.navigation import INSCRIBED, Costmap, plan
 from missiontree.backends.sim.navmap import map_cells
 from missiontree.backends.sim.schema import NavMapYaml
-from missiontree.backends.sim.world import World, build_world, load_robot_profile
+from missiontree.backends.sim.world import Room, World, build_world, load_robot_profile
 from missiontree.semantics.rooms import segment_rooms
 from missiontree.types import OccupancyGrid, Pose2D
 from missiontree.yamlio import Located
@@ -232,9 +234,10 @@ def _door_cells(rooms: np.ndarray, free: np.ndarray) -> np.ndarray:
 
 
 def _near(mask: np.ndarray, metres: float, res: float) -> np.ndarray:
+    """Cells within ``metres`` of a cell of ``mask`` (a distance transform: one pass, any radius)."""
     if not mask.any():
         return mask
-    return cv2.dilate(mask.astype(np.uint8), _disk(metres / res)).astype(bool)
+    return cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, 5) * res <= metres
 
 
 #: A window of the grid: (rows, cols) slices.
@@ -565,6 +568,7 @@ def place_objects(
     small: int = 0,
     decoys: bool = True,
     room_types: bool = True,
+    per_room: bool = True,
 ) -> dict[str, Any]:
     """``data`` with furniture, small objects and decoys added (a copy; ``data`` is not changed).
 
@@ -575,6 +579,8 @@ def place_objects(
         small: At least this many small objects in all (each room also gets its type's own).
         decoys: Add a same-class and a same-colour decoy for some small objects.
         room_types: Give a world without rooms the rooms found on its map, each with a type.
+        per_room: Give each room one or two of its type's small objects (and one more per
+            :data:`SMALL_AREA` m²) before ``small`` is made up; without, only ``small`` are added.
 
     Raises:
         WorldFileError: The data is not a valid world.
@@ -584,7 +590,10 @@ def place_objects(
     world = build(out)
     if not out.get("rooms") and room_types:
         out["rooms"] = rooms_from_map(world, rng)
-        world = build(out)
+        # the rooms only, as the loader makes them (building the world again costs a second on a
+        # large map, for floor colours placement does not read)
+        rooms = [Room(r["name"], r["type"], np.array(r["polygon"], float)) for r in out["rooms"]]
+        world = dataclasses.replace(world, rooms=rooms)
     scene = scene_of(world)
     placer = _Placer(scene, rng, {o.id for o in world.objects})
     objects: list[dict[str, Any]] = list(out.get("objects") or [])
@@ -604,7 +613,7 @@ def place_objects(
     placed_small: list[dict[str, Any]] = []
     labels = sorted(kinds)
     areas = np.bincount(scene.rooms.ravel(), minlength=len(rooms) + 1) * scene.grid.resolution**2
-    for i, room in enumerate(rooms, start=1):
+    for i, room in enumerate(rooms if per_room else [], start=1):
         own = small_for(room.type)
         take = min(len(own), 1 + int(rng.integers(2)))
         wanted = [own[int(k)] for k in rng.permutation(len(own))[:take]]
@@ -694,22 +703,10 @@ def rooms_from_map(world: World, rng: np.random.Generator) -> list[dict[str, Any
     parts of an open floor. The largest room is a hall; the others take :data:`SEGMENTED_TYPES`
     in a seeded order (rooms under 6 m² a bathroom or storage). Polygons are simplified to 10 cm.
     """
-    seg = segment_rooms(world.grid, inside=(world.start.x, world.start.y))
-    res = world.grid.resolution
-    pieces: list[np.ndarray] = []
-    for label in range(1, int(seg.labels.max()) + 1):
-        region = seg.labels == label
-        area = float(region.sum()) * res * res
-        pieces += _zones(region, res) if area > 2 * ZONE_AREA else [region]
-    pieces.sort(key=lambda m: -int(m.sum()))
     order = [SEGMENTED_TYPES[int(k)] for k in rng.permutation(len(SEGMENTED_TYPES))]
     rooms: list[dict[str, Any]] = []
     counts: dict[str, int] = {}
-    for n, piece in enumerate(pieces):
-        poly = _outline(piece, world.grid)
-        if poly is None:
-            continue
-        area = float(piece.sum()) * res * res
+    for n, (poly, area) in enumerate(_map_pieces(world.grid, (world.start.x, world.start.y))):
         if n == 0:
             kind = "hall"
         elif area < 6.0:
@@ -721,6 +718,47 @@ def rooms_from_map(world: World, rng: np.random.Generator) -> list[dict[str, Any
         counts[kind] = counts.get(kind, 0) + 1
         rooms.append({"name": f"{kind} {counts[kind]}", "type": kind, "polygon": poly})
     return rooms
+
+
+_PIECES: dict[tuple[Any, ...], list[tuple[list[list[float]], float]]] = {}
+
+
+def _map_pieces(grid: OccupancyGrid, inside: tuple[float, float]) -> list[tuple[list[list[float]], float]]:
+    """The rooms and zones of a map (outline, area), largest first; kept per map and piece of floor.
+
+    Segmenting a large map takes seconds and gives the same rooms for every start in one piece of
+    floor, so the result is kept for the process (keyed by the grid's content and that piece).
+    """
+    data = np.ascontiguousarray(grid.data)
+    _, comp = cv2.connectedComponents(((data >= 0) & (data < 50)).astype(np.uint8), connectivity=4)
+    row, col = grid.world_to_cell(*inside)
+    piece = int(comp[row, col]) if 0 <= row < data.shape[0] and 0 <= col < data.shape[1] else -1
+    key = (
+        data.shape,
+        grid.resolution,
+        grid.origin.x,
+        grid.origin.y,
+        hashlib.sha1(data.tobytes()).hexdigest(),
+        piece,
+    )
+    if key not in _PIECES:
+        seg = segment_rooms(grid, inside=inside)
+        res = grid.resolution
+        masks: list[np.ndarray] = []
+        for label in range(1, int(seg.labels.max()) + 1):
+            region = seg.labels == label
+            area = float(region.sum()) * res * res
+            masks += _zones(region, res) if area > 2 * ZONE_AREA else [region]
+        masks.sort(key=lambda m: -int(m.sum()))
+        found = []
+        for mask in masks:
+            poly = _outline(mask, grid)
+            if poly is not None:
+                found.append((poly, float(mask.sum()) * res * res))
+        if len(_PIECES) > 32:
+            _PIECES.clear()
+        _PIECES[key] = found
+    return copy.deepcopy(_PIECES[key])
 
 
 #: Open floors (a segmented room over twice this, m²) are cut into zones of about this area.
