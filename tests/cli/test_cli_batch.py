@@ -151,3 +151,27 @@ def test_core_imports_without_dask() -> None:
     code = ("import sys; import missiontree.evaluation, missiontree.cli.batch; "
             "sys.exit(1 if 'distributed' in sys.modules or 'dask' in sys.modules else 0)")
     assert subprocess.run([sys.executable, "-c", code], timeout=120).returncode == 0
+
+
+def test_a_second_batch_into_the_same_out_is_refused(mission: Path, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """While another live batch holds --out, a second one exits 2 naming it and writes nothing there."""
+    import os
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "batch.lock").write_text(f"{os.getppid()}\n")  # a live process: the batch already running
+    (out / "results.jsonl").write_text("the other batch's results\n")
+    assert main(["batch", str(mission), "--seeds", "0", "--out", str(out), "--quiet", "--resume"]) == 2
+    assert f"in use by another batch (pid {os.getppid()}" in capsys.readouterr().err
+    assert (out / "results.jsonl").read_text() == "the other batch's results\n"
+    assert not (out / "runs").exists()
+
+
+def test_a_lock_left_by_a_dead_batch_is_taken_over_and_released(mission: Path, tmp_path: Path) -> None:
+    """A lock whose pid is dead does not block the next batch, which removes its own lock at the end."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "batch.lock").write_text("999999999\n")
+    assert main(["batch", str(mission), "--seeds", "0", "--jobs", "1", "--out", str(out), "--quiet"]) == 0
+    assert (out / "results.jsonl").is_file() and not (out / "batch.lock").exists()

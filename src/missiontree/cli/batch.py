@@ -18,7 +18,7 @@ from typing import Any
 
 from missiontree.cli import add_plugin_flag, plugins_from_args
 from missiontree.errors import ConfigError, MissionFileError
-from missiontree.evaluation.batch import run_batch
+from missiontree.evaluation.batch import lock_batch, run_batch
 from missiontree.evaluation.engines import make_engine
 from missiontree.evaluation.plan import (
     BatchPlan,
@@ -173,6 +173,12 @@ def run(args: argparse.Namespace) -> int:
     if args.no_plugins:
         os.environ[DISABLE_ENV] = "1"  # workers load plugins as this process did
     out = args.out or Path("runs") / "batch" / args.tree.stem
+    with lock_batch(out):  # one batch at a time in --out, results.jsonl included
+        return _run_locked(args, plan, out)
+
+
+def _run_locked(args: argparse.Namespace, plan: BatchPlan, out: Path) -> int:
+    """Run the batch into ``out`` (locked by the caller), write its results, print the table."""
     engine = make_engine(args.dask, args.jobs)
     progress = None if args.quiet else BatchProgress(len(plan.runs), label=f"batch {args.tree.stem}")
     started = time.perf_counter()

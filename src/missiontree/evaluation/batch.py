@@ -13,6 +13,12 @@ Layout of ``out``::
     out/runs/<run id>/         one complete run: record.json, summary.json, ticks.jsonl, pictures
     out/runs/.<run id>.*.partial   a run in progress (never left behind by a finished batch)
     out/results.jsonl          one record a line, plan order (written by the caller, see report)
+    out/batch.lock             the pid of the batch using the directory (while it runs)
+
+One batch at a time uses a directory (:func:`lock_batch`): a second batch into the same ``out``
+is refused with a :class:`~missiontree.errors.ConfigError` naming the first one's pid, so two
+batches never both report while one's results replace the other's. A lock left by a batch that
+died is taken over.
 
 A run whose directory is complete is never run again with ``resume=True``; stale ``.partial``
 directories of a killed batch are removed first. A crashed run (:class:`~.engines.Crash`) is retried
@@ -23,9 +29,11 @@ again).
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import shutil
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,10 +42,13 @@ from missiontree.errors import ConfigError
 from missiontree.evaluation.engines import Crash, Engine
 from missiontree.evaluation.plan import BatchPlan
 from missiontree.evaluation.worker import PARTIAL_SUFFIX, RECORD_FILE, Probe, RunTask, execute_run
+from missiontree.session.rundir import pid_alive
 
-__all__ = ["INFRA", "RUNS_DIR", "RunRecord", "complete_runs", "run_batch"]
+__all__ = ["BATCH_LOCK", "INFRA", "RUNS_DIR", "RunRecord", "complete_runs", "lock_batch", "run_batch"]
 
 RUNS_DIR = "runs"
+#: The lock file of a batch directory, holding the pid of the batch using it.
+BATCH_LOCK = "batch.lock"
 #: The status of a run lost to infrastructure (its process died twice).
 INFRA = "INFRA"
 
@@ -116,6 +127,58 @@ def complete_runs(out: Path) -> dict[str, dict[str, Any]]:
     return runs
 
 
+def _lock_holder(lock: Path) -> int | None:
+    try:
+        return int(lock.read_text(encoding="utf-8").strip() or "x")
+    except (OSError, ValueError):
+        return None
+
+
+@contextlib.contextmanager
+def lock_batch(out: Path) -> Iterator[None]:
+    """Hold ``out/batch.lock`` while the block runs (this process may hold it already: then nothing).
+
+    Raises:
+        ConfigError: Another live process holds the lock, or the lock cannot be written.
+    """
+    out = Path(out)
+    lock = out / BATCH_LOCK
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise ConfigError(f"cannot create the batch directory {out}: {error.strerror or error}") from error
+    for _attempt in range(3):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            holder = _lock_holder(lock)
+            if holder == os.getpid():  # the CLI locked, then run_batch asks again
+                yield
+                return
+            if holder is not None and pid_alive(holder):
+                raise ConfigError(
+                    f"batch directory {out} is in use by another batch (pid {holder}, lock file {lock}); "
+                    "wait for it to end or choose another --out") from None
+            with contextlib.suppress(FileNotFoundError):  # stale: its batch died without releasing
+                lock.unlink()
+            continue
+        except OSError as error:
+            raise ConfigError(
+                f"cannot write in the batch directory {out}: {error.strerror or error}") from error
+        with os.fdopen(fd, "w", encoding="utf-8") as stream:
+            stream.write(f"{os.getpid()}\n")
+        if _lock_holder(lock) != os.getpid():  # another batch took over the same stale lock first
+            continue
+        try:
+            yield
+        finally:
+            if _lock_holder(lock) == os.getpid():
+                with contextlib.suppress(OSError):
+                    lock.unlink()
+        return
+    raise ConfigError(f"batch directory {out}: could not take its lock file {lock}; try again")
+
+
 def run_batch(
     plan: BatchPlan,
     engine: Engine,
@@ -139,9 +202,22 @@ def run_batch(
         fn: The task function (tests swap in one that crashes).
 
     Raises:
-        ConfigError: ``out`` holds runs and ``resume`` is false.
+        ConfigError: ``out`` holds runs and ``resume`` is false, or another batch is using ``out``.
     """
-    out = Path(out)
+    with lock_batch(Path(out)):
+        return _run_batch(plan, engine, Path(out), resume, probe, write_log, on_record, fn)
+
+
+def _run_batch(
+    plan: BatchPlan,
+    engine: Engine,
+    out: Path,
+    resume: bool,
+    probe: Callable[[], Probe] | None,
+    write_log: bool,
+    on_record: Callable[[RunRecord, bool], None] | None,
+    fn: Callable[[RunTask], dict[str, Any]],
+) -> list[RunRecord]:
     runs_dir = out / RUNS_DIR
     runs_dir.mkdir(parents=True, exist_ok=True)
     for stale in runs_dir.glob(f".*{PARTIAL_SUFFIX}"):  # half runs of a killed batch
