@@ -141,3 +141,21 @@ def test_frontiers_that_appear_while_looking_are_explored_first() -> None:
         robot.advance(0.1)
     assert events.of("search_view_goal") and events.of("search_frontiers_again")
     assert events.of("explore_goal"), leaf.feedback_message
+
+
+def test_a_partial_exploration_goes_on_to_look_at_the_floor() -> None:
+    """Explore ending 'partial:' (frontiers left that the map shows a way to) is not the search's failure."""
+
+    class Partial(Locate):
+        def explore_step(self) -> Status:
+            return self.fail("partial: 1 frontier left unexplored though the map shows a way")
+
+    robot = CameraRobot(hall(), Pose2D(1.0, 1.0, math.pi))
+    events = Events()
+    leaf = Partial("locate", Locate.Params(target="red backpack", priors="none"))
+    models = {"detector": Detector()}
+    leaf.setup(context=MissionContext(robot=robot, events=events, models=models))  # type: ignore[arg-type]
+    leaf.tick_once()
+    assert leaf.status == Status.RUNNING, leaf.feedback_message
+    assert events.of("search_explored")[0]["reason"].startswith("partial:")
+    assert events.of("search_view_goal")

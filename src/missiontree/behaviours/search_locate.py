@@ -425,6 +425,7 @@ class Locate(ResumeExplore):
         self.cover_goals = 0
         self.cover_skipped = 0
         self.frontier_rounds = 0
+        self.explore_end = ""
 
     def on_setup(self) -> None:
         """Read the target against the detector's classes and load the graph file, if any."""
@@ -516,13 +517,15 @@ class Locate(ResumeExplore):
                 return self.fail(
                     f"searching for the {self.goal.text if self.goal else '?'}: {self.failure_reason}"
                 )
-            if status != Status.SUCCESS:
+            if status != Status.SUCCESS and not partial:
                 return status
             # a partial exploration (frontiers the map shows a way to were left) goes on to look
             # at the floor like a complete one; what is left is named in the not-found reason
             self.frontiers_done = True
             self.exhausted = False
-            self.emit("search_explored", reason=self.failure_reason if partial else self.feedback_message)
+            self.explore_end = self.failure_reason if partial else self.feedback_message
+            self.failure_reason = ""
+            self.emit("search_explored", reason=self.explore_end)
             if not self.params.view_coverage:
                 return self._exhausted()
         status = self._cover()
@@ -692,14 +695,17 @@ class Locate(ResumeExplore):
         shown = "; ".join(f"{e.get('id')}: {e.get('reason', '')}" for e in tried[:4])
         grid = self.last_grid
         known = f", {self.summary(grid)}" if grid is not None and self.planner is not None else ""
-        stamped = self.context.robot.pose()
+        if self.explore_end.startswith("partial:"):
+            known += f"; exploration {self.explore_end[:300]}"
+        robot = self.context.robot
+        stamped, now_grid = robot.pose(), robot.occupancy()
         if (
-            grid is not None
+            now_grid is not None
             and stamped is not None
             and self.coverage is not None
             and self.params.view_coverage
         ):
-            seen, floor = self.coverage.seen_share(grid, (stamped.pose.x, stamped.pose.y))
+            seen, floor = self.coverage.seen_share(now_grid, (stamped.pose.x, stamped.pose.y))
             known += f"; the camera looked at {seen:.0f} of {floor:.0f} m^2 of reachable floor"
         return self.fail(
             f"not found: no {self.goal.text} in the reachable space explored{known}"
