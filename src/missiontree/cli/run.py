@@ -122,6 +122,8 @@ def describe(result: RunResult) -> str:
     """One line: how the run ended and where its directory is."""
     why = {"status": "", "limit": " (duration limit reached)", "error": " (stopped by an error)",
            "signal": f" (stopped by {result.summary.get('signal') or 'a signal'})"}[result.stopped_by]
+    if result.plugin_error:
+        why += f" ({result.plugin_error})"
     fault = result.summary.get("fault")
     if isinstance(fault, dict):  # failed because of an error, not because a condition was false
         why += f" (fault in {fault.get('node')}: {fault.get('error')})"

@@ -82,6 +82,8 @@ class RunResult:
         run_dir: Where the log, summary and pictures went (None when not writing).
         summary: The summary (as written to ``summary.json``).
         signal: The signal number that stopped the run, 0 otherwise.
+        plugin_error: Why a plugin's ``mission_finished`` hook failed ("" when none did); the other
+            plugins' hooks (the built-in recording included) ran, and the run exits 1.
     """
 
     status: Status
@@ -91,13 +93,14 @@ class RunResult:
     run_dir: Path | None = None
     summary: dict[str, Any] = field(default_factory=dict)
     signal: int = 0
+    plugin_error: str = ""
 
     @property
     def exit_code(self) -> int:
-        """The CLI's exit code: 0 on SUCCESS, 1 on FAILURE or limit, 128+signal when interrupted."""
+        """The CLI's exit code: 0 on SUCCESS, 1 on FAILURE, limit or a failed plugin hook, 128+signal."""
         if self.signal:
             return 128 + self.signal
-        return 0 if self.status is Status.SUCCESS else 1
+        return 0 if self.status is Status.SUCCESS and not self.plugin_error else 1
 
 
 #: py_trees classes whose code only manages children or returns a fixed status: an exception cannot
@@ -386,7 +389,14 @@ class Runner:
                 self.robot.stop()
             result = self._finish(status, stopped_by, duration)
             self._restore_signal_handlers()
-        self._call_hook("missiontree_mission_finished", context=self.context, summary=result.summary)
+        try:
+            self._call_hook("missiontree_mission_finished", context=self.context, summary=result.summary)
+        except PluginError as error:  # the run is complete: keep its outcome, say what failed after it
+            result.plugin_error = str(error)
+            result.summary["plugin_error"] = str(error)
+            if self.run_dir is not None and self._write_failure is None:
+                with contextlib.suppress(OSError):
+                    self._write_summary(result.summary)
         if self._write_failure is not None:
             what, failure = self._write_failure
             raise ConfigError(f"the run ended ({result.status.name}, stopped by {result.stopped_by}) but its "
@@ -566,6 +576,8 @@ class Runner:
             return
         try:
             getattr(self.hook, name)(**kwargs)
+        except PluginError:
+            raise
         except Exception as error:
             raise PluginError(f"a plugin's {name} hook failed: {type(error).__name__}: {error}; fix the "
                               f"plugin or run with --no-plugins") from error

@@ -218,6 +218,8 @@ def _run(task: RunTask, staging: Path) -> dict[str, Any]:
         robot_time_s=round(result.duration, 4), wall_time_s=round(time.perf_counter() - started, 4),
         path_length_m=round(meter.length, 4), ticks=result.ticks,
         figures={"events": summary.get("events", {}), **own, **figures})
+    if result.plugin_error:  # the run completed, a plugin's mission_finished hook failed after it
+        record.update(status="ERROR", stopped_by="error", reason=result.plugin_error)
     return record
 
 

@@ -108,8 +108,13 @@ class Plugins:
 
     @property
     def hook(self) -> Any:
-        """The hook relay (``plugins.hook.missiontree_mission_started(...)``)."""
-        return self.pm.hook
+        """The mission hooks' relay (``plugins.hook.missiontree_mission_started(...)``).
+
+        Unlike pluggy's own relay, it calls every plugin's implementation even when one raises (the
+        built-in hooks, which record the run's trajectory, always run), then raises one
+        :class:`~missiontree.errors.PluginError` naming each plugin that failed.
+        """
+        return EachPluginHook(self.pm)
 
     def backend(self, name: str) -> Any:
         """The factory of backend ``name``, imported now.
@@ -210,6 +215,37 @@ def _register(pm: pluggy.PluginManager, name: str, module: Any, dist: str) -> Pl
         raise PluginError(f"plugin {name!r} ({getattr(module, '__name__', module)}) is broken: {error}; "
                           f"see missiontree.plugins.hookspecs for the hooks, {_DISABLE_HINT}") from error
     return PluginInfo(name=name, module=getattr(module, "__name__", repr(module)), distribution=dist)
+
+
+class EachPluginHook:
+    """A hook relay that calls each plugin's implementation in turn, whatever the others do.
+
+    ``relay.missiontree_mission_finished(context=..., summary=...)`` runs every implementation in
+    the order the plugins were registered (built-ins first); a plugin that raises does not stop the
+    ones after it. Afterwards one :class:`PluginError` names every plugin that failed and why.
+    """
+
+    def __init__(self, pm: pluggy.PluginManager) -> None:
+        self._pm = pm
+
+    def __getattr__(self, hook_name: str) -> Any:
+        caller = getattr(self._pm.hook, hook_name)
+
+        def call(**kwargs: Any) -> None:
+            failures: list[str] = []
+            first: Exception | None = None
+            for impl in caller.get_hookimpls():  # registration order: built-ins first
+                try:
+                    impl.function(*[kwargs[arg] for arg in impl.argnames])
+                except Exception as error:  # noqa: BLE001 - a plugin's bug must not stop the others
+                    name = self._pm.get_name(impl.plugin) or repr(impl.plugin)
+                    failures.append(f"plugin {name!r}: {type(error).__name__}: {error}")
+                    first = first or error
+            if failures:
+                raise PluginError(f"{hook_name} failed in {len(failures)} plugin(s): {'; '.join(failures)}; "
+                                  f"the other plugins' hooks ran; fix the plugin, {_DISABLE_HINT}") from first
+
+        return call
 
 
 def _call_for_each(pm: pluggy.PluginManager, hook_name: str, plugin_name: str, **kwargs: Any) -> None:
