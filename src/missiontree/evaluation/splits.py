@@ -28,8 +28,7 @@ import yaml
 
 from missiontree.backends.sim.floorplans import FLOORPLAN_PREFIX, KINDS, floorplan_world
 from missiontree.backends.sim.generator import GENERATED_PREFIX, generate_world
-from missiontree.backends.sim.placement import map_world, place_objects, small_kinds
-from missiontree.paths import config_dirs
+from missiontree.backends.sim.placement import MAP_PREFIX, map_world, place_objects, shipped_map, small_kinds
 
 #: The split names.
 SPLITS = ("dev", "test")
@@ -66,19 +65,6 @@ class SplitWorld:
     name: str
     family: str
     data: dict[str, Any]
-
-
-def map_yaml(name: str) -> Path:
-    """The shipped map_server map ``name`` (config/worlds/maps/<name>.yaml), absolute.
-
-    Raises:
-        FileNotFoundError: No configuration folder holds it.
-    """
-    for folder in config_dirs():
-        candidate = folder / "worlds" / "maps" / f"{name}.yaml"
-        if candidate.is_file():
-            return candidate.resolve()
-    raise FileNotFoundError(f"no map {name!r} under worlds/maps of {', '.join(map(str, config_dirs()))}")
 
 
 def split_worlds(
@@ -126,9 +112,9 @@ def _test(seed: int, people: bool, min_objects: int) -> SplitWorld:
         data = floorplan_world(fseed, people=2 if people else 0)
         return SplitWorld(f"{FLOORPLAN_PREFIX}{fseed}", FLOORPLAN_FAMILY, _top_up(data, seed, min_objects))
     data = map_world(
-        map_yaml(what), seed, name=f"map_{what}_{seed}", small=min_objects, people=2 if people else 0
+        shipped_map(what), seed, name=f"map_{what}_{seed}", small=min_objects, people=2 if people else 0
     )
-    return SplitWorld(f"map:{what}:{seed}", MAP_FAMILY, data)
+    return SplitWorld(f"{MAP_PREFIX}{what}:{seed}", MAP_FAMILY, data)
 
 
 def small_objects(data: dict[str, Any]) -> list[dict[str, Any]]:

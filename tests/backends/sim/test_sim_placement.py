@@ -133,3 +133,14 @@ def test_furniture_uses_the_generator_classes() -> None:
     assert {f[0] for items in EXTRA_FURNITURE.values() for f in items} <= generator
     assert placed["objects"]
     assert {o["label"] for o in placed["objects"]} <= generator | set(small_kinds())
+
+
+def test_a_shipped_map_loads_by_name_and_seed() -> None:
+    """`map:<name>:<seed>` builds a shipped map with a start, rooms and objects; a wrong name is refused."""
+    from missiontree.backends.sim import load_world
+    from missiontree.errors import WorldFileError
+
+    world = load_world("map:tb3_sandbox:1")
+    assert world.name == "map_tb3_sandbox_1" and world.rooms and world.objects
+    with pytest.raises(WorldFileError, match="tb3_sandbox"):
+        load_world("map:no_such_map:1")

@@ -15,6 +15,9 @@ object lies on known free floor, overlaps no wall and no other object, and an ob
 if every place the robot reached before it was placed is still reached with a margin (a footprint
 radius plus 8 cm): doors and corridors stay passable. A world without rooms (a real map) gets them
 from :func:`missiontree.semantics.rooms.segment_rooms`, each given a type.
+
+:func:`map_world` makes a world of a Nav2 map this way; ``load_world("map:depot:4")`` builds one of
+the shipped maps (config/worlds/maps) by name and seed, with two people walking.
 """
 
 from __future__ import annotations
@@ -38,15 +41,19 @@ from missiontree.backends.sim.mapimage import read_map_image
 from missiontree.backends.sim.navigation import INSCRIBED, Costmap, plan
 from missiontree.backends.sim.navmap import map_cells
 from missiontree.backends.sim.schema import NavMapYaml
-from missiontree.backends.sim.world import Room, World, build_world, load_robot_profile
+from missiontree.backends.sim.world import Room, World, build_world, load_robot_profile, register_world_source
+from missiontree.errors import Problem, WorldFileError
+from missiontree.paths import config_dirs
 from missiontree.semantics.rooms import segment_rooms
 from missiontree.types import OccupancyGrid, Pose2D
-from missiontree.yamlio import Located
+from missiontree.yamlio import Located, parse_yaml
 
 #: Footprint radius of the robot that must pass (TurtleBot 4: 0.34 m wide).
 ROBOT_RADIUS = 0.17
 #: Extra clearance kept on each side of the robot where objects are placed.
 PASS_MARGIN = 0.08
+#: Furniture small objects may stand on (a tv or a sink is no shelf).
+SURFACES = frozenset({"table", "dining table", "desk", "bench", "bed"})
 #: Small objects may stand on furniture whose top is no higher than this (camera at 0.4 m).
 MAX_TOP = 0.8
 #: Furniture keeps this far from a door or an opening between rooms; small objects keep ``SMALL_DOOR_GAP``.
@@ -409,7 +416,7 @@ class _Placer:
                 "pose": {"x": round(x, 3), "y": round(y, 3), "yaw": round(yaw, 4)},
                 "movable": False,
             }
-            if sz <= MAX_TOP and sx * sy >= 0.2:
+            if label in SURFACES and sz <= MAX_TOP:
                 self.s.tops.append({"object": obj, "used": []})
             return obj
         return None
@@ -548,7 +555,7 @@ class _Placer:
             "shape": shape,
             "size": list(size),
             "pose": {"x": round(x, 3), "y": round(y, 3)},
-            "description": f"a {colour} {label} {where}{place}",
+            "description": f"{'an' if colour[0] in 'aeiou' else 'a'} {colour} {label} {where}{place}",
         }
         if shape == "box":
             obj["pose"]["yaw"] = round(yaw, 4)
@@ -905,11 +912,11 @@ def map_world(
 
 
 def walkers(world: World, rng: np.random.Generator, count: int) -> list[dict[str, Any]]:
-    """People walking to and fro on straight lines of open floor (0.4 m from anything) the robot reaches."""
+    """People walking to and fro on straight lines of open floor (0.35 m from anything) the robot reaches."""
     scene = scene_of(world)
     res = scene.grid.resolution
     dist = cv2.distanceTransform((~scene.blocked).astype(np.uint8), cv2.DIST_L2, 5) * res
-    cells = np.argwhere(scene.reach & (dist >= 0.5))
+    cells = np.argwhere(scene.reach & (dist >= 0.45))
     found: list[dict[str, Any]] = []
     for k in range(count):
         for _ in range(200):
@@ -918,12 +925,12 @@ def walkers(world: World, rng: np.random.Generator, count: int) -> list[dict[str
             r0, c0 = cells[int(rng.integers(len(cells)))]
             r1, c1 = cells[int(rng.integers(len(cells)))]
             length = math.hypot(float(r1 - r0), float(c1 - c0)) * res
-            if not 3.0 <= length <= 8.0:
+            if not 2.0 <= length <= 8.0:
                 continue
             steps = int(length / res) + 1
             rr = np.linspace(r0, r1, steps).round().astype(int)
             cc = np.linspace(c0, c1, steps).round().astype(int)
-            if (dist[rr, cc] < 0.4).any():
+            if (dist[rr, cc] < 0.35).any():
                 continue
             a, b = scene.point(int(r0), int(c0)), scene.point(int(r1), int(c1))
             found.append(
@@ -939,3 +946,57 @@ def walkers(world: World, rng: np.random.Generator, count: int) -> list[dict[str
             )
             break
     return found
+
+
+#: World names of this form are shipped real maps with placed objects: ``map:depot:4``.
+MAP_PREFIX = "map:"
+
+
+def shipped_map(name: str) -> Path:
+    """The Nav2 map yaml ``worlds/maps/<name>.yaml`` of the configuration folders, absolute.
+
+    Raises:
+        FileNotFoundError: No configuration folder holds it (the message names the ones that exist).
+    """
+    if name and all(c.isalnum() or c in "_-" for c in name):
+        for folder in config_dirs():
+            candidate = folder / "worlds" / "maps" / f"{name}.yaml"
+            if candidate.is_file():
+                return candidate.resolve()
+    known = sorted({p.stem for d in config_dirs() for p in (d / "worlds" / "maps").glob("*.yaml")})
+    raise FileNotFoundError(f"expected a map of worlds/maps ({', '.join(known)}), found {name!r}")
+
+
+def map_document(argument: str) -> tuple[Located, Path]:
+    """The world source behind ``map:<name>:<seed>``: :func:`map_world` of a shipped map, two walkers.
+
+    Raises:
+        WorldFileError: Not ``<name>:<seed>`` with a shipped map and a whole-number seed.
+    """
+    name, _, seed = argument.rpartition(":")
+    hint = "write e.g. map:depot:4 (a map of config/worlds/maps and a seed)"
+    if not seed.isdigit() or len(seed) > 18:
+        raise WorldFileError(
+            [
+                Problem(
+                    f"{MAP_PREFIX}{argument}",
+                    0,
+                    0,
+                    "",
+                    f"expected `map:<name>:<seed>` with a whole-number seed, found {argument!r}",
+                    hint,
+                )
+            ]
+        )
+    try:
+        path = shipped_map(name)
+    except FileNotFoundError as exc:
+        raise WorldFileError([Problem(f"{MAP_PREFIX}{argument}", 0, 0, "", str(exc), hint)]) from None
+    data = map_world(path, int(seed), name=f"map_{name}_{seed}", people=2)
+    text = yaml.dump(data, Dumper=getattr(yaml, "CSafeDumper", yaml.SafeDumper), sort_keys=False)
+    return parse_yaml(
+        text, f"<{MAP_PREFIX}{argument}>", error=WorldFileError
+    ), path.parent / f"{data['name']}.yaml"
+
+
+register_world_source(MAP_PREFIX, map_document)
