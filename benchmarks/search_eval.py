@@ -288,7 +288,9 @@ def score(trial: Trial, case: Case, world: Any, record: Any) -> Trial:
     trial.wrong_object = claimed and (
         case.absent or not trial.distance_m <= VIEW_RANGE or not trial.bearing_deg <= HALF_FOV_DEG
     )
-    trial.absent_correct = case.absent and not claimed and trial.stopped_by == "status"
+    trial.absent_correct = (
+        case.absent and not claimed and trial.stopped_by == "status" and "not found" in trial.reason
+    )
     return trial
 
 

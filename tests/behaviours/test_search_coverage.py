@@ -159,3 +159,20 @@ def test_a_partial_exploration_goes_on_to_look_at_the_floor() -> None:
     assert leaf.status == Status.RUNNING, leaf.feedback_message
     assert events.of("search_explored")[0]["reason"].startswith("partial:")
     assert events.of("search_view_goal")
+
+
+def test_an_exploration_stuck_where_the_map_stopped_growing_goes_on_to_look() -> None:
+    """Explore ending 'stuck:' does not spend a round of the search: the floor is looked at next."""
+
+    class Stuck(Locate):
+        def explore_step(self) -> Status:
+            return self.fail("stuck: the map did not grow and the robot did not move for 60 s")
+
+    robot = CameraRobot(hall(), Pose2D(1.0, 1.0, math.pi))
+    events = Events()
+    leaf = Stuck("locate", Locate.Params(target="red backpack", priors="none"))
+    models = {"detector": Detector()}
+    leaf.setup(context=MissionContext(robot=robot, events=events, models=models))  # type: ignore[arg-type]
+    leaf.tick_once()
+    assert leaf.status == Status.RUNNING, leaf.feedback_message
+    assert events.of("search_view_goal")

@@ -426,6 +426,7 @@ class Locate(ResumeExplore):
         self.cover_skipped = 0
         self.frontier_rounds = 0
         self.explore_end = ""
+        self.frontiers_left: list[tuple[float, float]] = []
 
     def on_setup(self) -> None:
         """Read the target against the detector's classes and load the graph file, if any."""
@@ -512,17 +513,19 @@ class Locate(ResumeExplore):
             return self._not_found()
         if not self.frontiers_done:
             status = self.explore_step()
-            partial = status == Status.FAILURE and str(self.failure_reason).startswith("partial:")
+            # a partial exploration (frontiers the map shows a way to were left) or one stuck where
+            # the map stopped growing goes on to look at the floor like a complete one (a round of
+            # the search is not spent on it); what was left is named in the not-found reason
+            partial = status == Status.FAILURE and str(self.failure_reason).startswith(("partial:", "stuck:"))
             if status == Status.FAILURE and not partial:
                 return self.fail(
                     f"searching for the {self.goal.text if self.goal else '?'}: {self.failure_reason}"
                 )
             if status != Status.SUCCESS and not partial:
                 return status
-            # a partial exploration (frontiers the map shows a way to were left) goes on to look
-            # at the floor like a complete one; what is left is named in the not-found reason
             self.frontiers_done = True
             self.exhausted = False
+            self.frontiers_left = self._frontier_places()  # new ones only bring exploring back
             self.explore_end = self.failure_reason if partial else self.feedback_message
             self.failure_reason = ""
             self.emit("search_explored", reason=self.explore_end)
@@ -532,6 +535,15 @@ class Locate(ResumeExplore):
         if status == Status.SUCCESS:
             return self._exhausted()
         return status
+
+    def _frontier_places(self, known: list[tuple[float, float]] | None = None) -> list[tuple[float, float]]:
+        """The frontiers the planner offers now (their places), less those within 1 m of ``known``."""
+        robot = self.context.robot
+        grid, stamped = robot.occupancy(), robot.pose()
+        if self.planner is None or grid is None or stamped is None:
+            return []
+        places = [c.target for c in self.planner.candidates(grid, (stamped.pose.x, stamped.pose.y))]
+        return [p for p in places if all(math.dist(p, k) > 1.0 for k in known or [])]
 
     def _exhausted(self) -> Status:
         """Nothing left to explore or look at: a candidate once more, or not found."""
@@ -567,7 +579,7 @@ class Locate(ResumeExplore):
             return self._cover_look(grid, pose, now)
         if self.planner is not None and self.frontier_rounds < MAX_FRONTIER_ROUNDS:
             # the map grew while looking (a room seen through a door): its frontiers come first
-            if self.planner.candidates(grid, (pose.x, pose.y)):
+            if self._frontier_places(self.frontiers_left):
                 self.frontier_rounds += 1
                 self.frontiers_done = False
                 self.emit("search_frontiers_again", round=self.frontier_rounds)
@@ -695,7 +707,7 @@ class Locate(ResumeExplore):
         shown = "; ".join(f"{e.get('id')}: {e.get('reason', '')}" for e in tried[:4])
         grid = self.last_grid
         known = f", {self.summary(grid)}" if grid is not None and self.planner is not None else ""
-        if self.explore_end.startswith("partial:"):
+        if self.explore_end.startswith(("partial:", "stuck:")):
             known += f"; exploration {self.explore_end[:300]}"
         robot = self.context.robot
         stamped, now_grid = robot.pose(), robot.occupancy()
