@@ -238,3 +238,24 @@ def test_a_nan_reading_under_an_inverter_is_a_fault_not_success(
     summary = json.loads((tmp_path / "run" / "summary.json").read_text(encoding="utf-8"))
     assert summary["status"] == "FAILURE"
     assert summary["fault"]["node"].endswith("low") and "non-finite" in summary["fault"]["error"]
+    capsys.readouterr()
+    assert main(["log", "summarize", str(tmp_path / "run")]) == 0
+    assert "fault: " in capsys.readouterr().out
+
+
+def test_a_stale_reading_under_an_inverter_is_not_success() -> None:
+    """A sensor that went quiet fails its condition with a fault, so Inverter(condition) stays FAILURE."""
+    import py_trees
+
+    from missiontree.engine.faults import FaultKeepingInverter
+
+    robot = _robot()
+    robot.set_sensor("ticker", 4.0)
+    condition = SensorCondition("low", SensorCondition.Params(sensor="ticker", threshold=5.0, max_age=2.0))
+    root = FaultKeepingInverter("not_low", condition)
+    py_trees.trees.setup(root, context=MissionContext(robot=robot, events=Events()))  # type: ignore[arg-type]
+    root.tick_once()
+    assert root.status == Status.FAILURE  # 4 < 5 holds: inverted
+    robot.spin_until(13.0)  # the reading is 3 s old: the sensor is lost
+    root.tick_once()
+    assert root.status == Status.FAILURE and "3.0 s old" in root.feedback_message

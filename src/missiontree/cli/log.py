@@ -186,6 +186,7 @@ def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
         "failures": dict(sorted(failures.items())),
         "errors": errors,
         "events": dict(sorted(events.items())),
+        **({"fault": finished["fault"]} if isinstance(finished.get("fault"), dict) else {}),
     }
 
 
@@ -193,6 +194,9 @@ def format_summary(summary: dict[str, Any]) -> str:
     """The text form of :func:`summarize`'s result."""
     out = [f"mission {summary['mission'] or '?'}: {summary['status']} (stopped by {summary['stopped_by']}) "
            f"after {summary['ticks']} ticks, {summary['duration']:.1f} s on the robot clock"]
+    fault = summary.get("fault")
+    if fault:  # failed because of an error, not because a condition was false
+        out.append(f"fault: {fault.get('node')}: {fault.get('error')} (an error, not a condition's failure)")
     if summary["ended_by"]:
         out.append("ended by (deepest first):")
         out += [f"  {e['node']}: {e.get('reason', '(no reason given)')}" for e in summary["ended_by"]]

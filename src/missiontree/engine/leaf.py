@@ -136,6 +136,16 @@ class Leaf(py_trees.behaviour.Behaviour):
         self.feedback_message = reason
         return Status.FAILURE
 
+    def fault(self, reason: str) -> Status:
+        """Return FAILURE caused by an error, not by a condition (a lost sensor, a reading that is no number).
+
+        The leaf carries a fault (:mod:`missiontree.engine.faults`): no Inverter or ForceSuccess
+        above it turns this FAILURE into SUCCESS, and a run that ends on it reports the fault.
+        """
+        self.fail(reason)
+        mark_fault(self, reason)
+        return Status.FAILURE
+
     def running(self, message: str = "") -> Status:
         """Set the feedback message and return RUNNING."""
         self.feedback_message = message

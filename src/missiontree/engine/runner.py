@@ -528,7 +528,7 @@ class Runner:
         if self.recorder is not None:
             summary.update(self.recorder.summary())
         summary.update(self._final_pose())
-        summary = plain(summary)
+        summary = scrub_data(plain(summary))  # kept, printed and recorded by batches: no secret in it
         if self.recorder is not None:
             self.recorder.close()
         if self.log is not None:

@@ -5,10 +5,12 @@ value with its stamp. These leaves test one number of it — the value itself, o
 numeric ``fields`` — against a threshold, with a staleness limit:
 
 - :class:`SensorCondition` has the shape of Nav2's ``IsBatteryLow`` condition: SUCCESS while the
-  number is on the asked side of the threshold, FAILURE otherwise, and FAILURE with a reason when the
-  sensor never spoke or its reading is older than ``max_age`` (a quiet sensor shows as a stale stamp).
+  number is on the asked side of the threshold, FAILURE otherwise, and FAILURE with a fault (an error,
+  not a false condition: no Inverter turns it into SUCCESS, see :mod:`missiontree.engine.faults`) when
+  the sensor never spoke, its reading is older than ``max_age`` (a quiet sensor shows as a stale
+  stamp) or its number is not finite.
 - :class:`WaitForSensor` stays RUNNING until the number reaches the value (wrap it in ``Timeout``);
-  a stale reading keeps it waiting (and says so), or fails it after ``stale_timeout``.
+  a stale reading keeps it waiting (and says so), or fails it with a fault after ``stale_timeout``.
 
 Both send the reading to the tick log as a ``sensor`` event at most every ``log_period`` of the
 sensor's kind (the viewer lists these events), so a run's log shows the sensor while a leaf watches it.
@@ -140,7 +142,7 @@ class SensorCondition(_SensorLeaf):
                    else f"reading is {age:.1f} s old (max_age {self.params.max_age:g} s)")
             if self.params.stale == "succeed":
                 return self.succeed(f"{self._what()}: {why}, taken as holding")
-            return self.fail(f"{self._what()}: {why}")
+            return self.fault(f"{self._what()}: {why}")
         value = self._number(reading)
         holds = _OPS[self.params.op](value, self.params.threshold)
         text = f"{self._what()} {value:g} {self.params.op} {self.params.threshold:g}"
@@ -171,7 +173,7 @@ class WaitForSensor(_SensorLeaf):
                 self._stale_since = now
             limit = self.params.stale_timeout
             if limit is not None and now - self._stale_since >= limit:
-                return self.fail(f"{self._what()}: no fresh reading for {limit:g} s")
+                return self.fault(f"{self._what()}: no fresh reading for {limit:g} s")
             return self.running(f"{self._what()}: " + ("no reading yet" if reading is None
                                                        else f"stale ({age:.1f} s)"))
         self._stale_since = None
