@@ -4,6 +4,7 @@
     python benchmarks/intent_eval.py --split dev      # tune here
     python benchmarks/intent_eval.py --split test     # report here, once at the end of a change
     python benchmarks/intent_eval.py --quick          # fewer starts, 2 test worlds (a few minutes)
+    python benchmarks/intent_eval.py --split dev --perceived 2   # + Table II from a perceived graph
 
 Splits.
 
@@ -19,6 +20,11 @@ Splits.
   WordNet taxonomy), artifacts no scene has, and from each world's own objects commands by colour,
   room and "sitting on" relation plus colours the world lacks. World ``i`` of ``n`` takes every
   ``n``-th WordNet command from offset ``i``. Only ours runs on test.
+
+End to end (``--perceived STARTS``, off by default: each start explores the office from no map):
+``trees/map_and_go_to_intent.yaml`` explores, builds the live graph from what the robot perceives and
+serves Table II's five commands in turn; per command its success is printed beside the ground-truth
+graph's (from the dev split's runs) and the paper's (100 / 100 / 100 / 60 / 80).
 
 Per split: success with its 95 % Wilson interval, ``wrong_objects_served`` (runs that ended SUCCESS
 at an object that does not satisfy the command, or when nothing does), success per group; the
@@ -369,7 +375,8 @@ class Bench:
         """The graph file of the case's world (with its injections)."""
         key = (case.world, case.injected)
         if key not in self.graphs:
-            name = f"graph_{case.world.replace(':', '_')}_{len(self.graphs)}.json"
+            stem = Path(case.world).stem if "/" in case.world else case.world.replace(":", "_")
+            name = f"graph_{stem}_{len(self.graphs)}.json"
             self.graphs[key] = write_graph(self.world(case.world), self.folder / name, dict(case.injected))
         return self.graphs[key]
 
@@ -441,7 +448,7 @@ class IntentProbe:
 
 
 def run_ours(bench: Bench, wanted: Sequence[tuple[Case, tuple[float, float, float]]],
-             jobs: int) -> list[Trial]:
+             jobs: int, batch: str = "batch") -> list[Trial]:
     """Run trees/go_to_intent.yaml from each start on the batch runner (a process pool) and score each."""
     from missiontree.evaluation import BatchPlan, PoolEngine, RunSpec, run_batch
     from missiontree.types import Pose2D
@@ -451,7 +458,7 @@ def run_ours(bench: Bench, wanted: Sequence[tuple[Case, tuple[float, float, floa
              for case, start in wanted]
     plan = BatchPlan(mission=MISSION, runs=specs, request={"max_duration": 400})
     with PoolEngine(jobs) as engine:
-        records = run_batch(plan, engine, bench.folder / "batch", probe=IntentProbe)
+        records = run_batch(plan, engine, bench.folder / batch, probe=IntentProbe)
     trials = []
     for (case, start), record in zip(wanted, records, strict=True):
         trial = Trial("ours", case, start)
@@ -703,6 +710,73 @@ def _print_trial(trial: Trial) -> None:
           f"first={trial.first_object} served={trial.served.get('object')} {trial.reason[:200]}", flush=True)
 
 
+# -- end to end: Table II from a perceived graph --------------------------------------------------------
+
+PERCEIVED_MISSION = REPO / "trees" / "map_and_go_to_intent.yaml"
+#: The NAIS paper's Table II success rates (%), per command.
+PAPER_TABLE2 = {"I am thirsty": 100, "I am tired": 100, "I am bored": 100, "I want the grey backpack": 60,
+                "I'm searching the blue chair": 80}
+
+
+def run_perceived(bench: Bench, n: int, seed: int,
+                  max_duration: float) -> tuple[dict[str, list[bool]], float]:
+    """Table II end to end, from a graph the robot builds itself.
+
+    From each of ``n`` starts the robot explores the office it has never seen, builds the live graph
+    and serves the five commands in turn; each is scored against ground truth. A command counts when
+    the leaf served it at a graph object that is (within 1 m) an office object satisfying it, with its
+    standoff goal within 1 m of that object's footprint. Returns per-command
+    outcomes and the wall seconds the runs took.
+    """
+    import io
+
+    from missiontree.robot.commands import LineCommands
+    from missiontree.session import MissionRequest, Session
+
+    world = bench.world("office")
+    outcomes: dict[str, list[bool]] = {case.command: [] for case in TABLE2}
+    t0 = time.perf_counter()
+    for k, start in enumerate(start_poses(world, n, seed)):
+        log = io.StringIO()
+        request = MissionRequest(mission=PERCEIVED_MISSION, world=str(world_file(world, start, bench.folder)),
+                                 params={"command": ""}, quiet=True, log_stream=log, handle_signals=False,
+                                 max_duration=max_duration, out=bench.folder / f"perceived_{k}")
+        with Session.open(request) as session:
+            lines = "".join(f"{case.command}\n" for case in TABLE2)
+            session.robot.command_input = LineCommands(io.StringIO(lines))
+            session.run()
+        events = [json.loads(line) for line in log.getvalue().splitlines() if line.strip()]
+        goal: dict[str, Any] = {}
+        served: dict[str, bool] = {}
+        for event in events:
+            if event.get("event") == "goal_sent":
+                goal = event
+            if event.get("event") == "intent_served" and goal:
+                case = next(c for c in TABLE2 if c.command == event.get("command"))
+                matches = [o for o in world.objects if o.label == goal.get("label")
+                           and math.hypot(o.pose.x - goal["object_x"], o.pose.y - goal["object_y"]) <= 1.0]
+                served[case.command] = any(case.satisfies(o, world)
+                                           and footprint_distance(o, goal["x"], goal["y"]) <= 1.0
+                                           for o in matches)
+        for case in TABLE2:
+            outcomes[case.command].append(served.get(case.command, False))
+            print(f"perceived start={start} {case.command:30} {'ok' if served.get(case.command) else 'MISS'}",
+                  flush=True)
+    return outcomes, time.perf_counter() - t0
+
+
+def perceived_table(outcomes: dict[str, list[bool]], truth_graph: Sequence[Trial]) -> str:
+    """Per Table II command: perceived-graph success beside the ground-truth graph's and the paper's (%)."""
+    lines = ["| command | perceived graph | ground-truth graph | NAIS paper |", "|---|---:|---:|---:|"]
+    for case in TABLE2:
+        mine = outcomes.get(case.command, [])
+        truth = [t.success for t in truth_graph if t.method == "ours" and t.case is case]
+        shown = f"{100 * sum(mine) / len(mine):.0f} ({len(mine)})" if mine else "-"
+        given = f"{100 * sum(truth) / len(truth):.0f} ({len(truth)})" if truth else "-"
+        lines.append(f"| {case.command} | {shown} | {given} | {PAPER_TABLE2[case.command]} |")
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the evaluation; print per-trial lines, tables and the JSON summary last."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -717,16 +791,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=18)
     parser.add_argument("--jobs", type=int, default=None,
                         help="batch workers for our runs (default: the cores)")
+    parser.add_argument("--perceived", type=int, default=0, metavar="STARTS",
+                        help="also run Table II end to end from a perceived graph from this many starts "
+                             "(trees/map_and_go_to_intent.yaml; slow: one exploration of the office each)")
+    parser.add_argument("--perceived-max-duration", type=float, default=1500.0)
     args = parser.parse_args(argv)
     n_table = args.starts or (3 if args.quick else 10)
     n_written = args.written_starts or (1 if args.quick else 2)
     jobs = args.jobs or os.cpu_count() or 1
     figures: dict[str, dict[str, Any]] = {}
     out: dict[str, Any] = {}
+    dev_trials: list[Trial] = []
     with tempfile.TemporaryDirectory(prefix="intent_eval_") as tmp:
         bench = Bench(Path(tmp))
         if args.split in ("dev", "both"):
-            trials = run_dev(bench, n_table, n_written, args.seed, jobs)
+            trials = dev_trials = run_dev(bench, n_table, n_written, args.seed, jobs)
             summary = summarise(trials)
             ours, nais = summary["ours"], summary["nais"]
             for key in ("table2_success", "referential_success", "overall_success", "nearest_by_path_rate",
@@ -744,11 +823,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             for i, case in enumerate(cases):
                 poses = start_poses(bench.world(case.world), 6, args.seed)
                 plan.append((case, poses[i % len(poses)]))
-            trials = run_ours(bench, plan, jobs)
+            trials = run_ours(bench, plan, jobs, batch="test_batch")
             for trial in trials:
                 _print_trial(trial)
             figures["test"] = split_figures(trials)
             out["test"] = {**figures["test"], "worlds": [Path(w).stem for w in worlds]}
+        if args.perceived:
+            outcomes, seconds = run_perceived(bench, args.perceived, args.seed, args.perceived_max_duration)
+            print(perceived_table(outcomes, dev_trials))
+            print(f"perceived-graph runs: {args.perceived} starts in {seconds:.0f} s wall")
+            out["perceived"] = {"table2": {c: round(sum(v) / len(v), 4) for c, v in outcomes.items() if v},
+                                "starts": args.perceived, "wall_s": round(seconds, 1)}
     for split, f in figures.items():
         lo, hi = f["success_ci95"]
         print(f"{split:4} success {f['success']} (95 % CI {lo:.3f}-{hi:.3f}, {f['trials']} runs), "
