@@ -133,6 +133,15 @@ def test_floorplan_name_loads_the_seeds_world(worlds: dict[str, tuple[dict[str, 
     assert [o.id for o in world.objects] == [o["id"] for o in data["objects"]]
 
 
+def test_walkers_do_not_change_the_layout_or_objects(worlds: dict[str, tuple[dict[str, Any], World]]) -> None:
+    """The same seed without people has the same walls, rooms and objects, and nobody walking."""
+    with_people, _ = worlds[kind_of(3)]
+    alone = floorplan_world(3, people=0)
+    assert alone["people"] == [] and with_people["people"]
+    assert {k: v for k, v in alone.items() if k != "people"} == {
+        k: v for k, v in with_people.items() if k != "people"}
+
+
 def test_bad_seed_is_a_world_file_error() -> None:
     """A floorplan name without a whole-number seed is refused with the expected form."""
     with pytest.raises(WorldFileError, match="floorplan:<seed>"):

@@ -500,7 +500,8 @@ def _draw_world(
         },
         "rooms": rooms,
         "objects": [],
-        "people": _people(plan, rng, people),
+        # from a generator of their own: the layout and objects do not depend on how many walk
+        "people": _people(plan, np.random.default_rng([seed, 1]), people),
     }
     return data, clutter
 
@@ -514,7 +515,8 @@ def floorplan_world(seed: int, people: int = 2, objects: bool = True) -> dict[st
         objects: Furnish the rooms and place small objects (with decoys).
 
     Raises:
-        WorldFileError: The seed is not a whole number from 0 to MAX_SEED.
+        WorldFileError: The seed is not a whole number from 0 to MAX_SEED (or, never seen, no
+            draw of the seed's kind gave a valid world with every room reachable).
     """
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed <= MAX_SEED:
         raise WorldFileError([_seed_problem(f"{FLOORPLAN_PREFIX}{seed}", seed)])
@@ -533,6 +535,19 @@ def floorplan_world(seed: int, people: int = 2, objects: bool = True) -> dict[st
             continue
         if not unreachable_rooms(world):
             break
+    else:
+        raise WorldFileError(
+            [
+                Problem(
+                    f"{FLOORPLAN_PREFIX}{seed}",
+                    0,
+                    0,
+                    "",
+                    f"no valid {kind_of(seed)} layout with every room reachable in {_ATTEMPTS} draws",
+                    "try another seed",
+                )
+            ]
+        )
     n_obj = len(data.get("objects", []))
     data["description"] = (
         f"Floorplan (seed {seed}, {kind_of(seed)}): {len(data['rooms'])} rooms, {n_obj} objects."
