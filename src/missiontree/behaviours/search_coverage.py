@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from missiontree.mapping.grid import free_mask, occupied_mask
+from missiontree.mapping.grid import OCCUPIED_FROM, free_mask, occupied_mask
 from missiontree.types import OccupancyGrid, Pose2D
 
 #: path_lengths(grid, start, goals, radius) -> metres or None per goal (the exploration planner's).
@@ -84,8 +84,7 @@ class ViewCoverage:
         h, w = grid.data.shape
         inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
         blocked = np.zeros_like(inside)
-        occ = occupied_mask(grid)
-        blocked[inside] = occ[rows[inside], cols[inside]]
+        blocked[inside] = grid.data[rows[inside], cols[inside]] >= OCCUPIED_FROM  # the ray's cells only
         # everything up to and including the first occupied cell (or the map's edge) of each ray
         stop = np.cumsum(blocked | ~inside, axis=1)
         visible = (stop == 0) | ((stop == 1) & blocked)
