@@ -780,7 +780,8 @@ def perceived_table(outcomes: dict[str, list[bool]], truth_graph: Sequence[Trial
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the evaluation; print per-trial lines, tables and the JSON summary last."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--split", choices=("dev", "test", "both"), default="both")
+    parser.add_argument("--split", choices=("dev", "test", "both", "none"), default="both",
+                        help="none: only the end-to-end runs of --perceived")
     parser.add_argument("--quick", action="store_true",
                         help="dev: 3 start poses for Table II, 1 for the rest; test: 2 worlds")
     parser.add_argument("--starts", type=int, default=None, help="start poses per Table II command (10)")

@@ -46,3 +46,12 @@ def test_split_figures_count_wrong_objects_and_give_a_wilson_interval() -> None:
     assert low < 0.75 < high
     assert figures["groups"]["test_need"] == {"trials": 3, "success": 0.6667}
     assert "| test | 4 | 0.750 |" in intent_eval.markdown_table({"test": figures})
+
+
+def test_perceived_table_sets_each_command_beside_the_truth_graph_and_the_paper() -> None:
+    """Per Table II command: the perceived graph's rate, the ground-truth graph's, the paper's."""
+    outcomes = {case.command: [True, False] for case in intent_eval.TABLE2}
+    truth = [intent_eval.Trial("ours", intent_eval.TABLE2[3], (0.0, 0.0, 0.0), success=True)]
+    table = intent_eval.perceived_table(outcomes, truth)
+    assert "| I want the grey backpack | 50 (2) | 100 (1) | 60 |" in table
+    assert "| I am thirsty | 50 (2) | - | 100 |" in table
