@@ -91,3 +91,13 @@ def test_safe_terminal_keeps_the_progress_line_and_scrubs() -> None:
     terminal.write("\r50 %\x1b[K")
     terminal.write(f"key {KEY}\x1b[31m\n")
     assert out.getvalue() == "\r50 %\x1b[Kkey ***\\x1b[31m\n"
+
+
+def test_safe_terminal_scrubs_a_key_written_in_pieces() -> None:
+    """A key written in several write() calls (as json.dump does) is scrubbed once the line is whole."""
+    out = io.StringIO()
+    terminal = SafeTerminal(out)
+    for piece in ('{"key": "', KEY[:10], KEY[10:25], KEY[25:], '"}'):
+        terminal.write(piece)
+    terminal.flush()
+    assert out.getvalue() == '{"key": "***"}'

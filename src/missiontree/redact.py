@@ -159,25 +159,43 @@ def terminal_safe(text: str) -> str:
 class SafeTerminal:
     r"""A text stream for the terminal: scrubs secrets and shows foreign control characters escaped.
 
-    Wraps ``sys.stdout``/``sys.stderr`` for a command's run (:mod:`missiontree.cli.main`). The
-    progress lines' own ``\r`` and erase-line sequence pass.
+    Wraps ``sys.stdout``/``sys.stderr`` for a command's run (:mod:`missiontree.cli.main`). Text is
+    passed on a line at a time (up to a newline, a carriage return or the erase-line sequence, or
+    at :meth:`flush`), so a secret written in several pieces (``json.dump`` writes token by token)
+    is scrubbed whole. The progress lines' own ``\r`` and erase-line sequence pass.
     """
 
     _OWN = "\x1b[K"
+    _ENDS = re.compile(r"\n|\r|\x1b\[K")
 
     def __init__(self, stream: TextIO) -> None:
         self._stream = stream
+        self._pending = ""
 
     def write(self, text: str) -> int:
-        """Write ``text`` made safe; return the length of ``text`` (as a stream does)."""
-        safe = self._OWN.join(terminal_safe(part) for part in text.split(self._OWN))
-        self._stream.write(scrub(safe))
+        """Take ``text``; pass on every whole line made safe; return the length of ``text``."""
+        self._pending += text
+        ends = [match.end() for match in self._ENDS.finditer(self._pending)]
+        if ends:
+            ready, self._pending = self._pending[:ends[-1]], self._pending[ends[-1]:]
+            self._emit(ready)
         return len(text)
 
+    def flush(self) -> None:
+        """Pass on what is held (made safe) and flush the stream."""
+        if self._pending:
+            ready, self._pending = self._pending, ""
+            self._emit(ready)
+        self._stream.flush()
+
     def writelines(self, lines: Iterable[str]) -> None:
-        """Write each line made safe."""
+        """Write each line."""
         for line in lines:
             self.write(line)
+
+    def _emit(self, text: str) -> None:
+        safe = self._OWN.join(terminal_safe(part) for part in text.split(self._OWN))
+        self._stream.write(scrub(safe))
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._stream, name)

@@ -78,11 +78,15 @@ def safe_terminal() -> Iterator[None]:
     characters of ids, labels and answers from files and models are shown escaped.
     """
     stdout, stderr = sys.stdout, sys.stderr
-    sys.stdout, sys.stderr = SafeTerminal(stdout), SafeTerminal(stderr)  # type: ignore[assignment]
+    safe_out, safe_err = SafeTerminal(stdout), SafeTerminal(stderr)
+    sys.stdout, sys.stderr = safe_out, safe_err  # type: ignore[assignment]
     try:
         yield
     finally:
         sys.stdout, sys.stderr = stdout, stderr
+        for safe in (safe_out, safe_err):
+            with contextlib.suppress(OSError, ValueError):  # a closed pipe: nothing more to show
+                safe.flush()
 
 
 def _run(args: argparse.Namespace) -> int:
