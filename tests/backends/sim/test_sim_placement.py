@@ -109,6 +109,14 @@ def test_objects_stand_on_furniture_against_walls_and_in_corners() -> None:
     text = " ".join(o.get("description", "") for o in placed["objects"])
     assert "against a wall" in text and "in a corner" in text
     assert any(o.get("elevation", 0) > 0.3 for o in placed["objects"])
+    assert all(o["size"][2] <= 0.5 for o in placed["objects"] if o.get("elevation", 0) > 0)
+
+
+def test_small_objects_come_in_their_class_colours() -> None:
+    """Random and decoy colours stay plausible for the class: laptops only silver, black, grey, white."""
+    placed = place_objects(generate_world(6, people=0), 6, small=40)
+    laptops = {o["color"] for o in placed["objects"] if o["label"] == "laptop"}
+    assert laptops and laptops <= {"silver", "black", "grey", "white"}
 
 
 def test_decoys_share_the_class_or_the_colour() -> None:

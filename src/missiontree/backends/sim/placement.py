@@ -73,8 +73,16 @@ EXTRA_FURNITURE: dict[str, list[tuple[str, str, tuple[float, float, float]]]] = 
 }
 #: A room gets one small object of a random class beyond its type's own per this many m².
 SMALL_AREA = 40.0
-#: Colours small objects and their decoys are drawn from.
+#: Colours small objects and their decoys are drawn from, and those a class comes in when fewer.
 DECOY_COLOURS = ["red", "blue", "green", "black", "white", "grey", "yellow", "pink", "silver", "orange"]
+CLASS_COLOURS = {"laptop": ["silver", "black", "grey", "white"]}
+#: Small objects taller than this stand on the floor only (no umbrella upright on a bench).
+MAX_ON_TOP = 0.5
+
+
+def colours_for(label: str) -> list[str]:
+    """The colours a small object of this class is given (a laptop is not orange)."""
+    return CLASS_COLOURS.get(label, DECOY_COLOURS)
 
 
 def furniture_for(room_type: str) -> list[tuple[str, str, tuple[float, float, float]]]:
@@ -111,6 +119,7 @@ class Scene:
         robot_free: Cells the robot's centre may take with the margin (reached or not).
         floor: Free cells joined to the robot's start (not the inside of a closed shelf or a pocket).
         keep_clear: Cells no object may cover: around the robot's start.
+        tops: Furniture small objects may stand on, each ``{"object": dict, "used": [...]}``.
     """
 
     world: World
@@ -446,7 +455,7 @@ class _Placer:
     ) -> dict[str, Any] | None:
         """A small object in ``room`` placed by ``mode``: floor, wall, corner or top (of furniture)."""
         if mode == "top":
-            obj = self._on_top(room, label, colour, size, shape)
+            obj = self._on_top(room, label, colour, size, shape) if size[2] <= MAX_ON_TOP else None
             if obj is not None:
                 return obj
             mode = "floor"
@@ -627,7 +636,8 @@ def place_objects(
         for _ in range(int(areas[i] // SMALL_AREA)):  # large rooms: one more per SMALL_AREA m²
             label = labels[int(rng.integers(len(labels)))]
             size, shape = kinds[label]
-            wanted.append((label, DECOY_COLOURS[int(rng.integers(len(DECOY_COLOURS)))], size, shape))
+            colours = colours_for(label)
+            wanted.append((label, colours[int(rng.integers(len(colours)))], size, shape))
         for label, colour, size, shape in wanted:
             obj = placer.small(i, label, colour, size, shape, MODES[int(rng.integers(len(MODES)))])
             if obj is not None:
@@ -636,7 +646,7 @@ def place_objects(
     while len(placed_small) < small and tries < 20 * max(small, 1) and rooms:
         tries += 1
         label = labels[int(rng.integers(len(labels)))]
-        colour = DECOY_COLOURS[int(rng.integers(len(DECOY_COLOURS)))]
+        colour = colours_for(label)[int(rng.integers(len(colours_for(label))))]
         size, shape = kinds[label]
         index = int(rng.integers(len(rooms))) + 1
         obj = placer.small(index, label, colour, size, shape, MODES[int(rng.integers(len(MODES)))])
@@ -686,12 +696,16 @@ def _decoys(
 ) -> list[dict[str, Any]]:
     """A same-class decoy in another colour and a same-colour decoy of another class."""
     found: list[dict[str, Any]] = []
-    colours = [c for c in DECOY_COLOURS if c != target["color"]]
-    others = [label for label in sorted(kinds) if label != target["label"]]
-    for label, colour in (
-        (target["label"], colours[int(rng.integers(len(colours)))]),
-        (others[int(rng.integers(len(others)))], target["color"]),
-    ):
+    colours = [c for c in colours_for(target["label"]) if c != target["color"]]
+    others = [
+        label for label in sorted(kinds) if label != target["label"] and target["color"] in colours_for(label)
+    ]
+    pairs = []
+    if colours:
+        pairs.append((target["label"], colours[int(rng.integers(len(colours)))]))
+    if others:
+        pairs.append((others[int(rng.integers(len(others)))], target["color"]))
+    for label, colour in pairs:
         size, shape = kinds[label]
         for _ in range(4):
             room = int(rng.integers(room_count)) + 1
