@@ -4,7 +4,8 @@ The world is loaded and checked as a run would load it (a shipped name such as `
 to a world file, or ``generated:<seed>``), so a broken world prints its problems as
 ``file:line:col`` and exits 2. The picture is the run pictures' top-down drawing at the start of a
 run: walls and map cells, rooms, objects with their ids, people's routes, the robot at its start
-pose, and a grid line every metre. ``--waypoints FILE`` adds a waypoint file's poses as goals, to
+pose, and a grid line every metre numbered in metres along the top (x) and left (y) edges, so goals
+and waypoints can be read off the picture. ``--waypoints FILE`` adds a waypoint file's poses as goals, to
 see whether a route was written for this world.
 """
 
@@ -27,9 +28,10 @@ def register(subparsers: Any) -> None:
     )
     actions = parser.add_subparsers(dest="world_command", metavar="ACTION", required=True)
     show = actions.add_parser(
-        "show", help="draw a world from above with a metre grid",
+        "show", help="draw a world from above with a metre grid and coordinates",
         description="Load and check a world (a shipped name, a path to a world file, or generated:<seed>) "
-        "and draw it from above with a grid line every metre.",
+        "and draw it from above with a grid line every metre, numbered in metres (x along the top, y on "
+        "the left).",
     )
     show.add_argument("world", help="a shipped world name (office), a world file, or generated:<seed>")
     show.add_argument("--out", type=Path, help="the PNG to write (default: <world name>.png)")

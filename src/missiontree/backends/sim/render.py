@@ -5,7 +5,8 @@ tracks up to now, the robot's true trajectory and pose, the navigation goals sen
 map in unknown-map runs (cells not yet mapped greyed), and the run's markers (goals, detections,
 alarms, anything else) with their labels placed so that they do not overlap. A legend under the
 map shows only what the picture contains, each entry drawn with its own symbol and colour; a
-metre scale sits in the lower left. +y points up.
+metre scale sits in the lower left. +y points up. With ``metre_grid`` (``missiontree world show``)
+a light line is drawn every metre and numbered in metres along the top (x) and left (y) edges.
 
 The scene is a value (what to draw), built by the simulator; this module knows nothing of the
 robot or the world objects.
@@ -246,11 +247,53 @@ def _draw_learned(canvas: _Canvas, learned: OccupancyGrid) -> None:
 
 
 def _draw_metre_grid(canvas: _Canvas, bounds: tuple[float, float, float, float]) -> None:
+    """A light line every metre, with its coordinate (m) above the map (x) and left of it (y)."""
     xmin, ymin, xmax, ymax = bounds
     for x in range(math.ceil(xmin), math.floor(xmax) + 1):
         cv2.line(canvas.image, canvas.px(x, ymin), canvas.px(x, ymax), (225, 225, 225), 1)
     for y in range(math.ceil(ymin), math.floor(ymax) + 1):
         cv2.line(canvas.image, canvas.px(xmin, y), canvas.px(xmax, y), (225, 225, 225), 1)
+    _draw_axis_labels(canvas, bounds)
+
+
+#: Size of the axis labels' text (OpenCV font scale) and their colour (BGR).
+_AXIS_TEXT = 0.35
+_AXIS_BGR = (90, 90, 90)
+
+
+def axis_step(span_px_per_metre: float, min_gap_px: float) -> int:
+    """The label step (m): the smallest of 1, 2, 5, 10, 20, 50… whose labels are ``min_gap_px`` apart."""
+    for magnitude in (1, 10, 100, 1000):
+        for step in (1, 2, 5):
+            if step * magnitude * span_px_per_metre >= min_gap_px:
+                return step * magnitude
+    return 10000
+
+
+def axis_ticks(low: float, high: float, step: int) -> list[int]:
+    """Whole-metre coordinates from ``low`` to ``high`` that are multiples of ``step``."""
+    first = math.ceil(low / step) * step
+    return list(range(first, math.floor(high) + 1, step))
+
+
+def _draw_axis_labels(canvas: _Canvas, bounds: tuple[float, float, float, float]) -> None:
+    """Number the grid lines: x along the top margin, y along the left one, "m" in the corner between."""
+    xmin, ymin, xmax, ymax = bounds
+    img, font = canvas.image, cv2.FONT_HERSHEY_SIMPLEX
+    widest = max(cv2.getTextSize(f"{v:g}", font, _AXIS_TEXT, 1)[0][0]
+                 for v in (math.floor(xmin), math.ceil(xmax), math.floor(ymin), math.ceil(ymax)))
+    top = _TITLE_H + _MARGIN - 7              # baseline of the x labels
+    for x in axis_ticks(xmin, xmax, axis_step(canvas.scale, widest + 8)):
+        (w, h), base = cv2.getTextSize(f"{x:g}", font, _AXIS_TEXT, 1)
+        px = canvas.px(x, ymax)[0] - w // 2
+        cv2.putText(img, f"{x:g}", (px, top), font, _AXIS_TEXT, _AXIS_BGR, 1, cv2.LINE_AA)
+        canvas.labels.append((px - 1, top - h - 1, px + w + 1, top + base + 1))
+    for y in axis_ticks(ymin, ymax, axis_step(canvas.scale, 16)):
+        (w, h), base = cv2.getTextSize(f"{y:g}", font, _AXIS_TEXT, 1)
+        px, py = _MARGIN - 4 - w, canvas.px(xmin, y)[1] + h // 2
+        cv2.putText(img, f"{y:g}", (max(px, 1), py), font, _AXIS_TEXT, _AXIS_BGR, 1, cv2.LINE_AA)
+        canvas.labels.append((max(px, 1) - 1, py - h - 1, _MARGIN - 3, py + base + 1))
+    cv2.putText(img, "m", (6, top), font, _AXIS_TEXT, _AXIS_BGR, 1, cv2.LINE_AA)
 
 
 def _draw_scale(canvas: _Canvas, bounds: tuple[float, float, float, float]) -> None:
