@@ -53,7 +53,9 @@ class Problem:
     hint: str = ""
 
     def __str__(self) -> str:
-        where = f"{self.file}:{self.line}:{self.col}"
+        # no position is known (a missing file, a flag's value): name the file or flag alone, never 0:0
+        where = self.file if self.line <= 0 else f"{self.file}:{self.line}"
+        where += f":{self.col}" if self.line > 0 and self.col > 0 else ""
         text = f"{where}: {self.path}: {self.message}" if self.path else f"{where}: {self.message}"
         return f"{text} (hint: {self.hint})" if self.hint else text
 

@@ -76,3 +76,51 @@ def test_provider_options_are_checked_at_their_lines(tmp_path: Path) -> None:
     assert any(p.startswith(f"{models}:4:22: roles.detector.score_threshold") for p in problems), problems
     assert any(p.startswith(f"{models}:5:5:") and "'thredas'" in p and "threads" in p for p in problems)
     assert any(p.startswith(f"{models}:9:16:") and "finite" in p for p in problems)
+
+
+_GOALS = ("root:\n  Sequence:\n    memory: true\n    children:\n"
+          "      - NavigateTo: {x: 9.5, y: 7.5}\n"        # on the office's grey sofa
+          "      - NavigateTo: {x: 9.5, y: 6.9}\n"        # 0.1 m from it: inside the robot's radius
+          "      - NavigateTo: {x: 30, y: 1}\n"           # off the map
+          "      - NavigateTo: {x: 3.5, y: 4.0}\n"        # open floor
+          "      - NavigateTo: {x: {bb: gx}, y: 1.0}\n"   # known only when the leaf starts
+          "blackboard: {gx: 40.0}\n")
+
+
+def test_literal_goals_are_checked_against_the_named_world(tmp_path: Path) -> None:
+    """Goals on an obstacle, within a robot radius of one, or off the map are reported at their line."""
+    mission = _mission(tmp_path, "run: {world: office}\n" + _GOALS)
+    problems = check_references(load_mission(mission, PLUGINS.nodes))
+    assert [(p.line, p.path) for p in problems] == [(6, "root/Sequence/NavigateTo[0]"),
+                                                    (7, "root/Sequence/NavigateTo[1]"),
+                                                    (8, "root/Sequence/NavigateTo[2]")]
+    assert "inside an obstacle" in problems[0].message
+    assert "inscribed zone" in problems[1].message and "robot radius" in problems[1].message
+    assert "outside the map" in problems[2].message
+
+
+def test_goals_are_checked_in_a_world_named_by_the_flag_only_when_named(tmp_path: Path) -> None:
+    """--world names the world for the check; a mission that names no world has its goals unchecked."""
+    spec = load_mission(_mission(tmp_path, _GOALS), PLUGINS.nodes)
+    assert check_references(spec) == []
+    assert len(check_references(spec, world="office")) == 3
+
+
+def test_validate_reports_a_goal_in_an_obstacle_with_file_line_col(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`missiontree validate` exits 2 with file:line:col and the node path for a goal on the sofa."""
+    mission = _mission(tmp_path, "run: {world: office}\nroot:\n  NavigateTo: {x: 9.5, y: 7.5}\n")
+    assert main(["validate", "--no-plugins", str(mission)]) == 2
+    assert f"{mission}:3:19: root/NavigateTo: expected a goal the robot can reach" in capsys.readouterr().err
+
+
+def test_a_flag_problem_names_the_flag_without_a_fake_position(tmp_path: Path) -> None:
+    """A bad --world prints as `--world: ...` (no 0:0 position), a missing mission as `path: ...`."""
+    spec = load_mission(_mission(tmp_path, "root: Succeed\n"), PLUGINS.nodes)
+    (problem,) = check_references(spec, world="atlantis")
+    assert str(problem).startswith("--world: unknown world 'atlantis'")
+    missing = tmp_path / "patrl.yaml"
+    with pytest.raises(MissionFileError) as caught:
+        load_mission(missing, PLUGINS.nodes)
+    assert str(caught.value).startswith(f"{missing}: file not found")

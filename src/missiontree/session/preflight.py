@@ -10,7 +10,10 @@ blackboard defaults against the parameters that read them). This module checks w
 - every waypoint file a node names (a parameter called ``waypoints_file``, with ``route``): found
   beside the mission or under config/waypoints/, valid, written for this world (its ``world:``),
   and every waypoint inside the world's map and outside its obstacles; inline ``waypoints`` lists
-  too.
+  too;
+- when the mission names its world (``run.world`` or ``--world``): every literal goal of a motion
+  leaf (parameters ``x`` and ``y``, as NavigateTo's) inside the map, outside obstacles and at
+  least a robot radius from them, as the navigator will require when the goal is sent.
 
 A name that cannot be found is reported where the mission wrote it (``run.world`` or the node's
 parameter), as ``file:line:col``. A waypoint file found beside the mission is handed to the node as
@@ -20,6 +23,7 @@ an absolute path, so the run reads the file that was checked. ``missiontree vali
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -38,6 +42,8 @@ DEFAULT_WORLD = "office"
 #: Parameters that name a waypoint file (with ``route``), and inline routes, on any node type.
 WAYPOINTS_FILE_PARAM = "waypoints_file"
 WAYPOINTS_PARAM = "waypoints"
+#: The parameters of a motion leaf's goal (NavigateTo's ``x`` and ``y``), checked against a named world.
+GOAL_X, GOAL_Y = "x", "y"
 #: Keys of a models config's role section that are the wiring's, not the provider's options.
 MODEL_ROLE_KEYS = frozenset({"provider", "latency", "timeout"})
 
@@ -107,8 +113,14 @@ def _run_references(spec: MissionSpec, providers: Mapping[str, Any] | None, back
         loaded_world, world_problems = _check_world(spec, doc, world)
         problems += world_problems
         robot_name = robot or run.robot or (loaded_world.profile_name if loaded_world is not None else None)
+        profile = None
         if robot_name is not None:
-            problems += _check_robot(spec, doc, robot_name, from_file=robot is None and run.robot is not None)
+            robot_problems, profile = _check_robot(spec, doc, robot_name,
+                                                   from_file=robot is None and run.robot is not None)
+            problems += robot_problems
+        named = world is not None or run.world is not None
+        if named and loaded_world is not None and profile is not None:
+            problems += _check_goals(spec, loaded_world, profile)
     if check_models:
         problems += _check_models(spec, doc, models, providers)
     return problems, loaded_world
@@ -156,17 +168,70 @@ def _check_world(spec: MissionSpec, doc: Located | None, flag: str | None) -> tu
         return None, _relocate(spec, doc, "world", name, exc.problems, from_file)
 
 
-def _check_robot(spec: MissionSpec, doc: Located | None, name: str, from_file: bool) -> list[Problem]:
+def _check_robot(spec: MissionSpec, doc: Located | None, name: str, from_file: bool
+                 ) -> tuple[list[Problem], Any]:
+    """The robot profile's problems, and the profile (None when it does not load)."""
     from missiontree.backends.sim import load_robot_profile
     from missiontree.errors import WorldFileError
 
     if from_file:
         name = resolve_mission_path(spec.path, name)
     try:
-        load_robot_profile(name)
+        return [], load_robot_profile(name)
     except WorldFileError as exc:
-        return _relocate(spec, doc, "robot", name, exc.problems, from_file)
-    return []
+        return _relocate(spec, doc, "robot", name, exc.problems, from_file), None
+
+
+def goal_misfit(world: Any, profile: Any, x: float, y: float) -> str | None:
+    """Why the goal (x, y) cannot be reached in ``world`` by the robot of ``profile``, or None.
+
+    The navigator's own test at the goal (outside the map, inside an obstacle, or inside the zone
+    one robot radius around one: the inflated costmap's inscribed cost), so a goal that would fail
+    when sent is refused before the run.
+    """
+    from missiontree.mapping import planner
+
+    if not (math.isfinite(x) and math.isfinite(y)):
+        return None   # the leaf reports a goal that is not a finite pose itself
+    grid, radius = world.grid, float(profile.body.radius)
+    nav = profile.navigation
+    costmap = planner.Costmap(grid, radius, nav.inflation_radius, nav.cost_scaling, allow_unknown=False,
+                              accelerate=profile.accelerate)
+    if costmap.cost_at(x, y) <= planner.MAX_FREE:
+        return None
+    rows, cols = grid.data.shape
+    x0, y0 = grid.origin.x, grid.origin.y
+    x1, y1 = x0 + cols * grid.resolution, y0 + rows * grid.resolution
+    if not costmap.contains(x, y):
+        return f"outside the map ({x0:.1f}..{x1:.1f}, {y0:.1f}..{y1:.1f})"
+    if costmap.cost_at(x, y) >= planner.LETHAL:
+        return "inside an obstacle"
+    gap = float(world.clearance(x, y))
+    return f"inside an obstacle's inscribed zone ({gap:.2f} m from it, robot radius {radius:.2f} m)"
+
+
+def _check_goals(spec: MissionSpec, world: Any, profile: Any) -> list[Problem]:
+    """Literal goals of motion leaves (a node whose parameters hold ``x`` and ``y``) against the world.
+
+    A goal read from the blackboard (``{bb: key}``) is known only when the leaf starts, and is not
+    checked here.
+    """
+    problems: list[Problem] = []
+    for node in spec.nodes():
+        params = node.params
+        if params is None or not {GOAL_X, GOAL_Y} <= set(type(params).model_fields):
+            continue
+        x, y = getattr(params, GOAL_X), getattr(params, GOAL_Y)
+        if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in (x, y)):
+            continue
+        why = goal_misfit(world, profile, float(x), float(y))
+        if why is not None:
+            problems.append(_at_param(
+                node, GOAL_X, f"expected a goal the robot can reach in the world {world.name!r}, found "
+                f"({float(x):g}, {float(y):g}) {why}",
+                "move the goal into free space, at least a robot radius from obstacles "
+                "(`missiontree world show` draws the map with coordinates)"))
+    return problems
 
 
 def _check_models(spec: MissionSpec, doc: Located | None, flag: Any, providers: Mapping[str, Any] | None
