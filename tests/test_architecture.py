@@ -30,6 +30,7 @@ LAYERS: dict[str, int] = {
     "": 0, "types": 0, "errors": 0, "events": 0, "yamlio": 0, "paths": 0, "options": 0,
     "file_limits": 0,  # model files' size limits and allow-list (constants only)
     "startup": 0,  # records a Ctrl-C during the command's start-up (signal only)
+    "redact": 0,  # secrets and control characters out of every output (text functions only)
     "robot": 1,  # the abstract robot
     # domain logic (no engine, no plugins); reasoning may read semantics, never the reverse
     "perception": 2, "mapping": 2, "semantics": 2, "reasoning": 2,

@@ -21,6 +21,7 @@ from missiontree.reasoning.checks import RejectedAnswerError, ask_checked, chat_
 from missiontree.reasoning.openai_provider import OpenAIChatModel
 from missiontree.reasoning.prompts import intent_messages, surveillance_prompt
 from missiontree.reasoning.schemas import IntentResolution, SurveillanceVerdict
+from missiontree.redact import forget_secrets
 
 KEY = "sk-test-0123456789abcdefSECRET"
 
@@ -29,6 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "behaviours"))  # t
 
 @pytest.fixture
 def server(monkeypatch: pytest.MonkeyPatch) -> Iterator[Fake]:
+    forget_secrets()  # only this test's key is scrubbed
     monkeypatch.setenv("MT_TEST_KEY", KEY)
     with Fake(api_key=KEY) as fake:
         yield fake
