@@ -176,3 +176,16 @@ def test_an_exploration_stuck_where_the_map_stopped_growing_goes_on_to_look() ->
     leaf.tick_once()
     assert leaf.status == Status.RUNNING, leaf.feedback_message
     assert events.of("search_view_goal")
+
+
+def test_the_replan_period_grows_with_the_map_up_to_its_cap() -> None:
+    """2 s on a small map; 10 s (the cap) on a million-cell map: choosing frontiers stays bounded."""
+    models = {"detector": Detector()}
+    periods = []
+    for data in (hall(), np.zeros((1000, 1000), np.int8)):
+        robot = CameraRobot(data, Pose2D(1.0, 1.0, 0.0))
+        leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+        leaf.setup(context=MissionContext(robot=robot, events=Events(), models=models))  # type: ignore[arg-type]
+        leaf._scale_replan()
+        periods.append(leaf.params.replan_period)
+    assert periods == [2.0, 10.0]
