@@ -748,9 +748,12 @@ def run_perceived(bench: Bench, n: int, seed: int,
         events = [json.loads(line) for line in log.getvalue().splitlines() if line.strip()]
         goal: dict[str, Any] = {}
         served: dict[str, bool] = {}
+        why: dict[str, str] = {}
         for event in events:
             if event.get("event") == "goal_sent":
                 goal = event
+            if event.get("event") == "command_served":
+                why[str(event.get("command"))] = str(event.get("reason", ""))
             if event.get("event") == "intent_served" and goal:
                 case = next(c for c in TABLE2 if c.command == event.get("command"))
                 matches = [o for o in world.objects if o.label == goal.get("label")
@@ -758,10 +761,13 @@ def run_perceived(bench: Bench, n: int, seed: int,
                 served[case.command] = any(case.satisfies(o, world)
                                            and footprint_distance(o, goal["x"], goal["y"]) <= 1.0
                                            for o in matches)
+                why[case.command] = f"served {event.get('object')} ({goal.get('label')} at " \
+                                    f"{goal['object_x']:.1f}, {goal['object_y']:.1f}); " \
+                                    f"office objects there: {[o.id for o in matches]}"
         for case in TABLE2:
             outcomes[case.command].append(served.get(case.command, False))
-            print(f"perceived start={start} {case.command:30} {'ok' if served.get(case.command) else 'MISS'}",
-                  flush=True)
+            print(f"perceived start={start} {case.command:30} {'ok' if served.get(case.command) else 'MISS'} "
+                  f"{why.get(case.command, '')[:300]}", flush=True)
     return outcomes, time.perf_counter() - t0
 
 
@@ -843,7 +849,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if "dev" in figures and "test" in figures:
         out["gap"] = {"success": round(figures["dev"]["success"] - figures["test"]["success"], 4)}
         print(f"dev - test gap in success: {out['gap']['success']}")
-    print(markdown_table(figures))
+    if figures:
+        print(markdown_table(figures))
     print(json.dumps(out, sort_keys=True))
     return 0
 
