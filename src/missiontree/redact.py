@@ -253,24 +253,27 @@ def _trace_spans(text: str) -> list[tuple[int, int]]:
 
 def _follow(compact: str, form: str, i: int, j: int) -> tuple[int, int] | None:
     """From a seed at compact[i] = form[j], the stretch following the form (compact start, end)."""
-    def walk(step: int) -> tuple[int, int]:
-        p, q, matched, gap, last = i, j, 0, 0, i
+    def walk(step: int) -> list[int]:
+        p, q, gap = i, j, 0
+        matched: list[int] = []
         while 0 <= p < len(compact) and 0 <= q < len(form):
             if compact[p] == form[q]:
-                matched, gap, last = matched + 1, 0, p
+                matched.append(p)
+                gap = 0
             else:
                 gap += 1
                 if gap > MAX_GAP:
                     break
             p, q = p + step, q + step
-        return matched, last
+        # a lone match after a long gap at the far end is chance, not the key: the stretch ends before it
+        while len(matched) > 1 and abs(matched[-1] - matched[-2]) > MAX_GAP:
+            matched.pop()
+        return matched
 
-    ahead, end = walk(1)
-    behind, start = walk(-1)
-    matched = ahead + behind - 1  # the seed's first character counted twice
-    if matched < MIN_RUN:
+    ahead, behind = walk(1), walk(-1)
+    if len(ahead) + len(behind) - 1 < MIN_RUN:  # the seed's first character counted twice
         return None
-    return start, end + 1
+    return behind[-1], ahead[-1] + 1
 
 
 def _merged(spans: list[tuple[int, int]]) -> list[tuple[int, int]]:
