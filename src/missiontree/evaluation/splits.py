@@ -10,8 +10,10 @@
   :func:`missiontree.backends.sim.placement.place_objects`.
 
 Test world ``i`` (seed ``s = first_seed + i``) is ``TEST_CYCLE[s % len(TEST_CYCLE)]``: a floorplan
-named ``floorplan:<7 s + kind>`` or a map world named ``map:<map>:<s>``. Every world is built and
-checked here (valid, every room reachable by a TurtleBot 4) before it is handed out.
+named ``floorplan:<7 s + kind>`` or a map world named ``map:<map>:<s>``. Every world is checked by
+the code that makes it (valid, every room reachable by a TurtleBot 4) before it is handed out; the
+names load by themselves too (``load_world("map:depot:4")``), with two walkers and without
+``min_objects``: run the file :func:`write_split_world` writes to get the split's world.
 
 Nobody tunes on ``test``: run it once at the end of a change and report it beside ``dev``.
 """
