@@ -8,7 +8,7 @@ import pytest
 
 from missiontree.backends.sim import load_world
 from missiontree.backends.sim.floorplans import KINDS
-from missiontree.evaluation.splits import TEST_CYCLE, split_worlds, write_split_world
+from missiontree.evaluation.splits import TEST_CYCLE, small_objects, split_worlds, write_split_world
 
 
 def test_dev_split_is_the_generated_apartments() -> None:
@@ -34,9 +34,19 @@ def test_real_map_test_world_writes_and_loads(tmp_path: Path) -> None:
     seed = next(i for i, (family, what) in enumerate(TEST_CYCLE) if what == "tb3_sandbox")
     (world,) = split_worlds("test", 1, first_seed=seed, min_objects=4)
     loaded = load_world(write_split_world(world, tmp_path))
+    assert load_world(write_split_world(world, tmp_path)).name == loaded.name  # written again over itself
+    assert not list(tmp_path.rglob("*.tmp"))
     assert world.name == f"map:tb3_sandbox:{seed}"
     assert loaded.rooms
     assert sum(o.movable for o in loaded.objects) >= 4
+
+
+def test_min_objects_tops_up_a_dev_world() -> None:
+    """A dev world gets at least min_objects small objects, its own first."""
+    (plain,) = split_worlds("dev", 1, first_seed=2)
+    (topped,) = split_worlds("dev", 1, first_seed=2, min_objects=15)
+    assert len(small_objects(topped.data)) >= 15 > len(small_objects(plain.data))
+    assert topped.data["objects"][: len(plain.data["objects"])] == plain.data["objects"]
 
 
 def test_unknown_split_is_refused() -> None:

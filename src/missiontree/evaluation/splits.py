@@ -21,7 +21,8 @@ Nobody tunes on ``test``: run it once at the end of a change and report it besid
 from __future__ import annotations
 
 import copy
-import shutil
+import os
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -137,6 +138,10 @@ def write_split_world(world: SplitWorld, directory: Path) -> Path:
 
     A map world's map yaml and image are copied into ``<directory>/maps/`` and named by absolute
     path, since the world loader reads maps only beside the world file (or on $MISSIONTREE_MAP_PATH).
+    Files are replaced whole, so processes writing one folder at once never read half a file.
+
+    Raises:
+        ValueError: A map yaml names an image outside its own folder.
     """
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
@@ -146,14 +151,32 @@ def write_split_world(world: SplitWorld, directory: Path) -> Path:
         source = Path(section["yaml"])
         target_dir = (directory / "maps").resolve()
         target_dir.mkdir(exist_ok=True)
-        image = yaml.safe_load(source.read_text(encoding="utf-8"))["image"]
-        shutil.copyfile(source, target_dir / source.name)
-        shutil.copyfile(source.parent / image, target_dir / Path(image).name)
+        image = Path(yaml.safe_load(source.read_text(encoding="utf-8"))["image"])
+        if image.is_absolute() or ".." in image.parts:
+            raise ValueError(f"{source}: expected an image path inside the map's folder, found {image}")
+        _copy(source, target_dir / source.name)
+        _copy(source.parent / image, target_dir / image)
         section["yaml"] = str(target_dir / source.name)
     path = directory / f"{world.name.replace(':', '_')}.yaml"
-    path.write_text(
-        f"# {world.family} world {world.name} of the evaluation splits "
-        "(missiontree.evaluation.splits)\n" + yaml.safe_dump(data, sort_keys=False),
-        encoding="utf-8",
+    text = (
+        f"# {world.family} world {world.name} of the evaluation splits (missiontree.evaluation.splits)\n"
+        + yaml.safe_dump(data, sort_keys=False)
     )
+    _write(path, text.encode("utf-8"))
     return path
+
+
+def _copy(source: Path, target: Path) -> None:
+    """Copy a file unless the same bytes are there already (workers may write one folder at once)."""
+    content = source.read_bytes()
+    if target.is_file() and target.read_bytes() == content:
+        return
+    _write(target, content)
+
+
+def _write(path: Path, content: bytes) -> None:
+    """Write a file whole or not at all: a reader never sees half of it (a temporary file, renamed)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    temporary.write_bytes(content)
+    os.replace(temporary, path)
