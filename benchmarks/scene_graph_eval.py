@@ -118,6 +118,8 @@ DEBUG = False
 DIAGNOSE = False
 SINGLE_PASS = False
 VERIFY = False
+#: After each pass, look again from a good distance at the candidates it left unconfirmed.
+SECOND_LOOK = True
 #: ours' depth method (the BuildSceneGraph leaf's default unless --depth-method says otherwise).
 DEPTH_METHOD = "centre"
 
@@ -185,6 +187,7 @@ def revisit_points(
     places: list[tuple[float, float]],
     route: list[tuple[float, float]],
     clear_view: bool = False,
+    every: bool = False,
 ) -> list[Stop]:
     """The route plus a look at every known instance's place that no viewpoint is close to.
 
@@ -193,8 +196,10 @@ def revisit_points(
     turn, between ``REVISIT_MIN`` and ``REVISIT_MAX`` metres from the place (as close to
     ``REVISIT_BEST`` as the map allows), where the robot faces the place and sweeps ``LOOK_SWEEP``
     to each side instead of turning a full circle. With ``clear_view`` the map must also be free
-    along the line of sight to the place (the last 0.35 m excepted). Returns (x, y, place to look at
-    or None for a full circle) in a nearest-neighbour tour. Nothing here reads the simulator's truth.
+    along the line of sight to the place (the last 0.35 m excepted). With ``every`` each place gets
+    its look unless a viewpoint of ``route`` is near it (not skipped for another place's look).
+    Returns (x, y, place to look at or None for a full circle) in a nearest-neighbour tour.
+    Nothing here reads the simulator's truth.
     """
     import cv2
 
@@ -208,7 +213,8 @@ def revisit_points(
     xy = np.stack([grid.origin.x + (cols + 0.5) * res, grid.origin.y + (rows + 0.5) * res], axis=1)
     points: list[Stop] = [(x, y, None) for x, y in route]
     for px, py in places:
-        if any(math.hypot(px - a, py - b) <= REVISIT_MAX for a, b, _ in points):
+        near = [(a, b) for a, b, _ in points] if not every else list(route)
+        if any(math.hypot(px - a, py - b) <= REVISIT_MAX for a, b in near):
             continue
         d = np.hypot(xy[:, 0] - px, xy[:, 1] - py)
         ok = (d >= REVISIT_MIN) & (d <= REVISIT_MAX)
@@ -617,6 +623,13 @@ def run_world(name: str, seed: int, robot: Any, models: dict[str, Any], changes_
             tick()
         robot.stop()
 
+    def second_look() -> None:
+        """A look from a good distance at every doubtful place of ours (a candidate left unconfirmed)."""
+        places = [(x, y) for _, x, y in ours.scene.doubtful]
+        ours.scene.doubtful.clear()
+        if places:
+            patrol(revisit_points(robot, places, [], clear_view=True, every=True))
+
     def patrol(points: list[Stop]) -> None:
         for x, y, look in points:
             handle = robot.navigate_to(Pose2D(x, y, 0.0), Tolerance(0.35, 2 * math.pi))
@@ -636,6 +649,8 @@ def run_world(name: str, seed: int, robot: Any, models: dict[str, Any], changes_
             turn(TURN_SPEED, LOOK_SWEEP / TURN_SPEED)
 
     patrol([(x, y, None) for x, y in route])
+    if SECOND_LOOK:
+        second_look()
     ours.rebuild(robot.now())
     world = robot.world
     first = {
@@ -752,6 +767,8 @@ def run_world(name: str, seed: int, robot: Any, models: dict[str, Any], changes_
     unchecked = [inst.xy for inst in ours.fusion.unchecked_since(pass_start)]
     if unchecked:
         patrol(revisit_points(robot, unchecked, [], clear_view=True))
+    if SECOND_LOOK:
+        second_look()
     ours.rebuild(robot.now())
     after = {"ours": ours_predictions(ours), "nais": nais.predictions()}
     reflected = {m: sum(change_reflected(after[m], c) for c in changes) for m in after}
@@ -812,6 +829,7 @@ class EvalOptions:
     verify: bool = False
     diagnose: bool = False
     depth_method: str = "centre"
+    second_look: bool = True
 
 
 class SceneEvalProbe:
@@ -833,14 +851,15 @@ class SceneEvalProbe:
         """The world's row (``scene_eval``) and its printed lines (``scene_eval_output``)."""
         import io
 
-        global DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE, DEPTH_METHOD
+        global DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE, DEPTH_METHOD, SECOND_LOOK
         o = self.options
-        DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE, DEPTH_METHOD = (
+        DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE, DEPTH_METHOD, SECOND_LOOK = (
             o.debug,
             o.single_pass,
             o.verify,
             o.diagnose,
             o.depth_method,
+            o.second_look,
         )
         name = str(session.request.world)
         seed = int(session.settings["seed"])
@@ -1069,6 +1088,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", help="comma-separated world names to run (diagnostics)")
     parser.add_argument("--single-pass", action="store_true", help="skip the dynamic phase (diagnostics)")
     parser.add_argument(
+        "--no-second-look",
+        action="store_true",
+        help="no look after each pass at the places ours left doubtful (a candidate seen a few times)",
+    )
+    parser.add_argument(
         "--verify",
         action="store_true",
         help="ours asks the VLM whether a 20%% larger crop shows the label before adding an instance "
@@ -1086,6 +1110,7 @@ def main(argv: list[str] | None = None) -> int:
         verify=args.verify,
         diagnose=args.diagnose,
         depth_method=args.depth_method,
+        second_look=not args.no_second_look,
     )
     result: dict[str, Any] = {}
     failed = 0

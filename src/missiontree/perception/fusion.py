@@ -360,6 +360,10 @@ class InstanceFusion:
         """Instances a box of ``label`` may show: of that label, or relabelled from it."""
         return [i for i in self.map if i.label == label or label in self.tracks.get(i.id, _NO_TRACK).seen_as]
 
+    def instances_labelled(self, label: str) -> list[Instance]:
+        """Instances a box of ``label`` may show (of that label, or relabelled from it)."""
+        return self._of_label(label)
+
     def labels_of(self, inst: Instance) -> set[str]:
         """The labels a box showing ``inst`` may carry: its own and those it was relabelled from."""
         return {inst.label} | self.tracks.get(inst.id, _NO_TRACK).seen_as
@@ -509,6 +513,23 @@ class InstanceFusion:
         return outline_centre(
             track.cells, fused, extent, self.params.surface_cell, others, self.params.outline_margin
         )
+
+    def unconfirmed(self, min_frames: int = 3) -> list[Candidate]:
+        """Candidates seen in at least ``min_frames`` frames that are not instances yet: worth a second look.
+
+        A viewpoint too close (the box cut by the image's border) or too far and oblique (a few
+        frames of a small object while turning) leaves a true object a candidate; a look from a good
+        distance confirms it or shows nothing there. Candidates where an instance of their label
+        now stands are left out.
+        """
+        out = []
+        for cand in self.voting.candidates:
+            if cand.frames < min_frames:
+                continue
+            radius = self.params.associate_radius
+            if not any(i.distance_to(cand.x, cand.y) <= radius for i in self._of_label(cand.label)):
+                out.append(cand)
+        return out
 
     def unchecked_since(self, stamp: float) -> list[Instance]:
         """Instances to look at again since ``stamp`` (:meth:`.AbsenceJudge.unchecked_since`)."""

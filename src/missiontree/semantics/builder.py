@@ -70,6 +70,8 @@ class BuilderParams:
         support: A projection whose depth support the latest map shows thinner than its class's
             least depth (a wall boxed as a refrigerator) is dropped before fusion
             (:mod:`~missiontree.perception.plausibility`).
+        doubtful_frames: A candidate seen in this many frames that is not an instance is a
+            doubtful place (``scene.doubtful``) worth a second look.
     """
 
     fusion: FusionParams = field(default_factory=FusionParams)
@@ -80,6 +82,7 @@ class BuilderParams:
     relations: RelationParams = field(default_factory=RelationParams)
     refresh: float = 5.0
     support: SupportParams = field(default_factory=SupportParams)
+    doubtful_frames: int = 3
 
 
 @dataclass
@@ -137,7 +140,32 @@ class SceneBuilder:
             self.fusion.dropped["thin support"] = self.fusion.dropped.get("thin support", 0) + len(thin)
         self.fusion.process(frame, projections, detections)
         self._dirty = self._dirty or bool(projections)
+        self._note_doubtful()
         self.times.fusion.append((time.perf_counter() - t0) * 1000.0)
+
+    def _note_doubtful(self) -> None:
+        """Keep ``scene.doubtful`` (see :class:`LiveScene`): new unconfirmed places, less the confirmed.
+
+        A candidate is forgotten after the fusion's ``candidate_memory``; its place stays here, so a
+        second look after a long exploration still finds it.
+        """
+        doubtful = self.scene.doubtful
+        radius = self.fusion.params.associate_radius
+        for cand in self.fusion.unconfirmed(self.params.doubtful_frames):
+            if self._inside_an_instance(cand.x, cand.y):
+                continue  # part of an object already known, named another way: a look confirms the confusion
+            near = (math.hypot(x - cand.x, y - cand.y) <= radius for b, x, y in doubtful if b == cand.label)
+            if not any(near):
+                doubtful.append((cand.label, cand.x, cand.y))
+        self.scene.doubtful = [
+            (lab, x, y)
+            for lab, x, y in doubtful
+            if not any(i.distance_to(x, y) <= radius for i in self.fusion.instances_labelled(lab))
+        ]
+
+    def _inside_an_instance(self, x: float, y: float) -> bool:
+        """Whether (x, y) lies within the footprint (half its larger side) of an instance of any label."""
+        return any(i.distance_to(x, y) < 0.5 * max(i.size[0], i.size[1]) for i in self.scene.map)
 
     def update_rooms(
         self, grid: OccupancyGrid | None, inside: tuple[float, float] | None, now: float

@@ -27,6 +27,9 @@ class LiveScene:
         rooms: The rooms as the graph knows them (:class:`~missiontree.semantics.rooms.RoomRegion`).
         version: Number of rebuilds so far.
         stamp: Robot time of the latest rebuild.
+        doubtful: Places (label, x, y) where the detector saw something a few times that did not
+            become an instance (seen too close, too far or too briefly): worth a second look
+            (``LookAgain``); a place is dropped once an instance of its label stands there.
     """
 
     map: SemanticMap = field(default_factory=SemanticMap)
@@ -34,6 +37,7 @@ class LiveScene:
     rooms: list[Any] = field(default_factory=list)
     version: int = 0
     stamp: float = 0.0
+    doubtful: list[tuple[str, float, float]] = field(default_factory=list)
 
     def object_ids(self) -> set[str]:
         """Ids of every object node of the latest graph (for checking answers that name objects)."""
