@@ -157,3 +157,20 @@ def test_a_replan_overlay_reuses_tiles_and_equals_a_fresh_costmap() -> None:
     fresh = Costmap(grid, 0.17, extra_lethal=person, extra_radius=0.3)
     assert np.array_equal(overlay.dense(), fresh.dense())
     assert kept.cost_at(3.0, 1.2) < LETHAL   # the kept costmap is untouched
+
+
+def test_update_changed_finds_the_change_itself_and_equals_a_fresh_costmap() -> None:
+    """A new snapshot with the door closed and a wall gone: only tiles near them recompute, costs as new."""
+    before = np.full((256, 512), -1, np.int8)   # 4 x 8 tiles, the two rooms in a corner
+    before[:120, :200] = two_rooms()
+    costmap = Costmap(grid_of(before), 0.2, allow_unknown=True)
+    costmap.dense()
+    computed = costmap.tiles_computed
+    data = before.copy()
+    data[90:110, 100] = 100      # the door closes
+    data[0, 10:30] = -1          # a stretch of outer wall becomes unknown
+    changed = grid_of(data)
+    costmap.update_changed(changed)
+    np.testing.assert_array_equal(costmap.dense(), Costmap(changed, 0.2, allow_unknown=True).dense())
+    assert costmap.tiles_computed - computed == 9   # the changed tiles and their neighbours, of 32
+    assert costmap.path_lengths((2.0, 1.0), [(8.0, 1.0)]) == [None]

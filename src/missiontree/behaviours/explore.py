@@ -140,6 +140,7 @@ class Explore(Leaf):
         self.progress_at = now
         self.progress_area = 0.0
         self.progress_xy = (math.nan, math.nan)
+        self.area_at = -math.inf
         self.look_turned = 0.0
         self.look_yaw = 0.0
         self.look_pause_until = -math.inf
@@ -438,11 +439,21 @@ class Explore(Leaf):
     # -- progress, feedback, map -----------------------------------------------------------------
 
     def _stuck(self, now: float, grid: OccupancyGrid, pose: Pose2D) -> bool:
-        area = known_area(grid)
+        """Whether neither the robot moved nor the known area grew for ``stuck_timeout`` seconds.
+
+        The known area (a count over the whole grid) is taken at most once a second, and only while
+        the robot stands still: on a 30 x 50 m floor counting it every tick cost more than the
+        robot's own mapping.
+        """
         moved = math.hypot(pose.x - self.progress_xy[0], pose.y - self.progress_xy[1])
-        if area > self.progress_area + _AREA_PROGRESS or not moved <= _MOVE_PROGRESS:
-            self.progress_area, self.progress_xy, self.progress_at = area, (pose.x, pose.y), now
+        if not moved <= _MOVE_PROGRESS:
+            self.progress_xy, self.progress_at, self.progress_area = (pose.x, pose.y), now, -math.inf
             return False
+        if now - self.area_at >= 1.0:
+            self.area_at = now
+            area = known_area(grid)
+            if area > self.progress_area + _AREA_PROGRESS:
+                self.progress_area, self.progress_at = area, now
         return now - self.progress_at > self.params.stuck_timeout
 
     def _what(self) -> str:

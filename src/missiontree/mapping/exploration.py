@@ -53,6 +53,7 @@ from scipy import ndimage
 
 from missiontree.mapping.frontiers import Frontier, find_frontiers
 from missiontree.mapping.grid import free_mask, occupied_mask, unknown_mask
+from missiontree.mapping.planner import Costmap
 from missiontree.mapping.scan_points import scan_points
 from missiontree.types import OccupancyGrid
 
@@ -71,6 +72,29 @@ def planner_path_lengths(grid: OccupancyGrid, start: tuple[float, float],
     except ImportError:  # pragma: no cover - the planner ships with the package
         return straight_line_lengths(grid, start, goals, footprint_radius)
     return path_lengths(grid, start, list(goals), footprint_radius=footprint_radius, allow_unknown=True)
+
+
+class KeptCostmapLengths:
+    """Path lengths on an inflated costmap kept between calls (one per exploration planner).
+
+    Each call takes the grid it is given as a new version of the map: only the costmap tiles near
+    cells that changed are computed again (:meth:`Costmap.update_changed`), where a new costmap
+    per call recomputed every tile the search reached -- the whole floor of a large map, every
+    replan.
+    """
+
+    def __init__(self) -> None:
+        self.costmap: Costmap | None = None
+
+    def __call__(self, grid: OccupancyGrid, start: tuple[float, float],
+                 goals: Sequence[tuple[float, float]], footprint_radius: float) -> list[float | None]:
+        """Length (m) of the best path from ``start`` to each goal; None where unreachable (unknown: free)."""
+        costmap = self.costmap
+        if costmap is None or costmap.radius != footprint_radius:
+            costmap = self.costmap = Costmap(grid, footprint_radius, allow_unknown=True)
+        else:
+            costmap.update_changed(grid)
+        return costmap.path_lengths(start, list(goals))
 
 
 def straight_line_lengths(grid: OccupancyGrid, start: tuple[float, float],
@@ -165,7 +189,8 @@ class ExplorationPlanner:
         through_m: How far past the frontier (m) the second try's goal lies, in the unknown.
         retry_discount: A frontier's score is multiplied by this per failed try (``gain``), so
             other frontiers go first and the map around it can grow meanwhile.
-        path_lengths: How path lengths are measured (default: the planner).
+        path_lengths: How path lengths are measured (default: the planner, on a costmap kept
+            between calls and updated where the map changed).
     """
 
     strategy: str = "gain"
@@ -187,7 +212,7 @@ class ExplorationPlanner:
     retry_separation: float = 0.5
     through_m: float = 0.6
     retry_discount: float = 0.5
-    path_lengths: PathLengths = planner_path_lengths
+    path_lengths: PathLengths = field(default_factory=KeptCostmapLengths)
     blacklist: list[Blacklisted] = field(default_factory=list)
     visited: list[tuple[float, float]] = field(default_factory=list)
     failures: list[Blacklisted] = field(default_factory=list)

@@ -275,3 +275,29 @@ def test_something_off_the_map_just_past_a_door_is_passed_round(tmp_path):
     result = _run(robot, robot.navigate_to(goal, ANY), 90.0)
     assert result.succeeded, result
     assert robot.bumps == 0
+
+
+@pytest.mark.parametrize(("door", "noise"), [(0.8, 0.01), (0.8, 0.02), (0.9, 0.02)])
+def test_a_narrow_door_on_the_learned_map_is_passed(write_world, door: float, noise: float):
+    """From no map, through a 0.8-0.9 m door seen at an angle (lidar noise up to 2 cm): the goal is reached.
+
+    The learned map's wall ends and the footprint padding must not close the door.
+    """
+    half = door / 2 + 0.05   # the wall is drawn 0.1 m thick round its segment
+    world = write_world(f"""\
+        name: narrow_door
+        robot:
+          profile: turtlebot4
+          start: {{x: 1.0, y: 3.0, yaw: 0.0}}
+        walls:
+          polygons:
+            - [[0, 0], [8, 0], [8, 4], [0, 4]]
+          segments:
+            - [[4, 0], [4, {1.0 - half}]]
+            - [[4, {1.0 + half}], [4, 4]]
+        """)
+    robot = create_robot({"world": str(world), "unknown_map": True, "config": {"lidar": {"noise": noise}}})
+    goal = Pose2D(6.5, 3.2, 0.0)
+    result = _run(robot, robot.navigate_to(goal, ANY), budget=120.0)
+    assert result.succeeded, result
+    assert robot.truth.robot_pose().distance_to(goal) < 0.3
