@@ -1,48 +1,51 @@
-"""Exploring unknown worlds: ours against nearest-frontier (explore_lite's rule) and the report's scan points.
+"""Exploring unknown worlds: coverage of the reachable area and false "explored", on a dev and a test split.
 
 Every run is the real mission through the session (loader, builder, runner, the Explore leaf) on the
 simulator in unknown-map mode, run by the batch runner (missiontree.evaluation) on a process pool:
 the robot starts knowing nothing, its map is the log-odds grid its own lidar builds, and its
-navigation plans on that map with unknown cells traversable. Three configurations of the same leaf
-run on the same worlds and seeds (one batch per configuration on the same pool; every score is on
-the robot clock, so the order the runs happen to finish in changes none of them):
+navigation plans on that map with unknown cells traversable.
 
-- ``ours`` -- ``strategy: gain``: frontiers scored by the unknown area they would reveal (ray cast
-  over the map, walls blocking) against the length of the path to them;
-- ``nearest_frontier`` -- ``strategy: nearest``: the nearest frontier by path length, the rule of
-  Yamauchi's frontier exploration as explore_lite runs it (its size term off);
-- ``scan_points`` -- ``strategy: scan_points, look_around: true``: the vision-language object-search
-  report's scan points (centroids of the largest eroded free regions, largest first) with its 360°
-  scan at each.
+Splits (:mod:`missiontree.evaluation.splits`; ``--split dev|test|both``, default both):
 
-Worlds: generated apartments (``generated:<seed>``, 9-13 x 7-10 m, five rooms; without the walkers, who
-pace through doorways and would measure how long the navigator waits for them, not the strategy)
-plus the shipped map_server maps (config/worlds/maps: real SLAM maps from TurtleBot 4 and Nav2, and a
-drawn office), each made into a world file with the start at the free cell farthest from any obstacle.
+- ``dev`` -- the apartment generator's worlds (``generated:<seed>``, 9-13 x 7-10 m, five rooms),
+  without walkers (who pace through doorways and would time the navigator's waits, not the
+  exploration). Tune on these only.
+- ``test`` -- worlds of another kind: the floorplan family (long corridors with many 0.8-0.9 m
+  doors, L- and T-shaped corridors, open plan, suites of rooms off rooms, clutter beside doors,
+  warehouse floors up to 30 x 50 m) and the real SLAM maps (TurtleBot 4's maze, depot and
+  warehouse, Nav2's tb3_sandbox) with rooms segmented from them. The real maps are held-out real
+  geometry: they are in ``test`` only. Run it once at the end of a change, to report.
+
+Configurations of the same leaf on the same worlds: ``ours`` (``strategy: gain``: frontiers scored
+by the unknown area they would reveal against the path to them) always; with ``--compare`` also
+``nearest_frontier`` (explore_lite's nearest-frontier rule, its size term off) and ``scan_points``
+(the vision-language object-search report's scan points with its 360° scan at each).
 
 Scoring reads the simulator's truth, which the leaf never sees:
 
 - *reachable free area*: the truth raster's free cells the robot's body can reach from the start
   (cells with the robot's radius of clearance connected to the start, widened by that radius);
-- *coverage* at a moment: the share of those cells the learned map reads free; sampled every
-  SAMPLE_S seconds of robot time, giving the time to 90 % and 99 % (a run that never gets there
-  counts as not reached: medians are taken over all runs with "not reached" above every time);
-- *cell accuracy* on observed cells: of the cells the learned map reads free or occupied (inside
-  the truth raster), the share whose class agrees with the truth raster within one cell at a
-  boundary (the raster draws walls 0.1 m thick around the zero-thickness segments the lidar hits, so
-  the cell in front of a wall line is "occupied" in the raster though the beam passes it); the
-  strict cell-for-cell figure is printed beside it;
-- *path length*: the true trajectory's length.
+- *coverage*: the share of those cells the learned map reads free, sampled every SAMPLE_S seconds
+  of robot time (time to 90 % and 99 %); a run *covers* when its final coverage is >= 0.95;
+- *rooms*: every room of the world (the truth knows them; on real maps, the segmented ones) with
+  at least 1 m^2 of reachable area is *seen* when ``ROOM_SEEN`` of its reachable cells read free;
+- *false "explored"*: the leaf ended SUCCESS saying "explored" while the coverage was < 0.95 or a
+  reachable room was not seen. A *partial* end (the leaf's own FAILURE "partial: ..." naming the
+  frontiers it could not reach) is honest, not false; it still counts against coverage;
+- *cell accuracy* on observed cells (boundary-tolerant, with the strict figure beside it) and the
+  path length, as before.
 
-The per-scan update cost is measured apart, on scans and poses recorded from the runs, integrated
-into a 20 x 20 m grid at 5 cm by the numba kernel and by the numpy fallback, alternating.
+Each split prints per-run lines, then the figures: the share of runs covering >= 0.95 and the
+false-"explored" rate with 95 % Wilson intervals (missiontree.evaluation.report.wilson), coverage
+medians, and the dev - test gap of each; a markdown table of both splits; the per-scan map update
+cost (numba kernel and numpy fallback on recorded scans). Targets on ``test``: >= 0.95 coverage in
+>= 95 % of runs, no false "explored", gap <= 0.05. The LAST line is one JSON object:
+``{"dev": {...}, "test": {...}, "gap": {...}, "targets": {...}, ...}``.
 
-Ratios (ours against nearest-frontier, per world) are printed with min/median/max. Last line: one
-JSON object with, per strategy, ``coverage_final``, ``time_to_90_s_median``, ``cell_accuracy``,
-``path_length_m_median`` (and more), plus ``update_ms_median``.
-
-    python benchmarks/exploration.py            # 20 generated worlds + the shipped maps (~10 min)
-    python benchmarks/exploration.py --quick    # 3 generated worlds + one map
+    python benchmarks/exploration.py                    # 20 dev + 11 test worlds (one of each test kind)
+    python benchmarks/exploration.py --split dev --quick      # 3 dev worlds
+    python benchmarks/exploration.py --split test --test-worlds 22
+    python benchmarks/exploration.py --split dev --compare    # ours against the other two rules
 """
 
 from __future__ import annotations
@@ -52,7 +55,6 @@ import dataclasses
 import functools
 import json
 import math
-import shutil
 import sys
 import tempfile
 import time
@@ -60,61 +62,36 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 import yaml
 from scipy import ndimage
 
-STRATEGIES: dict[str, dict[str, Any]] = {
+ALL_STRATEGIES: dict[str, dict[str, Any]] = {
     "ours": {"strategy": "gain"},
     "nearest_frontier": {"strategy": "nearest", "min_frontier_size": 0.75},  # explore_lite's default size
     "scan_points": {"strategy": "scan_points", "look_around": True},
 }
+STRATEGIES = ALL_STRATEGIES        # the configurations of this run (main() narrows it without --compare)
 SAMPLE_S = 2.0                      # coverage sampling period (robot clock)
+COVERED = 0.95                      # a run covers when its final coverage reaches this
+ROOM_SEEN = 0.8                     # a room is seen when this share of its reachable cells reads free
+MIN_ROOM_M2 = 1.0                   # rooms with less reachable area are not judged
 ROBOT_RADIUS = 0.17                 # TurtleBot 4 (the reachable area is judged with it)
 #: The camera is not used by exploration: a small, slow one keeps the runs cheap.
 SIM_CONFIG = {"camera": {"rate": 0.5, "width": 64, "height": 48}}
-REPO = Path(__file__).resolve().parents[1]
-MAP_DIRS = [REPO / "config" / "worlds" / "maps"]
 
 
 # -- worlds -----------------------------------------------------------------------------------------
 
 
-def generated_world_files(tmp: Path, seeds: range) -> list[tuple[str, str]]:
-    """Generated apartments without people (walkers in doorways would time the navigator's waits)."""
-    from missiontree.backends.sim.generator import write_world_file
+def split_world_files(tmp: Path, split: str, count: int, first_seed: int) -> list[tuple[str, str]]:
+    """(name, world file) of ``count`` worlds of ``split`` from ``first_seed`` on, without people."""
+    from missiontree.evaluation.splits import split_worlds, write_split_world
 
-    return [(f"generated:{s}", str(write_world_file(s, tmp / f"generated_{s}.yaml", people=0)))
-            for s in seeds]
-
-
-def map_world_files(tmp: Path, limit: int | None = None) -> list[tuple[str, str]]:
-    """A world file for every shipped map_server map, the start where the map is most open."""
-    from missiontree.mapping.mapfile import read_map
-
-    out: list[tuple[str, str]] = []
-    for folder in MAP_DIRS:
-        for meta in sorted(folder.glob("*.yaml")) if folder.is_dir() else []:
-            try:
-                grid = read_map(meta)
-            except ValueError as exc:
-                print(f"  note: {meta} skipped: {exc}", file=sys.stderr)
-                continue
-            x, y = most_open_point(grid.data, grid.resolution, grid.origin.x, grid.origin.y)
-            # the world loader reads maps beside the world file: copy the map (yaml and image) there
-            doc = yaml.safe_load(meta.read_text(encoding="utf-8"))
-            folder_out = tmp / f"map_{meta.stem}"
-            folder_out.mkdir(exist_ok=True)
-            shutil.copy(meta.parent / str(doc["image"]), folder_out / Path(str(doc["image"])).name)
-            doc["image"] = Path(str(doc["image"])).name
-            (folder_out / meta.name).write_text(yaml.safe_dump(doc, sort_keys=False))
-            world = folder_out / f"map_{meta.stem}.yaml"
-            world.write_text(yaml.safe_dump({
-                "name": f"map_{meta.stem}",
-                "robot": {"profile": "turtlebot4", "start": {"x": x, "y": y, "yaw": 0.0}},
-                "map": {"yaml": meta.name}}, sort_keys=False))
-            out.append((f"map:{meta.stem}", str(world)))
-    return out[:limit] if limit is not None else out
+    folder = tmp / split
+    return [(w.name, str(write_split_world(w, folder)))
+            for w in split_worlds(split, count, first_seed=first_seed, people=False)]
 
 
 def most_open_point(data: np.ndarray, res: float, ox: float, oy: float) -> tuple[float, float]:
@@ -153,15 +130,36 @@ class Truth:
         occupied = g.data >= 50
         self.near_occupied = ndimage.binary_dilation(occupied, structure=np.ones((3, 3), bool))
         self.near_free = ndimage.binary_dilation(~occupied, structure=np.ones((3, 3), bool))
+        #: per room with at least MIN_ROOM_M2 reachable: its name and the indices of its reachable cells
+        self.rooms: list[tuple[str, np.ndarray]] = []
+        for room in getattr(world, "rooms", []):
+            canvas = np.zeros(g.data.shape, np.uint8)
+            poly = np.round((np.asarray(room.polygon, float) - [g.origin.x, g.origin.y]) / g.resolution - 0.5)
+            cv2.fillPoly(canvas, [poly.astype(np.int32)], 1)
+            inside = np.flatnonzero(canvas[rows, cols])
+            if len(inside) * g.resolution ** 2 >= MIN_ROOM_M2:
+                self.rooms.append((str(room.name), inside))
 
-    def coverage(self, learned: Any) -> float:
-        """Share of the reachable free cells the learned map reads free."""
+    def seen_free(self, learned: Any) -> np.ndarray:
+        """Per reachable free cell: whether the learned map reads it free."""
         lr = np.floor((self.y - learned.origin.y) / learned.resolution).astype(np.int64)
         lc = np.floor((self.x - learned.origin.x) / learned.resolution).astype(np.int64)
         h, w = learned.data.shape
         ok = (lr >= 0) & (lr < h) & (lc >= 0) & (lc < w)
+        out = np.zeros(len(self.x), bool)
         values = learned.data[lr[ok], lc[ok]]
-        return float(np.count_nonzero((values >= 0) & (values < 25))) / max(1, len(self.x))
+        out[ok] = (values >= 0) & (values < 25)
+        return out
+
+    def coverage(self, learned: Any) -> float:
+        """Share of the reachable free cells the learned map reads free."""
+        return float(np.count_nonzero(self.seen_free(learned))) / max(1, len(self.x))
+
+    def rooms_missed(self, learned: Any) -> list[tuple[str, float]]:
+        """Reachable rooms (at least MIN_ROOM_M2) of which less than ROOM_SEEN reads free: (name, share)."""
+        seen = self.seen_free(learned)
+        shares = [(name, float(np.mean(seen[cells]))) for name, cells in self.rooms]
+        return [(name, round(share, 3)) for name, share in shares if share < ROOM_SEEN]
 
     def accuracy(self, learned: Any) -> tuple[float, float, int]:
         """(boundary-tolerant accuracy, strict accuracy, cells scored) on the learned map's known cells."""
@@ -193,6 +191,7 @@ class RunScore:
     """One strategy on one world."""
 
     world: str
+    split: str
     strategy: str
     status: str
     reason: str
@@ -208,6 +207,8 @@ class RunScore:
     reachable_m2: float
     goals: int
     unreachable: int
+    rooms: int = 0
+    rooms_missed: list[tuple[str, float]] = field(default_factory=list)
     scans: list[tuple[float, list[float], float, float, float]] = field(default_factory=list)
 
 
@@ -255,7 +256,7 @@ class ExploreProbe:
                     self.scans.append((scan.stamp, ranges, pose.x, pose.y, pose.yaw))
 
     def finish(self, session: Any, result: Any) -> dict[str, Any]:
-        """The run's score: RunScore's fields but the world, the strategy and the wall time."""
+        """The run's score: RunScore's fields but the world, the split, the strategy and the wall time."""
         robot = session.robot
         truth = self.truth or Truth(robot.world)
         learned = robot.occupancy()
@@ -281,39 +282,41 @@ class ExploreProbe:
             "coverage_final": float(times[-1, 1]), "time_to_90_s": reached(0.90),
             "time_to_99_s": reached(0.99), "cell_accuracy": tolerant, "cell_accuracy_strict": strict,
             "cells_scored": cells, "path_length_m": path, "reachable_m2": truth.area_m2,
+            "rooms": len(truth.rooms), "rooms_missed": truth.rooms_missed(learned),
             "goals": sum(e.get("event") == "explore_goal" for e in events),
             "unreachable": sum(e.get("event") == "explore_blacklist" for e in events), "scans": self.scans}
 
 
-def run_strategies(worlds: list[tuple[str, str]], max_duration: float, jobs: int,
-                   tmp: Path) -> list[RunScore]:
-    """Every strategy on every world through the batch runner: one batch per strategy, one process pool.
+def run_strategies(worlds: list[tuple[str, str]], split: str, strategies: list[str], max_duration: float,
+                   engine: Any, tmp: Path, keep_scans: frozenset[str] = frozenset()) -> list[RunScore]:
+    """Every strategy on every world of a split through the batch runner: one batch per strategy.
 
     A run that raised (status ERROR) or whose process died twice (INFRA) is reported and left out.
+    Scans are kept (for the update cost) on the worlds in ``keep_scans``.
     """
-    from missiontree.evaluation import BatchPlan, PoolEngine, RunSpec, run_batch
+    from missiontree.evaluation import BatchPlan, RunSpec, run_batch
 
-    keep = functools.partial(ExploreProbe, frozenset(world for _, world in worlds[:3]))
+    keep = functools.partial(ExploreProbe, keep_scans)
     names = {world: name for name, world in worlds}
-    fields = {f.name for f in dataclasses.fields(RunScore)} - {"world", "strategy", "wall_s"}
+    fields = {f.name for f in dataclasses.fields(RunScore)} - {"world", "split", "strategy", "wall_s"}
     runs: list[RunScore] = []
-    with PoolEngine(jobs) as engine:
-        for strategy in STRATEGIES:
-            tree = tmp / f"explore_{strategy}.yaml"
-            tree.write_text(mission_text(STRATEGIES[strategy]), encoding="utf-8")
-            specs = [RunSpec(world=world, seed=1, run_seed=1) for _, world in worlds]
-            request = {"unknown_map": True, "config": SIM_CONFIG, "max_duration": max_duration}
-            plan = BatchPlan(mission=tree, runs=specs, request=request)
-            probe = keep if strategy == "ours" else ExploreProbe
-            for record in run_batch(plan, engine, tmp / f"batch_{strategy}", probe=probe, write_log=True):
-                name = names[str(record.world)]
-                if record.status in ("ERROR", "INFRA"):  # one broken run must not lose the others
-                    print(f"  {name:22s} {strategy:16s} {record.status} {record.reason}", flush=True)
-                    continue
-                score = RunScore(world=name, strategy=strategy, wall_s=record.wall_time_s,
-                                 **{k: v for k, v in record.figures.items() if k in fields})
-                score.scans = [tuple(s) for s in score.scans]  # type: ignore[misc]
-                runs.append(score)
+    for strategy in strategies:
+        tree = tmp / f"explore_{strategy}.yaml"
+        tree.write_text(mission_text(ALL_STRATEGIES[strategy]), encoding="utf-8")
+        specs = [RunSpec(world=world, seed=1, run_seed=1) for _, world in worlds]
+        request = {"unknown_map": True, "config": SIM_CONFIG, "max_duration": max_duration}
+        plan = BatchPlan(mission=tree, runs=specs, request=request)
+        probe = keep if strategy == "ours" else ExploreProbe
+        for record in run_batch(plan, engine, tmp / f"batch_{split}_{strategy}", probe=probe, write_log=True):
+            name = names[str(record.world)]
+            if record.status in ("ERROR", "INFRA"):  # one broken run must not lose the others
+                print(f"  {split:4s} {name:22s} {strategy:16s} {record.status} {record.reason}", flush=True)
+                continue
+            score = RunScore(world=name, split=split, strategy=strategy, wall_s=record.wall_time_s,
+                             **{k: v for k, v in record.figures.items() if k in fields})
+            score.scans = [tuple(s) for s in score.scans]  # type: ignore[misc]
+            score.rooms_missed = [tuple(m) for m in score.rooms_missed]  # type: ignore[misc]
+            runs.append(score)
     return runs
 
 
@@ -380,30 +383,54 @@ def spread(values: list[float]) -> dict[str, float | None]:
     return {"min": round(min(v), 3), "median": round(float(np.median(v)), 3), "max": round(max(v), 3)}
 
 
+def explored_claim(r: RunScore) -> bool:
+    """Whether the leaf ended SUCCESS saying the place is explored."""
+    return r.status == "SUCCESS" and r.reason.startswith("explored")
+
+
+def false_explored(r: RunScore) -> bool:
+    """SUCCESS 'explored' with coverage under COVERED or a reachable room not seen."""
+    return explored_claim(r) and (r.coverage_final < COVERED or bool(r.rooms_missed))
+
+
 def summarise(runs: list[RunScore]) -> dict[str, Any]:
-    """Per-strategy figures over all worlds."""
+    """Per-strategy figures over the worlds of one split (the Wilson intervals for ``ours``)."""
+    from missiontree.evaluation.report import wilson
+
     out: dict[str, Any] = {}
     for name in STRATEGIES:
         mine = [r for r in runs if r.strategy == name]
         if not mine:
             continue
+        n = len(mine)
+        covered = sum(r.coverage_final >= COVERED for r in mine)
+        false = sum(false_explored(r) for r in mine)
         t90 = median_time([r.time_to_90_s for r in mine])
         t99 = median_time([r.time_to_99_s for r in mine])
         out[name] = {
+            "runs": n,
+            "covered_share": round(covered / n, 4),
+            "covered_share_ci95": [round(v, 4) for v in wilson(covered, n)],
+            "false_explored": false,
+            "false_explored_rate": round(false / n, 4),
+            "false_explored_ci95": [round(v, 4) for v in wilson(false, n)],
+            "partial": sum(r.reason.startswith("partial") for r in mine),
+            "explored_claims": sum(explored_claim(r) for r in mine),
+            "stopped_by_limit": sum("limit" in r.status for r in mine),
+            "rooms_missed": sum(len(r.rooms_missed) for r in mine),
+            "rooms": sum(r.rooms for r in mine),
             "coverage_final": round(float(np.median([r.coverage_final for r in mine])), 4),
             "coverage_final_mean": round(float(np.mean([r.coverage_final for r in mine])), 4),
             "coverage_final_min": round(float(np.min([r.coverage_final for r in mine])), 4),
             "time_to_90_s_median": None if t90 is None else round(t90, 1),
             "time_to_99_s_median": None if t99 is None else round(t99, 1),
-            "reached_90": sum(r.time_to_90_s is not None for r in mine),
-            "reached_99": sum(r.time_to_99_s is not None for r in mine),
             "cell_accuracy": round(float(np.nanmedian([r.cell_accuracy for r in mine])), 4),
-            "cell_accuracy_min": round(float(np.nanmin([r.cell_accuracy for r in mine])), 4),
             "cell_accuracy_strict": round(float(np.nanmedian([r.cell_accuracy_strict for r in mine])), 4),
             "path_length_m_median": round(float(np.median([r.path_length_m for r in mine])), 2),
             "duration_s_median": round(float(np.median([r.sim_s for r in mine])), 1),
+            "duration_s_max": round(float(np.max([r.sim_s for r in mine])), 1),
+            "wall_s_median": round(float(np.median([r.wall_s for r in mine])), 1),
             "succeeded": sum(r.status == "SUCCESS" for r in mine),
-            "runs": len(mine),
         }
     return out
 
@@ -420,71 +447,122 @@ def ratios(runs: list[RunScore], key: str, a: str = "ours", b: str = "nearest_fr
     return out
 
 
+GAP_KEYS = ("covered_share", "false_explored_rate", "coverage_final", "coverage_final_mean")
+
+
+def gap(dev: dict[str, Any], test: dict[str, Any]) -> dict[str, float | None]:
+    """Dev - test of each figure in GAP_KEYS (None where a split has no runs)."""
+    return {k: (round(dev[k] - test[k], 4) if k in dev and k in test else None) for k in GAP_KEYS}
+
+
+def interval(figure: dict[str, Any], key: str) -> str:
+    low, high = figure[f"{key}_ci95"]
+    return f"{figure[key]:.3f} [{low:.3f}, {high:.3f}]"
+
+
+def markdown(by_split: dict[str, dict[str, Any]], gaps: dict[str, float | None]) -> str:
+    """A short table of ``ours`` on each split, with the gap."""
+    lines = ["| split | runs | coverage >= 0.95 (95 % CI) | false \"explored\" (95 % CI) | partial | "
+             "median coverage | rooms missed |",
+             "|---|---|---|---|---|---|---|"]
+    for split, s in by_split.items():
+        o = s.get("ours")
+        if not o:
+            continue
+        lines.append(f"| {split} | {o['runs']} | {interval(o, 'covered_share')} | "
+                     f"{o['false_explored']} ({interval(o, 'false_explored_rate')}) | {o['partial']} | "
+                     f"{o['coverage_final']:.3f} | {o['rooms_missed']} of {o['rooms']} |")
+    if gaps.get("covered_share") is not None:
+        lines.append(f"| dev - test | | {gaps['covered_share']:+.3f} | {gaps['false_explored_rate']:+.3f} "
+                     f"| | {gaps['coverage_final']:+.3f} | |")
+    return "\n".join(lines)
+
+
 def main() -> int:
+    global STRATEGIES
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--quick", action="store_true", help="3 generated worlds and one map (a smoke run)")
-    parser.add_argument("--worlds", type=int, default=20, help="generated worlds (default 20)")
-    parser.add_argument("--first-seed", type=int, default=100, help="seed of the first generated world")
-    parser.add_argument("--max-duration", type=float, default=300.0, help="robot-clock limit per run (s)")
+    parser.add_argument("--split", choices=("dev", "test", "both"), default="both",
+                        help="which split(s) to run")
+    parser.add_argument("--quick", action="store_true", help="3 dev worlds, 4 test worlds (a smoke run)")
+    parser.add_argument("--worlds", type=int, default=20, help="dev worlds (default 20)")
+    parser.add_argument("--first-seed", type=int, default=100, help="seed of the first dev world")
+    parser.add_argument("--test-worlds", type=int, default=11,
+                        help="test worlds (default 11: one of each kind the test split cycles through)")
+    parser.add_argument("--test-first-seed", type=int, default=0, help="seed of the first test world")
+    parser.add_argument("--max-duration", type=float, default=900.0,
+                        help="robot-clock limit per run (s; default 900, the shipped explore mission's)")
     parser.add_argument("--jobs", type=int, default=2, help="runs in parallel (processes)")
-    parser.add_argument("--no-maps", action="store_true", help="generated worlds only")
+    parser.add_argument("--compare", action="store_true", help="also run nearest_frontier and scan_points")
     args = parser.parse_args()
-    n_worlds = 3 if args.quick else args.worlds
+    from missiontree.evaluation import PoolEngine
+
+    STRATEGIES = ALL_STRATEGIES if args.compare else {"ours": ALL_STRATEGIES["ours"]}
+    splits = ["dev", "test"] if args.split == "both" else [args.split]
+    counts = {"dev": (3 if args.quick else args.worlds, args.first_seed),
+              "test": (4 if args.quick else args.test_worlds, args.test_first_seed)}
     started = time.perf_counter()
-    with tempfile.TemporaryDirectory() as tmp:
-        worlds = [] if args.no_maps else map_world_files(Path(tmp), limit=1 if args.quick else None)
-        worlds += generated_world_files(Path(tmp), range(args.first_seed, args.first_seed + n_worlds))
-        print(f"exploration: {len(worlds)} worlds x {len(STRATEGIES)} strategies, max "
-              f"{args.max_duration:g} s each, {args.jobs} processes (the batch runner)", file=sys.stderr)
-        runs = run_strategies(worlds, args.max_duration, max(1, args.jobs), Path(tmp))
-        order = list(STRATEGIES)
-        by_world = {name: i for i, (name, _) in enumerate(worlds)}
-        # the order the runs were listed in before the batch runner: strategies rotated world by world
-        runs.sort(key=lambda r: (by_world[r.world],
-                                 (order.index(r.strategy) - by_world[r.world]) % len(order)))
-        for r in runs:
-            t90 = "-" if r.time_to_90_s is None else f"{r.time_to_90_s:.0f}"
-            t99 = "-" if r.time_to_99_s is None else f"{r.time_to_99_s:.0f}"
-            print(f"  {r.world:22s} {r.strategy:16s} {r.status:18s} cov {r.coverage_final:.3f} "
-                  f"t90 {t90:>4s} t99 {t99:>4s} acc {r.cell_accuracy:.4f} "
-                  f"({r.cell_accuracy_strict:.4f} strict) "
-                  f"path {r.path_length_m:5.1f} m  {r.sim_s:5.0f} s sim {r.wall_s:5.1f} s wall  "
-                  f"goals {r.goals} unreachable {r.unreachable}  {r.reason[:70]}", flush=True)
+    runs: list[RunScore] = []
+    names: dict[str, list[str]] = {}
+    with tempfile.TemporaryDirectory() as tmp, PoolEngine(max(1, args.jobs)) as engine:
+        for split in splits:
+            count, first = counts[split]
+            worlds = split_world_files(Path(tmp), split, count, first)
+            names[split] = [name for name, _ in worlds]
+            print(f"exploration {split}: {len(worlds)} worlds x {len(STRATEGIES)} configurations, max "
+                  f"{args.max_duration:g} s each, {args.jobs} processes (the batch runner)", file=sys.stderr)
+            keep = frozenset(world for _, world in worlds[:3]) if split == splits[0] else frozenset()
+            got = run_strategies(worlds, split, list(STRATEGIES), args.max_duration, engine, Path(tmp), keep)
+            order = {name: i for i, name in enumerate(names[split])}
+            got.sort(key=lambda r: (order[r.world], list(STRATEGIES).index(r.strategy)))
+            for r in got:
+                t90 = "-" if r.time_to_90_s is None else f"{r.time_to_90_s:.0f}"
+                missed = ",".join(f"{m[0]}:{m[1]:.2f}" for m in r.rooms_missed) or "-"
+                print(f"  {split:4s} {r.world:22s} {r.strategy:16s} {r.status:18s} "
+                      f"cov {r.coverage_final:.3f} t90 {t90:>4s} acc {r.cell_accuracy:.4f} "
+                      f"path {r.path_length_m:6.1f} m {r.sim_s:5.0f} s sim {r.wall_s:6.1f} s wall "
+                      f"goals {r.goals} given up {r.unreachable} "
+                      f"rooms missed {missed}  {r.reason[:90]}", flush=True)
+            runs += got
     cost = update_cost([s for r in runs for s in r.scans])
-    summary = summarise(runs)
-    print("\nper strategy (medians over worlds; times on the robot clock):")
-    for name, s in summary.items():
-        print(f"  {name:16s} coverage {s['coverage_final']:.3f} (min {s['coverage_final_min']:.3f})  "
-              f"t90 {s['time_to_90_s_median']} s  t99 {s['time_to_99_s_median']} s  "
-              f"accuracy {s['cell_accuracy']:.4f} (strict {s['cell_accuracy_strict']:.4f})  "
-              f"path {s['path_length_m_median']} m  succeeded {s['succeeded']}/{s['runs']}")
-    r90 = ratios(runs, "time_to_90_s")
-    rpath = ratios(runs, "path_length_m")
-    print(f"ours / nearest_frontier, time to 90 %: {spread(r90)} over {len(r90)} worlds where both got there")
-    print(f"ours / nearest_frontier, path length:  {spread(rpath)}")
+    by_split = {split: summarise([r for r in runs if r.split == split]) for split in splits}
+    gaps = gap(by_split["dev"].get("ours", {}), by_split["test"].get("ours", {})) if len(splits) == 2 else {}
+    print()
+    for split, summary in by_split.items():
+        for name, s in summary.items():
+            print(f"{split:4s} {name:16s} runs {s['runs']}: coverage >= {COVERED} in "
+                  f"{interval(s, 'covered_share')} of runs; false 'explored' {s['false_explored']} (rate "
+                  f"{interval(s, 'false_explored_rate')}); partial {s['partial']}; median coverage "
+                  f"{s['coverage_final']:.3f} (min {s['coverage_final_min']:.3f}); rooms missed "
+                  f"{s['rooms_missed']} of {s['rooms']}; t90 {s['time_to_90_s_median']} s; accuracy "
+                  f"{s['cell_accuracy']:.4f}; sim {s['duration_s_median']} s median, "
+                  f"{s['duration_s_max']} s max")
+    if gaps:
+        print(f"dev - test gap (ours): {gaps}")
+    if args.compare:
+        for split in splits:
+            mine = [r for r in runs if r.split == split]
+            print(f"{split}: ours / nearest_frontier, time to 90 %: {spread(ratios(mine, 'time_to_90_s'))}; "
+                  f"path length: {spread(ratios(mine, 'path_length_m'))}")
     print(f"per-scan update (20 x 20 m at 5 cm, {cost['scans']} recorded scans): numba "
           f"{cost.get('update_ms_median_numba')} ms, numpy {cost.get('update_ms_median_numpy')} ms")
-    ours = summary.get("ours", {})
-    t90_ratio = spread(r90)["median"]
-    result = {
-        **summary,
-        "update_ms_median": cost["update_ms_median"],
-        "update_ms_median_numba": cost.get("update_ms_median_numba"),
-        "update_ms_median_numpy": cost.get("update_ms_median_numpy"),
-        "update_numpy_over_numba": cost.get("numpy_over_numba"),
-        "t90_ratio_ours_vs_nearest": spread(r90),
-        "path_ratio_ours_vs_nearest": spread(rpath),
-        "targets": {
-            "coverage_ge_0.97": bool(ours.get("coverage_final", 0) >= 0.97),
-            "cell_accuracy_ge_0.98": bool(ours.get("cell_accuracy", 0) >= 0.98),
-            "t90_ratio_le_0.8": bool(t90_ratio is not None and t90_ratio <= 0.8),
-            "update_le_1ms": bool(cost["update_ms_median"] is not None and cost["update_ms_median"] <= 1.0),
-        },
-        "worlds": sorted({r.world for r in runs}),
-        "max_duration_s": args.max_duration,
-        "wall_s": round(time.perf_counter() - started, 1),
-        "runs": [{k: v for k, v in asdict(r).items() if k != "scans"} for r in runs],
+    print()
+    print(markdown(by_split, gaps))
+    test = by_split.get("test", {}).get("ours", {})
+    result: dict[str, Any] = {split: {**summary.get("ours", {}), "worlds": names[split],
+                                      **({"strategies": summary} if args.compare else {})}
+                              for split, summary in by_split.items()}
+    result["gap"] = gaps
+    result["targets"] = {
+        "test_covered_share_ge_0.95": bool(test.get("covered_share", 0) >= 0.95) if test else None,
+        "test_no_false_explored": bool(test.get("false_explored", 1) == 0) if test else None,
+        "gap_le_0.05": bool(all(v is not None and abs(v) <= 0.05 for v in (
+            gaps.get("covered_share"), gaps.get("false_explored_rate")))) if gaps else None,
     }
+    result["update_ms_median"] = cost["update_ms_median"]
+    result["update_ms_median_numpy"] = cost.get("update_ms_median_numpy")
+    result["max_duration_s"] = args.max_duration
+    result["wall_s"] = round(time.perf_counter() - started, 1)
+    result["runs"] = [{k: v for k, v in asdict(r).items() if k != "scans"} for r in runs]
     print(json.dumps(result))
     return 0
 
