@@ -56,8 +56,20 @@ class Problem:
         # no position is known (a missing file, a flag's value): name the file or flag alone, never 0:0
         where = self.file if self.line <= 0 else f"{self.file}:{self.line}"
         where += f":{self.col}" if self.line > 0 and self.col > 0 else ""
-        text = f"{where}: {self.path}: {self.message}" if self.path else f"{where}: {self.message}"
+        path = _short_path(self.path)
+        text = f"{where}: {path}: {self.message}" if path else f"{where}: {self.message}"
         return f"{text} (hint: {self.hint})" if self.hint else text
+
+
+#: Longest node path segment shown in a problem; longer ones (a file read by mistake, a pasted
+#: text as a key) are cut, so a problem never echoes a file's content back.
+PATH_SEGMENT_CHARS = 60
+
+
+def _short_path(path: str) -> str:
+    parts = path.split("/")
+    return "/".join(p if len(p) <= PATH_SEGMENT_CHARS else f"{p[:40]}… ({len(p):,} characters)"
+                    for p in parts)
 
 
 class ProblemsError(ConfigError):

@@ -151,3 +151,21 @@ def test_a_text_file_read_as_a_mission_is_not_echoed(
     captured = capsys.readouterr()
     assert "hunter2" not in captured.err + captured.out
     assert "text of 1,3" in captured.err  # says what it found, not the text
+
+
+@pytest.mark.parametrize("body", [
+    "root: {text}\n",
+    "root:\n  {text}: {{}}\n",
+    "root:\n  Include: {{file: {text}}}\n",
+    "root:\n  Wait: {{seconds: {text}}}\n",
+    "root:\n  Wait: {{name: [{text}]}}\n",
+])
+def test_a_long_value_in_a_mission_is_never_echoed_whole(
+        body: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Pasted text as a node type, a key, an include, a number or a name is named by its size, not printed."""
+    path = tmp_path / "m.yaml"
+    path.write_text(body.format(text="PASTEDLINE" * 80), encoding="utf-8")
+    assert main(["validate", "--no-plugins", str(path)]) == 2
+    captured = capsys.readouterr()
+    assert "PASTEDLINE" * 6 not in captured.err + captured.out
+    assert "Traceback" not in captured.err

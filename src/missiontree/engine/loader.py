@@ -461,9 +461,10 @@ class _Loader:
     ) -> Path | None:
         trusted = trusted_tree_dirs()
         candidates = [file.path.resolve().parent / target] + [d / target for d in trusted]
-        found = next((c.resolve() for c in candidates if c.is_file()), None)
+        found = next((c.resolve() for c in candidates if _is_file(c)), None)
         if found is None:
-            tried = ", ".join(_display(c) for c in candidates[:3])
+            tried = ", ".join(_display(c) if len(str(c)) <= 200 else f"a path of {len(str(c)):,} characters"
+                              for c in candidates[:3])
             self.problems.append(file.doc.problem_at(
                 key_path, f"expected an existing subtree file, found no {shown(target)} (looked at {tried})",
                 "check the path; it is relative to the including file or to the trees/ folder", where=path))
@@ -528,6 +529,14 @@ def _display(path: Path) -> str:
         return str(path.resolve().relative_to(Path.cwd().resolve()))
     except ValueError:
         return str(path)
+
+
+def _is_file(path: Path) -> bool:
+    """``path.is_file()``, False for a name the system cannot look up (too long, a NUL in it)."""
+    try:
+        return path.is_file()
+    except (OSError, ValueError):
+        return False
 
 
 def _kind(value: Any) -> str:

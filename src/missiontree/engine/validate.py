@@ -171,7 +171,8 @@ def _issue(model: type[BaseModel], err: Any) -> ParamIssue:
     msg = _expected_text(err)
     where = format_path(loc)
     found = err.get("input")
-    found_text = "nothing" if found is None else repr(found) if not isinstance(found, dict) else "a mapping"
+    found_text = ("nothing" if found is None else short_repr(found) if not isinstance(found, dict)
+                  else "a mapping")
     if err["type"] == "value_error":
         return ParamIssue(loc, f"{where}: {msg}" if where else msg, doc)
     return ParamIssue(loc, f"{where}: expected {msg}, found {found_text}" if where else f"expected {msg}",
