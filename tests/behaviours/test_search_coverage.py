@@ -189,3 +189,25 @@ def test_the_replan_period_grows_with_the_map_up_to_its_cap() -> None:
         leaf._scale_replan()
         periods.append(leaf.params.replan_period)
     assert periods == [2.0, 10.0]
+
+
+def test_floor_beyond_a_gap_too_narrow_is_not_gone_to_through_unknown_cells() -> None:
+    """Known floor behind a wall (a 0.2 m slit, a stretch of wall unmapped) is given up, not aimed at."""
+    data = hall()
+    data[:, 90] = 100  # a wall across at x = 4.5 m
+    data[5:9, 90] = 0  # a slit 0.2 m wide: the lidar saw through it
+    data[20:32, 90] = -1  # a stretch of the wall the lidar has not seen
+    robot = CameraRobot(data, Pose2D(1.0, 1.0, math.pi))
+    events = Events()
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+    models = {"detector": Detector()}
+    leaf.setup(context=MissionContext(robot=robot, events=events, models=models))  # type: ignore[arg-type]
+    leaf.frontiers_done = True  # the unknown stretch is no frontier worth going to here
+    for _ in range(3000):
+        leaf.tick_once()
+        if leaf.status in (Status.SUCCESS, Status.FAILURE):
+            break
+        robot.advance(0.1)
+    assert leaf.status == Status.FAILURE
+    assert events.of("search_view_goal")
+    assert all(g["x"] < 4.5 for g in events.of("search_view_goal"))

@@ -227,3 +227,17 @@ def straight_lengths(
 ) -> list[float | None]:
     """Straight-line distances to ``goals`` (every one counts as reachable): for tests and quick looks."""
     return [math.hypot(g[0] - start[0], g[1] - start[1]) for g in goals]
+
+
+def known_path_lengths(
+    grid: OccupancyGrid, start: tuple[float, float], goals: Sequence[tuple[float, float]], radius: float
+) -> list[float | None]:
+    """Path lengths on the inflated costmap through known free cells only (None: no such path).
+
+    A place to look at known floor from must be reachable over known floor: a path through unknown
+    cells (a wall the lidar has not seen whole) sent the robot at a room beyond a wall, goal after
+    goal aborted.
+    """
+    from missiontree.mapping.planner import path_lengths
+
+    return path_lengths(grid, start, list(goals), footprint_radius=radius, allow_unknown=False)

@@ -37,11 +37,11 @@ from pydantic import BaseModel, Field
 from missiontree.behaviours.explore import Explore
 from missiontree.behaviours.intent import find_scene_graph
 from missiontree.behaviours.search_common import REJECT_RADIUS, read_target, rejected_entries
-from missiontree.behaviours.search_coverage import ViewCoverage, ViewGoal, view_goals
+from missiontree.behaviours.search_coverage import ViewCoverage, ViewGoal, known_path_lengths, view_goals
 from missiontree.engine.leaf import Status
 from missiontree.engine.ports import Output
 from missiontree.errors import MissionTreeError
-from missiontree.mapping.exploration import Blacklisted, ExplorationPlanner, planner_path_lengths
+from missiontree.mapping.exploration import Blacklisted, ExplorationPlanner
 from missiontree.mapping.exploration import Candidate as Frontier
 from missiontree.mapping.grid import free_mask, occupied_mask, unknown_mask
 from missiontree.perception.colour import canonical_colour
@@ -612,7 +612,7 @@ class Locate(ResumeExplore):
             self.coverage,
             grid,
             (pose.x, pose.y),
-            planner_path_lengths,
+            known_path_lengths,
             self.params.footprint_radius,
             min_area_m2=self.params.view_min_area,
             cost_rate=self.params.cost_rate,
