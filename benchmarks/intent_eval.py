@@ -660,17 +660,27 @@ def referential_cases(world: Any, name: str, k: int = REFERENTIAL_PER_WORLD) -> 
     for label, room in _spread(roomed, k):
         cases.append(Case(name, f"I'm after the {label} that's in the {room}.", "test_referential",
                           _ref(label, room=room)))
-    resting = sorted({(o.label, b.label) for o in world.objects if o.elevation > 0.1 for b in world.objects
-                      if b.id != o.id and abs(b.top - o.elevation) < 0.1
-                      and math.hypot(b.pose.x - o.pose.x, b.pose.y - o.pose.y) < 0.5 and b.label != o.label})
+    resting = sorted({(o.label, b.label) for o in world.objects for b in world.objects
+                      if b.label != o.label and _rests_on(o, b)})
     for label, anchor in _spread(resting, k):
         cases.append(Case(name, f"Could you go to the {label} sitting on the {anchor}?", "test_referential",
-                          _ref(label, near=anchor, within=0.6)))
+                          _on(label, anchor)))
     lacking = [(label, c) for label in labels for c in PALETTE
                if c not in {_colour(o.color) for o in by_label[label]}]
     for label, colour in _spread(lacking, k):
         cases.append(Case(name, f"Please head over to the {colour} {label}.", "none", _nothing))
     return cases
+
+
+def _rests_on(obj: Any, below: Any) -> bool:
+    """``obj`` stands on ``below``: raised, its bottom at ``below``'s top, within 0.5 m of its centre."""
+    return (obj.elevation > 0.1 and below.id != obj.id and abs(below.top - obj.elevation) < 0.1
+            and math.hypot(below.pose.x - obj.pose.x, below.pose.y - obj.pose.y) < 0.5)
+
+
+def _on(label: str, anchor: str) -> Callable[[Any, Any], bool]:
+    """Judged by the rule that made the command: a ``label`` resting on an ``anchor``."""
+    return lambda o, w: o.label == label and any(b.label == anchor and _rests_on(o, b) for b in w.objects)
 
 
 def split_figures(trials: Sequence[Trial]) -> dict[str, Any]:

@@ -16,6 +16,8 @@ else at run time. Two sources, both written per *label* or per *need*, never per
   (``beverage.n.1`` down to coffee, lemonade and cocoa), each step weaker.
 - **Label words**: each label's sense's words and its hyponyms' words name that label (couch, armchair);
   its hypernyms up to two levels name every label under them (seat: chair, sofa, bench, stool).
+- **Compounds**: WordNet's compound nouns that contain an object word without being one (filter bed),
+  so that the runtime reads them whole, as something it does not know.
 
 Senses are written ``word.pos.N`` (the N-th sense of ``word`` as WordNet orders them, most frequent
 first) and printed with their glosses by ``--show``.
@@ -461,12 +463,34 @@ def irregular_forms(wn: WordNet, words: set[str]) -> dict[str, str]:
     return forms
 
 
+def _plain(word: str) -> str:
+    """A word as the runtime reads requests: hyphens are spaces ("world-weary" -> "world weary")."""
+    return " ".join(word.replace("-", " ").split())
+
+
+def compounds(wn: WordNet, known: set[str], objects: set[str]) -> list[str]:
+    """WordNet's compound nouns that contain an object word but are no known word themselves.
+
+    "filter bed" is not a bed and "lighting fixture" not a plumbing fixture: read as a whole, such a
+    compound names something this knowledge does not know, instead of the object its words contain.
+    """
+    found = set()
+    for lemma in wn._index["n"]:  # noqa: SLF001 - the reader's own table
+        words = _plain(lemma.replace("_", " "))
+        if " " in words and words not in known and any(w in objects for w in words.split()):
+            found.add(words)
+    return sorted(found)
+
+
 def build(root: Path, show: bool = False) -> dict[str, object]:
     """The knowledge document."""
     wn = WordNet(root)
-    words = need_words(wn, show)
+    words = {_plain(w): v for w, v in need_words(wn, show).items()}
     names, general = label_words(wn)
+    names = {_plain(w): label for w, label in names.items()}
+    general = {_plain(w): labels for w, labels in general.items()}
     forms = irregular_forms(wn, set(words) | set(names) | set(general))
+    objects = {w for w in (*names, *general) if " " not in w}
     return {
         "about": "Built by tools/build_intent_knowledge.py from WordNet 3.0 (Princeton University, "
         "WordNet 3.0 license) and per-label affordances; do not edit by hand.",
@@ -476,6 +500,7 @@ def build(root: Path, show: bool = False) -> dict[str, object]:
         "label_words": dict(sorted(names.items())),
         "general_words": dict(sorted(general.items())),
         "forms": dict(sorted(forms.items())),
+        "compounds": compounds(wn, set(words) | set(names) | set(general), objects),
     }
 
 

@@ -55,3 +55,12 @@ def test_perceived_table_sets_each_command_beside_the_truth_graph_and_the_paper(
     table = intent_eval.perceived_table(outcomes, truth)
     assert "| I want the grey backpack | 50 (2) | 100 (1) | 60 |" in table
     assert "| I am thirsty | 50 (2) | - | 100 |" in table
+
+
+def test_sitting_on_is_judged_by_the_rule_that_made_the_command() -> None:
+    """Every "sitting on" command of the office is satisfied by an object resting on its anchor."""
+    world = load_world("office")
+    cases = [c for c in intent_eval.referential_cases(world, "office", k=10) if "sitting on" in c.command]
+    assert cases and all(any(c.satisfies(o, world) for o in world.objects) for c in cases)
+    on = {o.id for c in cases for o in world.objects if c.satisfies(o, world)}
+    assert all(o.elevation > 0.1 for o in world.objects if o.id in on)

@@ -64,3 +64,14 @@ def test_synonym_from_wordnet_names_the_class() -> None:
 
     assert fold_label("settee") == "sofa"
     assert fold_label("red") == "red"
+
+
+def test_compound_naming_something_else_is_not_its_object(model: OfflineLanguageModel) -> None:
+    """A flower bed is no bed: the compound is read whole, and nothing serves it."""
+    answer = model.resolve("take me to the flower bed", scene())
+    assert answer.candidates == [] and "flower bed" in answer.reason
+
+
+def test_hyphenated_word_is_read_whole(model: OfflineLanguageModel) -> None:
+    """"world-weary" (WordNet: bored) is read as one word, not as "weary" (tired)."""
+    assert model.resolve("I feel so world-weary", scene()).candidates == ["tv_1"]

@@ -9,7 +9,9 @@ It holds:
   related to them (similar-to, derivations, hyponyms: "famished", "beverage", "e-mail");
 - ``label_words``: word → the label it names (a label's own WordNet words and its hyponyms': couch,
   armchair); ``general_words``: word → the labels a more general word covers (seat, furniture);
-- ``forms``: irregular inflections of those words (WordNet's exception lists).
+- ``forms``: irregular inflections of those words (WordNet's exception lists);
+- ``compounds``: WordNet compound nouns that contain an object word without being that object (a
+  "filter bed" is no bed), read whole as something unknown.
 
 :meth:`Knowledge.read` turns a request into a :class:`Reading` (the needs it expresses and the labels it
 names, each with the word that said it); :meth:`Knowledge.score` says how well a label serves it.
@@ -58,6 +60,7 @@ class Reading:
     needs: dict[str, tuple[float, str]] = field(default_factory=dict)
     named: dict[str, tuple[float, str]] = field(default_factory=dict)
     unknown: tuple[str, ...] = ()
+    compounds: tuple[str, ...] = ()
 
     @property
     def empty(self) -> bool:
@@ -81,7 +84,8 @@ class Knowledge:
         self.label_words: dict[str, str] = document["label_words"]
         self.general_words: dict[str, list[str]] = document["general_words"]
         self.forms: dict[str, str] = document["forms"]
-        every = (*self.need_words, *self.label_words, *self.general_words)
+        self.compounds: frozenset[str] = frozenset(document.get("compounds", ()))
+        every = (*self.need_words, *self.label_words, *self.general_words, *self.compounds)
         self._longest = max(len(w.split()) for w in every)
 
     @property
@@ -113,10 +117,16 @@ class Knowledge:
         needs: dict[str, tuple[float, str]] = {}
         named: dict[str, tuple[float, str]] = {}
         unknown: list[str] = []
+        compounds: list[str] = []
         i = 0
         while i < len(words):
             for n in range(min(self._longest, len(words) - i), 0, -1):
                 phrase = " ".join(words[i:i + n])
+                if n > 1 and phrase in self.compounds:  # "filter bed": something else than a bed
+                    compounds.append(phrase)
+                    unknown.append(phrase)
+                    i += n - 1
+                    break
                 if n == 1 and phrase in FUNCTION_WORDS:
                     key = None
                 else:
@@ -139,7 +149,7 @@ class Knowledge:
                 i += n - 1
                 break
             i += 1
-        return Reading(needs, named, tuple(unknown))
+        return Reading(needs, named, tuple(unknown), tuple(compounds))
 
     def score(self, label: str, reading: Reading) -> tuple[float, str]:
         """How well ``label`` serves the reading, and why ("drink (thirsty)").

@@ -162,6 +162,12 @@ class OfflineLanguageModel:
         """The objects satisfying ``request``: a reference if it names a class, else a need."""
         objects = [o for o in objects if "id" in o and "label" in o]
         labels = sorted({str(o["label"]) for o in objects})
+        reading = self.knowledge.read(request)
+        if reading.compounds and reading.empty:
+            # its only object words sit inside a compound naming something else ("a filter bed")
+            return IntentResolution(candidates=[], reason=(
+                f"no object in the scene serves {request!r}: it names a {reading.compounds[0]}, which is "
+                "no object this reasoner knows"))
         reference = parse_reference(request, labels, _rooms(objects)) if labels else None
         if reference is not None:
             return self._resolve_reference(reference, objects)
