@@ -306,7 +306,9 @@ def run_chunk(
     from missiontree.evaluation import BatchPlan, RunSpec, run_batch
 
     specs = [
-        RunSpec(world=str(path), seed=case.seed, run_seed=case.seed, params=(("target", case.target),))
+        RunSpec(
+            world=str(path), seed=case.seed, run_seed=case.seed, params=_params(method, case, max_duration)
+        )
         for case, path in cases
     ]
     plan = BatchPlan(mission=MISSIONS[method], runs=specs, request={"max_duration": max_duration})
@@ -318,6 +320,13 @@ def run_chunk(
         probe=SearchProbe,
         on_record=lambda record, _skipped: report(method, record),
     )
+
+
+def _params(method: str, case: Case, max_duration: float) -> tuple[tuple[str, str], ...]:
+    """The mission's parameters: the target, and for ours the search's time budget (the limit less 60 s)."""
+    if method != "ours":
+        return (("target", case.target),)
+    return (("target", case.target), ("time_budget", f"{max(60.0, max_duration - 60.0):g}"))
 
 
 def _footprint_distance(corners: np.ndarray, xy: tuple[float, float]) -> float:

@@ -211,3 +211,20 @@ def test_floor_beyond_a_gap_too_narrow_is_not_gone_to_through_unknown_cells() ->
     assert leaf.status == Status.FAILURE
     assert events.of("search_view_goal")
     assert all(g["x"] < 4.5 for g in events.of("search_view_goal"))
+
+
+def test_a_spent_time_budget_ends_the_search_not_found_with_what_was_left() -> None:
+    """With a 5 s budget the search stops looking soon after 5 s and says the budget was spent."""
+    robot = CameraRobot(hall(30.0, 2.0), Pose2D(1.0, 1.0, math.pi))
+    events = Events()
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none", time_budget=5.0))
+    models = {"detector": Detector()}
+    leaf.setup(context=MissionContext(robot=robot, events=events, models=models))  # type: ignore[arg-type]
+    for _ in range(3000):
+        leaf.tick_once()
+        if leaf.status in (Status.SUCCESS, Status.FAILURE):
+            break
+        robot.advance(0.1)
+    assert leaf.status == Status.FAILURE
+    assert robot.now() < 6.0
+    assert "not found" in leaf.feedback_message and "time budget" in leaf.feedback_message

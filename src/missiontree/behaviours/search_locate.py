@@ -405,6 +405,13 @@ class Locate(ResumeExplore):
         max_replan_period: float = Field(
             10.0, gt=0, description="Longest re-plan period on a large map (s)."
         )
+        time_budget: float = Field(
+            0.0,
+            ge=0,
+            description="Robot seconds from the leaf's first start after which it explores and looks no "
+            "more: the candidates known are still offered, then 'not found' names the floor left unseen "
+            "(a mission's time limit otherwise ends an absent target's search with no verdict); 0: none.",
+        )
         rejected: Annotated[
             str, Output("candidates rejected so far (emptied when the mission starts)", type="list")
         ] = "search_rejected"
@@ -437,6 +444,8 @@ class Locate(ResumeExplore):
         self.frontier_rounds = 0
         self.explore_end = ""
         self.base_replan: float | None = None
+        self.first_start: float | None = None
+        self.budget_spent = False
         self.frontiers_left: list[tuple[float, float]] = []
 
     def on_setup(self) -> None:
@@ -522,6 +531,8 @@ class Locate(ResumeExplore):
             return self._found(found)
         if self.exhausted:
             return self._not_found()
+        if self._out_of_time():
+            return self._exhausted()
         if not self.frontiers_done:
             self._scale_replan()
             status = self.explore_step()
@@ -547,6 +558,28 @@ class Locate(ResumeExplore):
         if status == Status.SUCCESS:
             return self._exhausted()
         return status
+
+    def _out_of_time(self) -> bool:
+        """Whether the time budget is spent (then exploring and looking stop; noted for the reason)."""
+        budget = self.params.time_budget
+        now = self.context.robot.now()
+        if self.first_start is None:
+            self.first_start = now
+        if not budget or now - self.first_start < budget:
+            return False
+        if not self.budget_spent:
+            self.budget_spent = True
+            if self.handle is not None:
+                self.handle.cancel()
+                self.handle = None
+            if self.cover_handle is not None:
+                self.cover_handle.cancel()
+                self.cover_handle = None
+            if self.cover_state == "look":
+                self.context.robot.drive(0.0, 0.0)
+            self.cover_state = "select"
+            self.emit("search_time_budget", budget_s=budget)
+        return True
 
     def _scale_replan(self) -> None:
         """Re-plan less often on a large map (replan_period x cells / replan_cells, capped)."""
@@ -731,6 +764,8 @@ class Locate(ResumeExplore):
         shown = "; ".join(f"{e.get('id')}: {e.get('reason', '')}" for e in tried[:4])
         grid = self.last_grid
         known = f", {self.summary(grid)}" if grid is not None and self.planner is not None else ""
+        if self.budget_spent:
+            known += f"; the time budget of {self.params.time_budget:g} s was spent before all was looked at"
         if self.explore_end.startswith(("partial:", "stuck:")):
             known += f"; exploration {self.explore_end[:300]}"
         robot = self.context.robot
