@@ -294,6 +294,9 @@ LABELS: dict[str, tuple[str, dict[str, float]]] = {
 COLOURS = frozenset(COLOUR_NAMES) | frozenset(ALIASES)
 #: Weight of a word by how it was reached from a need's sense.
 OWN, RELATED, SECOND, HYPONYM = 1.0, 0.85, 0.7, (0.85, 0.7, 0.6)
+#: A word reached from a need sense (not one of its own words) means the need only when the sense it
+#: was reached through is among its this many most frequent senses.
+FREQUENT_SENSES = 2
 #: Relations from a sense to senses whose words mean the same need.
 RELATIONS = ("&", "+", "=", "^", "*", ">", "$", "\\")
 #: Words too general to say anything about a need on their own (light verbs, quantities).
@@ -397,6 +400,14 @@ def _add(table: dict[str, dict[str, float]], word: str, key: str, weight: float)
     entry[key] = round(max(entry.get(key, 0.0), weight), 2)
 
 
+def _frequent(wn: WordNet, word: str, synset: Synset) -> bool:
+    """Whether ``synset`` is among the :data:`FREQUENT_SENSES` most frequent senses of ``word``.
+
+    A word reached through a rare sense of it ("cut", a cut of meat) does not mean the need.
+    """
+    return synset in wn.synsets(word.replace(" ", "_"), synset.pos)[:FREQUENT_SENSES]
+
+
 def need_words(wn: WordNet, show: bool) -> dict[str, dict[str, float]]:
     """Map words to {need: weight}, grown from the need senses through WordNet's relations."""
     words: dict[str, dict[str, float]] = {}
@@ -409,14 +420,17 @@ def need_words(wn: WordNet, show: bool) -> dict[str, dict[str, float]]:
                 _add(words, lemma, need, OWN)
             for near in wn.related(synset, *RELATIONS):
                 for lemma in near.lemmas:
-                    _add(words, lemma, need, RELATED)
+                    if _frequent(wn, lemma, near):
+                        _add(words, lemma, need, RELATED)
                 if near.pos in ("a", "s"):
                     for far in wn.related(near, "&"):
                         for lemma in far.lemmas:
-                            _add(words, lemma, need, SECOND)
+                            if _frequent(wn, lemma, far):
+                                _add(words, lemma, need, SECOND)
             for hyponym, level in wn.hyponyms(synset, depth):
                 for lemma in hyponym.lemmas:
-                    _add(words, lemma, need, HYPONYM[level - 1])
+                    if _frequent(wn, lemma, hyponym):
+                        _add(words, lemma, need, HYPONYM[level - 1])
     # a word means the need(s) it is closest to: "tired" is a seed of rest, and only echoes boredom
     return {w: {n: v for n, v in needs.items() if v == max(needs.values())} for w, needs in words.items()}
 

@@ -75,3 +75,8 @@ def test_compound_naming_something_else_is_not_its_object(model: OfflineLanguage
 def test_hyphenated_word_is_read_whole(model: OfflineLanguageModel) -> None:
     """"world-weary" (WordNet: bored) is read as one word, not as "weary" (tired)."""
     assert model.resolve("I feel so world-weary", scene()).candidates == ["tv_1"]
+
+
+def test_word_reached_through_a_rare_sense_does_not_mean_the_need() -> None:
+    """"cut" is a kind of food only in a rare sense of it (a cut of meat): it expresses no hunger."""
+    assert "eat" not in knowledge().read("I need a cut").needs
