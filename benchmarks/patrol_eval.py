@@ -55,8 +55,9 @@ of the shipped trained detector, to separate what the detector costs from what t
 The runs are listed alternating between configurations scenario by scenario (every score is on the
 simulated clock, so the order the pool finishes them in changes none of them); ratios of ours
 against the thesis's are printed with min/median/max over scenarios (worlds on test). ``--quick``
-runs dev seed 7 and 3 test worlds. Last line: one JSON object, ``{"dev": {method: figures},
-"test": {method: figures}, "gap": {method: test - dev}, "test_worlds": [...], ...}``.
+runs dev seed 7 and (unless ``--test-worlds``) 3 test worlds. Last line: one JSON object,
+``{"dev": {method: figures}, "test": {method: figures}, "gap": {method: test - dev},
+"test_worlds": [...], ...}``.
 """
 
 from __future__ import annotations
@@ -883,11 +884,11 @@ def main() -> int:
                         help="the shipped trained detector, or the simulation oracle (a perfect detector)")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
                         help="runs in parallel (batch runner's process pool; default: the cores)")
-    parser.add_argument("--test-worlds", type=int, default=TEST_WORLDS,
-                        help="held-out worlds in the test split")
+    parser.add_argument("--test-worlds", type=int, default=None,
+                        help=f"held-out worlds in the test split (default {TEST_WORLDS}, 3 with --quick)")
     parser.add_argument("--first-seed", type=int, default=0, help="first seed of the test split's worlds")
     parser.add_argument("--quick", action="store_true",
-                        help=f"a smoke run: dev seed {SEEDS[0]} only, 3 test worlds")
+                        help=f"a smoke run: dev seed {SEEDS[0]} only, 3 test worlds unless --test-worlds")
     args = parser.parse_args()
     seeds = SEEDS[:1] if args.quick else SEEDS
     splits = ["dev", "test"] if args.split == "both" else [args.split]
@@ -898,7 +899,8 @@ def main() -> int:
         tmp = Path(tmp_name)
         runs = dev_runs(seeds, tmp) if "dev" in splits else []
         if "test" in splits:
-            test, held = test_runs(3 if args.quick else args.test_worlds, args.first_seed, tmp)
+            count = args.test_worlds if args.test_worlds is not None else (3 if args.quick else TEST_WORLDS)
+            test, held = test_runs(count, args.first_seed, tmp)
             runs += test
         for h in held:
             print(f"test world {h.name} ({h.family}): {h.waypoints} waypoints from its map, "
