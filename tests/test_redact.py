@@ -101,3 +101,10 @@ def test_safe_terminal_scrubs_a_key_written_in_pieces() -> None:
         terminal.write(piece)
     terminal.flush()
     assert out.getvalue() == '{"key": "***"}'
+
+
+def test_a_short_url_password_is_scrubbed_from_urls_in_text() -> None:
+    """A password too short to look for in prose is still removed wherever a URL carries it."""
+    register_secret("pw")
+    text = "GET http://u:pw@10.0.0.5/v1 failed; see https://host/x"
+    assert scrub(text) == "GET http://***@10.0.0.5/v1 failed; see https://host/x"

@@ -52,14 +52,26 @@ _ALNUM = re.compile(r"[A-Za-z0-9]+")
 #: What a text is compared by: letters, digits and mask stars (a star keeps the alignment, matches nothing).
 _KEPT = re.compile(r"[A-Za-z0-9*]+")
 _lock = threading.Lock()
+#: A secret was registered (long or short): outputs are scrubbed from then on.
+_active = False
+#: The user name and password part of a URL (``scheme://user:password@``), replaced whatever it holds.
+_USERINFO = re.compile(r"(?i)\b([a-z][a-z0-9+.-]*://)[^/\s@'\"<>]+@")
 _secrets: set[str] = set()
 _forms: list[str] = []
 _seeds: tuple[dict[str, list[tuple[int, int]]], ...] = ({}, {})  # one for each of _SEED_STEPS
 
 
 def register_secret(secret: str | None) -> None:
-    """Scrub ``secret`` (and every form of it listed in the module docstring) from now on."""
-    if not secret or secret in _secrets or len(_compact(secret)) < _SHORTEST:
+    """Scrub ``secret`` (and every form of it listed in the module docstring) from now on.
+
+    A secret shorter than six letters and digits is not looked for in text (it would match common
+    words); it is still hidden in URLs, whose user name and password are always scrubbed.
+    """
+    global _active
+    if not secret:
+        return
+    _active = True
+    if secret in _secrets or len(_compact(secret)) < _SHORTEST:
         return
     with _lock:
         _secrets.add(secret)
@@ -76,6 +88,8 @@ def register_secret(secret: str | None) -> None:
 
 def forget_secrets() -> None:
     """Forget every registered secret (tests start from a clean state)."""
+    global _active
+    _active = False
     with _lock:
         _secrets.clear()
         _forms.clear()
@@ -85,12 +99,15 @@ def forget_secrets() -> None:
 
 def has_secrets() -> bool:
     """True when a secret is registered (outputs can skip scrubbing otherwise)."""
-    return bool(_forms)
+    return _active
 
 
 def scrub(text: str) -> str:
-    """``text`` with every trace of a registered secret replaced by ``***``."""
-    if not _forms or not text:
+    """``text`` with every trace of a registered secret, and every URL's credentials, as ``***``."""
+    if not _active or not text:
+        return text
+    text = _USERINFO.sub(r"\1***@", text)
+    if not _forms:
         return text
     spans = _trace_spans(text)
     if not spans:
@@ -107,7 +124,7 @@ def scrub(text: str) -> str:
 
 def scrub_data(data: Any) -> Any:
     """``data`` (JSON-ready: dicts, lists, strings, numbers) with every string scrubbed."""
-    if not _forms:
+    if not _active:
         return data
     if isinstance(data, str):
         return scrub(data)

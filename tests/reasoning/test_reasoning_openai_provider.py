@@ -417,3 +417,16 @@ def test_a_redirect_within_the_server_is_followed(server: Fake) -> None:
     server.script(Reply(status=307, body="", headers={"Location": f"{server.url}/chat/completions"}),
                   Reply.text("ok"))
     assert provider(server).ask([image()], "hi") == "ok"
+
+
+def test_a_short_password_in_base_url_is_not_echoed_by_an_error_body() -> None:
+    """A server echoing the whole URL with a two-letter password: the error shows ***@ instead."""
+    forget_secrets()
+    with Fake() as server:
+        url = server.url.replace("http://", "http://u:pw@")
+        server.script(Reply.error(404, f"no such route {url}/chat/completions"))
+        vlm = OpenAIChatModel.from_options({"model": "test-model", "base_url": url, "api_key_env": None,
+                                            "timeout": 2.0})
+        with pytest.raises(ModelError) as failure:
+            vlm.ask([image()], "hi")
+    assert "u:pw@" not in str(failure.value) and "no such route http://***@127.0.0.1" in str(failure.value)
