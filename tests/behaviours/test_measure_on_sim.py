@@ -71,3 +71,39 @@ def test_person_straight_ahead_is_measured_right_by_all_three(tmp_path: Path) ->
     for method in ("seed", "cone", "depth"):
         assert measure(robot, frame, box, method, surface_offset=0.1).distance == pytest.approx(
             1.5, abs=0.2), method
+
+
+def test_person_behind_low_furniture_is_measured_at_the_person_not_the_furniture(tmp_path: Path) -> None:
+    """A person 3.5 m ahead behind a 0.8 m sofa at 2 m, boxed whole: depth reads the person, not the sofa."""
+    path, person = world_with_person(tmp_path, 0.0, 3.5)
+    robot = create_robot({"world": str(path), "seed": 3})
+    robot.spin_until(1.0)
+    frame = robot.rgbd()
+    assert frame is not None
+    whole = person_box(robot, frame.stamp)  # the whole person, as a detector boxes someone partly hidden
+    robot.close()
+    world = yaml.safe_load(path.read_text())
+    world["objects"] = [{"id": "sofa_1", "label": "sofa", "color": "grey", "size": [0.9, 1.6, 0.8],
+                         "pose": {"x": ROBOT[0] + 2.0, "y": ROBOT[1]}}]
+    path.write_text(yaml.safe_dump(world))
+    robot = create_robot({"world": str(path), "seed": 3})
+    robot.spin_until(1.0)
+    frame = robot.rgbd()
+    assert frame is not None
+    got = measure(robot, frame, whole, "depth", surface_offset=0.1)
+    assert got is not None and got.method == "depth"
+    assert got.distance == pytest.approx(3.5, abs=0.25)
+    assert got.position == pytest.approx(person, abs=0.25)
+
+
+def test_person_too_near_to_show_their_chest_is_measured_at_their_legs(tmp_path: Path) -> None:
+    """A person 0.5 m ahead, boxed short of the image's top, is read at their legs, not at the wall behind."""
+    path, _ = world_with_person(tmp_path, 0.0, 0.5)
+    robot = create_robot({"world": str(path), "seed": 3})
+    robot.spin_until(1.0)
+    frame = robot.rgbd()
+    assert frame is not None
+    x1, _, x2, y2 = person_box(robot, frame.stamp).box
+    got = measure(robot, frame, Detection("person", 1.0, (x1, 30.0, x2, y2)), "depth", surface_offset=0.1)
+    assert got is not None
+    assert got.distance == pytest.approx(0.5, abs=0.2)

@@ -10,7 +10,13 @@ data, which is what the patrol-robot thesis did and why its distances drifted by
   border that cuts the box (:func:`~missiontree.perception.lidar.cone_distance`).
 - ``depth``: the robust median depth inside the box, projected through the frame's intrinsics
   and camera pose (:func:`~missiontree.perception.depth.detection_position`); when the box holds
-  no depth (a person beyond the depth range), the cone is used instead.
+  no depth (a person beyond the depth range), the cone is used instead. When the nearest thing
+  the box shows is low (nothing of it higher than UPPER_BODY above the floor) and not cut by the
+  image's top edge, it is furniture in front of the person (a sofa, a table, a plant hiding their
+  legs), not the person: the box is then read from its pixels higher than UPPER_BODY (the chest
+  and head). A person too near for the camera to see their chest reaches the image's top edge
+  and is read from the whole box, as is everyone the box shows unhidden. (A person sitting lower
+  than UPPER_BODY behind furniture is read from what stands behind them.)
 """
 
 from __future__ import annotations
@@ -19,7 +25,9 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from missiontree.perception.depth import detection_position
+import numpy as np
+
+from missiontree.perception.depth import box_depth, centre_region, pixel_to_map
 from missiontree.perception.lidar import box_bearings, cone_distance, position_from_range, seed_front_distance
 from missiontree.robot.interface import Robot
 from missiontree.types import Detection, LaserScan, Pose2D, RGBDFrame
@@ -31,6 +39,11 @@ FuseAt = Literal["frame", "answer"]
 MIN_CONE_HALF_WIDTH = math.radians(1.5)
 #: How far past the image border the lidar cone looks when a box is cut by the border, rad.
 EDGE_EXTENSION = math.radians(20.0)
+#: The depth method reads a box from what shows higher than this above the floor (m): an adult's
+#: chest and head, above most furniture.
+UPPER_BODY = 1.0
+#: Least depth pixels above UPPER_BODY for the upper body to be read (else the whole box is).
+MIN_UPPER_PIXELS = 12
 
 
 @dataclass(frozen=True)
@@ -102,7 +115,7 @@ def measure(
         position = position_from_range(pose, 0.0, distance) if math.isfinite(distance) else None
         return Measurement(stamp, pose, 0.0, distance, position, "seed")
     if method == "depth" and detection is not None:
-        located = detection_position(frame, detection, surface_offset=surface_offset)
+        located = person_position(frame, detection, surface_offset)
         if located is not None:
             x, y, _ = located
             distance = math.hypot(x - pose.x, y - pose.y)
@@ -116,6 +129,52 @@ def measure(
     distance = reading.distance + surface_offset
     return Measurement(stamp, pose, reading.bearing, distance,
                        position_from_range(pose, reading.bearing, distance), "cone")
+
+
+def person_position(frame: RGBDFrame, detection: Detection,
+                    surface_offset: float = 0.0) -> tuple[float, float, float] | None:
+    """Map position and range of a person's box from the frame's depth (None: the box held none).
+
+    As :func:`~missiontree.perception.depth.detection_position`, except that a box whose nearest
+    thing is low furniture (see the module docstring) is read from its pixels above UPPER_BODY.
+    """
+    reading = box_depth(frame, detection.box, mask=detection.mask)
+    if not reading.found:
+        return None
+    if _hidden_by_something_low(frame, detection, reading.depth):
+        upper = box_depth(frame, detection.box, floor_clearance=UPPER_BODY, mask=detection.mask)
+        if upper.found and upper.pixels >= MIN_UPPER_PIXELS and upper.depth > reading.depth:
+            reading = upper
+    k = frame.intrinsics
+    u = reading.column if math.isfinite(reading.column) else detection.center[0]
+    ray = math.atan2(k.cx - u, k.fx)
+    rng = reading.depth / math.cos(ray) + surface_offset
+    x, y = pixel_to_map(frame, u, rng * math.cos(ray))
+    return x, y, rng
+
+
+def _hidden_by_something_low(frame: RGBDFrame, detection: Detection, depth: float) -> bool:
+    """Whether the nearest thing in the box, at ``depth`` (along the optical axis), is lower than a chest.
+
+    Its pixels (within 0.3 m of that depth, in the box's central 90 %) all lie below UPPER_BODY
+    and below the top of the camera's view at that depth (less 0.1 m), and the box is not cut by
+    the image's top edge: a person too near for the camera to see their chest fills the view to
+    its top, whatever box the detector drew.
+    """
+    if detection.box[1] <= 1.0:
+        return False
+    image = np.asarray(frame.depth, dtype=float)
+    h, w = image.shape[:2]
+    x1, y1, x2, y2 = centre_region(detection.box, w, h, 0.9)
+    patch = image[y1:y2, x1:x2]
+    near = np.isfinite(patch) & (np.abs(patch - depth) <= 0.3)
+    if not near.any():
+        return False
+    rows = np.arange(y1, y2, dtype=float)[:, None]
+    k = frame.intrinsics
+    heights = frame.camera_height - (rows - k.cy) * patch / k.fy
+    top, view_top = float(np.max(heights[near])), frame.camera_height + (k.cy + 0.5) * depth / k.fy
+    return top < UPPER_BODY and top < view_top - 0.1
 
 
 def _cone_of(bearing: float, half: float, detection: Detection, width: int) -> tuple[float, float]:
