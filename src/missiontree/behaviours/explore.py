@@ -89,6 +89,10 @@ class Explore(Leaf):
         min_frontier_size: float = Field(0.5, gt=0, description="Ignore frontiers shorter than this (m).")
         footprint_radius: float = Field(
             0.2, gt=0, description="Robot radius for planning and goal clearance (m).")
+        nav_footprint_radius: float = Field(
+            0.27, gt=0, description="Radius the navigation stack plans with on the learned map (m; the "
+            "simulator's: a TurtleBot 4's 0.17 padded by two 5 cm cells): a frontier it shows no way "
+            "to is closed, not left open.")
         xy_tolerance: float = Field(0.3, gt=0, description="Distance at which a goal counts as reached (m).")
         replan_period: float = Field(
             2.0, gt=0, description="Re-evaluate the goal this often while driving (s).")
@@ -217,6 +221,7 @@ class Explore(Leaf):
         """The exploration planner's options, from the parameters."""
         p = self.params
         return {"strategy": p.strategy, "footprint_radius": p.footprint_radius,
+                "reach_radius": p.nav_footprint_radius,
                 "sensor_range": p.sensor_range, "min_frontier_m": p.min_frontier_size,
                 "cost_rate": p.cost_rate, "erosion_m": p.scan_point_erosion, "min_gain_m2": p.min_gain}
 
@@ -382,10 +387,8 @@ class Explore(Leaf):
             self._give_up(target, reason, proved_closed=True)
             return
         tries = len(planner.tries(target.target)) + 1
-        offered = planner.candidates(grid, (pose.x, pose.y), ignore_blacklist=True) \
-            if planner.still_frontier(grid, *target.target) else None  # None: seen (or moved) meanwhile
-        if offered is not None and not any(math.dist(c.target, target.target) <= planner.blacklist_radius
-                                           for c in offered):
+        if planner.still_frontier(grid, *target.target) and not planner.reachable(grid, (pose.x, pose.y),
+                                                                                   target.target):
             self._give_up(target, f"{reason}; the map shows no way to it", proved_closed=True)
         elif tries >= self.params.max_attempts:
             self._give_up(target, f"{reason} (after {tries} tr{'ies' if tries > 1 else 'y'}; the map still "

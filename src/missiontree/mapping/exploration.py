@@ -84,14 +84,14 @@ class KeptCostmapLengths:
     """
 
     def __init__(self) -> None:
-        self.costmap: Costmap | None = None
+        self.costmaps: dict[float, Costmap] = {}   # one per footprint radius asked for
 
     def __call__(self, grid: OccupancyGrid, start: tuple[float, float],
                  goals: Sequence[tuple[float, float]], footprint_radius: float) -> list[float | None]:
         """Length (m) of the best path from ``start`` to each goal; None where unreachable (unknown: free)."""
-        costmap = self.costmap
-        if costmap is None or costmap.radius != footprint_radius:
-            costmap = self.costmap = Costmap(grid, footprint_radius, allow_unknown=True)
+        costmap = self.costmaps.get(footprint_radius)
+        if costmap is None:
+            costmap = self.costmaps[footprint_radius] = Costmap(grid, footprint_radius, allow_unknown=True)
         else:
             costmap.update_changed(grid)
         return costmap.path_lengths(start, list(goals))
@@ -183,6 +183,9 @@ class ExplorationPlanner:
         wall_gap_m: Unknown gaps this narrow (m) between occupied cells are taken for wall (cells a
             wall seen at a grazing angle left unknown; else every such gap would be a frontier
             onto the unknown outside the building).
+        reach_radius: The footprint (m) the navigation stack plans with (None: ``footprint_radius``):
+            whether the map still shows a way to a frontier (:meth:`reachable`, :meth:`left_open`) is
+            judged with it, so a place the navigation cannot plan to is closed, not left open.
         max_attempts: Failed tries (each from another approach) before a frontier the map still
             shows open is given up.
         retry_separation: A retry's goal stands at least this far (m) from the goals that failed.
@@ -208,6 +211,7 @@ class ExplorationPlanner:
     approach_m: float = 1.0
     gain_beams: int = 48
     wall_gap_m: float = 0.1
+    reach_radius: float | None = None
     max_attempts: int = 3
     retry_separation: float = 0.5
     through_m: float = 0.6
@@ -315,6 +319,22 @@ class ExplorationPlanner:
             return -path - 5.0 * failed  # a frontier tried before waits for the ones not tried yet
         return float(size)  # scan points: the report ranks them by region size
 
+    def reach_candidates(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[Candidate]:
+        """Candidates, blacklisted places too, as the navigation's footprint (``reach_radius``) sees them."""
+        kept = self.footprint_radius
+        if self.reach_radius is not None:
+            self.footprint_radius = max(kept, self.reach_radius)
+        try:
+            return self.candidates(grid, robot_xy, ignore_blacklist=True)
+        finally:
+            self.footprint_radius = kept
+
+    def reachable(self, grid: OccupancyGrid, robot_xy: tuple[float, float],
+                  target: tuple[float, float]) -> bool:
+        """Whether the map still shows a way (at ``reach_radius``) to a goal for the frontier ``target``."""
+        r = self.blacklist_radius
+        return any(math.dist(c.target, target) <= r for c in self.reach_candidates(grid, robot_xy))
+
     def left_open(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[LeftOpen]:
         """Blacklisted frontier places the map still offers a way to (and that are still worth going to).
 
@@ -326,7 +346,7 @@ class ExplorationPlanner:
             return []
         r2 = self.blacklist_radius ** 2
         out: list[LeftOpen] = []
-        for c in self.candidates(grid, robot_xy, ignore_blacklist=True):
+        for c in self.reach_candidates(grid, robot_xy):
             for b in self.blacklist:
                 near_target = (b.target[0] - c.target[0]) ** 2 + (b.target[1] - c.target[1]) ** 2 <= r2
                 if near_target or (b.x - c.x) ** 2 + (b.y - c.y) ** 2 <= r2:
