@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -221,3 +222,16 @@ def test_learned_map_is_written_into_the_run_directory(tmp_path: Path) -> None:
     assert events.of("map_saved")[0]["path"] == str(tmp_path / "map.yaml")
     assert leaf.bb.get("map_yaml") == str(tmp_path / "map.yaml")
     assert leaf.bb.get("explored_area") == pytest.approx(data.size * RES * RES)
+
+
+def test_exploration_json_says_how_it_ended(tmp_path: Path) -> None:
+    """exploration.json beside the map: 'explored' and complete after a full run, nothing left."""
+    data = corridor_map()
+    data[:, :30] = 100
+    data[:, 90:] = 100
+    robot = MapRobot(data)
+    leaf, _ = make(robot, run_dir=tmp_path)
+    run(leaf, robot)
+    report = json.loads((tmp_path / "exploration.json").read_text())
+    assert report["outcome"] == "explored" and report["complete"] is True
+    assert report["frontiers_left"] == [] and report["unknown_left_m2"] == 0.0
