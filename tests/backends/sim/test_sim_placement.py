@@ -28,10 +28,20 @@ MAZE = REPO_ROOT / "config" / "worlds" / "maps" / "maze.yaml"
 TWO_ROOMS: dict[str, Any] = {
     "name": "two_rooms",
     "robot": {"profile": "turtlebot4", "start": {"x": 1.5, "y": 1.5}},
-    "walls": {"segments": [[[0, 0], [8, 0]], [[8, 0], [8, 4]], [[8, 4], [0, 4]], [[0, 4], [0, 0]],
-                           [[4, 0], [4, 1.575]], [[4, 2.425], [4, 4]]]},  # a 0.85 m door at y 2
-    "rooms": [{"name": "west", "type": "office", "polygon": [[0, 0], [4, 0], [4, 4], [0, 4]]},
-              {"name": "east", "type": "kitchen", "polygon": [[4, 0], [8, 0], [8, 4], [4, 4]]}],
+    "walls": {
+        "segments": [
+            [[0, 0], [8, 0]],
+            [[8, 0], [8, 4]],
+            [[8, 4], [0, 4]],
+            [[0, 4], [0, 0]],
+            [[4, 0], [4, 1.575]],
+            [[4, 2.425], [4, 4]],
+        ]
+    },  # a 0.85 m door at y 2
+    "rooms": [
+        {"name": "west", "type": "office", "polygon": [[0, 0], [4, 0], [4, 4], [0, 4]]},
+        {"name": "east", "type": "kitchen", "polygon": [[4, 0], [8, 0], [8, 4], [4, 4]]},
+    ],
 }
 
 
@@ -152,3 +162,29 @@ def test_a_shipped_map_loads_by_name_and_seed() -> None:
     assert world.name == "map_tb3_sandbox_1" and world.rooms and world.objects
     with pytest.raises(WorldFileError, match="tb3_sandbox"):
         load_world("map:no_such_map:1")
+
+
+def test_a_turned_chair_whose_corner_reaches_into_a_wall_cell_is_not_kept(tmp_path: Path) -> None:
+    """On a 10 cm map a chair turned 18 degrees with a corner 7 cm into a lone occupied cell is dropped.
+
+    (The corner of such a chair was missed by the outline's raster on MRPT's Malaga campus map.)
+    """
+    image = np.full((60, 90), 254, np.uint8)  # 9 x 6 m, 10 cm cells
+    image[:2, :] = image[-2:, :] = 0
+    image[:, :2] = image[:, -2:] = 0
+    image[60 - 1 - 30, 50] = 0  # one occupied cell: x 5.0-5.1, y 3.0-3.1
+    cv2.imwrite(str(tmp_path / "coarse.pgm"), image)
+    (tmp_path / "coarse.yaml").write_text(
+        "image: coarse.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\n"
+        "free_thresh: 0.196\n"
+    )
+    data = {
+        "name": "coarse",
+        "robot": {"profile": "turtlebot4", "start": {"x": 2.0, "y": 2.0}},
+        "map": {"yaml": str(tmp_path / "coarse.yaml")},
+    }
+    turned = _chair(4.75, 3.25, "turned")
+    turned["pose"]["yaw"] = 0.3218
+    kept = keep_fitting(data, [turned, _chair(7.0, 4.0, "free")])
+    assert [o["id"] for o in kept["objects"]] == ["free"]
+    build(kept)  # the loader checks every object against the map's walls

@@ -170,7 +170,8 @@ def build(data: dict[str, Any]) -> World:
 
 def _footprint_mask(shape: tuple[int, int], grid: OccupancyGrid, poly: np.ndarray) -> np.ndarray:
     mask = np.zeros(shape, np.uint8)
-    pts = ((poly - [grid.origin.x, grid.origin.y]) / grid.resolution * 16).astype(np.int32)
+    # OpenCV's pixel k spans [k - 0.5, k + 0.5): the cell of x is pixel (x - origin) / res - 0.5
+    pts = np.round(((poly - [grid.origin.x, grid.origin.y]) / grid.resolution - 0.5) * 16).astype(np.int32)
     cv2.fillPoly(mask, [pts], 1, cv2.LINE_8, shift=4)
     return mask.astype(bool)
 
@@ -278,9 +279,8 @@ class _Footprint:
             return None
         window = (slice(int(lo[1]), int(hi[1])), slice(int(lo[0]), int(hi[0])))
         mask = np.zeros((int(hi[1] - lo[1]), int(hi[0] - lo[0])), np.uint8)
-        pts = ((poly - [grid.origin.x + lo[0] * res, grid.origin.y + lo[1] * res]) / res * 16).astype(
-            np.int32
-        )
+        corner = [grid.origin.x + lo[0] * res, grid.origin.y + lo[1] * res]
+        pts = np.round(((poly - corner) / res - 0.5) * 16).astype(np.int32)  # as in _footprint_mask
         cv2.fillPoly(mask, [pts], 1, cv2.LINE_8, shift=4)
         return _Footprint(window, mask.astype(bool))
 
@@ -293,6 +293,9 @@ class _Placer:
         self.rng = rng
         self.ids = ids
         self.res = scene.grid.resolution
+        #: Outlines are grown by this before they are rasterised: a cell is covered when its centre
+        #: is, so an outline may reach half a cell into a wall cell it does not cover
+        self.grow = max(0.03, 0.55 * self.res)
         self.near_door_furniture = _near(scene.doors, FURNITURE_DOOR_GAP, self.res)
         self.near_door_small = _near(scene.doors, SMALL_DOOR_GAP, self.res)
         self.reach_near = _near(scene.reach, 0.9, self.res) & scene.floor
@@ -410,7 +413,7 @@ class _Placer:
             yaw = self._wall_yaw(int(row), int(col))
             x, y = self.s.point(int(row), int(col))
             poly = _box(x, y, yaw, sx, sy)
-            foot = self.fits(_box(x, y, yaw, sx, sy, 0.05), obstacle=True)
+            foot = self.fits(_box(x, y, yaw, sx, sy, max(0.05, self.grow)), obstacle=True)
             if foot is None:
                 continue
             inner = _Footprint.of(poly, self.s.grid, self.s.blocked.shape, 0)
@@ -482,7 +485,7 @@ class _Placer:
                 if mode != "floor"
                 else float(self.rng.uniform(-math.pi, math.pi))
             )
-            foot = self.fits(_box(x, y, yaw, sx, sy, 0.03), obstacle=True)
+            foot = self.fits(_box(x, y, yaw, sx, sy, self.grow), obstacle=True)
             if foot is None:
                 continue
             self.commit(foot)
@@ -674,10 +677,10 @@ def keep_fitting(data: dict[str, Any], candidates: list[dict[str, Any]]) -> dict
         pose = obj["pose"]
         if obj.get("shape") == "cylinder":
             a = np.linspace(0, 2 * np.pi, 16, endpoint=False)
-            r = sx / 2 + 0.03
+            r = sx / 2 + placer.grow
             poly = np.stack([pose["x"] + r * np.cos(a), pose["y"] + r * np.sin(a)], axis=1)
         else:
-            poly = _box(pose["x"], pose["y"], pose.get("yaw", 0.0), sx, sy, 0.03)
+            poly = _box(pose["x"], pose["y"], pose.get("yaw", 0.0), sx, sy, placer.grow)
         foot = placer.fits(poly, obstacle=float(obj.get("elevation", 0.0)) < 0.3)
         if foot is not None and obj["id"] not in placer.ids:
             placer.commit(foot)
