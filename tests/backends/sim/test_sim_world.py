@@ -230,3 +230,23 @@ def _box_hits_any_segment(obj, segs):  # noqa: ANN001, ANN202
             if abs(ax + t * (bx - ax)) < hx and abs(ay + t * (by - ay)) < hy:
                 return True
     return False
+
+
+def test_floor_colours_paint_each_room_over_the_ones_before():
+    """Rooms are painted in the order listed, a later room over an earlier one, as room masks would."""
+    import cv2
+    import numpy as np
+
+    from missiontree.backends.sim import world as world_module
+
+    world = load_world(REPO_ROOT / "config" / "worlds" / "map_example.yaml")
+    grid, rooms = world.grid, world.rooms
+    expected = np.empty(grid.data.shape + (3,), np.float64)
+    expected[:] = (170, 160, 145)
+    for room in rooms:
+        mask = np.zeros(grid.data.shape, np.uint8)
+        poly = ((room.polygon - [grid.origin.x, grid.origin.y]) / grid.resolution * 16).astype(np.int32)
+        cv2.fillPoly(mask, [poly], 1, cv2.LINE_8, shift=4)
+        expected[mask > 0] = room.floor_rgb or world_module._ROOM_FLOORS.get(room.type, (170, 160, 145))
+    assert len(rooms) == 2
+    assert np.array_equal(world_module._floor_colours(grid, rooms), expected)

@@ -479,12 +479,10 @@ class WorldTooLargeError(ValueError):
 def _floor_colours(grid: OccupancyGrid, rooms: list[Room]) -> np.ndarray:
     rgb = np.empty(grid.data.shape + (3,), np.float64)
     rgb[:] = (170, 160, 145)
-    for room in rooms:
+    for room in rooms:  # drawn straight into the image (a later room over an earlier one, as listed)
         colour = room.floor_rgb or _ROOM_FLOORS.get(room.type, (170, 160, 145))
         poly = ((room.polygon - [grid.origin.x, grid.origin.y]) / grid.resolution * 16).astype(np.int32)
-        mask = np.zeros(grid.data.shape, np.uint8)
-        cv2.fillPoly(mask, [poly], 1, cv2.LINE_8, shift=4)
-        rgb[mask > 0] = colour
+        cv2.fillPoly(rgb, [poly], tuple(float(c) for c in colour), cv2.LINE_8, shift=4)
     return rgb
 
 
