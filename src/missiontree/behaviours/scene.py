@@ -16,7 +16,13 @@ Where it shows:
 - tick-log events: ``scene_graph_changed`` with ``added``, ``moved``, ``removed`` (and ``updated``)
   for every change, and ``scene_graph`` carrying the whole graph on change (at most one a second)
   and at least every ``publish_every`` seconds, which the ROS 2 backend mirrors to ``/scene_graph``
-  and a MarkerArray.
+  and a MarkerArray;
+- ``<run_dir>/scene_coverage.json`` and a ``scene_graph_explored`` event when the leaf stops: the
+  explored share of the robot's own map (known reachable floor against the unknown its frontiers
+  still bound, :mod:`~missiontree.semantics.coverage`), so a reader knows how much of the place the
+  graph can hold; the share is also in the leaf's running text;
+- ``context.scene.doubtful``: places seen a few times that did not become objects (too close, too
+  far, too brief), for a second look (``LookAgain``, :mod:`~missiontree.behaviours.scene_look`).
 
 Room types and descriptions come from the vision-language model (``room_types: vlm``,
 ``describe: vlm``: frames taken in the room with the NAIS room prompt; crops 20 % larger than the
