@@ -21,14 +21,14 @@ Words outside the file are left to the caller's embedding fallback.
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
 from typing import Any
 
-from missiontree.reasoning.phrases import normalise
-
 KNOWLEDGE_FILE = "data/intent_knowledge.json"
+_WORD = re.compile(r"[a-z]+")
 #: A label serving a request at least this well is a strong choice: it serves it outright, not as a
 #: stand-in (a bookshelf 0.9 for reading, a refrigerator 0.7 for thirst; a sink 0.4 is a weak one).
 STRONG = 0.7
@@ -46,6 +46,15 @@ FUNCTION_WORDS = frozenset(
 SUFFIXES = (("ies", "y"), ("es", "e"), ("es", ""), ("s", ""), ("ed", "e"), ("ed", ""), ("ing", "e"),
             ("ing", ""), ("er", ""), ("est", ""), ("men", "man"))
 
+
+
+def normalise(text: str) -> str:
+    """Lower-case ``text`` and keep only its words.
+
+    The word rule of :mod:`~missiontree.reasoning.phrases`, which reads this module's lexicon: kept
+    here so that the two modules do not import each other.
+    """
+    return " ".join(_WORD.findall(text.lower()))
 
 @dataclass(frozen=True)
 class Reading:
