@@ -200,6 +200,24 @@ def test_run_directory_holds_log_summary_and_pictures(tmp_path: Path) -> None:
     assert json.loads(lines[-1])["event"] == "mission_finished"
 
 
+
+class _Serves(Leaf):
+    """Reports what it served, twice (the last word stands), and succeeds."""
+
+    def update(self) -> Status:
+        self.context.report("intent", {"served": "cup_1", "confirmed": False})
+        self.context.report("intent", {"served": "cup_2", "confirmed": True})
+        return Status.SUCCESS
+
+
+def test_what_leaves_report_is_the_summarys_outcome(tmp_path: Path) -> None:
+    """A leaf's ``context.report`` lands in summary.json's ``outcome``; a run without one has none."""
+    _runner(_Serves("serve"), run_dir=tmp_path / "run").run()
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["outcome"] == {"intent": {"served": "cup_2", "confirmed": True}}
+    plain_run = _runner(ScriptedLeaf("a", script="S"), run_dir=tmp_path / "plain").run()
+    assert "outcome" not in plain_run.summary
+
 def test_blackboard_defaults_are_written_before_the_first_tick() -> None:
     """Blackboard defaults exist when the first tick runs and appear in its log line."""
     result, lines = capture_tick_log(ScriptedLeaf("a", script="S"), blackboard={"speed": 0.25})

@@ -53,6 +53,8 @@ class MissionContext:
             for a worker on the tick thread, even in the simulator.
         scene: The live scene (a :class:`missiontree.semantics.live.LiveScene`: semantic map, rooms,
             latest scene graph) once a ``BuildSceneGraph`` leaf has set it up; None before.
+        outcome: What the mission did, in its own words, through :meth:`report`: summary.json's
+            ``outcome`` section (which object was served and why, what the exploration left, ...).
     """
 
     robot: Robot
@@ -66,7 +68,16 @@ class MissionContext:
     realtime: bool = False
     scene: Any = None
     markers_dropped: int = 0
+    outcome: dict[str, Any] = field(default_factory=dict)
     _marker_keys: set[tuple[str, str, float, float]] = field(default_factory=set, repr=False)
+
+    def report(self, section: str, value: Any) -> None:
+        """Put ``value`` (plain JSON data) under ``section`` of summary.json's ``outcome``.
+
+        A leaf reports what its mission did there, e.g. ``report("intent", {"served": ...})``;
+        a later report of the same section replaces the earlier one (the last word stands).
+        """
+        self.outcome[section] = value
 
     def starts(self, path: Path) -> bool:
         """Whether ``path`` in the run directory is new to this run (True once, on the first call).

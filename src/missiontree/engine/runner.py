@@ -525,6 +525,8 @@ class Runner:
             node, cause = faulted
             summary["fault"] = {"node": self.recorder.path(node) if self.recorder else node.name,
                                 "error": cause}
+        if self.context.outcome:  # what the mission did, in its leaves' words
+            summary["outcome"] = dict(self.context.outcome)
         if self.recorder is not None:
             summary.update(self.recorder.summary())
         summary.update(self._final_pose())
