@@ -9,11 +9,21 @@
   segmentation and typed, and whose objects (with same-class and same-colour decoys) come from
   :func:`missiontree.backends.sim.placement.place_objects`.
 
-Test world ``i`` (seed ``s = first_seed + i``) is ``TEST_CYCLE[s % len(TEST_CYCLE)]``: a floorplan
-named ``floorplan:<7 s + kind>`` or a map world named ``map:<map>:<s>``. Every world is checked by
-the code that makes it (valid, every room reachable by a TurtleBot 4) before it is handed out; the
-names load by themselves too (``load_world("map:depot:4")``), with two walkers and without
-``min_objects``: run the file :func:`write_split_world` writes to get the split's world.
+Test world ``i`` (seed ``s = first_seed + i``) is place ``s % n`` of the ``n`` places of
+:func:`current_test_cycle`: a floorplan named ``floorplan:<7 s + kind>``, a map world named
+``map:<map>:<s>`` or an MRPT world ``mrpt:<map>:<s>``.
+
+MRPT's two real grids from Debian's ``mrpt-common`` (:mod:`missiontree.backends.sim.mrpt_worlds`:
+``uwb`` and a 40 x 40 m crop of the Malaga campus) are appended to the cycle, at its places 11 and
+12, only when that package is installed (``make setup-mrpt``); otherwise the cycle is the 11 places
+of :data:`TEST_CYCLE` and one line on stderr says so. Seeds 0 to 10 give the same worlds either way;
+from seed 11 on the worlds depend on whether the package is installed, so the split is
+deterministic for a given machine setup, and a report should say whether the MRPT maps were in it.
+
+Every world is checked by the code that makes it (valid, every room reachable by a TurtleBot 4)
+before it is handed out; the names load by themselves too (``load_world("map:depot:4")``), with
+two walkers and without ``min_objects``: run the file :func:`write_split_world` writes to get the
+split's world.
 
 Nobody tunes on ``test``: run it once at the end of a change and report it beside ``dev``.
 """
@@ -22,6 +32,7 @@ from __future__ import annotations
 
 import copy
 import os
+import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +42,7 @@ import yaml
 
 from missiontree.backends.sim.floorplans import FLOORPLAN_PREFIX, KINDS, floorplan_world
 from missiontree.backends.sim.generator import GENERATED_PREFIX, generate_world
+from missiontree.backends.sim.mrpt_worlds import INSTALL_HINT, MRPT_PREFIX, map_yaml, mrpt_available
 from missiontree.backends.sim.placement import MAP_PREFIX, map_world, place_objects, shipped_map, small_kinds
 
 #: The split names.
@@ -53,6 +65,23 @@ TEST_CYCLE: tuple[tuple[str, str], ...] = (
     ("floorplan", "warehouse"),
     ("map", "warehouse"),
 )
+
+#: Appended to :data:`TEST_CYCLE` when Debian's mrpt-common is installed: ("mrpt", MRPT map name).
+MRPT_CYCLE: tuple[tuple[str, str], ...] = (("mrpt", "uwb"), ("mrpt", "malaga"))
+_noted: list[bool] = []
+
+
+def current_test_cycle() -> tuple[tuple[str, str], ...]:
+    """The test split's cycle on this machine: :data:`TEST_CYCLE`, then :data:`MRPT_CYCLE` if installed.
+
+    Without the MRPT maps a one-line note goes to stderr (once per process), so a report can say why.
+    """
+    if mrpt_available():
+        return TEST_CYCLE + MRPT_CYCLE
+    if not _noted:
+        _noted.append(True)
+        print(f"note: the test split leaves out MRPT's maps: {INSTALL_HINT}", file=sys.stderr)
+    return TEST_CYCLE
 
 
 @dataclass(frozen=True)
@@ -109,11 +138,17 @@ def _dev(seed: int, people: bool, min_objects: int) -> SplitWorld:
 
 
 def _test(seed: int, people: bool, min_objects: int) -> SplitWorld:
-    family, what = TEST_CYCLE[seed % len(TEST_CYCLE)]
+    cycle = current_test_cycle()
+    family, what = cycle[seed % len(cycle)]
     if family == "floorplan":
         fseed = 7 * seed + KINDS.index(what)
         data = floorplan_world(fseed, people=2 if people else 0)
         return SplitWorld(f"{FLOORPLAN_PREFIX}{fseed}", FLOORPLAN_FAMILY, _top_up(data, seed, min_objects))
+    if family == "mrpt":
+        data = map_world(
+            map_yaml(what), seed, name=f"mrpt_{what}_{seed}", small=min_objects, people=2 if people else 0
+        )
+        return SplitWorld(f"{MRPT_PREFIX}{what}:{seed}", MAP_FAMILY, data)
     data = map_world(
         shipped_map(what), seed, name=f"map_{what}_{seed}", small=min_objects, people=2 if people else 0
     )
