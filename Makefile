@@ -5,7 +5,7 @@ PIP := $(VENV)/bin/pip
 EXAMPLE_PLUGIN := plugins/missiontree-example
 BATTERY_PLUGIN := plugins/missiontree-battery
 
-.PHONY: setup setup-ros2 setup-browser setup-train demo test lint bench clean
+.PHONY: setup setup-ros2 setup-browser setup-mrpt setup-train demo test lint bench clean
 
 setup: $(VENV)/.installed
 
@@ -25,6 +25,11 @@ setup-ros2: setup
 setup-browser:
 	command -v chromium >/dev/null || { [ "$$(id -u)" = 0 ] && apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium; } || echo "chromium missing and not root: the browser tests will fail"
 
+# Debian's mrpt-common (BSD-3) for MRPT's real grids (mrpt:uwb, mrpt:malaga worlds, the test split's
+# places 11-12, the gridmap reader's tests). Best effort: without it those tests skip with a reason.
+setup-mrpt:
+	[ -d /usr/share/mrpt/datasets ] || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && apt-get update -qq && apt-get install -y -qq --no-install-recommends mrpt-common; } || echo "mrpt-common missing (not root or no apt): the MRPT map tests will skip"
+
 # CPU torch for the detector tools' tests (tests/tools): the train extra pins the local CPU build.
 setup-train: $(VENV)/.installed-train
 
@@ -39,7 +44,7 @@ lint: setup
 	$(VENV)/bin/ruff check src tests examples benchmarks tools plugins
 	$(VENV)/bin/mypy
 
-test: setup setup-ros2 setup-browser setup-train
+test: setup setup-ros2 setup-browser setup-mrpt setup-train
 	$(VENV)/bin/ruff check src tests examples benchmarks tools plugins
 	$(VENV)/bin/mypy
 	MISSIONTREE_REQUIRE_ROS2=1 MISSIONTREE_REQUIRE_BROWSER=1 MISSIONTREE_REQUIRE_TRAIN=1 $(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests) $(if $(wildcard $(BATTERY_PLUGIN)/tests),$(BATTERY_PLUGIN)/tests)
