@@ -112,3 +112,12 @@ def test_uwb_loads_whole() -> None:
     """The UWB demo grid (28 x 26 m) loads whole as a world with objects."""
     assert world_grid("uwb").data.shape == (650, 700)
     assert load_world("mrpt:uwb").objects
+
+
+def test_map_yaml_writes_only_the_pair_and_keeps_identical_files(fake_datasets: Path, tmp_path: Path) -> None:
+    """The cache holds the yaml and image only, and a second call leaves the same bytes untouched."""
+    first = mrpt_worlds.map_yaml("uwb")
+    stamp = first.stat().st_mtime_ns
+    assert mrpt_worlds.map_yaml("uwb") == first
+    assert sorted(p.name for p in (tmp_path / "cache").iterdir()) == ["mrpt_uwb.pgm", "mrpt_uwb.yaml"]
+    assert first.stat().st_mtime_ns == stamp

@@ -173,10 +173,17 @@ def map_yaml(name: str) -> Path:
     Raises:
         KeyError, FileNotFoundError, GridmapError: As :func:`world_grid`.
     """
+    grid = world_grid(name)
     folder = cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
-    _, meta = write_map(world_grid(name), folder, f"mrpt_{name}")
-    return meta.resolve()
+    # written in a folder of this process's own, then moved: processes loading at once never collide
+    with tempfile.TemporaryDirectory(dir=folder, prefix=".write-") as scratch:
+        image, meta = write_map(grid, scratch, f"mrpt_{name}")
+        for made in (image, meta):  # the image first: a yaml in place always finds its image
+            target = folder / made.name
+            if not (target.is_file() and target.read_bytes() == made.read_bytes()):
+                os.replace(made, target)
+    return (folder / meta.name).resolve()
 
 
 def mrpt_document(argument: str) -> tuple[Located, Path]:
