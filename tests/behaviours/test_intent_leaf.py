@@ -118,12 +118,20 @@ def test_serve_commands_takes_stdin_lines_in_turn_and_ends_with_the_stream() -> 
     assert result.status.value == "SUCCESS"
 
 
-def test_a_weak_choice_nothing_can_confirm_is_not_served() -> None:
-    """The model sends "I'm parched" to the printer, which no detector can confirm: doubted, FAILURE."""
+def test_a_weak_choice_is_never_driven_to_or_served() -> None:
+    """The model sends "I'm parched" to the printer: rejected as a weak choice, no goal, FAILURE with why."""
     status, log = run_leaf(["printer_1"], command="I'm parched", look=True)
-    assert status == "FAILURE" and not of(log, "intent_served")
-    [doubt] = of(log, "object_doubtful")
-    assert "weak choice" in doubt["reason"] and "printer" in doubt["reason"]
+    assert status == "FAILURE" and not of(log, "intent_served") and not of(log, "goal_sent")
+    [rejected] = of(log, "candidate_rejected")
+    assert "weak choice" in rejected["reason"] and "printer" in rejected["reason"]
+    assert "strongly enough" in of(log, "command_served")[0]["reason"]
+
+
+def test_a_stronger_tier_is_driven_to_before_a_nearer_weaker_one() -> None:
+    """Bored: the TV (1.0) is tried before the nearer laptop (0.7); by path only within a tier."""
+    status, log = run_leaf(["laptop_1", "tv_1"], command="I am bored")
+    assert status == "SUCCESS"
+    assert [e["object"] for e in of(log, "goal_sent")] == ["tv_1"]
 
 
 def test_a_strong_choice_nothing_can_confirm_is_served_and_says_so() -> None:
@@ -131,5 +139,5 @@ def test_a_strong_choice_nothing_can_confirm_is_served_and_says_so() -> None:
     status, log = run_leaf(["printer_1"], command="I need to print a document", look=True)
     [served] = of(log, "intent_served")
     assert status == "SUCCESS" and served["object"] == "printer_1" and served["confirmed"] is False
-    assert served["chosen_because"] == "scripted" and "print (print)" in served["note"]
+    assert served["chosen_because"] == "scripted" and "serves print (" in served["note"]
     assert "NOT confirmed" in of(log, "command_served")[0]["reason"]

@@ -119,3 +119,19 @@ def test_each_command_outcome_is_written_to_the_run_directory(tmp_path: Path) ->
     assert served["status"] == "served" and served["object"] == "printer_1" and served["confirmed"] is False
     assert "print" in served["chosen_because"]
     assert unserved["status"] == "not served" and "unicorn" in unserved["reason"]
+
+
+def test_summary_outcome_says_what_was_served_why_and_what_was_not(tmp_path: Path) -> None:
+    """summary.json's outcome.intent lists each command: object, label, score, confirmed; or why not."""
+    request = MissionRequest(mission=MISSION, params={"command": ""}, quiet=True, log_stream=io.StringIO(),
+                             handle_signals=False, max_duration=300, out=tmp_path)
+    with Session.open(request) as session:
+        lines = "I need to print a document\nbring me a unicorn\n"
+        session.robot.command_input = LineCommands(io.StringIO(lines))
+        session.run()
+    outcome = json.loads((tmp_path / "summary.json").read_text(encoding="utf-8"))["outcome"]["intent"]
+    served, unserved = outcome["commands"]
+    assert outcome["served"] == 1 and outcome["not_served"] == 1
+    assert (served["object"], served["label"], served["confirmed"]) == ("printer_1", "printer", False)
+    assert served["score"] >= 0.7 and "print" in served["score_because"] and served["chosen_because"]
+    assert unserved["status"] == "not served" and "unicorn" in unserved["reason"]

@@ -48,9 +48,9 @@ def test_unknown_thing_is_served_by_nothing(model: OfflineLanguageModel) -> None
 
 
 def test_general_word_covers_every_label_under_it(model: OfflineLanguageModel) -> None:
-    """A WordNet hypernym of several labels ("seat") offers each of them present."""
+    """A WordNet hypernym of several labels ("seat") offers each of them present, before other rest places."""
     answer = model.resolve("take me to some kind of seat", scene())
-    assert set(answer.candidates) == {"sofa_1", "chair_1"}
+    assert set(answer.candidates[:2]) == {"sofa_1", "chair_1"}
 
 
 def test_weak_stand_in_is_not_offered_beside_strong_ones(model: OfflineLanguageModel) -> None:
@@ -74,7 +74,8 @@ def test_compound_naming_something_else_is_not_its_object(model: OfflineLanguage
 
 def test_hyphenated_word_is_read_whole(model: OfflineLanguageModel) -> None:
     """"world-weary" (WordNet: bored) is read as one word, not as "weary" (tired)."""
-    assert model.resolve("I feel so world-weary", scene()).candidates == ["tv_1"]
+    answer = model.resolve("I feel so world-weary", scene()).candidates
+    assert answer[0] == "tv_1" and not {"sofa_1", "chair_1", "bed_1"} & set(answer)
 
 
 def test_word_reached_through_a_rare_sense_does_not_mean_the_need() -> None:

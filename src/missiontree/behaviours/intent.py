@@ -280,8 +280,41 @@ class GoToIntent(Leaf):
             why = f"nothing in the map satisfies {self.text!r}: {answer.reason or 'no candidate'}"
             self._record({"command": self.text, "status": "not served", "reason": why})
             return self.fail(why)
-        self.remaining = ids
+        strong, weak = self._strong_ids(ids)
+        for oid, why in weak:
+            self.tried.append((oid, why))
+            self.emit("candidate_rejected", command=self.text, object=oid, reason=why)
+        if not strong:
+            why = (f"nothing in the map satisfies {self.text!r} strongly enough to serve "
+                   f"({'; '.join(f'{oid}: {reason}' for oid, reason in weak[:6])})")
+            self._record({"command": self.text, "status": "not served", "reason": why,
+                          "chosen_because": self.because,
+                          "tried": [{"object": oid, "why": reason} for oid, reason in weak]})
+            return self.fail(why)
+        self.remaining = strong
         return self._plan()
+
+    def _strong_ids(self, ids: list[str]) -> tuple[list[str], list[tuple[str, str]]]:
+        """The model's ids split into (strong choices, [(weak id, why)]).
+
+        A served object must satisfy the command by the shipped knowledge (at least
+        :data:`~missiontree.reasoning.knowledge.STRONG`) or be named by class: a weak stand-in (a
+        potted plant for "a cosmetic") is never driven to, whatever a look would say.
+        """
+        assert self.scene is not None
+        strong: list[str] = []
+        weak: list[tuple[str, str]] = []
+        for oid in ids:
+            obj = self.scene.objects.get(oid)
+            if obj is None:  # not in the graph: plan_candidates rejects it with that reason
+                strong.append(oid)
+                continue
+            score, why = self._strength_of(obj.label)
+            if score >= STRONG:
+                strong.append(oid)
+            else:
+                weak.append((oid, f"a weak choice: {why} ({score:.2f} < {STRONG:g})"))
+        return strong, weak
 
     def _plan(self) -> Status:
         assert self.scene is not None
@@ -334,13 +367,15 @@ class GoToIntent(Leaf):
             "candidates_ranked",
             command=self.text,
             by="path_length",
-            candidates=[c.as_dict() for c in ranking.candidates],
+            candidates=[{**c.as_dict(), "score": self._strength_of(c.label)[0]} for c in ranking.candidates],
         )
         driven = sum(1 for _, why in self.tried if why.startswith(("not confirmed", "not reached")))
         if not ranking.candidates or driven >= self.params.max_candidates:
             return self._give_up()
         self.second_look = False
-        return self._drive_to(ranking.candidates[0])
+        # the best tier first (a TV before a laptop for boredom), the shortest path within a tier
+        best = min(ranking.candidates, key=lambda c: (-self._strength_of(c.label)[0], c.path_length))
+        return self._drive_to(best)
 
     def _drive_to(self, candidate: Candidate) -> Status:
         robot = self.context.robot
@@ -502,8 +537,11 @@ class GoToIntent(Leaf):
     def _served(self, confirmed: bool, note: str) -> Status:
         """SUCCESS at the target, recorded on the blackboard and in the tick log with why it was chosen."""
         assert self.target is not None
+        score, why = self._strength()
         record = {"command": self.text, "object": self.target.id, "label": self.target.label,
-                  "chosen_because": self.because, "confirmed": confirmed, "note": note}
+                  "chosen_because": self.because, "score": score, "score_because": why,
+                  "confirmed": confirmed, "note": note,
+                  "tried": [{"object": oid, "why": reason} for oid, reason in self.tried]}
         self.write("served", record)
         self.emit("intent_served", **record)
         self._record({**record, "status": "served"})
@@ -519,13 +557,16 @@ class GoToIntent(Leaf):
         not understand the command: then nothing vouches for the choice).
         """
         assert self.target is not None
-        label = fold_label(self.target.label)
+        return self._strength_of(self.target.label)
+
+    def _strength_of(self, raw: str) -> tuple[float, str]:
+        """:meth:`_strength` of an object labelled ``raw``."""
+        label = fold_label(raw)
         if self.named and fold_label(self.named) == label:
-            return 1.0, f"the command names a {self.target.label}"
+            return 1.0, f"the command names a {raw}"
         kb = knowledge()
-        score, why = kb.score(label if label in kb.serves else self.target.label, kb.read(self.text))
-        return score, (f"{self.target.label} serves {why}" if why
-                       else f"nothing known says a {self.target.label} serves {self.text!r}")
+        score, why = kb.score(label if label in kb.serves else raw, kb.read(self.text))
+        return score, (f"{raw} serves {why}" if why else f"nothing known says a {raw} serves {self.text!r}")
 
     # -- failing over ----------------------------------------------------------------------------
 
@@ -600,7 +641,19 @@ class GoToIntent(Leaf):
         return self.fail(why)
 
     def _record(self, record: dict[str, Any]) -> None:
-        """Add the command's outcome to ``<run_dir>/intent_served.json`` (one entry per command)."""
+        """Add the command's outcome to ``<run_dir>/intent_served.json`` and summary.json's ``outcome``.
+
+        The outcome's ``intent`` section lists every command of the run (``commands``) with counts,
+        so that a user reading summary.json sees what was served, why and whether it was confirmed.
+        """
+        if self.ctx is not None:
+            before = self.ctx.outcome.get("intent", {})
+            commands = [*(before.get("commands", []) if isinstance(before, dict) else []), record]
+            self.ctx.report("intent", {
+                "served": sum(1 for c in commands if c.get("status") == "served"),
+                "not_served": sum(1 for c in commands if c.get("status") != "served"),
+                "commands": commands,
+            })
         run_dir = getattr(self.ctx, "run_dir", None)
         if run_dir is None:
             return

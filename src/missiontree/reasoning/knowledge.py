@@ -32,6 +32,11 @@ _WORD = re.compile(r"[a-z]+")
 #: A label serving a request at least this well is a strong choice: it serves it outright, not as a
 #: stand-in (a bookshelf 0.9 for reading, a refrigerator 0.7 for thirst; a sink 0.4 is a weak one).
 STRONG = 0.7
+#: A need word's own weight (a word of one of the need's senses, in one of its most frequent senses) ...
+DIRECT = 1.0
+#: ... and the weight of a far link (a similar-to of a similar-to, a deep hyponym), read only when no
+#: word of the request names a need directly.
+FAR = 0.7
 #: Share of each further need a label serves that adds to its score (see :meth:`Knowledge.score`).
 COMBINED = 0.25
 #: Words that carry no need or object of their own (pronouns, articles, auxiliaries, request verbs).
@@ -158,6 +163,10 @@ class Knowledge:
                 i += n - 1
                 break
             i += 1
+        if any(weight >= DIRECT for weight, _ in needs.values()):
+            # a word that names a need outright outweighs another word's far echo of a different one
+            # ("tired" is rest; its second-degree similar-to link to boredom is not read beside it)
+            needs = {need: read for need, read in needs.items() if read[0] > FAR}
         return Reading(needs, named, tuple(unknown), tuple(compounds))
 
     def score(self, label: str, reading: Reading) -> tuple[float, str]:

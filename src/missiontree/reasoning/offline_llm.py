@@ -7,8 +7,8 @@ network and no GPU:
 - A **need** ("I am thirsty", "I need to answer some emails") is read with the shipped knowledge
   (:mod:`missiontree.reasoning.knowledge`: WordNet words of each need, affordances written per label):
   each class of the scene scores how well it serves what the request says (a bottle 1.0 for thirst, a
-  sink 0.4); classes within ``KNOWN_MARGIN`` of the best and at least ``SERVE_MIN`` are candidates,
-  best class first. A request none of whose words the knowledge knows is matched to a need's
+  sink 0.4); every class serving it at least ``STRONG`` is a candidate, best class first. A
+  request none of whose words the knowledge knows is matched to a need's
   description by MiniLM embedding, and only a clear match counts (``NEED_MATCH``), at a weaker
   strength. A request that expresses no need and names no known object ("bring me a unicorn") is
   served by nothing; so is one whose need only a class the scene lacks serves ("take a shower").
@@ -36,11 +36,12 @@ from pydantic import BaseModel
 from missiontree.errors import ModelError
 from missiontree.perception.colour import canonical_colour
 from missiontree.reasoning.embedder import similarity
-from missiontree.reasoning.knowledge import Knowledge, Reading, knowledge
+from missiontree.reasoning.knowledge import STRONG, Knowledge, Reading, knowledge
 from missiontree.reasoning.phrases import fold_label, parse_reference, split_relation
 from missiontree.reasoning.prompts import parse_intent_messages
 from missiontree.reasoning.protocols import Embedder, Message
 from missiontree.reasoning.schemas import IntentResolution, ReferenceParse
+from missiontree.semantics.relations import RELATIONS, Body, RelationParams, compute_relations
 
 #: What each object class is for, in one line (what an embedding of a need should land near).
 AFFORDANCES: dict[str, str] = {
@@ -87,9 +88,9 @@ AFFORDANCES: dict[str, str] = {
     "dog": "a pet dog to play with and walk",
 }
 
-#: A label must serve the request at least this well (knowledge score in [0, 1]) to be a candidate ...
-SERVE_MIN = 0.35
-#: ... and within this of the best present label (a bottle 1.0 and a cup 1.0 for thirst, not a sink 0.4).
+#: Kept for configuration compatibility: candidates are now the classes serving a request at least
+#: :data:`~missiontree.reasoning.knowledge.STRONG` (a bottle 1.0 and a cup 1.0 for thirst, not a sink 0.4).
+SERVE_MIN = STRONG
 KNOWN_MARGIN = 0.25
 #: A request the knowledge's words do not cover is matched to a need's description by embedding only
 #: at this similarity or more ...
@@ -97,8 +98,6 @@ NEED_MATCH = 0.45
 #: ... and then read at this strength (weaker than a word the knowledge knows).
 EMBEDDED_STRENGTH = 0.6
 
-#: Metres within which "near" / "next to" / "on" hold.
-RELATION_DISTANCE = {"near": 2.0, "next_to": 1.2, "on": 0.6, "in": 1.0}
 
 
 class OfflineLanguageModel:
@@ -196,14 +195,16 @@ class OfflineLanguageModel:
         (lacking, lacking_why), lacking_label = max(absent, default=((0.0, ""), ""))
         said = ", ".join(f"{need} ({word})" for need, (_, word) in sorted(reading.needs.items()))
         said = said or ", ".join(sorted({word for _, word in reading.named.values()}))
-        if best < SERVE_MIN or lacking > best + self.absent_margin:
+        if best < STRONG or lacking > best + self.absent_margin:
             ranked = ", ".join(f"{label} {scores[label][0]:.2f}" for label in order[:3])
             wants = (f"; it calls for a {lacking_label} ({lacking_why}), which the scene lacks"
-                     if lacking > max(SERVE_MIN, best + self.absent_margin) else "")
+                     if lacking > max(STRONG, best + self.absent_margin) else "")
             return IntentResolution(candidates=[], reason=(
                 f"no object in the scene serves {request!r}: it asks for {said}{wants} (best present: "
-                f"{ranked}; {SERVE_MIN:.2f} needed, by {how})"))
-        chosen = [label for label in order if scores[label][0] >= max(SERVE_MIN, best - KNOWN_MARGIN)]
+                f"{ranked}; {STRONG:.2f} needed, by {how})"))
+        # every class that serves it strongly, best first: when the best one cannot be reached (no
+        # place to stand by the TV), the next tier (the laptop for boredom) is still on offer
+        chosen = [label for label in order if scores[label][0] >= STRONG]
         ids = [str(o["id"]) for label in chosen for o in objects if o["label"] == label]
         ranked = ", ".join(f"{label} {scores[label][0]:.2f}" for label in order[:4])
         serve = "serves" if len(chosen) == 1 else "serve"
@@ -245,7 +246,7 @@ class OfflineLanguageModel:
         if not anchors and ref.relation == "in":
             return IntentResolution(candidates=[str(o["id"]) for o in in_room], reference=ref,
                                     reason=f"{len(in_room)} {what} in the {ref.anchor}")
-        distances = [(_relation_distance(o, anchors, ref.relation), o) for o in described]
+        distances = [(_relation_distance(o, anchors, ref.relation, objects), o) for o in described]
         scored = [(d, o) for d, o in distances if d is not None]
         scored.sort(key=lambda pair: (pair[0], str(pair[1]["id"])))
         relation = ref.relation.replace("_", " ")
@@ -289,41 +290,106 @@ def _xy(obj: Mapping[str, Any]) -> tuple[float, float] | None:
 
 
 def _relation_distance(obj: Mapping[str, Any], anchors: Sequence[Mapping[str, Any]],
-                       relation: str) -> float | None:
+                       relation: str, objects: Sequence[Mapping[str, Any]] = ()) -> float | None:
     """Distance to the nearest anchor the relation holds for, None when it holds for none.
 
-    Directional relations use the anchor's ``yaw`` (the way it faces) when the scene gives one; without
-    it they fall back to nearness, which is what a listener can check from positions alone.
+    A relation holds when the scene graph has the edge (``near`` and ``next_to`` either way round:
+    the graph relates the smaller object to the larger), or when the relations' own geometry
+    (:func:`missiontree.semantics.relations.compute_relations`) finds it from the listed positions,
+    rooms and sizes. Nearness alone never makes "on" or "in front of" true.
     """
-    where = _xy(obj)
-    for edge in obj.get("relations", None) or []:  # the scene graph's own relation edges come first
-        if not isinstance(edge, Mapping) or str(edge.get("relation", "")) != relation:
-            continue
-        for anchor in anchors:
-            same_label = fold_label(str(anchor["label"])) == fold_label(str(edge.get("target")))
-            same_id = str(anchor.get("id")) == str(edge.get("target_id"))
-            if same_id or ("target_id" not in edge and same_label):
-                at = _xy(anchor)
-                return math.hypot(where[0] - at[0], where[1] - at[1]) if where and at else 0.0
-    if where is None:
-        return None
-    best: float | None = None
+    accepted = _ACCEPTS.get(relation, frozenset({relation}))
+    symmetric = relation in _SYMMETRIC
+    oid = str(obj.get("id"))
+    held: set[str] = set()
     for anchor in anchors:
+        aid = str(anchor.get("id"))
+        if aid == oid:
+            continue
+        if any(_edge_to(edge, anchor, accepted) for edge in obj.get("relations", None) or []):
+            held.add(aid)
+        elif symmetric and any(_edge_to(edge, obj, accepted) for edge in anchor.get("relations", None) or []):
+            held.add(aid)
+    geometric = [(e.source_id, e.target_id) for e in compute_relations(_bodies(objects or [obj, *anchors]))
+                 if e.relation in accepted]
+    for source, target in geometric:
+        if source == oid:
+            held.add(target)
+        elif symmetric and target == oid:
+            held.add(source)
+    for anchor in anchors:
+        if str(anchor.get("id")) != oid and _sided(obj, anchor, relation):
+            held.add(str(anchor.get("id")))
+    where = _xy(obj)
+    distances = []
+    for anchor in anchors:
+        if str(anchor.get("id")) not in held:
+            continue
         at = _xy(anchor)
-        if at is None or anchor is obj:
+        distances.append(math.hypot(where[0] - at[0], where[1] - at[1]) if where and at else 0.0)
+    return min(distances) if distances else None
+
+
+#: Relations a request's relation is satisfied by (anything the graph relates is near).
+_ACCEPTS: dict[str, frozenset[str]] = {"near": frozenset(RELATIONS), "next_to": frozenset({"next_to"})}
+#: Relations that hold either way round.
+_SYMMETRIC = frozenset({"near", "next_to"})
+
+
+def _sided(obj: Mapping[str, Any], anchor: Mapping[str, Any], relation: str) -> bool:
+    """A side relation by the relations' geometry when the listing gives the anchor's facing (``yaw``).
+
+    As :mod:`missiontree.semantics.relations` decides it: within its ``near_gap``, and clearly
+    (``side_ratio``) along the anchor's front-back or left-right axis; left and right as seen by
+    someone in front of the anchor looking at it.
+    """
+    yaw, where, at = anchor.get("yaw"), _xy(obj), _xy(anchor)
+    if relation not in _SIDES or not isinstance(yaw, int | float) or where is None or at is None:
+        return False
+    p = RelationParams()
+    [src, anc] = _bodies([obj, anchor])
+    dx, dy = where[0] - at[0], where[1] - at[1]
+    gap = math.hypot(dx, dy) - max(src.w, src.d) / 2 - max(anc.w, anc.d) / 2
+    if gap > p.near_gap:
+        return False
+    along = dx * math.cos(yaw) + dy * math.sin(yaw)
+    own_left = -dx * math.sin(yaw) + dy * math.cos(yaw)
+    if abs(along) >= p.side_ratio * abs(own_left):
+        found = "in_front_of" if along > 0 else "behind"
+    elif abs(own_left) >= p.side_ratio * abs(along):
+        found = "right_of" if own_left > 0 else "left_of"
+    else:
+        return False
+    return found == relation
+
+
+_SIDES = frozenset({"in_front_of", "behind", "left_of", "right_of"})
+
+
+def _edge_to(edge: Any, anchor: Mapping[str, Any], accepted: frozenset[str]) -> bool:
+    """Whether a listed relation edge names ``anchor`` with one of the ``accepted`` relations."""
+    if not isinstance(edge, Mapping) or str(edge.get("relation", "")) not in accepted:
+        return False
+    if "target_id" in edge:
+        return str(edge.get("target_id")) == str(anchor.get("id"))
+    return fold_label(str(anchor.get("label", ""))) == fold_label(str(edge.get("target")))
+
+
+def _bodies(objects: Sequence[Mapping[str, Any]]) -> list[Body]:
+    """Bodies of the listed objects with coordinates (height and size when the listing gives them)."""
+    bodies = []
+    for o in objects:
+        at = _xy(o)
+        if at is None or "id" not in o:
             continue
-        dx, dy = where[0] - at[0], where[1] - at[1]
-        distance = math.hypot(dx, dy)
-        if distance > RELATION_DISTANCE.get(relation, RELATION_DISTANCE["near"]):
-            continue
-        yaw = anchor.get("yaw")
-        if relation in {"in_front_of", "behind", "left_of", "right_of"} and isinstance(yaw, int | float):
-            ahead = dx * math.cos(yaw) + dy * math.sin(yaw)
-            left = -dx * math.sin(yaw) + dy * math.cos(yaw)
-            holds = {"in_front_of": ahead > 0, "behind": ahead < 0, "left_of": left > 0,
-                     "right_of": left < 0}[relation]
-            if not holds:
-                continue
-        if best is None or distance < best:
-            best = distance
-    return best
+        size = o.get("size")
+        w, d, h = (0.0, 0.0, 0.0)
+        if isinstance(size, list | tuple) and len(size) >= 3:
+            w, d, h = (float(v) for v in size[:3])
+        try:
+            z = float(o.get("z", 0.0) or 0.0)
+        except (TypeError, ValueError):
+            z = 0.0
+        bodies.append(Body(str(o["id"]), at[0], at[1], z, max(w, 0.05), max(d, 0.05), max(h, 0.05),
+                           str(o["room"]) if o.get("room") else None))
+    return bodies
