@@ -101,3 +101,20 @@ def test_unknown_strategy_is_refused() -> None:
     """A strategy name outside gain, nearest, scan_points raises ValueError listing them."""
     with pytest.raises(ValueError, match="gain, nearest, scan_points"):
         ExplorationPlanner(strategy="random")
+
+
+def test_a_frontier_onto_a_room_opens_onto_space_and_one_onto_a_box_inside_does_not() -> None:
+    """The unknown past a corridor's open end fits the robot; the unknown inside a seen box does not."""
+    data = np.full((40, 120), -1, np.int8)
+    data[:, 20:80] = 0                 # known free x 2-8 m, unknown beyond x 8 (a room not seen yet)
+    data[0, 20:80] = data[-1, 20:80] = 100
+    data[:, 19] = 100
+    data[14:21, 40:64] = 100           # a box 2.4 x 0.7 m whose inside (0.5 m wide) was never seen ...
+    data[15:20, 41:63] = -1
+    data[15:20, 40] = 0                # ... but through its open near side (a frontier into it)
+    p = planner("gain", reach_radius=0.27)
+    g = grid(data)
+    assert p.opens_onto_space(g, (7.95, 1.05))
+    box = [c for c in p.candidates(g, (3.0, 1.0), ignore_blacklist=True) if 3.5 < c.target[0] < 4.5]
+    assert box  # the box's inside is a frontier worth a trip by its gain ...
+    assert not p.opens_onto_space(g, box[0].target)   # ... but nothing the robot fits into

@@ -15,7 +15,8 @@ A frontier is given up only when the map proves it closed. A try fails when the 
 aborts the goal, when the path left to it (the navigator's feedback; the straight line without
 one) has not shrunk for ``no_progress_timeout`` seconds, or when its frontier stays unknown once
 reached. The map is then asked: no way to the frontier on it (or the frontier is no longer worth a
-trip) -- given up as closed, with the reason; a way -- the frontier is tried again from another
+trip, or the unknown behind it is no space the robot fits into: the inside of furniture, the far
+side of a wall) -- given up as closed, with the reason; a way -- the frontier is tried again from another
 approach (through the doorway, or from another place; :mod:`missiontree.mapping.exploration`),
 after the frontiers not tried yet, and given up *open* after ``max_attempts`` tries. A frontier
 given up as closed that the map opens again later is tried again (up to ``max_attempts`` in all).
@@ -387,9 +388,11 @@ class Explore(Leaf):
             self._give_up(target, reason, proved_closed=True)
             return
         tries = len(planner.tries(target.target)) + 1
-        if planner.still_frontier(grid, *target.target) and not planner.reachable(grid, (pose.x, pose.y),
-                                                                                   target.target):
+        still = planner.still_frontier(grid, *target.target)
+        if still and not planner.reachable(grid, (pose.x, pose.y), target.target):
             self._give_up(target, f"{reason}; the map shows no way to it", proved_closed=True)
+        elif still and not planner.opens_onto_space(grid, target.target):
+            self._give_up(target, f"{reason}; nothing the robot fits into lies behind it", proved_closed=True)
         elif tries >= self.params.max_attempts:
             self._give_up(target, f"{reason} (after {tries} tr{'ies' if tries > 1 else 'y'}; the map still "
                           f"shows a way)", proved_closed=False)

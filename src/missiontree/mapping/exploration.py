@@ -335,12 +335,40 @@ class ExplorationPlanner:
         r = self.blacklist_radius
         return any(math.dist(c.target, target) <= r for c in self.reach_candidates(grid, robot_xy))
 
+    def opens_onto_space(self, grid: OccupancyGrid, target: tuple[float, float]) -> bool:
+        """Whether the frontier at ``target`` opens onto unknown space the robot's body fits into.
+
+        True when a goal *through* it exists (:meth:`_through`, with the navigation's footprint):
+        a point past it, clear of every occupied cell by the footprint, in line of sight. The
+        unknown inside a piece of furniture or along a wall's far side is no such space (the line
+        crosses the far side, or nothing past it is clear), a doorway onto an unseen room is.
+        """
+        grid = self.close_wall_gaps(grid)
+        res = grid.resolution
+        min_cells = max(1, int(math.ceil(self.min_frontier_m / res)))
+        piece = max(min_cells, int(math.ceil(self.frontier_piece_m / res)))
+        near = [f for f in find_frontiers(grid, min_size_cells=min_cells, max_size_cells=piece,
+                                          min_unknown_cells=max(1, int(self.min_unknown_m2 / (res * res))))
+                if math.dist(f.goal, target) <= self.blacklist_radius]
+        if not near:
+            return False
+        occupied = occupied_mask(grid)
+        to_occupied = cv2.distanceTransform((~occupied).astype(np.uint8), cv2.DIST_L2, 5) * res
+        kept = self.footprint_radius
+        if self.reach_radius is not None:
+            self.footprint_radius = max(kept, self.reach_radius)
+        try:
+            return any(self._through(grid, f, occupied, to_occupied) is not None for f in near)
+        finally:
+            self.footprint_radius = kept
+
     def left_open(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[LeftOpen]:
         """Blacklisted frontier places the map still offers a way to (and that are still worth going to).
 
         Each pairs its blacklist entry with the candidate the planner would offer for it now,
-        ignoring the blacklist: a reachable frontier that would reveal enough unknown area. An
-        entry given up as proved closed shows up here when the map has opened since.
+        ignoring the blacklist: a reachable frontier that would reveal enough unknown area and
+        opens onto space the robot fits into (:meth:`opens_onto_space`). An entry given up as
+        proved closed shows up here when the map has opened since.
         """
         if not self.blacklist or self.strategy == "scan_points":
             return []
@@ -350,7 +378,7 @@ class ExplorationPlanner:
             for b in self.blacklist:
                 near_target = (b.target[0] - c.target[0]) ** 2 + (b.target[1] - c.target[1]) ** 2 <= r2
                 if near_target or (b.x - c.x) ** 2 + (b.y - c.y) ** 2 <= r2:
-                    if all(o.entry is not b for o in out):
+                    if all(o.entry is not b for o in out) and self.opens_onto_space(grid, c.target):
                         out.append(LeftOpen(b, c))
                     break
         return out
