@@ -141,3 +141,24 @@ def test_a_strong_choice_nothing_can_confirm_is_served_and_says_so() -> None:
     assert status == "SUCCESS" and served["object"] == "printer_1" and served["confirmed"] is False
     assert served["chosen_because"] == "scripted" and "serves print (" in served["note"]
     assert "NOT confirmed" in of(log, "command_served")[0]["reason"]
+
+
+def test_bored_goes_to_the_laptop_when_the_tv_cannot_be_reached(tmp_path: Path) -> None:
+    """The offline reasoner offers the laptop tier too: the TV (no place to reach it) hands over to it."""
+    graph = json.loads(Path(OFFICE_GRAPH).read_text(encoding="utf-8"))
+    for node in graph["nodes"]:
+        if node.get("id") == "tv_1":
+            node["coordinates"] = [13.0, 4.0, 1.2]  # beyond the map's edge: no standoff pose
+    path = tmp_path / "office_tv_away.json"
+    path.write_text(json.dumps(graph), encoding="utf-8")
+    models = build_models("offline", providers=fresh_plugins().providers)
+    robot = create_robot({"world": "office", "seed": 1})
+    leaf = GoToIntent("go", GoToIntent.Params(scene_graph=str(path), look=False))
+    root = ServeCommands("serve", leaf, ServeCommandsParams(command="I am bored"))
+    try:
+        result, log = capture_tick_log(root, MissionContext(robot=robot, models=models), max_duration=300.0)
+    finally:
+        robot.close()
+    assert {e["object"] for e in of(log, "candidate_rejected")} >= {"tv_1"}
+    assert [e["object"] for e in of(log, "goal_sent")] == ["laptop_1"]
+    assert result.status.value == "SUCCESS"

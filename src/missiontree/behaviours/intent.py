@@ -11,12 +11,16 @@ crop of it. If not, the object is marked doubtful and the next candidate is trie
 where the robot now is). No candidate left → FAILURE with the reason. Goals come only from graph
 coordinates and the map, never from the model's text.
 
-An arrival nothing can confirm (the detector knows no such class) is served only when the choice is
-strong — the command names the class, or the shipped knowledge says the class serves it at least
-:data:`~missiontree.reasoning.knowledge.STRONG` — and otherwise doubted like a failed look. What was
-served goes to the ``served`` blackboard key, the ``intent_served`` event and
-``<run_dir>/intent_served.json`` (one entry per command, served or not and why): object, label, the
-model's reason for choosing it, whether it was confirmed.
+Only a strong choice is ever driven to or served — the command names the object's class, or the
+shipped knowledge says the class serves it at least :data:`~missiontree.reasoning.knowledge.STRONG`;
+a weak one the model names (a potted plant for "a cosmetic") is rejected with its score, and with
+no strong one left the command fails saying so. Candidates are tried best tier first (by that
+score: the TV before the laptop for boredom), by path length within a tier, so that an object with
+no place to stand by it hands over to the next tier. What was served goes to the ``served``
+blackboard key, the ``intent_served`` event, ``<run_dir>/intent_served.json`` and summary.json's
+``outcome.intent`` (through ``context.report``; one entry per command, served or not and why):
+object, label, the model's reason, the knowledge's score and why, whether it was confirmed, and
+what was tried before.
 
 Tick-log events: ``intent_interpreted``, ``candidate_rejected``, ``intent_ambiguous``,
 ``goal_sent``, ``goal_result``, ``object_verified``, ``object_doubtful``, ``intent_served``.
