@@ -67,3 +67,14 @@ def test_free_spot_on_a_world_without_rooms_stays_on_reachable_floor() -> None:
     x, y = scene_graph_eval.free_spot(world, np.random.default_rng(3), [], floor)
     row_, col = world.grid.world_to_cell(x, y)
     assert floor[row_, col]
+
+
+def test_free_spot_in_a_cramped_world_comes_closer_before_giving_up() -> None:
+    """Viewpoints covering the floor densely leave a spot 0.6-1 m from them, not an error."""
+    world = load_world("office")
+    g = world.grid
+    rows, cols = np.nonzero(g.data == 0)
+    every = [g.cell_to_world(int(r), int(c)) for r, c in zip(rows[::40], cols[::40], strict=True)]
+    dense = [p for k, p in enumerate(every) if k % 2 == 0]  # no spot 1 m from all of them
+    x, y = scene_graph_eval.free_spot(world, np.random.default_rng(1), dense)
+    assert min(np.hypot(x - a, y - b) for a, b in dense) >= 0.6
