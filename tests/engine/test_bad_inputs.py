@@ -46,9 +46,9 @@ def test_bad_input_is_refused_with_expected_message(
     name: str, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The case exits 2, names file and line on every problem line, and says what was expected."""
-    start = time.perf_counter()
+    start = time.process_time()  # CPU time: a loaded machine stretches wall time, not the work done
     code, err = run_validate(name, capsys, monkeypatch)
-    elapsed = time.perf_counter() - start
+    elapsed = time.process_time() - start
     assert code == 2, err
     assert "Traceback" not in err
     assert elapsed < 5.0
@@ -83,11 +83,11 @@ def test_absurd_size_is_refused_before_parsing(
     huge = tmp_path / "huge.yaml"
     huge.write_text("root: Succeed\nblackboard:\n" + "".join(f"  k{i}: {i}\n" for i in range(400_000)))
     monkeypatch.chdir(tmp_path)
-    start = time.perf_counter()
+    start = time.process_time()  # CPU time: the size is refused before the file is read
     code = main(["validate", "--no-plugins", "huge.yaml"])
     err = capsys.readouterr().err
     assert code == 2
-    assert time.perf_counter() - start < 2.0
+    assert time.process_time() - start < 2.0
     assert re.search(r"^huge\.yaml:1:1: expected a file of at most \d+ bytes, found \d+ bytes", err, re.M)
 
 

@@ -119,9 +119,9 @@ def test_warehouse_is_large_and_cheap_to_load(worlds: dict[str, tuple[dict[str, 
     assert 20 <= xmax - xmin <= 31 and 30 <= ymax - ymin <= 51
     assert len(data["walls"]["polygons"]) >= 6
     assert len(world.wall_segments) < 200
-    began = time.perf_counter()
+    began = time.process_time()  # CPU time, not wall time on a loaded machine
     build(data)
-    assert time.perf_counter() - began < 2.0
+    assert time.process_time() - began < 2.0
 
 
 def test_floorplan_name_loads_the_seeds_world(worlds: dict[str, tuple[dict[str, Any], World]]) -> None:
