@@ -11,6 +11,7 @@ from missiontree.behaviours.search_coverage import ViewCoverage, straight_length
 from missiontree.behaviours.search_locate import Locate
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Status
+from missiontree.reasoning.search_priors import Target
 from missiontree.robot.actions import ActionStatus
 from missiontree.types import CameraIntrinsics, OccupancyGrid, Pose2D, RGBDFrame, Tolerance
 
@@ -228,3 +229,15 @@ def test_a_spent_time_budget_ends_the_search_not_found_with_what_was_left() -> N
     assert leaf.status == Status.FAILURE
     assert robot.now() < 6.0
     assert "not found" in leaf.feedback_message and "time budget" in leaf.feedback_message
+
+
+def test_a_spent_budget_offers_no_object_of_another_colour() -> None:
+    """Out of time, a grey backpack seen in a few frames is not approached for a closer look at its colour."""
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+    leaf.goal = Target("red backpack", "backpack", ("red",))
+    leaf.exhausted = True
+    entry = {"id": "b", "label": "backpack", "colour": "grey", "x": 1.0, "y": 1.0, "observations": 3}
+    assert leaf._ranked(dict(entry), [], (0.0, 0.0), with_mismatch=True)[0] == 2
+    leaf.budget_spent = True
+    unreached = [{"id": "b", "label": "backpack", "x": 1.0, "y": 1.0, "kind": "unreached"}]
+    assert leaf._ranked({**entry, "colour": "red"}, unreached, (0.0, 0.0), with_mismatch=False)[0] == -1

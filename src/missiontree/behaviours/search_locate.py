@@ -526,7 +526,8 @@ class Locate(ResumeExplore):
         """A known candidate ends the leaf; else one step of exploration, then of looking at the floor."""
         self._poll_priors()
         self._view()
-        found = self._pick(with_mismatch=self.exhausted)
+        # once the time budget is spent, only candidates that may be the target by their colour
+        found = self._pick(with_mismatch=self.exhausted and not self.budget_spent)
         if found is not None:
             return self._found(found)
         if self.exhausted:
@@ -605,7 +606,7 @@ class Locate(ResumeExplore):
     def _exhausted(self) -> Status:
         """Nothing left to explore or look at: a candidate once more, or not found."""
         self.exhausted = True
-        found = self._pick(with_mismatch=True)
+        found = self._pick(with_mismatch=not self.budget_spent)
         return self._found(found) if found is not None else self._not_found()
 
     # -- looking at the floor the camera has not seen -------------------------------------------------
@@ -852,7 +853,7 @@ class Locate(ResumeExplore):
                     return -1, 0.0, entry
                 unreached = True
         if unreached:
-            if not self.exhausted or str(entry["id"]) in self.offered_again:
+            if not self.exhausted or self.budget_spent or str(entry["id"]) in self.offered_again:
                 return -1, 0.0, entry
             entry = {**entry, "again": True}
         colour = canonical_colour(str(entry["colour"]))
