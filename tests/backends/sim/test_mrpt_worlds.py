@@ -88,6 +88,18 @@ def test_world_grid_walls_its_edge(fake_datasets: Path) -> None:
     assert not (edge == 0).any()
 
 
+def test_free_floor_never_touches_unknown_cells(fake_datasets: Path, tmp_path: Path) -> None:
+    """Where the scans end (free beside unknown, as at a gap in a wall) the world grid has a wall."""
+    cells = np.zeros((60, 60), np.int8)  # unknown all round
+    cells[10:50, 10:50] = 100  # free floor, no wall at all
+    (fake_datasets / MAPS["uwb"]).write_bytes(gridmap(cells, 0.05))
+    data = world_grid("uwb").data
+    free = data == 0
+    grown = np.zeros_like(free)
+    grown[1:-1, 1:-1] = free[:-2, 1:-1] | free[2:, 1:-1] | free[1:-1, :-2] | free[1:-1, 2:]
+    assert free.sum() > 0 and not (grown & (data == -1)).any()
+
+
 def test_synthetic_gridmap_loads_as_a_world(fake_datasets: Path) -> None:
     """mrpt:uwb:<seed> on a small synthetic gridmap loads with a start on its floor and objects placed."""
     world = load_world("mrpt:uwb:3")

@@ -10,8 +10,10 @@ datasets, among them two occupancy grids MRPT built from real laser scans:
   TurtleBot 4 can drive (free cells farther than its radius plus :data:`PASS_MARGIN` from anything
   not free), searched at a 1 m stride, the first such window in row-major order on a tie.
 
-Every map gets a one-cell wall on its outer edge (its free edge cells become occupied), so no floor
-runs off the map. The grid is written as a map_server pair (``mrpt_<name>.yaml`` and ``.pgm``) into
+Every map is closed where its scans end: unknown cells beside free floor and free cells on the
+outer edge become occupied (a one-cell wall), so no floor runs into space the scans never saw or off
+the map (the simulator would otherwise let the robot drive and see through those unknown cells).
+The grid is written as a map_server pair (``mrpt_<name>.yaml`` and ``.pgm``) into
 a cache folder, and :func:`missiontree.backends.sim.placement.map_world` builds the world on it:
 a seeded start, rooms found by segmentation and typed, objects and decoys placed, two walkers.
 
@@ -129,7 +131,7 @@ def crop_window(grid: OccupancyGrid, metres: float = CROP_METRES) -> tuple[int, 
 
 
 def world_grid(name: str) -> OccupancyGrid:
-    """The grid a ``mrpt:<name>`` world is drawn on: the gridmap, cropped, its edge walled.
+    """The grid a ``mrpt:<name>`` world is drawn on: the gridmap, cropped, closed where its scans end.
 
     Raises:
         KeyError, FileNotFoundError: As :func:`gridmap_path`.
@@ -138,6 +140,10 @@ def world_grid(name: str) -> OccupancyGrid:
     grid = read_gridmap(gridmap_path(name))
     r0, c0, h, w = crop_window(grid)
     data = grid.data[r0:r0 + h, c0:c0 + w].copy()
+    # the simulator has no truth for what the scans never saw: unknown cells touching free floor, and
+    # free cells on the edge, become wall, so the robot drives and looks only where the map is known
+    near_free = cv2.dilate((data == 0).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    data[near_free & (data == -1)] = 100
     edge = np.zeros(data.shape, bool)
     edge[0, :] = edge[-1, :] = edge[:, 0] = edge[:, -1] = True
     data[edge & (data == 0)] = 100
