@@ -10,9 +10,10 @@ from collections.abc import Mapping
 from os import PathLike
 from typing import Any
 
-# importing the floorplans registers the `floorplan:` world source, the generator `generated:`
-# (MAX_SEED is its seed bound)
+# importing the floorplans registers the `floorplan:` world source, the placement `map:`, the MRPT
+# grids `mrpt:`, the generator `generated:` (MAX_SEED is its seed bound)
 from missiontree.backends.sim import floorplans as _floorplans  # noqa: F401
+from missiontree.backends.sim import mrpt_worlds as _mrpt_worlds  # noqa: F401
 from missiontree.backends.sim.generator import MAX_SEED
 from missiontree.backends.sim.robot import SimRobot
 from missiontree.backends.sim.world import World, load_robot_profile, load_world
