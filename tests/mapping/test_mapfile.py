@@ -87,3 +87,29 @@ def test_written_map_loads_back_as_a_simulator_world(tmp_path: Path) -> None:
     np.testing.assert_array_equal(world.grid.data == 100, grid.data == 100)
     np.testing.assert_array_equal(world.grid.data == -1, grid.data == -1)
     assert len(world.wall_segments) > 0
+
+
+def test_writers_of_one_map_at_once_never_mix_their_bytes(tmp_path: Path) -> None:
+    """Two writers of the same file each write under a name of their own: the file is one of theirs whole."""
+    import threading
+
+    from missiontree.mapping import mapfile
+
+    target = tmp_path / "map.pgm"
+    payloads = [bytes([k]) * 2_000_000 for k in (1, 2)]
+    errors: list[BaseException] = []
+
+    def write(payload: bytes) -> None:
+        try:
+            mapfile._atomic_write(target, payload)
+        except BaseException as error:  # noqa: BLE001 - collected for the assertion below
+            errors.append(error)
+
+    threads = [threading.Thread(target=write, args=(p,)) for p in payloads * 3]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert errors == []  # with one shared temporary name, a writer found its file renamed away
+    assert target.read_bytes() in payloads
+    assert [p.name for p in tmp_path.iterdir()] == ["map.pgm"]  # no temporary file left behind
