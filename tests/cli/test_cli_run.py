@@ -93,6 +93,18 @@ def test_failing_mission_exits_one(tmp_path: Path) -> None:
     assert summary["failure_reasons"]["main/Fail"] == ["dock not found"]
 
 
+
+def test_a_search_target_the_detector_cannot_know_is_bad_input(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--set target=42`` exits 2 with the classes it could name, and no Python exception name."""
+    code = main(["run", str(REPO / "trees" / "find_object.yaml"), "--set", "target=42",
+                 "--out", str(tmp_path / "run"), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "names no class the detector knows" in err and "backpack" in err
+    assert "ValueError" not in err and "Traceback" not in err
+
 def test_duration_limit_exits_one(tmp_path: Path) -> None:
     """--max-duration shorter than the mission stops it with exit code 1."""
     out = tmp_path / "run"

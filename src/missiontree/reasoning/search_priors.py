@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 from pydantic import BaseModel, Field
 
+from missiontree.errors import ConfigError
 from missiontree.reasoning.offline_vlm import ROOM_OBJECTS
 from missiontree.reasoning.phrases import colour_words, find_label, fold_label
 from missiontree.reasoning.protocols import Message
@@ -71,12 +72,13 @@ def parse_target(text: str, labels: Sequence[str]) -> Target:
     """Read a target phrase against the classes a detector knows.
 
     Raises:
-        ValueError: The phrase names no class of ``labels`` (the message lists them).
+        ConfigError: The phrase names no class of ``labels`` (the message lists them): bad input,
+            reported as such (it is also a ValueError).
     """
     found = find_label(text, labels) if text.strip() else None
     if found is None:
         shown = ", ".join(sorted(labels)[:20]) or "none"
-        raise ValueError(
+        raise ConfigError(
             f"the target {text!r} names no class the detector knows (it knows: {shown}); "
             f'give e.g. --set target="red backpack"'
         )
