@@ -251,3 +251,21 @@ def test_ctrl_c_during_start_up_prints_no_traceback(tmp_path: Path) -> None:
                 break
         assert "Traceback" not in stderr, stderr
         assert process.returncode in (130, -signal.SIGINT), (delay, process.returncode, stderr)
+
+
+def test_the_result_line_says_why_a_mission_failed_in_its_own_words() -> None:
+    """A FAILURE names the deciding reason and, under a Retry that ran out, the reason below it."""
+    from missiontree.cli.run import outcome_text
+
+    summary = {"status": "FAILURE",
+               "failures": {"m": {"decided": 1, "reasons": []},
+                            "m/retry": {"decided": 1, "reasons": ["Retry: all 3 attempts failed"]},
+                            "m/retry/seq": {"decided": 0, "reasons": []}},
+               "failure_reasons": {"m/retry": ["Retry: all 3 attempts failed"],
+                                   "m/retry/seq/look": ["not found: no red backpack"]}}
+    assert outcome_text(summary) == "why: Retry: all 3 attempts failed; below it: not found: no red backpack"
+    reported = {**summary, "outcome": {"intent": {"text": "'tea': not served: nothing serves it"}}}
+    assert outcome_text(reported) == "'tea': not served: nothing serves it"  # the mission's own words first
+    assert outcome_text({"status": "SUCCESS"}) == ""
+    long = {"status": "FAILURE", "failures": {"m": {"decided": 1, "reasons": ["x" * 5000]}}}
+    assert len(outcome_text(long)) <= 400

@@ -657,6 +657,7 @@ class GoToIntent(Leaf):
                 "served": sum(1 for c in commands if c.get("status") == "served"),
                 "not_served": sum(1 for c in commands if c.get("status") != "served"),
                 "commands": commands,
+                "text": _said(record),
             })
         run_dir = getattr(self.ctx, "run_dir", None)
         if run_dir is None:
@@ -691,3 +692,14 @@ class GoToIntent(Leaf):
         except KeyError:
             return []
         return [str(v) for v in value] if isinstance(value, list) else []
+
+
+def _said(record: dict[str, Any]) -> str:
+    """One command's outcome in the mission's words, for the terminal's result line."""
+    command = record.get("command", "")
+    if record.get("status") == "served":
+        state = "confirmed" if record.get("confirmed") else "not confirmed"
+        because = record.get("chosen_because") or "the model named it"
+        return (f"{command!r}: served at {record.get('object')} ({record.get('label')}, {state}); "
+                f"chosen because {because}")
+    return f"{command!r}: not served: {record.get('reason', '')}"

@@ -128,5 +128,45 @@ def describe(result: RunResult) -> str:
     if isinstance(fault, dict):  # failed because of an error, not because a condition was false
         why += f" (fault in {fault.get('node')}: {fault.get('error')})"
     where = f"; run directory {result.run_dir}" if result.run_dir is not None else ""
-    return (f"{result.summary.get('mission', 'mission')}: {result.status.name}{why} after {result.ticks} "
+    line = (f"{result.summary.get('mission', 'mission')}: {result.status.name}{why} after {result.ticks} "
             f"ticks, {result.duration:.1f} s on the robot clock{where}")
+    said = outcome_text(result.summary)
+    return f"{line}\n  {said}" if said else line
+
+
+#: Longest outcome text printed on the result line (the run directory holds the whole of it).
+OUTCOME_CHARS = 400
+
+
+def outcome_text(summary: dict[str, Any]) -> str:
+    """What the mission did in its own words: its leaves' outcome reports, else why it failed.
+
+    A leaf's report (summary.json ``outcome``) may carry a ``text``; without one, a FAILURE is
+    explained by the deepest node whose failure decided the outcome, and when that node only
+    wraps its children's failures (a Retry that ran out of attempts), also by a reason of the
+    deepest node below it that failed (``log summarize`` has them all, in order).
+    """
+    texts = [str(section["text"]) for section in (summary.get("outcome") or {}).values()
+             if isinstance(section, dict) and section.get("text")]
+    if not texts and summary.get("status") == "FAILURE":
+        reason = _deciding_reason(summary)
+        if reason:
+            texts.append(f"why: {reason}")
+    text = "; ".join(texts)
+    return text if len(text) <= OUTCOME_CHARS else text[:OUTCOME_CHARS - 1] + "…"
+
+
+def _deciding_reason(summary: dict[str, Any]) -> str:
+    failures = summary.get("failures") or {}
+    decided = [path for path, entry in failures.items()
+               if isinstance(entry, dict) and entry.get("decided") and entry.get("reasons")]
+    if not decided:
+        return ""
+    node = max(decided, key=lambda path: path.count("/"))
+    reason = str(failures[node]["reasons"][-1])
+    below = [(path.count("/"), order, path) for order, path in enumerate(summary.get("failure_reasons") or {})
+             if path.startswith(node + "/")]
+    if below and "; child " not in reason:
+        deepest = max(below)[2]
+        reason = f"{reason}; below it: {summary['failure_reasons'][deepest][-1]}"
+    return reason
