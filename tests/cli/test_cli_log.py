@@ -205,3 +205,23 @@ def test_escape_sequences_in_names_and_reasons_reach_the_terminal_escaped(
     out = capsys.readouterr().out
     assert "\x1b" not in out and "\x07" not in out
     assert "look_for_label\\x1b]0;owned\\x07\\x1b[2J" in out
+
+
+def test_summarize_leads_with_what_the_mission_said_it_did(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The outcome a leaf reported (summary.json) is the line after the status, before the failures."""
+    from missiontree.engine.leaf import Leaf, Status
+
+    class Serves(Leaf):
+        def update(self) -> Status:
+            self.context.report("intent", {"text": "'tea': not served: nothing here serves it"})
+            return Status.FAILURE
+
+    Runner(Serves("serve"), MissionContext(robot=ClockRobot()), run_dir=tmp_path, handle_signals=False).run()
+    assert main(["log", "summarize", str(tmp_path)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1] == "outcome: 'tea': not served: nothing here serves it"
+    (tmp_path / "summary.json").write_text("{not json", encoding="utf-8")  # the log alone still speaks
+    assert main(["log", "summarize", str(tmp_path)]) == 0
+    assert not any(line.startswith("outcome:") for line in capsys.readouterr().out.splitlines())

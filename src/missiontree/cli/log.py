@@ -18,6 +18,7 @@ so ``failures`` here and in ``summary.json`` agree on ``count``, ``decided`` and
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 from typing import Any
 
@@ -194,6 +195,8 @@ def format_summary(summary: dict[str, Any]) -> str:
     """The text form of :func:`summarize`'s result."""
     out = [f"mission {summary['mission'] or '?'}: {summary['status']} (stopped by {summary['stopped_by']}) "
            f"after {summary['ticks']} ticks, {summary['duration']:.1f} s on the robot clock"]
+    if summary.get("outcome"):  # the mission's own words lead
+        out.append(f"outcome: {summary['outcome']}")
     fault = summary.get("fault")
     if fault:  # failed because of an error, not because a condition was false
         out.append(f"fault: {fault.get('node')}: {fault.get('error')} (an error, not a condition's failure)")
@@ -235,8 +238,28 @@ def run(args: argparse.Namespace) -> int:
     if not lines:
         raise ConfigError(f"{path} is empty: the run wrote no tick log lines")
     summary = summarize(lines)
+    said = _outcome_said(path.parent / "summary.json")
+    if said:
+        summary["outcome"] = said
     if args.json:
         print_json(summary)
     else:
         print(format_summary(summary))
     return 0
+
+
+#: Largest summary.json read for its outcome (a run's summary is kilobytes).
+_SUMMARY_LIMIT = 8 * 2**20
+
+
+def _outcome_said(path: Path) -> str:
+    """What the mission said it did (summary.json's outcome text, as on the run's result line)."""
+    from missiontree.cli.run import outcome_text
+
+    try:
+        if not path.is_file() or path.stat().st_size > _SUMMARY_LIMIT:
+            return ""
+        found = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):  # no summary, or not one this version wrote: the log still speaks
+        return ""
+    return outcome_text(found) if isinstance(found, dict) else ""
