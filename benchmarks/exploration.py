@@ -413,7 +413,7 @@ def summarise(runs: list[RunScore]) -> dict[str, Any]:
             "covered_share_ci95": [round(v, 4) for v in wilson(covered, n)],
             "false_explored": false,
             "false_explored_rate": round(false / n, 4),
-            "false_explored_ci95": [round(v, 4) for v in wilson(false, n)],
+            "false_explored_rate_ci95": [round(v, 4) for v in wilson(false, n)],
             "partial": sum(r.reason.startswith("partial") for r in mine),
             "explored_claims": sum(explored_claim(r) for r in mine),
             "stopped_by_limit": sum("limit" in r.status for r in mine),
