@@ -103,6 +103,7 @@ def test_a_frontier_the_map_proves_closed_is_given_up_and_exploring_ends_explore
     assert "no reachable frontier remains" in leaf.feedback_message
     assert "1 unreachable" in leaf.feedback_message
     assert leaf.bb.get("explore_complete") is True
+    assert leaf.ctx is not None and leaf.ctx.outcome["exploration"]["text"].startswith("explored: ")
 
 
 @pytest.mark.parametrize("strategy", ["gain", "nearest"])
@@ -145,6 +146,10 @@ def test_partial_is_success_when_asked_and_still_says_partial() -> None:
     assert leaf.status == Status.SUCCESS
     assert leaf.feedback_message.startswith("partial:")
     assert leaf.bb.get("explore_complete") is False
+    assert leaf.ctx is not None  # summary.json's outcome says partial, whatever the status
+    reported = leaf.ctx.outcome["exploration"]
+    assert reported["outcome"] == "partial" and not reported["complete"]
+    assert reported["text"].startswith("exploration partial: 1 frontier(s) left")
 
 
 def test_goals_keep_clear_of_walls_and_unknown_cells() -> None:

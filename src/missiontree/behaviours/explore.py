@@ -481,6 +481,10 @@ class Explore(Leaf):
         report = self._report(grid)
         self.write("explore_complete", report["complete"])
         self.write("unexplored", report["frontiers_left"])
+        if self.ctx is not None and report["outcome"] in ("explored", "partial"):
+            self.ctx.report("exploration", {**{k: report[k] for k in (
+                "outcome", "complete", "known_m2", "unknown_left_m2")},
+                "frontiers_left": report["frontiers_left"][:20], "text": _said(report)})
         run_dir = self.ctx.run_dir if self.ctx is not None else None
         if run_dir is None:
             return
@@ -516,6 +520,16 @@ class Explore(Leaf):
                 {"x": round(b.x, 3), "y": round(b.y, 3), "reason": b.reason, "proved_closed": b.proved_closed}
                 for b in planner.blacklist],
         }
+
+
+def _said(report: dict[str, Any]) -> str:
+    """How the exploration ended, in a line for the run's result (summary.json's outcome text)."""
+    if report["outcome"] == "explored":
+        return f"explored: no reachable frontier left ({report['known_m2']:.0f} m^2 known)"
+    left = report["frontiers_left"]
+    return (f"exploration partial: {len(left)} frontier(s) left though the map shows a way, about "
+            f"{report['unknown_left_m2']:.0f} m^2 unknown behind them ({report['known_m2']:.0f} m^2 known; "
+            "exploration.json lists them)")
 
 
 def known_area(grid: OccupancyGrid) -> float:
