@@ -125,3 +125,6 @@ root:
     assert reported["known_free_m2"] > 1.0
     (event,) = events(tmp_path / "run", "scene_graph_explored")
     assert event["explored_share"] == reported["explored_share"]
+    outcome = result.summary["outcome"]["scene_graph"]  # and in summary.json, with a line for the terminal
+    assert outcome["explored_share"] == reported["explored_share"]
+    assert "of the place explored" in outcome["text"]

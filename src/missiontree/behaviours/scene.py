@@ -274,6 +274,13 @@ class BuildSceneGraph(Leaf):
         assert self.builder is not None
         scene = self.builder.scene
         self.emit("scene_graph_explored", objects=len(scene.map), rooms=len(scene.rooms), **figures)
+        share = figures.get("explored_share")
+        self.context.report("scene_graph", {  # summary.json's outcome (and the run's result line)
+            **figures, "objects": len(scene.map), "rooms": len(scene.rooms),
+            "text": f"scene graph: {len(scene.map)} objects in {len(scene.rooms)} rooms"
+                    + (f", {share:.0%} of the place explored (the robot's own map)"
+                       if isinstance(share, float) else ""),
+        })
         run_dir = self.context.run_dir
         if run_dir is not None:
             import json
