@@ -141,16 +141,16 @@ OUTCOME_CHARS = 400
 def outcome_text(summary: dict[str, Any]) -> str:
     """What the mission did in its own words: its leaves' outcome reports, else why it failed.
 
-    A leaf's report (summary.json ``outcome``) may carry a ``text``; without one, a FAILURE is
-    explained by the deepest node whose failure decided the outcome, and when that node only
+    A leaf's report (summary.json ``outcome``) may carry a ``text``; a FAILURE is also explained
+    by the deepest node whose failure decided the outcome, and when that node only
     wraps its children's failures (a Retry that ran out of attempts), also by a reason of the
     deepest node below it that failed (``log summarize`` has them all, in order).
     """
     texts = [str(section["text"]) for section in (summary.get("outcome") or {}).values()
              if isinstance(section, dict) and section.get("text")]
-    if not texts and summary.get("status") == "FAILURE":
+    if summary.get("status") == "FAILURE":
         reason = _deciding_reason(summary)
-        if reason:
+        if reason and not any(reason[:60] in text for text in texts):  # not said twice
             texts.append(f"why: {reason}")
     text = "; ".join(texts)
     return text if len(text) <= OUTCOME_CHARS else text[:OUTCOME_CHARS - 1] + "…"
