@@ -266,8 +266,7 @@ def test_the_result_line_says_why_a_mission_failed_in_its_own_words() -> None:
     assert outcome_text(summary) == "why: Retry: all 3 attempts failed; below it: not found: no red backpack"
     reported = {**summary, "outcome": {"intent": {"text": "'tea': not served: nothing serves it"}}}
     assert outcome_text(reported).startswith("'tea': not served: nothing serves it; why: Retry")  # own words
-    text = "not found: no red backpack; why: Retry: all 3 attempts failed; below it: not found: no backpack"
-    said_already = {**summary, "outcome": {"x": {"text": text}}}
+    said_already = {**summary, "outcome": {"x": {"text": "gave up: " + outcome_text(summary)}}}
     assert outcome_text(said_already).count("Retry") == 1
     assert outcome_text({"status": "SUCCESS"}) == ""
     long = {"status": "FAILURE", "failures": {"m": {"decided": 1, "reasons": ["x" * 5000]}}}
