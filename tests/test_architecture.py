@@ -31,6 +31,7 @@ LAYERS: dict[str, int] = {
     "file_limits": 0,  # model files' size limits and allow-list (constants only)
     "startup": 0,  # records a Ctrl-C during the command's start-up (signal only)
     "redact": 0,  # secrets and control characters out of every output (text functions only)
+    "files": 0,  # writing a file whole (standard library only)
     "robot": 1,  # the abstract robot
     # domain logic (no engine, no plugins); reasoning may read semantics, never the reverse
     "perception": 2, "mapping": 2, "semantics": 2, "reasoning": 2,

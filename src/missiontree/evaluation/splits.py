@@ -31,9 +31,7 @@ Nobody tunes on ``test``: run it once at the end of a change and report it besid
 from __future__ import annotations
 
 import copy
-import os
 import sys
-import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -44,6 +42,7 @@ from missiontree.backends.sim.floorplans import FLOORPLAN_PREFIX, KINDS, floorpl
 from missiontree.backends.sim.generator import GENERATED_PREFIX, generate_world
 from missiontree.backends.sim.mrpt_worlds import INSTALL_HINT, MRPT_PREFIX, map_yaml, mrpt_available
 from missiontree.backends.sim.placement import MAP_PREFIX, map_world, place_objects, shipped_map, small_kinds
+from missiontree.files import write_whole
 
 #: The split names.
 SPLITS = ("dev", "test")
@@ -197,7 +196,7 @@ def write_split_world(world: SplitWorld, directory: Path) -> Path:
         f"# {world.family} world {world.name} of the evaluation splits (missiontree.evaluation.splits)\n"
         + yaml.safe_dump(data, sort_keys=False)
     )
-    _write(path, text.encode("utf-8"))
+    write_whole(path, text.encode("utf-8"))
     return path
 
 
@@ -206,12 +205,7 @@ def _copy(source: Path, target: Path) -> None:
     content = source.read_bytes()
     if target.is_file() and target.read_bytes() == content:
         return
-    _write(target, content)
+    write_whole(target, content)
 
 
-def _write(path: Path, content: bytes) -> None:
-    """Write a file whole or not at all: a reader never sees half of it (a temporary file, renamed)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
-    temporary.write_bytes(content)
-    os.replace(temporary, path)
+

@@ -14,13 +14,12 @@ and so does missiontree's world loader (a world file with ``map: {yaml: map.yaml
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from missiontree.files import write_whole
 from missiontree.mapping.grid import FREE_BELOW, OCCUPIED_FROM
 from missiontree.types import OccupancyGrid, Pose2D
 
@@ -163,18 +162,5 @@ def _parse_pgm(data: bytes, where: Path) -> np.ndarray:
 
 
 def _atomic_write(path: Path, payload: bytes) -> None:
-    """Replace ``path`` whole: written under a name of this writer's own, then renamed over it.
-
-    The temporary name is unique (two processes writing one map at once, as batch workers loading
-    the same world do, must not write into each other's file).
-    """
-    fd, name = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    tmp = Path(name)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(payload)
-        os.chmod(tmp, 0o644)
-        tmp.replace(path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    """Replace ``path`` whole (:func:`missiontree.files.write_whole`: a writer's own temporary name)."""
+    write_whole(path, payload)

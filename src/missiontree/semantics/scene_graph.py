@@ -25,13 +25,13 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple, Protocol
 
 from missiontree.errors import ConfigError
+from missiontree.files import write_whole
 
 #: The building node's id and label, as the NAIS prompt fixes them.
 BUILDING_ID = 0
@@ -193,17 +193,7 @@ class SceneGraph:
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the graph atomically (a reader never sees half a file); return the path."""
-        target = Path(path)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".scene_graph.", suffix=".tmp", dir=target.parent)
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as handle:
-                handle.write(self.to_json() + "\n")
-            os.replace(tmp, target)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        return target
+        return write_whole(path, (self.to_json() + "\n").encode("utf-8"))
 
     # -- queries ---------------------------------------------------------------------------------
 
