@@ -56,8 +56,8 @@ SUFFIXES = (("ies", "y"), ("es", "e"), ("es", ""), ("s", ""), ("ed", "e"), ("ed"
 def normalise(text: str) -> str:
     """Lower-case ``text`` and keep only its words.
 
-    The word rule of :mod:`~missiontree.reasoning.phrases`, which reads this module's lexicon: kept
-    here so that the two modules do not import each other.
+    The one word rule of the reasoners (:mod:`~missiontree.reasoning.phrases` uses it too): lives
+    here, below the phrases that read this module's lexicon, so the two do not import each other.
     """
     return " ".join(_WORD.findall(text.lower()))
 

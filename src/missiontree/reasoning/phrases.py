@@ -9,11 +9,11 @@ plurals are folded (couch → sofa, mugs → cup). Attributes are colour names (
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterable
 from functools import lru_cache
 
 from missiontree.perception.colour import ALIASES, COLOUR_NAMES, canonical_colour
+from missiontree.reasoning.knowledge import knowledge, normalise
 from missiontree.reasoning.schemas import ReferenceParse
 
 #: Words people use for a class, folded to the name detectors and worlds use.
@@ -40,12 +40,6 @@ SIZE_WORDS: dict[str, str] = {"small": "small", "little": "small", "tiny": "smal
 GENERIC_PLACES = frozenset({"floor", "ground", "here", "there", "room", "house", "building", "left", "right",
                             "me", "you", "it", "way", "moment", "morning", "evening", "minute"})
 _FILLER = frozenset({"the", "a", "an", "my", "this", "that", "your", "our", "please", "now"})
-_WORD = re.compile(r"[a-z]+")
-
-
-def normalise(text: str) -> str:
-    """Lower-case ``text`` and keep only words separated by single spaces."""
-    return " ".join(_WORD.findall(text.lower()))
 
 
 def fold_label(label: str) -> str:
@@ -69,8 +63,6 @@ def fold_label(label: str) -> str:
 def _lexicon() -> dict[str, str]:
     """Map each word to the label it names, from the shipped knowledge (empty when it cannot be read)."""
     try:
-        from missiontree.reasoning.knowledge import knowledge
-
         return dict(knowledge().label_words)
     except (OSError, ValueError, KeyError):
         return {}
