@@ -234,3 +234,38 @@ def test_follow_updates_the_page_as_the_log_grows(page: Any, tmp_path: Path):
     finally:
         server.shutdown()
         server.server_close()
+
+
+def test_the_scene_graph_is_drawn_on_the_map_and_can_be_hidden(page: Any, tmp_path: Path):
+    """The run's scene graph shows as labelled objects and the served target; the checkbox hides it."""
+    run = tmp_path / "run"
+    synthesize_run(run, 200)
+    nodes = [
+        {"id": "room_1", "type": "room", "label": "kitchen"},
+        {"id": "cup_1", "type": "object", "label": "cup", "coordinates": [1.0, 2.0, 0.8]},
+        {"id": "chair_1", "type": "object", "label": "chair", "coordinates": [3.0, 1.0, 0.4]},
+    ]
+    edges = [{"source_id": "room_1", "target_id": "cup_1", "relation": "contains"}]
+    (run / "scene_graph.json").write_text(json.dumps({"nodes": nodes, "edges": edges}))
+    summary = json.loads((run / "summary.json").read_text())
+    summary["outcome"] = {"intent": {"commands": [{"status": "served", "object": "chair_1"}]}}
+    (run / "summary.json").write_text(json.dumps(summary))
+    open_page(page, write_page(run, tmp_path / "report.html"))
+    marks = page.locator("#map")
+    assert marks.get_attribute("data-scene-objects") == "2"
+    assert marks.get_attribute("data-scene-rooms") == "1"
+    assert marks.get_attribute("data-target") == "served: chair"
+    page.locator("#scenetoggle").uncheck()
+    assert marks.get_attribute("data-scene-objects") == "0"
+
+
+def test_the_alarm_frame_sits_beside_the_map_not_over_it(page: Any, patrol_run: Path, tmp_path: Path):
+    """With an alarm frame shown, the frame's box and the map's box do not overlap."""
+    open_page(page, write_page(patrol_run, tmp_path / "report.html"))
+    assert page.locator("#frame").is_visible()
+    frame = page.locator("#frame").bounding_box()
+    drawn = page.locator("#map").bounding_box()
+    assert frame is not None and drawn is not None
+    assert frame["x"] >= drawn["x"] + drawn["width"] - 0.5, (frame, drawn)
+    width = page.evaluate("document.getElementById('map').width")
+    assert abs(width - round(drawn["width"])) <= 2, "the canvas is drawn at its laid-out size"

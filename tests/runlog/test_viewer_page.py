@@ -85,3 +85,44 @@ def test_live_data_picks_up_the_tree_recorded_after_the_first_lines(tmp_path: Pa
     data = live.data()
     assert data["lines"] == len(lines) and len(data["times"]) == 50
     assert data["s"][data["nodes"][0][2]] == "Selector"
+
+
+def _graph(run: Path) -> None:
+    """A small scene graph: a kitchen with a cup and a fridge, a hall with a chair, one bad node."""
+    nodes = [
+        {"id": 0, "type": "building", "label": "Building"},
+        {"id": "room_1", "type": "room", "label": "kitchen"},
+        {"id": "room_2", "type": "room", "label": "hall"},
+        {"id": "cup_1", "type": "object", "label": "cup", "coordinates": [1.0, 2.0, 0.8]},
+        {"id": "refrigerator_1", "type": "object", "label": "refrigerator", "coordinates": [3.0, 2.0, 0.9]},
+        {"id": "chair_1", "type": "object", "label": "chair", "coordinates": [8.0, -1.0, 0.4]},
+        {"id": "ghost_1", "type": "object", "label": "ghost", "coordinates": ["NaN", None]},
+    ]
+    edges = [
+        {"source_id": "room_1", "target_id": "cup_1", "relation": "contains"},
+        {"source_id": "room_1", "target_id": "refrigerator_1", "relation": "contains"},
+        {"source_id": "room_2", "target_id": "chair_1", "relation": "contains"},
+        {"source_id": "cup_1", "target_id": "refrigerator_1", "relation": "near"},
+    ]
+    (run / "scene_graph.json").write_text(json.dumps({"nodes": nodes, "edges": edges}))
+
+
+def test_the_scene_graph_becomes_a_map_layer_with_the_served_object(tmp_path: Path):
+    """Objects keep their labels, rooms sit at their objects' centre, the served object is the target."""
+    run = tmp_path / "run"
+    synthesize_run(run, 50)
+    _graph(run)
+    summary = json.loads((run / "summary.json").read_text())
+    summary["outcome"] = {"intent": {"commands": [{"status": "served", "object": "cup_1"}]}}
+    (run / "summary.json").write_text(json.dumps(summary))
+    scene = page_data(open_run(run), run)["scene"]
+    assert sorted(o[3] for o in scene["objects"]) == ["chair_1", "cup_1", "refrigerator_1"]
+    assert sorted(scene["rooms"]) == [[2.0, 2.0, "kitchen"], [8.0, -1.0, "hall"]]
+    assert scene["target"] == [1.0, 2.0, "served: cup"]
+
+
+def test_a_run_without_a_scene_graph_has_no_layer(tmp_path: Path):
+    """A patrol-like run (no scene_graph.json, nothing found) draws no scene layer."""
+    run = tmp_path / "run"
+    synthesize_run(run, 50)
+    assert page_data(open_run(run), run)["scene"] is None

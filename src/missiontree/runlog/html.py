@@ -9,7 +9,9 @@ stays a few megabytes and opens in about a second:
   which the page builds keyframes (a full snapshot every 256 ticks) when it opens, so seeking to
   any tick applies at most 255 ticks of changes;
 - root status per tick is one character a tick; times are milliseconds, delta-coded;
-- the map is a PNG, alarm frames are small JPEGs (capped in number and bytes).
+- the map is a PNG, alarm frames are small JPEGs (capped in number and bytes);
+- the scene graph the run left (``scene_graph.json``) is a layer of labelled objects and rooms,
+  with the mission's target (the object served or found) marked.
 
 :func:`page_data` is the payload (also what ``view --follow`` serves as ``data.json``);
 :func:`render_page` wraps it in the page; :func:`write_page` does both for a run directory.
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -39,6 +42,10 @@ MAX_FRAMES = 200
 MAX_FRAME_BYTES = 3_000_000
 #: Event categories, in the order the page colours them.
 CATEGORIES = ("goal", "alarm", "model", "failure", "detection", "other")
+#: Scene-graph objects drawn at most (a run's graph rarely holds more than a few hundred).
+MAX_SCENE_OBJECTS = 2000
+#: The events whose position is the object a search found.
+FOUND_EVENTS = ("object_found",)
 
 
 class _Strings:
@@ -145,6 +152,101 @@ def _encode_frame(run_dir: Path | None, name: Any, budget: list[int]) -> str | N
     budget[0] += 1
     budget[1] += len(jpeg)
     return "data:image/jpeg;base64," + base64.b64encode(jpeg.tobytes()).decode("ascii")
+
+
+def _finite_xy(value: Any) -> tuple[float, float] | None:
+    """``value``'s first two numbers when both are finite, else None (a graph may hold anything)."""
+    if not isinstance(value, list | tuple) or len(value) < 2:
+        return None
+    x, y = value[0], value[1]
+    for v in (x, y):
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            return None
+    return round(float(x), 3), round(float(y), 3)
+
+
+def _read_graph(run_dir: Path | None) -> dict[str, Any]:
+    """The run's ``scene_graph.json`` as ``{"nodes": [...], "edges": [...]}`` (empty when absent)."""
+    path = run_dir / "scene_graph.json" if run_dir is not None else None
+    try:
+        graph = json.loads(path.read_text(encoding="utf-8")) if path is not None and path.is_file() else {}
+    except (OSError, ValueError):
+        graph = {}
+    if not isinstance(graph, dict):
+        graph = {}
+    return {key: [x for x in graph.get(key) or [] if isinstance(x, dict)]
+            if isinstance(graph.get(key), list) else [] for key in ("nodes", "edges")}
+
+
+def _served_object(summary: dict[str, Any]) -> str:
+    """The id of the object the run's last served command went to ("" when none was served)."""
+    outcome = summary.get("outcome")
+    intent = outcome.get("intent") if isinstance(outcome, dict) else None
+    commands = intent.get("commands") if isinstance(intent, dict) else None
+    for record in reversed(commands if isinstance(commands, list) else []):
+        if isinstance(record, dict) and record.get("status") == "served":
+            return str(record.get("object", ""))
+    return ""
+
+
+def _room_centres(
+    edges: list[dict[str, Any]], where: dict[str, tuple[float, float]], labels: dict[str, str]
+) -> list[list[Any]]:
+    """Each room at the centre of the objects it contains (the graph gives rooms no position).
+
+    ``labels`` holds the rooms' labels by id (only rooms are placed).
+    """
+    members: dict[str, list[tuple[float, float]]] = {}
+    for edge in edges:
+        inside = str(edge.get("target_id"))[:40]
+        if edge.get("relation") == "contains" and inside in where:
+            members.setdefault(str(edge.get("source_id"))[:40], []).append(where[inside])
+    centres = []
+    for rid, points in members.items():
+        if rid in labels:
+            n = len(points)
+            centres.append([round(sum(p[0] for p in points) / n, 3), round(sum(p[1] for p in points) / n, 3),
+                            labels[rid]])
+    return centres
+
+
+def scene_layer(run_dir: Path | None, summary: dict[str, Any], events: list[Any]) -> dict[str, Any] | None:
+    """The scene graph as the map's layer: objects, rooms (at their objects' centre) and the target.
+
+    Args:
+        run_dir: The run directory (its ``scene_graph.json``, written at the end of mapping).
+        summary: The run's summary.json (the intent outcome names the served object).
+        events: The replayed events (a search's ``object_found`` says where the target was found).
+
+    Returns:
+        ``{"objects": [[x, y, label, id]], "rooms": [[x, y, label]], "target": [x, y, text] | None}``,
+        or None when the run left neither a graph nor a found target.
+    """
+    graph = _read_graph(run_dir)
+    objects: list[list[Any]] = []
+    where: dict[str, tuple[float, float]] = {}
+    labels: dict[str, str] = {}
+    rooms: dict[str, str] = {}
+    for node in graph["nodes"]:
+        oid = str(node.get("id"))[:40]
+        labels[oid] = str(node.get("label", ""))[:40]
+        if node.get("type") == "room":
+            rooms[oid] = labels[oid]
+        xy = _finite_xy(node.get("coordinates")) if node.get("type") == "object" else None
+        if xy is not None and len(objects) < MAX_SCENE_OBJECTS:
+            where[oid] = xy
+            objects.append([xy[0], xy[1], labels[oid], oid])
+    target: list[Any] | None = None
+    served = _served_object(summary)
+    if served in where:
+        target = [*where[served], f"served: {labels.get(served, served)}"]
+    for event in events:
+        xy = _finite_xy(event_position(event)) if event.kind in FOUND_EVENTS else None
+        if xy is not None:
+            target = [*xy, f"found: {str(event.fields.get('label', ''))[:40]}"]
+    if not objects and target is None:
+        return None
+    return {"objects": objects, "rooms": _room_centres(graph["edges"], where, rooms), "target": target}
 
 
 def page_data(
@@ -259,6 +361,7 @@ def page_data(
         "poses": poses,
         "map": _map_of(run_dir, runview),
         "frames": frames,
+        "scene": scene_layer(run_dir, summary, replay.events),
         "ending": replay.ending(),
     }
 

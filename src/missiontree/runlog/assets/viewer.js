@@ -182,13 +182,23 @@
     list.dataset.count = String(total);
   }
 
+  // The frame sits beside the map: a run with frames keeps the column (a caption until the first
+  // one) so that the map keeps its size and nothing covers it.
   function showFrame(j) {
-    const box = $("frame");
-    if (j < 0) { box.hidden = true; return; }
-    let f; try { f = JSON.parse(S[D.events[j][3]]); } catch (x) { f = {}; }
+    const box = $("frame"), was = box.hidden;
+    placeFrame(j);
+    if (box.hidden !== was) { mapSize = null; requestAnimationFrame(() => { if (cur >= 0) drawMap(cur); }); }  // the map's width changed
+  }
+
+  function placeFrame(j) {
+    const box = $("frame"), reserved = Object.keys(D.frames || {}).length > 0;
+    let f = {}; if (j >= 0) { try { f = JSON.parse(S[D.events[j][3]]); } catch (x) { f = {}; } }
     const url = f.image ? D.frames[f.image] : null;
-    if (!url) { box.hidden = true; return; }
-    $("frameimg").src = url; box.hidden = false; box.dataset.image = f.image;
+    if (!url) {
+      box.hidden = !reserved; $("frameimg").hidden = true; delete box.dataset.image;
+      $("framecap").textContent = reserved ? "no alarm frame yet" : ""; return;
+    }
+    $("frameimg").hidden = false; $("frameimg").src = url; box.hidden = false; box.dataset.image = f.image;
     $("framecap").textContent = S[D.events[j][1]] + (f.id !== undefined ? " " + f.id : "") + " at " +
       times[D.events[j][0]].toFixed(1) + " s" + (f.verdict ? ": " + f.verdict : "");
   }
@@ -200,6 +210,7 @@
     if (D.map) { grow(D.map.origin[0], D.map.origin[1]); grow(D.map.origin[0] + D.map.width * D.map.resolution, D.map.origin[1] + D.map.height * D.map.resolution); }
     for (let j = 0; j < poses.length; j += 3) grow(poses[j + 1], poses[j + 2]);
     for (const e of D.events) if (e[4] !== null) grow(e[4], e[5]);
+    if (D.scene) for (const o of D.scene.objects) grow(o[0], o[1]);
     if (!isFinite(x0)) { x0 = -5; y0 = -5; x1 = 5; y1 = 5; }
     const pad = 0.5; return [x0 - pad, y0 - pad, x1 + pad, y1 + pad];
   }
@@ -246,13 +257,36 @@
       else if (cat === "detection") { counts.detection++; marker(g, X(e[4]), Y(e[5]), "#e67e00", "square", 4); }
     }
     if (lastGoal >= 0) { const e = D.events[lastGoal]; g.strokeStyle = "#1f9d55"; g.lineWidth = 2; g.beginPath(); g.arc(X(e[4]), Y(e[5]), 8, 0, 7); g.stroke(); }
+    const scene = drawScene(g, X, Y, scale);
     if (rx !== null) { marker(g, X(rx), Y(ry), "#0b3d91", "circle", 6); }
     // metre scale
     const m = Math.pow(10, Math.floor(Math.log10(80 / scale))) || 1;
     g.fillStyle = "#333"; g.fillRect(10, h - 14, m * scale, 3); g.font = "11px sans-serif"; g.fillText(m + " m", 14 + m * scale, h - 10);
     Object.assign(cv.dataset, { pathPoints: points, goals: counts.goal, alarms: counts.alarm, detections: counts.detection,
-      robot: rx === null ? "" : rx.toFixed(2) + "," + ry.toFixed(2) });
+      robot: rx === null ? "" : rx.toFixed(2) + "," + ry.toFixed(2), ...scene });
     const a = lastAlarmWithFrame(i); showFrame(a);
+  }
+
+  // The scene graph the run left: objects with their labels, rooms at their objects' centre, and
+  // the mission's target (the object served or found) ringed. Labels only where they fit.
+  function drawScene(g, X, Y, scale) {
+    const sc = D.scene, on = !!sc && $("scenetoggle").checked;
+    if (!on) return { sceneObjects: 0, sceneRooms: 0, target: "" };
+    const labels = scale >= 12;
+    g.font = "10px sans-serif";
+    for (const o of sc.objects) {
+      const x = X(o[0]), y = Y(o[1]);
+      g.fillStyle = "#6a3d9a"; g.beginPath(); g.moveTo(x, y - 4); g.lineTo(x + 4, y); g.lineTo(x, y + 4); g.lineTo(x - 4, y); g.closePath(); g.fill();
+      if (labels) { g.fillStyle = "#3d2360"; g.fillText(o[2], x + 5, y + 3); }
+    }
+    g.font = "italic bold 12px sans-serif"; g.fillStyle = "rgba(40,40,40,0.75)";
+    for (const r of sc.rooms) { const w = g.measureText(r[2]).width; g.fillText(r[2], X(r[0]) - w / 2, Y(r[1])); }
+    const t = sc.target;
+    if (t) {
+      g.strokeStyle = "#c2185b"; g.lineWidth = 3; g.beginPath(); g.arc(X(t[0]), Y(t[1]), 10, 0, 7); g.stroke();
+      g.font = "bold 11px sans-serif"; g.fillStyle = "#c2185b"; g.fillText(t[2], X(t[0]) + 12, Y(t[1]) - 8);
+    }
+    return { sceneObjects: sc.objects.length, sceneRooms: sc.rooms.length, target: t ? t[2] : "" };
   }
 
   function lastAlarmWithFrame(i) {
@@ -350,7 +384,8 @@
     const badge = $("badge"); badge.textContent = m.running ? "RUNNING (live)" : m.status; badge.className = "badge " + (m.running ? "RUNNING" : m.status);
     $("summary").textContent = (m.stopped_by ? "stopped by " + m.stopped_by + " · " : "") + N + " ticks · " +
       (N ? times[N - 1].toFixed(1) : "0") + " s robot time" + (m.robot ? " · robot " + m.robot : "") + (m.seed !== null && m.seed !== undefined ? " · seed " + m.seed : "");
-    $("mapnote").textContent = D.map ? D.map.source : "no map recorded";
+    $("mapnote").textContent = (D.map ? D.map.source : "no map recorded") + (D.scene ? " · scene graph at the end of the run" : "");
+    $("scenekey").hidden = !D.scene;
     $("scrub").max = String(Math.max(N - 1, 0));
     const kinds = new Set(D.events.map((e) => S[e[1]])), sel = $("evfilter"), keep = sel.value;
     sel.innerHTML = '<option value="">all</option><option value="*key">goals, alarms, failures, detections</option>';
@@ -368,6 +403,7 @@
 
   function start(data) {
     load(data); header(); buildTree(); loadMap(); drawMarks();
+    placeFrame(-1);  // reserve the frame's column before the map is measured
     setTick(N - 1);
     if (D.meta.status === "FAILURE" && !D.meta.running) whyEnded();
   }
@@ -398,6 +434,7 @@
   $("search").addEventListener("input", search);
   $("search").addEventListener("keydown", (ev) => { if (ev.key === "Enter") nextMatch(); });
   $("evfilter").addEventListener("change", () => events(cur));
+  $("scenetoggle").addEventListener("change", () => { if (cur >= 0) drawMap(cur); });
   $("expand").addEventListener("click", () => nodes.forEach((n) => toggle(n.id, true)));
   $("collapse").addEventListener("click", () => nodes.forEach((n) => toggle(n.id, n.parent < 0)));
   document.addEventListener("keydown", (ev) => {
