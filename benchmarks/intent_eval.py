@@ -529,7 +529,7 @@ def navfn_tolerance(world: Any, goal: Any, radius: float,
 
 def _score(bench: Bench, trial: Trial, final: Any, graph_reach: float) -> None:
     from missiontree.reasoning.intent import graph_objects
-    from missiontree.reasoning.standoff import STANDOFF_REACH
+    from missiontree.reasoning.standoff import MAX_REACH
 
     truth = bench.truth(trial.case)
     scene = graph_objects(bench.graph(trial.case).read_text(encoding="utf-8"))
@@ -544,7 +544,7 @@ def _score(bench: Bench, trial: Trial, final: Any, graph_reach: float) -> None:
     for goal in trial.goals:
         obj = scene.objects.get(str(goal.get("object")))
         real = world.object(obj.id) if obj is not None else None
-        limit = (max(real.size[0], real.size[1]) / 2 + 0.17 + STANDOFF_REACH + 0.15) if real else 0.0
+        limit = (max(real.size[0], real.size[1]) / 2 + 0.17 + MAX_REACH + 0.15) if real else 0.0
         if obj is None or obj.xy is None or math.hypot(goal["x"] - obj.xy[0], goal["y"] - obj.xy[1]) > max(
                 limit, graph_reach):
             trial.invented += 1

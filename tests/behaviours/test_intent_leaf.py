@@ -162,3 +162,30 @@ def test_bored_goes_to_the_laptop_when_the_tv_cannot_be_reached(tmp_path: Path) 
     assert {e["object"] for e in of(log, "candidate_rejected")} >= {"tv_1"}
     assert [e["object"] for e in of(log, "goal_sent")] == ["laptop_1"]
     assert result.status.value == "SUCCESS"
+
+
+def test_a_standoff_goal_the_stack_cannot_reach_is_tried_from_another_side() -> None:
+    """The first goal to the bottle aborts: the same object is approached once more from elsewhere."""
+    models = build_models("offline", providers=fresh_plugins().providers)
+    models["llm"] = ScriptedLanguageModel(["bottle_green"])
+    robot = create_robot({"world": "office", "seed": 1})
+    real = robot.navigate_to
+    calls: list[object] = []
+
+    def first_fails(goal, tolerance):  # type: ignore[no-untyped-def]
+        calls.append(goal)
+        if len(calls) == 1:  # a goal inside the map's outer wall: the stack proves it unreachable
+            return real(type(goal)(-50.0, -50.0, goal.yaw), tolerance)
+        return real(goal, tolerance)
+
+    robot.navigate_to = first_fails  # type: ignore[method-assign]
+    leaf = GoToIntent("go", GoToIntent.Params(scene_graph=OFFICE_GRAPH, look=False))
+    root = ServeCommands("serve", leaf, ServeCommandsParams(command="I am thirsty"))
+    try:
+        result, log = capture_tick_log(root, MissionContext(robot=robot, models=models), max_duration=300.0)
+    finally:
+        robot.close()
+    [again] = of(log, "approach_again")
+    goals = of(log, "goal_sent")
+    assert again["object"] == "bottle_green" and [g["object"] for g in goals] == ["bottle_green"] * 2
+    assert result.status.value == "SUCCESS"

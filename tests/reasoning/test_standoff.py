@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from missiontree.reasoning.standoff import (
+    MAX_REACH,
     STANDOFF_REACH,
     object_extent,
     outside_known_map,
@@ -72,3 +73,34 @@ def test_outside_known_map_names_why():
     data[:10, :10] = 0
     unknown = prepare_space(OccupancyGrid(0.0, RES, Pose2D(0.0, 0.0), data), RADIUS)
     assert "unexplored" in outside_known_map(unknown, (3.0, 3.0))
+
+
+def _alcove() -> OccupancyGrid:
+    """A 4 x 4 m room with a 0.05 m post at the back of a 0.4 m wide, 0.7 m deep alcove at (2, 0)."""
+    data = np.zeros((80, 80), dtype=np.int8)
+    data[0, :] = data[-1, :] = data[:, 0] = data[:, -1] = 100
+    data[:14, 35] = data[:14, 44] = 100
+    data[1:3, 40] = 100
+    return OccupancyGrid(0.0, RES, Pose2D(0.0, 0.0), data)
+
+
+def test_no_place_within_half_a_metre_searches_farther_rings():
+    """An object at the back of a narrow alcove is looked at from its mouth, beyond the first 0.5 m."""
+    space = prepare_space(_alcove(), RADIUS)
+    cells = standoff_cells(space, (2.025, 0.1), RADIUS)
+    assert cells
+    extent = object_extent(space, (2.025, 0.1))
+    places = [space.grid.cell_to_world(r, c) for r, c, _ in cells]
+    distances = [math.hypot(x - 2.025, y - 0.1) for x, y in places]
+    assert min(distances) > extent + RADIUS + STANDOFF_REACH  # none in the first band: it has no room
+    assert max(distances) <= extent + RADIUS + MAX_REACH + 1e-6
+
+
+def test_the_nearest_ring_with_a_place_wins():
+    """With room close by, no cell of a farther ring is offered."""
+    space = prepare_space(_room(), RADIUS)
+    extent = object_extent(space, (2.0, 2.0))
+    cells = standoff_cells(space, (2.0, 2.0), RADIUS)
+    far = extent + RADIUS + STANDOFF_REACH
+    assert all(math.hypot(*(np.subtract(space.grid.cell_to_world(r, c), (2.0, 2.0)))) <= far + 0.3 + 1e-6
+               for r, c, _ in cells)

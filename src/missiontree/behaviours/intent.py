@@ -28,8 +28,6 @@ Tick-log events: ``intent_interpreted``, ``candidate_rejected``, ``intent_ambigu
 
 from __future__ import annotations
 
-import dataclasses
-import enum
 import json
 import math
 from pathlib import Path
@@ -37,27 +35,24 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, Field
 
-from missiontree.engine.leaf import Leaf, Status
+from missiontree.behaviours.intent_look import ArrivalLook, Step
+from missiontree.behaviours.intent_look import camera_view as _camera_view
+from missiontree.engine.leaf import Status
 from missiontree.engine.ports import Input, Output
-from missiontree.perception.detectors import detection_job
 from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
 from missiontree.reasoning.intent import (
     Candidate,
     Ranking,
     SceneObjects,
     graph_objects,
-    look_crop,
-    look_for,
-    match_detection,
     nearest_note,
-    other_viewpoint,
     plan_candidates,
     prompt_objects,
 )
 from missiontree.reasoning.knowledge import STRONG, knowledge
 from missiontree.reasoning.phrases import fold_label
-from missiontree.reasoning.prompts import crop_match_prompt, intent_messages
-from missiontree.reasoning.schemas import CropMatch, IntentResolution
+from missiontree.reasoning.prompts import intent_messages
+from missiontree.reasoning.schemas import IntentResolution
 from missiontree.robot.actions import ActionHandle, ActionStatus
 from missiontree.types import RGBDFrame, Tolerance
 
@@ -65,20 +60,6 @@ from missiontree.types import RGBDFrame, Tolerance
 SERVED_FILE = "intent_served.json"
 #: A goal aborted with the robot this close to it (m) counts as reached: the stack stopped just short.
 NEAR_ENOUGH = 0.4
-#: Heading error (rad) at which the robot counts as facing the object, and the time allowed to turn (s).
-FACING, FACE_TIMEOUT = 0.12, 8.0
-#: Frames a look may take (detector and vision-language model) before the object is doubted.
-LOOK_FRAMES = 3
-#: How much of the surroundings the vision-language model sees around the detection (share of the box a side).
-LOOK_GROW = 1.0
-
-
-def _camera_view(frame: RGBDFrame | None) -> tuple[float, float] | None:
-    """(camera height, tangent of the view below its axis) from a frame, None before the first frame."""
-    if frame is None:
-        return None
-    k = frame.intrinsics
-    return frame.camera_height, (k.height - k.cy) / k.fy
 
 
 def find_scene_graph(name: str) -> Path:
@@ -108,18 +89,7 @@ def find_scene_graph(name: str) -> Path:
 # -- GoToIntent ----------------------------------------------------------------------------------------
 
 
-class _Step(enum.Enum):
-    INTERPRET = "interpreting the command"
-    FACE = "turning to face the object"
-    PLAN = "checking and ranking candidates"
-    DRIVE = "driving to the candidate"
-    FRAME = "waiting for a fresh camera frame"
-    DETECT = "looking with the detector"
-    CONFIRM = "asking the vision-language model"
-    VIEWPOINT = "finding another place to look from"
-
-
-class GoToIntent(Leaf):
+class GoToIntent(ArrivalLook):
     """Serve one command over the scene graph: candidates checked, ranked by path, driven to, looked at.
 
     FAILURE reasons name what went wrong: the model's answer, every candidate rejected with its reason,
@@ -174,7 +144,7 @@ class GoToIntent(Leaf):
         self._reset()
 
     def _reset(self) -> None:
-        self.step = _Step.INTERPRET
+        self.step = Step.INTERPRET
         self.text = ""
         self.scene: SceneObjects | None = None
         self.call: ModelCall | None = None
@@ -189,6 +159,9 @@ class GoToIntent(Leaf):
         self.started = 0.0
         self.second_look = False   # the current candidate has been looked at from a second place
         self.first_miss = ""
+        self.reapproached = False
+        self.approach_miss = ""
+        self.first_unreached = ""  # why the first standoff goal of the current candidate was not reached
         self.because = ""          # the language model's reason for its candidates
         self.named = ""            # the class a referential command names ("" for a need)
 
@@ -233,14 +206,14 @@ class GoToIntent(Leaf):
                 "--set scene_graph=path/to/graph.json"
             )
         handlers = {
-            _Step.FACE: self._faced,
-            _Step.INTERPRET: self._interpreted,
-            _Step.PLAN: self._ranked,
-            _Step.DRIVE: self._driven,
-            _Step.FRAME: self._framed,
-            _Step.DETECT: self._detected,
-            _Step.CONFIRM: self._confirmed,
-            _Step.VIEWPOINT: self._viewpoint,
+            Step.FACE: self._faced,
+            Step.INTERPRET: self._interpreted,
+            Step.PLAN: self._ranked,
+            Step.DRIVE: self._driven,
+            Step.FRAME: self._framed,
+            Step.DETECT: self._detected,
+            Step.CONFIRM: self._confirmed,
+            Step.VIEWPOINT: self._viewpoint,
         }
         return handlers[self.step]()
 
@@ -249,7 +222,7 @@ class GoToIntent(Leaf):
         if self.call is not None:
             self.call.cancel()
             self.call = None
-        if self.step is _Step.FACE and self.ctx is not None:
+        if self.step is Step.FACE and self.ctx is not None:
             self.ctx.robot.stop()
         if self.handle is not None:
             self.handle.cancel()
@@ -263,7 +236,7 @@ class GoToIntent(Leaf):
         assert self.call is not None and self.scene is not None
         status = self.call.status()
         if not status.done:
-            return self.running(f"{_Step.INTERPRET.value}: {self.text!r}")
+            return self.running(f"{Step.INTERPRET.value}: {self.text!r}")
         if status is not CallStatus.SUCCEEDED:
             return self.fail(f"the language model did not answer for {self.text!r}: {self.call.error()}")
         answer: IntentResolution = self.call.result().value
@@ -340,14 +313,14 @@ class GoToIntent(Leaf):
             provider="intent_ranking",
             node=self.name,
         )
-        self.step = _Step.PLAN
-        return self.running(_Step.PLAN.value)
+        self.step = Step.PLAN
+        return self.running(Step.PLAN.value)
 
     def _ranked(self) -> Status:
         assert self.call is not None and self.scene is not None
         status = self.call.status()
         if not status.done:
-            return self.running(_Step.PLAN.value)
+            return self.running(Step.PLAN.value)
         if status is not CallStatus.SUCCEEDED:
             return self.fail(f"ranking the candidates failed: {self.call.error()}")
         ranking: Ranking = self.call.result()
@@ -377,6 +350,8 @@ class GoToIntent(Leaf):
         if not ranking.candidates or driven >= self.params.max_candidates:
             return self._give_up()
         self.second_look = False
+        self.reapproached = False
+        self.first_unreached = ""
         # the best tier first (a TV before a laptop for boredom), the shortest path within a tier
         best = min(ranking.candidates, key=lambda c: (-self._strength_of(c.label)[0], c.path_length))
         return self._drive_to(best)
@@ -409,7 +384,7 @@ class GoToIntent(Leaf):
         )
         if self.ctx is not None:
             self.ctx.mark("goal", goal.x, goal.y, candidate.id)
-        self.step = _Step.DRIVE
+        self.step = Step.DRIVE
         return self.running(f"to {candidate.id} ({candidate.path_length:.1f} m by path)")
 
     def _driven(self) -> Status:
@@ -434,107 +409,19 @@ class GoToIntent(Leaf):
         if status is not ActionStatus.SUCCEEDED and not (
             status is ActionStatus.ABORTED and off <= NEAR_ENOUGH
         ):
-            return self._next(f"not reached ({status.value}: {reason or 'no reason given'})")
+            why = f"not reached ({status.value}: {reason or 'no reason given'})"
+            if status is not ActionStatus.ABORTED:
+                return self._next(why)
+            if self.reapproached:
+                return self._next(f"{self.first_unreached}; again from another side: {why}")
+            self.first_unreached = why
+            return self._approach_again(why)
         if not self.params.look:
             return self._served(False, "not looked at: look is off")
         self.started = robot.now()
         self.looks = 0
-        self.step = _Step.FACE
+        self.step = Step.FACE
         return self._faced()
-
-    def _faced(self) -> Status:
-        """Turn in place until the object is straight ahead (the navigation stack may stop short)."""
-        assert self.target is not None
-        robot = self.context.robot
-        stamped = robot.pose()
-        error = stamped.pose.bearing_to(*self.target.xy) if stamped is not None else 0.0
-        if abs(error) > FACING and robot.now() - self.started < FACE_TIMEOUT:
-            robot.drive(0.0, max(-1.0, min(1.0, 2.0 * error)))
-            return self.running(f"turning to face {self.target.id} ({math.degrees(error):.0f} deg)")
-        robot.stop()
-        self.started = robot.now()
-        self.step = _Step.FRAME
-        return self.running(_Step.FRAME.value)
-
-    def _framed(self) -> Status:
-        assert self.target is not None
-        robot = self.context.robot
-        if robot.now() - self.started > self.params.look_timeout:
-            return self._doubt("no camera frame after arriving")
-        frame = robot.rgbd()
-        if frame is None or frame.stamp < self.started:
-            return self.running(_Step.FRAME.value)
-        self.frame = frame
-        detector = self.context.model("detector")
-        unseen = self._unverifiable(detector, frame)
-        if unseen:
-            # Nothing here can check it: only a strong choice is served unconfirmed, a weak one is doubted
-            strength, why = self._strength()
-            if strength < STRONG:
-                return self._doubt(f"{unseen}, and it was a weak choice ({why}, {strength:.2f} < {STRONG:g})")
-            self.emit("object_unverifiable", command=self.text, object=self.target.id, reason=unseen)
-            return self._served(False, f"not confirmed: {unseen}; a strong choice: {why} {strength:.2f}")
-        self.call = model_caller(self.context).submit(
-            "detector", detection_job(detector, frame), node=self.name
-        )
-        self.step = _Step.DETECT
-        return self.running(_Step.DETECT.value)
-
-    def _detected(self) -> Status:
-        assert self.call is not None and self.target is not None and self.frame is not None
-        status = self.call.status()
-        if not status.done:
-            return self.running(_Step.DETECT.value)
-        if status is not CallStatus.SUCCEEDED:
-            return self._doubt(f"the detector failed: {self.call.error()}")
-        detections = self.call.result()
-        self.call = None
-        found, why = match_detection(detections, self.target.label, self.frame, self.target.xy)
-        self.looks += 1
-        if found is None and self.looks < LOOK_FRAMES:
-            self.started = self.frame.stamp + 1e-6  # a newer frame: detectors miss now and then
-            self.step = _Step.FRAME
-            return self.running(f"{_Step.FRAME.value} (look {self.looks + 1} of {LOOK_FRAMES})")
-        if found is None:
-            return self._look_elsewhere(f"{why} (in {self.looks} frames)")
-        wanted = look_for(self.target.label, self.wanted.split())
-        same = [d for d in detections if fold_label(d.label) == fold_label(found.label) and d.score >= 0.5]
-        # Alone of its class in view, the whole frame is asked about; with others beside it, only the
-        # region around it, so that another chair's colour cannot answer for this one.
-        image = self.frame.color if len(same) <= 1 else look_crop(self.frame.color, found.box, grow=LOOK_GROW)
-        self.call = model_caller(self.context).ask(
-            "vlm", [image], crop_match_prompt(wanted), CropMatch, node=self.name
-        )
-        self.step = _Step.CONFIRM
-        return self.running(f"{_Step.CONFIRM.value}: is it a {wanted}?")
-
-    def _confirmed(self) -> Status:
-        assert self.call is not None and self.target is not None
-        status = self.call.status()
-        if not status.done:
-            return self.running(_Step.CONFIRM.value)
-        if status is not CallStatus.SUCCEEDED:
-            return self._doubt(f"the vision-language model failed: {self.call.error()}")
-        verdict: CropMatch = self.call.result().value
-        self.call = None
-        wanted = look_for(self.target.label, self.wanted.split())
-        if not verdict.matches and self.looks < LOOK_FRAMES:
-            assert self.frame is not None
-            self.started = self.frame.stamp + 1e-6  # look again at a newer frame
-            self.step = _Step.FRAME
-            return self.running(f"{_Step.FRAME.value} (look {self.looks + 1} of {LOOK_FRAMES})")
-        if not verdict.matches:
-            return self._look_elsewhere(f"the vision-language model does not see a {wanted}: "
-                                        f"{verdict.reason} (in {self.looks} frames)")
-        self.emit(
-            "object_verified",
-            command=self.text,
-            object=self.target.id,
-            looked_for=wanted,
-            reason=verdict.reason,
-            confidence=verdict.confidence,
-        )
-        return self._served(True, f"a {wanted} seen ({verdict.reason})")
 
     # -- serving ---------------------------------------------------------------------------------
 
@@ -573,43 +460,6 @@ class GoToIntent(Leaf):
         return score, (f"{raw} serves {why}" if why else f"nothing known says a {raw} serves {self.text!r}")
 
     # -- failing over ----------------------------------------------------------------------------
-
-    def _look_elsewhere(self, reason: str) -> Status:
-        """A look that did not confirm the target: look once more from another side before doubting it.
-
-        A detector misses a cup seen edge-on on a cluttered table, or one cut by the view's edge;
-        the graph's instance came from views elsewhere. One second standoff pose (another side, or
-        nearer/farther: :func:`~missiontree.reasoning.intent.other_viewpoint`) is tried first.
-        """
-        assert self.target is not None and self.scene is not None
-        robot = self.context.robot
-        stamped = robot.pose()
-        grid = robot.occupancy()
-        obj = self.scene.objects.get(self.target.id)
-        if self.second_look or stamped is None or grid is None or obj is None:
-            return self._doubt(reason if not self.second_look else f"{self.first_miss}; again from a "
-                               f"second place: {reason}")
-        self.second_look = True
-        self.first_miss = reason
-        self.call = model_caller(self.context).submit(
-            "planner", other_viewpoint, obj, grid, stamped.pose, self.target.goal, self.params.robot_radius,
-            self.params.allow_unknown, _camera_view(self.frame), provider="intent_viewpoint", node=self.name,
-        )
-        self.step = _Step.VIEWPOINT
-        return self.running(_Step.VIEWPOINT.value)
-
-    def _viewpoint(self) -> Status:
-        assert self.call is not None and self.target is not None
-        status = self.call.status()
-        if not status.done:
-            return self.running(_Step.VIEWPOINT.value)
-        pose = self.call.result() if status is CallStatus.SUCCEEDED else None
-        self.call = None
-        if pose is None:
-            return self._doubt(f"{self.first_miss}; no other place to look at it from")
-        self.emit("look_again", command=self.text, object=self.target.id, reason=self.first_miss,
-                  x=round(pose.x, 3), y=round(pose.y, 3), yaw=round(pose.yaw, 3))
-        return self._drive_to(dataclasses.replace(self.target, goal=pose))
 
     def _doubt(self, reason: str) -> Status:
         assert self.target is not None
@@ -669,22 +519,6 @@ class GoToIntent(Leaf):
             path.write_text(json.dumps([*entries, record], indent=1, default=str) + "\n", encoding="utf-8")
         except (OSError, ValueError) as error:
             self.emit("intent_record_failed", path=str(path), error=str(error))
-
-    def _unverifiable(self, detector: Any, frame: RGBDFrame) -> str:
-        """Why nothing could confirm the target from here ("" when a look can)."""
-        assert self.target is not None and self.scene is not None
-        label = self.target.label
-        known = [fold_label(str(x)) for x in (getattr(detector, "labels", None) or [])]
-        if known and fold_label(label) not in known:
-            return f"the detector knows no {label}"
-        z = self.scene.objects[self.target.id].z
-        cam = frame.camera_pose
-        distance = math.hypot(self.target.xy[0] - cam.x, self.target.xy[1] - cam.y)
-        top = frame.camera_height + distance * frame.intrinsics.cy / frame.intrinsics.fy
-        if z > top:
-            return (f"the {label} is {z:.2f} m up, above what the camera sees from "
-                    f"{distance:.1f} m ({top:.2f} m)")
-        return ""
 
     def _doubtful(self) -> list[str]:
         try:

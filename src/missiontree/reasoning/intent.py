@@ -37,7 +37,7 @@ from missiontree.mapping.planner import path_lengths
 from missiontree.perception.colour import ALIASES, COLOUR_NAMES, canonical_colour
 from missiontree.reasoning.phrases import colour_words, fold_label, size_words, split_relation
 from missiontree.reasoning.standoff import (
-    STANDOFF_REACH,
+    MAX_REACH,
     cell_path_lengths,
     outside_known_map,
     prepare_space,
@@ -356,7 +356,7 @@ def plan_candidates(
             rejected.append(
                 Rejection(
                     obj.id,
-                    f"no free place to stand within {STANDOFF_REACH:g} m of it "
+                    f"no free place to stand within {MAX_REACH:g} m of its edge "
                     f"at ({obj.xy[0]:.2f}, {obj.xy[1]:.2f})",
                 )
             )

@@ -27,6 +27,10 @@ OCCUPIED = 50
 STANDOFF_MARGIN = 0.08
 #: How far beyond the object's edge a standoff pose may be (m): the robot stands close to what it fetches.
 STANDOFF_REACH = 0.5
+#: When no place is free that close (an object in a corner of clutter, behind a chair), rings this wide
+#: (m) farther out are searched in turn, up to :data:`MAX_REACH` beyond the edge: from there the camera
+#: still sees the object and the robot is still within a metre of it.
+RING, MAX_REACH = 0.15, 0.8
 #: A ray from a standoff pose must reach this close to the object's edge before hitting anything (m).
 SIGHT_SLACK = 0.15
 #: Metres of path a standoff pose may cost for each metre closer to the object.
@@ -104,19 +108,33 @@ def standoff_cells(
     A cell qualifies when the robot fits there with a margin, it lies between the object's edge plus
     the robot's radius and :data:`STANDOFF_REACH` beyond, and a ray from it towards the object meets
     no obstacle before coming within :data:`SIGHT_SLACK` of the object's edge (no wall between).
-    The penalty, added to the path length when choosing among them, prefers cells close to the
-    object (what sits on a table is reached across its edge) and clear of other obstacles (a goal
-    hugging a wall makes the navigation stack stop short). ``min_distance`` keeps the robot at
-    least that far from the object's position (so that the camera sees down to it).
+    When no cell qualifies, rings :data:`RING` farther out are searched in turn up to
+    :data:`MAX_REACH` (the nearest ring with a place wins). The penalty, added to the path length
+    when choosing among them, prefers cells close to the object (what sits on a table is reached
+    across its edge) and clear of other obstacles (a goal hugging a wall makes the navigation stack
+    stop short). ``min_distance`` keeps the robot at least that far from the object's position (so
+    that the camera sees down to it).
     """
-    grid = space.grid
-    res = grid.resolution
     extent = object_extent(space, xy)
     near = max(extent + robot_radius + 0.02, min_distance)
     far = max(extent + robot_radius + STANDOFF_REACH, near + 0.3)
+    limit = max(extent + robot_radius + MAX_REACH, far)
+    inner = near
+    while True:
+        found = _ring_cells(space, xy, robot_radius, extent, (inner, far), near)
+        if found or far >= limit - 1e-9:
+            return found
+        inner, far = far, min(limit, far + RING)
+
+
+def _ring_cells(space: Space, xy: tuple[float, float], robot_radius: float, extent: float,
+                band: tuple[float, float], near: float) -> list[tuple[int, int, float]]:
+    """The cells of :func:`standoff_cells` whose distance from ``xy`` lies in ``band`` (m)."""
+    grid = space.grid
+    res = grid.resolution
     rows, cols = space.occupied.shape
     r_c, c_c = grid.world_to_cell(*xy)
-    span = int(math.ceil(far / res)) + 1
+    span = int(math.ceil(band[1] / res)) + 1
     r0, r1 = max(0, r_c - span), min(rows, r_c + span + 1)
     c0, c1 = max(0, c_c - span), min(cols, c_c + span + 1)
     if r0 >= r1 or c0 >= c1:
@@ -126,7 +144,7 @@ def standoff_cells(
     cy = grid.origin.y + (rr + 0.5) * res
     d = np.hypot(cx - xy[0], cy - xy[1])
     clear = space.clearance[r0:r1, c0:c1]
-    ok = (d >= near) & (d <= far) & (clear >= robot_radius + STANDOFF_MARGIN)
+    ok = (d >= band[0]) & (d <= band[1]) & (clear >= robot_radius + STANDOFF_MARGIN)
     penalty = NEAR_WEIGHT * (d - near) + CLEAR_WEIGHT * np.maximum(0.0, robot_radius + CLEAR_WANTED - clear)
     found: list[tuple[int, int, float]] = []
     for row, col, cost in zip(rr[ok], cc[ok], penalty[ok], strict=True):
