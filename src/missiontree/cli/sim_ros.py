@@ -59,25 +59,15 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Serve the simulator over ROS 2 until SIGINT/SIGTERM (or ``--duration``)."""
-    from missiontree.backends.ros2 import INSTALL_HINT, profile_from_options, require_rclpy
-    from missiontree.backends.sim import create_robot as create_sim
-    from missiontree.errors import BackendUnavailableError, ConfigError
+    from missiontree.errors import ConfigError
+    from missiontree.session.worlds import sim_ros_bridge
 
     if args.rate <= 0:
         raise ConfigError(f"--rate must be positive, found {args.rate}")
-    profile = profile_from_options({"profile": args.profile, "domain_id": args.domain_id})
-    require_rclpy()
-    try:  # the bridge also needs the NavigateToPose interface package, tf2_msgs and rosgraph_msgs
-        from missiontree.backends.ros2.bridge import SimBridge
-    except ImportError as error:
-        raise BackendUnavailableError(f"missiontree sim-ros needs the ros2 extra with its NavigateToPose "
-                                      f"interface package, which does not import ({error}); "
-                                      f"{INSTALL_HINT}") from None
     options = {"world": args.world, "seed": args.seed, "robot": args.robot, "unknown_map": args.unknown_map,
                "sensors": list(plugins_from_args(args).sensors.values())}
-
-    bridge = SimBridge(lambda: create_sim(options), profile, rate=args.rate, sim_time=args.sim_time,
-                       paused=args.paused)
+    bridge, profile = sim_ros_bridge(options, {"profile": args.profile, "domain_id": args.domain_id},
+                                     rate=args.rate, sim_time=args.sim_time, paused=args.paused)
     stop_signal: list[int] = []
 
     def on_signal(signum: int, frame: FrameType | None) -> None:

@@ -24,6 +24,7 @@ from missiontree.engine.build import build_tree
 from missiontree.engine.loader import check_mission
 from missiontree.engine.registry import NodeRegistry
 from missiontree.errors import ConfigError, MissionFileError, Problem, ProblemsError
+from missiontree.session.worlds import check_robot_file, check_waypoint_file, check_world_file
 from missiontree.yamlio import load_yaml
 
 EXIT_OK = 0
@@ -86,45 +87,20 @@ def check_file(
         if kind == "mission":
             return kind, _check_mission(path, registry, allow_outside, providers, references or {})
         if kind == "world":
-            from missiontree.backends.sim import load_world
-
-            load_world(path)
+            check_world_file(path)
         elif kind == "robot":
-            from missiontree.backends.sim import load_robot_profile
-
-            load_robot_profile(path)
+            check_robot_file(path)
         elif kind == "models":
             from missiontree.session.preflight import check_models_file
 
             return kind, check_models_file(path, providers or {})
         else:
-            return kind, _check_waypoint_file(path)
+            return kind, check_waypoint_file(path)
     except ProblemsError as error:
         return kind, error.problems
     except ConfigError as error:
         return kind, [Problem(str(path), 0, 0, "", str(error))]
     return kind, []
-
-
-def _check_waypoint_file(path: Path) -> list[Problem]:
-    """A waypoint file alone: valid, and (when it names its world) inside that world's free space."""
-    from missiontree.behaviours.waypoints import misfits, read_waypoint_file
-
-    found = read_waypoint_file(path)
-    if found.world is None:
-        return []
-    from missiontree.backends.sim import load_world
-    from missiontree.errors import WorldFileError
-
-    doc = load_yaml(path, error=ProblemsError)
-    try:
-        world = load_world(found.world)
-    except WorldFileError as error:
-        return [doc.problem_at(("world",), f"expected a world that loads, found {found.world!r}: "
-                               f"{error.problems[0].message}", "fix `world:`")]
-    return [doc.problem_at(("waypoints",), f"expected waypoints in the world {world.name!r}, found {reason}",
-                           "move the waypoint into free space, or fix `world:`")
-            for reason in misfits(found.waypoints, world.grid)]
 
 
 def _check_mission(path: Path, registry: NodeRegistry, allow_outside: bool,

@@ -15,8 +15,6 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 EXIT_OK = 0
 
 
@@ -42,35 +40,9 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load the world and draw it."""
-    from missiontree.backends.sim import load_robot_profile, load_world
-    from missiontree.backends.sim.render import Scene, SceneObject, ScenePerson, SceneRoom, draw_topdown
+    from missiontree.session.worlds import draw_world
 
-    world = load_world(args.world)
-    profile = load_robot_profile(world.profile_name)
-    goals = []
-    if args.waypoints:
-        from missiontree.behaviours.waypoints import load_waypoints
-
-        goals = [w.pose for w in load_waypoints(args.waypoints, args.route)]
-    people = []
-    for person in world.crowd.people:
-        route = np.array(person.spec.route, float).reshape(-1, 2)
-        state = person.state_at(0.0)
-        people.append(ScenePerson(person.id, route, (state.x, state.y) if state.present else None))
-    scene = Scene(
-        name=world.name, bounds=world.bounds(), grid=world.grid, now=0.0, seed=0, bumps=0,
-        robot_pose=world.start, robot_radius=profile.body.radius,
-        rooms=[SceneRoom(r.name, r.type, r.polygon) for r in world.rooms],
-        walls=[tuple(float(v) for v in s) for s in world.wall_segments],  # type: ignore[misc]  # x1 y1 x2 y2
-        objects=[SceneObject(o.id, tuple(int(c) for c in o.rgb), o.footprint(),  # type: ignore[arg-type]
-                             (o.pose.x, o.pose.y - o.size[1] / 2 - 0.12)) for o in world.objects],
-        people=people, goals=goals,
-    )
-    out = args.out if args.out is not None else Path(f"{world.name}.png")
-    if out.parent != Path("."):
-        out.parent.mkdir(parents=True, exist_ok=True)
-    draw_topdown(scene, [], out, metre_grid=True)
-    xmin, ymin, xmax, ymax = world.bounds()
-    print(f"{world.name}: {xmax - xmin:.1f} x {ymax - ymin:.1f} m, {len(world.rooms)} rooms, "
-          f"{len(world.objects)} objects, {len(world.crowd.people)} people; drawn to {out}")
+    drawn = draw_world(args.world, args.out, waypoints=args.waypoints, route=args.route)
+    print(f"{drawn.name}: {drawn.width:.1f} x {drawn.height:.1f} m, {drawn.rooms} rooms, "
+          f"{drawn.objects} objects, {drawn.people} people; drawn to {drawn.out}")
     return EXIT_OK

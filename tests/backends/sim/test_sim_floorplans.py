@@ -13,7 +13,8 @@ import yaml
 
 from missiontree.backends.sim import load_world
 from missiontree.backends.sim.floorplans import DOOR_MAX, DOOR_MIN, KINDS, floorplan_world, kind_of
-from missiontree.backends.sim.placement import build, unreachable_rooms
+from missiontree.backends.sim.placement import unreachable_rooms
+from missiontree.backends.sim.placer import build
 from missiontree.backends.sim.world import World
 from missiontree.errors import WorldFileError
 

@@ -10,17 +10,17 @@ import cv2
 import numpy as np
 import pytest
 
-from missiontree.backends.sim.generator import _FURNITURE, generate_world
+from missiontree.backends.sim.generator import FURNITURE, generate_world
 from missiontree.backends.sim.placement import (
     EXTRA_FURNITURE,
     SEGMENTED_TYPES,
-    build,
     keep_fitting,
     map_world,
     place_objects,
     small_kinds,
     unreachable_rooms,
 )
+from missiontree.backends.sim.placer import build
 from missiontree.backends.sim.world import World
 from missiontree.paths import REPO_ROOT
 
@@ -147,7 +147,7 @@ def test_an_object_that_would_block_the_door_is_not_kept() -> None:
 def test_furniture_uses_the_generator_classes() -> None:
     """Every furniture label placed is one of the apartment generator's (the detector knows only those)."""
     placed = place_objects(TWO_ROOMS, 2, small=0, decoys=False)
-    generator = {f[0] for items in _FURNITURE.values() for f in items}
+    generator = {f[0] for items in FURNITURE.values() for f in items}
     assert {f[0] for items in EXTRA_FURNITURE.values() for f in items} <= generator
     assert placed["objects"]
     assert {o["label"] for o in placed["objects"]} <= generator | set(small_kinds())

@@ -42,7 +42,8 @@ import numpy as np
 import yaml
 
 from missiontree.backends.sim.generator import MAX_SEED
-from missiontree.backends.sim.placement import build, keep_fitting, place_objects, unreachable_rooms
+from missiontree.backends.sim.placement import keep_fitting, place_objects, unreachable_rooms
+from missiontree.backends.sim.placer import build
 from missiontree.backends.sim.world import register_world_source
 from missiontree.errors import Problem, WorldFileError
 from missiontree.yamlio import Located, parse_yaml

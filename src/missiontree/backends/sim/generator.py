@@ -33,7 +33,7 @@ MAX_SEED = 2**63 - 1
 
 #: Room types in the order they are handed out, and what furnishes each.
 ROOM_TYPES = ["kitchen", "living room", "office", "bedroom", "bathroom", "hall"]
-_FURNITURE: dict[str, list[tuple[str, str, tuple[float, float, float]]]] = {
+FURNITURE: dict[str, list[tuple[str, str, tuple[float, float, float]]]] = {
     "kitchen": [
         ("refrigerator", "white", (0.7, 0.7, 1.8)),
         ("counter", "wood", (1.6, 0.6, 0.9)),
@@ -59,7 +59,8 @@ _FURNITURE: dict[str, list[tuple[str, str, tuple[float, float, float]]]] = {
     "bathroom": [("sink", "white", (0.6, 0.5, 0.9)), ("trash can", "grey", (0.35, 0.35, 0.5))],
     "hall": [("bench", "brown", (1.2, 0.4, 0.45)), ("potted plant", "green", (0.45, 0.45, 0.9))],
 }
-_SMALL: dict[str, list[tuple[str, str, tuple[float, float, float], str]]] = {
+#: Small objects (label, colour, size, shape) each room type gets; placement draws from the same classes.
+SMALL: dict[str, list[tuple[str, str, tuple[float, float, float], str]]] = {
     "kitchen": [
         ("bottle", "pink", (0.08, 0.08, 0.25), "cylinder"),
         ("cup", "red", (0.09, 0.09, 0.11), "cylinder"),
@@ -314,7 +315,7 @@ def _furnish(
 ) -> list[dict[str, Any]]:
     """Large furniture against the walls, then small objects on the floor."""
     objects: list[dict[str, Any]] = []
-    for label, colour, (sx, sy, sz) in _FURNITURE[kind]:
+    for label, colour, (sx, sy, sz) in FURNITURE[kind]:
         for _ in range(30):
             side = int(rng.integers(4))
             along_x = side in (0, 2)
@@ -347,7 +348,7 @@ def _furnish(
                 }
             )
             break
-    for label, colour, (sx, sy, sz), shape in _SMALL[kind]:
+    for label, colour, (sx, sy, sz), shape in SMALL[kind]:
         x, y = _free_point(rect, placed, doors, rng, clearance=0.25, door_gap=1.2)
         placed.append((x - sx / 2, y - sy / 2, x + sx / 2, y + sy / 2))
         objects.append(

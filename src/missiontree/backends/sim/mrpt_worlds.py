@@ -32,7 +32,8 @@ import cv2
 import numpy as np
 import yaml
 
-from missiontree.backends.sim.placement import PASS_MARGIN, ROBOT_RADIUS, map_world
+from missiontree.backends.sim.placement import map_world
+from missiontree.backends.sim.placer import PASS_MARGIN, ROBOT_RADIUS
 from missiontree.backends.sim.world import register_world_source
 from missiontree.errors import Problem, WorldFileError
 from missiontree.mapping.mapfile import write_map
