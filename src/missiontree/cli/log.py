@@ -1,5 +1,7 @@
 """``missiontree log summarize RUN``: what failed and why, read back from a run's tick log.
 
+(``missiontree log profile RUN`` prints where the run's time went: :mod:`missiontree.cli.log_profile`.)
+
 Works from ``ticks.jsonl`` alone (a run directory or the file itself): it replays the status
 changes of every tick, so it can say which nodes were running when the run stopped, which
 failure ended it (the deepest node that turned FAILURE on the last tick), every node's failures
@@ -44,6 +46,9 @@ def register(subparsers: Any) -> None:
     summarize.add_argument("run_path", metavar="RUN", type=Path, help="a run directory or its ticks.jsonl")
     summarize.add_argument("--json", action="store_true", help="print the summary as JSON")
     summarize.set_defaults(func=run)
+    from missiontree.cli import log_profile  # `log profile`: summary.json's profile as a table
+
+    log_profile.add_to(actions)
     from missiontree.cli import export  # `log export`: Groot2 .btlog and MCAP (owned by the viewer)
 
     export.add_to(actions)

@@ -34,7 +34,7 @@ import signal
 import threading
 import time
 import traceback
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
@@ -43,16 +43,11 @@ from typing import Any, TextIO
 import py_trees
 
 from missiontree.engine.context import MissionContext
-from missiontree.engine.faults import (
-    FaultKeepingForceSuccess,
-    FaultKeepingInverter,
-    clear_fault,
-    fault_of,
-    mark_fault,
-)
-from missiontree.engine.leaf import Leaf
+from missiontree.engine.faults import fault_of
+from missiontree.engine.guards import TRUSTED_TYPES, guard_exceptions
 from missiontree.engine.native_memory import pin_mmap_threshold
 from missiontree.engine.node_words import node_paths
+from missiontree.engine.profile import RunProfile
 from missiontree.engine.tick_log import TickLog, TickRecorder, plain
 from missiontree.errors import ConfigError, MissionTreeError, PluginError
 from missiontree.redact import scrub_data
@@ -68,6 +63,8 @@ STOPPED_BY_SIGNAL = "signal"
 STOPPED_BY_ERROR = "error"
 
 _FINAL = (Status.SUCCESS, Status.FAILURE)
+
+__all__ = ["TRUSTED_TYPES", "RunResult", "Runner", "guard_exceptions", "run_tree"]
 
 
 @dataclass
@@ -103,83 +100,6 @@ class RunResult:
         return 0 if self.status is Status.SUCCESS and not self.plugin_error else 1
 
 
-#: py_trees classes whose code only manages children or returns a fixed status: an exception cannot
-#: start in them (their children are guarded themselves), so they are ticked without a wrapper —
-#: wrapping every node would add a generator frame per node per tick. Exact types only: a subclass
-#: may override anything. EternalGuard is absent on purpose: it calls a user-given condition.
-TRUSTED_TYPES: frozenset[type] = frozenset({
-    py_trees.composites.Sequence, py_trees.composites.Selector, py_trees.composites.Parallel,
-    py_trees.decorators.Inverter, py_trees.decorators.Retry, py_trees.decorators.Repeat,
-    py_trees.decorators.OneShot, py_trees.decorators.Timeout, py_trees.decorators.Condition,
-    py_trees.decorators.FailureIsSuccess, py_trees.decorators.FailureIsRunning,
-    py_trees.decorators.SuccessIsFailure, py_trees.decorators.SuccessIsRunning,
-    py_trees.decorators.RunningIsFailure, py_trees.decorators.RunningIsSuccess,
-    py_trees.behaviours.Success, py_trees.behaviours.Failure, py_trees.behaviours.Running,
-    py_trees.behaviours.Dummy, FaultKeepingInverter, FaultKeepingForceSuccess,
-})
-
-
-def guard_exceptions(root: Behaviour, on_error: Callable[[Behaviour, Exception], None]) -> None:
-    """Make an exception escaping any non-Leaf behaviour under ``root`` FAILURE of that behaviour.
-
-    Each such node's ``tick`` is wrapped on the instance (composites call ``child.tick()``, so the
-    wrapper sits exactly where py_trees calls it). Leaves already fail safely on their own, and
-    :data:`TRUSTED_TYPES` need no wrapper.
-    """
-    for node in root.iterate():
-        if isinstance(node, Leaf) or type(node) in TRUSTED_TYPES:
-            continue
-        if getattr(node, "_missiontree_guarded", False):
-            continue
-        node.tick = _guarded_tick(node, node.tick, on_error)  # type: ignore[method-assign]
-        node.stop = _guarded_stop(node, node.stop, on_error)  # type: ignore[method-assign,assignment]
-        node._missiontree_guarded = True  # type: ignore[attr-defined]
-
-
-def _guarded_tick(
-    node: Behaviour, original: Callable[[], Iterator[Behaviour]],
-    on_error: Callable[[Behaviour, Exception], None],
-) -> Callable[[], Iterator[Behaviour]]:
-    def tick() -> Iterator[Behaviour]:
-        if node.status != Status.RUNNING:
-            clear_fault(node)
-        try:
-            yield from original()
-        except Exception as error:  # noqa: BLE001 - a node's bug must not kill the mission
-            reason = f"{type(error).__name__}: {error}"
-            try:
-                node.stop(Status.INVALID)  # halt its children so their work is cancelled
-            except Exception:  # noqa: BLE001 - already failing; the first error is the one to report
-                pass
-            node.feedback_message = reason
-            node.status = Status.FAILURE
-            mark_fault(node, reason)
-            node.iterator = node.tick()
-            on_error(node, error)
-            yield node
-
-    return tick
-
-
-def _guarded_stop(
-    node: Behaviour, original: Callable[[Status], None], on_error: Callable[[Behaviour, Exception], None],
-) -> Callable[[Status], None]:
-    """A halt (stop with INVALID) whose terminate() raises reports the error instead of raising."""
-
-    def stop(new_status: Status) -> None:
-        if new_status != Status.INVALID:
-            original(new_status)  # inside the node's own tick: the tick guard makes it FAILURE
-            return
-        try:
-            original(new_status)
-        except Exception as error:  # noqa: BLE001 - a failed cancel must not kill the mission
-            node.status = Status.INVALID
-            node.iterator = node.tick()
-            on_error(node, error)
-
-    return stop
-
-
 class Runner:
     """Ticks one tree on one robot.
 
@@ -203,6 +123,8 @@ class Runner:
             robot between ticks); it must return at once.
         final_state: Called once as the run ends (after the robot stopped); its mapping is added to
             the summary (the session adds the simulator's true pose this way).
+        profile: Measure where the run's time goes (:mod:`missiontree.engine.profile`): the
+            summary's ``profile`` section. Off only to time the engine without it.
     """
 
     def __init__(
@@ -211,7 +133,7 @@ class Runner:
         hook: Any = None, spec: Any = None, log_stream: TextIO | None = None, handle_signals: bool = True,
         blackboard: dict[str, Any] | None = None, realtime: bool = False,
         on_tick: Callable[[Runner], None] | None = None,
-        final_state: Callable[[], dict[str, Any]] | None = None,
+        final_state: Callable[[], dict[str, Any]] | None = None, profile: bool = True,
     ) -> None:
         if not (tick_hz > 0 and math.isfinite(tick_hz)):
             raise ConfigError(f"tick rate must be a positive number of ticks per second, found {tick_hz!r}")
@@ -250,6 +172,8 @@ class Runner:
         self.log: TickLog | None = None
         self.recorder: TickRecorder | None = None
         self._set_up = False
+        self.profile_enabled = profile
+        self.profiler: RunProfile | None = None
 
     # -- pieces --------------------------------------------------------------------------------
 
@@ -286,6 +210,9 @@ class Runner:
                                   f"{type(error).__name__}: {error}") from error
         self.recorder = TickRecorder(self.root, self.log)
         self.recorder.watch_stops()
+        if self.profile_enabled:
+            self.profiler = RunProfile(self.root, self.recorder.path, self.context.models)
+            self.profiler.attach()
         for key, value in self.blackboard.items():
             py_trees.blackboard.Blackboard.set(key if key.startswith("/") else f"/{key}", value)
         self._set_up = True
@@ -295,9 +222,15 @@ class Runner:
         if not self._set_up:
             self.setup()
         assert self.recorder is not None and self.log is not None
+        profiler = self.profiler
+        started = time.thread_time() if profiler is not None else 0.0
         self.log.set_tick(self.recorder.ticks + 1)
         visited = list(self.root.tick())
-        self.recorder.record(self.robot.now(), visited)
+        now = self.robot.now()
+        self.recorder.record(now, visited)
+        if profiler is not None:
+            profiler.record_tick(now, visited)
+            profiler.add_tick_cpu(time.thread_time() - started)
         return self.root.status
 
     def halt(self) -> None:
@@ -365,6 +298,8 @@ class Runner:
                           if self.recorder else 0)
             self._call_hook("missiontree_mission_started", context=self.context, mission=self.spec)
             start = self.robot.now()
+            if self.profiler is not None:
+                self.profiler.start()
             status, stopped_by = self._loop(start)
         except KeyboardInterrupt:  # a second signal (ours), or Ctrl-C without our handlers
             # interrupted inside a tick, the root has no status of that tick yet: it was running
@@ -426,9 +361,20 @@ class Runner:
                 next_time = start + index * self.period
             if self.max_duration is not None:
                 next_time = min(next_time, start + self.max_duration)
-            self.robot.spin_until(next_time)
+            self._spin_until(next_time)
             if self.realtime:
                 time.sleep(max(0.0, wall_start + (next_time - start) - time.monotonic()))
+
+    def _spin_until(self, next_time: float) -> None:
+        """Let the robot run until ``next_time`` (its stepping's CPU goes to the profile)."""
+        if self.profiler is None:
+            self.robot.spin_until(next_time)
+            return
+        started = time.thread_time()
+        try:
+            self.robot.spin_until(next_time)
+        finally:
+            self.profiler.add_sim_cpu(time.thread_time() - started)
 
     def _log_lost(self) -> bool:
         """True (with the reason kept) when the tick log can no longer be written.
@@ -496,6 +442,7 @@ class Runner:
             self._recover_log()
         if self.log is not None:
             self.log.flush_pending()
+        profile = self._profile_summary(duration)
         pictures: list[str] = []
         if self.run_dir is not None and isinstance(self.robot, Drawable) and self._write_failure is None:
             try:
@@ -529,6 +476,8 @@ class Runner:
             summary["outcome"] = dict(self.context.outcome)
         if self.recorder is not None:
             summary.update(self.recorder.summary())
+        if profile:
+            summary["profile"] = profile
         summary.update(self._final_pose())
         summary = scrub_data(plain(summary))  # kept, printed and recorded by batches: no secret in it
         if self.recorder is not None:
@@ -555,6 +504,19 @@ class Runner:
                 self._write_failure = ("tick log", error)
         return RunResult(status=status, stopped_by=stopped_by, ticks=summary["ticks"], duration=duration,
                          run_dir=self.run_dir, summary=summary, signal=self._signal)
+
+    def _profile_summary(self, duration: float) -> dict[str, Any]:
+        """The profile of the run so far (empty when off); the wrappers are removed (never raises)."""
+        profiler = self.profiler
+        if profiler is None:
+            return {}
+        try:
+            profiler.close_active(self.robot.now(), self.period)
+            return profiler.summary(duration)
+        except Exception as error:  # noqa: BLE001 - a failed measurement must not lose the summary
+            return {"error": f"{type(error).__name__}: {error}"}
+        finally:
+            profiler.detach()
 
     def _final_pose(self) -> dict[str, Any]:
         """The robot's own final pose estimate, plus what ``final_state`` adds (never raises)."""
