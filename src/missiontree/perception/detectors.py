@@ -16,22 +16,36 @@ Python dict ``{0: 'person', ...}``) or from a labels file (one name a line, or a
 from __future__ import annotations
 
 import ast
+import hashlib
 import json
 import math
+import threading
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
-import cv2
 import numpy as np
 import yaml
 
 from missiontree.errors import ModelConfigError, ModelError
+from missiontree.perception.yolo_layout import (
+    PAD_VALUE,
+    Letterbox,
+    decode_yolo,
+    decode_yolo_with_scores,
+    iou_matrix,
+    letterbox,
+    nms,
+)
 from missiontree.types import Detection, RGBDFrame
 
-#: Grey used for letterbox padding, as in Ultralytics' LetterBox.
-PAD_VALUE = 114
+__all__ = [
+    "CLASS_SCORES", "PAD_VALUE", "Detector", "Letterbox", "YoloOnnxDetector", "check_image",
+    "checked_detections", "decode_yolo", "decode_yolo_with_scores", "detect_checked", "detection_job",
+    "iou_matrix", "letterbox", "nms", "share_frame",
+]
 
 
 #: Key of :attr:`Detection.attributes` holding the box's score for each class the model gave a real
@@ -201,161 +215,6 @@ def _log_dropped(dropped: list[str]) -> None:
         "detections_dropped", count=len(dropped), first=dropped[0])
 
 
-@dataclass(frozen=True, slots=True)
-class Letterbox:
-    """How an image was fitted into the model's input: ``input = image * scale + (pad_x, pad_y)``."""
-
-    scale: float
-    pad_x: float
-    pad_y: float
-
-    def to_image(self, boxes: np.ndarray, width: int, height: int) -> np.ndarray:
-        """Map Nx4 xyxy boxes from input pixels back to image pixels, clipped to the image."""
-        out = boxes.astype(np.float32, copy=True)
-        out[:, [0, 2]] = (out[:, [0, 2]] - self.pad_x) / self.scale
-        out[:, [1, 3]] = (out[:, [1, 3]] - self.pad_y) / self.scale
-        out[:, [0, 2]] = out[:, [0, 2]].clip(0, width)
-        out[:, [1, 3]] = out[:, [1, 3]].clip(0, height)
-        return out
-
-
-def letterbox(
-    image: np.ndarray,
-    height: int,
-    width: int,
-    *,
-    interpolation: int | None = None,
-    pad_value: float = PAD_VALUE,
-) -> tuple[np.ndarray, Letterbox]:
-    """Resize ``image`` to fit ``height`` x ``width`` keeping its aspect ratio; pad the rest with grey.
-
-    The image is centred, as Ultralytics does for inference (half the padding on each side).
-    ``interpolation`` and ``pad_value`` let a label image (an instance mask: nearest neighbour,
-    padded with an id no object has) be fitted exactly as its colour image is.
-
-    Returns:
-        The padded ``height`` x ``width`` image (of ``image``'s channels and dtype) and the
-        :class:`Letterbox` that undoes it.
-    """
-    h, w = image.shape[:2]
-    scale = min(height / h, width / w)
-    new_w, new_h = round(w * scale), round(h * scale)
-    if (new_w, new_h) != (w, h):
-        if interpolation is None:
-            interpolation = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
-        image = cv2.resize(image, (new_w, new_h), interpolation=interpolation)
-    pad_x, pad_y = (width - new_w) / 2.0, (height - new_h) / 2.0
-    left, top = round(pad_x - 0.1), round(pad_y - 0.1)
-    out = np.full((height, width, *image.shape[2:]), pad_value, dtype=image.dtype)
-    out[top : top + new_h, left : left + new_w] = image
-    return out, Letterbox(scale=scale, pad_x=float(left), pad_y=float(top))
-
-
-def iou_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Intersection over union of every xyxy box in ``a`` (Nx4) with every box in ``b`` (Mx4)."""
-    x1 = np.maximum(a[:, None, 0], b[None, :, 0])
-    y1 = np.maximum(a[:, None, 1], b[None, :, 1])
-    x2 = np.minimum(a[:, None, 2], b[None, :, 2])
-    y2 = np.minimum(a[:, None, 3], b[None, :, 3])
-    inter = (x2 - x1).clip(0) * (y2 - y1).clip(0)
-    area_a = (a[:, 2] - a[:, 0]).clip(0) * (a[:, 3] - a[:, 1]).clip(0)
-    area_b = (b[:, 2] - b[:, 0]).clip(0) * (b[:, 3] - b[:, 1]).clip(0)
-    union = area_a[:, None] + area_b[None, :] - inter
-    return np.where(union > 0, inter / np.maximum(union, 1e-9), 0.0)
-
-
-def nms(boxes: np.ndarray, scores: np.ndarray, class_ids: np.ndarray, iou_threshold: float) -> np.ndarray:
-    """Class-wise non-maximum suppression.
-
-    A box is dropped when a higher-scoring box *of the same class* overlaps it by more than
-    ``iou_threshold``; boxes of different classes never suppress each other.
-
-    Args:
-        boxes: Nx4 xyxy boxes.
-        scores: N scores.
-        class_ids: N integer class ids.
-        iou_threshold: Overlap above which the weaker box goes.
-
-    Returns:
-        Indices of the kept boxes, best score first.
-    """
-    order = np.argsort(-scores, kind="stable")
-    if len(order) == 0:
-        return order
-    # Shift each class into its own region of the plane, so one pass never mixes classes.
-    offset = class_ids.astype(np.float32)[:, None] * (float(np.abs(boxes).max()) + 1.0) * 2.0
-    shifted = boxes.astype(np.float32) + offset
-    keep: list[int] = []
-    while len(order):
-        best = order[0]
-        keep.append(int(best))
-        if len(order) == 1:
-            break
-        overlaps = iou_matrix(shifted[best : best + 1], shifted[order[1:]])[0]
-        order = order[1:][overlaps <= iou_threshold]
-    return np.asarray(keep, dtype=np.int64)
-
-
-def decode_yolo(
-    output: np.ndarray,
-    num_classes: int,
-    score_threshold: float,
-    iou_threshold: float,
-    max_detections: int,
-    multi_label: bool = False,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Turn a raw ``[1, 4 + classes, N]`` output into kept boxes, scores and class ids.
-
-    As :func:`decode_yolo_with_scores`, without the per-class score rows.
-    """
-    boxes, scores, class_ids, _ = decode_yolo_with_scores(
-        output, num_classes, score_threshold, iou_threshold, max_detections, multi_label
-    )
-    return boxes, scores, class_ids
-
-
-def decode_yolo_with_scores(
-    output: np.ndarray,
-    num_classes: int,
-    score_threshold: float,
-    iou_threshold: float,
-    max_detections: int,
-    multi_label: bool = False,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Turn a raw ``[1, 4 + classes, N]`` output into kept boxes, scores, class ids and score rows.
-
-    Each candidate box is reported under its best class; with ``multi_label``, under every class
-    scoring above ``score_threshold`` (as Ultralytics' ``non_max_suppression(multi_label=True)``
-    decodes for ``val``), so that a box the model finds ambiguous (a white bookshelf seen end-on
-    or a refrigerator) yields one detection per plausible class, each with its own score.
-
-    The score rows are each kept box's whole score vector (K x classes): the model's evidence for
-    every class, not only the one it is reported under (a grey bin the model calls a backpack may
-    give "trash can" a real share); the fusion pools them over views.
-
-    Returns:
-        (boxes Kx4 xyxy in input pixels, scores K, class ids K, class scores KxC), best score first.
-    """
-    preds = output[0].T  # N x (4 + C)
-    # A candidate with a non-finite number (a broken export, an fp16 overflow) is no candidate: NMS
-    # on a NaN box would suppress or keep others at random.
-    preds = preds[np.isfinite(preds[:, : 4 + num_classes]).all(axis=1)]
-    class_scores = preds[:, 4 : 4 + num_classes]
-    if multi_label:
-        rows, class_ids = np.nonzero(class_scores > score_threshold)
-        preds, scores = preds[rows], class_scores[rows, class_ids]
-    else:
-        class_ids = class_scores.argmax(axis=1)
-        scores = class_scores[np.arange(len(preds)), class_ids]
-        chosen = scores > score_threshold
-        preds, class_ids, scores = preds[chosen], class_ids[chosen], scores[chosen]
-    cx, cy, w, h = preds[:, 0], preds[:, 1], preds[:, 2], preds[:, 3]
-    boxes = np.stack([cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2], axis=1)
-    keep = nms(boxes, scores, class_ids, iou_threshold)[:max_detections]
-    rows = preds[keep, 4 : 4 + num_classes].astype(np.float32)
-    return boxes[keep], scores[keep].astype(np.float32), class_ids[keep], rows
-
-
 def parse_names(text: str) -> list[str]:
     """Class names from a model's ``names`` metadata: a dict ``{0: 'person'}`` or list, as text.
 
@@ -401,6 +260,65 @@ def read_labels_file(path: Path, provider: str) -> list[str]:
     return labels
 
 
+#: Open onnxruntime sessions by (model file, its size and modification time, threads): a model is
+#: opened once per process and shared by every detector on it (the runs of a batch, the offline
+#: VLM's detector). onnxruntime's ``run`` may be called from several threads at once.
+_SESSIONS: dict[tuple[str, int, int, int], Any] = {}
+_SESSIONS_LOCK = threading.Lock()
+
+
+def _copy_detection(det: Detection) -> Detection:
+    """A copy whose attributes (and their nested dicts) the caller may change freely."""
+    attributes = {k: dict(v) if isinstance(v, dict) else v for k, v in det.attributes.items()}
+    return replace(det, attributes=attributes)
+
+
+class RecentDetections:
+    """The detections of the last few images, found again by the image's content.
+
+    A frame is often asked about twice: the surveillance leaf detects in it, then the offline VLM
+    stand-in, asked about the same frame, runs its detector on it again (790 detections for 690
+    frames in the patrol). A detector is deterministic, so the second answer is the first one: it
+    is taken from here (a SHA-1 of the pixels, about 0.5 ms for 320x240, against 15-30 ms a run).
+
+    Args:
+        size: Images remembered (the oldest is forgotten first); 0 remembers none.
+    """
+
+    def __init__(self, size: int = 8) -> None:
+        self.size = max(0, int(size))
+        self._found: OrderedDict[tuple[Any, ...], list[Detection]] = OrderedDict()
+        self._lock = threading.Lock()
+        self.hits = 0
+
+    @staticmethod
+    def key(image: np.ndarray) -> tuple[Any, ...]:
+        """The image's identity by content: shape, dtype and a digest of its pixels."""
+        digest = hashlib.sha1(np.ascontiguousarray(image).data, usedforsecurity=False).digest()
+        return (image.shape, image.dtype.str, digest)
+
+    def get(self, key: tuple[Any, ...]) -> list[Detection] | None:
+        """Copies of the detections found for ``key``, or None when it is not remembered."""
+        with self._lock:
+            found = self._found.get(key)
+            if found is None:
+                return None
+            self._found.move_to_end(key)
+            self.hits += 1
+        return [_copy_detection(d) for d in found]
+
+    def put(self, key: tuple[Any, ...], found: list[Detection]) -> None:
+        """Remember ``found`` for ``key`` (copies: the caller keeps its own list)."""
+        if not self.size:
+            return
+        kept = [_copy_detection(d) for d in found]
+        with self._lock:
+            self._found[key] = kept
+            self._found.move_to_end(key)
+            while len(self._found) > self.size:
+                self._found.popitem(last=False)
+
+
 class YoloOnnxDetector:
     """A detector for any ONNX model in the YOLOv8/YOLO11 export layout, run by onnxruntime.
 
@@ -419,6 +337,7 @@ class YoloOnnxDetector:
         threads: onnxruntime intra-op threads (the robot's CPU is shared: default 2).
         input_size: (height, width) for a model whose input size is dynamic; ignored otherwise.
         name: Provider name used in errors and events.
+        recent: Images whose detections are remembered (:class:`RecentDetections`); 0 for none.
     """
 
     def __init__(
@@ -433,6 +352,7 @@ class YoloOnnxDetector:
         name: str = "yolo_onnx",
         multi_label: bool = False,
         test_time_flip: bool = False,
+        recent: int = 8,
     ) -> None:
         self.name = name
         self.model_path = Path(model)
@@ -441,6 +361,7 @@ class YoloOnnxDetector:
         self.max_detections = int(max_detections)
         self.multi_label = bool(multi_label)
         self.test_time_flip = bool(test_time_flip)
+        self.recent = RecentDetections(recent)
         self._session = self._open_session(int(threads))
         self._input = self._session.get_inputs()[0]
         self.input_height, self.input_width = self._input_size(input_size)
@@ -454,14 +375,24 @@ class YoloOnnxDetector:
     # -- loading -------------------------------------------------------------------------------
 
     def _open_session(self, threads: int) -> Any:
-        import onnxruntime as ort  # vendor SDK stays inside the provider
-
+        """The model's session: opened once per process for a file and thread count (``_SESSIONS``)."""
         if not self.model_path.is_file():
             raise ModelConfigError(
                 f"detector {self.name!r}: model file {str(self.model_path)!r} does not exist; "
                 f"set 'model:' in the models config (config/models/*.yaml) to a YOLOv8/YOLO11 ONNX "
                 f"export (yolo export model=yolov8n.pt format=onnx)"
             )
+        stat = self.model_path.stat()
+        key = (str(self.model_path.resolve()), stat.st_size, stat.st_mtime_ns, max(1, threads))
+        with _SESSIONS_LOCK:
+            session = _SESSIONS.get(key)
+            if session is None:
+                session = _SESSIONS[key] = self._new_session(threads)
+        return session
+
+    def _new_session(self, threads: int) -> Any:
+        import onnxruntime as ort  # vendor SDK stays inside the provider
+
         options = ort.SessionOptions()
         options.intra_op_num_threads = max(1, threads)
         options.inter_op_num_threads = 1
@@ -536,6 +467,11 @@ class YoloOnnxDetector:
     def detect(self, image: np.ndarray) -> list[Detection]:
         """Detections in ``image`` (HxWx3 uint8 RGB), boxes in its pixels, best score first."""
         image = check_image(image, self.name)
+        key = self.recent.key(image) if self.recent.size else None
+        if key is not None:
+            remembered = self.recent.get(key)
+            if remembered is not None:
+                return remembered
         tensor, box = self.preprocess(image)
         output = self._run(tensor)
         if self.test_time_flip:
@@ -559,6 +495,8 @@ class YoloOnnxDetector:
         kept, dropped = checked_detections(found, image.shape[1], image.shape[0], self.name)
         if dropped:
             _log_dropped(dropped)
+        if key is not None:
+            self.recent.put(key, kept)
         return kept
 
     def _run(self, tensor: np.ndarray) -> np.ndarray:
