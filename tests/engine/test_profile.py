@@ -180,3 +180,10 @@ def test_percentile_interpolates() -> None:
     """The median of 1..4 is 2.5; an empty list gives 0."""
     assert percentile([4.0, 1.0, 3.0, 2.0], 50) == pytest.approx(2.5)
     assert percentile([], 95) == 0.0
+
+
+def test_the_environment_switches_the_profile_off(monkeypatch: pytest.MonkeyPatch) -> None:
+    """MISSIONTREE_PROFILE=0 turns the profile off for runs that do not say (to time without it)."""
+    monkeypatch.setenv("MISSIONTREE_PROFILE", "0")
+    assert "profile" not in _run(ScriptedLeaf("a", script="RS"))
+    assert "profile" in _run(ScriptedLeaf("b", script="RS"), profile=True)

@@ -124,7 +124,8 @@ class Runner:
         final_state: Called once as the run ends (after the robot stopped); its mapping is added to
             the summary (the session adds the simulator's true pose this way).
         profile: Measure where the run's time goes (:mod:`missiontree.engine.profile`): the
-            summary's ``profile`` section. Off only to time the engine without it.
+            summary's ``profile`` section. None: on unless the environment sets
+            ``MISSIONTREE_PROFILE=0`` (to time a mission without it).
     """
 
     def __init__(
@@ -133,7 +134,7 @@ class Runner:
         hook: Any = None, spec: Any = None, log_stream: TextIO | None = None, handle_signals: bool = True,
         blackboard: dict[str, Any] | None = None, realtime: bool = False,
         on_tick: Callable[[Runner], None] | None = None,
-        final_state: Callable[[], dict[str, Any]] | None = None, profile: bool = True,
+        final_state: Callable[[], dict[str, Any]] | None = None, profile: bool | None = None,
     ) -> None:
         if not (tick_hz > 0 and math.isfinite(tick_hz)):
             raise ConfigError(f"tick rate must be a positive number of ticks per second, found {tick_hz!r}")
@@ -172,6 +173,9 @@ class Runner:
         self.log: TickLog | None = None
         self.recorder: TickRecorder | None = None
         self._set_up = False
+        if profile is None:
+            setting = os.environ.get("MISSIONTREE_PROFILE", "1").strip().lower()
+            profile = setting not in {"0", "false", "no", "off"}
         self.profile_enabled = profile
         self.profiler: RunProfile | None = None
 
