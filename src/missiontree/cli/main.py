@@ -35,6 +35,7 @@ SUBCOMMANDS: list[str] = [
     "missiontree.cli.sim_ros",
     "missiontree.cli.view",
     "missiontree.cli.batch",
+    "missiontree.cli.map",
 ]
 
 EXIT_BAD_INPUT = 2
