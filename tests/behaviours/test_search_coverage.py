@@ -241,3 +241,45 @@ def test_a_spent_budget_offers_no_object_of_another_colour() -> None:
     leaf.budget_spent = True
     unreached = [{"id": "b", "label": "backpack", "x": 1.0, "y": 1.0, "kind": "unreached"}]
     assert leaf._ranked({**entry, "colour": "red"}, unreached, (0.0, 0.0), with_mismatch=False)[0] == -1
+
+
+def _offer(leaf: Locate, robot: CameraRobot) -> Status:
+    """Enter the leaf afresh (as the tree's Retry does) and tick it until it ends."""
+    for _ in range(50):
+        leaf.tick_once()
+        if leaf.status in (Status.SUCCESS, Status.FAILURE):
+            return leaf.status
+        robot.advance(0.1)
+    raise AssertionError(f"still {leaf.status.name}: {leaf.feedback_message}")
+
+
+def test_the_search_says_not_found_once_max_candidates_were_offered_and_rejected() -> None:
+    """Three red backpacks known, two offered at most: both rejected, the verdict is 'not found' saying so."""
+    from missiontree.behaviours.search_common import mark_rejected
+    from missiontree.reasoning.intent import GraphObject
+
+    robot = CameraRobot(hall(), Pose2D(1.0, 1.0, 0.0))
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none", max_candidates=2))
+    leaf.setup(context=MissionContext(robot=robot, events=Events(), models={"detector": Detector()}))  # type: ignore[arg-type]
+    leaf.file_objects = [
+        GraphObject(f"b{i}", "backpack", "a red backpack", xy=(2.0 + 2.0 * i, 1.0)) for i in range(3)
+    ]
+    for _ in range(2):
+        assert _offer(leaf, robot) == Status.SUCCESS
+        mark_rejected(leaf, dict(leaf.read("candidate")), "not it")
+    assert _offer(leaf, robot) == Status.FAILURE
+    assert leaf.feedback_message.startswith("not found") and "2 candidates" in leaf.feedback_message
+
+
+def test_a_candidate_carries_the_deadline_of_its_approach() -> None:
+    """With a time budget, the candidate says by when (robot s) its approach must have reached it."""
+    from missiontree.reasoning.intent import GraphObject
+
+    robot = CameraRobot(hall(), Pose2D(1.0, 1.0, 0.0))
+    robot.advance(7.0)
+    params = Locate.Params(target="red backpack", priors="none", time_budget=100.0, approach_time=30.0)
+    leaf = Locate("locate", params)
+    leaf.setup(context=MissionContext(robot=robot, events=Events(), models={"detector": Detector()}))  # type: ignore[arg-type]
+    leaf.file_objects = [GraphObject("b", "backpack", "a red backpack", xy=(3.0, 1.0))]
+    assert _offer(leaf, robot) == Status.SUCCESS
+    assert leaf.read("candidate")["deadline"] == 137.0

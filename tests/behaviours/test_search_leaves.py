@@ -304,3 +304,20 @@ def test_a_goal_aborted_short_counts_as_reached_only_within_reach_of_the_candida
     assert leaf._within_reach(None) is False
     report = Approach("approach", Approach.Params(mode="box_area"))
     assert report._within_reach(PoseStamped(0.0, Pose2D(0.0, 0.0, 0.0))) is True  # the report's steps
+
+
+def test_approach_gives_a_candidate_up_when_the_searchs_time_runs_out_on_the_way(tmp_path: Path) -> None:
+    """A candidate whose deadline passes while the robot drives to it is rejected as unreached, in time."""
+    world = room(tmp_path, (1.0, 1.0, math.pi), [backpack("red_bag", "red", RED)])
+    candidate = {"id": "backpack_1", "label": "backpack", "colour": "red", "x": 3.7, "y": 2.2, "z": 0.2}
+    status, events, final = run(
+        tmp_path,
+        world,
+        {"Approach": {"name": "approach"}},
+        blackboard={"search_candidate": {**candidate, "deadline": 3.0}},
+        max_duration=120,
+    )
+    assert status == "FAILURE"
+    rejected = of(events, "candidate_rejected")
+    assert rejected and rejected[-1]["kind"] == "unreached" and "time ran out" in rejected[-1]["reason"]
+    assert max(e.get("t", 0.0) for e in events if "t" in e) < 10.0

@@ -11,7 +11,8 @@ from patrol_doubles import Events, FakeHandle, FakeRobot
 from pydantic import BaseModel
 
 from missiontree.behaviours.search_approach import SAME_PLACE, standoff_goal
-from missiontree.behaviours.search_locate import NUDGE_M, Locate, ResumeExplore, _with_room, clearance_map
+from missiontree.behaviours.search_locate import Locate
+from missiontree.behaviours.search_resume import NUDGE_M, ResumeExplore, _with_room, clearance_map
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Status
 from missiontree.mapping.exploration import Candidate
@@ -270,3 +271,14 @@ def test_no_language_model_configured_keeps_the_offline_table() -> None:
     [used] = events.of("search_priors")
     assert used["source"] == "offline" and "no model configured for role 'llm'" in used["reason"]
     assert leaf.priors == room_priors("cup")
+
+
+def test_the_reports_scan_points_split_the_office_at_its_door() -> None:
+    """The report's scan points (ResumeExplore's) cut the office's two rooms apart: more than one round."""
+    from missiontree.backends.sim import load_world
+
+    world = load_world("office")
+    leaf = ResumeExplore("moving_to_scan", ResumeExplore.Params(strategy="scan_points", max_goals=1))
+    planner = leaf.make_planner()
+    points = planner.candidates(world.grid, (world.start.x, world.start.y))
+    assert len(points) >= 2

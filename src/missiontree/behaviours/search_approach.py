@@ -20,7 +20,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Field
 
-from missiontree.behaviours.intent import _camera_view
+from missiontree.behaviours.intent_look import camera_view
 from missiontree.behaviours.search_common import await_frame, mark_rejected, read_target
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Input, Output
@@ -202,6 +202,8 @@ class Approach(Leaf):
             return self.fail("no candidate to approach (run Locate first)")
         if self.params.mode == "box_area" and self.goal is None:
             return self.fail("box_area needs the target's class: set `target`")
+        if self._past_deadline():
+            return self._reject("the search's time ran out before it was reached")
         handlers = {
             _Step.PLAN: self._plan,
             _Step.DRIVE: self._driven,
@@ -210,6 +212,25 @@ class Approach(Leaf):
             _Step.DETECT: self._detected,
         }
         return handlers[self.step]()
+
+    def _past_deadline(self) -> bool:
+        """Whether the candidate's ``deadline`` (robot s, from Locate's time budget) passed on the way to it.
+
+        Checked while planning and driving only: the mission keeps the time to say "not found" rather
+        than run into its limit in the middle of an approach.
+        """
+        deadline = self.cand.get("deadline") if self.cand is not None else None
+        if not isinstance(deadline, (int, float)) or self.step not in (_Step.PLAN, _Step.DRIVE):
+            return False
+        if self.context.robot.now() <= deadline:
+            return False
+        if self.call is not None:
+            self.call.cancel()
+            self.call = None
+        if self.handle is not None:
+            self.handle.cancel()
+            self.handle = None
+        return True
 
     def terminate(self, new_status: Status) -> None:
         """Cancel the model call and the goal in flight; stop turning."""
@@ -241,7 +262,7 @@ class Approach(Leaf):
                 robot.occupancy(),
                 stamped.pose,
                 radius,
-                _camera_view(robot.rgbd()),
+                camera_view(robot.rgbd()),
                 list(self.failed),
                 provider="search_standoff",
                 node=self.name,

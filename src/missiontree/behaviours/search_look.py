@@ -1,0 +1,274 @@
+"""Explore, then look at the floor the camera has not seen: the search's coverage of the reachable space.
+
+The lidar maps a large floor long before the camera has looked at it. :class:`LookExplore` explores
+the frontiers (as :class:`~missiontree.behaviours.search_resume.ResumeExplore`, kept across the
+search's rounds); once no frontier is left (or the exploration ended partial), it goes to look at the
+reachable floor the camera has not had in view (:mod:`~missiontree.behaviours.search_coverage`),
+with a full turn at each place, and goes back to frontiers that appear meanwhile (a room seen
+through a door). ``Locate`` builds on it with the candidates and the time budget.
+
+Tick-log events: ``search_explored``, ``search_view_goal``, ``search_view_given_up``,
+``search_covered``, ``search_frontiers_again``.
+"""
+
+from __future__ import annotations
+
+import math
+
+from pydantic import BaseModel, Field
+
+from missiontree.behaviours.search_coverage import ViewCoverage, ViewGoal, known_path_lengths, view_goals
+from missiontree.behaviours.search_resume import ResumeExplore
+from missiontree.engine.leaf import Status
+from missiontree.robot.actions import ActionHandle, ActionStatus
+from missiontree.types import OccupancyGrid, Pose2D, Tolerance, wrap_angle
+
+#: Times the search goes back from looking at the floor to exploring frontiers that appeared meanwhile.
+MAX_FRONTIER_ROUNDS = 5
+#: After a full turn at a view goal, floor still unseen within this share of the view range is hidden
+#: from there (behind furniture) and given up; farther floor is left for a later goal.
+HIDDEN_WITHIN = 0.8
+
+
+class LookExplore(ResumeExplore):
+    """Explore the frontiers, then look at the reachable floor the camera has not had in view.
+
+    :meth:`look_step` is one step of it: RUNNING while exploring or looking, SUCCESS once no
+    frontier and no unseen reachable floor is left, FAILURE when the exploration failed outright
+    (a partial or stuck exploration goes on to look at the floor; what was left is in
+    ``explore_end``).
+    """
+
+    class Params(ResumeExplore.Params):
+        view_coverage: bool = Field(
+            True,
+            description="Once no frontier is left, go and look at the reachable floor the camera has "
+            "not had within view_range (the lidar maps a large floor long before the camera saw it).",
+        )
+        view_range: float = Field(
+            2.5,
+            gt=0,
+            description="Range (m) within which the camera counts as having looked at the floor: the "
+            "shipped detector finds bottles and umbrellas reliably to about 2-2.5 m, backpacks beyond 4 m.",
+        )
+        view_frames: int = Field(
+            3, ge=1, description="Frames that must have had a floor cell in view for it to count as seen."
+        )
+        view_min_area: float = Field(
+            0.75, ge=0, description="Unseen patches of floor smaller than this are not gone to (m^2)."
+        )
+        view_timeout: float = Field(
+            20.0,
+            gt=0,
+            description="Give up a place to look from the robot got no closer to for this long (s).",
+        )
+        look_speed: float = Field(1.0, gt=0, description="Turn rate of the look at a view goal (rad/s).")
+
+    params: Params
+
+    def __init__(self, name: str, params: BaseModel | None = None) -> None:
+        super().__init__(name, params)
+        self.coverage: ViewCoverage | None = None
+        self.last_view = -math.inf
+        self.frontiers_done = False
+        self.cover_state = "select"
+        self.cover_goal: ViewGoal | None = None
+        self.cover_handle: ActionHandle | None = None
+        self.cover_best = math.inf
+        self.cover_best_at = 0.0
+        self.look_turned = 0.0
+        self.look_yaw = 0.0
+        self.look_started = 0.0
+        self.cover_goals = 0
+        self.cover_skipped = 0
+        self.frontier_rounds = 0
+        self.explore_end = ""
+        self.frontiers_left: list[tuple[float, float]] = []
+
+    def on_setup(self) -> None:
+        """A fresh record of what the camera has looked at."""
+        self.coverage = ViewCoverage(self.params.view_range, min_views=self.params.view_frames)
+
+    def terminate(self, new_status: Status) -> None:
+        """Stop exploring and looking."""
+        self.stop_looking()
+        super().terminate(new_status)
+
+    def stop_looking(self) -> None:
+        """Cancel the goal of a place to look from, stop a turn in progress, choose anew next time."""
+        if self.cover_handle is not None:
+            self.cover_handle.cancel()
+            self.cover_handle = None
+        if self.cover_state == "look" and self.ctx is not None:
+            self.ctx.robot.drive(0.0, 0.0)
+        self.cover_state = "select"
+
+    def look_step(self) -> Status:
+        """One step: explore while frontiers are left, then look at the floor not yet seen."""
+        if not self.frontiers_done:
+            status = self.explore_step()
+            # a partial exploration (frontiers the map shows a way to were left) or one stuck where
+            # the map stopped growing goes on to look at the floor like a complete one (a round of
+            # the search is not spent on it); what was left is named in the not-found reason
+            partial = status == Status.FAILURE and str(self.failure_reason).startswith(("partial:", "stuck:"))
+            if status != Status.SUCCESS and not partial:
+                return status
+            self.frontiers_done = True
+            self.exhausted = False
+            self.frontiers_left = self._frontier_places()  # new ones only bring exploring back
+            self.explore_end = self.failure_reason if partial else self.feedback_message
+            self.failure_reason = ""
+            self.emit("search_explored", reason=self.explore_end)
+            if not self.params.view_coverage:
+                return Status.SUCCESS
+        return self._cover()
+
+    def _frontier_places(self, known: list[tuple[float, float]] | None = None) -> list[tuple[float, float]]:
+        """The frontiers the planner offers now (their places), less those within 1 m of ``known``."""
+        robot = self.context.robot
+        grid, stamped = robot.occupancy(), robot.pose()
+        if self.planner is None or grid is None or stamped is None:
+            return []
+        places = [c.target for c in self.planner.candidates(grid, (stamped.pose.x, stamped.pose.y))]
+        return [p for p in places if all(math.dist(p, k) > 1.0 for k in known or [])]
+
+
+    # -- looking at the floor the camera has not seen -------------------------------------------------
+
+    def _view(self) -> None:
+        """Add the newest camera frame's view to the coverage."""
+        robot = self.context.robot
+        frame = robot.rgbd()
+        if self.coverage is None or frame is None or frame.stamp <= self.last_view:
+            return
+        grid = robot.occupancy()
+        if grid is None:
+            return
+        self.last_view = frame.stamp
+        self.coverage.add_view(grid, frame.camera_pose, frame.intrinsics.hfov)
+
+    def _cover(self) -> Status:
+        """One step of select -> drive -> look at the floor not yet seen; SUCCESS when none is left."""
+        assert self.coverage is not None
+        robot = self.context.robot
+        grid, stamped = robot.occupancy(), robot.pose()
+        if grid is None or stamped is None:
+            return self.running("waiting for the map")
+        pose, now = stamped.pose, robot.now()
+        if self.cover_state == "drive":
+            return self._cover_drive(grid, pose, now)
+        if self.cover_state == "look":
+            return self._cover_look(grid, pose, now)
+        if self.planner is not None and self.frontier_rounds < MAX_FRONTIER_ROUNDS:
+            # the map grew while looking (a room seen through a door): its frontiers come first
+            if self._frontier_places(self.frontiers_left):
+                self.frontier_rounds += 1
+                self.frontiers_done = False
+                self.emit("search_frontiers_again", round=self.frontier_rounds)
+                return self.running("new frontiers on the map: exploring on")
+        goals, unplaced = view_goals(
+            self.coverage,
+            grid,
+            (pose.x, pose.y),
+            known_path_lengths,
+            self.params.footprint_radius,
+            min_area_m2=self.params.view_min_area,
+            cost_rate=self.params.cost_rate,
+        )
+        for patch in unplaced:
+            self.coverage.skip(patch)
+            self.cover_skipped += 1
+        if not goals:
+            seen, floor = self.coverage.seen_share(grid, (pose.x, pose.y))
+            self.emit(
+                "search_covered",
+                seen_m2=round(seen, 1),
+                floor_m2=round(floor, 1),
+                goals=self.cover_goals,
+                given_up=self.cover_skipped,
+            )
+            return self.succeed("looked at the reachable floor")
+        goal = goals[0]
+        yaw = math.atan2(goal.target[1] - goal.y, goal.target[0] - goal.x)
+        self.cover_goal = goal
+        self.cover_goals += 1
+        self.cover_handle = robot.navigate_to(Pose2D(goal.x, goal.y, yaw), Tolerance(0.3, 2.0 * math.pi))
+        self.cover_best, self.cover_best_at = math.inf, now
+        self.cover_state = "drive"
+        self.emit(
+            "search_view_goal",
+            x=round(goal.x, 3),
+            y=round(goal.y, 3),
+            unseen_m2=round(goal.area_m2, 2),
+            path_m=round(goal.path_m, 2),
+        )
+        self.context.mark("goal", goal.x, goal.y, "view")
+        return self.running(f"to look at {goal.area_m2:.1f} m^2 of floor not yet seen")
+
+    def _cover_drive(self, grid: OccupancyGrid, pose: Pose2D, now: float) -> Status:
+        assert self.cover_handle is not None and self.cover_goal is not None
+        goal = self.cover_goal
+        distance = math.hypot(goal.x - pose.x, goal.y - pose.y)
+        status = self.cover_handle.status()
+        if status.done:
+            self.cover_handle = None
+            if status is ActionStatus.SUCCEEDED or distance <= 0.5:
+                return self._start_cover_look(pose, now)
+            return self._give_up_view(grid, pose, f"goal {status.value}")
+        if distance < self.cover_best - 0.1:
+            self.cover_best, self.cover_best_at = distance, now
+        elif now - self.cover_best_at > self.params.view_timeout:
+            self.cover_handle.cancel()
+            self.cover_handle = None
+            return self._give_up_view(grid, pose, f"no progress for {self.params.view_timeout:g} s")
+        return self.running(f"to look at the floor not yet seen: {distance:.1f} m to go")
+
+    def _start_cover_look(self, pose: Pose2D, now: float) -> Status:
+        self.cover_state = "look"
+        self.look_turned, self.look_yaw, self.look_started = 0.0, pose.yaw, now
+        return self.running("looking around")
+
+    def _cover_look(self, grid: OccupancyGrid, pose: Pose2D, now: float) -> Status:
+        """A full turn where the goal was reached; then what stayed unseen near it is given up."""
+        assert self.coverage is not None and self.cover_goal is not None
+        robot = self.context.robot
+        self.look_turned += abs(wrap_angle(pose.yaw - self.look_yaw))
+        self.look_yaw = pose.yaw
+        limit = 2.0 * (2.0 * math.pi / self.params.look_speed) + 5.0
+        if self.look_turned < 2.0 * math.pi - 0.05 and now - self.look_started < limit:
+            robot.drive(0.0, self.params.look_speed)
+            return self.running(f"looking around: {math.degrees(self.look_turned):.0f} deg")
+        robot.drive(0.0, 0.0)
+        self.cover_state = "select"
+        # what the camera still has not seen within reach of here is hidden from the floor: given up
+        cov = self.coverage
+        near = HIDDEN_WITHIN * cov.view_range
+        hidden = {
+            k
+            for k in cov.unseen(grid, (pose.x, pose.y))
+            if math.hypot((k[0] + 0.5) * cov.cell - pose.x, (k[1] + 0.5) * cov.cell - pose.y) <= near
+        }
+        self.coverage.skip(hidden)
+        target = self.coverage.key(*self.cover_goal.target)
+        if target not in self.coverage.seen:
+            self.coverage.skip({target})
+        return self.running("looked around")
+
+    def _give_up_view(self, grid: OccupancyGrid, pose: Pose2D, why: str) -> Status:
+        """The place to look from was not reached: the unseen cells near its patch's centre are given up."""
+        assert self.coverage is not None and self.cover_goal is not None
+        goal = self.cover_goal
+        near = {
+            k
+            for k in self.coverage.unseen(grid, (pose.x, pose.y))
+            if math.hypot(
+                (k[0] + 0.5) * self.coverage.cell - goal.target[0],
+                (k[1] + 0.5) * self.coverage.cell - goal.target[1],
+            )
+            <= self.coverage.view_range / 2.0
+        }
+        self.coverage.skip(near | {self.coverage.key(*goal.target)})
+        self.cover_skipped += 1
+        self.cover_state = "select"
+        self.emit("search_view_given_up", x=round(goal.x, 3), y=round(goal.y, 3), reason=why)
+        return self.running(f"gave up a place to look from ({why})")
