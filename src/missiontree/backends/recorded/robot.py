@@ -1,0 +1,204 @@
+"""A recorded run as a robot: MRPT rawlog scans, poses and RGB-D frames played at their timestamps.
+
+:class:`RecordedRobot` implements the :class:`~missiontree.robot.interface.Robot` protocol over a
+recording, so a mission's perception and mapping leaves run on real data without a robot:
+
+- the clock starts at the recording's first stamp and moves only when the runner calls
+  :meth:`~RecordedRobot.spin_until` (as fast as the machine allows, like the simulator: the
+  recording's time is the run's time, so ``simulated`` is True);
+- ``scan()``, ``rgbd()`` and ``pose()`` give the latest record whose stamp the clock has reached,
+  with that stamp; after the recording's end they keep their last stamp (a sensor gone quiet);
+  ``pose_at`` interpolates between the poses of the scans around a stamp and ``scan_at`` gives the
+  scan nearest to it;
+- the poses are the recording's odometry, or the odometry corrected by scan matching
+  (``correct=True``, the ``realdata`` extra); ``occupancy()`` is a map given with the recording, or
+  None;
+- the robot cannot move: ``navigate_to`` returns a handle already REJECTED saying so, ``drive``
+  with any non-zero velocity raises :class:`~missiontree.errors.BackendError` with the reason
+  (a leaf that drives fails with it), ``stop`` always works and does nothing.
+
+The lidar's mount offset on the robot (MRPT's sensor pose; 0.78 m ahead on the faculty loop's
+robot) is not part of a LaserScan: it is :attr:`RecordedRobot.lidar_offset`, for a grid's
+``sensor_offset``.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+from missiontree.errors import BackendError
+from missiontree.mapping.mrpt_rgbd import RgbdObservation
+from missiontree.mapping.rawlog import ScanLog
+from missiontree.robot.actions import INFRASTRUCTURE, ActionResult, ActionStatus, NavFeedback
+from missiontree.robot.sensors import SensorKind, SensorReading, UnknownSensorError, unknown_sensor_message
+from missiontree.types import LaserScan, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
+
+#: How far (s) from a stamp the nearest scan may be for ``scan_at``.
+SCAN_GAP = 0.5
+
+
+class RefusedAction:
+    """A navigation goal a recorded robot refuses: REJECTED from the start, with the reason."""
+
+    def __init__(self, reason: str) -> None:
+        self._result = ActionResult(ActionStatus.REJECTED, reason, kind=INFRASTRUCTURE)
+
+    def status(self) -> ActionStatus:
+        """Always REJECTED."""
+        return ActionStatus.REJECTED
+
+    def feedback(self) -> NavFeedback | None:
+        """None: the goal never ran."""
+        return None
+
+    def result(self) -> ActionResult:
+        """The refusal and its reason."""
+        return self._result
+
+    def cancel(self) -> None:
+        """Nothing to cancel."""
+
+
+class RecordedRobot:
+    """A robot that plays back a recording (see the module docstring).
+
+    Args:
+        log: The recording's scans and odometry (:func:`~missiontree.mapping.rawlog.read_rawlog`).
+        poses: The robot's pose at each scan (default: the log's odometry poses).
+        frames: RGB-D frames to play (their own stamps; they may come from another recording).
+        occupancy: A map to serve, e.g. one built from this recording.
+        name: The robot's name.
+    """
+
+    simulated = True
+
+    def __init__(self, log: ScanLog, poses: Sequence[Pose2D] | None = None,
+                 frames: Sequence[RgbdObservation] = (), occupancy: OccupancyGrid | None = None,
+                 name: str = "recorded") -> None:
+        poses = list(poses if poses is not None else log.poses)
+        if len(poses) != len(log.scans):
+            raise ValueError(f"expected one pose per scan, found {len(poses)} for {len(log.scans)} scans")
+        stamped = [(s.stamp, s, p) for s, p in zip(log.scans, poses, strict=True) if math.isfinite(s.stamp)]
+        if not stamped:
+            raise ValueError(f"{log.source}: expected timestamped scans to play, found none")
+        self.name = name
+        self.source = log.source
+        self._stamps = [t for t, _, _ in stamped]
+        self._scans = [s.to_laser_scan() for _, s, _ in stamped]
+        self._poses = [p for _, _, p in stamped]
+        first = stamped[0][1]
+        self.lidar_offset = (first.sensor_pose.x, first.sensor_pose.y)
+        ordered = sorted((f for f in frames if math.isfinite(f.stamp)), key=lambda f: f.stamp)
+        self._frame_stamps = [f.stamp for f in ordered]
+        self._frames = ordered
+        self._map = occupancy
+        start = min(self._stamps[0], self._frame_stamps[0]) if ordered else self._stamps[0]
+        self._now = start
+        self.end = max(self._stamps[-1], self._frame_stamps[-1]) if ordered else self._stamps[-1]
+        self.closed = False
+
+    # -- time ----------------------------------------------------------------------------------
+
+    def now(self) -> float:
+        """The playback clock (the recording's time)."""
+        return self._now
+
+    def spin_until(self, t: float) -> None:
+        """Move the clock to ``t`` (never back); records up to ``t`` become the latest."""
+        self._now = max(self._now, float(t))
+
+    def finished(self) -> bool:
+        """Whether the clock has passed the recording's last record."""
+        return self._now >= self.end
+
+    # -- sensors -------------------------------------------------------------------------------
+
+    def _last(self, stamps: list[float]) -> int:
+        """Index of the last record at or before the clock, -1 before the first."""
+        return bisect.bisect_right(stamps, self._now) - 1
+
+    def pose(self) -> PoseStamped | None:
+        """The pose of the latest scan played, with its stamp."""
+        i = self._last(self._stamps)
+        return PoseStamped(self._stamps[i], self._poses[i]) if i >= 0 else None
+
+    def scan(self) -> LaserScan | None:
+        """The latest scan played."""
+        i = self._last(self._stamps)
+        return self._scans[i] if i >= 0 else None
+
+    def rgbd(self) -> RGBDFrame | None:
+        """The latest RGB-D frame played (camera pose: the robot's pose at its stamp, when known)."""
+        i = self._last(self._frame_stamps)
+        if i < 0:
+            return None
+        frame = self._frames[i]
+        return frame.to_frame(camera_pose=self._pose_at(frame.stamp))
+
+    def occupancy(self) -> OccupancyGrid | None:
+        """The map given with the recording, or None."""
+        return self._map
+
+    def pose_at(self, stamp: float) -> Pose2D | None:
+        """The pose at ``stamp``, interpolated between the scans around it; None outside what was played."""
+        if stamp > self._now:
+            return None
+        return self._pose_at(stamp)
+
+    def _pose_at(self, stamp: float) -> Pose2D | None:
+        if not self._stamps or stamp < self._stamps[0] or stamp > self._stamps[-1]:
+            return None
+        i = bisect.bisect_left(self._stamps, stamp)
+        if self._stamps[i] == stamp or i == 0:
+            return self._poses[i]
+        t0, t1 = self._stamps[i - 1], self._stamps[i]
+        a, b = self._poses[i - 1], self._poses[i]
+        k = (stamp - t0) / (t1 - t0)
+        turn = math.atan2(math.sin(b.yaw - a.yaw), math.cos(b.yaw - a.yaw))
+        return Pose2D(a.x + k * (b.x - a.x), a.y + k * (b.y - a.y), a.yaw + k * turn)
+
+    def scan_at(self, stamp: float) -> LaserScan | None:
+        """The played scan nearest to ``stamp`` (within 0.5 s), None otherwise."""
+        last = self._last(self._stamps)
+        if last < 0:
+            return None
+        i = bisect.bisect_left(self._stamps, stamp, hi=last + 1)
+        best = min((j for j in (i - 1, i) if 0 <= j <= last), key=lambda j: abs(self._stamps[j] - stamp))
+        return self._scans[best] if abs(self._stamps[best] - stamp) <= SCAN_GAP else None
+
+    def sensor(self, name: str) -> SensorReading | None:
+        """A recording has no plugin sensors: any name is unknown."""
+        raise UnknownSensorError(unknown_sensor_message(name, []))
+
+    def sensor_names(self) -> list[str]:
+        """No plugin sensors."""
+        return []
+
+    def sensor_kind(self, name: str) -> SensorKind:
+        """Any name is unknown."""
+        raise UnknownSensorError(unknown_sensor_message(name, []))
+
+    # -- motion: refused -----------------------------------------------------------------------
+
+    def _refusal(self, what: str) -> str:
+        return (f"the recorded robot cannot {what}: it plays back {Path(self.source).name} and its poses are "
+                "the recording's; run the mission on the sim or ros2 backend to move")
+
+    def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> RefusedAction:
+        """Refused: a handle already REJECTED with the reason."""
+        return RefusedAction(self._refusal(f"navigate to ({goal.x:.2f}, {goal.y:.2f})"))
+
+    def drive(self, v: float, w: float) -> None:
+        """Zero velocity is accepted (it is a stop); any other raises BackendError with the reason."""
+        if v != 0.0 or w != 0.0:
+            raise BackendError(self._refusal(f"drive at {v:g} m/s, {w:g} rad/s"))
+
+    def stop(self) -> None:
+        """Nothing moves: always works."""
+
+    def close(self) -> None:
+        """Nothing to release; idempotent."""
+        self.closed = True
