@@ -640,11 +640,19 @@ def _spread(items: Sequence[Any], k: int) -> list[Any]:
     return [items[j * len(items) // k] for j in range(k)]
 
 
-def referential_cases(world: Any, name: str, k: int = REFERENTIAL_PER_WORLD) -> list[Case]:
+#: The test split's referential templates (colour, room, resting on).
+TEST_TEMPLATES = {"colour": "Please head over to the {colour} {label}.",
+                  "room": "I'm after the {label} that's in the {room}.",
+                  "on": "Could you go to the {label} sitting on the {anchor}?"}
+
+
+def referential_cases(world: Any, name: str, k: int = REFERENTIAL_PER_WORLD,
+                      templates: dict[str, str] | None = None, group: str = "test_referential") -> list[Case]:
     """Commands by colour, room and relation from the world's objects, and colours it lacks.
 
-    Their templates are none the dev split uses.
+    The test split's templates (the default) are none the dev split uses, and the other way round.
     """
+    templates = templates or TEST_TEMPLATES
     by_label: dict[str, list[Any]] = {}
     for obj in sorted(world.objects, key=lambda o: o.id):
         by_label.setdefault(obj.label, []).append(obj)
@@ -653,22 +661,22 @@ def referential_cases(world: Any, name: str, k: int = REFERENTIAL_PER_WORLD) -> 
     coloured = [(label, c) for label in labels
                 for c in sorted({_colour(o.color) for o in by_label[label]}) if c in PALETTE]
     for label, colour in _spread(coloured, k):
-        cases.append(Case(name, f"Please head over to the {colour} {label}.", "test_referential",
+        cases.append(Case(name, templates["colour"].format(colour=colour, label=label), group,
                           _ref(label, colour)))
     roomed = sorted({(o.label, room.type.replace("_", " ")) for o in world.objects
                      if (room := world.room_at(o.pose.x, o.pose.y)) is not None})
     for label, room in _spread(roomed, k):
-        cases.append(Case(name, f"I'm after the {label} that's in the {room}.", "test_referential",
+        cases.append(Case(name, templates["room"].format(label=label, room=room), group,
                           _ref(label, room=room)))
     resting = sorted({(o.label, b.label) for o in world.objects for b in world.objects
                       if b.label != o.label and _rests_on(o, b)})
     for label, anchor in _spread(resting, k):
-        cases.append(Case(name, f"Could you go to the {label} sitting on the {anchor}?", "test_referential",
+        cases.append(Case(name, templates["on"].format(label=label, anchor=anchor), group,
                           _on(label, anchor)))
     lacking = [(label, c) for label in labels for c in PALETTE
                if c not in {_colour(o.color) for o in by_label[label]}]
     for label, colour in _spread(lacking, k):
-        cases.append(Case(name, f"Please head over to the {colour} {label}.", "none", _nothing))
+        cases.append(Case(name, templates["colour"].format(colour=colour, label=label), "none", _nothing))
     return cases
 
 
@@ -681,6 +689,44 @@ def _rests_on(obj: Any, below: Any) -> bool:
 def _on(label: str, anchor: str) -> Callable[[Any, Any], bool]:
     """Judged by the rule that made the command: a ``label`` resting on an ``anchor``."""
     return lambda o, w: o.label == label and any(b.label == anchor and _rests_on(o, b) for b in w.objects)
+
+
+# -- the dev split's generated part: thesaurus words and templates of its own on generated flats ----------
+
+DEV_WORDS = REPO / "benchmarks" / "data" / "intent_dev_words.json"
+#: The dev split's own referential templates (colour, room, resting on), none of them the test split's.
+DEV_TEMPLATES = {"colour": "Take me to the {colour} {label}, please.",
+                 "room": "Where's the {label} in the {room}?",
+                 "on": "Find me the {label} on top of the {anchor}."}
+
+
+def dev_world_names(count: int, first_seed: int, folder: Path) -> list[str]:
+    """The dev split's generated flats from ``first_seed`` on, written to ``folder``."""
+    from missiontree.evaluation.splits import split_worlds, write_split_world
+
+    folder.mkdir(parents=True, exist_ok=True)
+    return [str(write_split_world(w, folder)) for w in split_worlds("dev", count, first_seed=first_seed)]
+
+
+def dev_generated_cases(bench: Bench, worlds: Sequence[str]) -> list[Case]:
+    """The dev split's generated commands on ``worlds``: thesaurus words, then referential ones.
+
+    World ``i`` of ``n`` takes every ``n``-th need paraphrase and object name (of the labels it holds)
+    from offset ``i``; its referential commands use :data:`DEV_TEMPLATES`.
+    """
+    words = json.loads(DEV_WORDS.read_text(encoding="utf-8"))
+    cases: list[Case] = []
+    n = len(worlds)
+    for i, name in enumerate(worlds):
+        world = bench.world(name)
+        present = {o.label for o in world.objects}
+        for entry in words["needs"][i::n]:
+            cases.append(Case(name, entry["command"], "dev_need", _labels(*entry["satisfied_by"])))
+        named = [e for e in words["objects"] if present & set(e["satisfied_by"])]
+        for entry in named[i::n]:
+            cases.append(Case(name, entry["command"], "dev_object", _labels(*entry["satisfied_by"])))
+        cases += referential_cases(world, name, templates=DEV_TEMPLATES, group="dev_referential")
+    return cases
 
 
 def split_figures(trials: Sequence[Trial]) -> dict[str, Any]:
@@ -728,57 +774,72 @@ PAPER_TABLE2 = {"I am thirsty": 100, "I am tired": 100, "I am bored": 100, "I wa
                 "I'm searching the blue chair": 80}
 
 
-def run_perceived(bench: Bench, n: int, seed: int,
-                  max_duration: float) -> tuple[dict[str, list[bool]], float]:
+def run_perceived(bench: Bench, n: int, seed: int, max_duration: float,
+                  jobs: int = 1) -> tuple[dict[str, list[bool]], float]:
     """Table II end to end, from a graph the robot builds itself.
 
     From each of ``n`` starts the robot explores the office it has never seen, builds the live graph
     and serves the five commands in turn; each is scored against ground truth. A command counts when
     the leaf served it at a graph object that is (within 1 m) an office object satisfying it, with its
-    standoff goal within 1 m of that object's footprint. Returns per-command
-    outcomes and the wall seconds the runs took.
+    standoff goal within 1 m of that object's footprint. The starts run on ``jobs`` processes.
+    Returns per-command outcomes and the wall seconds the runs took.
     """
-    import io
-
-    from missiontree.robot.commands import LineCommands
-    from missiontree.session import MissionRequest, Session
+    from concurrent.futures import ProcessPoolExecutor
 
     world = bench.world("office")
     outcomes: dict[str, list[bool]] = {case.command: [] for case in TABLE2}
     t0 = time.perf_counter()
-    for k, start in enumerate(start_poses(world, n, seed)):
-        log = io.StringIO()
-        request = MissionRequest(mission=PERCEIVED_MISSION, world=str(world_file(world, start, bench.folder)),
-                                 params={"command": ""}, quiet=True, log_stream=log, handle_signals=False,
-                                 max_duration=max_duration, out=bench.folder / f"perceived_{k}")
-        with Session.open(request) as session:
-            lines = "".join(f"{case.command}\n" for case in TABLE2)
-            session.robot.command_input = LineCommands(io.StringIO(lines))
-            session.run()
-        events = [json.loads(line) for line in log.getvalue().splitlines() if line.strip()]
-        goal: dict[str, Any] = {}
-        served: dict[str, bool] = {}
-        why: dict[str, str] = {}
-        for event in events:
-            if event.get("event") == "goal_sent":
-                goal = event
-            if event.get("event") == "command_served":
-                why[str(event.get("command"))] = str(event.get("reason", ""))
-            if event.get("event") == "intent_served" and goal:
-                case = next(c for c in TABLE2 if c.command == event.get("command"))
-                matches = [o for o in world.objects if o.label == goal.get("label")
-                           and math.hypot(o.pose.x - goal["object_x"], o.pose.y - goal["object_y"]) <= 1.0]
-                served[case.command] = any(case.satisfies(o, world)
-                                           and footprint_distance(o, goal["x"], goal["y"]) <= 1.0
-                                           for o in matches)
-                why[case.command] = f"served {event.get('object')} ({goal.get('label')} at " \
-                                    f"{goal['object_x']:.1f}, {goal['object_y']:.1f}); " \
-                                    f"office objects there: {[o.id for o in matches]}"
+    starts = start_poses(world, n, seed)
+    files = [str(world_file(world, start, bench.folder)) for start in starts]
+    args = [(k, files[k], str(bench.folder / f"perceived_{k}"), max_duration) for k in range(len(starts))]
+    with ProcessPoolExecutor(max(1, min(jobs, len(args)))) as pool:
+        results = list(pool.map(_perceived_start, args))
+    for start, (served, why) in zip(starts, results, strict=True):
         for case in TABLE2:
             outcomes[case.command].append(served.get(case.command, False))
             print(f"perceived start={start} {case.command:30} {'ok' if served.get(case.command) else 'MISS'} "
                   f"{why.get(case.command, '')[:300]}", flush=True)
     return outcomes, time.perf_counter() - t0
+
+
+def _perceived_start(job: tuple[int, str, str, float]) -> tuple[dict[str, bool], dict[str, str]]:
+    """One start of :func:`run_perceived` (in a worker process): per command, served right, and why."""
+    import io
+
+    import missiontree.backends.sim.generator  # noqa: F401 - registers generated: worlds
+    from missiontree.backends.sim import load_world
+    from missiontree.robot.commands import LineCommands
+    from missiontree.session import MissionRequest, Session
+
+    _, world_path, out, max_duration = job
+    world = load_world("office")
+    log = io.StringIO()
+    request = MissionRequest(mission=PERCEIVED_MISSION, world=world_path, params={"command": ""}, quiet=True,
+                             log_stream=log, handle_signals=False, max_duration=max_duration, out=Path(out))
+    with Session.open(request) as session:
+        lines = "".join(f"{case.command}\n" for case in TABLE2)
+        session.robot.command_input = LineCommands(io.StringIO(lines))
+        session.run()
+    events = [json.loads(line) for line in log.getvalue().splitlines() if line.strip()]
+    goal: dict[str, Any] = {}
+    served: dict[str, bool] = {}
+    why: dict[str, str] = {}
+    for event in events:
+        if event.get("event") == "goal_sent":
+            goal = event
+        if event.get("event") == "command_served":
+            why[str(event.get("command"))] = str(event.get("reason", ""))
+        if event.get("event") == "intent_served" and goal:
+            case = next(c for c in TABLE2 if c.command == event.get("command"))
+            matches = [o for o in world.objects if o.label == goal.get("label")
+                       and math.hypot(o.pose.x - goal["object_x"], o.pose.y - goal["object_y"]) <= 1.0]
+            served[case.command] = any(case.satisfies(o, world)
+                                       and footprint_distance(o, goal["x"], goal["y"]) <= 1.0
+                                       for o in matches)
+            why[case.command] = f"served {event.get('object')} ({goal.get('label')} at " \
+                                f"{goal['object_x']:.1f}, {goal['object_y']:.1f}); " \
+                                f"office objects there: {[o.id for o in matches]}"
+    return served, why
 
 
 def perceived_table(outcomes: dict[str, list[bool]], truth_graph: Sequence[Trial]) -> str:
@@ -805,6 +866,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="start poses per written command (2)")
     parser.add_argument("--test-worlds", type=int, default=None, help="test-split worlds (4; 2 with --quick)")
     parser.add_argument("--test-first-seed", type=int, default=0)
+    parser.add_argument("--dev-worlds", type=int, default=None,
+                        help="generated dev flats for the dev split's generated commands (3; 0: none)")
+    parser.add_argument("--dev-first-seed", type=int, default=100)
     parser.add_argument("--seed", type=int, default=18)
     parser.add_argument("--jobs", type=int, default=None,
                         help="batch workers for our runs (default: the cores)")
@@ -815,6 +879,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     n_table = args.starts or (3 if args.quick else 10)
     n_written = args.written_starts or (1 if args.quick else 2)
+    if args.dev_worlds is None:
+        args.dev_worlds = 2 if args.quick else 3
     jobs = args.jobs or os.cpu_count() or 1
     figures: dict[str, dict[str, Any]] = {}
     out: dict[str, Any] = {}
@@ -830,23 +896,29 @@ def main(argv: Sequence[str] | None = None) -> int:
                 ratio = (ours[key] / nais[key]) if ours[key] is not None and nais[key] else None
                 shown = None if ratio is None else round(ratio, 3)
                 print(f"{key:28} ours {ours[key]!s:8} nais {nais[key]!s:8} ratio (ours/nais) {shown}")
+            if args.dev_worlds:
+                names = dev_world_names(args.dev_worlds, args.dev_first_seed, Path(tmp) / "dev_worlds")
+                generated = dev_generated_cases(bench, names)
+                plan = [(case, _start_of(bench, case, i, args.seed)) for i, case in enumerate(generated)]
+                more = run_ours(bench, plan, jobs, batch="dev_generated")
+                for trial in more:
+                    _print_trial(trial)
+                trials = dev_trials = [*trials, *more]
             figures["dev"] = split_figures(trials)
             out["dev"] = {**figures["dev"], "methods": summary}
         if args.split in ("test", "both"):
             worlds = test_world_names(args.test_worlds or (2 if args.quick else 4), args.test_first_seed,
                                       Path(tmp) / "test_worlds")
             cases = test_cases(bench, worlds)
-            plan = []
-            for i, case in enumerate(cases):
-                poses = start_poses(bench.world(case.world), 6, args.seed)
-                plan.append((case, poses[i % len(poses)]))
+            plan = [(case, _start_of(bench, case, i, args.seed)) for i, case in enumerate(cases)]
             trials = run_ours(bench, plan, jobs, batch="test_batch")
             for trial in trials:
                 _print_trial(trial)
             figures["test"] = split_figures(trials)
             out["test"] = {**figures["test"], "worlds": [Path(w).stem for w in worlds]}
         if args.perceived:
-            outcomes, seconds = run_perceived(bench, args.perceived, args.seed, args.perceived_max_duration)
+            outcomes, seconds = run_perceived(bench, args.perceived, args.seed, args.perceived_max_duration,
+                                              jobs)
             print(perceived_table(outcomes, dev_trials))
             print(f"perceived-graph runs: {args.perceived} starts in {seconds:.0f} s wall")
             out["perceived"] = {"table2": {c: round(sum(v) / len(v), 4) for c, v in outcomes.items() if v},
@@ -863,6 +935,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(markdown_table(figures))
     print(json.dumps(out, sort_keys=True))
     return 0
+
+
+def _start_of(bench: Bench, case: Case, i: int, seed: int) -> tuple[float, float, float]:
+    """The ``i``-th command's start: one of six seeded poses of its world, in turn."""
+    poses = start_poses(bench.world(case.world), 6, seed)
+    return poses[i % len(poses)]
 
 
 def run_dev(bench: Bench, n_table: int, n_written: int, seed: int, jobs: int) -> list[Trial]:

@@ -189,3 +189,20 @@ def test_a_standoff_goal_the_stack_cannot_reach_is_tried_from_another_side() -> 
     goals = of(log, "goal_sent")
     assert again["object"] == "bottle_green" and [g["object"] for g in goals] == ["bottle_green"] * 2
     assert result.status.value == "SUCCESS"
+
+
+def test_on_a_live_graph_a_colour_no_object_has_sends_the_robot_to_look_at_each() -> None:
+    """"The purple chair" with no purple chair listed: on a live graph every chair is to be looked at."""
+    from missiontree.reasoning.intent import graph_objects
+    from missiontree.reasoning.schemas import ReferenceParse
+    from missiontree.semantics.scene_graph import SceneGraph
+
+    leaf = GoToIntent("go", GoToIntent.Params(scene_graph=""))
+    leaf._reset()
+    leaf.scene = graph_objects(SceneGraph.load(Path(OFFICE_GRAPH)))
+    answer = IntentResolution(candidates=[], reason="no purple chair in the scene",
+                              reference=ReferenceParse(label="chair", attributes=["purple"]))
+    ids = leaf._look_at_all(answer)
+    assert ids and all(leaf.scene.objects[i].label == "chair" for i in ids) and leaf.confirm_only
+    leaf.file_graph, leaf.confirm_only = object(), False  # a graph file is the user's word
+    assert leaf._look_at_all(answer) == [] and not leaf.confirm_only

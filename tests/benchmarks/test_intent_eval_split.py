@@ -64,3 +64,28 @@ def test_sitting_on_is_judged_by_the_rule_that_made_the_command() -> None:
     assert cases and all(any(c.satisfies(o, world) for o in world.objects) for c in cases)
     on = {o.id for c in cases for o in world.objects if c.satisfies(o, world)}
     assert all(o.elevation > 0.1 for o in world.objects if o.id in on)
+
+
+def test_dev_words_share_no_word_with_the_test_commands() -> None:
+    """The dev split's thesaurus commands are there, and no paraphrased word of theirs is a test command's."""
+    import json
+    import re
+
+    dev = json.loads(intent_eval.DEV_WORDS.read_text(encoding="utf-8"))
+    test = json.loads(intent_eval.WORDS.read_text(encoding="utf-8"))
+    test_words = {w for kind in ("needs", "objects", "absent") for e in test[kind]
+                  for w in re.findall(r"[a-z]+", e["command"].lower())}
+    paraphrased = {e["source"].rsplit(") ", 1)[1] for kind in ("needs", "objects") for e in dev[kind]}
+    assert len(dev["needs"]) >= 20 and paraphrased
+    assert not {w for p in paraphrased for w in re.findall(r"[a-z]+", p)} & test_words
+
+
+def test_dev_referential_templates_are_not_the_test_splits() -> None:
+    """On the same world the dev split's referential commands differ from the test split's, judged alike."""
+    world = load_world("office")
+    dev = intent_eval.referential_cases(world, "office", templates=intent_eval.DEV_TEMPLATES,
+                                        group="dev_referential")
+    test = intent_eval.referential_cases(world, "office")
+    assert dev and not {c.command for c in dev} & {c.command for c in test}
+    satisfiable = [c for c in dev if c.group == "dev_referential"]
+    assert all(any(c.satisfies(o, world) for o in world.objects) for c in satisfiable)

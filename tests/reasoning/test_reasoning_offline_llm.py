@@ -156,3 +156,11 @@ def test_parse_reference_reads_size_and_synonyms() -> None:
     """"the big mug near the couch" → cup, large, near sofa."""
     assert parse_reference("the big mug near the couch", LABELS) == ReferenceParse(
         label="cup", attributes=["large"], relation="near", anchor="sofa")
+
+
+def test_a_strong_server_stands_in_for_a_lacking_better_one(llm: OfflineLanguageModel) -> None:
+    """Bored with no TV in the scene: the laptop serves the same need strongly and is the answer."""
+    scene = [o for o in SCENE if o["label"] != "tv"]
+    reply = llm.chat(intent_messages("I am bored", scene), IntentResolution)
+    assert {"laptop_1", "laptop_2"} <= set(IntentResolution.model_validate_json(reply).candidates)
+

@@ -45,6 +45,7 @@ from missiontree.reasoning.intent import (
     Ranking,
     SceneObjects,
     graph_objects,
+    look_for,
     nearest_note,
     plan_candidates,
     prompt_objects,
@@ -164,6 +165,7 @@ class GoToIntent(ArrivalLook):
         self.first_unreached = ""  # why the first standoff goal of the current candidate was not reached
         self.because = ""          # the language model's reason for its candidates
         self.named = ""            # the class a referential command names ("" for a need)
+        self.confirm_only = False  # candidates the graph does not vouch for: served only when a look confirms
 
     def on_setup(self) -> None:
         """Load the graph file (a missing or malformed file fails here, before the first tick)."""
@@ -254,6 +256,8 @@ class GoToIntent(ArrivalLook):
             reference=answer.reference.model_dump() if answer.reference is not None else None,
         )
         if not ids:
+            ids = self._look_at_all(answer)
+        if not ids:
             why = f"nothing in the map satisfies {self.text!r}: {answer.reason or 'no candidate'}"
             self._record({"command": self.text, "status": "not served", "reason": why})
             return self.fail(why)
@@ -270,6 +274,29 @@ class GoToIntent(ArrivalLook):
             return self.fail(why)
         self.remaining = strong
         return self._plan()
+
+    def _look_at_all(self, answer: IntentResolution) -> list[str]:
+        """On a live graph, the objects of the named class when none has the asked-for attributes.
+
+        A live graph's colours are the camera's reading from wherever the robot passed (a blue chair
+        seen from behind in shadow is listed grey); a look from a standoff pose decides instead. These
+        objects are served only when a look confirms the attributes (:attr:`confirm_only`), never
+        unconfirmed. A graph file is the user's word and is taken as it is.
+        """
+        ref = answer.reference
+        if self.file_graph is not None or ref is None or not ref.attributes or ref.relation is not None:
+            return []
+        assert self.scene is not None
+        doubtful = set(self._doubtful())
+        ids = [o.id for o in self.scene.objects.values()
+               if fold_label(o.label) == fold_label(ref.label) and o.id not in doubtful]
+        if ids:
+            self.confirm_only = True
+            wanted = look_for(ref.label, ref.attributes)
+            self.because = (f"{answer.reason}; the live graph's colours come from the camera, so each "
+                            f"{ref.label} is looked at and served only if a look sees a {wanted}")
+            self.emit("intent_unsure", command=self.text, candidates=ids, reason=self.because)
+        return ids
 
     def _strong_ids(self, ids: list[str]) -> tuple[list[str], list[tuple[str, str]]]:
         """The model's ids split into (strong choices, [(weak id, why)]).
@@ -428,6 +455,9 @@ class GoToIntent(ArrivalLook):
     def _served(self, confirmed: bool, note: str) -> Status:
         """SUCCESS at the target, recorded on the blackboard and in the tick log with why it was chosen."""
         assert self.target is not None
+        if self.confirm_only and not confirmed:
+            return self._doubt(f"not confirmed to be a {look_for(self.target.label, self.wanted.split())}, "
+                               f"which the graph does not say it is ({note})")
         score, why = self._strength()
         record = {"command": self.text, "object": self.target.id, "label": self.target.label,
                   "chosen_because": self.because, "score": score, "score_because": why,

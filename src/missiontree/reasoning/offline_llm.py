@@ -195,6 +195,8 @@ class OfflineLanguageModel:
         (lacking, lacking_why), lacking_label = max(absent, default=((0.0, ""), ""))
         said = ", ".join(f"{need} ({word})" for need, (_, word) in sorted(reading.needs.items()))
         said = said or ", ".join(sorted({word for _, word in reading.named.values()}))
+        if lacking_why and self._serves_same(order[0], lacking_why, reading):
+            lacking = 0.0  # a laptop for boredom without a TV: the same need, served less well but served
         if best < STRONG or lacking > best + self.absent_margin:
             ranked = ", ".join(f"{label} {scores[label][0]:.2f}" for label in order[:3])
             wants = (f"; it calls for a {lacking_label} ({lacking_why}), which the scene lacks"
@@ -211,6 +213,20 @@ class OfflineLanguageModel:
         why = scores[chosen[0]][1]
         reason = f"{'/'.join(chosen)} {serve} {why} (by {how}; ranked: {ranked})"
         return IntentResolution(candidates=ids, reason=reason)
+
+    def _serves_same(self, present: str, lacking_why: str, reading: Reading) -> bool:
+        """Whether the best present class strongly serves the need a lacking class wins by.
+
+        A class the scene lacks vetoes the present ones only when it answers a part of the request
+        they do not (a washing machine washes the *clothes*, a sink only washes; a shower is named);
+        when the present class serves the same need strongly (a laptop for boredom, the TV lacking), it
+        stands in.
+        """
+        need = lacking_why.split(" (", 1)[0]
+        if need == "named" or need not in reading.needs:
+            return False
+        label = present if present in self.knowledge.serves else fold_label(present)
+        return reading.needs[need][0] * self.knowledge.serves.get(label, {}).get(need, 0.0) >= STRONG
 
     def _embedded_reading(self, request: str, known: Reading) -> Reading:
         """The need a request's words leave unsaid, by embedding similarity to each need's description.
