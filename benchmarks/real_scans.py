@@ -13,7 +13,9 @@ and corrected side by side:
   thick (the map as the robot would use it; beams through a doubled wall erase one copy, so a
   drifted map has fewer wall cells rather than thicker walls: ``wall_cells`` says how many);
 - ``thin_share_endpoints``: the same share on the image of every return's end cell (no clearing),
-  where drift draws one wall two or three times side by side.
+  where drift draws one wall two or three times side by side;
+- ``frontiers`` and ``rooms``: what the project's frontier finder and room segmentation make of the
+  log-odds map (they run on it; the faculty hall is one open space around a central block).
 
 This is one recording, not a dev/test split: nothing here was tuned per world, and the settings
 are :class:`~missiontree.mapping.scan_matching.MatchSettings`' defaults. The last line is one JSON object.
@@ -30,17 +32,21 @@ import time
 from pathlib import Path
 
 from missiontree.errors import BackendUnavailableError
+from missiontree.mapping.frontiers import find_frontiers
 from missiontree.mapping.rawlog import read_rawlog
 from missiontree.mapping.recorded_map import build_grid, endpoint_grid, loop_gap, loop_pairs, wall_thickness
 from missiontree.mapping.scan_matching import correct_poses
+from missiontree.semantics.rooms import segment_rooms
 
 LOOP = Path("/usr/share/mrpt/datasets/2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog")
 
 
 def figures(log, poses, pairs) -> dict[str, float]:  # noqa: ANN001 - a ScanLog, poses, loop_pairs' list
     gaps = [loop_gap(log.scans, poses, s, e, (pose, fit)) for s, e, pose, fit in pairs]
-    grid = wall_thickness(build_grid(log.scans, poses).to_occupancy())
+    occupancy = build_grid(log.scans, poses).to_occupancy()
+    grid = wall_thickness(occupancy)
     ends = wall_thickness(endpoint_grid(log.scans, poses))
+    rooms = segment_rooms(occupancy, inside=(poses[0].x, poses[0].y))
     return {
         "loop_gap_m_median": round(statistics.median(g.translation for g in gaps), 3) if gaps else math.nan,
         "loop_gap_m_max": round(max(g.translation for g in gaps), 3) if gaps else math.nan,
@@ -50,6 +56,8 @@ def figures(log, poses, pairs) -> dict[str, float]:  # noqa: ANN001 - a ScanLog,
         "wall_cells": grid.cells,
         "thin_share_endpoints": round(ends.thin_share, 4),
         "p90_thickness_endpoints": ends.p90,
+        "frontiers": len(find_frontiers(occupancy)),
+        "rooms": len(rooms.rooms),
     }
 
 
