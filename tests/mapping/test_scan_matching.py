@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from missiontree.errors import BackendUnavailableError
-from missiontree.mapping import scan_matching
+from missiontree.mapping.frontiers import find_frontiers
 from missiontree.mapping.rawlog import RecordedScan, read_rawlog
 from missiontree.mapping.recorded_map import build_grid, endpoint_grid, loop_gap, loop_pairs, wall_thickness
 from missiontree.mapping.scan_matching import correct_poses, relative
+from missiontree.semantics.rooms import segment_rooms
 from missiontree.types import Pose2D
 
 LOOP = Path("/usr/share/mrpt/datasets/2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog")
@@ -41,9 +43,8 @@ def room_scan(pose: Pose2D, half: float = 4.0, beams: int = 361) -> RecordedScan
 
 def test_missing_kiss_icp_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
     """Without KISS-ICP the matcher raises BackendUnavailableError naming the realdata extra."""
-    def missing(name: str) -> None:
-        raise ImportError(f"No module named {name!r}")
-    monkeypatch.setattr(scan_matching.importlib, "import_module", missing)
+    for name in ("kiss_icp", "kiss_icp.mapping", "kiss_icp.registration"):
+        monkeypatch.setitem(sys.modules, name, None)  # None in sys.modules: the import fails
     with pytest.raises(BackendUnavailableError, match=r"missiontree\[realdata\]"):
         correct_poses([], [])
 
@@ -126,3 +127,13 @@ def test_real_loop_grid_has_no_walls_from_invalid_beams(real_loop) -> None:
     nearest = np.min(np.hypot(xs[:, None] - sensors[None, :, 0], ys[:, None] - sensors[None, :, 1]), axis=1)
     assert len(xs) > 1000
     assert nearest.max() <= 15.0 + occ.resolution
+
+
+@pytest.mark.realdata
+def test_frontiers_and_rooms_run_on_the_real_map(real_loop) -> None:  # noqa: ANN001
+    """Frontiers and room segmentation run on the loop's map: open edges found, at least one room."""
+    log, corrected = real_loop
+    occupancy = build_grid(log.scans, corrected.poses).to_occupancy()
+    assert len(find_frontiers(occupancy)) > 10
+    rooms = segment_rooms(occupancy, inside=(corrected.poses[0].x, corrected.poses[0].y))
+    assert len(rooms.rooms) >= 1
