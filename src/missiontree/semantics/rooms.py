@@ -37,6 +37,12 @@ import yaml
 from scipy import ndimage
 
 from missiontree.errors import ConfigError
+from missiontree.semantics.room_watershed import drop_small_cores as _drop_small_cores
+from missiontree.semantics.room_watershed import flood as _flood
+from missiontree.semantics.room_watershed import grow as _grow
+from missiontree.semantics.room_watershed import late_cores as _late_cores
+from missiontree.semantics.room_watershed import merge_open as _merge_open
+from missiontree.semantics.room_watershed import merge_small as _merge_small
 from missiontree.types import OccupancyGrid
 
 
@@ -196,19 +202,26 @@ def segment_rooms(
     """
     p = params or SegmentationParams()
     res = grid.resolution
-    data = np.asarray(grid.data)
-    known_free = (data >= 0) & (data < p.occupied)
+    full = np.asarray(grid.data)
+    known_free = (full >= 0) & (full < p.occupied)
     specks = _specks(~known_free, p.speckle_area / res**2)
     building = _building_free(known_free | specks, grid, inside)
-    free = building.copy()
     side = int(round(p.close_gaps / res))
+    # Everything below happens within the building's box: on a growing map (a robot exploring a
+    # large unknown area) the cost follows the known building, not the map's size. The margin holds
+    # the closing's reach and the distance transform's 5x5 mask, so the result is the same.
+    window = _box(building, full.shape, max(side, 0) + 3)
+    if window is None:
+        return Segmentation(grid, np.zeros(full.shape, np.int32), [])
+    data, specks, building = full[window], specks[window], building[window]
+    free = building.copy()
     if side > 1:
         # holes in walls are closed for finding rooms (a narrow passage closed this way is reopened below)
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (side | 1, side | 1))
         walls = cv2.morphologyEx(((data >= p.occupied) & ~specks).astype(np.uint8), cv2.MORPH_CLOSE, kernel)
         free &= walls == 0
     if not free.any():
-        return Segmentation(grid, np.zeros(data.shape, np.int32), [])
+        return Segmentation(grid, np.zeros(full.shape, np.int32), [])
     dist = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, 5) * res
     min_cells, max_cells = p.min_room_area / res**2, p.max_room_area / res**2
     best_markers, best_count, best_radius = None, -1, p.min_door_half
@@ -231,8 +244,20 @@ def segment_rooms(
     labels = _merge_open(labels, dist, p.max_door_width)
     labels = _grow(labels, building)  # the cells the closing took back: to the nearest room
     labels = _merge_small(labels, min_cells)
-    rooms = _regions(grid, labels)
-    return Segmentation(grid, labels, rooms)
+    placed = np.zeros(full.shape, np.int32)
+    placed[window] = labels
+    rooms = _regions(grid, placed)
+    return Segmentation(grid, placed, rooms)
+
+
+def _box(mask: np.ndarray, shape: tuple[int, ...], margin: int) -> tuple[slice, slice] | None:
+    """The bounding box of ``mask``'s cells grown by ``margin`` within ``shape`` (None: no cell)."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    if not rows.size:
+        return None
+    cols = np.flatnonzero(mask.any(axis=0))
+    return (slice(max(int(rows[0]) - margin, 0), min(int(rows[-1]) + 1 + margin, shape[0])),
+            slice(max(int(cols[0]) - margin, 0), min(int(cols[-1]) + 1 + margin, shape[1])))
 
 
 def _specks(obstacle: np.ndarray, max_cells: float) -> np.ndarray:
@@ -265,194 +290,6 @@ def _building_free(free: np.ndarray, grid: OccupancyGrid, inside: tuple[float, f
     # a SLAM map cropped to what the robot saw: the building itself reaches the edge; take its
     # largest piece of free space (what is seen through a window or a gap stays out)
     return comp == int(sizes.argmax())
-
-
-def _late_cores(
-    markers: np.ndarray,
-    small: np.ndarray,
-    clearance: np.ndarray,
-    radius: float,
-    min_radius: float,
-    step: float,
-    core_cells: tuple[float, float],
-) -> np.ndarray:
-    """Cores for rooms whose middle was too cluttered to give one at the chosen radius.
-
-    A small room full of furniture shows at the chosen radius only as a piece too small to be a
-    core (``small``); without a core of its own it is flooded from its neighbour through the door
-    and becomes part of it. Going down in radius from the chosen one, a piece that holds such a
-    small piece, no core, and is core-sized (``core_cells``) becomes a core. Pieces without a small
-    piece at the chosen radius (gaps between furniture, which show only at lower radii) do not.
-    """
-    markers = markers.copy()
-    low, high = core_cells
-    r = radius - step
-    while r >= min_radius - 1e-9:
-        count, comp = cv2.connectedComponents((clearance > r).astype(np.uint8), connectivity=8)
-        sizes = np.bincount(comp.ravel(), minlength=count)
-        cored = np.zeros(count, bool)
-        cored[np.unique(comp[markers > 0])] = True
-        seeded = np.zeros(count, bool)
-        seeded[np.unique(comp[small])] = True
-        seeded[0] = False
-        for piece in np.flatnonzero(seeded & ~cored & (sizes >= low) & (sizes <= high)):
-            markers[comp == piece] = int(markers.max()) + 1
-        r -= step
-    return markers
-
-
-def _drop_small_cores(markers: np.ndarray, min_cells: float) -> np.ndarray:
-    sizes = np.bincount(markers.ravel())
-    keep = np.flatnonzero(sizes >= max(min_cells, 1))
-    keep = keep[keep > 0]
-    out = np.zeros_like(markers)
-    for i, old in enumerate(keep, start=1):
-        out[markers == old] = i
-    return out.astype(np.int32)
-
-
-def _flood(markers: np.ndarray, clearance: np.ndarray, free: np.ndarray, step: float) -> np.ndarray:
-    """Grow the cores over the free cells by a watershed on the clearance, so boundaries fall in doors.
-
-    The free cells are flooded level by level, from the clearest down in ``step`` metres; at each
-    level the labelled regions grow (breadth-first, see :func:`_wave`) over the cells at least that
-    clear. A door is the least clear place between two rooms: both rooms are filled before the
-    water reaches it, and their boundary lies in it. (Growing by geodesic distance alone put the
-    boundary wherever the two cores were equally far, often a metre into the room whose core lay
-    farther from the door, where the floor is open, and the rooms were then merged.)
-    """
-    labels = markers.astype(np.int32).copy()
-    labels[~free] = 0
-    if labels.max() == 0:
-        count, comp = cv2.connectedComponents(free.astype(np.uint8), connectivity=8)
-        return comp.astype(np.int32)
-    level = float(clearance[free].max())
-    while level > 0.0:
-        level = max(level - step, 0.0)
-        _wave(labels, free & (clearance >= level) & (labels == 0))
-    return labels
-
-
-def _grow(markers: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Grow the labelled regions over the free cells, each cell to the geodesically nearest region."""
-    labels = markers.astype(np.int32).copy()
-    labels[~free] = 0
-    if labels.max() == 0:
-        count, comp = cv2.connectedComponents(free.astype(np.uint8), connectivity=8)
-        return comp.astype(np.int32)
-    _wave(labels, free & (labels == 0))
-    return labels
-
-
-def _wave(labels: np.ndarray, open_cells: np.ndarray) -> None:
-    """Label ``open_cells`` reached from the labelled cells, in place, one 4-connected step at a time.
-
-    A breadth-first wave from every region at once; a cell reached by several regions in the same
-    step takes the highest label (as a grey dilation would, step after step, but without
-    redrawing the whole map at each of hundreds of steps on a real map). Open cells no region
-    reaches (the outside of a building, a pocket) stay unlabelled.
-    """
-    h, w = labels.shape
-    flat = labels.reshape(-1)  # a view: writing flat writes labels
-    todo = open_cells.reshape(-1).copy()
-    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
-    touching = cv2.dilate(open_cells.astype(np.uint8), cross).reshape(-1).astype(bool)
-    front = np.flatnonzero((flat > 0) & touching)
-    while front.size:
-        row, col = np.divmod(front, w)
-        label = flat[front]
-        steps = (
-            (row > 0, -w),
-            (row < h - 1, w),
-            (col > 0, -1),
-            (col < w - 1, 1),
-        )
-        cells = np.concatenate([front[ok] + step for ok, step in steps])
-        values = np.concatenate([label[ok] for ok, _ in steps])
-        reach = todo[cells]
-        cells, values = cells[reach], values[reach]
-        if not cells.size:
-            break
-        order = np.lexsort((values, cells))  # by cell, its highest label last
-        cells, values = cells[order], values[order]
-        last = np.concatenate((cells[1:] != cells[:-1], [True]))
-        front, label = cells[last], values[last]
-        flat[front] = label
-        todo[front] = False
-
-
-def _merge_open(labels: np.ndarray, clearance: np.ndarray, max_door_width: float) -> np.ndarray:
-    """Join neighbours that meet in the open rather than in a door.
-
-    A door or narrow passage has walls on both sides: along the border between two rooms no free
-    cell is farther than half a door's width from an obstacle. Furniture in the middle of a room
-    splits it into pieces that meet on open floor (far from any obstacle), or along several
-    stretches (on both sides of a table).
-    """
-    labels = labels.copy()
-    kernel = np.ones((3, 3), np.uint8)
-    merged = True
-    while merged:
-        merged = False
-        boxes = ndimage.find_objects(labels)
-        for a in sorted(set(np.unique(labels).tolist()) - {0}):
-            # the region's box grown by a cell holds its dilation: work there, not on the whole map
-            window = _padded(boxes[a - 1], labels.shape, 1)
-            near = labels[window]
-            grown = cv2.dilate((near == a).astype(np.uint8), kernel).astype(bool)
-            for b in sorted(set(np.unique(near[grown]).tolist()) - {0, a}):
-                border = grown & (near == b)
-                count, comp, stats, _ = cv2.connectedComponentsWithStats(
-                    border.astype(np.uint8), connectivity=8
-                )
-                stretches = [i for i in range(1, count) if stats[i][cv2.CC_STAT_AREA] >= 5]
-                if not stretches:
-                    continue
-                open_floor = float(clearance[window][border].max()) > max_door_width / 2.0
-                if len(stretches) > 1 or open_floor:
-                    labels[labels == b] = a
-                    merged = True
-                    break
-            if merged:
-                break
-    return labels
-
-
-def _merge_small(labels: np.ndarray, min_cells: float) -> np.ndarray:
-    """Join regions under ``min_cells`` to the neighbour they share most border with; renumber."""
-    labels = labels.copy()
-    changed = True
-    while changed:
-        changed = False
-        sizes = np.bincount(labels.ravel())
-        boxes = ndimage.find_objects(labels)
-        for label in np.argsort(sizes):
-            if label == 0 or sizes[label] == 0 or sizes[label] >= min_cells:
-                continue
-            window = _padded(boxes[label - 1], labels.shape, 2)  # holds the 5 x 5 ring
-            near = labels[window]
-            region = near == label
-            ring = cv2.dilate(region.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool) & ~region
-            around = near[ring]
-            around = around[(around > 0) & (around != label)]
-            if around.size == 0:
-                continue
-            labels[labels == label] = int(np.bincount(around).argmax())
-            changed = True
-            break
-    out = np.zeros_like(labels)
-    for i, old in enumerate(sorted(set(np.unique(labels).tolist()) - {0}), start=1):
-        out[labels == old] = i
-    return out
-
-
-def _padded(box: tuple[slice, slice], shape: tuple[int, ...], pad: int) -> tuple[slice, slice]:
-    """``box`` (from ``ndimage.find_objects``) grown by ``pad`` cells on each side, within ``shape``."""
-    rows, cols = box
-    return (
-        slice(max(rows.start - pad, 0), min(rows.stop + pad, shape[0])),
-        slice(max(cols.start - pad, 0), min(cols.stop + pad, shape[1])),
-    )
 
 
 def _regions(grid: OccupancyGrid, labels: np.ndarray) -> list[RoomRegion]:
@@ -631,14 +468,17 @@ def _overlaps(old: Segmentation, new: Segmentation) -> dict[int, dict[int, float
     inside = (orow >= 0) & (orow < oh) & (ocol >= 0) & (ocol < ow)
     old_on_new = np.zeros_like(new.labels)
     old_on_new[inside] = old.labels[orow[inside], ocol[inside]]
+    # every (new, old) pair counted in one pass, not one pass over the map per new room
+    labelled = new.labels > 0
+    width = int(old_on_new.max()) + 1
+    pairs = np.bincount(new.labels[labelled].astype(np.int64) * width + old_on_new[labelled],
+                        minlength=(int(new.labels.max()) + 1) * width).reshape(-1, width)
     result: dict[int, dict[int, float]] = {}
-    for label in range(1, int(new.labels.max()) + 1):
-        region = new.labels == label
-        total = int(region.sum())
+    for label in range(1, pairs.shape[0]):
+        total = int(pairs[label].sum())
         if not total:
             continue
-        counts = np.bincount(old_on_new[region], minlength=1)
-        result[label] = {int(o): float(c) / total for o, c in enumerate(counts) if o > 0 and c > 0}
+        result[label] = {int(o): float(c) / total for o, c in enumerate(pairs[label]) if o > 0 and c > 0}
     return result
 
 
