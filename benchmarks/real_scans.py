@@ -14,6 +14,11 @@ and corrected side by side:
   drifted map has fewer wall cells rather than thicker walls: ``wall_cells`` says how many);
 - ``thin_share_endpoints``: the same share on the image of every return's end cell (no clearing),
   where drift draws one wall two or three times side by side;
+- ``vs_mrpt_map_*``: how far the trajectory is from MRPT's own map of the same loop
+  (``malaga-cs-fac-building.simplemap.gz``: 99 of these scans, identical, at the poses MRPT's SLAM
+  gave them), both taken relative to its first key frame. A reference, not ground truth: MRPT's
+  map is another estimate. ``*_keyframes``: the every-return wall figures on those 99 scans alone,
+  printed for MRPT's map as well;
 - ``frontiers`` and ``rooms``: what the project's frontier finder and room segmentation make of the
   log-odds map (they run on it; the faculty hall is one open space around a central block).
 
@@ -33,12 +38,49 @@ from pathlib import Path
 
 from missiontree.errors import BackendUnavailableError
 from missiontree.mapping.frontiers import find_frontiers
-from missiontree.mapping.rawlog import read_rawlog
+from missiontree.mapping.rawlog import read_rawlog, read_simplemap
 from missiontree.mapping.recorded_map import build_grid, endpoint_grid, loop_gap, loop_pairs, wall_thickness
-from missiontree.mapping.scan_matching import correct_poses
+from missiontree.mapping.scan_matching import correct_poses, relative
 from missiontree.semantics.rooms import segment_rooms
 
 LOOP = Path("/usr/share/mrpt/datasets/2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog")
+#: MRPT's own map of the same loop (99 of its scans at the poses MRPT's SLAM gave them).
+MRPT_MAP = Path("/usr/share/mrpt/datasets/malaga-cs-fac-building.simplemap.gz")
+
+
+def against_mrpt_map(log, poses) -> dict[str, float]:  # noqa: ANN001 - a ScanLog and its poses
+    """Position and heading differences from MRPT's own map of the loop, in its first key frame's frame."""
+    if not MRPT_MAP.is_file():
+        return {}
+    reference = read_simplemap(MRPT_MAP)
+    index = {round(s.stamp, 4): i for i, s in enumerate(log.scans)}
+    matched = [(index[round(s.stamp, 4)], p) for s, p in zip(reference.scans, reference.poses, strict=True)
+               if round(s.stamp, 4) in index]
+    if not matched:
+        return {}
+    first, origin = matched[0]
+    dist, turn = [], []
+    for i, ref in matched:
+        ours, theirs = relative(poses[first], poses[i]), relative(origin, ref)
+        dist.append(math.hypot(ours.x - theirs.x, ours.y - theirs.y))
+        turn.append(abs(math.atan2(math.sin(ours.yaw - theirs.yaw), math.cos(ours.yaw - theirs.yaw))))
+    keyframes = wall_thickness(endpoint_grid([log.scans[i] for i, _ in matched],
+                                             [poses[i] for i, _ in matched]))
+    return {"vs_mrpt_map_m_median": round(statistics.median(dist), 3),
+            "vs_mrpt_map_m_max": round(max(dist), 3),
+            "vs_mrpt_map_deg_median": round(math.degrees(statistics.median(turn)), 2),
+            "thin_share_endpoints_keyframes": round(keyframes.thin_share, 4),
+            "cells_endpoints_keyframes": keyframes.cells}
+
+
+def mrpt_map_itself() -> dict[str, float]:
+    """The every-return wall figures of MRPT's own map (its key frames at its poses), for comparison."""
+    if not MRPT_MAP.is_file():
+        return {}
+    reference = read_simplemap(MRPT_MAP)
+    walls = wall_thickness(endpoint_grid(reference.scans, reference.poses))
+    return {"thin_share_endpoints_keyframes": round(walls.thin_share, 4),
+            "cells_endpoints_keyframes": walls.cells}
 
 
 def figures(log, poses, pairs) -> dict[str, float]:  # noqa: ANN001 - a ScanLog, poses, loop_pairs' list
@@ -58,6 +100,7 @@ def figures(log, poses, pairs) -> dict[str, float]:  # noqa: ANN001 - a ScanLog,
         "p90_thickness_endpoints": ends.p90,
         "frontiers": len(find_frontiers(occupancy)),
         "rooms": len(rooms.rooms),
+        **against_mrpt_map(log, poses),
     }
 
 
@@ -85,8 +128,13 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'figure':28s} {'raw odometry':>14s} {'corrected':>14s}")
     for key in raw:
         print(f"{key:28s} {raw[key]!s:>14s} {fixed[key]!s:>14s}")
+    mrpt = mrpt_map_itself()
+    if mrpt:
+        print(f"MRPT's own map of the loop (its {MRPT_MAP.name}, same scans at its SLAM poses): "
+              f"thin_share_endpoints_keyframes {mrpt['thin_share_endpoints_keyframes']}, "
+              f"cells_endpoints_keyframes {mrpt['cells_endpoints_keyframes']}")
     print(json.dumps({"scans": len(log.scans), "loop_pairs": len(pairs), "match_cpu_s": round(match_cpu, 2),
-                      "raw": raw, "corrected": fixed}))
+                      "raw": raw, "corrected": fixed, "mrpt_map": mrpt}))
     return 0
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from missiontree.mapping.mrpt_archive import ArchiveError, mrpt_time_to_unix
-from missiontree.mapping.rawlog import compose, read_rawlog
+from missiontree.mapping.rawlog import compose, read_rawlog, read_simplemap
 from missiontree.types import Pose2D
 
 LOOP = Path("/usr/share/mrpt/datasets/2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog")
@@ -153,3 +153,29 @@ def test_real_loop_odometry_is_a_76_m_path() -> None:
     log = read_rawlog(LOOP)
     assert 70 < log.path_length() < 80
     assert log.scans[0].sensor_pose.x == pytest.approx(0.78, abs=1e-6)
+
+
+@pytest.mark.realdata
+@NEEDS_LOOP
+def test_mrpt_simplemap_of_the_loop_holds_99_of_its_scans() -> None:
+    """MRPT's map of the faculty (a CSimpleMap) holds 99 of the loop's scans, identical, at its own poses."""
+    simple = read_simplemap(LOOP.parent / "malaga-cs-fac-building.simplemap.gz")
+    log = read_rawlog(LOOP)
+    by_stamp = {round(s.stamp, 4): s for s in log.scans}
+    assert len(simple.scans) == 99 == len(simple.poses)
+    assert all(np.array_equal(s.ranges, by_stamp[round(s.stamp, 4)].ranges) for s in simple.scans)
+    assert 70 < simple.path_length() < 80
+
+
+@pytest.mark.realdata
+@NEEDS_LOOP
+def test_old_format_simplemap_reads() -> None:
+    """A simple map from before MRPT 1.0 (CSensFrameProbSequence, old headers) reads its 72 scans."""
+    simple = read_simplemap(LOOP.parent / "localization_demo.simplemap.gz")
+    assert len(simple.scans) == 72 and simple.scans[0].aperture == pytest.approx(math.pi)
+
+
+def test_a_rawlog_is_no_simplemap(tmp_path: Path) -> None:
+    """read_simplemap on a rawlog names the classes it expected and what it found."""
+    with pytest.raises(ArchiveError, match="CSimpleMap or CSensFrameProbSequence, found .CSensoryFrame"):
+        read_simplemap(write(tmp_path, frame(scan2d([1.0], [True]))))

@@ -3,7 +3,8 @@
 SRC is an MRPT ``.gridmap``/``.gridmap.gz`` (MRPT's own occupancy grids, such as Debian's
 mrpt-common datasets), an MRPT ``.rawlog`` of 2-D laser scans and odometry (mapped with the
 log-odds grid at the odometry poses corrected by scan matching, or the raw odometry poses with
-``--raw-odometry``), or a map_server ``.yaml``. The pair written loads in Nav2's map_server and in a
+``--raw-odometry``), an MRPT ``.simplemap(.gz)`` (scans at the poses MRPT's SLAM gave them), or a
+map_server ``.yaml``. The pair written loads in Nav2's map_server and in a
 world file (``map: {yaml: DIR/map.yaml}``). Bad input (a file of no known kind, a damaged file, the
 scan matcher's extra missing) prints one line and exits 2.
 """
@@ -29,11 +30,13 @@ def register(subparsers: Any) -> None:
     actions = parser.add_subparsers(dest="map_command", metavar="ACTION", required=True)
     convert = actions.add_parser(
         "convert",
-        help="write a map_server map.yaml/map.pgm from an MRPT gridmap, an MRPT rawlog or a map.yaml",
-        description="Read SRC (MRPT .gridmap or .gridmap.gz, MRPT .rawlog of 2-D scans and odometry, or a "
-        "map_server .yaml) and write DIR/NAME.yaml and DIR/NAME.pgm in map_server's trinary format.",
+        help="write a map_server map.yaml/map.pgm from an MRPT gridmap, rawlog or simplemap, or a map.yaml",
+        description="Read SRC (MRPT .gridmap or .gridmap.gz, MRPT .rawlog of 2-D scans and odometry, MRPT "
+        ".simplemap or .simplemap.gz, or a map_server .yaml) and write DIR/NAME.yaml and DIR/NAME.pgm in "
+        "map_server's trinary format.",
     )
-    convert.add_argument("src", type=Path, help="the map source (.gridmap, .gridmap.gz, .rawlog, .yaml)")
+    convert.add_argument("src", type=Path,
+                         help="the map source (.gridmap, .gridmap.gz, .rawlog, .simplemap(.gz), .yaml)")
     convert.add_argument("--out", type=Path, required=True, help="the directory to write into")
     convert.add_argument("--name", default="map", help="base name of the files written (default: map)")
     convert.add_argument("--resolution", type=float, default=0.05,

@@ -5,6 +5,8 @@
   with the log-odds grid at the odometry poses corrected by scan matching
   (:mod:`missiontree.mapping.scan_matching`, the ``realdata`` extra), or at the raw odometry poses
   when asked;
+- ``.simplemap`` / ``.simplemap.gz``: an MRPT simple map (key frames of 2-D scans at the poses
+  MRPT's SLAM gave them), mapped with the log-odds grid at those poses;
 - ``.yaml``: a map_server map (:mod:`missiontree.mapping.mapfile`).
 
 What kind a file is comes from its name; a file that does not read as that kind is a
@@ -19,12 +21,13 @@ from pathlib import Path
 from missiontree.mapping.mapfile import MapFileError, read_map
 from missiontree.mapping.mrpt_archive import ArchiveError
 from missiontree.mapping.mrpt_grid import GridmapError, read_gridmap
-from missiontree.mapping.rawlog import read_rawlog
+from missiontree.mapping.rawlog import read_rawlog, read_simplemap
 from missiontree.mapping.recorded_map import build_grid
 from missiontree.types import OccupancyGrid
 
 #: File name endings read, and what each is.
 KINDS = {".gridmap": "MRPT gridmap", ".gridmap.gz": "MRPT gridmap", ".rawlog": "MRPT rawlog",
+         ".simplemap": "MRPT simplemap", ".simplemap.gz": "MRPT simplemap",
          ".yaml": "map_server map", ".yml": "map_server map"}
 
 
@@ -72,6 +75,12 @@ def load_map_source(path: str | Path, *, correct: bool = True, resolution: float
         if kind == "map_server map":
             grid = read_map(path)
             return LoadedMap(grid, f"map_server map, {grid.data.shape[1]} x {grid.data.shape[0]} cells")
+        if kind == "MRPT simplemap":
+            log = read_simplemap(path)
+            if not log.scans:
+                raise MapSourceError(f"{path}: expected 2-D laser scans in the simple map, found none")
+            grid = build_grid(log.scans, log.poses, resolution=resolution, max_range=max_range).to_occupancy()
+            return LoadedMap(grid, f"MRPT simplemap, {len(log.scans)} scans at the map's own poses")
         return _from_rawlog(path, correct, resolution, max_range)
     except (GridmapError, ArchiveError, MapFileError) as exc:
         raise MapSourceError(str(exc)) from None

@@ -42,7 +42,8 @@ MAX_BEAMS = 100_000
 #: Classes of observation other than 2-D scans that are read and left out (their layouts are known).
 _ODOMETRY_OBSERVATION = "CObservationOdometry"
 
-__all__ = ["ArchiveError", "OdometryStep", "RecordedScan", "ScanLog", "iter_rawlog", "read_rawlog"]
+__all__ = ["ArchiveError", "OdometryStep", "RecordedScan", "ScanLog", "iter_rawlog", "read_rawlog",
+           "read_simplemap"]
 
 
 @dataclass(frozen=True)
@@ -185,6 +186,39 @@ def read_rawlog(path: str | Path) -> ScanLog:
             log.poses.append(pose)
         else:
             log.skipped += 1
+    return log
+
+
+def read_simplemap(path: str | Path) -> ScanLog:
+    """Read an MRPT simple map (``.simplemap``, usually gzipped): its 2-D scans at the map's own poses.
+
+    A ``CSimpleMap`` (``CSensFrameProbSequence`` before MRPT 1.0) is what MRPT's SLAM leaves: key
+    frames, each a pose (the mean of a Gaussian: ``CPose3DPDFGaussian``, or ``CPosePDFGaussian`` in
+    version 0) and a ``CSensoryFrame``. The poses are already corrected, so ``poses`` holds them
+    (projected to the plane) and ``odometry`` stays empty.
+
+    Raises:
+        ArchiveError: The file cannot be read, is no simple map, or holds an object this reader
+            does not know.
+    """
+    reader = ArchiveReader(load_archive_bytes(path), str(path))
+    name, version, old = reader.expect_header("CSimpleMap", "CSensFrameProbSequence")
+    if version not in (0, 1):
+        raise reader.unknown_version(name, version, "0, 1")
+    log = ScanLog(str(path))
+    count = reader.u32("the key frame count")
+    if count > reader.remaining:
+        raise reader.error(f"expected at most {reader.remaining:,} key frames, found a count of {count:,}")
+    for _ in range(count):
+        pose = _pose_pdf_mean(reader) if version == 0 else _pose3d_pdf_mean(reader)
+        frame, frame_version, frame_old = reader.expect_header("CSensoryFrame", "CSensorialFrame")
+        for item in _sensory_frame(reader, frame_version, frame_old):
+            if isinstance(item, RecordedScan):
+                log.scans.append(item)
+                log.poses.append(pose)
+            else:
+                log.skipped += 1
+    reader.end(name, old)
     return log
 
 
@@ -333,6 +367,17 @@ def _pose_pdf_mean(reader: ArchiveReader) -> Pose2D:
         raise reader.unknown_version(name, version, "0 to 2")
     reader.end(name, old)
     return mean
+
+
+def _pose3d_pdf_mean(reader: ArchiveReader) -> Pose2D:
+    """The mean of a ``CPose3DPDFGaussian`` object, projected to the plane."""
+    name, version, old = reader.expect_header("CPose3DPDFGaussian")
+    if version != 1:
+        raise reader.unknown_version(name, version, "1")
+    mean = reader.pose3d()
+    reader.take(21 * 8, "the covariance")  # the 6 x 6 symmetric matrix's upper triangle
+    reader.end(name, old)
+    return Pose2D(float(mean[0, 3]), float(mean[1, 3]), yaw_of(mean))
 
 
 def _odometry_observation(reader: ArchiveReader, version: int) -> OdometryStep:
