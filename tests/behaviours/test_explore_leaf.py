@@ -240,3 +240,19 @@ def test_exploration_json_says_how_it_ended(tmp_path: Path) -> None:
     report = json.loads((tmp_path / "exploration.json").read_text())
     assert report["outcome"] == "explored" and report["complete"] is True
     assert report["frontiers_left"] == [] and report["unknown_left_m2"] == 0.0
+
+
+def test_a_frontier_whose_edge_moves_a_little_keeps_its_goal() -> None:
+    """The far edge of a frontier flickering 0.4 m in the scans is no reason to send another goal."""
+    robot = MapRobot(corridor_map(), polls=60)
+    robot.data[:, 0:30] = 100                       # the west end known closed: one frontier, east
+    leaf, _ = make(robot, strategy="nearest")
+    for _ in range(5):
+        leaf.tick_once()
+        robot.advance(0.1)
+    assert len(robot.goals) == 1 and robot.goals[0].goal.x > 3.5
+    robot.data[1:-1, 90:98] = 0                     # the edge seen 0.4 m further east
+    for _ in range(40):                             # two replan periods
+        leaf.tick_once()
+        robot.advance(0.1)
+    assert len(robot.goals) == 1, [(round(g.goal.x, 2), round(g.goal.y, 2)) for g in robot.goals]

@@ -118,3 +118,47 @@ def test_a_frontier_onto_a_room_opens_onto_space_and_one_onto_a_box_inside_does_
     box = [c for c in p.candidates(g, (3.0, 1.0), ignore_blacklist=True) if 3.5 < c.target[0] < 4.5]
     assert box  # the box's inside is a frontier worth a trip by its gain ...
     assert not p.opens_onto_space(g, box[0].target)   # ... but nothing the robot fits into
+
+
+def pocket_room() -> np.ndarray:
+    """A known walled room (4 x 3 m) with a 0.7 x 0.7 m unknown pocket in a corner behind a cabinet."""
+    data = np.zeros((30, 40), np.int8)
+    data[0, :] = data[-1, :] = data[:, 0] = data[:, -1] = 100
+    data[1:8, 1:8] = -1                    # the pocket, seen by no beam (0.49 m^2)
+    data[8, 1:5] = 100                     # the cabinet's side, open towards the east
+    return data
+
+
+def test_a_small_pocket_is_explored_once_nothing_larger_is_left() -> None:
+    """Under the size thresholds a reachable pocket is still offered, once nothing larger is left."""
+    g = grid(pocket_room())
+    p = planner("gain", min_frontier_m=0.5, min_unknown_m2=1.0, min_gain_m2=1.0)
+    offered = p.candidates(g, (3.0, 2.0))
+    assert offered and offered[0].target[0] < 1.0 and offered[0].target[1] < 1.0
+    assert p.min_unknown_m2 == 1.0 and p.min_gain_m2 == 1.0      # the thresholds are restored
+
+
+def test_a_speck_between_beams_is_no_candidate_even_at_the_end() -> None:
+    """A two-cell unknown speck inside seen floor is below even the small thresholds."""
+    data = pocket_room()
+    data[1:8, 1:8] = 0
+    data[15, 20:22] = -1
+    assert planner("gain", min_unknown_m2=1.0, min_gain_m2=1.0).candidates(grid(data), (3.0, 2.0)) == []
+
+
+def test_a_room_behind_a_gap_only_the_body_fits_through_is_left_open() -> None:
+    """A 0.4 m gap: the body (0.15 m radius) fits, the navigation (0.27 m) does not: left open, not closed."""
+    data = np.full((60, 100), -1, np.int8)
+    data[:, :50] = 0                              # the known side, x 0-5 m at 0.1 m cells ...
+    data[0, :] = data[-1, :] = data[:, 0] = 100
+    data[:, 50] = 100                             # ... a wall at x 5 m
+    data[28:32, 50] = 0                           # with a 0.4 m gap (y 2.8-3.2), seen through:
+    data[1:-1, 51:66] = 0                         # the room behind known free to x 6.6, unknown beyond
+    p = ExplorationPlanner(strategy="gain", footprint_radius=0.15, reach_radius=0.27, sensor_range=4.0)
+    narrow = p.narrow_ways(grid(data), (2.0, 3.0))
+    assert narrow and not any(o.entry.proved_closed for o in narrow)    # one per piece of its frontier
+    assert all("narrower than the navigation's footprint" in o.entry.reason for o in narrow)
+    assert all(o.candidate.target[0] > 6.0 for o in narrow)
+    data[28:32, 50] = 100                         # closed: nothing is left open
+    assert ExplorationPlanner(strategy="gain", footprint_radius=0.15, reach_radius=0.27).narrow_ways(
+        grid(data), (2.0, 3.0)) == []

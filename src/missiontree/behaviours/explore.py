@@ -259,6 +259,10 @@ class Explore(Leaf):
             if not candidates and left:
                 self.left = left
         if not candidates:
+            narrow = planner.narrow_ways(grid, (pose.x, pose.y))
+            if narrow:
+                self.left = (self.left or []) + narrow
+        if not candidates:
             self.outcome = "explored" if self.left is None else "partial"
             return self.succeed(f"explored: no reachable {self._what()} remains ({self.summary(grid)})")
         self._send(now, candidates[0])
@@ -341,7 +345,10 @@ class Explore(Leaf):
             return None
         if now >= self.next_replan and target.kind == "frontier":
             self.next_replan = now + self.params.replan_period
-            seen = not self.planner.still_frontier(grid, *target.target)
+            # seen: no frontier left near its place (a radius as wide as the blacklist's: the frontier
+            # piece's own point shifts as its far edge flickers in the scans, and a 0.3 m test sent
+            # the robot back and forth between two frontiers for the whole run)
+            seen = not self.planner.still_frontier(grid, *target.target, radius=self.planner.blacklist_radius)
             if seen or self.params.strategy == "gain":
                 candidates = self.planner.candidates(grid, (pose.x, pose.y))
                 if not candidates:

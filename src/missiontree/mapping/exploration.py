@@ -51,8 +51,9 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
-from missiontree.mapping.frontiers import Frontier, find_frontiers
-from missiontree.mapping.grid import free_mask, occupied_mask, unknown_mask
+from missiontree.mapping.frontier_goals import Blacklisted, FrontierGoals
+from missiontree.mapping.frontiers import find_frontiers, visible_unknown_area
+from missiontree.mapping.grid import occupied_mask
 from missiontree.mapping.planner import Costmap
 from missiontree.mapping.scan_points import scan_points
 from missiontree.types import OccupancyGrid
@@ -131,22 +132,6 @@ class Candidate:
 
 
 @dataclass(frozen=True)
-class Blacklisted:
-    """A goal given up (or a try that failed), the place it was to see (its frontier), and why.
-
-    Attributes:
-        proved_closed: The map showed the frontier closed (no way to it) when it was given up;
-            False: given up while the map still showed a way (unexplored, possibly reachable).
-    """
-
-    x: float
-    y: float
-    reason: str
-    target: tuple[float, float] = (math.nan, math.nan)
-    proved_closed: bool = False
-
-
-@dataclass(frozen=True)
 class LeftOpen:
     """A frontier given up while the map still shows a way to it: what makes exploring incomplete.
 
@@ -160,7 +145,7 @@ class LeftOpen:
 
 
 @dataclass
-class ExplorationPlanner:
+class ExplorationPlanner(FrontierGoals):
     """Ranks exploration goals on a learned map; keeps the blacklist and the scan points visited.
 
     Attributes:
@@ -183,6 +168,13 @@ class ExplorationPlanner:
         wall_gap_m: Unknown gaps this narrow (m) between occupied cells are taken for wall (cells a
             wall seen at a grazing angle left unknown; else every such gap would be a frontier
             onto the unknown outside the building).
+        gain_gap_m: Gaps this narrow (m) between occupied cells let no gain ray through (holes a
+            lidar leaves in a wall seen from far or at a grazing angle: else a goal by such a wall
+            counted the unknown outside the building as its gain, and drew the robot back there).
+        small_frontier_m: Once nothing above the thresholds is left, frontiers down to this length
+            (m), ...
+        small_unknown_m2: ... onto unknown patches down to this area (m^2), ...
+        small_gain_m2: ... revealing at least this (m^2) are offered (:meth:`small_candidates`).
         reach_radius: The footprint (m) the navigation stack plans with (None: ``footprint_radius``):
             whether the map still shows a way to a frontier (:meth:`reachable`, :meth:`left_open`) is
             judged with it, so a place the navigation cannot plan to is closed, not left open.
@@ -211,6 +203,10 @@ class ExplorationPlanner:
     approach_m: float = 1.0
     gain_beams: int = 48
     wall_gap_m: float = 0.1
+    gain_gap_m: float = 0.35
+    small_frontier_m: float = 0.2
+    small_unknown_m2: float = 0.2
+    small_gain_m2: float = 0.3
     reach_radius: float | None = None
     max_attempts: int = 3
     retry_separation: float = 0.5
@@ -250,10 +246,6 @@ class ExplorationPlanner:
         """Failed tries and blacklist entries for the frontier place ``target`` (``blacklist_radius``)."""
         return self._near(self.failures, target) + self._near(self.blacklist, target)
 
-    def _near(self, entries: list[Blacklisted], target: tuple[float, float]) -> list[Blacklisted]:
-        r2 = self.blacklist_radius ** 2
-        return [b for b in entries if (b.target[0] - target[0]) ** 2 + (b.target[1] - target[1]) ** 2 <= r2]
-
     def visit(self, x: float, y: float) -> None:
         """Record that the robot stood (and looked) at (x, y)."""
         self.visited.append((float(x), float(y)))
@@ -282,7 +274,31 @@ class ExplorationPlanner:
                 return self.candidates(grid, robot_xy)
             finally:
                 self.blacklist = kept
-        grid = self.close_wall_gaps(grid)
+        out = self._ranked(grid, robot_xy)
+        if out or self.strategy == "scan_points":
+            return out
+        return self.small_candidates(grid, robot_xy)
+
+    def small_candidates(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[Candidate]:
+        """The candidates the size thresholds left out (``small_*``): the last things to explore.
+
+        Offered once nothing above the thresholds is left: short frontiers onto unknown pockets
+        (behind furniture, a room's corner seen past a door jamb) and patches the beams of far
+        scans left unknown. Ending "explored" while they were still reachable was ending with area
+        unseen (a room seen from its door 79 % known).
+        """
+        kept = (self.min_frontier_m, self.min_unknown_m2, self.min_gain_m2)
+        self.min_frontier_m = min(self.min_frontier_m, self.small_frontier_m)
+        self.min_unknown_m2 = min(self.min_unknown_m2, self.small_unknown_m2)
+        self.min_gain_m2 = min(self.min_gain_m2, self.small_gain_m2)
+        try:
+            return self._ranked(grid, robot_xy)
+        finally:
+            self.min_frontier_m, self.min_unknown_m2, self.min_gain_m2 = kept
+
+    def _ranked(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[Candidate]:
+        """Candidates at the current thresholds, best first."""
+        raw, grid = grid, self.close_wall_gaps(grid)
         if self.strategy == "scan_points":
             points = [(p.x, p.y, p.cells, p.x, p.y) for p in scan_points(grid, self.erosion_m)]
             r2 = self.visit_radius ** 2
@@ -295,13 +311,13 @@ class ExplorationPlanner:
             kind = "frontier"
         if not points:
             return []
-        lengths = self.path_lengths(grid, robot_xy, [(p[0], p[1]) for p in points], self.footprint_radius)
+        lengths = self.path_lengths(grid, robot_xy, [(p[0], p[1]) for p in points], self.nav_radius)
         reachable = [(p, length) for p, length in zip(points, lengths, strict=True) if length is not None]
         if not reachable:
             return []
         xy = np.array([[p[0], p[1]] for p, _ in reachable], np.float64)
-        gains = visible_unknown_area(grid, xy, self.sensor_range, self.gain_beams) if kind == "frontier" \
-            else np.zeros(len(reachable))
+        gains = visible_unknown_area(self.close_wall_gaps(raw, self.gain_gap_m), xy, self.sensor_range,
+                                     self.gain_beams) if kind == "frontier" else np.zeros(len(reachable))
         out = []
         for (p, length), gain in zip(reachable, gains, strict=True):
             if self.strategy == "gain" and gain < self.min_gain_m2:
@@ -324,10 +340,14 @@ class ExplorationPlanner:
         kept = self.footprint_radius
         if self.reach_radius is not None:
             self.footprint_radius = max(kept, self.reach_radius)
+        blacklist, self.blacklist = self.blacklist, []
         try:
-            return self.candidates(grid, robot_xy, ignore_blacklist=True)
+            out = self.candidates(grid, robot_xy)
+            if out and self.strategy != "scan_points":  # the small ones too: they may be blacklisted
+                out += self.small_candidates(grid, robot_xy)
+            return out
         finally:
-            self.footprint_radius = kept
+            self.footprint_radius, self.blacklist = kept, blacklist
 
     def reachable(self, grid: OccupancyGrid, robot_xy: tuple[float, float],
                   target: tuple[float, float]) -> bool:
@@ -383,6 +403,33 @@ class ExplorationPlanner:
                     break
         return out
 
+    def narrow_ways(self, grid: OccupancyGrid, robot_xy: tuple[float, float],
+                    min_area_m2: float = 2.0) -> list[LeftOpen]:
+        """Frontiers the robot's body has a way to but the navigation's wider footprint has not.
+
+        A gap between the body's width and the navigation's padded one (furniture beside a door)
+        proves nothing closed: with at least ``min_area_m2`` unknown behind it, such a frontier is
+        left open (the exploration is partial, saying why), not ended "explored".
+        """
+        if self.strategy == "scan_points" or (self.reach_radius or 0.0) <= self.footprint_radius:
+            return []
+        nav = self.reach_candidates(grid, robot_xy)
+        kept, self.reach_radius = self.reach_radius or 0.0, None
+        try:
+            body = self.candidates(grid, robot_xy, ignore_blacklist=True)
+        finally:
+            self.reach_radius = kept
+        out: list[LeftOpen] = []
+        for c in body:
+            if any(math.dist(n.target, c.target) <= self.blacklist_radius for n in nav):
+                continue
+            if any(math.dist(o.candidate.target, c.target) <= self.blacklist_radius for o in out):
+                continue
+            if self.unknown_behind(grid, [c.target]) >= min_area_m2:
+                why = f"the way to it is narrower than the navigation's footprint ({2 * kept:.2f} m)"
+                out.append(LeftOpen(Blacklisted(c.x, c.y, why, c.target, False), c))
+        return out
+
     def unknown_behind(self, grid: OccupancyGrid, places: Sequence[tuple[float, float]]) -> float:
         """Unknown area (m^2) within ``sensor_range`` of ``places``, connected to them through unknown cells.
 
@@ -427,188 +474,3 @@ class ExplorationPlanner:
             return best.score > margin * current.score
         # nearest and scan points keep their goal until it is reached, seen or given up
         return False
-
-    def close_wall_gaps(self, grid: OccupancyGrid) -> OccupancyGrid:
-        """The grid with unknown cells in gaps under ``wall_gap_m`` between occupied cells made occupied."""
-        k = math.ceil(math.floor(self.wall_gap_m / grid.resolution + 1e-9) / 2.0)  # closes gaps of 2k cells
-        if k < 1:
-            return grid
-        cached = getattr(self, "_closed", None)
-        if cached is not None and cached[0] is grid:
-            return cached[1]
-        occupied = occupied_mask(grid)
-        size = 2 * k + 1
-        closed = cv2.morphologyEx(occupied.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((size, size), np.uint8),
-                                  borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)
-        fill = closed & unknown_mask(grid)
-        out = grid
-        if fill.any():
-            data = grid.data.copy()
-            data[fill] = 100
-            out = OccupancyGrid(grid.stamp, grid.resolution, grid.origin, data)
-        self._closed = (grid, out)
-        return out
-
-    def frontier_goals(self, grid: OccupancyGrid) -> list[tuple[Frontier, tuple[float, float]]]:
-        """Frontier pieces, each with the place to send the robot to see it.
-
-        The goal is the free cell nearest the frontier's centroid that keeps ``footprint_radius +
-        goal_margin`` from every cell not known to be free (the unknown side of a frontier often
-        turns out to be a wall), within ``approach_m`` of the centroid and in line of sight of the
-        frontier. Where there is none, it is the frontier cell farthest from known obstacles.
-        A frontier tried before (:meth:`fail`) gets another approach: after one failed try a goal
-        through it (:meth:`_through`), after more a standing place away from the goals that failed.
-        """
-        res = grid.resolution
-        min_cells = max(1, int(math.ceil(self.min_frontier_m / res)))
-        piece = max(min_cells, int(math.ceil(self.frontier_piece_m / res)))
-        frontiers = find_frontiers(grid, min_size_cells=min_cells, max_size_cells=piece,
-                                   min_unknown_cells=max(1, int(self.min_unknown_m2 / (res * res))))
-        if not frontiers:
-            return []
-        free = free_mask(grid)
-        occupied = occupied_mask(grid)
-        want = self.footprint_radius + self.goal_margin
-        # distance (m) to the nearest cell not known free, and to the nearest occupied cell
-        to_unfree = cv2.distanceTransform(np.pad(free, 1).astype(np.uint8), cv2.DIST_L2, 5)[1:-1, 1:-1] * res
-        to_occupied = cv2.distanceTransform((~occupied).astype(np.uint8), cv2.DIST_L2, 5) * res
-        safe = to_unfree >= want
-        out = []
-        for f in frontiers:
-            failed = self._near(self.failures, f.goal) if self.failures else []
-            avoid = [(b.x, b.y) for b in failed]
-            goal = None
-            if len(failed) == 1:
-                goal = self._through(grid, f, occupied, to_occupied)
-            if goal is None:
-                goal = self._stand_back(grid, f, safe, occupied, avoid)
-            if goal is None and len(failed) > 1:
-                goal = self._through(grid, f, occupied, to_occupied)
-            if goal is None:
-                rows, cols = f.cells[:, 0], f.cells[:, 1]
-                m = int(np.argmax(to_occupied[rows, cols]))
-                if to_occupied[rows[m], cols[m]] < self.footprint_radius:
-                    continue  # no place to stand near it: leave it
-                goal = grid.cell_to_world(int(rows[m]), int(cols[m]))
-            out.append((f, (float(goal[0]), float(goal[1]))))
-        return out
-
-    def _stand_back(self, grid: OccupancyGrid, f: Frontier, safe: np.ndarray, occupied: np.ndarray,
-                    avoid: Sequence[tuple[float, float]]) -> tuple[float, float] | None:
-        """The safe free cell nearest the frontier's centroid that sees it, away from ``avoid``; or None."""
-        res = grid.resolution
-        h, w = grid.data.shape
-        k = int(math.ceil(self.approach_m / res))
-        rows, cols = f.cells[:, 0], f.cells[:, 1]
-        cr = min(h - 1, max(0, int(math.floor((f.centroid[1] - grid.origin.y) / res))))
-        cc = min(w - 1, max(0, int(math.floor((f.centroid[0] - grid.origin.x) / res))))
-        r0, c0 = max(0, cr - k), max(0, cc - k)
-        sr, sc = np.nonzero(safe[r0:cr + k + 1, c0:cc + k + 1])
-        if not len(sr):
-            return None
-        sr, sc = sr + r0, sc + c0
-        d2 = (sr - cr) ** 2 + (sc - cc) ** 2
-        keep = d2 <= k * k
-        if avoid:
-            sep = (self.retry_separation / res) ** 2
-            for ax, ay in avoid:
-                ar, ac = (ay - grid.origin.y) / res - 0.5, (ax - grid.origin.x) / res - 0.5
-                keep &= (sr - ar) ** 2 + (sc - ac) ** 2 > sep
-        sr, sc, d2 = sr[keep], sc[keep], d2[keep]
-        for j in np.argsort(d2, kind="stable")[:8]:  # the nearest few that see the frontier
-            m = int(np.argmin((rows - sr[j]) ** 2 + (cols - sc[j]) ** 2))
-            if _clear_line(occupied, (int(sr[j]), int(sc[j])), (int(rows[m]), int(cols[m]))):
-                return grid.cell_to_world(int(sr[j]), int(sc[j]))
-        return None
-
-    def _through(self, grid: OccupancyGrid, f: Frontier, occupied: np.ndarray,
-                 to_occupied: np.ndarray) -> tuple[float, float] | None:
-        """A goal ``through_m`` past the frontier, in the unknown it faces (a doorway: inside the room).
-
-        The direction is the frontier's normal, from its free side towards its unknown side; the
-        goal keeps the robot's radius (plus the margin) from every occupied cell and lies on the
-        map, in straight line of sight from the frontier. Slightly shorter, longer or turned
-        places are tried when the first is not clear; None when none is.
-        """
-        res = grid.resolution
-        h, w = grid.data.shape
-        unknown = np.pad(unknown_mask(grid), 1, constant_values=True)
-        rows, cols = f.cells[:, 0] + 1, f.cells[:, 1] + 1
-        nr = nc = 0.0
-        for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-            hits = float(np.count_nonzero(unknown[rows + dr, cols + dc]))
-            nr, nc = nr + dr * hits, nc + dc * hits
-        norm = math.hypot(nr, nc)
-        if norm < 1e-9:
-            return None
-        base = math.atan2(nr, nc)
-        gr, gc = grid.world_to_cell(*f.goal)
-        want = self.footprint_radius + self.goal_margin
-        for turn in (0.0, 0.35, -0.35, 0.7, -0.7):
-            for depth in (self.through_m, self.through_m + 0.3, self.through_m - 0.2):
-                r = int(round(gr + math.sin(base + turn) * depth / res))
-                c = int(round(gc + math.cos(base + turn) * depth / res))
-                if not (0 <= r < h and 0 <= c < w) or to_occupied[r, c] < want:
-                    continue
-                if _clear_line(occupied, (gr, gc), (r, c)):
-                    return grid.cell_to_world(r, c)
-        return None
-
-    def still_frontier(self, grid: OccupancyGrid, x: float, y: float, radius: float = 0.3) -> bool:
-        """Whether there is still frontier within ``radius`` of (x, y) (else that goal has been seen)."""
-        grid = self.close_wall_gaps(grid)
-        res = grid.resolution
-        r0, c0 = grid.world_to_cell(x, y)
-        k = int(math.ceil(radius / res))
-        h, w = grid.data.shape
-        rs, re_, cs, ce = max(0, r0 - k - 1), min(h, r0 + k + 2), max(0, c0 - k - 1), min(w, c0 + k + 2)
-        if rs >= re_ or cs >= ce:
-            return True  # off the map: unknown, so still worth going
-        window = OccupancyGrid(grid.stamp, res, grid.origin, grid.data[rs:re_, cs:ce])
-        free = free_mask(window)
-        unknown = np.pad(unknown_mask(window), 1, constant_values=False)
-        near = ndimage.binary_dilation(unknown, structure=ndimage.generate_binary_structure(2, 1))[1:-1, 1:-1]
-        rr, cc = np.nonzero(free & near)
-        if len(rr) == 0:
-            return False
-        d2 = ((rr + rs - r0) ** 2 + (cc + cs - c0) ** 2) * res * res
-        return bool((d2 <= radius * radius).any())
-
-
-def _clear_line(occupied: np.ndarray, a: tuple[int, int], b: tuple[int, int]) -> bool:
-    """Whether the straight line between cells ``a`` and ``b`` crosses no occupied cell."""
-    n = max(abs(b[0] - a[0]), abs(b[1] - a[1])) * 2 + 1
-    rows = np.rint(np.linspace(a[0], b[0], n)).astype(np.int64)
-    cols = np.rint(np.linspace(a[1], b[1], n)).astype(np.int64)
-    return not occupied[rows, cols].any()
-
-
-def visible_unknown_area(grid: OccupancyGrid, points: np.ndarray, sensor_range: float,
-                         beams: int = 48) -> np.ndarray:
-    """Unknown area (m^2) a 360° range sensor at each point would see, occupied cells blocking.
-
-    Rays are sampled every cell out to ``sensor_range``; a sample in an unknown cell (or beyond
-    the map, which is unknown too) adds the area of its ring sector ``r * dtheta * dr``; the first
-    occupied cell ends the ray.
-    """
-    points = np.asarray(points, np.float64).reshape(-1, 2)
-    if len(points) == 0:
-        return np.zeros(0)
-    res = grid.resolution
-    dr = res
-    radii = np.arange(1, int(sensor_range / dr) + 1) * dr                          # (S,)
-    theta = np.arange(beams) * (2.0 * math.pi / beams)                              # (K,)
-    dirs = np.stack([np.cos(theta), np.sin(theta)], axis=1)                         # (K, 2)
-    xs = points[:, 0, None, None] + dirs[None, :, 0, None] * radii[None, None, :]   # (P, K, S)
-    ys = points[:, 1, None, None] + dirs[None, :, 1, None] * radii[None, None, :]
-    cols = np.floor((xs - grid.origin.x) / res).astype(np.int64)
-    rows = np.floor((ys - grid.origin.y) / res).astype(np.int64)
-    h, w = grid.data.shape
-    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-    values = np.full(xs.shape, -1, np.int16)
-    values[inside] = grid.data[rows[inside], cols[inside]]
-    occupied = occupied_mask(OccupancyGrid(0.0, res, grid.origin, values))
-    blocked = np.logical_or.accumulate(occupied, axis=2)
-    unknown = unknown_mask(OccupancyGrid(0.0, res, grid.origin, values)) & ~blocked
-    weight = radii * (2.0 * math.pi / beams) * dr                                   # (S,)
-    return (unknown * weight[None, None, :]).sum(axis=(1, 2))

@@ -13,12 +13,14 @@ Long frontiers (a whole unexplored corridor side) can be split into pieces of at
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from scipy import ndimage
 
-from missiontree.mapping.grid import free_mask, unknown_mask
+from missiontree.mapping.grid import free_mask, occupied_mask, unknown_mask
 from missiontree.types import OccupancyGrid
 
 _CROSS = ndimage.generate_binary_structure(2, 1)
@@ -127,3 +129,62 @@ def _make(cells: np.ndarray, grid: OccupancyGrid) -> Frontier:
     nearest = int(np.argmin((xs - cx) ** 2 + (ys - cy) ** 2))
     goal = (float(xs[nearest]), float(ys[nearest]))
     return Frontier(cells=cells, size=len(cells), centroid=(cx, cy), goal=goal)
+
+
+def close_gaps(grid: OccupancyGrid, gap_m: float) -> OccupancyGrid:
+    """The grid with unknown cells in gaps under ``gap_m`` between occupied cells made occupied.
+
+    A wall seen at a grazing angle, or far away between two beams, leaves holes onto the unknown
+    beyond it; closed, they are no frontier and let no gain ray through.
+    """
+    k = math.ceil(math.floor(gap_m / grid.resolution + 1e-9) / 2.0)  # closes gaps of 2k cells
+    if k < 1:
+        return grid
+    occupied = occupied_mask(grid)
+    size = 2 * k + 1
+    closed = cv2.morphologyEx(occupied.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((size, size), np.uint8),
+                              borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)
+    fill = closed & unknown_mask(grid)
+    if not fill.any():
+        return grid
+    data = grid.data.copy()
+    data[fill] = 100
+    return OccupancyGrid(grid.stamp, grid.resolution, grid.origin, data)
+
+def clear_line(occupied: np.ndarray, a: tuple[int, int], b: tuple[int, int]) -> bool:
+    """Whether the straight line between cells ``a`` and ``b`` crosses no occupied cell."""
+    n = max(abs(b[0] - a[0]), abs(b[1] - a[1])) * 2 + 1
+    rows = np.rint(np.linspace(a[0], b[0], n)).astype(np.int64)
+    cols = np.rint(np.linspace(a[1], b[1], n)).astype(np.int64)
+    return not occupied[rows, cols].any()
+
+
+def visible_unknown_area(grid: OccupancyGrid, points: np.ndarray, sensor_range: float,
+                         beams: int = 48) -> np.ndarray:
+    """Unknown area (m^2) a 360° range sensor at each point would see, occupied cells blocking.
+
+    Rays are sampled every cell out to ``sensor_range``; a sample in an unknown cell (or beyond
+    the map, which is unknown too) adds the area of its ring sector ``r * dtheta * dr``; the first
+    occupied cell ends the ray.
+    """
+    points = np.asarray(points, np.float64).reshape(-1, 2)
+    if len(points) == 0:
+        return np.zeros(0)
+    res = grid.resolution
+    dr = res
+    radii = np.arange(1, int(sensor_range / dr) + 1) * dr                          # (S,)
+    theta = np.arange(beams) * (2.0 * math.pi / beams)                              # (K,)
+    dirs = np.stack([np.cos(theta), np.sin(theta)], axis=1)                         # (K, 2)
+    xs = points[:, 0, None, None] + dirs[None, :, 0, None] * radii[None, None, :]   # (P, K, S)
+    ys = points[:, 1, None, None] + dirs[None, :, 1, None] * radii[None, None, :]
+    cols = np.floor((xs - grid.origin.x) / res).astype(np.int64)
+    rows = np.floor((ys - grid.origin.y) / res).astype(np.int64)
+    h, w = grid.data.shape
+    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    values = np.full(xs.shape, -1, np.int16)
+    values[inside] = grid.data[rows[inside], cols[inside]]
+    occupied = occupied_mask(OccupancyGrid(0.0, res, grid.origin, values))
+    blocked = np.logical_or.accumulate(occupied, axis=2)
+    unknown = unknown_mask(OccupancyGrid(0.0, res, grid.origin, values)) & ~blocked
+    weight = radii * (2.0 * math.pi / beams) * dr                                   # (S,)
+    return (unknown * weight[None, None, :]).sum(axis=(1, 2))

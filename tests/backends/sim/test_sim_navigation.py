@@ -301,3 +301,23 @@ def test_a_narrow_door_on_the_learned_map_is_passed(write_world, door: float, no
     result = _run(robot, robot.navigate_to(goal, ANY), budget=120.0)
     assert result.succeeded, result
     assert robot.truth.robot_pose().distance_to(goal) < 0.3
+
+
+def test_learned_map_goal_beside_a_wall_is_reached_within_its_tolerance():
+    """On a learned map a goal in a wall's inscribed zone is reached from a free point within tolerance."""
+    robot = create_robot({"world": "conformance", "unknown_map": True})
+    nav = robot._nav
+    start = robot.world.start
+    # a goal the planner sent before the wall beside it was seen: now 0.1 m from the learned wall
+    grid = robot.occupancy()
+    rows, cols = np.nonzero(grid.data >= 50)
+    k = int(np.argmin((rows - grid.world_to_cell(start.x, start.y)[0]) ** 2
+                      + (cols - grid.world_to_cell(start.x, start.y)[1]) ** 2))
+    wx, wy = grid.cell_to_world(int(rows[k]), int(cols[k]))
+    d = math.hypot(wx - start.x, wy - start.y)
+    goal = Pose2D(wx + (start.x - wx) * 0.12 / d, wy + (start.y - wy) * 0.12 / d, 0.0)
+    assert nav.costmap.cost_at(goal.x, goal.y) > 252   # inside the inscribed zone
+    handle = robot.navigate_to(goal, Tolerance(0.3, 2 * math.pi))
+    result = _run(robot, handle, 60.0)
+    assert result.succeeded, result
+    assert robot.truth.robot_pose().distance_to(goal) <= 0.3 and robot.bumps == 0

@@ -6,14 +6,16 @@ and generator check a world's start, goals and objects against this dense view o
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from missiontree.backends.sim.schema import NavigationSpec
 from missiontree.mapping import planner
-from missiontree.mapping.planner import LETHAL
+from missiontree.mapping.planner import LETHAL, MAX_FREE
 from missiontree.types import OccupancyGrid, Pose2D
 
-__all__ = ["Costmap", "path_length", "plan"]
+__all__ = ["Costmap", "free_goal_within", "path_length", "plan"]
 
 
 class Costmap:
@@ -66,3 +68,32 @@ def path_length(points: np.ndarray) -> float:
     if len(points) < 2:
         return 0.0
     return float(np.hypot(*np.diff(points, axis=0).T).sum())
+
+
+def free_goal_within(costmap: planner.Costmap, goal: Pose2D, reach: float) -> Pose2D | None:
+    """The goal if the robot may stand there, else the nearest point within ``reach`` m where it may; or None.
+
+    As NavFn's ``tolerance``: on a learned map a wall seen late often puts a goal (an exploration
+    goal chosen when that wall was still unknown) inside the robot's inscribed zone; the goal counts
+    as reached anywhere within its tolerance, so a free cell inside it serves as well, where the
+    navigator would otherwise refuse the goal that the exploration planner still sees a way to.
+    """
+    if costmap.cost_at(goal.x, goal.y) <= MAX_FREE:
+        return goal
+    res = costmap.grid.resolution
+    k = int(math.floor(reach / res))
+    if k < 1:
+        return None
+    row, col = costmap.grid.world_to_cell(goal.x, goal.y)
+    dr, dc = np.mgrid[-k:k + 1, -k:k + 1]
+    d2 = (dr * dr + dc * dc).ravel()
+    for j in np.argsort(d2, kind="stable").tolist():
+        if d2[j] > k * k:
+            break
+        r, c = row + int(dr.ravel()[j]), col + int(dc.ravel()[j])
+        if costmap.cell_cost(r, c) > MAX_FREE:
+            continue
+        x, y = costmap.grid.cell_to_world(r, c)
+        if math.hypot(x - goal.x, y - goal.y) <= reach:
+            return Pose2D(x, y, goal.yaw)
+    return None

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from missiontree.backends.sim.nav_costmap import Costmap, path_length, plan
+from missiontree.backends.sim.nav_costmap import Costmap, free_goal_within, path_length, plan
 from missiontree.backends.sim.nav_handle import SimNavHandle
 from missiontree.backends.sim.schema import NavigationSpec, RobotProfile
 from missiontree.backends.sim.timing import TimingLog
@@ -73,6 +73,7 @@ _SWERVE_TIME = 0.6         # s: how far along each tried arc its end point is ju
 _SHORT_LOOKAHEAD = 0.12    # m: the follower's target when the lookahead line would cut a corner
 _CORNER_SAMPLES = np.linspace(0.2, 1.0, 5)
 _MAX_GOALS_KEPT = 10_000   # goals remembered for pictures (the oldest are dropped on very long runs)
+_GOAL_SLACK = 0.05         # m: a learned-map goal in an obstacle's zone moves at most tolerance.xy less this
 
 
 @dataclass
@@ -253,9 +254,9 @@ class Navigator:
             follow.backing_until = None
             # plan around what the lidar sees as well (as a blocked path's replan does): on the map
             # alone the new path runs into what pinned the robot again, back and forth
-            path = self._plan_around(scan, pose, h.goal)
+            path = self._plan_around(scan, pose, self._target_of(h))
             if path is None:
-                path = self._plan(self.costmap, pose, h.goal)
+                path = self._plan(self.costmap, pose, self._target_of(h))
             if path is not None:
                 follow.set_path(path)
                 remaining = self._remaining(follow, pose)
@@ -289,8 +290,18 @@ class Navigator:
                     f"{self.radius:.2f} m)", GOAL_IN_OBSTACLE)
         return f"within the robot radius ({self.radius:.2f} m) of an obstacle", GOAL_IN_OBSTACLE
 
+    def _target_of(self, h: SimNavHandle) -> Pose2D:
+        """Where to plan to: the goal; on a learned map, the nearest free point within its tolerance.
+
+        A wall the map learns late can put the goal inside the inscribed zone; the goal is reached
+        anywhere within ``tolerance.xy``, so a free point in there serves (NavFn's ``tolerance``).
+        """
+        if not self.allow_unknown:
+            return h.goal
+        return free_goal_within(self.costmap, h.goal, h.tolerance.xy - _GOAL_SLACK) or h.goal
+
     def _start(self, h: SimNavHandle, now: float, pose: Pose2D) -> bool:
-        goal = h.goal
+        goal = self._target_of(h)
         problem = self._goal_problem(goal)
         if problem is not None and self.allow_unknown and problem[1] != OUT_OF_MAP:
             return self._wait_for_way(now, pose, problem)
@@ -323,7 +334,7 @@ class Navigator:
         inside an obstacle or offers no path to it (a person standing in a door closes it for a while).
         """
         assert self.handle is not None
-        goal = self.handle.goal
+        goal = self._target_of(self.handle)
         problem = self._goal_problem(goal)
         if problem is not None and problem[1] == OUT_OF_MAP:
             return self._abort(ActionStatus.ABORTED, f"goal ({goal.x:.2f}, {goal.y:.2f}) is outside the "
@@ -425,7 +436,7 @@ class Navigator:
                 return recovery
         if now - follow.last_replan >= self.spec.replan_period and now - follow.blocked_since >= 0.5:
             follow.last_replan = now
-            goal = self.handle.goal if self.handle else None
+            goal = self._target_of(self.handle) if self.handle else None
             path2 = self._plan_around(scan, pose, goal) if goal else None
             self.replans += 1
             if path2 is not None:
