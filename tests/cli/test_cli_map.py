@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gzip
 import struct
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -80,3 +81,14 @@ def test_rawlog_map_loads_as_a_world(tmp_path: Path) -> None:
                           "map: {yaml: map.yaml, height: 2.5}\n")
     world = load_world(world_file)
     assert world.name == "faculty"
+
+
+@pytest.mark.realdata
+@pytest.mark.skipif(not LOOP.is_file(), reason=MISSING)
+def test_rawlog_without_the_extra_exits_2_naming_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """Converting a rawlog with scan matching but no KISS-ICP exits 2 naming the realdata extra."""
+    for name in ("kiss_icp", "kiss_icp.mapping", "kiss_icp.registration"):
+        monkeypatch.setitem(sys.modules, name, None)  # None in sys.modules: the import fails
+    assert main(["map", "convert", str(LOOP), "--out", str(tmp_path)]) == 2
+    assert "missiontree[realdata]" in capsys.readouterr().err
