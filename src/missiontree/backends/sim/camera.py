@@ -31,6 +31,7 @@ _FACE_SHADE = 0.55, 0.45     # front faces: ambient + diffuse * |cos incidence|
 _TOP_SHADE = 1.0
 _BOTTOM_SHADE = 0.45
 _TILE = 0.5                   # floor tiles (m), a faint checker for texture
+_BAND = 256                   # rows of the floor texture baked at a time
 
 if HAVE_NUMBA:
     import numba
@@ -48,13 +49,21 @@ class Floor:
 
     @staticmethod
     def build(rgb: np.ndarray, origin_x: float, origin_y: float, resolution: float, ceiling: float) -> Floor:
-        """Bake the tile checker into the per-cell floor colours."""
+        """Bake the tile checker into the per-cell floor colours.
+
+        Done in bands of rows: the float64 temporaries of the whole image (about 250 MB for a 100 m
+        world at 5 cm) are never held at once; each cell's arithmetic is the same.
+        """
         rows, cols = rgb.shape[:2]
         xs = origin_x + (np.arange(cols) + 0.5) * resolution
         ys = origin_y + (np.arange(rows) + 0.5) * resolution
-        parity = (np.floor(ys / _TILE)[:, None] + np.floor(xs / _TILE)[None, :]) % 2
-        texture = rgb * np.where(parity > 0, 0.94, 1.0)[..., None]
-        return Floor(np.clip(texture, 0, 255).astype(np.uint8), origin_x, origin_y, resolution, ceiling)
+        texture = np.empty((rows, cols, 3), np.uint8)
+        for top in range(0, rows, _BAND):
+            band = slice(top, min(top + _BAND, rows))
+            parity = (np.floor(ys[band] / _TILE)[:, None] + np.floor(xs / _TILE)[None, :]) % 2
+            shaded = rgb[band] * np.where(parity > 0, 0.94, 1.0)[..., None]
+            texture[band] = np.clip(shaded, 0, 255).astype(np.uint8)
+        return Floor(texture, origin_x, origin_y, resolution, ceiling)
 
 
 @dataclass(frozen=True)

@@ -15,8 +15,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-#: Largest map image accepted, in pixels (for example 2,000 x 2,000: 100 m a side at 5 cm).
-MAX_MAP_CELLS = 4_000_000
+#: Largest map image (and world grid) accepted, in cells: a 100 m square at 5 cm with its margin
+#: (2,020 x 2,020) and MRPT's Malaga campus grid (1,888 x 2,738) fit; a header promising more is
+#: refused before anything is decoded.
+MAX_MAP_CELLS = 6_000_000
 #: Largest map image file accepted, in bytes.
 MAX_MAP_BYTES = 32 * 1024 * 1024
 

@@ -462,7 +462,7 @@ def _rasterise(spec: WorldSpec, segs: np.ndarray, objects: list[WorldObject],
         if obj.obstacle:
             poly = ((obj.footprint() - [origin.x, origin.y]) / res * 16).astype(np.int32)
             cv2.fillPoly(canvas, [poly], 1, cv2.LINE_8, shift=4)
-    data = np.where(canvas > 0, 100, 0).astype(np.int8)
+    data = (canvas > 0).astype(np.int8) * np.int8(100)  # no int64 image in between
     if unknown is not None:
         data[unknown & (canvas == 0)] = -1
     return OccupancyGrid(0.0, res, origin, data), walls_grid
@@ -477,12 +477,14 @@ class WorldTooLargeError(ValueError):
 
 
 def _floor_colours(grid: OccupancyGrid, rooms: list[Room]) -> np.ndarray:
-    rgb = np.empty(grid.data.shape + (3,), np.float64)
+    # uint8: the colours are whole numbers 0-255 (the schema's RGB); a 100 m world's float64 image
+    # held 98 MB for the run
+    rgb = np.empty(grid.data.shape + (3,), np.uint8)
     rgb[:] = (170, 160, 145)
     for room in rooms:  # drawn straight into the image (a later room over an earlier one, as listed)
         colour = room.floor_rgb or _ROOM_FLOORS.get(room.type, (170, 160, 145))
         poly = ((room.polygon - [grid.origin.x, grid.origin.y]) / grid.resolution * 16).astype(np.int32)
-        cv2.fillPoly(rgb, [poly], tuple(float(c) for c in colour), cv2.LINE_8, shift=4)
+        cv2.fillPoly(rgb, [poly], tuple(int(c) for c in colour), cv2.LINE_8, shift=4)
     return rgb
 
 
