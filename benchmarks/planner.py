@@ -12,9 +12,17 @@ free points at least 20 m apart are planned between, alternating:
   A* with whole-grid g/parent/closed arrays and a heap of 8 entries per cell), and ``old_replan``,
   which re-inflated the whole grid for the lidar points before planning.
 
-Peak allocation is the larger of tracemalloc's peak (numpy arrays) and the rise of the process's
-resident high-water mark (which also sees numba's own allocations), per plan. Prints per-method
-min/median/max, ratios old/new, then one JSON line.
+The new planner is weighted A* (its heuristic times ``Costmap.heuristic_weight``); the old kernel
+is run twice, as it was (optimal A*, weight 1) and with the same weight (``old_w``), so the ratio
+that compares the implementations (``old_w / new``) is printed apart from the one that also holds
+the weight (``old / new``), with the path-length cost of the weight beside it.
+
+Each plan is timed in CPU time (``time.thread_time``: this thread's; every kernel is single-threaded)
+beside wall time, with nothing else on (tracemalloc off); its peak allocation is measured in a
+second call of its own: the larger of tracemalloc's peak (numpy arrays) and the rise of the
+process's resident high-water mark (which also sees numba's own allocations). The methods'
+order turns with every pair (no method always runs first, on a cold cache). Prints per-method
+min/median/max, ratios old/new on CPU time, then one JSON line.
 
     .venv/bin/python benchmarks/planner.py [--pairs 12] [--seed 1]
 """
@@ -78,7 +86,7 @@ def old_inflate(grid: OccupancyGrid, lethal: np.ndarray) -> np.ndarray:
     return cost
 
 
-def _old_astar(cost, start, goal, weight):  # noqa: ANN001, ANN202 - the old kernel, verbatim
+def _old_astar(cost, start, goal, weight, hweight):  # noqa: ANN001, ANN202 - the old kernel + heuristic weight
     h, w = cost.shape
     n = h * w
     g = np.full(n, np.inf)
@@ -128,7 +136,7 @@ def _old_astar(cost, start, goal, weight):  # noqa: ANN001, ANN202 - the old ker
             if ng < g[nxt]:
                 g[nxt] = ng
                 parent[nxt] = cur
-                f = ng + math.sqrt((nr - gr) ** 2 + (nc - gc_) ** 2)
+                f = ng + hweight * math.sqrt((nr - gr) ** 2 + (nc - gc_) ** 2)
                 j = size
                 heap_key[j], heap_val[j] = f, nxt
                 size += 1
@@ -159,12 +167,12 @@ if HAVE_NUMBA:
 Point = tuple[float, float]
 
 
-def old_plan(grid: OccupancyGrid, cost: np.ndarray, a: Point, b: Point) -> float | None:
-    """Old A* on a whole-grid cost array; the path length in metres."""
+def old_plan(grid: OccupancyGrid, cost: np.ndarray, a: Point, b: Point, hweight: float = 1.0) -> float | None:
+    """Old A* on a whole-grid cost array (heuristic times ``hweight``); the path length in metres."""
     w = cost.shape[1]
     sr, sc = grid.world_to_cell(*a)
     gr, gc_ = grid.world_to_cell(*b)
-    cells = _old_astar(cost, sr * w + sc, gr * w + gc_, 3.0)
+    cells = _old_astar(cost, sr * w + sc, gr * w + gc_, 3.0, float(hweight))
     if len(cells) == 0:
         return None
     rows, cols = cells // w, cells % w
@@ -180,8 +188,16 @@ def _rss_kb(field: str) -> int:
     return 0
 
 
+def timed(fn: Callable[[], Any]) -> tuple[Any, float, float]:
+    """(result, CPU milliseconds of this thread, wall milliseconds) of one call, nothing else measured."""
+    gc.collect()
+    cpu0, wall0 = time.thread_time(), time.perf_counter()
+    out = fn()
+    return out, (time.thread_time() - cpu0) * 1000.0, (time.perf_counter() - wall0) * 1000.0
+
+
 def measure(fn: Callable[[], Any]) -> tuple[Any, float, float]:
-    """(result, milliseconds, peak allocation MB) of one call."""
+    """(result, wall milliseconds, peak allocation MB) of one call (timing under tracemalloc: memory only)."""
     gc.collect()
     hwm_ok = True
     try:
@@ -234,12 +250,16 @@ def main() -> None:
     # warm up: compile or load the kernels, and let the old method's whole costmap be built once
     kept.plan(*work[0])
     old_cost, old_inflate_ms, _ = measure(lambda: old_inflate(grid, grid.data >= 50))
+    weight = kept.heuristic_weight
     old_plan(grid, old_cost, *work[0])
+    old_plan(grid, old_cost, *work[0], hweight=weight)
     rng = np.random.default_rng(args.seed)
-    times: dict[str, list[float]] = {k: [] for k in ("new", "new_cold", "new_replan", "old", "old_replan")}
-    mem: dict[str, list[float]] = {k: [] for k in times}
-    lengths: list[tuple[float, float]] = []
-    for a, b in work:
+    names = ("new", "new_cold", "new_replan", "old", "old_w", "old_replan")
+    times: dict[str, list[float]] = {k: [] for k in names}
+    walls: dict[str, list[float]] = {k: [] for k in names}
+    mem: dict[str, list[float]] = {k: [] for k in names}
+    lengths: list[tuple[float, float, float]] = []
+    for index, (a, b) in enumerate(work):
         # a person 1.5 m along the straight line, as a lidar would see them (a few points)
         ux, uy = (b[0] - a[0]) / math.dist(a, b), (b[1] - a[1]) / math.dist(a, b)
         person = np.array([(a[0] + 1.5 * ux + 0.1 * math.cos(t), a[1] + 1.5 * uy + 0.1 * math.sin(t))
@@ -251,36 +271,51 @@ def main() -> None:
         runs: list[tuple[str, Callable[[], Any]]] = [
             ("new", lambda a=a, b=b: kept.plan(a, b)),
             ("old", lambda a=a, b=b: old_plan(grid, old_cost, a, b)),
+            ("old_w", lambda a=a, b=b: old_plan(grid, old_cost, a, b, hweight=weight)),
             ("new_cold", lambda a=a, b=b: Costmap(grid, RADIUS, INFLATION, SCALING).plan(a, b)),
             ("old_replan", old_replan),
             ("new_replan", lambda a=a, b=b, person=person: kept.with_points(person).plan(a, b)),
         ]
+        turn = index % len(runs)
         found: dict[str, Any] = {}
-        for name, fn in runs:
-            out, ms, mb = measure(fn)
-            times[name].append(ms)
-            mem[name].append(mb)
+        for name, fn in runs[turn:] + runs[:turn]:  # the order turns with every pair
+            out, cpu_ms, wall_ms = timed(fn)
+            times[name].append(cpu_ms)
+            walls[name].append(wall_ms)
+            mem[name].append(measure(fn)[2])
             found[name] = out
         new_len = found["new"].length if found["new"] is not None else math.nan
         old_len = found["old"] if found["old"] is not None else math.nan
-        lengths.append((new_len, old_len))
-        print(f"  {math.dist(a, b):5.1f} m apart: new {times['new'][-1]:7.2f} ms "
-              f"({found['new'].expanded} cells, "
-              f"{mem['new'][-1]:.1f} MB, path {new_len:.2f} m) | old {times['old'][-1]:7.2f} ms "
-              f"({mem['old'][-1]:.0f} MB, path {old_len:.2f} m) | cold {times['new_cold'][-1]:.1f} ms | "
+        old_w_len = found["old_w"] if found["old_w"] is not None else math.nan
+        lengths.append((new_len, old_len, old_w_len))
+        print(f"  {math.dist(a, b):5.1f} m apart: new {times['new'][-1]:7.2f} ms CPU "
+              f"({found['new'].expanded} cells, {mem['new'][-1]:.1f} MB, path {new_len:.2f} m) | "
+              f"old {times['old'][-1]:7.2f} ms ({mem['old'][-1]:.0f} MB, path {old_len:.2f} m) | "
+              f"old w={weight} {times['old_w'][-1]:7.2f} ms (path {old_w_len:.2f} m) | "
+              f"cold {times['new_cold'][-1]:.1f} ms | "
               f"replan new {times['new_replan'][-1]:.1f} ms, old {times['old_replan'][-1]:.1f} ms")
     print()
     for name in times:
-        print(f"{name:11s} ms  {spread(times[name])}    MB  {spread(mem[name])}")
+        print(f"{name:11s} CPU ms  {spread(times[name])}    wall ms  {spread(walls[name])}    "
+              f"MB  {spread(mem[name])}")
     speed = [o / n for o, n in zip(times["old"], times["new"], strict=True)]
+    same_weight = [o / n for o, n in zip(times["old_w"], times["new"], strict=True)]
+    weight_gain = [o / w for o, w in zip(times["old"], times["old_w"], strict=True)]
     replan = [o / n for o, n in zip(times["old_replan"], times["new_replan"], strict=True)]
     memory = [o / max(n, 1e-3) for o, n in zip(mem["old"], mem["new"], strict=True)]
-    excess = [n / o - 1.0 for n, o in lengths if o > 0]
-    print(f"old/new plan time   {spread(speed)}")
-    print(f"old/new replan time {spread(replan)}")
+    excess = [n / o - 1.0 for n, o, _ in lengths if o > 0]
+    weight_excess = [w / o - 1.0 for _, o, w in lengths if o > 0]
+    print(f"old_w/new plan CPU time (same weight {weight}: the implementations) {spread(same_weight)}")
+    print(f"old/old_w plan CPU time (the weight alone, old kernel)         {spread(weight_gain)}")
+    print(f"old/new plan CPU time (implementation and weight together)    {spread(speed)}")
+    print(f"old/new replan CPU time {spread(replan)}")
     print(f"old/new peak alloc  {spread(memory)}")
-    print(f"path length new/old - 1: {spread(excess)} (weighted A*: {kept.heuristic_weight})")
+    print(f"path length new/old - 1: {spread(excess)}; old_w/old - 1: {spread(weight_excess)}")
     print(json.dumps({
+        "ratio_old_w_over_new_plan_cpu": spread_json(same_weight),
+        "ratio_old_over_old_w_plan_cpu": spread_json(weight_gain),
+        "heuristic_weight": weight,
+        "old_w_plan_ms_median_30x50_3cm": round(statistics.median(times["old_w"]), 3),
         "plan_ms_median_30x50_3cm": round(statistics.median(times["new"]), 3),
         "peak_alloc_mb_30x50_3cm": round(max(mem["new"]), 2),
         "plan_ms_cold_median_30x50_3cm": round(statistics.median(times["new_cold"]), 3),
@@ -290,8 +325,9 @@ def main() -> None:
         "old_peak_alloc_mb_30x50_3cm": round(max(mem["old"]), 2),
         "old_replan_ms_median_30x50_3cm": round(statistics.median(times["old_replan"]), 3),
         "old_inflate_ms_30x50_3cm": round(old_inflate_ms, 3),
-        "ratio_old_over_new_plan_ms": spread_json(speed),
-        "ratio_old_over_new_replan_ms": spread_json(replan),
+        "ratio_old_over_new_plan_cpu": spread_json(speed),
+        "ratio_old_over_new_replan_cpu": spread_json(replan),
+        "time": "CPU ms (this thread) unless named wall",
         "path_length_excess_median": round(statistics.median(excess), 4) if excess else None,
         "pairs": len(work),
         "numba": HAVE_NUMBA,
