@@ -302,9 +302,10 @@ def _timed_call(method: Callable[..., Any], stats: _RoleStats, worker: _WorkerCp
         finally:
             outer.depth -= 1
             used = _thread_time() - cpu
-            stats.add(time.perf_counter() - wall, used)
-            if outer.depth == 0 and threading.get_ident() != worker.tick_thread:
-                with worker.lock:
+            latency = time.perf_counter() - wall
+            with worker.lock:  # two workers may finish at once
+                stats.add(latency, used)
+                if outer.depth == 0 and threading.get_ident() != worker.tick_thread:
                     worker.cpu_s += used
 
     timed.__wrapped__ = method  # type: ignore[attr-defined]  # functools-style: the original stays reachable
