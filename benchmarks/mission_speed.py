@@ -66,6 +66,9 @@ LARGE_ROOMS = 24
 LARGE_SEED = 30050
 LARGE = "floor30x50"
 
+#: What the intent missions are asked (without a command they serve stdin, which is empty here).
+COMMAND = "I'm thirsty"
+
 #: The missions' tick period (s): the simulator alone is stepped and read at it.
 TICK = 0.1
 
@@ -101,6 +104,11 @@ class Run:
     def cpu_per_robot_s(self) -> float:
         """CPU seconds of the run per robot second."""
         return self.cpu_s / self.robot_s if self.robot_s > 0 else 0.0
+
+
+def _params(mission: str) -> dict[str, str]:
+    """The mission's parameters for the benchmark: a command for the intent missions."""
+    return {"command": COMMAND} if mission in ("go_to_intent", "map_and_go_to_intent") else {}
 
 
 def _default_world(mission: str) -> str:
@@ -316,24 +324,24 @@ def main(argv: list[str] | None = None) -> int:
                 case = Case(mission, _default_world(mission), "default")
                 cases.append(case)
                 run_case(case, seeds=seeds, work=work, max_duration=args.max_duration,
-                         unknown=_unknown_map(mission), params={})
+                         unknown=_unknown_map(mission), params=_params(mission))
         if "large" in worlds:
             world, route = large_world(work)
             for mission in missions:
                 case = Case(mission, str(world), LARGE)
                 cases.append(case)
-                params: dict[str, str] = {}
+                params = _params(mission)
                 if mission == "patrol":
                     if route is None:
                         case.skipped.append("no patrol route could be made from the robot's map")
                         continue
-                    params = {"route": str(route)}
+                    params["route"] = str(route)
                 if mission == "go_to_intent":
                     graphs = sorted(work.glob(f"map_scene-{LARGE}-*/scene_graph.json"))
                     if not graphs:
                         case.skipped.append("no scene graph of this floor (run map_scene on it first)")
                         continue
-                    params = {"scene_graph": str(graphs[0])}
+                    params["scene_graph"] = str(graphs[0])
                 run_case(case, seeds=seeds, work=work, max_duration=args.max_duration,
                          unknown=_unknown_map(mission), params=params)
         result = report(cases, os.getloadavg(), args)

@@ -187,3 +187,8 @@ def test_the_environment_switches_the_profile_off(monkeypatch: pytest.MonkeyPatc
     monkeypatch.setenv("MISSIONTREE_PROFILE", "0")
     assert "profile" not in _run(ScriptedLeaf("a", script="RS"))
     assert "profile" in _run(ScriptedLeaf("b", script="RS"), profile=True)
+
+
+def test_a_run_without_cpu_has_no_cost_centres() -> None:
+    """A run that ended before using any CPU lists no cost centre (no share of nothing)."""
+    assert cost_centres({"run": {"cpu_s": 0.0, "engine_cpu_s": 0.001}, "nodes": {}, "models": {}}) == []

@@ -321,7 +321,9 @@ def cost_centres(profile: dict[str, Any], top: int = 8) -> list[tuple[str, float
     in both figures, and a nested model call in both roles': the list is of cost centres, not a sum.
     """
     run = profile.get("run", {})
-    total = float(run.get("cpu_s", 0.0)) or 1e-12
+    total = float(run.get("cpu_s", 0.0))
+    if total <= 0:  # a run that ended before its first tick: nothing to share out
+        return []
     items: list[tuple[str, float]] = [(path, float(v.get("cpu_s", 0.0)))
                                       for path, v in profile.get("nodes", {}).items()]
     items += [(f"model:{role}", float(v.get("cpu_s", 0.0))) for role, v in profile.get("models", {}).items()]
