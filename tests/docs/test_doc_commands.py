@@ -66,7 +66,8 @@ SKIP_RULES: tuple[tuple[str, str], ...] = (
     (r"\bview --follow\b", "serves the viewer until Ctrl-C"),
     (r"MISSION\.yaml|/path/to/|\bpath/to/|\bHOST\b|\"\.\.\.\"|<[a-z ]+>",
      "a template: the user substitutes a file, path, host or text"),
-)
+) + (() if Path("/usr/share/mrpt/datasets").is_dir() else (
+    (r"/usr/share/mrpt/", "needs MRPT's datasets (Debian's mrpt-common; `make setup-mrpt` installs them)"),))
 #: (pattern, --max-duration seconds, exit codes accepted) for commands too long to run whole.
 LONG_RULES: tuple[tuple[str, int, tuple[int, ...]], ...] = (
     (r"\bmissiontree batch\b", 20, (0, 1)),

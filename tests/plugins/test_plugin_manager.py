@@ -174,7 +174,7 @@ def test_every_call_starts_fresh(entry_points: Callable) -> None:
 
 def test_unknown_backend_lists_the_known_ones() -> None:
     """Asking for a backend nobody registered is a ConfigError listing the known backends."""
-    with pytest.raises(ConfigError, match=r"unknown backend 'gazebo'; known backends: ros2, sim"):
+    with pytest.raises(ConfigError, match=r"unknown backend 'gazebo'; known backends: recorded, ros2, sim"):
         load_plugins(autoload=False).backend("gazebo")
 
 

@@ -46,6 +46,8 @@ PROVIDER_MODULES: list[str] = [
 BACKENDS: dict[str, str] = {
     "sim": "missiontree.backends.sim:create_robot",
     "ros2": "missiontree.backends.ros2:create_robot",
+    # a recording played through the robot interface (--world RECORDING.rawlog); motion is refused
+    "recorded": "missiontree.backends.recorded:create_robot",
 }
 
 #: Modules with mission started/finished hooks of built-in backends (cheap to import: no rclpy).

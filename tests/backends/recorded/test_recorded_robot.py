@@ -112,3 +112,30 @@ def test_rgbd_frames_play_at_their_stamp() -> None:
     robot.spin_until(frames_at)
     frame = robot.rgbd()
     assert frame is not None and frame.depth.shape == (480, 640)
+
+
+def test_without_a_map_the_robot_maps_the_scans_played_so_far() -> None:
+    """occupancy() is None before the first scan's map is asked, then grows with each scan played."""
+    robot = RecordedRobot(small_log())
+    first = robot.occupancy()
+    assert first is not None and first.stamp == 100.0
+    robot.spin_until(102.0)
+    later = robot.occupancy()
+    assert later is not None and later.stamp == 102.0
+    assert (np.asarray(later.data) == 0).sum() > (np.asarray(first.data) == 0).sum(), "more free space"
+    assert robot.occupancy() is later, "no new scan: the same map"
+
+
+@pytest.mark.realdata
+@pytest.mark.skipif(not LOOP.is_file(), reason=MISSING)
+def test_the_live_map_of_the_whole_loop_is_the_offline_map() -> None:
+    """Played to its end, the loop's live map equals the offline map of the same scans, cell for cell."""
+    log = read_rawlog(LOOP)
+    robot = create_robot({"world": str(LOOP)})
+    while not robot.finished():
+        robot.occupancy()
+        robot.spin_until(robot.now() + 2.0)
+    live = robot.occupancy()
+    offline = build_grid(log.scans, log.poses, max_range=15.0).to_occupancy()
+    assert live is not None
+    assert np.array_equal(np.asarray(live.data), np.asarray(offline.data))

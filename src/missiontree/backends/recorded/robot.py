@@ -12,7 +12,9 @@ recording, so a mission's perception and mapping leaves run on real data without
   scan nearest to it;
 - the poses are the recording's odometry, or the odometry corrected by scan matching
   (``correct=True``, the ``realdata`` extra); ``occupancy()`` is a map given with the recording, or
-  None;
+  else the map of the scans played so far (a log-odds grid each new scan is laid into when the map
+  is asked for, as the simulator maps an unknown world), so that a mission's mapping and
+  scene-graph leaves work on the recording;
 - the robot cannot move: ``navigate_to`` returns a handle already REJECTED saying so, ``drive``
   with any non-zero velocity raises :class:`~missiontree.errors.BackendError` with the reason
   (a leaf that drives fails with it), ``stop`` always works and does nothing.
@@ -30,6 +32,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from missiontree.errors import BackendError
+from missiontree.mapping.grid import LogOddsGrid
 from missiontree.mapping.mrpt_rgbd import RgbdObservation
 from missiontree.mapping.rawlog import ScanLog
 from missiontree.robot.actions import INFRASTRUCTURE, ActionResult, ActionStatus, NavFeedback
@@ -38,6 +41,10 @@ from missiontree.types import LaserScan, OccupancyGrid, Pose2D, PoseStamped, RGB
 
 #: How far (s) from a stamp the nearest scan may be for ``scan_at``.
 SCAN_GAP = 0.5
+#: Cell size (m) and the farthest return that draws a wall (m) of the map built as the scans play
+#: (as :func:`~missiontree.mapping.recorded_map.build_grid` builds it offline).
+LIVE_MAP_RESOLUTION = 0.05
+LIVE_MAP_RANGE = 15.0
 
 
 class RefusedAction:
@@ -69,7 +76,8 @@ class RecordedRobot:
         log: The recording's scans and odometry (:func:`~missiontree.mapping.rawlog.read_rawlog`).
         poses: The robot's pose at each scan (default: the log's odometry poses).
         frames: RGB-D frames to play (their own stamps; they may come from another recording).
-        occupancy: A map to serve, e.g. one built from this recording.
+        occupancy: A map to serve, e.g. one built from this recording (default: the map of the
+            scans played so far, built as they play).
         name: The robot's name.
     """
 
@@ -95,6 +103,10 @@ class RecordedRobot:
         self._frame_stamps = [f.stamp for f in ordered]
         self._frames = ordered
         self._map = occupancy
+        self._offsets = [(s.sensor_pose.x, s.sensor_pose.y) for _, s, _ in stamped]
+        self._grid: LogOddsGrid | None = None
+        self._mapped = 0  # scans laid into the live map
+        self._live: OccupancyGrid | None = None
         start = min(self._stamps[0], self._frame_stamps[0]) if ordered else self._stamps[0]
         self._now = start
         self.end = max(self._stamps[-1], self._frame_stamps[-1]) if ordered else self._stamps[-1]
@@ -139,8 +151,21 @@ class RecordedRobot:
         return frame.to_frame(camera_pose=self._pose_at(frame.stamp))
 
     def occupancy(self) -> OccupancyGrid | None:
-        """The map given with the recording, or None."""
-        return self._map
+        """The map given with the recording, else the map of every scan played so far (None before one)."""
+        if self._map is not None:
+            return self._map
+        last = self._last(self._stamps)
+        if last < self._mapped:
+            return self._live
+        if self._grid is None:
+            self._grid = LogOddsGrid(LIVE_MAP_RESOLUTION, 20.0, 20.0, max_range=LIVE_MAP_RANGE,
+                                     sensor_offset=self._offsets[0])
+        for k in range(self._mapped, last + 1):  # each scan once, at its own pose
+            self._grid.sensor_offset = self._offsets[k]
+            self._grid.integrate(self._scans[k], self._poses[k])
+        self._mapped = last + 1
+        self._live = self._grid.to_occupancy(self._stamps[last])
+        return self._live
 
     def pose_at(self, stamp: float) -> Pose2D | None:
         """The pose at ``stamp``, interpolated between the scans around it; None outside what was played."""
