@@ -118,7 +118,7 @@ class SceneGraph:
         if isinstance(source, str | bytes):
             try:
                 data = json.loads(source)
-            except json.JSONDecodeError as exc:
+            except (json.JSONDecodeError, UnicodeDecodeError) as exc:  # bytes may not even be text
                 raise SceneGraphError(
                     f"scene graph: not JSON ({exc}); expected an object with 'nodes' and 'edges'"
                 ) from None
