@@ -259,10 +259,6 @@ class Explore(Leaf):
             if not candidates and left:
                 self.left = left
         if not candidates:
-            narrow = planner.narrow_ways(grid, (pose.x, pose.y))
-            if narrow:
-                self.left = (self.left or []) + narrow
-        if not candidates:
             self.outcome = "explored" if self.left is None else "partial"
             return self.succeed(f"explored: no reachable {self._what()} remains ({self.summary(grid)})")
         self._send(now, candidates[0])

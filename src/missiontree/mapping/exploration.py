@@ -403,33 +403,6 @@ class ExplorationPlanner(FrontierGoals):
                     break
         return out
 
-    def narrow_ways(self, grid: OccupancyGrid, robot_xy: tuple[float, float],
-                    min_area_m2: float = 2.0) -> list[LeftOpen]:
-        """Frontiers the robot's body has a way to but the navigation's wider footprint has not.
-
-        A gap between the body's width and the navigation's padded one (furniture beside a door)
-        proves nothing closed: with at least ``min_area_m2`` unknown behind it, such a frontier is
-        left open (the exploration is partial, saying why), not ended "explored".
-        """
-        if self.strategy == "scan_points" or (self.reach_radius or 0.0) <= self.footprint_radius:
-            return []
-        nav = self.reach_candidates(grid, robot_xy)
-        kept, self.reach_radius = self.reach_radius or 0.0, None
-        try:
-            body = self.candidates(grid, robot_xy, ignore_blacklist=True)
-        finally:
-            self.reach_radius = kept
-        out: list[LeftOpen] = []
-        for c in body:
-            if any(math.dist(n.target, c.target) <= self.blacklist_radius for n in nav):
-                continue
-            if any(math.dist(o.candidate.target, c.target) <= self.blacklist_radius for o in out):
-                continue
-            if self.unknown_behind(grid, [c.target]) >= min_area_m2:
-                why = f"the way to it is narrower than the navigation's footprint ({2 * kept:.2f} m)"
-                out.append(LeftOpen(Blacklisted(c.x, c.y, why, c.target, False), c))
-        return out
-
     def unknown_behind(self, grid: OccupancyGrid, places: Sequence[tuple[float, float]]) -> float:
         """Unknown area (m^2) within ``sensor_range`` of ``places``, connected to them through unknown cells.
 
