@@ -37,6 +37,7 @@ from missiontree.errors import ConfigError, MissionFileError, ProblemsError
 from missiontree.paths import find_config
 from missiontree.plugins.manager import Plugins, load_plugins
 from missiontree.reasoning.calls import CALLER_KEY
+from missiontree.robot.envelope import EnvelopedRobot, wrap_robot
 from missiontree.session.models import build_models
 from missiontree.session.params import parse_overrides
 from missiontree.session.preflight import check_references, resolve_mission_path
@@ -209,11 +210,14 @@ class Session:
             self.run_claim = RunDirectory.claim(self.run_dir)
 
         self.root = build_tree(self.spec, self.plugins.nodes)
-        self.options = self._robot_options(seed, config, unknown_map)
+        backend_config = {k: v for k, v in config.items() if k != "safety"}  # the envelope is ours
+        self.options = self._robot_options(seed, backend_config, unknown_map)
         factory = self.plugins.backend(backend)
-        self.robot = factory(self.options)
+        self.robot = wrap_robot(factory(self.options), config)  # goals and speeds pass the safety envelope
         self.models = build_models(models_config, providers=self.plugins.providers, seed=seed)
         self.context = MissionContext(robot=self.robot, models=self.models, config=config, seed=seed)
+        if isinstance(self.robot, EnvelopedRobot):
+            self.robot.emit = self._safety_event
         if not request.quiet:
             self.progress = ProgressLine(self.mission_name, request.progress_stream)
         self.runner = Runner(
@@ -251,6 +255,10 @@ class Session:
             return world
         beside = Path(self.request.mission).resolve().parent / world
         return str(beside) if beside.is_file() else world
+
+    def _safety_event(self, event: str, /, **fields: Any) -> None:
+        """A refusal or cap of the safety envelope, in the tick log (the sink the runner installed)."""
+        self.context.events.emit(event, **fields)
 
     def _on_tick(self, runner: Runner) -> None:
         if self.progress is not None:

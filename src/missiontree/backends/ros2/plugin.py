@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any
 
 from missiontree.plugins.hookspecs import hookimpl
+from missiontree.robot.envelope import unwrap
 
 ROBOT_MODULE = "missiontree.backends.ros2.robot"
 
@@ -18,7 +19,7 @@ ROBOT_MODULE = "missiontree.backends.ros2.robot"
 @hookimpl
 def missiontree_mission_started(context: Any, mission: Any) -> None:
     """Mirror the mission's events to ROS when its robot is a Ros2Robot."""
-    robot = context.robot
+    robot = unwrap(context.robot)  # the backend's own robot inside a safety envelope
     if type(robot).__module__ != ROBOT_MODULE:
         return
     from missiontree.backends.ros2.publish import RosEvents
