@@ -4,7 +4,11 @@ Three ways of ticking identical 100-node trees (mixed composites, ten leaves RUN
 them writing the blackboard every tick, a few status changes every tick), alternating in rounds:
 
 - ``runner``: :class:`missiontree.engine.runner.Runner` on a clock-only robot, writing
-  ``ticks.jsonl`` (one line a tick: changed nodes, blackboard changes) to a temporary run directory;
+  ``ticks.jsonl`` (one line a tick: changed nodes, blackboard changes) to a temporary run directory,
+  without the run profile (the engine alone);
+- ``runner_profiled``: the same with the run profile on, as every mission runs
+  (:mod:`missiontree.engine.profile`): ``ratio_profiled_vs_runner`` is the profile's cost on a tree
+  that does nothing else (an upper bound: in a mission the leaves' and the simulator's work dwarf it);
 - ``raw``: ``root.tick_once()`` with no logging at all (the floor);
 - ``pytrees_logging``: ``BehaviourTree.tick()`` with a SnapshotVisitor and the whole tree serialised
   to JSON every tick, as py_trees' own logging demo does (file opened once, no indentation — the
@@ -115,10 +119,11 @@ def count_nodes(root: py_trees.behaviour.Behaviour) -> int:
     return sum(1 for _ in root.iterate())
 
 
-def time_runner(root: py_trees.behaviour.Behaviour, ticks: int, run_dir: Path) -> float:
+def time_runner(root: py_trees.behaviour.Behaviour, ticks: int, run_dir: Path,
+                profile: bool = False) -> float:
     """Seconds for the runner to do ``ticks`` ticks with its tick log written to ``run_dir``."""
-    runner = Runner(root, MissionContext(robot=ClockRobot()), tick_hz=TICK_HZ,
-                    max_duration=ticks / TICK_HZ, run_dir=run_dir, mission="bench", handle_signals=False)
+    runner = Runner(root, MissionContext(robot=ClockRobot()), tick_hz=TICK_HZ, max_duration=ticks / TICK_HZ,
+                    run_dir=run_dir, mission="bench", handle_signals=False, profile=profile)
     start = time.process_time()
     result = runner.run()
     elapsed = time.process_time() - start
@@ -220,7 +225,7 @@ def time_shape_runner(shape: str, nodes: int, ticks: int, run_dir: Path) -> tupl
     clean_state()
     root, _ = SHAPES[shape](nodes)
     runner = Runner(root, MissionContext(robot=ClockRobot()), tick_hz=TICK_HZ, max_duration=ticks / TICK_HZ,
-                    run_dir=run_dir, mission="bench", handle_signals=False)
+                    run_dir=run_dir, mission="bench", handle_signals=False, profile=False)
     start = time.process_time()
     runner.setup()
     setup = time.process_time() - start
@@ -300,7 +305,8 @@ def main() -> None:
     args = parser.parse_args()
 
     clean_state()
-    trees = {"runner": build_tree(), "raw": build_tree(), "pytrees_logging": build_tree()}
+    trees = {"runner": build_tree(), "runner_profiled": build_tree(), "raw": build_tree(),
+             "pytrees_logging": build_tree()}
     nodes = count_nodes(trees["raw"])
     for root in trees.values():
         root.setup_with_descendants()
@@ -312,6 +318,7 @@ def main() -> None:
         with (Path(tmp) / "dump.jsonl").open("w") as dump:
             variants: dict[str, Callable[[], float]] = {
                 "runner": lambda: time_runner(trees["runner"], half, run_dir),
+                "runner_profiled": lambda: time_runner(trees["runner_profiled"], half, run_dir, profile=True),
                 "raw": lambda: time_raw(trees["raw"], half),
                 "pytrees_logging": lambda: time_pytrees_logging(trees["pytrees_logging"], half, dump),
             }
@@ -320,7 +327,8 @@ def main() -> None:
             order = list(variants)
             for round_index in range(args.rounds):
                 # A B C C B A (rotating who starts): a load that drifts within the round hits all alike.
-                rotated = order[round_index % 3:] + order[:round_index % 3]
+                turn = round_index % len(order)
+                rotated = order[turn:] + order[:turn]
                 spent = dict.fromkeys(order, 0.0)
                 for name in rotated + rotated[::-1]:
                     gc.collect()
@@ -330,6 +338,7 @@ def main() -> None:
             log_lines = sum(1 for _ in (run_dir / "ticks.jsonl").open())
     vs_raw = [r / w for r, w in zip(times["runner"], times["raw"], strict=True)]
     vs_logging = [r / p for r, p in zip(times["runner"], times["pytrees_logging"], strict=True)]
+    profiled = [p / r for p, r in zip(times["runner_profiled"], times["runner"], strict=True)]
     per_tick = {name: spread([t / (2 * half) * 1e6 for t in values]) for name, values in times.items()}
     print(f"tree: {nodes} nodes, {visited_per_tick} ticked per tick, {len(PERIODS)} leaves running; "
           f"{args.rounds} rounds x {2 * half} ticks per variant (two runs of {half}, A B C C B A); "
@@ -348,7 +357,11 @@ def main() -> None:
         "ratio_vs_pytrees_logging_median": p["median"], "ratio_vs_pytrees_logging_min": p["min"],
         "ratio_vs_pytrees_logging_max": p["max"],
         "us_per_tick_median": {name: s["median"] for name, s in per_tick.items()},
+        "ratio_profiled_vs_runner": spread(profiled),
     }
+    q = spread(profiled)
+    print(f"runner with profile / without (the profile's cost, engine-only tree): min {q['min']:.3f}  "
+          f"median {q['median']:.3f}  max {q['max']:.3f}")
     print(f"shapes: runner / raw tick_once per shape and size ({args.shape_rounds} rounds, A B B A):")
     with tempfile.TemporaryDirectory() as tmp:
         shapes = measure_shapes(args.shape_rounds, tuple(args.sizes), Path(tmp))

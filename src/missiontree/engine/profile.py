@@ -6,7 +6,9 @@ The NAIS paper reports, for every node of its system, its rate (Hz), CPU share a
 
 - per node path: ``ticks``, ``rate_hz`` (ticks per robot-second while the node was active: ticked,
   or left RUNNING between ticks) and ``cpu_s``, the tick thread's CPU time inside the node's own
-  ``initialise``, ``update`` and ``terminate`` (children not included: a composite's own work only);
+  ``initialise``, ``update`` and ``terminate`` (children not included). py_trees' own composites
+  and decorators (:data:`~missiontree.engine.guards.TRUSTED_TYPES`), which only route ticks, are
+  not timed one by one: their few microseconds are in the engine's figure;
 - per model role: ``calls``, ``cpu_s`` and ``latency_ms_p50`` / ``latency_ms_p95``, timed around the
   provider's ``detect`` / ``ask`` / ``chat`` / ``embed`` wherever it is called (a worker thread or the
   tick thread). A provider that calls another (the offline VLM stand-in asks its detector) counts
@@ -30,10 +32,13 @@ import resource
 import sys
 import threading
 import time
+from collections import Counter
 from collections.abc import Callable, Iterable
 from typing import Any
 
 import py_trees
+
+from missiontree.engine.guards import TRUSTED_TYPES
 
 Behaviour = py_trees.behaviour.Behaviour
 RUNNING = py_trees.common.Status.RUNNING
@@ -121,12 +126,14 @@ class RunProfile:
         self.path_of = path_of
         self.models = dict(models or {})
         self.node_cpu: dict[Behaviour, float] = {}
-        self.ticks: dict[Behaviour, int] = {}
+        self.ticks: Counter[Behaviour] = Counter()
         self.active_s: dict[Behaviour, float] = {}
         self.roles: dict[str, _RoleStats] = {}
         self.tick_cpu_s = 0.0
         self.sim_cpu_s = 0.0
-        self._open: list[Behaviour] = []
+        self._open: set[Behaviour] = set()
+        self._since: dict[Behaviour, float] = {}
+        self._known = 0
         self._last_t: float | None = None
         self._wrapped_nodes: list[Behaviour] = []
         self._wrapped_models: list[tuple[Any, str]] = []
@@ -173,6 +180,8 @@ class RunProfile:
         if node in self.node_cpu:
             return
         self.node_cpu[node] = 0.0
+        if type(node) in TRUSTED_TYPES:  # py_trees' own composites: their little work is the engine's
+            return
         cpu = self.node_cpu
         cls_of = type
         for name in NODE_METHODS:
@@ -211,24 +220,29 @@ class RunProfile:
     # -- per tick ------------------------------------------------------------------------------
 
     def record_tick(self, t: float, visited: Iterable[Behaviour]) -> None:
-        """Count the nodes ticked at robot time ``t`` and the active time since the previous tick."""
-        last = self._last_t
-        if last is not None:
-            dt = t - last
-            if dt > 0:
-                active = self.active_s
-                for node in self._open:
-                    active[node] = active.get(node, 0.0) + dt
+        """Count the nodes ticked at robot time ``t``; keep when each became active and stopped being.
+
+        A node is active from a tick that ticked it (or left it RUNNING) to the next tick that does
+        neither; only the nodes whose activity changed are looked at one by one (set operations do
+        the rest), so the cost follows what changed, not the tree's size.
+        """
         self._last_t = t
-        ticks = self.ticks
-        visited = list(visited)
         ticked = set(visited)
-        for node in visited:
-            ticks[node] = ticks.get(node, 0) + 1
-            if node not in self.node_cpu:  # added to the tree during the run
-                self._wrap_node(node)
-        carried = [n for n in self._open if n not in ticked and n.status is RUNNING]
-        self._open = visited + carried
+        self.ticks.update(ticked)
+        if len(self.ticks) > self._known:  # nodes added to the tree during the run
+            for node in ticked:
+                if node not in self.node_cpu:
+                    self._wrap_node(node)
+            self._known = len(self.ticks)
+        was_open = self._open
+        still = {n for n in was_open - ticked if n.status is RUNNING}
+        now_open = ticked | still if still else ticked
+        since, active = self._since, self.active_s
+        for node in was_open - now_open:
+            active[node] = active.get(node, 0.0) + (t - since.pop(node))
+        for node in now_open - was_open:
+            since[node] = t
+        self._open = now_open
 
     def add_tick_cpu(self, seconds: float) -> None:
         """Add CPU the tick thread spent ticking (nodes and the engine's bookkeeping)."""
@@ -244,9 +258,12 @@ class RunProfile:
         A run that ends on a final status ends at its last tick; that tick still stands for a
         period of the node's activity (four ticks at 10 Hz are 10 Hz, not 13).
         """
-        if self._last_t is not None:
-            self.record_tick(max(t, self._last_t + period), [])
-        self._open = []
+        if self._last_t is None:
+            return
+        end = max(t, self._last_t + period)
+        for node in self._open:
+            self.active_s[node] = self.active_s.get(node, 0.0) + (end - self._since.pop(node))
+        self._open = set()
 
     # -- the result ----------------------------------------------------------------------------
 
