@@ -70,6 +70,8 @@ class Diagnosis:
     changes: list[Change] = field(default_factory=list)
     verdicts: defaultdict[str, Counter[str]] = field(default_factory=lambda: defaultdict(Counter))
     fusion: Any = None
+    #: Camera positions of the frames, on a 0.25 m grid (how near the route brought the camera).
+    cameras: set[tuple[int, int]] = field(default_factory=set)
 
     def watch(self, semantic_map: Any, fusion: Any = None) -> None:
         """Record every change of ``semantic_map`` and, with ``fusion``, its judgements of unseen places."""
@@ -103,6 +105,7 @@ class Diagnosis:
     def frame(self, frame: Any, detections: list[Any]) -> None:
         """Record one frame: who it showed, what each confident detection covered."""
         truth = self.robot.truth
+        self.cameras.add((round(frame.camera_pose.x / 0.25), round(frame.camera_pose.y / 0.25)))
         for name, sighting in truth.visible_at(frame.stamp, SHOWN_PIXELS).items():
             if sighting.kind == "object":
                 self.shown[name] += 1
@@ -214,8 +217,11 @@ class Diagnosis:
             right = [s for s in mine if s.label == truth_label(t.label) and s.xy is not None]
             dists = sorted(math.hypot(s.xy[0] - t.pose.x, s.xy[1] - t.pose.y) for s in right)  # type: ignore[index]
             views = len({(round(s.camera[0] / 0.5), round(s.camera[1] / 0.5)) for s in right})
+            ranges = sorted(math.hypot(s.camera[0] - t.pose.x, s.camera[1] - t.pose.y) for s in right)
             spread = (
-                f"proj dist median {dists[len(dists) // 2]:.2f} min {dists[0]:.2f}, {views} viewpoints"
+                f"proj dist median {dists[len(dists) // 2]:.2f} min {dists[0]:.2f}, {views} viewpoints, "
+                f"range min {ranges[0]:.1f} median {ranges[len(ranges) // 2]:.1f} m; "
+                f"{self._candidates(t, truth_label)}"
                 if dists
                 else "no projection"
             )
@@ -232,12 +238,33 @@ class Diagnosis:
                 if p["label"] == truth_label(t.label)
                 and math.hypot(p["position"][0] - t.pose.x, p["position"][1] - t.pose.y) <= 1.5
             ]
+            nearest = min(
+                (math.hypot(0.25 * cx - t.pose.x, 0.25 * cy - t.pose.y) for cx, cy in self.cameras),
+                default=math.inf,
+            )
             lines.append(
                 f"{world_name} {phase} FN {t.id} {t.label} ({t.pose.x:.2f}, {t.pose.y:.2f}) size "
-                f"{[round(v, 2) for v in t.size]} elev {t.elevation}: shown in {self.shown[t.id]} frames; "
+                f"{[round(v, 2) for v in t.size]} elev {t.elevation}: nearest camera {nearest:.1f} m; "
+                f"shown in {self.shown[t.id]} frames; "
                 f"detected as {seen}; {spread}; graph near {near_preds}; map changes {near_changes[-4:]}"
             )
         return lines
+
+    def _candidates(self, t: Any, truth_label: Any) -> str:
+        """The fusion's unconfirmed candidates of the object's label within 1 m: why each waits."""
+        fusion = self.fusion
+        if fusion is None:
+            return "no fusion"
+        out = []
+        for c in fusion.voting.candidates:
+            if c.label != truth_label(t.label) or math.hypot(c.x - t.pose.x, c.y - t.pose.y) > 1.0:
+                continue
+            judged = [fusion._bounded[id(q)] for q in c.projections if id(q) in fusion._bounded]
+            out.append(
+                f"cand {c.frames}/{fusion._frames_needed(c)} frames, whole {fusion._whole_enough(c)}, "
+                f"size ok {fusion._plausible_size(c)}, bounded {sum(judged)}/{len(judged)}"
+            )
+        return "; ".join(out) or "no candidate"
 
     def dump(self, path: str, scored: dict[str, Any], world: Any) -> None:
         """Pickle the fusion's instances and tracks, the truth and the sights to ``path`` (see ``DUMP``)."""

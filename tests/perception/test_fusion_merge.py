@@ -53,7 +53,7 @@ def test_an_instance_placed_on_something_before_another_of_its_label_is_that_one
     """
     from test_fusion_views import K, frame, projection, room_depth
 
-    box = (K.cx - 40, 60.0, K.cx + 40, 180.0)
+    box = (K.cx - 17, 60.0, K.cx + 17, 180.0)  # the 0.5 m chair 3.5 m ahead: 33 pixels wide
     left: dict[float, list[str]] = {}
     for share in (0.8, 0.0):
         fusion = InstanceFusion(SemanticMap(), FusionParams(front_share=share))
@@ -117,3 +117,27 @@ def test_one_object_seen_twice_keeps_both_instances_surface_cells_and_colours() 
     assert track.colours["white"] == 5
     assert track.xs == [(2.2, 2.0, 0.45)]
     assert track.evidence == {"chair": 19.0, "sofa": 0.5}
+
+
+def test_a_nearer_object_of_the_label_before_another_stays() -> None:
+    """Two 1.2 m desks in a row, 1.5 and 3.3 m ahead: the near one's box is twice the far one's width there.
+
+    A box round the desk behind would be its size at 3.3 m; the near desk's is wider, so it is another
+    desk and stays. Without the size check (front_fit None) the front rule removes it.
+    """
+    from test_fusion_views import K, frame, projection, room_depth
+
+    half = 0.5 * 1.2 * K.fx / 1.5
+    box = (K.cx - half, 90.0, K.cx + half, 200.0)
+    left: dict[float | None, int] = {}
+    for fit in (1.4, None):
+        fusion = InstanceFusion(SemanticMap(), FusionParams(front_fit=fit))
+        fusion.map.add("table", (3.3, 0.0, 0.37), 0.0, size=(1.2, 1.2, 0.75), observations=60)
+        fusion.map.add("table", (1.5, 0.0, 0.37), 0.0, size=(1.2, 1.2, 0.75), observations=10)
+        for k in range(8):
+            stamp = 1.0 + k
+            p = projection("table", stamp, box, (1.5, 0.0, 0.37), 1.5, (1.2, 1.2, 0.75))
+            fusion.process(frame(stamp, room_depth(1.5)), [p])
+        fusion.merge_overlapping(10.0)
+        left[fit] = len(fusion.map)
+    assert left == {1.4: 2, None: 1}

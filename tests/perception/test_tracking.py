@@ -116,3 +116,13 @@ def test_the_chain_confirms_once_and_never_updates() -> None:
         events += tracker.process([proj(x=1.2, stamp=10 + k * 0.2, rng=1.0)], room="office")
     assert [e.kind for e in events] == ["replaced"]
     assert len(tracker.objects) == 1 and next(iter(tracker.objects.values())).room == "office"
+
+
+def test_voting_reach_keeps_two_close_small_objects_apart() -> None:
+    """Two bottles 0.4 m apart: one candidate by the 0.5 m radius, two with a 0.3 m reach for them."""
+    for reach, expected in ((None, 1), (0.3, 2)):
+        voting = TemporalVoting(min_frames=10, reach=(lambda p, r=reach: r))
+        for k in range(4):
+            voting.vote(proj(label="bottle", x=1.0, stamp=0.2 * k))
+            voting.vote(proj(label="bottle", x=1.4, stamp=0.2 * k + 0.1))
+        assert len(voting.candidates) == expected

@@ -142,7 +142,17 @@ class InstanceMerger:
         u = k.cx - left * k.fx / forward
         x1, _, x2, _ = p.box
         inset = params.inner_share * max(x2 - x1, 1.0)
-        return x1 + inset <= u <= x2 - inset
+        if not x1 + inset <= u <= x2 - inset:
+            return False
+        return params.front_fit is None or x2 - x1 <= params.front_fit * self._width_px(other, forward)
+
+    def _width_px(self, inst: Instance, forward: float) -> float:
+        """Pixels the instance's median measured width spans at ``forward`` metres from the camera."""
+        k = self.fusion._k
+        assert k is not None
+        track = self.fusion.tracks.get(inst.id)
+        widths = [s[0] for s in track.sizes] if track is not None and track.sizes else [inst.size[0]]
+        return float(np.median(widths)) * k.fx / forward
 
     def note_fronted(self, refined: dict[str, Projection]) -> None:
         """Count, for each instance a frame refined, whether its box held one of its label behind it.

@@ -147,6 +147,7 @@ class TemporalVoting:
         size_aware: bool = False,
         required: Callable[[Candidate], int] | None = None,
         ready: Callable[[Candidate], bool] | None = None,
+        reach: Callable[[Projection], float | None] | None = None,
     ) -> None:
         """Voting as the paper does by default.
 
@@ -160,6 +161,9 @@ class TemporalVoting:
                 size-aware rule); None: ``min_frames``.
             ready: A further test a candidate with enough frames must pass to be accepted; one that
                 fails keeps collecting frames.
+            reach: How close a given projection must fall to a candidate to join it, overriding
+                ``radius`` and ``size_aware`` (two small objects of a class half a metre apart); None
+                from it, or no ``reach``: the rule above.
         """
         if min_frames < 1:
             raise ValueError(f"min_frames must be at least 1, found {min_frames}")
@@ -169,6 +173,7 @@ class TemporalVoting:
         self.size_aware = size_aware
         self.required = required
         self.ready = ready
+        self.reach = reach
         self.candidates: list[Candidate] = []
 
     def vote(self, projection: Projection) -> Candidate | None:
@@ -180,6 +185,9 @@ class TemporalVoting:
         best, best_d = None, self.radius
         if self.size_aware:
             best_d = max(self.radius, 0.5 * projection.size[0])
+        own = self.reach(projection) if self.reach is not None else None
+        if own is not None:
+            best_d = own
         for cand in self.candidates:
             if cand.label != projection.label or cand.last_stamp == projection.stamp:
                 continue  # one vote a frame per candidate
