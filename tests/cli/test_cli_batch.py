@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 
 from missiontree.cli.main import main
-from missiontree.evaluation import engines
+from missiontree.evaluation import batch, dask_engine, engines
 from missiontree.testing import clean_state
 
 MISSION = """\
@@ -134,13 +134,13 @@ def test_the_scheduler_address_comes_from_the_flag_or_environment(monkeypatch: p
         def __init__(self, address: str, workers: Any) -> None:
             made.append((address, workers))
 
-    monkeypatch.setattr(engines, "DaskEngine", Recorded)
+    monkeypatch.setattr(dask_engine, "DaskEngine", Recorded)
     monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://cluster:8786")
-    engines.make_engine(None, 3)
-    engines.make_engine("tcp://other:8786", None)
+    batch.make_engine(None, 3)
+    batch.make_engine("tcp://other:8786", None)
     assert made == [("tcp://cluster:8786", 3), ("tcp://other:8786", None)]
     monkeypatch.delenv("DASK_SCHEDULER_ADDRESS")
-    pool = engines.make_engine(None, 3)
+    pool = batch.make_engine(None, 3)
     assert isinstance(pool, engines.PoolEngine) and pool.workers == 3
 
 

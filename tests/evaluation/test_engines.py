@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from missiontree.errors import ConfigError
-from missiontree.evaluation.engines import DaskEngine, _guided_chunks
+from missiontree.evaluation.dask_engine import DaskEngine, guided_chunks
 from missiontree.evaluation.plan import RunSpec
 from missiontree.evaluation.worker import RunTask
 
@@ -19,20 +19,20 @@ def _tasks(count: int) -> list[RunTask]:
 
 def test_guided_chunks_shrink_to_single_runs_and_keep_the_order() -> None:
     tasks = _tasks(23)
-    chunks = _guided_chunks(tasks, workers=2, most=32)
+    chunks = guided_chunks(tasks, workers=2, most=32)
     assert [len(c) for c in chunks] == [8, 5, 4, 2, 2, 1, 1]
     assert [t for c in chunks for t in c] == tasks
 
 
 def test_guided_chunks_respect_the_most_runs_a_chunk() -> None:
-    assert max(len(c) for c in _guided_chunks(_tasks(100), workers=2, most=3)) == 3
-    assert [len(c) for c in _guided_chunks(_tasks(3), workers=2, most=8)] == [1, 1, 1]
+    assert max(len(c) for c in guided_chunks(_tasks(100), workers=2, most=3)) == 3
+    assert [len(c) for c in guided_chunks(_tasks(3), workers=2, most=8)] == [1, 1, 1]
 
 
 def test_guided_chunks_send_at_most_one_more_than_the_workers_alone_at_the_end() -> None:
     for count in range(1, 120):
         for workers in (1, 2, 3, 8):
-            sizes = [len(c) for c in _guided_chunks(_tasks(count), workers=workers, most=32)]
+            sizes = [len(c) for c in guided_chunks(_tasks(count), workers=workers, most=32)]
             assert sum(sizes) == count and sizes == sorted(sizes, reverse=True)
             assert sizes.count(1) <= workers + 1
 
@@ -82,12 +82,12 @@ def _sizer(workers: int) -> DaskEngine:
 def test_auto_chunks_are_single_runs_until_run_times_say_they_are_short() -> None:
     from collections import deque
 
-    from missiontree.evaluation import engines
+    from missiontree.evaluation import dask_engine
 
     sizer = _sizer(2)
     assert sizer._chunk_size(100, deque()) == 1  # nothing known yet
-    assert sizer._chunk_size(100, deque([engines.SHORT_RUN_S * 2] * 4)) == 1  # long runs: alone
-    short = engines.CHUNK_S / 8  # eight runs make a chunk's worth
+    assert sizer._chunk_size(100, deque([dask_engine.SHORT_RUN_S * 2] * 4)) == 1  # long runs: alone
+    short = dask_engine.CHUNK_S / 8  # eight runs make a chunk's worth
     assert sizer._chunk_size(100, deque([short] * 4)) == 8
     assert sizer._chunk_size(10, deque([short] * 4)) == 4  # 10 left over 3: guided, rounded up
     assert sizer._chunk_size(2, deque([short] * 4)) == 1

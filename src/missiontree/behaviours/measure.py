@@ -90,15 +90,7 @@ def measure(
     Returns:
         The measurement, or None when the pose or scan it needs is not available.
     """
-    if fuse_at == "frame":
-        stamp = frame.stamp
-        pose = robot.pose_at(stamp)
-        scan: LaserScan | None = robot.scan_at(stamp) if method != "depth" else None
-    else:
-        stamped = robot.pose()
-        pose = stamped.pose if stamped is not None else None
-        stamp = robot.now()
-        scan = robot.scan() if method != "depth" else None
+    stamp, pose, scan = _pose_and_scan(robot, frame, fuse_at, with_scan=method != "depth")
     if pose is None:
         return None
     k = frame.intrinsics
@@ -129,6 +121,15 @@ def measure(
     distance = reading.distance + surface_offset
     return Measurement(stamp, pose, reading.bearing, distance,
                        position_from_range(pose, reading.bearing, distance), "cone")
+
+
+def _pose_and_scan(robot: Robot, frame: RGBDFrame, fuse_at: FuseAt, with_scan: bool
+                   ) -> tuple[float, Pose2D | None, LaserScan | None]:
+    """(stamp, pose, scan) of the frame's instant (``fuse_at="frame"``) or the latest (``"answer"``)."""
+    if fuse_at == "frame":
+        return frame.stamp, robot.pose_at(frame.stamp), robot.scan_at(frame.stamp) if with_scan else None
+    stamped = robot.pose()
+    return robot.now(), stamped.pose if stamped is not None else None, robot.scan() if with_scan else None
 
 
 def person_position(frame: RGBDFrame, detection: Detection,

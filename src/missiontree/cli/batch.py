@@ -18,8 +18,7 @@ from typing import Any
 
 from missiontree.cli import add_plugin_flag, plugins_from_args
 from missiontree.errors import ConfigError, MissionFileError
-from missiontree.evaluation.batch import lock_batch, run_batch
-from missiontree.evaluation.engines import make_engine
+from missiontree.evaluation.batch import lock_batch, make_engine, run_batch
 from missiontree.evaluation.plan import (
     BatchPlan,
     expand_plan,

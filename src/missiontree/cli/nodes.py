@@ -13,9 +13,9 @@ from typing import Any
 from pydantic.fields import FieldInfo
 
 from missiontree.cli import add_plugin_flag, plugins_from_args, print_json
+from missiontree.engine.json_lines import plain
 from missiontree.engine.ports import Port
 from missiontree.engine.registry import NodeRegistry, NodeType
-from missiontree.engine.tick_log import plain
 from missiontree.errors import ConfigError
 
 

@@ -316,32 +316,11 @@ class _Loader:
                     "includes multiply the tree; include fewer copies", where=parent_path))
             return None
         suffix = f"[{index}]" if index is not None else ""
-        if isinstance(data, str):
-            type_name, params_path = data, key_path
-            params: dict[str, Any] = {}
-        elif isinstance(data, dict) and len(data) == 1:
-            type_name, params = next(iter(data.items()))
-            params_path = (*key_path, type_name)
-            if params is None:
-                params = {}
-        else:
-            found = (
-                f"a mapping with {len(data)} keys ({', '.join(map(str, list(data)[:4]))})"
-                if isinstance(data, dict) else _kind(data)
-            )
-            self.problems.append(doc.problem_at(
-                key_path, f"expected a node (`Type: {{parameters}}` or a type name), found {found}",
-                "write the type as the only key and indent its parameters under it, e.g. `Wait: "
-                "{seconds: 2}`",
-                where=f"{parent_path}{suffix}"))
+        found = self._type_and_params(doc, data, key_path, parent_path, suffix)
+        if found is None:
             return None
+        type_name, params, params_path = found
         line, col = doc.position(params_path, key=True) if params_path != key_path else doc.position(key_path)
-        if not isinstance(params, dict):
-            self.problems.append(doc.problem_at(
-                params_path, f"expected the parameters of {type_name} as a mapping, found {_kind(params)}",
-                f"write `{type_name}: {{param: value}}` (or `{type_name}:` alone when it needs none)",
-                where=f"{parent_path}/{type_name}{suffix}"))
-            return None
         name = params.get(NAME_KEY, type_name)
         label = type_name if NAME_KEY not in params else f"{type_name}({name})"
         path = f"{parent_path}/{label}{suffix}"
@@ -356,7 +335,45 @@ class _Loader:
         if type_name == INCLUDE:
             return self._include(file, params, params_path, path, source, index)
         raw = {k: v for k, v in params.items() if k not in (NAME_KEY, CHILD_KEY, CHILDREN_KEY)}
-        children: list[NodeSpec] = []
+        children = self._children(file, params, params_path, path)
+        child_key = CHILD_KEY if CHILD_KEY in params else CHILDREN_KEY if CHILDREN_KEY in params else None
+        return NodeSpec(type=type_name, name=name, raw=raw, children=children, source=source, path=path,
+                        located=located, child_key=child_key)
+
+    def _type_and_params(
+        self, doc: Located, data: Any, key_path: tuple[str | int, ...], parent_path: str, suffix: str,
+    ) -> tuple[str, dict[str, Any], tuple[str | int, ...]] | None:
+        """A node's (type, parameters, parameters' key path), or None with the problem reported."""
+        if isinstance(data, str):
+            return data, {}, key_path
+        if not (isinstance(data, dict) and len(data) == 1):
+            found = (
+                f"a mapping with {len(data)} keys ({', '.join(map(str, list(data)[:4]))})"
+                if isinstance(data, dict) else _kind(data)
+            )
+            self.problems.append(doc.problem_at(
+                key_path, f"expected a node (`Type: {{parameters}}` or a type name), found {found}",
+                "write the type as the only key and indent its parameters under it, e.g. `Wait: "
+                "{seconds: 2}`",
+                where=f"{parent_path}{suffix}"))
+            return None
+        type_name, params = next(iter(data.items()))
+        params_path = (*key_path, type_name)
+        if params is None:
+            params = {}
+        if not isinstance(params, dict):
+            self.problems.append(doc.problem_at(
+                params_path, f"expected the parameters of {type_name} as a mapping, found {_kind(params)}",
+                f"write `{type_name}: {{param: value}}` (or `{type_name}:` alone when it needs none)",
+                where=f"{parent_path}/{type_name}{suffix}"))
+            return None
+        return type_name, params, params_path
+
+    def _children(
+        self, file: _File, params: dict[str, Any], params_path: tuple[str | int, ...], path: str,
+    ) -> list[NodeSpec]:
+        """The nodes under ``child:`` or ``children:`` (problems reported, broken children left out)."""
+        doc = file.doc
         if CHILD_KEY in params and CHILDREN_KEY in params:
             self.problems.append(doc.problem_at(
                 (*params_path, CHILDREN_KEY), "expected either `child:` or `children:`, found both",
@@ -364,8 +381,9 @@ class _Loader:
                 key=True, where=path))
         if CHILD_KEY in params:
             child = self._node(file, params[CHILD_KEY], (*params_path, CHILD_KEY), path, None)
-            children = [child] if child is not None else []
-        elif CHILDREN_KEY in params:
+            return [child] if child is not None else []
+        children: list[NodeSpec] = []
+        if CHILDREN_KEY in params:
             items = params[CHILDREN_KEY]
             if not isinstance(items, list):
                 self.problems.append(doc.problem_at(
@@ -376,9 +394,7 @@ class _Loader:
                     child = self._node(file, item, (*params_path, CHILDREN_KEY, i), path, i)
                     if child is not None:
                         children.append(child)
-        child_key = CHILD_KEY if CHILD_KEY in params else CHILDREN_KEY if CHILDREN_KEY in params else None
-        return NodeSpec(type=type_name, name=name, raw=raw, children=children, source=source, path=path,
-                        located=located, child_key=child_key)
+        return children
 
     def _include(
         self, file: _File, params: dict[str, Any], params_path: tuple[str | int, ...], path: str,
@@ -387,6 +403,43 @@ class _Loader:
         doc = file.doc
         if self.node_count > MAX_TREE_NODES:
             return None  # already reported; stop expanding
+        found = self._include_target(file, params, params_path, path)
+        if found is None:
+            return None
+        resolved, given = found
+        sub_doc = self._read_subtree(resolved)
+        if sub_doc is None:
+            return None
+        if resolved not in self.files:
+            self.files.append(resolved)
+        if not self._check_top(sub_doc, is_subtree=True):
+            return None
+        site = doc.view(params_path, params)
+        before = len(self.problems)
+        values = self._declared_params(sub_doc, given, (site, path))
+        if len(self.problems) > before:
+            return None  # the subtree cannot be checked meaningfully with wrong parameters
+        line = doc.position((*params_path, "file"))[0]
+        sub = _File(resolved, sub_doc, values, (*file.chain, f"{doc.file}:{line}"),
+                    (*file.resolved_chain, resolved))
+        own_blackboard = self._blackboard(sub)
+        substituted = self._substitute(sub_doc.data.get("root"), sub, ("root",), where=path)
+        node = self._node(sub, substituted, ("root",), path, None)
+        for key, value in {**sub.blackboard, **own_blackboard}.items():
+            file.blackboard.setdefault(key, value)
+        if node is not None and NAME_KEY in params and isinstance(params[NAME_KEY], str):
+            node.name = params[NAME_KEY]
+        return node
+
+    def _include_target(
+        self, file: _File, params: dict[str, Any], params_path: tuple[str | int, ...], path: str,
+    ) -> tuple[Path, dict[str, Any]] | None:
+        """An Include's subtree file and given parameter values, or None with the problem reported.
+
+        The file must resolve, must not include itself through the chain of includes, and must lie
+        at most :data:`MAX_INCLUDE_DEPTH` includes deep.
+        """
+        doc = file.doc
         for key in params:
             if key not in ("file", "params", NAME_KEY):
                 self.problems.append(doc.problem_at(
@@ -421,29 +474,7 @@ class _Loader:
                 f"deep, found deeper",
                 "flatten the subtrees", where=path))
             return None
-        sub_doc = self._read_subtree(resolved)
-        if sub_doc is None:
-            return None
-        if resolved not in self.files:
-            self.files.append(resolved)
-        if not self._check_top(sub_doc, is_subtree=True):
-            return None
-        site = doc.view(params_path, params)
-        before = len(self.problems)
-        values = self._declared_params(sub_doc, given, (site, path))
-        if len(self.problems) > before:
-            return None  # the subtree cannot be checked meaningfully with wrong parameters
-        line = doc.position((*params_path, "file"))[0]
-        sub = _File(resolved, sub_doc, values, (*file.chain, f"{doc.file}:{line}"),
-                    (*file.resolved_chain, resolved))
-        own_blackboard = self._blackboard(sub)
-        substituted = self._substitute(sub_doc.data.get("root"), sub, ("root",), where=path)
-        node = self._node(sub, substituted, ("root",), path, None)
-        for key, value in {**sub.blackboard, **own_blackboard}.items():
-            file.blackboard.setdefault(key, value)
-        if node is not None and NAME_KEY in params and isinstance(params[NAME_KEY], str):
-            node.name = params[NAME_KEY]
-        return node
+        return resolved, given
 
     def _read_subtree(self, resolved: Path) -> Located | None:
         """Parse a subtree file once, however often it is included (its problems are reported once)."""

@@ -12,8 +12,9 @@ during a tick carries them. Lines look like::
 Two pieces:
 
 - :class:`TickLog` writes lines (and is the :class:`~missiontree.engine.context.EventSink` that
-  leaves emit to). When the robot's time is simulated no wall-clock value is written, floats
-  are rounded to 6 decimals and keys sorted, so the same seed gives the same file byte for byte.
+  leaves emit to) through :mod:`~missiontree.engine.json_lines`. When the robot's time is simulated
+  no wall-clock value is written, floats are rounded to 6 decimals and keys sorted, so the same seed
+  gives the same file byte for byte.
 - :class:`TickRecorder` is the post-tick handler: given the nodes ticked this tick, it finds the
   nodes whose status changed (visited ones plus those halted since the last tick) and the
   blackboard keys written, and keeps per-node SUCCESS/FAILURE counts for the run summary.
@@ -31,140 +32,36 @@ write ("success is failure") are replaced by the mission file's names
 
 from __future__ import annotations
 
-import dataclasses
-import enum
-import errno
 import json
-import math
 import os
 import threading
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO
 
 import py_trees
 import structlog
-from pydantic import BaseModel
-from structlog.typing import EventDict
 
+from missiontree.engine.json_lines import (
+    FLOAT_DIGITS,
+    LineWriter,
+    add_wall_time,
+    dumps,
+    plain,
+    plain_event,
+)
 from missiontree.engine.node_words import BASE_CLASS, failure_reason, feedback_of, node_paths
-from missiontree.redact import has_secrets, scrub, scrub_data
 
-Status = py_trees.common.Status
-Behaviour = py_trees.behaviour.Behaviour
-
-FLOAT_DIGITS = 6
-#: Arrays up to this many elements are logged whole; larger ones by shape and dtype.
-MAX_ARRAY_ITEMS = 16
 #: Distinct failure reasons kept per node in the summary.
 MAX_REASONS = 10
 
-
-def plain(value: Any) -> Any:
-    """A JSON-ready copy of ``value`` with floats rounded, stable across runs.
-
-    Dataclasses, pydantic models, enums, numpy values and paths are converted; anything else
-    becomes ``"<TypeName>"`` (never ``repr``, which may hold a memory address).
-    """
-    if value is None or isinstance(value, (bool, int, str)):  # noqa: UP038 - a tuple is faster here
-        return value
-    if isinstance(value, float):
-        if math.isfinite(value):
-            return round(value, FLOAT_DIGITS)
-        return str(value)
-    if isinstance(value, dict):
-        return {str(k): plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple | set | frozenset):
-        items = sorted(value, key=repr) if isinstance(value, set | frozenset) else value
-        return [plain(v) for v in items]
-    if isinstance(value, enum.Enum):
-        return value.name
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if isinstance(value, BaseModel):
-        return plain(value.model_dump())
-    if isinstance(value, Path):
-        return str(value)
-    item = getattr(value, "item", None)
-    shape = getattr(value, "shape", None)
-    if shape is not None and hasattr(value, "tolist"):
-        if shape == () and item is not None:
-            return plain(item())
-        if getattr(value, "size", MAX_ARRAY_ITEMS + 1) <= MAX_ARRAY_ITEMS:
-            return plain(value.tolist())
-        return {"array": list(shape), "dtype": str(getattr(value, "dtype", ""))}
-    return f"<{type(value).__name__}>"
-
-
-def _plain_event(logger: Any, method: str, event_dict: EventDict) -> EventDict:
-    """Structlog processor: make every field JSON-ready and stable."""
-    return {k: plain(v) for k, v in event_dict.items()}
-
-
-def _add_wall_time(logger: Any, method: str, event_dict: EventDict) -> EventDict:
-    """Structlog processor for real robots: the wall-clock time, to the millisecond."""
-    event_dict["wall"] = round(time.time(), 3)
-    return event_dict
-
-
-#: One encoder for every line (``json.dumps`` with options would build a new one per call).
-_ENCODE = json.JSONEncoder(separators=(",", ":"), ensure_ascii=False, sort_keys=True).encode
-
-
-def _dumps(obj: Any, **kwargs: Any) -> str:
-    return _ENCODE(obj)
-
+Status = py_trees.common.Status
+Behaviour = py_trees.behaviour.Behaviour
 
 #: Test hook (fault injection): when this environment variable holds a number of bytes, the tick
 #: log's writer raises ``OSError(ENOSPC)`` on the first line that would take the file past it, as a
 #: full disk does. Read when a :class:`TickLog` is made; unset in normal runs.
 DISK_FULL_AFTER_ENV = "MISSIONTREE_TEST_DISK_FULL_AFTER"
-
-
-class _LineWriter:
-    """structlog's final logger: writes rendered lines, flushing only when asked to.
-
-    structlog's ``WriteLogger`` flushes every line, a system call per tick; a simulated run
-    needs the file only at the end, a real robot's run flushes each line (``flush_each_line``).
-
-    A write that fails (a full disk, a vanished file system) is kept in :attr:`error` instead of
-    raised into the tick, and every later line is dropped, so the file stays whole lines; the
-    runner sees :attr:`error` after the tick and ends the run with the reason.
-    """
-
-    def __init__(self, stream: TextIO, flush_each_line: bool) -> None:
-        self._write = stream.write
-        self._flush = stream.flush if flush_each_line else None
-        self.error: OSError | None = None
-        limit = os.environ.get(DISK_FULL_AFTER_ENV, "").strip()
-        self._room: int | None = int(limit) if limit.isdigit() else None
-
-    def msg(self, message: str) -> None:
-        """Write one line (dropped after a failed write)."""
-        if self.error is not None:
-            return
-        if has_secrets():  # a provider holds a key: no trace of it may reach the file
-            cleaned = scrub(message)
-            if cleaned != message:  # scrubbed again value by value, so the line stays JSON
-                data = json.loads(message)
-                message = _ENCODE(scrub_data(data))
-                if scrub(message) != message:  # a trace spread over several values: keep the ids only
-                    message = _ENCODE({**{k: data[k] for k in ("event", "mission", "tick", "t") if k in data},
-                                       "redacted": "this line held a trace of a secret"})
-        line = message + "\n"
-        try:
-            if self._room is not None:
-                self._room -= len(line.encode("utf-8"))
-                if self._room < 0:
-                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-            self._write(line)
-            if self._flush is not None:
-                self._flush()
-        except OSError as error:
-            self.error = error
-
-    info = msg  # structlog's native bound logger calls the level name
 
 
 class TickLog:
@@ -185,13 +82,15 @@ class TickLog:
         self.event_counts: dict[str, int] = {}
         #: The kind (and node) of the last event a leaf emitted, for progress lines.
         self.last_event = ""
-        writer = _LineWriter(stream, flush_each_line=not simulated)
+        limit = os.environ.get(DISK_FULL_AFTER_ENV, "").strip()
+        room = int(limit) if limit.isdigit() else None
+        writer = LineWriter(stream, flush_each_line=not simulated, room=room)
         self._writer = writer
-        render = structlog.processors.JSONRenderer(serializer=_dumps)  # keys sorted by _ENCODE
-        stamp = [] if simulated else [_add_wall_time]
+        render = structlog.processors.JSONRenderer(serializer=dumps)  # keys sorted by ENCODE
+        stamp = [] if simulated else [add_wall_time]
         merge = structlog.contextvars.merge_contextvars
         #: Events from leaves: any fields, made JSON-ready and stable first.
-        self._log = structlog.wrap_logger(writer, processors=[merge, *stamp, _plain_event, render],
+        self._log = structlog.wrap_logger(writer, processors=[merge, *stamp, plain_event, render],
                                           context_class=dict).bind()  # bound once, not per call
         #: Tick lines: built here from plain values with the ids given explicitly, so they skip the
         #: conversion and the context merge (the hot path).
@@ -277,19 +176,12 @@ class TickLog:
 
     def flush(self) -> None:
         """Flush the underlying stream (a failure is kept in :attr:`write_error`, not raised)."""
-        if self._writer.error is not None:
-            return
-        try:
-            self.stream.flush()
-        except OSError as error:
-            self._writer.error = error
+        self._writer.flush()
 
     def redirect(self, stream: TextIO) -> None:
         """Write the following lines to ``stream`` (the runner's recovered log after a deleted directory)."""
         self.stream = stream
-        self._writer._write = stream.write
-        if self._writer._flush is not None:
-            self._writer._flush = stream.flush
+        self._writer.redirect(stream)
 
     @property
     def write_error(self) -> OSError | None:

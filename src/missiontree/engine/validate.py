@@ -68,6 +68,47 @@ def validate_params(
     issues: list[ParamIssue] = list(non_finite_issues(raw))
     fields = model.model_fields
     by_name = {(info.alias or name): name for name, info in fields.items()}
+    refs, plain = _split_references(model, raw, by_name, issues)
+    if refs:  # fields typed Any (a compared value) take the reference as it is, validators included
+        try:
+            alias = {name: fields[name].alias or name for name in refs}
+            whole = model.model_validate({**plain, **{alias[n]: ref for n, ref in refs.items()}})
+            if all(getattr(whole, name) is ref for name, ref in refs.items()):
+                return whole, []
+        except (ValidationError, TypeError, ValueError):
+            pass  # typed fields refuse a reference: check the others alone below
+    instance: BaseModel | None = None
+    try:
+        instance = model.model_validate(plain)
+    except (ValidationError, TypeError, ValueError) as exc:  # a buggy Params model may raise plainly
+        if not isinstance(exc, ValidationError):
+            return None, [ParamIssue((), f"expected the parameters to pass the node type's own checks, but "
+                                     f"they raised {type(exc).__name__}: {exc}",
+                                     "a bug in the node type's Params model; report it to its provider")]
+        issues += _validation_issues(model, exc, plain, refs)
+    if issues:
+        return None, issues
+    if not refs:
+        return instance, []
+    values: dict[str, Any] = {}
+    for name, info in fields.items():
+        if name in refs:
+            values[name] = refs[name]
+        elif instance is not None:
+            values[name] = getattr(instance, name)
+        elif (info.alias or name) in plain:
+            adapter = TypeAdapter(info.annotation)  # type: ignore[arg-type]  # a declared field is annotated
+            values[name] = adapter.validate_python(plain[info.alias or name])
+    return model.model_construct(_fields_set={*refs, *(by_name[k] for k in plain)}, **values), []
+
+
+def _split_references(
+    model: type[BaseModel], raw: dict[str, Any], by_name: dict[str, str], issues: list[ParamIssue],
+) -> tuple[dict[str, BlackboardRef], dict[str, Any]]:
+    """Written parameters as (blackboard references by field name, plain values by written key).
+
+    Unknown keys and references written for a port are added to ``issues`` and left out.
+    """
     ports = ports_of(model)
     refs: dict[str, BlackboardRef] = {}
     plain: dict[str, Any] = {}
@@ -90,51 +131,30 @@ def validate_params(
                 refs[by_name[key]] = BlackboardRef(value["bb"])
         else:
             plain[key] = value
-    if refs:  # fields typed Any (a compared value) take the reference as it is, validators included
-        try:
-            alias = {name: fields[name].alias or name for name in refs}
-            whole = model.model_validate({**plain, **{alias[n]: ref for n, ref in refs.items()}})
-            if all(getattr(whole, name) is ref for name, ref in refs.items()):
-                return whole, []
-        except (ValidationError, TypeError, ValueError):
-            pass  # typed fields refuse a reference: check the others alone below
-    instance: BaseModel | None = None
-    try:
-        instance = model.model_validate(plain)
-    except (ValidationError, TypeError, ValueError) as exc:  # a buggy Params model may raise plainly
-        if not isinstance(exc, ValidationError):
-            return None, [ParamIssue((), f"expected the parameters to pass the node type's own checks, but "
-                                     f"they raised {type(exc).__name__}: {exc}",
-                                     "a bug in the node type's Params model; report it to its provider")]
-        by_loc: dict[tuple[str | int, ...], list[Any]] = {}
-        for err in exc.errors():
-            loc = tuple(err["loc"])
-            if err["type"] == "missing" and loc and loc[0] in refs:
-                continue
-            if isinstance(err.get("input"), str) and _UNRESOLVED.search(err["input"]):
-                continue  # an unknown ${param}: the loader reported it where it was written
-            # drop union-member tags (``int``, ``str``...) that pydantic puts in loc: keep written keys
-            by_loc.setdefault(_written_loc(plain, loc, err["type"]), []).append(err)
-        for loc, errs in by_loc.items():
-            merged = dict(errs[0], loc=loc)
-            if len(errs) > 1 and all(e["type"] not in ("missing", "extra_forbidden") for e in errs):
-                merged["msg"] = " or ".join(dict.fromkeys(_expected_text(e) for e in errs))
-                merged["type"] = "union"
-            issues.append(_issue(model, merged))
-    if issues:
-        return None, issues
-    if not refs:
-        return instance, []
-    values: dict[str, Any] = {}
-    for name, info in fields.items():
-        if name in refs:
-            values[name] = refs[name]
-        elif instance is not None:
-            values[name] = getattr(instance, name)
-        elif (info.alias or name) in plain:
-            adapter = TypeAdapter(info.annotation)  # type: ignore[arg-type]  # a declared field is annotated
-            values[name] = adapter.validate_python(plain[info.alias or name])
-    return model.model_construct(_fields_set={*refs, *(by_name[k] for k in plain)}, **values), []
+    return refs, plain
+
+
+def _validation_issues(
+    model: type[BaseModel], exc: ValidationError, plain: dict[str, Any], refs: dict[str, BlackboardRef],
+) -> list[ParamIssue]:
+    """The validation errors as issues, one per written key (a union's alternatives merged into one)."""
+    by_loc: dict[tuple[str | int, ...], list[Any]] = {}
+    for err in exc.errors():
+        loc = tuple(err["loc"])
+        if err["type"] == "missing" and loc and loc[0] in refs:
+            continue
+        if isinstance(err.get("input"), str) and _UNRESOLVED.search(err["input"]):
+            continue  # an unknown ${param}: the loader reported it where it was written
+        # drop union-member tags (``int``, ``str``...) that pydantic puts in loc: keep written keys
+        by_loc.setdefault(_written_loc(plain, loc, err["type"]), []).append(err)
+    issues = []
+    for loc, errs in by_loc.items():
+        merged = dict(errs[0], loc=loc)
+        if len(errs) > 1 and all(e["type"] not in ("missing", "extra_forbidden") for e in errs):
+            merged["msg"] = " or ".join(dict.fromkeys(_expected_text(e) for e in errs))
+            merged["type"] = "union"
+        issues.append(_issue(model, merged))
+    return issues
 
 
 def non_finite_issues(value: Any, loc: tuple[str | int, ...] = ()) -> list[ParamIssue]:

@@ -2,7 +2,8 @@
 
 - :mod:`~missiontree.evaluation.plan` — seeds/worlds/--set/--sweep → :class:`BatchPlan` of :class:`RunSpec`.
 - :mod:`~missiontree.evaluation.worker` — one run in a worker (through the session), atomic and idempotent.
-- :mod:`~missiontree.evaluation.engines` — serial, local process pool, Dask distributed (optional extra).
+- :mod:`~missiontree.evaluation.engines` — serial and local process pool engines.
+- :mod:`~missiontree.evaluation.dask_engine` — Dask distributed (optional extra).
 - :mod:`~missiontree.evaluation.batch` — :func:`run_batch` (resume, crash retry) → :class:`RunRecord` list.
 - :mod:`~missiontree.evaluation.report` — results.jsonl, summary.json (Wilson intervals), table, junit.xml.
 - :mod:`~missiontree.evaluation.progress` — the progress bar.
@@ -11,8 +12,9 @@
 imported only when a Dask engine is made.
 """
 
-from missiontree.evaluation.batch import RunRecord, run_batch
-from missiontree.evaluation.engines import Crash, DaskEngine, Engine, PoolEngine, SerialEngine, make_engine
+from missiontree.evaluation.batch import RunRecord, make_engine, run_batch
+from missiontree.evaluation.dask_engine import DaskEngine
+from missiontree.evaluation.engines import Crash, Engine, PoolEngine, SerialEngine
 from missiontree.evaluation.plan import BatchPlan, RunSpec, expand_plan
 from missiontree.evaluation.worker import Probe, RunTask
 

@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from missiontree.errors import ConfigError
-from missiontree.evaluation.engines import Crash, Engine
+from missiontree.evaluation.engines import Crash, Engine, PoolEngine
 from missiontree.evaluation.plan import BatchPlan
 from missiontree.evaluation.worker import PARTIAL_SUFFIX, RECORD_FILE, Probe, RunTask, execute_run
 from missiontree.session.rundir import pid_alive
@@ -262,3 +262,13 @@ def _run_batch(
     if retries:
         take(engine.run(fn, retries, isolated=True))
     return [records[spec.run_id] for spec in plan.runs]
+
+
+def make_engine(dask: str | None, jobs: int | None) -> Engine:
+    """The engine the flags ask for: ``--dask ADDRESS|local`` (or DASK_SCHEDULER_ADDRESS), else a pool."""
+    address = dask or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    if address:
+        from missiontree.evaluation.dask_engine import DaskEngine  # Dask is optional: only when asked for
+
+        return DaskEngine(address, jobs)
+    return PoolEngine(jobs)

@@ -36,6 +36,9 @@ CLOSED = 16
 BLOCK_BITS = 3
 BLOCK = 1 << BLOCK_BITS
 START = 8
+#: Row and column steps to the eight neighbours of a cell.
+_DRS = (-1, -1, -1, 0, 0, 1, 1, 1)
+_DCS = (-1, 0, 1, -1, 1, -1, 0, 1)
 
 
 def _sift_down_py(heap_k, heap_v, size):  # noqa: ANN001, ANN202
@@ -77,13 +80,104 @@ def _push_py(heap_k, heap_v, size, key, value):  # noqa: ANN001, ANN202
         j = up
 
 
+def _missing_tile_py(cost_slot, r, c, h, w, ntc):  # noqa: ANN001, ANN202
+    """The first cost tile around cell (r, c) that is not loaded yet, or -1."""
+    for tr in range(max(r - 1, 0) >> TILE_BITS, (min(r + 1, h - 1) >> TILE_BITS) + 1):
+        for tc in range(max(c - 1, 0) >> TILE_BITS, (min(c + 1, w - 1) >> TILE_BITS) + 1):
+            if cost_slot[tr * ntc + tc] < 0:
+                return tr * ntc + tc
+    return -1
+
+
+def _room_needed_py(g_pool, heap_k, state):  # noqa: ANN001, ANN202
+    """The request for more room an expansion needs first (state tiles, heap entries), or -1."""
+    if g_pool.shape[0] - state[S_SLOTS] < 4:
+        return NEED_STATE
+    if heap_k.shape[0] - state[S_HEAP] < 9:
+        return NEED_HEAP
+    return -1
+
+
+def _lower_bound_py(goals, cur):  # noqa: ANN001, ANN202
+    """The first index of the sorted ``goals`` whose value is not below ``cur`` (a binary search)."""
+    lo = 0
+    hi = goals.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if goals[mid] < cur:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+def _estimate_py(nr, nc, gr, gc, coarse, cfar):  # noqa: ANN001, ANN202
+    """A*'s estimate from (nr, nc) to the goal (gr, gc), in cells.
+
+    The octile distance (exact on an empty 8-connected grid) or, when larger, the coarse distance
+    around obstacles less a block's slack.
+    """
+    ar = abs(nr - gr)
+    ac = abs(nc - gc)
+    est = max(ar, ac) + 0.41421356237309515 * min(ar, ac)
+    hc = coarse[nr >> BLOCK_BITS, nc >> BLOCK_BITS]
+    if hc == np.inf:
+        hc = cfar
+    hc = (hc - 1.5) * BLOCK
+    if hc > est:
+        est = hc
+    return est
+
+
 # The kernels below call the heap steps by these names: compiled (inlined into each kernel) with
 # numba, plain Python without it.
 if HAVE_NUMBA:
     _sift_down = numba.njit(cache=True, nogil=True, inline="always")(_sift_down_py)
     _push = numba.njit(cache=True, nogil=True, inline="always")(_push_py)
+    _missing_tile = numba.njit(cache=True, nogil=True, inline="always")(_missing_tile_py)
+    _lower_bound = numba.njit(cache=True, nogil=True, inline="always")(_lower_bound_py)
+    _room_needed = numba.njit(cache=True, nogil=True, inline="always")(_room_needed_py)
+    _estimate = numba.njit(cache=True, nogil=True, inline="always")(_estimate_py)
 else:  # pragma: no cover - exercised where numba is absent
     _sift_down, _push = _sift_down_py, _push_py
+    _missing_tile, _lower_bound, _estimate = _missing_tile_py, _lower_bound_py, _estimate_py
+    _room_needed = _room_needed_py
+
+
+def _pop_py(heap_k, heap_v, state):  # noqa: ANN001, ANN202
+    """Remove the min-heap's root (its size in ``state[S_HEAP]``)."""
+    size = state[S_HEAP] - 1
+    state[S_HEAP] = size
+    heap_k[0] = heap_k[size]
+    heap_v[0] = heap_v[size]
+    _sift_down(heap_k, heap_v, size)
+
+
+def _new_slot_py(g_slot, g_pool, par_pool, state, tile):  # noqa: ANN001, ANN202
+    """Give ``tile`` the next free state slot, its cells unreached (g = inf, no parent); the slot."""
+    slot = state[S_SLOTS]
+    state[S_SLOTS] = slot + 1
+    g_slot[tile] = slot
+    for j in range(TILE * TILE):
+        g_pool[slot, j] = np.inf
+        par_pool[slot, j] = -1
+    return slot
+
+
+def _cost_to_enter_py(cost_pool, cost_slot, nr, nc, sr, sc, escape2):  # noqa: ANN001, ANN202
+    """Cell (nr, nc)'s cost (its tile in ``cost_slot``); inscribed cells near the start (sr, sc) cost less."""
+    cost = cost_pool[cost_slot, nr & TILE_MASK, nc & TILE_MASK]
+    if cost == INSCRIBED and (nr - sr) * (nr - sr) + (nc - sc) * (nc - sc) <= escape2:
+        return MAX_FREE  # the robot may leave the inscribed zone it stands in
+    return cost
+
+
+if HAVE_NUMBA:
+    _pop = numba.njit(cache=True, nogil=True, inline="always")(_pop_py)
+    _new_slot = numba.njit(cache=True, nogil=True, inline="always")(_new_slot_py)
+    _cost_to_enter = numba.njit(cache=True, nogil=True, inline="always")(_cost_to_enter_py)
+else:  # pragma: no cover - exercised where numba is absent
+    _pop, _new_slot, _cost_to_enter = _pop_py, _new_slot_py, _cost_to_enter_py
 
 
 def search_loops(cost_slot, cost_pool, g_slot, g_pool, l_pool, par_pool, heap_k, heap_v,  # noqa: ANN001, ANN201, PLR0912, PLR0913, PLR0915
@@ -93,100 +187,56 @@ def search_loops(cost_slot, cost_pool, g_slot, g_pool, l_pool, par_pool, heap_k,
     Returns a code: found, none, or a request (cost tile ``state[S_TILE]``, more state tiles,
     a bigger heap) after which Python provides what was asked and calls again with the same state.
     """
-    drs = (-1, -1, -1, 0, 0, 1, 1, 1)
-    dcs = (-1, 0, 1, -1, 1, -1, 0, 1)
-    n_goals = goals.shape[0]
-    gr = goals[0] // w
-    gc = goals[0] % w
+    gr, gc = goals[0] // w, goals[0] % w  # A*'s goal: the first
     while state[S_HEAP] > 0:
         cur = heap_v[0]
-        r = cur // w
-        c = cur % w
-        tile = (r >> TILE_BITS) * ntc + (c >> TILE_BITS)
-        slot = g_slot[tile]
+        r, c = cur // w, cur % w
+        slot = g_slot[(r >> TILE_BITS) * ntc + (c >> TILE_BITS)]
         off = (r & TILE_MASK) * TILE + (c & TILE_MASK)
         closed = par_pool[slot, off] >= CLOSED
         if not closed:
             # everything the expansion will need, before popping (so a request can resume here)
-            for tr in range(max(r - 1, 0) >> TILE_BITS, (min(r + 1, h - 1) >> TILE_BITS) + 1):
-                for tc in range(max(c - 1, 0) >> TILE_BITS, (min(c + 1, w - 1) >> TILE_BITS) + 1):
-                    if cost_slot[tr * ntc + tc] < 0:
-                        state[S_TILE] = tr * ntc + tc
-                        return NEED_COST
-            if g_pool.shape[0] - state[S_SLOTS] < 4:
-                return NEED_STATE
-            if heap_k.shape[0] - state[S_HEAP] < 9:
-                return NEED_HEAP
-        # pop
-        size = state[S_HEAP] - 1
-        state[S_HEAP] = size
-        heap_k[0] = heap_k[size]
-        heap_v[0] = heap_v[size]
-        _sift_down(heap_k, heap_v, size)
+            missing = _missing_tile(cost_slot, r, c, h, w, ntc)
+            if missing >= 0:
+                state[S_TILE] = missing
+                return NEED_COST
+            room = _room_needed(g_pool, heap_k, state)
+            if room >= 0:
+                return room
+        _pop(heap_k, heap_v, state)
         if closed:
             continue
         par_pool[slot, off] += CLOSED
         state[S_EXPANDED] += 1
-        g_cur = g_pool[slot, off]
-        l_cur = l_pool[slot, off]
-        # goal test: binary search in the sorted goals
-        lo = 0
-        hi = n_goals
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if goals[mid] < cur:
-                lo = mid + 1
-            else:
-                hi = mid
-        if lo < n_goals and goals[lo] == cur:
+        g_cur, l_cur = g_pool[slot, off], l_pool[slot, off]
+        lo = _lower_bound(goals, cur)
+        if lo < goals.shape[0] and goals[lo] == cur:
             state[S_REACHED] += 1
             state[S_LEFT] -= 1
             if state[S_LEFT] <= 0:
                 return FOUND
         for k in range(8):
-            nr = r + drs[k]
-            nc = c + dcs[k]
+            nr, nc = r + _DRS[k], c + _DCS[k]
             if nr < 0 or nr >= h or nc < 0 or nc >= w:
                 continue
             ntile = (nr >> TILE_BITS) * ntc + (nc >> TILE_BITS)
             noff = (nr & TILE_MASK) * TILE + (nc & TILE_MASK)
-            cost = cost_pool[cost_slot[ntile], nr & TILE_MASK, nc & TILE_MASK]
-            if cost == INSCRIBED and (nr - sr) * (nr - sr) + (nc - sc) * (nc - sc) <= escape2:
-                cost = MAX_FREE  # the robot may leave the inscribed zone it stands in
+            cost = _cost_to_enter(cost_pool, cost_slot[ntile], nr, nc, sr, sc, escape2)
             if cost > MAX_FREE:
                 continue
             nslot = g_slot[ntile]
             if nslot < 0:
-                nslot = state[S_SLOTS]
-                state[S_SLOTS] = nslot + 1
-                g_slot[ntile] = nslot
-                for j in range(TILE * TILE):
-                    g_pool[nslot, j] = np.inf
-                    par_pool[nslot, j] = -1
+                nslot = _new_slot(g_slot, g_pool, par_pool, state, ntile)
             elif par_pool[nslot, noff] >= CLOSED:
                 continue
-            diagonal = drs[k] != 0 and dcs[k] != 0
-            step = 1.4142135623730951 if diagonal else 1.0
+            step = 1.4142135623730951 if _DRS[k] != 0 and _DCS[k] != 0 else 1.0  # diagonal or straight
             ng = g_cur + step * (1.0 + weight * cost / 252.0)
             if ng < g_pool[nslot, noff]:
                 g_pool[nslot, noff] = ng
                 l_pool[nslot, noff] = l_cur + step
                 par_pool[nslot, noff] = k
-                f = ng
-                if heuristic:
-                    # octile distance (exact on an empty 8-connected grid) or, when larger, the
-                    # coarse distance around obstacles less a block's slack; a hair heavier to
-                    # break ties toward deeper cells instead of flooding plateaus of equal cost
-                    ar = abs(nr - gr)
-                    ac = abs(nc - gc)
-                    est = max(ar, ac) + 0.41421356237309515 * min(ar, ac)
-                    hc = coarse[nr >> BLOCK_BITS, nc >> BLOCK_BITS]
-                    if hc == np.inf:
-                        hc = cfar
-                    hc = (hc - 1.5) * BLOCK
-                    if hc > est:
-                        est = hc
-                    f = ng + est * hweight
+                # A*: the estimate a hair heavier breaks ties toward deeper cells (no plateau floods)
+                f = ng + _estimate(nr, nc, gr, gc, coarse, cfar) * hweight if heuristic else ng
                 _push(heap_k, heap_v, state[S_HEAP], f, nr * w + nc)
                 state[S_HEAP] += 1
     return NONE
@@ -213,16 +263,14 @@ def coarse_loops(blocked, goal, start, dist, heap_k, heap_v):  # noqa: ANN001, A
         heap_k[0] = heap_k[size]
         heap_v[0] = heap_v[size]
         _sift_down(heap_k, heap_v, size)
-        r = cur // w
-        c = cur % w
+        r, c = cur // w, cur % w
         if dist[r, c] != np.inf:
             continue
         dist[r, c] = key
         if cur == start:
             return key
         for k in range(8):
-            nr = r + drs[k]
-            nc = c + dcs[k]
+            nr, nc = r + _DRS[k], c + _DCS[k]
             if nr < 0 or nr >= h or nc < 0 or nc >= w or blocked[nr, nc] or dist[nr, nc] != np.inf:
                 continue
             nk = key + (1.4142135623730951 if drs[k] != 0 and dcs[k] != 0 else 1.0)
@@ -253,8 +301,7 @@ def trace_loops(g_slot, par_pool, w, ntc, start, goal):  # noqa: ANN001, ANN201
         n += 1
         if cur == start:
             break
-        r = cur // w
-        c = cur % w
+        r, c = cur // w, cur % w
         k = par_pool[g_slot[(r >> TILE_BITS) * ntc + (c >> TILE_BITS)],
                      (r & TILE_MASK) * TILE + (c & TILE_MASK)] % CLOSED
         cur = (r - drs[k]) * w + (c - dcs[k])

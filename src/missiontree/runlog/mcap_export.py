@@ -226,11 +226,7 @@ def _encode(message: dict[str, Any]) -> bytes:
 
 def _messages(replay: Replay, mission: str) -> list[tuple[int, int, str, dict[str, Any]]]:
     """(log time ns, order, topic, message) of everything, sorted by time then by order written."""
-    out: list[tuple[int, int, str, dict[str, Any]]] = []
-
-    def add(t: float, topic: str, message: dict[str, Any]) -> None:
-        out.append((_ns(t), len(out), topic, message))
-
+    out = _Messages(replay, mission)
     events_by_tick: dict[int, list[Any]] = {}
     for event in replay.events:
         events_by_tick.setdefault(event.tick, []).append(event)
@@ -238,100 +234,109 @@ def _messages(replay: Replay, mission: str) -> list[tuple[int, int, str, dict[st
     for at, key, value in replay.blackboard:
         bb_by_tick.setdefault(at, []).append((key, value))
     for at, number in enumerate(replay.tick_numbers):
-        t = replay.times[at]
         for event in events_by_tick.get(at, []):
-            category = event_category(event)
-            node = str(event.fields.get("node", ""))
-            add(
-                event.t,
-                "/missiontree/events",
-                {
-                    "tick": number,
-                    "t": event.t,
-                    "kind": event.kind,
-                    "category": category,
-                    "node": node,
-                    "fields": event.fields,
-                },
+            out.event(number, event)
+        out.tick(at, number)
+        t = replay.times[at]
+        for key, value in bb_by_tick.get(at, []):
+            message: dict[str, Any] = {"tick": number, "t": t, "key": key, "removed": value is UNSET}
+            if value is not UNSET:
+                message["value"] = value
+            out.add(t, "/missiontree/blackboard", message)
+    if replay.halted and replay.tick_numbers:
+        t = float(replay.halted_t)
+        for change in replay.halted:
+            path = replay.nodes[change.node].path
+            out.add(
+                t,
+                "/missiontree/transitions",
+                _transition(replay.tick_numbers[-1], t, path, change, halt=True),
             )
-            detail = " ".join(
-                f"{k}={json.dumps(v, sort_keys=True)}" for k, v in sorted(event.fields.items()) if k != "node"
-            )
-            add(
-                event.t,
-                "/missiontree/log",
-                {
-                    "timestamp": _stamp(event.t),
-                    "level": _LEVEL.get(category, 2),
-                    "message": f"{event.kind}: {detail}".strip(),
-                    "name": node or mission,
-                    "file": "",
-                    "line": 0,
-                },
-            )
+    out.poses()
+    out.found.sort(key=lambda m: (m[0], m[1]))
+    return out.found
+
+
+class _Messages:
+    """The messages of a run, in the order written (:func:`_messages` sorts them by time)."""
+
+    def __init__(self, replay: Replay, mission: str) -> None:
+        self.replay = replay
+        self.mission = mission
+        self.found: list[tuple[int, int, str, dict[str, Any]]] = []
+
+    def add(self, t: float, topic: str, message: dict[str, Any]) -> None:
+        """One message at robot time ``t``."""
+        self.found.append((_ns(t), len(self.found), topic, message))
+
+    def log(self, t: float, level: int, message: str, name: str) -> None:
+        """A ``foxglove.Log`` line."""
+        self.add(
+            t,
+            "/missiontree/log",
+            {"timestamp": _stamp(t), "level": level, "message": message, "name": name, "file": "", "line": 0},
+        )
+
+    def event(self, number: int, event: Any) -> None:
+        """A leaf's event, and its log line."""
+        category = event_category(event)
+        node = str(event.fields.get("node", ""))
+        self.add(
+            event.t,
+            "/missiontree/events",
+            {
+                "tick": number,
+                "t": event.t,
+                "kind": event.kind,
+                "category": category,
+                "node": node,
+                "fields": event.fields,
+            },
+        )
+        detail = " ".join(
+            f"{k}={json.dumps(v, sort_keys=True)}" for k, v in sorted(event.fields.items()) if k != "node"
+        )
+        self.log(event.t, _LEVEL.get(category, 2), f"{event.kind}: {detail}".strip(), node or self.mission)
+
+    def tick(self, at: int, number: int) -> None:
+        """The tick's line and its transitions; a log line for each leaf that failed with a reason."""
+        replay = self.replay
+        t = replay.times[at]
         first, end = replay.change_start[at], replay.change_start[at + 1]
-        add(
+        self.add(
             t,
             "/missiontree/ticks",
             {"tick": number, "t": t, "status": STATUSES[replay.root_status[at]], "changes": end - first},
         )
         for change in replay.changes[first:end]:
             path = replay.nodes[change.node].path
-            add(t, "/missiontree/transitions", _transition(number, t, path, change, halt=False))
+            self.add(t, "/missiontree/transitions", _transition(number, t, path, change, halt=False))
             if change.status == 3 and change.reason and not replay.nodes[change.node].children:
-                add(
-                    t,
-                    "/missiontree/log",
-                    {
-                        "timestamp": _stamp(t),
-                        "level": 4,
-                        "message": f"FAILURE: {change.reason}",
-                        "name": path,
-                        "file": "",
-                        "line": 0,
-                    },
-                )
-        for key, value in bb_by_tick.get(at, []):
-            message: dict[str, Any] = {"tick": number, "t": t, "key": key, "removed": value is UNSET}
-            if value is not UNSET:
-                message["value"] = value
-            add(t, "/missiontree/blackboard", message)
-    if replay.halted and replay.tick_numbers:
-        t = replay.halted_t
-        for change in replay.halted:
-            add(
-                float(t),
-                "/missiontree/transitions",
-                _transition(
-                    replay.tick_numbers[-1], float(t), replay.nodes[change.node].path, change, halt=True
-                ),
-            )
-    poses = replay.poses
-    for index, (t, x, y) in enumerate(poses):
-        nxt = poses[min(index + 1, len(poses) - 1)]
-        prev = poses[max(index - 1, 0)]
-        yaw = (
-            math.atan2(nxt[2] - prev[2], nxt[1] - prev[1]) if (nxt[1], nxt[2]) != (prev[1], prev[2]) else 0.0
-        )
-        add(
-            t,
-            "/robot/pose",
-            {
-                "timestamp": _stamp(t),
-                "frame_id": "map",
-                "pose": {
-                    "position": {"x": x, "y": y, "z": 0.0},
-                    "orientation": {
-                        "x": 0.0,
-                        "y": 0.0,
-                        "z": round(math.sin(yaw / 2), 6),
-                        "w": round(math.cos(yaw / 2), 6),
-                    },
+                self.log(t, 4, f"FAILURE: {change.reason}", path)
+
+    def poses(self) -> None:
+        """The trajectory as ``foxglove.PoseInFrame``, headed along the path."""
+        poses = self.replay.poses
+        for index, (t, x, y) in enumerate(poses):
+            nxt = poses[min(index + 1, len(poses) - 1)]
+            prev = poses[max(index - 1, 0)]
+            moved = (nxt[1], nxt[2]) != (prev[1], prev[2])
+            yaw = math.atan2(nxt[2] - prev[2], nxt[1] - prev[1]) if moved else 0.0
+            orientation = {
+                "x": 0.0,
+                "y": 0.0,
+                "z": round(math.sin(yaw / 2), 6),
+                "w": round(math.cos(yaw / 2), 6),
+            }
+            self.add(
+                t,
+                "/robot/pose",
+                {
+                    "timestamp": _stamp(t),
+                    "frame_id": "map",
+                    "pose": {"position": {"x": x, "y": y, "z": 0.0}, "orientation": orientation},
                 },
-            },
-        )
-    out.sort(key=lambda m: (m[0], m[1]))
-    return out
+            )
 
 
 def _transition(number: int, t: float, path: str, change: Any, halt: bool) -> dict[str, Any]:
@@ -400,21 +405,7 @@ def write_mcap(replay: Replay, path: Path, mission: str = "", grid_map: dict[str
     with path.open("wb") as stream:
         writer = Writer(stream, compression=CompressionType.ZSTD)
         writer.start(profile="", library=f"missiontree {__version__}")
-        schema_ids = {
-            name: writer.register_schema(
-                name=name, encoding="jsonschema", data=json.dumps(schema, sort_keys=True).encode("utf-8")
-            )
-            for name, schema in SCHEMAS.items()
-        }
-        channels = {
-            topic: writer.register_channel(
-                topic=topic,
-                message_encoding="json",
-                schema_id=schema_ids[schema],
-                metadata={"mission": mission},
-            )
-            for topic, schema in TOPICS.items()
-        }
+        channels = _register(writer, mission)
         sequence: dict[str, int] = {}
         messages = _messages(replay, mission)
         if grid_map is not None:
@@ -429,16 +420,37 @@ def write_mcap(replay: Replay, path: Path, mission: str = "", grid_map: dict[str
                 data=_encode(message),
                 sequence=sequence[topic],
             )
-        writer.add_metadata(
-            "missiontree.run",
-            {
-                "mission": mission,
-                "status": str(replay.finished.get("status", "")),
-                "stopped_by": str(replay.finished.get("stopped_by", "")),
-                "ticks": str(len(replay)),
-                "seed": str(replay.started.get("seed", "")),
-                "robot": str(replay.started.get("robot", "")),
-            },
-        )
+        writer.add_metadata("missiontree.run", _run_metadata(replay, mission))
         writer.finish()
     return path
+
+
+def _register(writer: Any, mission: str) -> dict[str, int]:
+    """Register every schema and topic with the writer; channel ids by topic."""
+    schema_ids = {
+        name: writer.register_schema(
+            name=name, encoding="jsonschema", data=json.dumps(schema, sort_keys=True).encode("utf-8")
+        )
+        for name, schema in SCHEMAS.items()
+    }
+    return {
+        topic: writer.register_channel(
+            topic=topic,
+            message_encoding="json",
+            schema_id=schema_ids[schema],
+            metadata={"mission": mission},
+        )
+        for topic, schema in TOPICS.items()
+    }
+
+
+def _run_metadata(replay: Replay, mission: str) -> dict[str, str]:
+    """The run's ``missiontree.run`` metadata record: mission, outcome, ticks, seed, robot."""
+    return {
+        "mission": mission,
+        "status": str(replay.finished.get("status", "")),
+        "stopped_by": str(replay.finished.get("stopped_by", "")),
+        "ticks": str(len(replay)),
+        "seed": str(replay.started.get("seed", "")),
+        "robot": str(replay.started.get("robot", "")),
+    }

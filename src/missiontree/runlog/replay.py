@@ -94,7 +94,7 @@ def declared_tree(spec: Any) -> dict[str, Any]:
 
     Paths follow :func:`missiontree.engine.node_words.node_paths` (``[i]`` added to repeated names).
     """
-    from missiontree.engine.tick_log import plain
+    from missiontree.engine.json_lines import plain
 
     def convert(node: Any, path: str) -> dict[str, Any]:
         names = [child.name for child in node.children]

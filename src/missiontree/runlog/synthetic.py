@@ -90,6 +90,127 @@ def _paths(tree: dict[str, Any]) -> list[str]:
     return out
 
 
+class _Patrol:
+    """The state of a synthetic patrol tick by tick: which nodes run, where the robot is."""
+
+    def __init__(self, tree: dict[str, Any], ticks: int, leaves: int, seed: int) -> None:
+        self.rng = random.Random(seed)
+        self.ticks = ticks
+        self.leaves = leaves
+        self.group_paths = [child["path"] for child in tree["children"][1:]]
+        self.active: dict[str, str] = {}
+        self.leaf_at = [0] * len(self.group_paths)
+        self.x, self.y, self.heading = 0.0, 0.0, 0.0
+        self.alarm_id = 0
+
+    def change(self, changed: list[dict[str, Any]], path: str, status: str, **extra: Any) -> None:
+        """Record ``path`` turning ``status`` (nothing when it already is)."""
+        was = self.active.get(path, "INVALID")
+        if was == status:
+            return
+        changed.append({"node": path, "status": status, "was": was, **extra})
+        if status == "INVALID":
+            self.active.pop(path, None)
+        else:
+            self.active[path] = status
+
+    def step_groups(
+        self, n: int, changed: list[dict[str, Any]], bb: dict[str, Any], events: list[dict[str, Any]]
+    ) -> None:
+        """Tick ``n`` of every group: start a leaf, fail it every 30 s, finish it every 12 s."""
+        for g, group in enumerate(self.group_paths):
+            step = f"{group}/step{self.leaf_at[g]}"
+            if n == self.ticks:
+                self.change(changed, step, "SUCCESS", feedback="done")
+                self.change(changed, group, "SUCCESS")
+                continue
+            if step not in self.active or self.active[step] != "RUNNING":
+                self.change(changed, step, "RUNNING", feedback=f"to waypoint {self.leaf_at[g]}")
+                self.change(changed, group, "RUNNING")
+                events.append(
+                    {
+                        "event": "goal_sent",
+                        "node": step.rsplit("/", 1)[1],
+                        "x": round(self.x + self.rng.uniform(-3, 3), 3),
+                        "y": round(self.y + self.rng.uniform(-3, 3), 3),
+                    }
+                )
+            elif n % 300 == 0:
+                self.change(
+                    changed, step, "FAILURE", feedback="goal aborted", reason="no path to the goal: blocked"
+                )
+                self.change(changed, group, "FAILURE")
+                events.append({"event": "goal_aborted", "node": step.rsplit("/", 1)[1], "reason": "blocked"})
+                self.leaf_at[g] = 0
+            elif n % 120 == 0:
+                self.change(changed, step, "SUCCESS", feedback="reached")
+                self.leaf_at[g] = (self.leaf_at[g] + 1) % self.leaves
+                bb[f"waypoint_{g}"] = {"index": self.leaf_at[g], "x": round(self.x, 3), "y": round(self.y, 3)}
+
+    def surveillance(self, n: int, events: list[dict[str, Any]]) -> None:
+        """A model call every other tick, an alarm every minute."""
+        if n % 2 == 0:
+            events.append(
+                {
+                    "event": "model_call",
+                    "latency": round(self.rng.uniform(0.0, 0.05), 6),
+                    "node": "surveillance",
+                    "outcome": "succeeded",
+                    "provider": "sim_detector",
+                    "role": "detector",
+                }
+            )
+        if n % 600 == 300:
+            self.alarm_id += 1
+            events.append(
+                {
+                    "event": "alarm",
+                    "id": self.alarm_id,
+                    "node": "surveillance",
+                    "phase": "detected",
+                    "position": [round(self.x + 1.5, 4), round(self.y + 0.5, 4)],
+                    "robot_pose": [round(self.x, 4), round(self.y, 4), round(self.heading, 4)],
+                    "verdict": "ALARM: PERSON DETECTED",
+                }
+            )
+
+    def move(self) -> None:
+        """A random walk of 3 cm a tick inside the map."""
+        self.heading += self.rng.uniform(-0.2, 0.2)
+        self.x = max(-9.0, min(9.0, self.x + 0.03 * math.cos(self.heading)))
+        self.y = max(-9.0, min(9.0, self.y + 0.03 * math.sin(self.heading)))
+
+    def tick_lines(self, n: int, t: float, poses: list[list[float]], tick_hz: float) -> list[str]:
+        """The lines of tick ``n`` at time ``t`` (its events, then the tick); a pose each 1/4 s."""
+        changed: list[dict[str, Any]] = []
+        bb: dict[str, Any] = {}
+        events: list[dict[str, Any]] = []
+        if n == 1:
+            for path in ("root/servo_then_resume/servo", "root/servo_then_resume"):
+                self.change(changed, path, "FAILURE", feedback="no new alarm", reason="no new alarm")
+        self.step_groups(n, changed, bb, events)
+        if n == 1 or (n == self.ticks):
+            self.change(changed, "root", "SUCCESS" if n == self.ticks else "RUNNING")
+        self.surveillance(n, events)
+        self.move()
+        if n % max(1, round(tick_hz / 4)) == 0:
+            poses.append([round(t, 3), round(self.x, 3), round(self.y, 3)])
+        lines = [_line({**event, "mission": "synthetic", "t": t, "tick": n}) for event in events]
+        record: dict[str, Any] = {
+            "event": "tick",
+            "mission": "synthetic",
+            "t": t,
+            "tick": n,
+            "status": self.active.get("root", "RUNNING"),
+        }
+        if changed:
+            record["changed"] = changed
+        if bb:
+            record["bb"] = bb
+        lines.append(_line(record))
+        return lines
+
+
 def synthesize_run(
     run_dir: Path,
     ticks: int = 36_000,
@@ -105,11 +226,9 @@ def synthesize_run(
     changes come in bursts as in a real patrol; every ``30 s`` the running leaf fails with a
     reason and the group restarts; the root never ends until the last tick, which succeeds.
     """
-    rng = random.Random(seed)
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     tree = synthetic_tree(leaves, groups)
-    group_paths = [child["path"] for child in tree["children"][1:]]
     period = 1.0 / tick_hz
     lines: list[str] = [
         _line(
@@ -126,123 +245,21 @@ def synthesize_run(
             }
         )
     ]
-    active: dict[str, str] = {}
-    leaf_at = [0] * groups
+    patrol = _Patrol(tree, ticks, leaves, seed)
     poses: list[list[float]] = []
-    x, y, heading = 0.0, 0.0, 0.0
-    alarm_id = 0
     for n in range(1, ticks + 1):
-        t = round((n - 1) * period, 6)
-        changed: list[dict[str, Any]] = []
-        bb: dict[str, Any] = {}
-        events: list[dict[str, Any]] = []
-
-        def change(path: str, status: str, changed: list[dict[str, Any]] = changed, **extra: Any) -> None:
-            was = active.get(path, "INVALID")
-            if was == status:
-                return
-            entry = {"node": path, "status": status, "was": was, **extra}
-            changed.append(entry)
-            if status == "INVALID":
-                active.pop(path, None)
-            else:
-                active[path] = status
-
-        if n == 1:
-            change("root/servo_then_resume/servo", "FAILURE", feedback="no new alarm", reason="no new alarm")
-            change("root/servo_then_resume", "FAILURE", feedback="no new alarm", reason="no new alarm")
-        for g, group in enumerate(group_paths):
-            step = f"{group}/step{leaf_at[g]}"
-            if n == ticks:
-                change(step, "SUCCESS", feedback="done")
-                change(group, "SUCCESS")
-                continue
-            if step not in active or active[step] != "RUNNING":
-                change(step, "RUNNING", feedback=f"to waypoint {leaf_at[g]}")
-                change(group, "RUNNING")
-                events.append(
-                    {
-                        "event": "goal_sent",
-                        "node": step.rsplit("/", 1)[1],
-                        "x": round(x + rng.uniform(-3, 3), 3),
-                        "y": round(y + rng.uniform(-3, 3), 3),
-                    }
-                )
-            elif n % 300 == 0:
-                change(step, "FAILURE", feedback="goal aborted", reason="no path to the goal: blocked")
-                change(group, "FAILURE")
-                events.append({"event": "goal_aborted", "node": step.rsplit("/", 1)[1], "reason": "blocked"})
-                leaf_at[g] = 0
-            elif n % 120 == 0:
-                change(step, "SUCCESS", feedback="reached")
-                leaf_at[g] = (leaf_at[g] + 1) % leaves
-                bb[f"waypoint_{g}"] = {"index": leaf_at[g], "x": round(x, 3), "y": round(y, 3)}
-        if n == 1 or (n == ticks):
-            change("root", "SUCCESS" if n == ticks else "RUNNING")
-        if n % 2 == 0:
-            events.append(
-                {
-                    "event": "model_call",
-                    "latency": round(rng.uniform(0.0, 0.05), 6),
-                    "node": "surveillance",
-                    "outcome": "succeeded",
-                    "provider": "sim_detector",
-                    "role": "detector",
-                }
-            )
-        if n % 600 == 300:
-            alarm_id += 1
-            events.append(
-                {
-                    "event": "alarm",
-                    "id": alarm_id,
-                    "node": "surveillance",
-                    "phase": "detected",
-                    "position": [round(x + 1.5, 4), round(y + 0.5, 4)],
-                    "robot_pose": [round(x, 4), round(y, 4), round(heading, 4)],
-                    "verdict": "ALARM: PERSON DETECTED",
-                }
-            )
-        heading += rng.uniform(-0.2, 0.2)
-        x = max(-9.0, min(9.0, x + 0.03 * math.cos(heading)))
-        y = max(-9.0, min(9.0, y + 0.03 * math.sin(heading)))
-        if n % max(1, round(tick_hz / 4)) == 0:
-            poses.append([round(t, 3), round(x, 3), round(y, 3)])
-        for event in events:
-            lines.append(_line({**event, "mission": "synthetic", "t": t, "tick": n}))
-        record: dict[str, Any] = {
-            "event": "tick",
-            "mission": "synthetic",
-            "status": active.get("root", "RUNNING"),
-            "t": t,
-            "tick": n,
-        }
-        if changed:
-            record["changed"] = changed
-        if bb:
-            record["bb"] = bb
-        lines.append(_line(record))
-    halted = [{"node": p, "status": "INVALID", "was": s} for p, s in sorted(active.items())]
-    end = round((ticks - 1) * period, 6)
-    lines.append(
-        _line({"changed": halted, "event": "halted", "mission": "synthetic", "t": end, "tick": ticks})
-    )
-    lines.append(
-        _line(
-            {
-                "duration": end,
-                "event": "mission_finished",
-                "mission": "synthetic",
-                "status": "SUCCESS",
-                "stopped_by": "status",
-                "t": end,
-                "tick": ticks,
-                "ticks": ticks,
-            }
-        )
-    )
+        lines += patrol.tick_lines(n, round((n - 1) * period, 6), poses, tick_hz)
+    lines += _closing_lines(patrol.active, ticks, period)
     log = run_dir / "ticks.jsonl"
     log.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    _write_view_and_summary(run_dir, tree, poses, ticks, tick_hz)
+    return log
+
+
+def _write_view_and_summary(
+    run_dir: Path, tree: dict[str, Any], poses: list[list[float]], ticks: int, tick_hz: float
+) -> None:
+    """runview.json with the tree, a walled 20 m map and the trajectory; summary.json."""
     grid = np.zeros((400, 400), dtype=np.int8)
     grid[0, :] = grid[-1, :] = grid[:, 0] = grid[:, -1] = 100
     grid[150:250, 200] = 100
@@ -263,4 +280,28 @@ def synthesize_run(
         + "\n",
         encoding="utf-8",
     )
-    return log
+
+
+def _closing_lines(active: dict[str, str], ticks: int, period: float) -> list[str]:
+    """The run's last lines: the nodes halted, then the mission finished with SUCCESS."""
+    lines: list[str] = []
+    halted = [{"node": p, "status": "INVALID", "was": s} for p, s in sorted(active.items())]
+    end = round((ticks - 1) * period, 6)
+    lines.append(
+        _line({"changed": halted, "event": "halted", "mission": "synthetic", "t": end, "tick": ticks})
+    )
+    lines.append(
+        _line(
+            {
+                "duration": end,
+                "event": "mission_finished",
+                "mission": "synthetic",
+                "status": "SUCCESS",
+                "stopped_by": "status",
+                "t": end,
+                "tick": ticks,
+                "ticks": ticks,
+            }
+        )
+    )
+    return lines

@@ -193,43 +193,12 @@ def _relations(
 ) -> list[RelationEdge]:
     """The relations of objects sorted by id: ``table`` rows (x, y, z, w, d, h), ``rooms`` their rooms."""
     xy = table[:, :2]
-    x, y = table[:, 0].copy(), table[:, 1].copy()
     half = table[:, 3:5] / 2.0
-    radius = half.max(axis=1)  # footprints as discs of the larger half-size: orientation is unknown
     bottom = table[:, 2] - table[:, 5] / 2.0
     top = table[:, 2] + table[:, 5] / 2.0
-    area = table[:, 3] * table[:, 4]
-    # candidate pairs: centres closer than the largest possible gap allows (a k-d tree, not n x n)
-    tree = cKDTree(xy)
-    pairs = tree.query_pairs(p.near_gap + 2.0 * float(radius.max()), output_type="ndarray")
-    if not len(pairs):
+    src, anc, gap, offset = _nearest_anchors(table, rooms, p)
+    if not len(src):
         return []
-    if p.same_room_only:
-        room_code = _room_codes(rooms)
-        ca, cc = room_code[pairs[:, 0]], room_code[pairs[:, 1]]
-        pairs = pairs[(ca == cc) | (ca < 0) | (cc < 0)]
-        if not len(pairs):
-            return []
-    a, c = pairs[:, 0], pairs[:, 1]
-    # the smaller (by area, ties: the later id) is the source, the other its anchor
-    a_small = (area[a] < area[c]) | ((area[a] == area[c]) & (a > c))
-    src = np.where(a_small, a, c)
-    anc = np.where(a_small, c, a)
-    dx, dy = x[src] - x[anc], y[src] - y[anc]
-    gap = np.hypot(dx, dy) - radius[src] - radius[anc]
-    row = np.flatnonzero(gap <= p.near_gap)  # rows of dx, dy; the offsets are taken at the end
-    src, anc, gap = src[row], anc[row], gap[row]
-    # each source keeps its max_per_object nearest anchors (ties: the lower anchor id)
-    if len(src) > _PRESELECT_FROM:
-        pick = _best_candidates(src, gap, p.max_per_object)
-        src, anc, gap, row = src[pick], anc[pick], gap[pick], row[pick]
-    order = np.lexsort((anc, gap, src))
-    src, anc, gap, row = src[order], anc[order], gap[order], row[order]
-    first = np.flatnonzero(np.concatenate(([True], src[1:] != src[:-1])))  # each source's first row
-    rank = np.arange(len(src)) - np.repeat(first, np.diff(np.append(first, len(src))))
-    keep = rank < p.max_per_object
-    src, anc, gap, row = src[keep], anc[keep], gap[keep], row[keep]
-    offset = np.stack((dx[row], dy[row]), axis=1)
     over = (np.abs(offset[:, 0]) <= half[anc, 0] + p.on_margin) & (
         np.abs(offset[:, 1]) <= half[anc, 1] + p.on_margin
     )
@@ -249,6 +218,49 @@ def _relations(
     names = [RELATIONS[k] for k in code.tolist()]
     edge = RelationEdge
     return [edge(ids[i], ids[j], r) for i, j, r in zip(src.tolist(), anc.tolist(), names, strict=True)]
+
+
+def _nearest_anchors(
+    table: np.ndarray, rooms: list[str | None], p: RelationParams
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each object's nearest anchors within ``near_gap``: (source, anchor, gap, offset) rows.
+
+    Of each close pair the smaller object (by footprint area; ties: the later id) is the source,
+    the other its anchor; a source keeps its ``max_per_object`` nearest anchors (ties: the lower
+    anchor id). Rows are sorted by source, then gap; the offset is the source's centre from the
+    anchor's (N, 2).
+    """
+    xy = table[:, :2]
+    x, y = table[:, 0].copy(), table[:, 1].copy()
+    radius = (table[:, 3:5] / 2.0).max(axis=1)  # footprints as discs of the larger half-size
+    area = table[:, 3] * table[:, 4]
+    none = np.zeros(0, int)
+    # candidate pairs: centres closer than the largest possible gap allows (a k-d tree, not n x n)
+    pairs = cKDTree(xy).query_pairs(p.near_gap + 2.0 * float(radius.max()), output_type="ndarray")
+    if len(pairs) and p.same_room_only:
+        room_code = _room_codes(rooms)
+        ca, cc = room_code[pairs[:, 0]], room_code[pairs[:, 1]]
+        pairs = pairs[(ca == cc) | (ca < 0) | (cc < 0)]
+    if not len(pairs):
+        return none, none, np.zeros(0), np.zeros((0, 2))
+    a, c = pairs[:, 0], pairs[:, 1]
+    a_small = (area[a] < area[c]) | ((area[a] == area[c]) & (a > c))
+    src = np.where(a_small, a, c)
+    anc = np.where(a_small, c, a)
+    dx, dy = x[src] - x[anc], y[src] - y[anc]
+    gap = np.hypot(dx, dy) - radius[src] - radius[anc]
+    row = np.flatnonzero(gap <= p.near_gap)  # rows of dx, dy; the offsets are taken at the end
+    src, anc, gap = src[row], anc[row], gap[row]
+    if len(src) > _PRESELECT_FROM:
+        pick = _best_candidates(src, gap, p.max_per_object)
+        src, anc, gap, row = src[pick], anc[pick], gap[pick], row[pick]
+    order = np.lexsort((anc, gap, src))
+    src, anc, gap, row = src[order], anc[order], gap[order], row[order]
+    first = np.flatnonzero(np.concatenate(([True], src[1:] != src[:-1])))  # each source's first row
+    rank = np.arange(len(src)) - np.repeat(first, np.diff(np.append(first, len(src))))
+    keep = rank < p.max_per_object
+    src, anc, gap, row = src[keep], anc[keep], gap[keep], row[keep]
+    return src, anc, gap, np.stack((dx[row], dy[row]), axis=1)
 
 
 _ON, _NEXT_TO, _NEAR, _IN_FRONT_OF, _BEHIND, _LEFT_OF, _RIGHT_OF = range(len(RELATIONS))

@@ -37,6 +37,7 @@ needs it fails with the reason in the tick log and a mission that does not runs 
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Mapping
 from typing import Any
@@ -139,64 +140,78 @@ def check_models_config(
     roles: dict[str, dict[str, Any]] = {}
     latency: dict[str, LatencyModel | None] = {}
     timeouts: dict[str, float | None] = {}
-    known = ", ".join(sorted(providers)) or "none"
     for role, section in raw_roles.items():
-        path = ("roles", role)
-        if role.startswith("_"):
-            problems.append(document.problem_at(path, f"role names may not start with '_' (found {role!r})",
-                                                key=True))
-            continue
-        if not isinstance(section, dict):
-            problems.append(document.problem_at(
-                path, f"expected a mapping with 'provider:', found {section!r}",
-                "e.g. vlm: {provider: offline_vlm}"))
-            continue
-        name = section.get("provider")
-        if not isinstance(name, str):
-            problems.append(document.problem_at(path, "expected 'provider: <name>'",
-                                                f"known providers: {known}"))
-        elif name not in providers and strict:
-            problems.append(document.problem_at((*path, "provider"), f"unknown model provider {name!r}",
-                                                f"known providers: {known}; a plugin may provide others"))
-        try:
-            latency[role] = LatencyModel.parse(section.get("latency"), "latency")
-        except ConfigError as exc:
-            problems.append(document.problem_at((*path, "latency"), str(exc)))
-        timeout = section.get("timeout", "default")
-        if timeout != "default":
-            if not _is_timeout(timeout):
-                problems.append(document.problem_at((*path, "timeout"), _TIMEOUT_EXPECTED.format(timeout)))
-            else:
+        if _check_role(document, role, section, providers, strict, problems):
+            roles[role] = section
+            with contextlib.suppress(ConfigError):  # reported by _check_role
+                latency[role] = LatencyModel.parse(section.get("latency"), "latency")
+            timeout = section.get("timeout", "default")
+            if timeout != "default" and _is_timeout(timeout):
                 timeouts[role] = float(timeout) if timeout is not None else None
-        roles[role] = section
-    calls = data.get("calls") or {}
-    default_timeout: float | None = 30.0
-    workers = 2
-    if not isinstance(calls, dict):
-        problems.append(document.problem_at(("calls",), f"expected a mapping, found {calls!r}"))
-    else:
-        for key in calls:
-            if key not in _CALLS_KEYS:
-                problems.append(document.problem_at(("calls", key), f"unknown option {key!r}",
-                                                    f"known: {', '.join(sorted(_CALLS_KEYS))}", key=True))
-        if "timeout" in calls:
-            value = calls["timeout"]
-            if not _is_timeout(value):
-                problems.append(document.problem_at(("calls", "timeout"), _TIMEOUT_EXPECTED.format(value)))
-            else:
-                default_timeout = float(value) if value is not None else None
-        if "workers" in calls:
-            value = calls["workers"]
-            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 32:
-                problems.append(document.problem_at(("calls", "workers"),
-                                                    f"expected a whole number from 1 to 32, found {value!r}"))
-            else:
-                workers = value
+    default_timeout, workers = _check_calls(document, data.get("calls") or {}, problems)
     if problems:
         raise ProblemsError(problems)
     settings = CallSettings(latency=latency, timeouts=timeouts, default_timeout=default_timeout,
                             workers=workers)
     return roles, settings
+
+
+def _check_role(document: Located, role: str, section: Any, providers: Mapping[str, Any], strict: bool,
+                problems: list[Problem]) -> bool:
+    """Check one role's section, adding to ``problems``; whether it is a mapping to keep."""
+    path = ("roles", role)
+    if role.startswith("_"):
+        problems.append(document.problem_at(path, f"role names may not start with '_' (found {role!r})",
+                                            key=True))
+        return False
+    if not isinstance(section, dict):
+        problems.append(document.problem_at(
+            path, f"expected a mapping with 'provider:', found {section!r}",
+            "e.g. vlm: {provider: offline_vlm}"))
+        return False
+    known = ", ".join(sorted(providers)) or "none"
+    name = section.get("provider")
+    if not isinstance(name, str):
+        problems.append(document.problem_at(path, "expected 'provider: <name>'",
+                                            f"known providers: {known}"))
+    elif name not in providers and strict:
+        problems.append(document.problem_at((*path, "provider"), f"unknown model provider {name!r}",
+                                            f"known providers: {known}; a plugin may provide others"))
+    try:
+        LatencyModel.parse(section.get("latency"), "latency")
+    except ConfigError as exc:
+        problems.append(document.problem_at((*path, "latency"), str(exc)))
+    timeout = section.get("timeout", "default")
+    if timeout != "default" and not _is_timeout(timeout):
+        problems.append(document.problem_at((*path, "timeout"), _TIMEOUT_EXPECTED.format(timeout)))
+    return True
+
+
+def _check_calls(document: Located, calls: Any, problems: list[Problem]) -> tuple[float | None, int]:
+    """Check the ``calls:`` section, adding to ``problems``; its (default timeout, workers)."""
+    default_timeout: float | None = 30.0
+    workers = 2
+    if not isinstance(calls, dict):
+        problems.append(document.problem_at(("calls",), f"expected a mapping, found {calls!r}"))
+        return default_timeout, workers
+    for key in calls:
+        if key not in _CALLS_KEYS:
+            problems.append(document.problem_at(("calls", key), f"unknown option {key!r}",
+                                                f"known: {', '.join(sorted(_CALLS_KEYS))}", key=True))
+    if "timeout" in calls:
+        value = calls["timeout"]
+        if not _is_timeout(value):
+            problems.append(document.problem_at(("calls", "timeout"), _TIMEOUT_EXPECTED.format(value)))
+        else:
+            default_timeout = float(value) if value is not None else None
+    if "workers" in calls:
+        value = calls["workers"]
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 32:
+            problems.append(document.problem_at(("calls", "workers"),
+                                                f"expected a whole number from 1 to 32, found {value!r}"))
+        else:
+            workers = value
+    return default_timeout, workers
 
 
 def _is_timeout(value: Any) -> bool:

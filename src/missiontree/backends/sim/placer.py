@@ -24,7 +24,6 @@ import numpy as np
 from scipy import ndimage
 
 from missiontree.backends.sim.world import World, build_world
-from missiontree.mapping.grid import OCCUPIED_FROM
 from missiontree.types import OccupancyGrid
 from missiontree.yamlio import Located
 
@@ -156,7 +155,7 @@ def scene_of(world: World) -> Scene:
     """The rasters :func:`place_objects` works on, for a built world."""
     grid = world.grid
     shape = grid.data.shape
-    walls = (grid.data >= OCCUPIED_FROM) | (grid.data < 0)
+    walls = (grid.data >= 50) | (grid.data < 0)
     blocked = walls.copy()
     for obj in world.objects:
         blocked |= footprint_mask(shape, grid, obj.footprint())
