@@ -20,7 +20,7 @@ from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.node_words import node_paths
 from missiontree.engine.ports import Output
-from missiontree.engine.tick_log import TickLog, TickRecorder, plain, read_log
+from missiontree.engine.tick_log import TickLog, TickRecorder, plain, read_log, read_records
 from missiontree.errors import ConfigError
 from missiontree.testing import ClockRobot, ScriptedLeaf, capture_tick_log, clean_state
 
@@ -198,6 +198,18 @@ def test_read_log_names_a_broken_line(tmp_path: Path) -> None:
     path.write_text('{"event": "tick"}\nnot json\n')
     with pytest.raises(ConfigError, match=r"ticks.jsonl:2: not a tick log line"):
         read_log(path)
+
+
+def test_one_reader_serves_a_finished_log_and_a_growing_one(tmp_path: Path) -> None:
+    """read_log takes a last line without its newline; read_records leaves it for the next read."""
+    path = tmp_path / "ticks.jsonl"
+    path.write_text('{"tick": 1}\n{"tick": 2}')
+    assert [r["tick"] for r in read_log(path)] == [1, 2]
+    records, offset = read_records(path)
+    assert [r["tick"] for r in records] == [1] and offset == len('{"tick": 1}\n')
+    path.write_text('{"tick": 1}\n{"tick": 2}\nbroken\n')
+    with pytest.raises(ConfigError, match=r"line 2 after byte 12: not a tick log line"):
+        read_records(path, offset)
 
 
 class _ThreadEmitter(Leaf):

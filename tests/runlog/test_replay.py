@@ -8,8 +8,9 @@ from pathlib import Path
 import pytest
 from runlog_helpers import read_lines, statuses_by_replaying
 
+from missiontree.engine.tick_log import read_records
 from missiontree.errors import ConfigError
-from missiontree.runlog.replay import KEYFRAME_EVERY, Replay, event_category, open_run, read_records
+from missiontree.runlog.replay import KEYFRAME_EVERY, Replay, event_category, open_run
 
 TREE = {
     "path": "main",
@@ -195,7 +196,7 @@ def test_a_partial_last_line_waits_for_the_next_read(tmp_path: Path):
 def test_a_broken_line_is_a_clear_error(tmp_path: Path):
     """A line that is not JSON names the file and line."""
     (tmp_path / "ticks.jsonl").write_text(json.dumps(tick(1)) + "\nnot json\n")
-    with pytest.raises(ConfigError, match="line 2"):
+    with pytest.raises(ConfigError, match=r"ticks.jsonl:2: not a tick log line"):
         open_run(tmp_path)
 
 

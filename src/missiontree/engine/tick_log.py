@@ -471,27 +471,45 @@ class TickRecorder:
 
 
 def read_log(path: Path) -> list[dict[str, Any]]:
-    """Read a ``ticks.jsonl`` back, one dict a line.
+    """Read a ``ticks.jsonl`` back, one dict a line (a last line without its newline too).
 
     Raises:
         ConfigError: The file is missing or a line is not JSON (names the line).
     """
+    return read_records(path, whole=True)[0]
+
+
+def read_records(path: Path, start: int = 0, *, whole: bool = False) -> tuple[list[dict[str, Any]], int]:
+    """The JSON lines of a tick log from byte ``start``; returns them and where the next read starts.
+
+    A last line without its newline (a run still writing) is left for the next read, unless
+    ``whole`` (a finished file): the one reader of tick logs, whole (:func:`read_log`) or as a
+    growing file yields them (the live viewer).
+
+    Raises:
+        ConfigError: The file cannot be read or a line is not a JSON object (names the line).
+    """
     from missiontree.errors import ConfigError
 
     try:
-        text = path.read_text(encoding="utf-8")
+        with path.open("rb") as stream:
+            stream.seek(start)
+            data = stream.read()
     except OSError as error:
         raise ConfigError(f"cannot read tick log {str(path)!r}: {error.strerror}") from error
-    lines: list[dict[str, Any]] = []
-    for number, line in enumerate(text.splitlines(), start=1):
+    end = len(data) if whole else data.rfind(b"\n") + 1
+    where = f"{path}:{{}}:" if start == 0 else f"{path}: line {{}} after byte {start}:"
+    records: list[dict[str, Any]] = []
+    for number, line in enumerate(data[:end].split(b"\n"), start=1):
         if not line.strip():
             continue
         try:
             record = json.loads(line)
-        except json.JSONDecodeError as error:
-            raise ConfigError(f"{path}:{number}: not a tick log line (expected one JSON object): "
-                              f"{error.msg}") from error
+        except (json.JSONDecodeError, UnicodeDecodeError) as error:
+            reason = error.msg if isinstance(error, json.JSONDecodeError) else "not UTF-8 text"
+            raise ConfigError(f"{where.format(number)} not a tick log line (expected one JSON object): "
+                              f"{reason}") from error
         if not isinstance(record, dict):
-            raise ConfigError(f"{path}:{number}: expected a JSON object, found {type(record).__name__}")
-        lines.append(record)
-    return lines
+            raise ConfigError(f"{where.format(number)} expected a JSON object, found {type(record).__name__}")
+        records.append(record)
+    return records, start + end

@@ -21,6 +21,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any, cast
 
+from missiontree.engine.tick_log import read_records
 from missiontree.runlog.html import page_data, render_page
 from missiontree.runlog.replay import (
     POSES_FILE,
@@ -28,7 +29,6 @@ from missiontree.runlog.replay import (
     Replay,
     load_tree,
     read_pose_trail,
-    read_records,
     read_runview,
 )
 

@@ -1,7 +1,7 @@
 """Replay a tick log: every node's status, feedback and reason, and the blackboard, at any tick.
 
 One reader for the viewer and the exports. A :class:`Replay` is fed tick-log records (dicts, as
-:func:`missiontree.engine.tick_log.read_log` returns them, or lines as a growing file yields them
+:func:`missiontree.engine.tick_log.read_records` returns them, whole or as a growing file yields them
 in ``--follow`` mode) and keeps compact lists: the tick numbers and times, the root status of each
 tick, the status changes in order (node, status, feedback, reason), blackboard writes, and the
 leaves' events. The state at a tick is rebuilt from the nearest keyframe (a full snapshot every
@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from missiontree.engine.tick_log import read_records
 from missiontree.errors import ConfigError
 
 #: Status names in the order of their codes (py_trees' INVALID is Groot's IDLE).
@@ -441,41 +442,6 @@ def log_path(run: Path) -> Path:
     if not run.exists():
         raise ConfigError(f"run {str(run)!r} does not exist; give a run directory or a ticks.jsonl")
     return run
-
-
-def read_records(path: Path, start: int = 0) -> tuple[list[dict[str, Any]], int]:
-    """Complete JSON lines of ``path`` from byte ``start``; returns them and where the next read starts.
-
-    A last line without its newline (a run still writing) is left for the next read.
-
-    Raises:
-        ConfigError: The file cannot be read or a line is not a JSON object (names the line).
-    """
-    try:
-        with path.open("rb") as stream:
-            stream.seek(start)
-            data = stream.read()
-    except OSError as error:
-        raise ConfigError(f"cannot read tick log {str(path)!r}: {error.strerror}") from error
-    end = data.rfind(b"\n") + 1
-    records: list[dict[str, Any]] = []
-    for number, line in enumerate(data[:end].split(b"\n"), start=1):
-        if not line.strip():
-            continue
-        try:
-            record = json.loads(line)
-        except json.JSONDecodeError as error:
-            raise ConfigError(
-                f"{path}: line {number} after byte {start}: not a tick log line (expected one "
-                f"JSON object): {error.msg}"
-            ) from error
-        if not isinstance(record, dict):
-            raise ConfigError(
-                f"{path}: line {number} after byte {start}: expected a JSON object, "
-                f"found {type(record).__name__}"
-            )
-        records.append(record)
-    return records, start + end
 
 
 def read_runview(run_dir: Path) -> dict[str, Any]:
