@@ -30,7 +30,7 @@ from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
@@ -43,6 +43,7 @@ from tf2_msgs.msg import TFMessage
 from missiontree.backends.ros2 import conversions as conv
 from missiontree.backends.ros2.profile import Ros2Profile
 from missiontree.backends.ros2.robot import latched_qos, reliable_qos
+from missiontree.backends.ros2.spin import spin_until, stop_spinning
 from missiontree.robot.actions import ActionStatus
 from missiontree.types import Pose2D
 
@@ -164,11 +165,7 @@ class SimBridge:
                                        kind.ros2.to_msg)
 
     def _spin(self) -> None:
-        try:
-            while self._context.ok() and not self._spin_stop.is_set():
-                self._executor.spin_once(timeout_sec=0.1)
-        except (ExternalShutdownException, rclpy.executors.ShutdownException):
-            pass
+        spin_until(self._context, self._executor, self._spin_stop)
 
     def _ros_now(self) -> float:
         return self.node.get_clock().now().nanoseconds * 1e-9
@@ -453,10 +450,7 @@ class SimBridge:
         """Stop serving, end running goals, leave the ROS graph and close the simulator."""
         self._stop.set()
         time.sleep(0.2)  # let running goals publish their end while the executor still spins
-        self._spin_stop.set()
-        if self._spinner.is_alive():
-            self._spinner.join(timeout=2.0)
-        self._executor.shutdown(timeout_sec=1.0)
+        stop_spinning(self._spin_stop, self._spinner, self._executor)
         self._server.destroy()
         self.node.destroy_node()
         if self._context.ok():

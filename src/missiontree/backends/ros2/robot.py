@@ -30,7 +30,7 @@ from geometry_msgs.msg import PoseStamped as PoseStampedMsg
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -43,6 +43,7 @@ from missiontree.backends.ros2.commands import TopicCommands
 from missiontree.backends.ros2.navigation import ActionGoal, NavGoal, TopicGoal
 from missiontree.backends.ros2.profile import Ros2Profile
 from missiontree.backends.ros2.publish import WorldPublisher
+from missiontree.backends.ros2.spin import spin_until, stop_spinning
 from missiontree.backends.ros2.tf_buffer import TransformBuffer, compose, history_at, invert
 from missiontree.robot.actions import ActionHandle
 from missiontree.robot.commands import Command
@@ -206,14 +207,7 @@ class Ros2Robot:
         node.create_timer(1.0 / DRIVE_REPEAT_HZ, self._on_timer)
 
     def _spin(self) -> None:
-        try:
-            while self._context.ok() and not self._spin_stop.is_set():
-                self._executor.spin_once(timeout_sec=0.1)
-        except (ExternalShutdownException, rclpy.executors.ShutdownException):
-            pass
-        except Exception:  # noqa: BLE001 - the context was shut down under the executor during close
-            if self._context.ok():
-                raise
+        spin_until(self._context, self._executor, self._spin_stop)
 
     # ------------------------------------------------------------------------------ callbacks
 
@@ -545,11 +539,7 @@ class Ros2Robot:
         finally:
             self._closed = True
             self._restore_sigint()
-            # The spinner stops before the executor is shut down: a callback running under a shutdown
-            # executor fails on its destroyed guard condition.
-            self._spin_stop.set()
-            self._spinner.join(timeout=2.0)
-            self._executor.shutdown(timeout_sec=1.0)
+            stop_spinning(self._spin_stop, self._spinner, self._executor)
             self.node.destroy_node()
             if self._context.ok():
                 self._context.try_shutdown()
