@@ -80,44 +80,57 @@ def scene_markers(
     ]
     where = {str(n["id"]): n["coordinates"] for n in objects}
     for node in objects:
-        x, y = float(node["coordinates"][0]), float(node["coordinates"][1])
-        z = float(node["coordinates"][2]) if len(node["coordinates"]) > 2 else CUBE / 2
-        key = str(node["id"])
-        r, g, b = colour(str(node.get("label", "")))
-        cube = _marker(Marker.CUBE, 2 * _stable_id(key), stamp, frame_id, NAMESPACE)
-        cube.pose.position.x, cube.pose.position.y, cube.pose.position.z = x, y, z
-        cube.scale.x = cube.scale.y = cube.scale.z = CUBE
-        cube.color = ColorRGBA(r=r, g=g, b=b, a=0.9)
-        labels_ns = f"{NAMESPACE}/labels"
-        text = _marker(Marker.TEXT_VIEW_FACING, 2 * _stable_id(key) + 1, stamp, frame_id, labels_ns)
-        text.pose.position.x, text.pose.position.y, text.pose.position.z = x, y, z + CUBE
-        text.scale.z = 0.15
-        text.color = ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0)
-        text.text = key
-        markers += [cube, text]
+        markers += _object_markers(node, stamp, frame_id, colour)
     edges = graph.get("edges")
     edges = edges if isinstance(edges, list) else []
     for node in nodes:
-        if not isinstance(node, Mapping) or node.get("type") != "room":
-            continue
-        inside = [
-            where[str(e.get("target_id"))]
-            for e in edges
-            if isinstance(e, Mapping)
-            and e.get("relation") == "contains"
-            and str(e.get("source_id")) == str(node.get("id"))
-            and str(e.get("target_id")) in where
-        ]
-        if not inside:
-            continue
-        name = _marker(
-            Marker.TEXT_VIEW_FACING, _stable_id(f"room:{node['id']}"), stamp, frame_id, f"{NAMESPACE}/rooms"
-        )
-        name.pose.position.x = sum(float(c[0]) for c in inside) / len(inside)
-        name.pose.position.y = sum(float(c[1]) for c in inside) / len(inside)
-        name.pose.position.z = 1.5
-        name.scale.z = 0.35
-        name.color = ColorRGBA(r=1.0, g=0.9, b=0.3, a=1.0)
-        name.text = f"{node.get('label', 'room')} ({node['id']})"
-        markers.append(name)
+        if isinstance(node, Mapping) and node.get("type") == "room":
+            name = _room_marker(node, edges, where, stamp, frame_id)
+            if name is not None:
+                markers.append(name)
     return MarkerArray(markers=markers)
+
+
+def _object_markers(node: Mapping[str, Any], stamp: float, frame_id: str,
+                    colour: Callable[[str], tuple[float, float, float]]) -> list[Marker]:
+    """An object's cube in its class's colour and its id above it."""
+    x, y = float(node["coordinates"][0]), float(node["coordinates"][1])
+    z = float(node["coordinates"][2]) if len(node["coordinates"]) > 2 else CUBE / 2
+    key = str(node["id"])
+    r, g, b = colour(str(node.get("label", "")))
+    cube = _marker(Marker.CUBE, 2 * _stable_id(key), stamp, frame_id, NAMESPACE)
+    cube.pose.position.x, cube.pose.position.y, cube.pose.position.z = x, y, z
+    cube.scale.x = cube.scale.y = cube.scale.z = CUBE
+    cube.color = ColorRGBA(r=r, g=g, b=b, a=0.9)
+    labels_ns = f"{NAMESPACE}/labels"
+    text = _marker(Marker.TEXT_VIEW_FACING, 2 * _stable_id(key) + 1, stamp, frame_id, labels_ns)
+    text.pose.position.x, text.pose.position.y, text.pose.position.z = x, y, z + CUBE
+    text.scale.z = 0.15
+    text.color = ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0)
+    text.text = key
+    return [cube, text]
+
+
+def _room_marker(node: Mapping[str, Any], edges: list[Any], where: Mapping[str, Any], stamp: float,
+                 frame_id: str) -> Marker | None:
+    """A room's name over the middle of the objects it contains (None when it contains none)."""
+    inside = [
+        where[str(e.get("target_id"))]
+        for e in edges
+        if isinstance(e, Mapping)
+        and e.get("relation") == "contains"
+        and str(e.get("source_id")) == str(node.get("id"))
+        and str(e.get("target_id")) in where
+    ]
+    if not inside:
+        return None
+    name = _marker(
+        Marker.TEXT_VIEW_FACING, _stable_id(f"room:{node['id']}"), stamp, frame_id, f"{NAMESPACE}/rooms"
+    )
+    name.pose.position.x = sum(float(c[0]) for c in inside) / len(inside)
+    name.pose.position.y = sum(float(c[1]) for c in inside) / len(inside)
+    name.pose.position.z = 1.5
+    name.scale.z = 0.35
+    name.color = ColorRGBA(r=1.0, g=0.9, b=0.3, a=1.0)
+    name.text = f"{node.get('label', 'room')} ({node['id']})"
+    return name
