@@ -45,3 +45,22 @@ def test_the_tracker_keeps_ids_when_the_map_grows_around_the_building() -> None:
     assert first.keys() == second.keys()
     for room_id, (x, y) in first.items():
         assert np.allclose(second[room_id], (x, y))
+
+
+def test_the_wave_in_a_corner_of_a_large_map_labels_as_on_the_small_map() -> None:
+    """The wave works within its open cells' box: the same labels as on a map cropped to them."""
+    from missiontree.semantics.room_watershed import wave
+
+    small = np.zeros((6, 7), np.int32)
+    small[2, 1] = 3
+    small[4, 5] = 5
+    open_small = small == 0
+    open_small[0, :] = False
+    large = np.zeros((60, 70), np.int32)
+    large[40:46, 50:57] = small
+    open_large = np.zeros((60, 70), bool)
+    open_large[40:46, 50:57] = open_small
+    wave(small, open_small)
+    wave(large, open_large)
+    assert np.array_equal(large[40:46, 50:57], small)
+    assert not large[:40].any() and not large[:, :50].any()

@@ -36,9 +36,9 @@ def late_cores(
         count, comp = cv2.connectedComponents((clearance > r).astype(np.uint8), connectivity=8)
         sizes = np.bincount(comp.ravel(), minlength=count)
         cored = np.zeros(count, bool)
-        cored[np.unique(comp[markers > 0])] = True
+        cored[comp[markers > 0]] = True  # a mark per piece (no sort of millions of cells)
         seeded = np.zeros(count, bool)
-        seeded[np.unique(comp[small])] = True
+        seeded[comp[small]] = True
         seeded[0] = False
         for piece in np.flatnonzero(seeded & ~cored & (sizes >= low) & (sizes <= high)):
             markers[comp == piece] = int(markers.max()) + 1
@@ -97,7 +97,27 @@ def wave(labels: np.ndarray, open_cells: np.ndarray) -> None:
     step takes the highest label (as a grey dilation would, step after step, but without
     redrawing the whole map at each of hundreds of steps on a real map). Open cells no region
     reaches (the outside of a building, a pocket) stay unlabelled.
+
+    Works within the open cells' box grown by a cell (the wave never leaves the open cells, and
+    its sources touch them): at the watershed's high levels a few cells, not the whole map.
     """
+    rows = np.flatnonzero(open_cells.any(axis=1))
+    if not rows.size:
+        return
+    cols = np.flatnonzero(open_cells.any(axis=0))
+    h, w = labels.shape
+    window = (slice(max(int(rows[0]) - 1, 0), min(int(rows[-1]) + 2, h)),
+              slice(max(int(cols[0]) - 1, 0), min(int(cols[-1]) + 2, w)))
+    if labels[window].size < labels.size:
+        part = np.ascontiguousarray(labels[window])
+        _wave_in(part, open_cells[window])
+        labels[window] = part
+    else:
+        _wave_in(labels, open_cells)
+
+
+def _wave_in(labels: np.ndarray, open_cells: np.ndarray) -> None:
+    """:func:`wave` on a contiguous ``labels`` (written in place through a flat view)."""
     h, w = labels.shape
     flat = labels.reshape(-1)  # a view: writing flat writes labels
     todo = open_cells.reshape(-1).copy()
@@ -141,7 +161,7 @@ def merge_open(labels: np.ndarray, clearance: np.ndarray, max_door_width: float)
     while merged:
         merged = False
         boxes = ndimage.find_objects(labels)
-        for a in sorted(set(np.unique(labels).tolist()) - {0}):
+        for a in _present(labels):
             # the region's box grown by a cell holds its dilation: work there, not on the whole map
             window = padded(boxes[a - 1], labels.shape, 1)
             near = labels[window]
@@ -187,7 +207,7 @@ def merge_small(labels: np.ndarray, min_cells: float) -> np.ndarray:
             changed = True
             break
     out = np.zeros_like(labels)
-    for i, old in enumerate(sorted(set(np.unique(labels).tolist()) - {0}), start=1):
+    for i, old in enumerate(_present(labels), start=1):
         out[labels == old] = i
     return out
 
@@ -199,3 +219,8 @@ def padded(box: tuple[slice, slice], shape: tuple[int, ...], pad: int) -> tuple[
         slice(max(rows.start - pad, 0), min(rows.stop + pad, shape[0])),
         slice(max(cols.start - pad, 0), min(cols.stop + pad, shape[1])),
     )
+
+
+def _present(labels: np.ndarray) -> list[int]:
+    """The labels above 0 that occur in ``labels`` (non-negative), ascending: a count, not a sort."""
+    return [int(v) for v in np.flatnonzero(np.bincount(labels.ravel())[1:]) + 1]
