@@ -90,7 +90,12 @@ def paint(color: np.ndarray, depth: np.ndarray, instances: np.ndarray, origin: t
                    np.ascontiguousarray(dy), np.ascontiguousarray(b), lut, prims.kind, prims.geom, prims.z,
                    prims.rgb, prims.pattern, _BOOKS)
         return color
-    row = lut[instances]
+    return _paint_numpy(color, depth, lut[instances], origin, dx, dy, b, prims)
+
+
+def _paint_numpy(color: np.ndarray, depth: np.ndarray, row: np.ndarray, origin: tuple[float, float, float],
+                 dx: np.ndarray, dy: np.ndarray, b: np.ndarray, prims: Primitives) -> np.ndarray:
+    """:func:`paint`'s numpy reference; ``row`` is each pixel's primitive (-1: none patterned)."""
     vs, us = np.nonzero((row >= 0) & np.isfinite(depth))
     if len(vs) == 0:
         return color
@@ -100,14 +105,33 @@ def paint(color: np.ndarray, depth: np.ndarray, instances: np.ndarray, origin: t
     x, y, z = ox + t * dx[us], oy + t * dy[us], hc + t * b[vs]
     z0, z1 = prims.z[p, 0], prims.z[p, 1]
     height, zr = z1 - z0, z - z0
+    s, width, cos, long, side = _side_faces(prims, p, x, y, dx[us], dy[us])
+    side &= (zr > 1e-4) & (zr < height - 1e-4)
+    if not side.any():
+        return color
+    keep = np.flatnonzero(side)
+    base = prims.rgb[p[keep]]
+    assert prims.pattern is not None  # paint() returned early without patterns
+    out = _pattern_rgb(prims.pattern[p[keep]], base, s[keep], width[keep], zr[keep], height[keep], long[keep])
+    shade = (0.55 + 0.45 * cos[keep])[:, None]
+    color[vs[keep], us[keep]] = np.clip(out * shade, 0, 255).astype(np.uint8)
+    return color
+
+
+def _side_faces(prims: Primitives, p: np.ndarray, x: np.ndarray, y: np.ndarray, ddx: np.ndarray,
+                ddy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Where points (x, y) of primitives ``p`` lie on their side faces, seen along rays (ddx, ddy).
+
+    Returns (s along the face, the face's width, cosine of the view to its normal, long face, on
+    a side face).
+    """
     g = prims.geom[p]
-    ddx, ddy = dx[us], dy[us]
     dlen = np.hypot(ddx, ddy)
-    s = np.zeros_like(t)
-    width = np.ones_like(t)
-    cos = np.ones_like(t)
-    long = np.ones(len(t), bool)
-    side = np.zeros(len(t), bool)
+    s = np.zeros_like(x)
+    width = np.ones_like(x)
+    cos = np.ones_like(x)
+    long = np.ones(len(x), bool)
+    side = np.zeros(len(x), bool)
     box = prims.kind[p] == BOX
     if box.any():
         c, sn, hx, hy = g[box, 2], g[box, 3], g[box, 4], g[box, 5]
@@ -129,15 +153,7 @@ def paint(color: np.ndarray, depth: np.ndarray, instances: np.ndarray, origin: t
         width[cyl] = 2 * np.pi * r
         cos[cyl] = np.abs(rx * ddx[cyl] + ry * ddy[cyl]) / (np.maximum(dist, 1e-9) * dlen[cyl])
         side[cyl] = np.abs(dist - r) < _SIDE_EPS
-    side &= (zr > 1e-4) & (zr < height - 1e-4)
-    if not side.any():
-        return color
-    keep = np.flatnonzero(side)
-    base = prims.rgb[p[keep]]
-    out = _pattern_rgb(prims.pattern[p[keep]], base, s[keep], width[keep], zr[keep], height[keep], long[keep])
-    shade = (0.55 + 0.45 * cos[keep])[:, None]
-    color[vs[keep], us[keep]] = np.clip(out * shade, 0, 255).astype(np.uint8)
-    return color
+    return s, width, cos, long, side
 
 
 def _hash(a, c):  # noqa: ANN001, ANN202 - arrays (numpy reference) or floats (numba loop)
@@ -145,109 +161,159 @@ def _hash(a, c):  # noqa: ANN001, ANN202 - arrays (numpy reference) or floats (n
     return (np.sin(a * 12.9898 + c * (12.9898 + 65.233)) * 43758.5453) % 1.0
 
 
+class _Shading:
+    """Colours (N, 3) and brightness factors (N,) of side-face points, as the patterns paint them."""
+
+    def __init__(self, base: np.ndarray) -> None:
+        self.out = base.copy()
+        self.m = np.ones(len(base))
+
+    def mult(self, mask: np.ndarray, factor: float | np.ndarray) -> None:
+        """Darken (or lighten) the points of ``mask`` by ``factor``."""
+        self.m[mask] = (factor[mask] if isinstance(factor, np.ndarray) else factor)
+
+    def over(self, mask: np.ndarray, rgb: np.ndarray) -> None:
+        """Paint the points of ``mask`` in ``rgb`` (one colour, or one a point), unshaded."""
+        self.out[mask] = rgb[mask] if rgb.ndim == 2 else rgb
+        self.m[mask] = 1.0
+
+
+# Each painter below: (shading, points of its pattern, s along the face, face width w, z above the
+# bottom, height h, long face, distance to the face's nearer edge).
+_Arrays = np.ndarray
+
+
+def _shelves(sh: _Shading, q: _Arrays, s: _Arrays, w: _Arrays, z: _Arrays, h: _Arrays, long: _Arrays,
+             edge: _Arrays) -> None:
+    """Shelves: a frame, boards every ~36 cm, books in the compartments (long faces only)."""
+    q = q & long
+    if not q.any():
+        return
+    frame = 0.035
+    n = np.maximum(2, np.round((h - 2 * frame) / 0.36))
+    pitch = (h - 2 * frame) / n
+    level = np.floor((z - frame) / pitch)
+    inner_z = z - frame - level * pitch             # height within the compartment
+    board = inner_z < 0.025
+    inside = q & (edge > frame) & (z > frame) & (z < h - frame) & ~board
+    sh.mult(inside, 0.42)
+    book = np.floor((s - frame) / 0.045).astype(np.int64)
+    chance = _hash(book.astype(np.float64), level)
+    tall = 0.6 + 0.3 * _hash(book + 7.0, level)
+    books = inside & (chance > 0.18) & (inner_z < tall * pitch) & (np.mod(s - frame, 0.045) > 0.004)
+    sh.over(books, _BOOKS[(chance * 1000).astype(np.int64) % len(_BOOKS)] * (0.7 + 0.3 * tall[:, None]))
+
+
+def _fridge(sh: _Shading, q: _Arrays, s: _Arrays, w: _Arrays, z: _Arrays, h: _Arrays, long: _Arrays,
+            edge: _Arrays) -> None:
+    """Refrigerator: a freezer door gap and two handles."""
+    split = 0.68 * h
+    sh.mult(q & (np.abs(z - split) < 0.008), 0.5)
+    bar = q & (s > w - 0.085) & (s < w - 0.055)
+    sh.over(bar & (z > split + 0.05) & (z < split + 0.05 + np.minimum(0.25, 0.5 * (h - split))), _HANDLE)
+    sh.over(bar & (z < split - 0.06) & (z > split - 0.06 - np.minimum(0.45, 0.5 * split)), _HANDLE)
+    sh.mult(q & (z < 0.05), 0.55)
+
+
+def _doors(sh: _Shading, q: _Arrays, s: _Arrays, w: _Arrays, z: _Arrays, h: _Arrays, long: _Arrays,
+           edge: _Arrays) -> None:
+    """Wardrobe, cabinet: two doors, two knobs, a plinth."""
+    ql = q & long
+    sh.mult(ql & (np.abs(s - w / 2) < 0.006), 0.5)
+    sh.mult(ql & (np.abs(np.abs(s - w / 2) - 0.06) < 0.015) & (np.abs(z - 0.5 * h) < 0.015), 0.45)
+    sh.mult(q & (z < 0.06), 0.55)
+
+
+def _screen(sh: _Shading, q: _Arrays, s: _Arrays, w: _Arrays, z: _Arrays, h: _Arrays, long: _Arrays,
+            edge: _Arrays) -> None:
+    """Tv, monitor: a bezel round a dark screen, brighter towards its top (long faces only)."""
+    q = q & long
+    if not q.any():
+        return
+    bezel = np.minimum(0.035, 0.1 * w)
+    screen = q & (edge > bezel) & (z > bezel) & (z < h - bezel)
+    glow = (z / np.maximum(h, 1e-6))[:, None] * _GLOW
+    sh.over(screen, _SCREEN + glow)
+
+
+def _legs(sh: _Shading, q: _Arrays, s: _Arrays, w: _Arrays, z: _Arrays, h: _Arrays, long: _Arrays,
+          edge: _Arrays) -> None:
+    """Table, desk, bench: a top, legs at the ends, shadow between them under the top."""
+    top = np.minimum(0.05, 0.15 * h)
+    under = q & (z < h - top) & (edge > 0.05)
+    sh.mult(under, 0.3)
+    sh.mult(under & (z > h - top - 0.06) & long, 0.75)   # the apron below the top
+
+
+def _chair(sh: _Shading, q: _Arrays, s: _Arrays, w: _Arrays, z: _Arrays, h: _Arrays, long: _Arrays,
+           edge: _Arrays) -> None:
+    """Chair: legs under a seat, a gap, a backrest."""
+    seat = 0.45 * h
+    sh.mult(q & (z < seat - 0.04) & (edge > 0.045), 0.3)
+    sh.mult(q & (z > seat) & (z < seat + 0.1) & (edge > 0.04), 0.45)
+    sh.mult(q & (z >= seat + 0.1) & (edge > 0.04), 0.85)
+
+
+def _cushions(sh: _Shading, q: _Arrays, s: _Arrays, w: _Arrays, z: _Arrays, h: _Arrays, long: _Arrays,
+              edge: _Arrays) -> None:
+    """Sofa: a dark plinth, the seat's front, a seam, back cushions between the armrests."""
+    arm = np.minimum(0.2, 0.12 * w)
+    seat = 0.45 * h
+    sh.mult(q & (z < 0.06), 0.35)
+    sh.mult(q & long & (z >= 0.06) & (z < seat), 0.85)
+    sh.mult(q & long & (np.abs(z - seat) < 0.012), 0.5)
+    n = np.maximum(1, np.round((w - 2 * arm) / 0.6))
+    cushion = np.mod(s - arm, (w - 2 * arm) / n)
+    seams = (np.minimum(cushion, (w - 2 * arm) / n - cushion) < 0.01) | (np.abs(edge - arm) < 0.01)
+    sh.mult(q & long & (z > seat) & (edge >= arm - 0.01) & seams, 0.55)
+
+
+def _bottle(sh: _Shading, q: _Arrays, s: _Arrays, w: _Arrays, z: _Arrays, h: _Arrays, long: _Arrays,
+            edge: _Arrays) -> None:
+    """Bottle: a dark cap, a lighter neck, a paper label."""
+    sh.mult(q & (z > 0.92 * h), 0.45)
+    sh.mult(q & (z > 0.72 * h) & (z <= 0.92 * h), 0.8)
+    sh.over(q & (z > 0.3 * h) & (z < 0.58 * h), _LABEL)
+
+
+def _umbrella(sh: _Shading, q: _Arrays, s: _Arrays, w: _Arrays, z: _Arrays, h: _Arrays, long: _Arrays,
+              edge: _Arrays) -> None:
+    """Umbrella, furled: a wooden handle, a metal tip, panel seams, a strap."""
+    sh.mult(q & (np.mod(s, w / 8) < 0.006), 0.6)
+    sh.mult(q & (np.abs(z - 0.5 * h) < 0.02), 0.7)
+    sh.over(q & (z < 0.12 * h), _UMBRELLA_HANDLE)
+    sh.over(q & (z > 0.95 * h), _HANDLE)
+
+
+def _plant(sh: _Shading, q: _Arrays, s: _Arrays, w: _Arrays, z: _Arrays, h: _Arrays, long: _Arrays,
+           edge: _Arrays) -> None:
+    """Potted plant: a terracotta pot, leaves of varying light."""
+    leaves = q & (z >= 0.38 * h)
+    sh.mult(leaves, 0.7 + 0.55 * _hash(np.floor(s / 0.05), np.floor(z / 0.05)))
+    sh.over(q & (z < 0.38 * h), _POT)
+
+
+def _rim(sh: _Shading, q: _Arrays, s: _Arrays, w: _Arrays, z: _Arrays, h: _Arrays, long: _Arrays,
+         edge: _Arrays) -> None:
+    """Cup, bin: a rim."""
+    sh.mult(q & (z > h - np.minimum(0.02, 0.12 * h)), 0.7)
+
+
+#: The numpy painters by pattern id, in the order they paint.
+_PAINTERS = {SHELVES: _shelves, FRIDGE: _fridge, DOORS: _doors, SCREEN: _screen, LEGS: _legs, CHAIR: _chair,
+             CUSHIONS: _cushions, BOTTLE: _bottle, UMBRELLA: _umbrella, PLANT: _plant, RIM: _rim}
+
+
 def _pattern_rgb(pattern: np.ndarray, base: np.ndarray, s: np.ndarray, w: np.ndarray, z: np.ndarray,
                  h: np.ndarray, long: np.ndarray) -> np.ndarray:
     """Unshaded colour (N, 3) of side-face points at ``s`` along faces ``w`` wide, ``z`` above the bottom."""
-    out = base.copy()
-    m = np.ones(len(s))
-
-    def mult(mask: np.ndarray, factor: float | np.ndarray) -> None:
-        m[mask] = (factor[mask] if isinstance(factor, np.ndarray) else factor)
-
-    def over(mask: np.ndarray, rgb: np.ndarray) -> None:
-        out[mask] = rgb[mask] if rgb.ndim == 2 else rgb
-        m[mask] = 1.0
-
+    shading = _Shading(base)
     edge = np.minimum(s, w - s)
-    # shelves: a frame, boards every ~36 cm, books in the compartments (long faces only)
-    q = (pattern == SHELVES) & long
-    if q.any():
-        frame = 0.035
-        n = np.maximum(2, np.round((h - 2 * frame) / 0.36))
-        pitch = (h - 2 * frame) / n
-        level = np.floor((z - frame) / pitch)
-        inner_z = z - frame - level * pitch             # height within the compartment
-        board = inner_z < 0.025
-        inside = q & (edge > frame) & (z > frame) & (z < h - frame) & ~board
-        mult(inside, 0.42)
-        book = np.floor((s - frame) / 0.045).astype(np.int64)
-        chance = _hash(book.astype(np.float64), level)
-        tall = 0.6 + 0.3 * _hash(book + 7.0, level)
-        books = inside & (chance > 0.18) & (inner_z < tall * pitch) & (np.mod(s - frame, 0.045) > 0.004)
-        over(books, _BOOKS[(chance * 1000).astype(np.int64) % len(_BOOKS)] * (0.7 + 0.3 * tall[:, None]))
-    # refrigerator: a freezer door gap and two handles
-    q = pattern == FRIDGE
-    if q.any():
-        split = 0.68 * h
-        mult(q & (np.abs(z - split) < 0.008), 0.5)
-        bar = q & (s > w - 0.085) & (s < w - 0.055)
-        over(bar & (z > split + 0.05) & (z < split + 0.05 + np.minimum(0.25, 0.5 * (h - split))), _HANDLE)
-        over(bar & (z < split - 0.06) & (z > split - 0.06 - np.minimum(0.45, 0.5 * split)), _HANDLE)
-        mult(q & (z < 0.05), 0.55)
-    # wardrobe, cabinet: two doors, two knobs, a plinth
-    q = pattern == DOORS
-    if q.any():
-        ql = q & long
-        mult(ql & (np.abs(s - w / 2) < 0.006), 0.5)
-        mult(ql & (np.abs(np.abs(s - w / 2) - 0.06) < 0.015) & (np.abs(z - 0.5 * h) < 0.015), 0.45)
-        mult(q & (z < 0.06), 0.55)
-    # tv, monitor: a bezel round a dark screen, brighter towards its top (long faces only)
-    q = (pattern == SCREEN) & long
-    if q.any():
-        bezel = np.minimum(0.035, 0.1 * w)
-        screen = q & (edge > bezel) & (z > bezel) & (z < h - bezel)
-        glow = (z / np.maximum(h, 1e-6))[:, None] * _GLOW
-        over(screen, _SCREEN + glow)
-    # table, desk, bench: a top, legs at the ends, shadow between them under the top
-    q = pattern == LEGS
-    if q.any():
-        top = np.minimum(0.05, 0.15 * h)
-        under = q & (z < h - top) & (edge > 0.05)
-        mult(under, 0.3)
-        mult(under & (z > h - top - 0.06) & long, 0.75)   # the apron below the top
-    # chair: legs under a seat, a gap, a backrest
-    q = pattern == CHAIR
-    if q.any():
-        seat = 0.45 * h
-        mult(q & (z < seat - 0.04) & (edge > 0.045), 0.3)
-        mult(q & (z > seat) & (z < seat + 0.1) & (edge > 0.04), 0.45)
-        mult(q & (z >= seat + 0.1) & (edge > 0.04), 0.85)
-    # sofa: a dark plinth, the seat's front, a seam, back cushions between the armrests
-    q = pattern == CUSHIONS
-    if q.any():
-        arm = np.minimum(0.2, 0.12 * w)
-        seat = 0.45 * h
-        mult(q & (z < 0.06), 0.35)
-        mult(q & long & (z >= 0.06) & (z < seat), 0.85)
-        mult(q & long & (np.abs(z - seat) < 0.012), 0.5)
-        n = np.maximum(1, np.round((w - 2 * arm) / 0.6))
-        cushion = np.mod(s - arm, (w - 2 * arm) / n)
-        seams = (np.minimum(cushion, (w - 2 * arm) / n - cushion) < 0.01) | (np.abs(edge - arm) < 0.01)
-        mult(q & long & (z > seat) & (edge >= arm - 0.01) & seams, 0.55)
-    # bottle: a dark cap, a lighter neck, a paper label
-    q = pattern == BOTTLE
-    if q.any():
-        mult(q & (z > 0.92 * h), 0.45)
-        mult(q & (z > 0.72 * h) & (z <= 0.92 * h), 0.8)
-        over(q & (z > 0.3 * h) & (z < 0.58 * h), _LABEL)
-    # umbrella, furled: a wooden handle, a metal tip, panel seams, a strap
-    q = pattern == UMBRELLA
-    if q.any():
-        mult(q & (np.mod(s, w / 8) < 0.006), 0.6)
-        mult(q & (np.abs(z - 0.5 * h) < 0.02), 0.7)
-        over(q & (z < 0.12 * h), _UMBRELLA_HANDLE)
-        over(q & (z > 0.95 * h), _HANDLE)
-    # potted plant: a terracotta pot, leaves of varying light
-    q = pattern == PLANT
-    if q.any():
-        leaves = q & (z >= 0.38 * h)
-        mult(leaves, 0.7 + 0.55 * _hash(np.floor(s / 0.05), np.floor(z / 0.05)))
-        over(q & (z < 0.38 * h), _POT)
-    # cup, bin: a rim
-    q = pattern == RIM
-    if q.any():
-        mult(q & (z > h - np.minimum(0.02, 0.12 * h)), 0.7)
-    return out * m[:, None]
+    for pattern_id, painter in _PAINTERS.items():
+        q = pattern == pattern_id
+        if q.any():
+            painter(shading, q, s, w, z, h, long, edge)
+    return shading.out * shading.m[:, None]
 
 
 # -- numba ---------------------------------------------------------------------------------------
@@ -255,9 +321,19 @@ def _pattern_rgb(pattern: np.ndarray, base: np.ndarray, s: np.ndarray, w: np.nda
 # numpy version above is the reference (tests/backends/sim/test_sim_patterns.py keeps them equal).
 
 
-def _pixel_rgb(pattern, base, s, w, z, h, long, books):  # noqa: ANN001, ANN202, C901, PLR0912, PLR0915
+def _pixel_rgb(pattern, base, s, w, z, h, long, books):  # noqa: ANN001, ANN202
     """Unshaded colour of one side-face point; see :func:`_pattern_rgb`."""
-    r, g, bl = base[0], base[1], base[2]
+    if pattern <= SCREEN:
+        r, g, bl, m = _pixel_cabinets(pattern, base[0], base[1], base[2], s, w, z, h, long, books)
+    elif pattern <= CUSHIONS:
+        r, g, bl, m = _pixel_seats(pattern, base[0], base[1], base[2], s, w, z, h, long)
+    else:
+        r, g, bl, m = _pixel_small(pattern, base[0], base[1], base[2], s, w, z, h)
+    return r * m, g * m, bl * m
+
+
+def _pixel_cabinets(pattern, r, g, bl, s, w, z, h, long, books):  # noqa: ANN001, ANN202, C901, PLR0912, PLR0913
+    """Colour (r, g, bl) and brightness factor of a point of shelves, a fridge, doors or a screen."""
     m = 1.0
     edge = min(s, w - s)
     if pattern == SHELVES and long:
@@ -298,7 +374,14 @@ def _pixel_rgb(pattern, base, s, w, z, h, long, books):  # noqa: ANN001, ANN202,
         if edge > bezel and bezel < z < h - bezel:
             f = z / max(h, 1e-6)
             r, g, bl, m = _SCREEN[0] + _GLOW[0] * f, _SCREEN[1] + _GLOW[1] * f, _SCREEN[2] + _GLOW[2] * f, 1.0
-    elif pattern == LEGS:
+    return r, g, bl, m
+
+
+def _pixel_seats(pattern, r, g, bl, s, w, z, h, long):  # noqa: ANN001, ANN202, C901, PLR0912, PLR0913
+    """Colour (r, g, bl) and brightness factor of a point of a table's legs, a chair or a sofa."""
+    m = 1.0
+    edge = min(s, w - s)
+    if pattern == LEGS:
         top = min(0.05, 0.15 * h)
         if z < h - top and edge > 0.05:
             m = 0.75 if z > h - top - 0.06 and long else 0.3
@@ -325,7 +408,13 @@ def _pixel_rgb(pattern, base, s, w, z, h, long, books):  # noqa: ANN001, ANN202,
         seam = min(cushion, width - cushion) < 0.01 or abs(edge - arm) < 0.01
         if long and z > seat and edge >= arm - 0.01 and seam:
             m = 0.55
-    elif pattern == BOTTLE:
+    return r, g, bl, m
+
+
+def _pixel_small(pattern, r, g, bl, s, w, z, h):  # noqa: ANN001, ANN202, PLR0913
+    """Colour (r, g, bl) and brightness factor of a point of a small object's pattern (bottle to rim)."""
+    m = 1.0
+    if pattern == BOTTLE:
         if z > 0.92 * h:
             m = 0.45
         if 0.72 * h < z <= 0.92 * h:
@@ -349,7 +438,7 @@ def _pixel_rgb(pattern, base, s, w, z, h, long, books):  # noqa: ANN001, ANN202,
     elif pattern == RIM:
         if z > h - min(0.02, 0.12 * h):
             m = 0.7
-    return r * m, g * m, bl * m
+    return r, g, bl, m
 
 
 def _paint_loops(color, depth, inst, ox, oy, hc, dx, dy, b, lut, kind, geom, pz, prgb, pattern,  # noqa: ANN001, ANN202
@@ -404,6 +493,9 @@ def _paint_loops(color, depth, inst, ox, oy, hc, dx, dy, b, lut, kind, geom, pz,
 
 if HAVE_NUMBA:
     _hash_one = numba.njit(cache=True)(_hash)
+    _pixel_cabinets = numba.njit(cache=True, inline="always")(_pixel_cabinets)
+    _pixel_seats = numba.njit(cache=True, inline="always")(_pixel_seats)
+    _pixel_small = numba.njit(cache=True, inline="always")(_pixel_small)
     _pixel_rgb = numba.njit(cache=True)(_pixel_rgb)
     _paint_jit = numba.njit(cache=True, nogil=True)(_paint_loops)
 else:  # pragma: no cover - exercised only without numba
