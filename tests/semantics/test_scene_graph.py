@@ -184,3 +184,15 @@ def test_json_text_has_one_node_or_edge_a_line_and_reads_back_exactly() -> None:
     assert json.loads(graph.to_json(indent=None)) == graph.to_dict()
     assert "\n" not in graph.to_json(indent=None)
     assert json.loads(SceneGraph().to_json()) == {"nodes": [], "edges": []}
+
+
+def test_non_finite_coordinates_are_refused_without_echoing_the_file() -> None:
+    """A NaN, infinite or overflowing coordinate is a SceneGraphError, and the message stays short."""
+    from missiontree.semantics.scene_graph import SceneGraph, SceneGraphError
+
+    for bad in ("[1.0, NaN, 0.2]", "[1.0, Infinity]", "[1e400, 0, 0]", '{"x": 1, "y": -Infinity}'):
+        node = '{"id": "cup_1", "type": "object", "label": "cup", "coordinates": ' + bad + "}"
+        text = '{"nodes": [' + node + '], "edges": []}'
+        with pytest.raises(SceneGraphError, match="expected finite numbers") as caught:
+            SceneGraph.from_json(text)
+        assert len(str(caught.value)) < 200

@@ -24,6 +24,7 @@ and the spatial relations of :mod:`missiontree.semantics.relations`; no language
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -392,20 +393,28 @@ def _read_node(index: int, raw: Any) -> dict[str, Any]:
     return node
 
 
+def _brief(raw: Any) -> str:
+    """A short form of an untrusted value for a message (never the whole of it)."""
+    text = repr(raw)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _read_coordinates(where: str, raw: Any) -> list[float]:
     if isinstance(raw, Mapping):
         try:
             values = [float(raw["x"]), float(raw["y"]), float(raw.get("z", 0.0))]
-        except (KeyError, TypeError, ValueError):
-            raise SceneGraphError(f"{where}: coordinates {raw!r}: expected x, y (and z) numbers") from None
-        return values
-    if isinstance(raw, list | tuple) and len(raw) in (2, 3):
+        except (KeyError, TypeError, ValueError, OverflowError):
+            raise SceneGraphError(f"{where}: coordinates {_brief(raw)}: expected x, y (and z)") from None
+    elif isinstance(raw, list | tuple) and len(raw) in (2, 3):
         try:
-            values = [float(v) for v in raw]
-        except (TypeError, ValueError):
-            raise SceneGraphError(f"{where}: coordinates {raw!r}: expected numbers") from None
-        return values + [0.0] * (3 - len(values))
-    raise SceneGraphError(f"{where}: coordinates {raw!r}: expected [x, y, z] or {{x, y, z}}")
+            values = [float(v) for v in raw] + [0.0] * (3 - len(raw))
+        except (TypeError, ValueError, OverflowError):
+            raise SceneGraphError(f"{where}: coordinates {_brief(raw)}: expected numbers") from None
+    else:
+        raise SceneGraphError(f"{where}: coordinates {_brief(raw)}: expected [x, y, z] or {{x, y, z}}")
+    if not all(math.isfinite(v) for v in values):  # a NaN place would reach the planner as a goal
+        raise SceneGraphError(f"{where}: coordinates {_brief(raw)}: expected finite numbers")
+    return values
 
 
 def _read_edge(index: int, raw: Any) -> dict[str, Any]:
