@@ -263,6 +263,69 @@ def page_data(
     """
     strings = _Strings()
     runview = read_runview(run_dir) if run_dir is not None else {}
+    numbers = replay.tick_numbers
+    consecutive = not numbers or numbers[-1] - numbers[0] == len(numbers) - 1
+    arrays = _tick_arrays(replay, strings)  # strings first: their indices follow the order of calls
+    events, frames = _events(replay, strings, run_dir, frame_cache)
+    poses: list[float] = []
+    for t, x, y in replay.poses:
+        poses += [round(t, 3), round(x, 3), round(y, 3)]
+    summary: dict[str, Any] = {}
+    if run_dir is not None and (run_dir / "summary.json").is_file():
+        try:
+            summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError):
+            summary = {}
+    meta = _meta(replay, runview, summary, follow)
+    return {
+        "v": 1,
+        "follow": follow,
+        "lines": replay.lines,
+        "meta": meta,
+        "statuses": list(STATUSES),
+        "categories": list(CATEGORIES),
+        "s": strings.items,
+        "nodes": arrays["nodes"],
+        "first_tick": numbers[0] if numbers else 0,
+        "tick_numbers": None if consecutive else numbers,
+        "times": arrays["times"],
+        "root": "".join(str(code) for code in replay.root_status),
+        "changes": arrays["changes"],
+        "bb": arrays["bb"],
+        "events": events,
+        "poses": poses,
+        "map": _map_of(run_dir, runview),
+        "frames": frames,
+        "scene": scene_layer(run_dir, summary, replay.events),
+        "ending": replay.ending(),
+    }
+
+
+def _meta(replay: Replay, runview: dict[str, Any], summary: dict[str, Any], follow: bool) -> dict[str, Any]:
+    """The run as the page's header shows it: mission, status, how it stopped, rate, robot, seed."""
+    finished = replay.finished
+    status = finished.get("status") or (STATUSES[replay.root_status[-1]] if replay.root_status else "INVALID")
+    meta = {
+        "mission": replay.started.get("mission") or summary.get("mission") or "",
+        "description": runview.get("description", ""),
+        "mission_file": runview.get("mission_file", ""),
+        "status": status,
+        "stopped_by": finished.get("stopped_by", "" if follow else "unknown (no mission_finished line)"),
+        "running": not finished,
+        "tick_hz": replay.started.get("tick_hz") or summary.get("tick_hz") or 10.0,
+        "robot": replay.started.get("robot", ""),
+        "seed": replay.started.get("seed"),
+        "declared": bool(runview.get("tree")) or any(n.type != "?" for n in replay.nodes),
+    }
+    return meta
+
+
+def _tick_arrays(replay: Replay, strings: _Strings) -> dict[str, list[Any]]:
+    """The tree's nodes, the status changes, the blackboard writes and the tick times, packed flat.
+
+    Changes and writes give the tick as a step from the one before, times in milliseconds as steps;
+    texts are indices into ``strings``.
+    """
     nodes = [
         [
             n.parent,
@@ -296,8 +359,13 @@ def page_data(
         ms = round(t * 1000)
         times.append(ms - last_ms)
         last_ms = ms
-    numbers = replay.tick_numbers
-    consecutive = not numbers or numbers[-1] - numbers[0] == len(numbers) - 1
+    return {"nodes": nodes, "times": times, "changes": changes, "bb": board}
+
+
+def _events(
+    replay: Replay, strings: _Strings, run_dir: Path | None, frame_cache: dict[str, str | None] | None,
+) -> tuple[list[Any], dict[str, str]]:
+    """The leaves' events packed flat, and the alarm and detection frames they name, encoded."""
     budget = [0, 0]
     events: list[Any] = []
     frames: dict[str, str] = {}
@@ -319,51 +387,7 @@ def page_data(
                 None if where is None else round(where[1], 3),
             ]
         )
-    poses: list[float] = []
-    for t, x, y in replay.poses:
-        poses += [round(t, 3), round(x, 3), round(y, 3)]
-    summary: dict[str, Any] = {}
-    if run_dir is not None and (run_dir / "summary.json").is_file():
-        try:
-            summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError):
-            summary = {}
-    finished = replay.finished
-    status = finished.get("status") or (STATUSES[replay.root_status[-1]] if replay.root_status else "INVALID")
-    meta = {
-        "mission": replay.started.get("mission") or summary.get("mission") or "",
-        "description": runview.get("description", ""),
-        "mission_file": runview.get("mission_file", ""),
-        "status": status,
-        "stopped_by": finished.get("stopped_by", "" if follow else "unknown (no mission_finished line)"),
-        "running": not finished,
-        "tick_hz": replay.started.get("tick_hz") or summary.get("tick_hz") or 10.0,
-        "robot": replay.started.get("robot", ""),
-        "seed": replay.started.get("seed"),
-        "declared": bool(runview.get("tree")) or any(n.type != "?" for n in replay.nodes),
-    }
-    return {
-        "v": 1,
-        "follow": follow,
-        "lines": replay.lines,
-        "meta": meta,
-        "statuses": list(STATUSES),
-        "categories": list(CATEGORIES),
-        "s": strings.items,
-        "nodes": nodes,
-        "first_tick": numbers[0] if numbers else 0,
-        "tick_numbers": None if consecutive else numbers,
-        "times": times,
-        "root": "".join(str(code) for code in replay.root_status),
-        "changes": changes,
-        "bb": board,
-        "events": events,
-        "poses": poses,
-        "map": _map_of(run_dir, runview),
-        "frames": frames,
-        "scene": scene_layer(run_dir, summary, replay.events),
-        "ending": replay.ending(),
-    }
+    return events, frames
 
 
 def _asset(name: str) -> str:
