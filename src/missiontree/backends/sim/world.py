@@ -33,15 +33,17 @@ from missiontree.backends.sim.navmap import contour_segments, read_nav2_map, res
 from missiontree.backends.sim.patterns import pattern_for
 from missiontree.backends.sim.people import Crowd, Person
 from missiontree.backends.sim.raycast import BOX, CYLINDER, SEGMENT, Primitives, Row
+from missiontree.backends.sim.robot_profiles import load_robot_profile as load_robot_profile  # re-exported
+from missiontree.backends.sim.robot_profiles import profile_problems
+from missiontree.backends.sim.robot_profiles import validate_model as _validate
 from missiontree.backends.sim.schema import (
     ObjectSpec,
-    RobotProfile,
     WorldSpec,
 )
 from missiontree.errors import ConfigError, Problem, WorldFileError
 from missiontree.paths import find_config
 from missiontree.types import OccupancyGrid, Pose2D
-from missiontree.yamlio import Located, error_message, load_yaml, validation_problems
+from missiontree.yamlio import Located, load_yaml
 
 #: Instance ids: 0 is floor and ceiling, 1 every wall; objects and people follow.
 FLOOR_INSTANCE, WALL_INSTANCE = 0, 1
@@ -209,8 +211,8 @@ def build_world(doc: Located, path: Path) -> World:
     except WorldFileError as exc:
         # report what can be checked without a valid file together with the schema problems: the
         # profile, the map reference, and the geometry of everything that is valid on its own
-        raise WorldFileError(exc.problems + _profile_problems(doc) + _lenient_geometry(doc, path)) from None
-    problems = _profile_problems(doc)
+        raise WorldFileError(exc.problems + profile_problems(doc) + _lenient_geometry(doc, path)) from None
+    problems = profile_problems(doc)
     world = _build(spec, doc, path, problems)
     if problems:
         raise WorldFileError(problems)
@@ -278,61 +280,6 @@ def _map_reference_problems(doc: Located, path: Path) -> list[Problem]:
     problems: list[Problem] = []
     resolve_reference(doc, ("map", "yaml"), target, path.parent, "map yaml", problems)
     return problems
-
-
-def _profile_problems(doc: Located) -> list[Problem]:
-    robot = doc.data.get("robot") if isinstance(doc.data, dict) else None
-    profile = robot.get("profile", "turtlebot4") if isinstance(robot, dict) else "turtlebot4"
-    if not isinstance(profile, str):
-        return []
-    try:
-        find_config("robots", profile)
-    except ConfigError as exc:
-        return [doc.problem_at(("robot", "profile"), str(exc), "create config/robots/<name>.yaml")]
-    return []
-
-
-def load_robot_profile(name: str | Path, overrides: dict[str, Any] | None = None) -> RobotProfile:
-    """Load a robot profile by name or path, with ``overrides`` merged over it.
-
-    Raises:
-        WorldFileError: The profile is missing or broken; or an override is.
-    """
-    try:
-        path = find_config("robots", name)
-    except ConfigError as exc:
-        raise WorldFileError([Problem(str(name), 0, 0, "", str(exc))]) from None
-    doc = load_yaml(path, error=WorldFileError)
-    if overrides:
-        merged = _deep_merge(copy.deepcopy(doc.data), overrides)
-        try:
-            return RobotProfile.model_validate(merged)
-        except pydantic.ValidationError as exc:
-            raise WorldFileError([
-                Problem("<config overrides>", 0, 0, ".".join(str(p) for p in e["loc"]),
-                        error_message(e, RobotProfile)) for e in exc.errors()
-            ]) from None
-    return _validate(doc, RobotProfile)
-
-
-def _deep_merge(base: Any, over: dict[str, Any]) -> Any:
-    if not isinstance(base, dict):
-        return over
-    for key, value in over.items():
-        if isinstance(value, dict) and isinstance(base.get(key), dict):
-            _deep_merge(base[key], value)
-        else:
-            base[key] = value
-    return base
-
-
-def _validate(doc: Located, model: type[pydantic.BaseModel]) -> Any:
-    if not isinstance(doc.data, dict):
-        raise WorldFileError([doc.problem_at((), f"expected a mapping, found {type(doc.data).__name__}")])
-    try:
-        return model.model_validate(doc.data)
-    except pydantic.ValidationError as exc:
-        raise WorldFileError(validation_problems(exc, doc, model, docs="docs/worlds.md")) from None
 
 
 # -- building ----------------------------------------------------------------------------------
