@@ -206,3 +206,26 @@ def test_on_a_live_graph_a_colour_no_object_has_sends_the_robot_to_look_at_each(
     assert ids and all(leaf.scene.objects[i].label == "chair" for i in ids) and leaf.confirm_only
     leaf.file_graph, leaf.confirm_only = object(), False  # a graph file is the user's word
     assert leaf._look_at_all(answer) == [] and not leaf.confirm_only
+
+
+def test_a_live_graph_that_grew_while_candidates_failed_is_read_again() -> None:
+    """The blue chair seen while looking at other chairs: the command is read again over the grown graph."""
+    from types import SimpleNamespace
+
+    from missiontree.reasoning.intent import Candidate, graph_objects
+    from missiontree.types import Pose2D
+
+    full = json.loads(Path(OFFICE_GRAPH).read_text(encoding="utf-8"))
+    before = {**full, "nodes": [n for n in full["nodes"] if n.get("id") != "chair_blue"]}
+    leaf = GoToIntent("go", GoToIntent.Params(scene_graph=""))
+    leaf._reset()
+    leaf.text = "the blue chair"
+    leaf.scene = graph_objects(before)
+    leaf.target = Candidate("chair_red", "chair", (1.3, 1.8), Pose2D(1.3, 1.0, 1.57), 3.0, 3.0)
+    leaf.ctx = SimpleNamespace(scene=SimpleNamespace(graph=full),  # type: ignore[assignment]
+                               events=SimpleNamespace(emit=lambda *a, **k: None))
+    asked: list[object] = []
+    leaf._ask = asked.append  # type: ignore[method-assign]
+    status = leaf._next("not confirmed: a chair, but red, not blue")
+    assert status == py_trees.common.Status.RUNNING and asked == [full] and leaf.rereads == 1
+    assert leaf.tried == [("chair_red", "not confirmed: a chair, but red, not blue")]

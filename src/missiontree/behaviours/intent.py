@@ -22,19 +22,24 @@ blackboard key, the ``intent_served`` event, ``<run_dir>/intent_served.json`` an
 object, label, the model's reason, the knowledge's score and why, whether it was confirmed, and
 what was tried before.
 
-Tick-log events: ``intent_interpreted``, ``candidate_rejected``, ``intent_ambiguous``,
+On a live graph the command is read again (up to :data:`REREADS` times) when a candidate fails and
+the graph has gained objects since (the object asked for seen on the way to another). The look on
+arrival is :mod:`missiontree.behaviours.intent_look`; the files read and written,
+:mod:`missiontree.behaviours.intent_files`.
+
+Tick-log events: ``intent_interpreted``, ``intent_reread``, ``intent_unsure``, ``approach_again``,
+``candidate_rejected``, ``intent_ambiguous``,
 ``goal_sent``, ``goal_result``, ``object_verified``, ``object_doubtful``, ``intent_served``.
 """
 
 from __future__ import annotations
 
-import json
 import math
-from pathlib import Path
 from typing import Annotated, Any
 
 from pydantic import BaseModel, Field
 
+from missiontree.behaviours.intent_files import find_scene_graph, record_outcome
 from missiontree.behaviours.intent_look import ArrivalLook, Step
 from missiontree.behaviours.intent_look import camera_view as _camera_view
 from missiontree.engine.leaf import Status
@@ -57,34 +62,10 @@ from missiontree.reasoning.schemas import IntentResolution
 from missiontree.robot.actions import ActionHandle, ActionStatus
 from missiontree.types import RGBDFrame, Tolerance
 
-#: The run-directory file listing each command's outcome: served object, why, confirmed (or why not).
-SERVED_FILE = "intent_served.json"
+#: Times a command is read again over a live graph that gained objects while candidates failed.
+REREADS = 2
 #: A goal aborted with the robot this close to it (m) counts as reached: the stack stopped just short.
 NEAR_ENOUGH = 0.4
-
-
-def find_scene_graph(name: str) -> Path:
-    """A graph file: ``name`` itself when it is a file, else ``config/scene_graphs/<name>.json``.
-
-    Raises:
-        ConfigError: Neither exists (lists the shipped graphs).
-    """
-    from missiontree.errors import ConfigError
-    from missiontree.paths import config_dirs
-
-    path = Path(name).expanduser()
-    if path.is_file():
-        return path
-    if path.suffix == "" and "/" not in name:
-        for folder in config_dirs():
-            candidate = folder / "scene_graphs" / f"{name}.json"
-            if candidate.is_file():
-                return candidate
-    shipped = sorted({p.stem for d in config_dirs() for p in (d / "scene_graphs").glob("*.json")})
-    raise ConfigError(
-        f"scene graph {name!r} not found: expected a JSON file in the NAIS shape or a shipped "
-        f"name ({', '.join(shipped) or 'none'}); give --set scene_graph=path/to/graph.json"
-    )
 
 
 # -- GoToIntent ----------------------------------------------------------------------------------------
@@ -166,6 +147,7 @@ class GoToIntent(ArrivalLook):
         self.because = ""          # the language model's reason for its candidates
         self.named = ""            # the class a referential command names ("" for a need)
         self.confirm_only = False  # candidates the graph does not vouch for: served only when a look confirms
+        self.rereads = 0           # times the command was read again over a live graph that grew
 
     def on_setup(self) -> None:
         """Load the graph file (a missing or malformed file fails here, before the first tick)."""
@@ -185,18 +167,19 @@ class GoToIntent(ArrivalLook):
         """Read the command and the graph, and ask the language model for candidates."""
         self._reset()
         self.text = str(self.read("command", "") or "").strip()
-        graph = (
-            self.file_graph
-            if self.file_graph is not None
-            else getattr(getattr(self.context, "scene", None), "graph", None)
-        )
+        graph = self.file_graph if self.file_graph is not None else self._live_graph()
         if not self.text or graph is None:
             return
+        self._ask(graph)
+
+    def _ask(self, graph: Any) -> None:
+        """Ask the language model for candidates over ``graph`` (doubted objects left out)."""
         self.scene = graph_objects(graph)
         listing = prompt_objects(self.scene, exclude=self._doubtful())
         self.call = model_caller(self.context).chat(
             "llm", intent_messages(self.text, listing), IntentResolution, node=self.name
         )
+        self.step = Step.INTERPRET
 
     def update(self) -> Status:
         """Advance the current step; every step returns at once."""
@@ -255,8 +238,15 @@ class GoToIntent(ArrivalLook):
             reason=answer.reason,
             reference=answer.reference.model_dump() if answer.reference is not None else None,
         )
+        if self.rereads:  # read again over a grown graph: what was tried is not tried again
+            done = {oid for oid, _ in self.tried}
+            ids = [i for i in ids if i not in done]
         if not ids:
+            self.confirm_only = False
             ids = self._look_at_all(answer)
+            ids = [i for i in ids if i not in {oid for oid, _ in self.tried}]
+        if not ids and self.rereads:
+            return self._give_up()
         if not ids:
             why = f"nothing in the map satisfies {self.text!r}: {answer.reason or 'no candidate'}"
             self._record({"command": self.text, "status": "not served", "reason": why})
@@ -508,9 +498,22 @@ class GoToIntent(ArrivalLook):
         assert self.target is not None
         self.tried.append((self.target.id, reason))
         self.target = None
+        live = None if self.file_graph is not None else self._live_graph()
+        if live is not None and self.rereads < REREADS and self._grew(live):
+            # the live graph gained objects while the robot drove and looked (the blue chair seen on the
+            # way to a chair the camera had listed grey): the command is read again over it
+            self.rereads += 1
+            self.emit("intent_reread", command=self.text, reason="the live graph gained objects")
+            self._ask(live)
+            return self.running(f"{Step.INTERPRET.value} again over the grown graph: {self.text!r}")
         if not self.remaining:
             return self._give_up()
         return self._plan()
+
+    def _grew(self, graph: Any) -> bool:
+        """Whether ``graph`` lists an object the scene the command was read over lacks."""
+        assert self.scene is not None
+        return bool(set(graph_objects(graph).objects) - set(self.scene.objects))
 
     def _give_up(self) -> Status:
         if not self.tried:
@@ -525,30 +528,14 @@ class GoToIntent(ArrivalLook):
         return self.fail(why)
 
     def _record(self, record: dict[str, Any]) -> None:
-        """Add the command's outcome to ``<run_dir>/intent_served.json`` and summary.json's ``outcome``.
+        """Add the command's outcome to summary.json's ``outcome`` and ``<run_dir>/intent_served.json``."""
+        failed = record_outcome(self.ctx, record)
+        if failed:
+            self.emit("intent_record_failed", **failed)
 
-        The outcome's ``intent`` section lists every command of the run (``commands``) with counts,
-        so that a user reading summary.json sees what was served, why and whether it was confirmed.
-        """
-        if self.ctx is not None:
-            before = self.ctx.outcome.get("intent", {})
-            commands = [*(before.get("commands", []) if isinstance(before, dict) else []), record]
-            self.ctx.report("intent", {
-                "served": sum(1 for c in commands if c.get("status") == "served"),
-                "not_served": sum(1 for c in commands if c.get("status") != "served"),
-                "commands": commands,
-                "text": _said(record),
-            })
-        run_dir = getattr(self.ctx, "run_dir", None)
-        if run_dir is None:
-            return
-        path = Path(run_dir) / SERVED_FILE
-        try:
-            fresh = self.context.starts(path) or not path.is_file()
-            entries = [] if fresh else json.loads(path.read_text(encoding="utf-8"))
-            path.write_text(json.dumps([*entries, record], indent=1, default=str) + "\n", encoding="utf-8")
-        except (OSError, ValueError) as error:
-            self.emit("intent_record_failed", path=str(path), error=str(error))
+    def _live_graph(self) -> Any:
+        """The graph a BuildSceneGraph earlier in the mission keeps (None without one)."""
+        return getattr(getattr(self.ctx, "scene", None), "graph", None)
 
     def _doubtful(self) -> list[str]:
         try:
@@ -558,12 +545,3 @@ class GoToIntent(ArrivalLook):
         return [str(v) for v in value] if isinstance(value, list) else []
 
 
-def _said(record: dict[str, Any]) -> str:
-    """One command's outcome in the mission's words, for the terminal's result line."""
-    command = record.get("command", "")
-    if record.get("status") == "served":
-        state = "confirmed" if record.get("confirmed") else "not confirmed"
-        because = record.get("chosen_because") or "the model named it"
-        return (f"{command!r}: served at {record.get('object')} ({record.get('label')}, {state}); "
-                f"chosen because {because}")
-    return f"{command!r}: not served: {record.get('reason', '')}"
