@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from missiontree.mapping.clearance import clearance_metres
 from missiontree.types import OccupancyGrid
 
 #: Distances (m) from the place: least, best, most.
@@ -34,8 +35,6 @@ def look_stand(
     clearance: float = CLEARANCE,
 ) -> tuple[float, float] | None:
     """A stand for looking at ``place`` (see module docstring); None when the map offers none."""
-    import cv2
-
     res = grid.resolution
     free = (grid.data >= 0) & (grid.data < 50)
     reach = int(math.ceil((far + clearance) / res)) + 1
@@ -45,7 +44,7 @@ def look_stand(
     if r0 >= r1 or c0 >= c1:
         return None
     window = free[r0:r1, c0:c1].astype(np.uint8)
-    room = cv2.distanceTransform(window, cv2.DIST_L2, 5) * res
+    room = clearance_metres(window, res)
     rows, cols = np.nonzero(room >= clearance)
     if not len(rows):
         return None

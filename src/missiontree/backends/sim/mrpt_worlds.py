@@ -36,6 +36,7 @@ from missiontree.backends.sim.placement import map_world
 from missiontree.backends.sim.placer import PASS_MARGIN, ROBOT_RADIUS
 from missiontree.backends.sim.world import register_world_source
 from missiontree.errors import Problem, WorldFileError
+from missiontree.mapping.clearance import clearance_metres
 from missiontree.mapping.mapfile import write_map
 from missiontree.mapping.mrpt_grid import GridmapError, read_gridmap
 from missiontree.types import OccupancyGrid, Pose2D
@@ -113,7 +114,7 @@ def crop_window(grid: OccupancyGrid, metres: float = CROP_METRES) -> tuple[int, 
     if rows <= side and cols <= side:
         return 0, 0, rows, cols
     free = (grid.data == 0).astype(np.uint8)
-    dist = cv2.distanceTransform(free, cv2.DIST_L2, 5) * grid.resolution
+    dist = clearance_metres(free, grid.resolution)
     drivable = (dist > ROBOT_RADIUS + PASS_MARGIN).astype(np.uint8)
     count, labels = cv2.connectedComponents(drivable, connectivity=8)
     sizes = np.bincount(labels.ravel(), minlength=count)

@@ -50,6 +50,7 @@ from missiontree.backends.sim.placer import (
 from missiontree.backends.sim.schema import NavMapYaml
 from missiontree.backends.sim.world import Room, World, load_robot_profile, register_world_source
 from missiontree.errors import Problem, WorldFileError
+from missiontree.mapping.clearance import clearance_metres
 from missiontree.paths import config_dirs
 from missiontree.semantics.rooms import segment_rooms
 from missiontree.types import OccupancyGrid, Pose2D
@@ -419,7 +420,7 @@ def map_start(map_yaml: Path, rng: np.random.Generator, clearance: float = 0.5) 
     """
     cells, res, (ox, oy) = _map_cells(map_yaml)
     free = cells == 0
-    dist = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, 5) * res
+    dist = clearance_metres(free, res)
     ok = dist > ROBOT_RADIUS + PASS_MARGIN
     count, comp = cv2.connectedComponents(ok.astype(np.uint8), connectivity=8)
     sizes = np.bincount(comp.ravel(), minlength=count)
@@ -477,7 +478,7 @@ def walkers(world: World, rng: np.random.Generator, count: int) -> list[dict[str
     """People walking to and fro on straight lines of open floor (0.35 m from anything) the robot reaches."""
     scene = scene_of(world)
     res = scene.grid.resolution
-    dist = cv2.distanceTransform((~scene.blocked).astype(np.uint8), cv2.DIST_L2, 5) * res
+    dist = clearance_metres(~scene.blocked, res)
     cells = np.argwhere(scene.reach & (dist >= 0.45))
     found: list[dict[str, Any]] = []
     for k in range(count):

@@ -24,6 +24,7 @@ import numpy as np
 from scipy import ndimage
 
 from missiontree.backends.sim.world import World, build_world
+from missiontree.mapping.clearance import clearance_metres
 from missiontree.types import OccupancyGrid
 from missiontree.yamlio import Located
 
@@ -159,7 +160,7 @@ def scene_of(world: World) -> Scene:
     blocked = walls.copy()
     for obj in world.objects:
         blocked |= footprint_mask(shape, grid, obj.footprint())
-    wall_dist = cv2.distanceTransform((~walls).astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
+    wall_dist = clearance_metres(~walls, grid.resolution)
     rooms = np.zeros(shape, np.int32)
     for i in range(len(world.rooms) - 1, -1, -1):  # the first room wins, as World.room_at
         rooms[footprint_mask(shape, grid, world.rooms[i].polygon)] = i + 1
@@ -178,7 +179,7 @@ def scene_of(world: World) -> Scene:
 
 
 def _robot_free(blocked: np.ndarray, res: float) -> np.ndarray:
-    dist = cv2.distanceTransform((~blocked).astype(np.uint8), cv2.DIST_L2, 5) * res
+    dist = clearance_metres(~blocked, res)
     return dist > ROBOT_RADIUS + PASS_MARGIN
 
 
@@ -198,7 +199,7 @@ def _near(mask: np.ndarray, metres: float, res: float) -> np.ndarray:
     """Cells within ``metres`` of a cell of ``mask`` (a distance transform: one pass, any radius)."""
     if not mask.any():
         return mask
-    return cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, 5) * res <= metres
+    return clearance_metres(~mask, res) <= metres
 
 
 #: A window of the grid: (rows, cols) slices.
@@ -250,7 +251,7 @@ class Placer:
     def free_dist(self) -> np.ndarray:
         """Distance (m, at most :data:`DIST_CAP`) of each cell to the nearest blocked one."""
         if self._free_dist is None:
-            dist = cv2.distanceTransform((~self.s.blocked).astype(np.uint8), cv2.DIST_L2, 5) * self.res
+            dist = clearance_metres(~self.s.blocked, self.res)
             self._free_dist = np.minimum(dist, DIST_CAP)
         return self._free_dist
 
@@ -316,7 +317,7 @@ class Placer:
             c0, c1 = max(cs.start - pad, 0), min(cs.stop + pad, w)
             local = np.ones((r1 - r0, c1 - c0), np.uint8)
             local[rs.start - r0 : rs.stop - r0, cs.start - c0 : cs.stop - c0][foot.mask] = 0
-            near = cv2.distanceTransform(local, cv2.DIST_L2, 5) * self.res
+            near = clearance_metres(local, self.res)
             self._free_dist[r0:r1, c0:c1] = np.minimum(self._free_dist[r0:r1, c0:c1], near)
         if foot.lost is not None:
             self.s.robot_free[foot.window] &= ~foot.lost
