@@ -98,8 +98,9 @@ def format_profile(mission: str, profile: dict[str, Any], top: int = 0) -> str:
         value = float(run.get(key, 0.0))
         out.append(f"{label:<27} {value:8.3f} s CPU  {_pct(value, cpu)} %")
     out.append("")
-    out.append("largest cost centres: " + "; ".join(
-        f"{name} {share:.0%}" for name, _, share in cost_centres(profile, top=5)))
+    centres = cost_centres(profile, top=5)
+    out.append("largest cost centres: " + ("; ".join(f"{name} {share:.0%}" for name, _, share in centres)
+                                           or "none (the run used no CPU after its start)"))
     return "\n".join(out)
 
 
