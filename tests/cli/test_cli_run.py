@@ -142,7 +142,7 @@ def test_broken_mission_exits_two_with_file_and_line(tmp_path: Path, capsys: Cap
 def test_unknown_backend_exits_two_naming_the_known_ones(tmp_path: Path, capsys: Capture) -> None:
     """--backend with a name nobody registered exits 2 and lists the backends."""
     assert main(["run", str(_write(tmp_path, MISSION)), "--backend", "gazebo"]) == 2
-    assert "known backends: clock, ros2, sim" in capsys.readouterr().err
+    assert "known backends: clock, recorded, ros2, sim" in capsys.readouterr().err
 
 
 def test_no_plugins_flag_leaves_installed_plugins_out(tmp_path: Path, capsys: Capture) -> None:

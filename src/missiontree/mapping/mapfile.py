@@ -19,9 +19,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from missiontree.errors import ProblemsError
 from missiontree.files import write_whole
 from missiontree.mapping.grid import FREE_BELOW, OCCUPIED_FROM
 from missiontree.types import OccupancyGrid, Pose2D
+from missiontree.yamlio import load_yaml
 
 FREE_PIXEL, OCCUPIED_PIXEL, UNKNOWN_PIXEL = 254, 0, 205
 SAVER_OCCUPIED_THRESH = 0.65
@@ -77,9 +79,9 @@ def read_map(yaml_path: str | Path, stamp: float = 0.0) -> OccupancyGrid:
     """
     path = Path(yaml_path)
     try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as exc:
-        raise MapFileError(f"{path}: cannot read the map yaml: {exc}") from None
+        doc = load_yaml(path).data
+    except ProblemsError as exc:
+        raise MapFileError(f"{path}: cannot read the map yaml: {exc.problems[0].message}") from None
     if not isinstance(doc, dict):
         raise MapFileError(f"{path}: expected a mapping with image, resolution and origin, found "
                            f"{type(doc).__name__}")

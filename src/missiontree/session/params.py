@@ -18,7 +18,8 @@ from typing import Any
 
 import yaml
 
-from missiontree.errors import ConfigError
+from missiontree.errors import ConfigError, ProblemsError
+from missiontree.yamlio import load_yaml
 
 __all__ = ["declared_params", "parse_assignment", "parse_overrides"]
 
@@ -38,8 +39,8 @@ def declared_params(mission: Path) -> dict[str, Any]:
     A file that cannot be read or parsed is left to the loader, which reports it with its line.
     """
     try:
-        data = yaml.safe_load(Path(mission).read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError, UnicodeDecodeError):
+        data = load_yaml(mission).data
+    except ProblemsError:
         return {}
     if not isinstance(data, dict) or not isinstance(data.get("params"), dict):
         return {}

@@ -54,7 +54,7 @@ from missiontree.mapping.clearance import clearance_metres
 from missiontree.paths import config_dirs
 from missiontree.semantics.rooms import segment_rooms
 from missiontree.types import OccupancyGrid, Pose2D
-from missiontree.yamlio import Located, parse_yaml
+from missiontree.yamlio import Located, load_yaml, parse_yaml
 
 #: Room types handed to rooms that have none (rooms found on a real map), after the largest.
 SEGMENTED_TYPES = ["kitchen", "office", "bedroom", "bathroom", "storage", "living room", "hall"]
@@ -407,7 +407,7 @@ def unreachable_rooms(world: World) -> list[str]:
 
 def _map_cells(map_yaml: Path) -> tuple[np.ndarray, float, tuple[float, float]]:
     """Occupancy values of a Nav2 map yaml's image (row 0 = lowest y), resolution, origin (x, y)."""
-    meta = NavMapYaml.model_validate(yaml.safe_load(map_yaml.read_text(encoding="utf-8")))
+    meta = NavMapYaml.model_validate(load_yaml(map_yaml, error=WorldFileError).data)
     image = read_map_image((map_yaml.parent / meta.image).resolve())
     return map_cells(image, meta), meta.resolution, (meta.origin[0], meta.origin[1])
 
