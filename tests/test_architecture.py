@@ -13,8 +13,9 @@ collected, each marked as made at import time (module level), inside a function,
   layer, never a part of its own layer, and never across :data:`APART` (the engine and the domain
   stand beside each other; the CLI reaches the backends only through the session).
 - **private names** — no module takes a ``_name`` from another module, neither as
-  ``from m import _name`` nor as ``m._name`` on an imported module: what another module needs is
-  public, or lives where it is needed.
+  ``from m import _name`` nor as ``m._name`` on an imported module, nor as ``x._name`` on an object
+  when only other modules define ``_name`` (a function, class, module variable or ``self._name``
+  attribute): what another module needs is public, or lives where it is needed.
 
 Violations that belong to work in progress elsewhere are listed in :data:`ALLOWED`, each with its
 reason and issue; an entry whose violation no longer exists fails the test, so the list only shrinks.
@@ -77,6 +78,8 @@ class Allowed:
 
 _SEMANTIC_MAP = "scene graph (perception/fusion, merge, absence, plausibility)"
 _MAP_HOME = "the semantic map (fusion, merge, absence) moves under semantics/ over a shared fusion state"
+_SIM = "simulator (backends/sim world, robot, navigation)"
+_NAV_SPLIT = "navigation split into planner, controller, recovery and a handle that owns its state"
 
 #: Known violations by their key (see :func:`violations`); grouped by the area that owns the files.
 ALLOWED: dict[str, Allowed] = {
@@ -85,6 +88,10 @@ ALLOWED: dict[str, Allowed] = {
         Allowed(_SEMANTIC_MAP, f"fusion, merge and absence import each other; {_MAP_HOME}", 31),
     "private missiontree.perception.merge -> missiontree.perception.fusion._Track":
         Allowed(_SEMANTIC_MAP, f"merge reaches into fusion's track; {_MAP_HOME}", 31),
+    "private missiontree.perception.merge -> ._k":
+        Allowed(_SEMANTIC_MAP, f"merge reads fusion's private tunable; {_MAP_HOME}", 31),
+    "private missiontree.perception.merge -> ._outline_centre":
+        Allowed(_SEMANTIC_MAP, f"merge calls fusion's private method; {_MAP_HOME}", 31),
     "upward missiontree.perception.absence -> missiontree.semantics.semantic_map":
         Allowed(_SEMANTIC_MAP, _MAP_HOME, 31),
     "upward missiontree.perception.fusion -> missiontree.semantics.semantic_map":
@@ -94,6 +101,16 @@ ALLOWED: dict[str, Allowed] = {
     "upward missiontree.perception.plausibility -> missiontree.mapping.grid":
         Allowed(_SEMANTIC_MAP, "a fusion check that reads the learned map's cells: it goes with the "
                 "semantic map (above mapping), not per-frame perception", 31),
+    # -- the simulator's navigator writes its handle's state (issue 31, deliverable 7)
+    "private missiontree.backends.sim.navigation -> ._finish":
+        Allowed(_SIM, f"the navigator ends SimNavHandle from outside; {_NAV_SPLIT}", 31),
+    "private missiontree.backends.sim.navigation -> ._status":
+        Allowed(_SIM, f"the navigator sets SimNavHandle's status; {_NAV_SPLIT}", 31),
+    "private missiontree.backends.sim.navigation -> ._feedback":
+        Allowed(_SIM, f"the navigator sets SimNavHandle's feedback; {_NAV_SPLIT}", 31),
+    "private missiontree.backends.sim.robot -> ._stamps":
+        Allowed(_SIM, "the simulated robot reads StampedHistory's private stamps; the history needs a "
+                "public query for what the robot asks", 31),
 }
 
 
@@ -198,6 +215,31 @@ class _ImportReader:
                 found.append((self.bound[node.value.id], node.attr, node.lineno))
         return found
 
+    def object_attributes(self) -> list[tuple[str, int]]:
+        """(private name, line) for each ``x._name`` on anything but ``self``, ``cls`` or a module."""
+        found = []
+        for node in ast.walk(self.tree):
+            if not (isinstance(node, ast.Attribute) and _is_private(node.attr)):
+                continue
+            value = node.value
+            if isinstance(value, ast.Name) and (value.id in ("self", "cls") or value.id in self.bound):
+                continue
+            found.append((node.attr, node.lineno))
+        return found
+
+    def private_definitions(self) -> set[str]:
+        """Private names this file defines: functions, classes, module variables, ``self._x`` attributes."""
+        names: set[str] = set()
+        for node in ast.walk(self.tree):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+                names.add(node.name)
+            elif (isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store)
+                  and isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
+                names.add(node.attr)
+            elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+                names.add(node.id)
+        return {name for name in names if _is_private(name)}
+
 
 def _in_package(target: str) -> bool:
     return target == "missiontree" or target.startswith("missiontree.")
@@ -207,11 +249,24 @@ def read_file(
     name: str, path: Path, modules: dict[str, Path],
 ) -> tuple[list[Import], list[tuple[str, str, int]]]:
     """The file's imports of the package and its private attribute reads (see :class:`_ImportReader`)."""
-    reader = _ImportReader(name, path, modules)
+    return _read(_ImportReader(name, path, modules))
+
+
+def _read(reader: _ImportReader) -> tuple[list[Import], list[tuple[str, str, int]]]:
     reader.visit(reader.tree.body, True, False)
     imports = [i for i in reader.imports if _in_package(i.imported)]
     private = [p for p in reader.private_attributes() if _in_package(p[0])]
     return imports, private
+
+
+def object_crossings(readers: dict[str, _ImportReader]) -> list[tuple[str, str, int]]:
+    """(reader, private name, line) for each ``x._name`` whose name only other modules define."""
+    owners: dict[str, set[str]] = defaultdict(set)
+    for name, reader in readers.items():
+        for private in reader.private_definitions():
+            owners[private].add(name)
+    return [(name, attr, line) for name, reader in readers.items()
+            for attr, line in reader.object_attributes() if owners.get(attr) and name not in owners[attr]]
 
 
 def imports_of(name: str, path: Path, modules: dict[str, Path]) -> list[Import]:
@@ -229,14 +284,15 @@ def _owning_module(target: str, modules: dict[str, Path]) -> str:
 def package_imports() -> tuple[list[Import], list[tuple[str, str, str, int]]]:
     """Every import between two modules of the package, and every private name read across modules.
 
-    The second list holds (importer, module, private name, line), from both ``from m import _x`` and
-    ``m._x``.
+    The second list holds (importer, module, private name, line), from ``from m import _x``, ``m._x``
+    and ``x._name`` on an object (module ``""``: the name is only defined elsewhere).
     """
     modules = module_files()
     every: list[Import] = []
     private: list[tuple[str, str, str, int]] = []
-    for name, path in modules.items():
-        imports, attributes = read_file(name, path, modules)
+    readers = {name: _ImportReader(name, path, modules) for name, path in modules.items()}
+    for name, reader in readers.items():
+        imports, attributes = _read(reader)
         for item in imports:
             target = _owning_module(item.imported, modules)
             if target == name:
@@ -244,6 +300,7 @@ def package_imports() -> tuple[list[Import], list[tuple[str, str, str, int]]]:
             every.append(Import(name, target, item.line, item.top, item.type_only, item.names))
             private.extend((name, target, n, item.line) for n in item.names if _is_private(n))
         private.extend((name, m, attr, line) for m, attr, line in attributes if m != name)
+    private.extend((name, "", attr, line) for name, attr, line in object_crossings(readers))
     return every, private
 
 
@@ -424,6 +481,18 @@ def test_private_names_are_found_in_from_imports_and_on_modules(tmp_path: Path) 
     assert taken == {("missiontree.perception.fusion", "_Track"), ("missiontree.perception.fusion", "track")}
     assert sorted((m, a) for m, a, _ in attributes) == [
         ("missiontree.mapping.grid", "_k"), ("missiontree.perception.fusion", "_outline_centre")]
+
+
+def test_a_private_attribute_defined_only_elsewhere_is_a_crossing(tmp_path: Path) -> None:
+    """``other._k`` counts when only another module defines ``_k``; ``self._k`` and own names do not."""
+    owner, reader, own = tmp_path / "owner.py", tmp_path / "reader.py", tmp_path / "own.py"
+    owner.write_text("class Fusion:\n    def __init__(self):\n        self._k = 1\n", encoding="utf-8")
+    reader.write_text("def merge(fusion):\n    return fusion._k\n", encoding="utf-8")
+    own.write_text("class A:\n    _k = 2\n    def f(self, other):\n        return other._k + self._k\n",
+                   encoding="utf-8")
+    modules = {"m.owner": owner, "m.reader": reader, "m.own": own}
+    readers = {name: _ImportReader(name, path, modules) for name, path in modules.items()}
+    assert object_crossings(readers) == [("m.reader", "_k", 2)]
 
 
 def test_an_upward_or_apart_import_is_reported() -> None:
