@@ -204,3 +204,35 @@ def test_a_directory_without_a_log_is_a_clear_error(tmp_path: Path):
     """Viewing a directory that is not a run says what is missing."""
     with pytest.raises(ConfigError, match="no ticks.jsonl"):
         open_run(tmp_path)
+
+
+def test_a_damaged_recorded_tree_is_refused_naming_the_file(tmp_path: Path) -> None:
+    """A runview.json whose tree has a node without a path is a ConfigError naming the file, not a crash."""
+    import json as _json
+
+    from missiontree.errors import ConfigError
+    from missiontree.runlog.replay import open_run
+    from missiontree.runlog.synthetic import synthesize_run
+
+    run = tmp_path / "run"
+    synthesize_run(run, 20)
+    view = _json.loads((run / "runview.json").read_text())
+    view["tree"]["children"][0] = {"name": 3.5}
+    (run / "runview.json").write_text(_json.dumps(view))
+    with pytest.raises(ConfigError, match=r"runview\.json: its tree is not one .* \(a node without a path\)"):
+        open_run(run)
+
+
+def test_recorded_poses_that_are_not_finite_numbers_are_left_out(tmp_path: Path) -> None:
+    """Rows of the recorded trajectory with NaN, text or too few values are not drawn as poses."""
+    import json as _json
+
+    from missiontree.runlog.replay import open_run
+    from missiontree.runlog.synthetic import synthesize_run
+
+    run = tmp_path / "run"
+    synthesize_run(run, 20)
+    view = _json.loads((run / "runview.json").read_text())
+    view["poses"] = [[0.0, 1.0, 2.0], [0.1, float("nan"), 2.0], [0.2, "x", 1.0], [0.3, 1.0], [0.4, 1.5, 2.5]]
+    (run / "runview.json").write_text(_json.dumps(view))
+    assert open_run(run).poses == [(0.0, 1.0, 2.0), (0.4, 1.5, 2.5)]

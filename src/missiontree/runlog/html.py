@@ -276,6 +276,8 @@ def page_data(
             summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
         except (OSError, json.JSONDecodeError):
             summary = {}
+        if not isinstance(summary, dict):  # a damaged summary is not a reason to lose the page
+            summary = {}
     meta = _meta(replay, runview, summary, follow)
     return {
         "v": 1,

@@ -15,6 +15,7 @@ are added under their parent path, so a log alone still replays.
 from __future__ import annotations
 
 import json
+import math
 from bisect import bisect_right
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -469,8 +470,46 @@ def load_tree(mission: Path | None, run_dir: Path | None) -> dict[str, Any] | No
     if run_dir is not None:
         tree = read_runview(run_dir).get("tree")
         if isinstance(tree, dict):
+            why = _not_a_tree(tree, 0, [0])
+            if why:
+                raise ConfigError(f"{Path(run_dir) / RUNVIEW_FILE}: its tree is not one a run records "
+                                  f"({why}); delete the file to view the log alone, or give the mission file")
             return tree
     return None
+
+
+#: A recorded tree's limits: nodes and depth (a real mission is far inside them).
+MAX_TREE_NODES = 100_000
+MAX_TREE_DEPTH = 200
+_TEXT_KEYS = ("name", "type", "category", "source")
+
+
+def _not_a_tree(node: Any, depth: int, count: list[int]) -> str:
+    """Why ``node`` is not a recorded tree node with well-formed children ("" when it is)."""
+    count[0] += 1
+    if count[0] > MAX_TREE_NODES or depth > MAX_TREE_DEPTH:
+        return f"more than {MAX_TREE_NODES:,} nodes or {MAX_TREE_DEPTH} levels"
+    if not isinstance(node, dict) or not isinstance(node.get("path"), str) or not node["path"]:
+        return "a node without a path"
+    if any(not isinstance(node.get(key, ""), str) for key in _TEXT_KEYS):
+        return "a node whose name, type, category or source is not text"
+    if not isinstance(node.get("params") or {}, dict) or not isinstance(node.get("children", []), list):
+        return "a node whose params are not a mapping or whose children are not a list"
+    for child in node.get("children", []):
+        why = _not_a_tree(child, depth + 1, count)
+        if why:
+            return why
+    return ""
+
+
+def _pose_row(row: Any) -> tuple[float, float, float] | None:
+    """A recorded pose row ``[t, x, y, ...]`` as three finite numbers, or None."""
+    if not isinstance(row, list | tuple) or len(row) < 3:
+        return None
+    values = row[:3]
+    if any(isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) for v in values):
+        return None
+    return float(values[0]), float(values[1]), float(values[2])
 
 
 def open_run(run: Path, mission: Path | None = None) -> Replay:
@@ -489,8 +528,8 @@ def open_run(run: Path, mission: Path | None = None) -> Replay:
     poses = read_runview(run_dir).get("poses")
     if not poses:
         poses = [list(p) for p in read_pose_trail(run_dir)]
-    if isinstance(poses, list) and poses:
-        replay.set_poses([tuple(p[:3]) for p in poses if isinstance(p, list) and len(p) >= 3])
+    if isinstance(poses, list) and poses:  # rows that are not three finite numbers are not a pose
+        replay.set_poses([row for row in map(_pose_row, poses) if row is not None])
     return replay
 
 
