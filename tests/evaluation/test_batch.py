@@ -70,3 +70,17 @@ def test_runs_in_out_need_resume_and_stale_partials_go(tmp_path: Path) -> None:
     stale.mkdir()
     run_batch(plan, SerialEngine(), tmp_path / "out", resume=True, fn=fake_run)
     assert not stale.exists()
+
+
+def test_a_cut_record_is_set_aside_and_its_run_done_again(tmp_path: Path) -> None:
+    """On resume, a run whose record.json was cut short is run again; its directory is kept aside."""
+    plan = expand_plan(tmp_path / "m.yaml", seeds=[0, 3])
+    out = tmp_path / "out"
+    run_batch(plan, SerialEngine(), out, fn=fake_run)
+    cut = out / RUNS_DIR / plan.runs[1].run_id / RECORD_FILE
+    cut.write_text(cut.read_text()[:40])
+    CALLS.clear()
+    records = run_batch(plan, SerialEngine(), out, resume=True, fn=fake_run)
+    assert CALLS == [(3, 1)]
+    assert [r.status for r in records] == ["SUCCESS", "SUCCESS"]
+    assert (out / RUNS_DIR / f".{plan.runs[1].run_id}.damaged" / RECORD_FILE).is_file()

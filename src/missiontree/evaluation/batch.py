@@ -21,7 +21,8 @@ batches never both report while one's results replace the other's. A lock left b
 died is taken over.
 
 A run whose directory is complete is never run again with ``resume=True``; stale ``.partial``
-directories of a killed batch are removed first. A crashed run (:class:`~.engines.Crash`) is retried
+directories of a killed batch are removed first, and a planned run's directory whose record is not
+whole (cut, edited, another version's) is set aside as ``.<run id>.damaged`` and run again. A crashed run (:class:`~.engines.Crash`) is retried
 once, isolated; crashing again, it is recorded as an infrastructure failure (``status: INFRA``),
 counted apart from the mission's own results and not written as a run (a later ``resume`` tries it
 again).
@@ -41,7 +42,14 @@ from typing import Any
 from missiontree.errors import ConfigError
 from missiontree.evaluation.engines import Crash, Engine, PoolEngine
 from missiontree.evaluation.plan import BatchPlan
-from missiontree.evaluation.worker import PARTIAL_SUFFIX, RECORD_FILE, Probe, RunTask, execute_run
+from missiontree.evaluation.worker import (
+    PARTIAL_SUFFIX,
+    RECORD_FILE,
+    Probe,
+    RunTask,
+    execute_run,
+    whole_record,
+)
 from missiontree.session.rundir import pid_alive
 
 __all__ = ["BATCH_LOCK", "INFRA", "RUNS_DIR", "RunRecord", "complete_runs", "lock_batch", "run_batch"]
@@ -51,6 +59,9 @@ RUNS_DIR = "runs"
 BATCH_LOCK = "batch.lock"
 #: The status of a run lost to infrastructure (its process died twice).
 INFRA = "INFRA"
+#: Where a planned run's directory without a whole record is set aside (``.<run id>.damaged``) before
+#: the run is done again: a record cut by a killed process or edited by hand is not a result.
+DAMAGED_SUFFIX = ".damaged"
 
 
 @dataclass
@@ -112,7 +123,7 @@ class RunRecord:
 
 
 def complete_runs(out: Path) -> dict[str, dict[str, Any]]:
-    """Run id → record of every complete run under ``out/runs``."""
+    """Run id → record of every complete run under ``out/runs`` (a whole record: see ``whole_record``)."""
     runs: dict[str, dict[str, Any]] = {}
     runs_dir = out / RUNS_DIR
     if not runs_dir.is_dir():
@@ -121,10 +132,22 @@ def complete_runs(out: Path) -> dict[str, dict[str, Any]]:
         if path.name.startswith("."):
             continue
         try:
-            runs[path.name] = json.loads((path / RECORD_FILE).read_text(encoding="utf-8"))
+            data = json.loads((path / RECORD_FILE).read_text(encoding="utf-8"))
         except (OSError, ValueError):
             continue  # not a run of ours (or unreadable): left alone
+        if whole_record(data, path.name):
+            runs[path.name] = data
     return runs
+
+
+def _set_aside_damaged(runs_dir: Path, wanted: set[str], found: dict[str, dict[str, Any]]) -> None:
+    """Move a planned run's directory without a whole record to ``.<run id>.damaged`` (kept, run again)."""
+    for run_id in sorted(wanted - set(found)):
+        path = runs_dir / run_id
+        if path.is_dir():
+            aside = runs_dir / f".{run_id}{DAMAGED_SUFFIX}"
+            shutil.rmtree(aside, ignore_errors=True)
+            os.rename(path, aside)
 
 
 def _lock_holder(lock: Path) -> int | None:
@@ -227,6 +250,7 @@ def _run_batch(
     if found and not resume:
         raise ConfigError(f"{out} already holds {len(found)} complete run(s); pass --resume to keep them "
                           "and run the rest, or choose another --out")
+    _set_aside_damaged(runs_dir, wanted, found)
     (out / "batch.json").write_text(json.dumps(plan.describe(), indent=2, sort_keys=True) + "\n",
                                     encoding="utf-8")
     records: dict[str, RunRecord] = {}

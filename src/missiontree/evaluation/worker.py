@@ -147,11 +147,47 @@ def execute_run(task: RunTask) -> dict[str, Any]:
     return record
 
 
+#: A run record's fields and the types a whole record has (``results.jsonl``'s line, see RunRecord).
+_TEXT, _INT, _NUMBER = (str,), (int,), (int, float)
+RECORD_FIELDS: dict[str, tuple[type, ...]] = {
+    "run_id": _TEXT, "world": (str, type(None)), "seed": _INT, "run_seed": _INT, "params": (dict,),
+    "status": _TEXT, "stopped_by": _TEXT, "reason": _TEXT, "robot_time_s": _NUMBER, "wall_time_s": _NUMBER,
+    "path_length_m": _NUMBER, "ticks": _INT,
+}
+#: Fields a record may leave out (their defaults hold).
+OPTIONAL_FIELDS: dict[str, tuple[type, ...]] = {"figures": (dict,), "attempt": _INT}
+
+
+def whole_record(data: Any, run_id: str | None = None) -> bool:
+    """Whether ``data`` is a whole run record (of run ``run_id`` when given): every field, of its type.
+
+    A record cut by a killed process, edited by hand or written by another version is not a result:
+    its run is done again rather than counted.
+    """
+    if not isinstance(data, dict):
+        return False
+    for key, types in {**RECORD_FIELDS, **OPTIONAL_FIELDS}.items():
+        if key not in data:
+            if key in RECORD_FIELDS:
+                return False
+            continue
+        value = data[key]
+        if isinstance(value, bool) or not isinstance(value, types):
+            return False
+        if isinstance(value, float) and not math.isfinite(value):
+            return False
+    if not all(isinstance(k, str) and isinstance(v, str) for k, v in data["params"].items()):
+        return False
+    return run_id is None or data["run_id"] == run_id
+
+
 def _read_record(run_dir: Path) -> dict[str, Any] | None:
+    """The run directory's record when it is whole, else None."""
     try:
-        return dict(json.loads((run_dir / RECORD_FILE).read_text(encoding="utf-8")))
+        data = json.loads((run_dir / RECORD_FILE).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
+    return data if whole_record(data, run_dir.name) else None
 
 
 class _PathMeter:
