@@ -196,3 +196,15 @@ def test_non_finite_coordinates_are_refused_without_echoing_the_file() -> None:
         with pytest.raises(SceneGraphError, match="expected finite numbers") as caught:
             SceneGraph.from_json(text)
         assert len(str(caught.value)) < 200
+
+
+def test_an_id_must_be_text_or_an_integer() -> None:
+    """A NaN, boolean, list or empty id is refused; 3.0 reads as the integer id 3."""
+    from missiontree.semantics.scene_graph import SceneGraph, SceneGraphError
+
+    for bad in ("NaN", "true", "[1]", '""'):
+        text = '{"nodes": [{"id": ' + bad + ', "type": "room", "label": "hall"}], "edges": []}'
+        with pytest.raises(SceneGraphError, match="expected a text or integer id"):
+            SceneGraph.from_json(text)
+    graph = SceneGraph.from_json('{"nodes": [{"id": 3.0, "type": "room", "label": "hall"}], "edges": []}')
+    assert graph.nodes[0]["id"] == 3

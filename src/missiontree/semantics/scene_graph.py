@@ -381,9 +381,14 @@ def _read_node(index: int, raw: Any) -> dict[str, Any]:
         )
     node_type = str(raw["type"]).strip().lower()
     if node_type not in NODE_TYPES:
-        raise SceneGraphError(f"{where}: type {raw['type']!r} is not one of {', '.join(NODE_TYPES)}")
+        raise SceneGraphError(f"{where}: type {_brief(raw['type'])} is not one of {', '.join(NODE_TYPES)}")
+    node_id = raw["id"]
+    if isinstance(node_id, float) and math.isfinite(node_id) and node_id.is_integer():
+        node_id = int(node_id)  # 3.0 written by a JSON tool is the paper's id 3
+    if isinstance(node_id, bool) or not isinstance(node_id, str | int) or node_id == "":
+        raise SceneGraphError(f"{where}: id {_brief(node_id)}: expected a text or integer id")
     node: dict[str, Any] = {
-        "id": raw["id"],
+        "id": node_id,
         "type": node_type,
         "label": str(raw["label"]),
         "description": str(raw.get("description") or ""),
