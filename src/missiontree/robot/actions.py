@@ -95,3 +95,29 @@ class ActionHandle(Protocol):
     def cancel(self) -> None:
         """Ask the action to stop; idempotent, safe after it ended."""
         ...
+
+
+class RefusedAction:
+    """An action refused before it ran: REJECTED from the start, with the reason and failure kind.
+
+    What a robot that cannot move (a recording) or a goal the safety envelope refuses returns in
+    place of a handle: the leaf polls it as any other and fails with the reason.
+    """
+
+    def __init__(self, reason: str, kind: str = INFRASTRUCTURE) -> None:
+        self._result = ActionResult(ActionStatus.REJECTED, reason, kind=kind)
+
+    def status(self) -> ActionStatus:
+        """Always REJECTED."""
+        return ActionStatus.REJECTED
+
+    def feedback(self) -> NavFeedback | None:
+        """None: the action never ran."""
+        return None
+
+    def result(self) -> ActionResult:
+        """The refusal and its reason."""
+        return self._result
+
+    def cancel(self) -> None:
+        """Nothing to cancel."""

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from missiontree.errors import BackendError, ConfigError
-from missiontree.robot.actions import ActionResult, ActionStatus, NavFeedback
+from missiontree.robot.actions import RefusedAction
 from missiontree.types import Pose2D, Tolerance
 
 __all__ = ["REFUSED", "Envelope", "EnvelopedRobot", "Zone", "enveloped", "parse_envelope", "unwrap",
@@ -165,28 +165,6 @@ def parse_envelope(data: Any, where: str = "safety") -> Envelope | None:
                     _cap(data.get("max_angular"), f"{where}.max_angular"))
 
 
-class RefusedGoal:
-    """A goal the envelope refused: REJECTED from the start, with the reason (kind :data:`REFUSED`)."""
-
-    def __init__(self, reason: str) -> None:
-        self._result = ActionResult(ActionStatus.REJECTED, reason, kind=REFUSED)
-
-    def status(self) -> ActionStatus:
-        """Always REJECTED."""
-        return ActionStatus.REJECTED
-
-    def feedback(self) -> NavFeedback | None:
-        """None: the goal was never sent."""
-        return None
-
-    def result(self) -> ActionResult:
-        """The refusal and its reason."""
-        return self._result
-
-    def cancel(self) -> None:
-        """Nothing to cancel."""
-
-
 class EnvelopedRobot:
     """A robot whose goals and velocity commands pass the envelope first (everything else as is).
 
@@ -218,7 +196,7 @@ class EnvelopedRobot:
         if self.emit is not None:
             self.emit("safety_refused", reason=why, x=goal.x if math.isfinite(goal.x) else None,
                       y=goal.y if math.isfinite(goal.y) else None)
-        return RefusedGoal(f"refused by the safety envelope: {why}")
+        return RefusedAction(f"refused by the safety envelope: {why}", kind=REFUSED)
 
     def drive(self, v: float, w: float) -> None:
         """Command (v, w) within the caps; a non-finite command is refused (BackendError)."""

@@ -35,7 +35,7 @@ from missiontree.errors import BackendError
 from missiontree.mapping.grid import LogOddsGrid
 from missiontree.mapping.mrpt_rgbd import RgbdObservation
 from missiontree.mapping.rawlog import ScanLog
-from missiontree.robot.actions import INFRASTRUCTURE, ActionResult, ActionStatus, NavFeedback
+from missiontree.robot.actions import RefusedAction
 from missiontree.robot.sensors import SensorKind, SensorReading, UnknownSensorError, unknown_sensor_message
 from missiontree.types import LaserScan, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
 
@@ -45,28 +45,6 @@ SCAN_GAP = 0.5
 #: (as :func:`~missiontree.mapping.recorded_map.build_grid` builds it offline).
 LIVE_MAP_RESOLUTION = 0.05
 LIVE_MAP_RANGE = 15.0
-
-
-class RefusedAction:
-    """A navigation goal a recorded robot refuses: REJECTED from the start, with the reason."""
-
-    def __init__(self, reason: str) -> None:
-        self._result = ActionResult(ActionStatus.REJECTED, reason, kind=INFRASTRUCTURE)
-
-    def status(self) -> ActionStatus:
-        """Always REJECTED."""
-        return ActionStatus.REJECTED
-
-    def feedback(self) -> NavFeedback | None:
-        """None: the goal never ran."""
-        return None
-
-    def result(self) -> ActionResult:
-        """The refusal and its reason."""
-        return self._result
-
-    def cancel(self) -> None:
-        """Nothing to cancel."""
 
 
 class RecordedRobot:
