@@ -13,6 +13,7 @@ from typing import Any
 
 import py_trees
 
+from missiontree.engine.conditions import attach, parse_conditions
 from missiontree.engine.registry import NodeRegistry
 from missiontree.engine.spec import MissionSpec, NodeSpec
 from missiontree.engine.validate import check_node
@@ -51,7 +52,19 @@ def build_node(node: NodeSpec, registry: NodeRegistry) -> Behaviour:
     if not isinstance(behaviour, Behaviour):
         message = f"expected {node.type} to build a py_trees behaviour, found {type(behaviour).__name__}"
         raise MissionFileError([_at(node, message, f"fix the plugin {node_type.provider!r}")])
+    if node.conditions:
+        attach(behaviour, _conditions(node))
     return behaviour
+
+
+def _conditions(node: NodeSpec) -> Any:
+    """The node's parsed conditions (parsed now when the spec was not checked)."""
+    if node.prepost is not None:
+        return node.prepost
+    parsed, errors = parse_conditions(node.conditions)
+    if errors:
+        raise MissionFileError([_at(node, f"{key}: {error}") for key, error in errors.items()])
+    return parsed
 
 
 def write_blackboard_defaults(spec: MissionSpec) -> None:

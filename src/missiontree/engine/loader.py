@@ -28,6 +28,7 @@ from missiontree.engine.registry import NodeRegistry
 from missiontree.engine.spec import (
     CHILD_KEY,
     CHILDREN_KEY,
+    CONDITION_KEYS,
     NAME_KEY,
     TOP_LEVEL_KEYS,
     MissionSpec,
@@ -334,11 +335,13 @@ class _Loader:
             name = type_name
         if type_name == INCLUDE:
             return self._include(file, params, params_path, path, source, index)
-        raw = {k: v for k, v in params.items() if k not in (NAME_KEY, CHILD_KEY, CHILDREN_KEY)}
+        skipped = (NAME_KEY, CHILD_KEY, CHILDREN_KEY, *CONDITION_KEYS)
+        raw = {k: v for k, v in params.items() if k not in skipped}
         children = self._children(file, params, params_path, path)
         child_key = CHILD_KEY if CHILD_KEY in params else CHILDREN_KEY if CHILDREN_KEY in params else None
         return NodeSpec(type=type_name, name=name, raw=raw, children=children, source=source, path=path,
-                        located=located, child_key=child_key)
+                        located=located, child_key=child_key,
+                        conditions={k: params[k] for k in CONDITION_KEYS if k in params})
 
     def _type_and_params(
         self, doc: Located, data: Any, key_path: tuple[str | int, ...], parent_path: str, suffix: str,

@@ -15,7 +15,7 @@ from typing import Any
 from missiontree.engine.loader import INCLUDE
 from missiontree.engine.ports import ports_of
 from missiontree.engine.registry import NodeRegistry, NodeType
-from missiontree.engine.spec import CHILD_KEY, CHILDREN_KEY, NAME_KEY, RunSection
+from missiontree.engine.spec import CHILD_KEY, CHILDREN_KEY, NAME_KEY, POST_KEYS, PRE_KEYS, RunSection
 from missiontree.engine.validate import reads_refs
 
 SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
@@ -97,6 +97,7 @@ def _node_schema(node_type: NodeType, defs: dict[str, Any]) -> tuple[dict[str, A
             refs = [_BB_REF, _PARAM_REF] if reads_refs(node_type, field_name) else [_PARAM_REF]
             properties[prop] = {"anyOf": [copy.deepcopy(prop_schema), *refs], **meta}
     properties[NAME_KEY] = {"type": "string", "description": "Name of this node (default: its type)."}
+    properties.update(_condition_properties())
     required = list(params.get("required", []))
     if node_type.category == "decorator":
         properties[CHILD_KEY] = {**_NODE_REF, "description": "The node this decorator wraps."}
@@ -118,6 +119,27 @@ def _node_schema(node_type: NodeType, defs: dict[str, Any]) -> tuple[dict[str, A
         "required": [node_type.name],
         "additionalProperties": False,
     }, bool(required)
+
+
+_CONDITION_WORDS = {
+    "fail_if": "Before a tick (node not running): if true, FAILURE without ticking it.",
+    "succeed_if": "Before a tick (node not running): if true, SUCCESS without ticking it.",
+    "skip_if": "Before a tick (node not running): if true, skipped: SUCCESS without ticking it.",
+    "while": "Before every tick: if false, not ticked (halted when running) and FAILURE.",
+    "on_success": "After the node ends SUCCESS: assignments `key = expression` (`;`-separated).",
+    "on_failure": "After the node ends FAILURE: assignments `key = expression`.",
+    "on_halted": "When the node is halted while running: assignments `key = expression`.",
+    "post": "After the node ends SUCCESS or FAILURE (after on_success/on_failure): assignments.",
+}
+
+
+def _condition_properties() -> dict[str, Any]:
+    """The pre-conditions (expressions) and post-conditions (assignments) any node may carry."""
+    kinds = {**{k: "expression" for k in PRE_KEYS}, **{k: "assignments" for k in POST_KEYS}}
+    return {key: {"anyOf": [{"type": "string", "minLength": 1}, {"type": "boolean"}, _PARAM_REF],
+                  "description": f"{_CONDITION_WORDS[key]} (an {kinds[key]} over blackboard keys; "
+                  "see docs/mission-format.md, Conditions)"}
+            for key in (*PRE_KEYS, *POST_KEYS)}
 
 
 def _include_schema() -> dict[str, Any]:

@@ -23,6 +23,11 @@ TOP_LEVEL_KEYS = ("version", "description", "params", "required", "run", "blackb
 NAME_KEY = "name"
 CHILD_KEY = "child"
 CHILDREN_KEY = "children"
+#: Pre-conditions (checked before a tick, in BT.CPP's order) and post-conditions (assignments after),
+#: allowed on any node (see :mod:`missiontree.engine.conditions`).
+PRE_KEYS = ("fail_if", "succeed_if", "skip_if", "while")
+POST_KEYS = ("on_success", "on_failure", "on_halted", "post")
+CONDITION_KEYS = PRE_KEYS + POST_KEYS
 
 
 class RunSection(BaseModel):
@@ -92,6 +97,10 @@ class NodeSpec:
     located: Located | None = field(default=None, repr=False, compare=False)
     #: Which structural key the file used for children (``child``, ``children``) or None.
     child_key: str | None = None
+    #: Pre- and post-conditions as written (``skip_if: ...``), by key.
+    conditions: dict[str, Any] = field(default_factory=dict)
+    #: The parsed conditions (a :class:`~missiontree.engine.conditions.NodeConditions`), set by the checker.
+    prepost: Any = field(default=None, repr=False, compare=False)
 
     def walk(self) -> list[NodeSpec]:
         """This node and every descendant, depth first, parents before children."""

@@ -22,6 +22,7 @@ from typing import Any
 
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
+from missiontree.engine.condition_check import assigned_keys, check_conditions
 from missiontree.engine.ports import BlackboardRef, ports_of
 from missiontree.engine.registry import NodeRegistry, NodeType
 from missiontree.engine.spec import CHILD_KEY, CHILDREN_KEY, MissionSpec, NodeSpec
@@ -256,6 +257,7 @@ def check_tree(spec: MissionSpec, registry: NodeRegistry) -> list[Problem]:
         problems += check_node(node, registry)
     problems += _dangling_refs(spec)
     problems += _default_types(spec, registry)
+    problems += check_conditions(spec)
     return problems
 
 
@@ -369,8 +371,8 @@ def _parallel_selection(node: NodeSpec, params: BaseModel) -> list[Problem]:
 
 
 def written_keys(spec: MissionSpec) -> set[str]:
-    """Blackboard keys something in the mission writes: defaults and every node's output ports."""
-    keys = {_root_key(k) for k in spec.blackboard}
+    """Blackboard keys something in the mission writes: defaults, output ports, assignments (post, Script)."""
+    keys = {_root_key(k) for k in spec.blackboard} | assigned_keys(spec)
     for node in spec.nodes():
         if node.params is None:
             continue

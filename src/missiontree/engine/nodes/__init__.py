@@ -10,7 +10,8 @@ from missiontree.engine.nodes.basic import Fail, Running, Succeed, Wait
 from missiontree.engine.nodes.blackboard import CheckBlackboard, SetBlackboard, WaitForBlackboard
 from missiontree.engine.nodes.composites import COMPOSITES
 from missiontree.engine.nodes.decorators import DECORATORS
-from missiontree.engine.registry import NodeRegistry
+from missiontree.engine.nodes.script import ScriptCondition, ScriptLeaf
+from missiontree.engine.registry import NodeRegistry, NodeType
 
 LEAVES = [SetBlackboard, CheckBlackboard, WaitForBlackboard, Wait, Succeed, Fail, Running]
 
@@ -21,6 +22,8 @@ def register_nodes(registry: NodeRegistry) -> None:
         registry.add(node_type)
     for leaf in LEAVES:
         registry.add(leaf, provider="builtin")
+    registry.add(NodeType.from_leaf(ScriptLeaf, name="Script"))
+    registry.add(ScriptCondition, provider="builtin")
 
 
 __all__ = ["LEAVES", "register_nodes"]
