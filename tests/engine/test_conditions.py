@@ -138,9 +138,9 @@ def test_post_conditions_after_a_tick(tmp_path: Path, registry: NodeRegistry) ->
 
 def test_condition_that_cannot_be_evaluated_is_a_fault(tmp_path: Path, registry: NodeRegistry) -> None:
     """A key of the wrong type fails the node with a fault naming why; ForceSuccess keeps it FAILURE."""
-    text = ("blackboard: {level: low}\nroot:\n  ForceSuccess:\n    child:\n"
-            '      ScriptedLeaf: {name: x, skip_if: "level < 0.2"}\n')
-    root, nodes = _build(tmp_path, registry, text)
+    root, nodes = _build(tmp_path, registry, _tree(
+        "Script: {code: \"level = 'low'\"}",  # written at run time: the check before the run cannot see it
+        'ForceSuccess: {child: {ScriptedLeaf: {name: x, skip_if: "level < 0.2"}}}'))
     root.tick_once()
     assert nodes["x"].calls == [] and root.status == Status.FAILURE
     found = fault_of(root)
@@ -207,7 +207,9 @@ def test_unknown_key_is_reported_with_a_suggestion(tmp_path: Path, registry: Nod
                     "      - Succeed: {skip_if: 'batery < 0.2 or visits > 3'}\n")
     _, problems = check_mission(path, registry)
     assert len(problems) == 1, problems
-    assert problems[0].line == 7 and "'batery'" in problems[0].message and "battery" in problems[0].hint
+    problem = problems[0]
+    assert (problem.line, problem.col) == (7, 29)  # at the misspelt key inside the quoted expression
+    assert "'batery'" in problem.message and "battery" in problem.hint
 
 
 def test_keys_assigned_by_scripts_satisfy_bb_references(tmp_path: Path, registry: NodeRegistry) -> None:
@@ -243,3 +245,26 @@ def test_schema_accepts_conditions_and_script_leaves(registry: NodeRegistry) -> 
     assert list(check.iter_errors(mission)) == []
     bad = {"root": {"Succeed": {"skip_iff": "a > 1"}}}
     assert list(check.iter_errors(bad)) != []
+
+
+def test_conditions_hold_under_the_runner_with_watched_large_composites(tmp_path: Path,
+                                                                         registry: NodeRegistry) -> None:
+    """Children of a large composite (whose halts the recorder watches) keep their conditions in a run."""
+    children = [f"Script: {{name: s{i}, code: 'n += 1', skip_if: 'n >= 5'}}" for i in range(20)]
+    root, _ = _build(tmp_path, registry, _tree(*children))
+    result, lines = capture_tick_log(root)
+    assert result.status == Status.SUCCESS and _bb("n") == 5
+    skipped = [c for line in lines if line["event"] == "tick" for c in line["changed"]
+               if c.get("feedback") == "skip_if: `n >= 5` is true, skipped"]
+    assert len(skipped) == 15
+
+
+def test_type_mismatch_with_fixed_defaults_is_reported_before_the_run(tmp_path: Path,
+                                                                       registry: NodeRegistry) -> None:
+    """An expression over keys only the defaults set fails the check as it would fail at run time."""
+    path = tmp_path / "m.yaml"
+    path.write_text("blackboard: {level: low, n: 0}\nroot:\n  Sequence:\n    memory: true\n    children:\n"
+                    "      - Succeed: {skip_if: 'level < 0.2'}\n"
+                    "      - Script: {code: 'n = n + 1'}\n      - ScriptCondition: {code: 'n < 0.2'}\n")
+    _, problems = check_mission(path, registry)
+    assert [(p.line, "type" in p.message or "two numbers" in p.message) for p in problems] == [(6, True)]

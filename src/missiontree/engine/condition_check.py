@@ -11,17 +11,24 @@ writes.
 from __future__ import annotations
 
 import difflib
+import re
 from typing import Any
 
 from missiontree.engine.conditions import parse_conditions
-from missiontree.engine.expressions import ExpressionError, parse_expression, parse_script
+from missiontree.engine.expressions import (
+    EvaluationError,
+    Expression,
+    ExpressionError,
+    parse_expression,
+    parse_script,
+)
 from missiontree.engine.nodes.script import SCRIPT_TYPES
 from missiontree.engine.ports import ports_of
 from missiontree.engine.spec import MissionSpec, NodeSpec
 from missiontree.errors import Problem
 
 _HINT = ("write keys, literals (numbers, 'text', true, false, null), comparisons, and/or/not and + - * / % "
-         "(see docs/mission-format.md, Conditions)")
+         "(docs/mission-format.md: Conditions and assignments on any node)")
 
 
 def check_conditions(spec: MissionSpec) -> list[Problem]:
@@ -40,14 +47,67 @@ def check_conditions(spec: MissionSpec) -> list[Problem]:
                 near = difflib.get_close_matches(key, sorted(known), n=1)
                 hint = (f"did you mean {near[0]}?" if near else
                         f"add `{key}: ...` under `blackboard:`, or let a node or an assignment write it")
-                problems.append(_at(node, key_path, f"{key_path[0]}: expected blackboard keys the mission "
-                                    f"sets or a node writes, found {key!r} which nothing writes", hint))
+                message = (f"{key_path[0]}: expected blackboard keys the mission sets or a node writes, "
+                           f"found {key!r} which nothing writes")
+                found = re.search(rf"\b{re.escape(key)}\b", _written(node, key_path[0]))
+                col = found.start() + 1 if found else 0
+                problems.append(_pinpoint(node, key_path, 1, col, message, message, hint))
+    return problems + _fixed_type_problems(spec)
+
+
+def _fixed_type_problems(spec: MissionSpec) -> list[Problem]:
+    """Expressions that read only keys nothing writes after the start fail now as they would at run time.
+
+    Such keys keep their ``blackboard:`` default for the whole run, so ``level < 0.2`` with
+    ``level: low`` is a type mismatch that can be reported before the run.
+    """
+    changing = tree_written_keys(spec)
+    fixed = {k.lstrip("/"): v for k, v in spec.blackboard.items() if k.lstrip("/") not in changing}
+    problems: list[Problem] = []
+    for node in spec.nodes():
+        for key, expression, as_condition in _expressions_of(node):
+            if not expression.reads <= set(fixed):
+                continue
+            try:
+                value = expression.evaluate(fixed.__getitem__)
+                if as_condition and not isinstance(value, bool):
+                    raise EvaluationError(f"expected true or false, found {value!r}")
+            except EvaluationError as error:
+                message = (f"{key}: expected an expression that can be evaluated, found that with the "
+                           f"blackboard defaults it cannot: {error}")
+                problems.append(_at(node, (key,), message, "these keys keep their defaults (nothing writes "
+                                    "them): fix the expression or the defaults under `blackboard:`"))
     return problems
+
+
+def _expressions_of(node: NodeSpec) -> list[tuple[str, Expression, bool]]:
+    """(written key, expression, whether it is a condition) for a node's conditions and Script code."""
+    found: list[tuple[str, Expression, bool]] = []
+    if node.prepost is not None:
+        found += [(key, e, True) for key, e in node.prepost.pre.items()]
+        found += [(key, a.value, False) for key, script in node.prepost.post.items()
+                  for a in script.assignments if a.op == "="]
+    field_name = SCRIPT_TYPES.get(node.type, "")
+    text = node.raw.get(field_name) if field_name else None
+    if isinstance(text, str):
+        try:
+            if node.type == "Script":
+                found += [(field_name, a.value, False) for a in parse_script(text).assignments if a.op == "="]
+            else:
+                found.append((field_name, parse_expression(text), True))
+        except ExpressionError:
+            pass  # reported by the node's Params check
+    return found
 
 
 def known_keys(spec: MissionSpec) -> set[str]:
     """Keys an expression may read: blackboard defaults, every port's key, every assigned key."""
-    keys = {k.lstrip("/") for k in spec.blackboard} | assigned_keys(spec)
+    return {k.lstrip("/") for k in spec.blackboard} | tree_written_keys(spec)
+
+
+def tree_written_keys(spec: MissionSpec) -> set[str]:
+    """Keys the tree may write while it runs: every port's key (a leaf may write any), every assigned key."""
+    keys = assigned_keys(spec)
     for node in spec.nodes():
         if node.params is None:
             continue
@@ -101,11 +161,27 @@ def _at(node: NodeSpec, key_path: tuple[str, ...], message: str, hint: str) -> P
     return node.located.problem_at(key_path, message, hint, where=node.path)
 
 
+def _written(node: NodeSpec, key: str) -> str:
+    """The text of a condition or of a Script's code as written ("" when it is not text)."""
+    text = node.conditions.get(key, node.raw.get(key) if key in SCRIPT_TYPES.values() else None)
+    return text if isinstance(text, str) else ""
+
+
 def _expression_problem(node: NodeSpec, key_path: tuple[str, ...], error: ExpressionError) -> Problem:
-    """The problem at the offending column when the expression sits on one line of the file."""
-    problem = _at(node, key_path, f"{key_path[0]}: {error}", _HINT)
-    text = node.conditions.get(key_path[0])
-    if not isinstance(text, str) or "\n" in text or error.line != 1 or problem.line < 1:
+    return _pinpoint(node, key_path, error.line, error.col, f"{key_path[0]}: {error.reason}",
+                     f"{key_path[0]}: {error}", _HINT)
+
+
+def _pinpoint(node: NodeSpec, key_path: tuple[str, ...], line_in: int, col_in: int, exact: str, rough: str,
+              hint: str) -> Problem:
+    """A problem at column ``col_in`` of the expression if it sits on one line of the file, else at its value.
+
+    ``exact`` is the message when the column could be found, ``rough`` (which says where in the
+    expression) otherwise.
+    """
+    problem = _at(node, key_path, rough, hint)
+    text = _written(node, key_path[0])
+    if not text or "\n" in text or line_in != 1 or col_in < 1 or problem.line < 1:
         return problem
     line = _file_line(problem.file, problem.line)
     start = problem.col - 1
@@ -115,9 +191,7 @@ def _expression_problem(node: NodeSpec, key_path: tuple[str, ...], error: Expres
         offset = 1  # a quoted scalar without escapes
     else:
         return problem
-    message = f"{key_path[0]}: {error.reason}"
-    return Problem(problem.file, problem.line, problem.col + offset + error.col - 1, problem.path, message,
-                   _HINT)
+    return Problem(problem.file, problem.line, problem.col + offset + col_in - 1, problem.path, exact, hint)
 
 
 def _file_line(file: str, line: int) -> str:
