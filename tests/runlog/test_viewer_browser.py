@@ -269,3 +269,22 @@ def test_the_alarm_frame_sits_beside_the_map_not_over_it(page: Any, patrol_run: 
     assert frame["x"] >= drawn["x"] + drawn["width"] - 0.5, (frame, drawn)
     width = page.evaluate("document.getElementById('map').width")
     assert abs(width - round(drawn["width"])) <= 2, "the canvas is drawn at its laid-out size"
+
+
+def test_the_profile_lists_the_nodes_that_took_the_most_cpu(page: Any, tmp_path: Path):
+    """The side pane's profile lists nodes by CPU, most first; a node's details give its own figures."""
+    run = tmp_path / "run"
+    synthesize_run(run, 100)
+    summary = json.loads((run / "summary.json").read_text())
+    leaf = json.loads((run / "runview.json").read_text())["tree"]["children"][0]["path"]
+    figures = {"cpu_s": 2.0, "cpu_realtime_factor": 5.0, "rss_peak_mb": 280.0}
+    summary["profile"] = {"nodes": {"root": {"ticks": 100, "rate_hz": 10.0, "cpu_s": 0.01},
+                                    leaf: {"ticks": 40, "rate_hz": 4.0, "cpu_s": 0.5}},
+                          "run": figures, "models": {}}
+    (run / "summary.json").write_text(json.dumps(summary))
+    open_page(page, write_page(run, tmp_path / "report.html"))
+    assert page.locator("#profpane").is_visible()
+    assert page.locator("#prof tr[data-path]").first.get_attribute("data-path") == leaf
+    assert "2.00 s CPU" in page.locator("#profnote").inner_text()
+    page.locator(f".node[data-path='{leaf}'] > .row").click()
+    assert "40 ticks · 4.0 Hz · 0.500 s CPU" in page.locator("#details").inner_text()

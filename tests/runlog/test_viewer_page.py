@@ -126,3 +126,21 @@ def test_a_run_without_a_scene_graph_has_no_layer(tmp_path: Path):
     run = tmp_path / "run"
     synthesize_run(run, 50)
     assert page_data(open_run(run), run)["scene"] is None
+
+
+def test_the_profile_reaches_the_page_with_numbers_checked(tmp_path: Path):
+    """summary.json's profile becomes per-node [ticks, Hz, CPU] rows; a non-finite number becomes null."""
+    run = tmp_path / "run"
+    synthesize_run(run, 50)
+    summary = json.loads((run / "summary.json").read_text())
+    summary["profile"] = {"nodes": {"root/a": {"ticks": 50, "rate_hz": 10.0, "cpu_s": 0.25},
+                                    "root/b": {"ticks": "many", "rate_hz": float("nan"), "cpu_s": 0.1}},
+                          "run": {"cpu_s": 1.5, "rss_peak_mb": 300.0}, "models": {"vlm": {"calls": 3}}}
+    (run / "summary.json").write_text(json.dumps(summary))
+    view = page_data(open_run(run), run)["profile"]
+    assert view["nodes"] == {"root/a": [50.0, 10.0, 0.25], "root/b": [None, None, 0.1]}
+    assert view["run"]["cpu_s"] == 1.5 and view["run"]["wall_s"] is None
+    assert view["models"] == {"vlm": [3.0, None, None]}
+    del summary["profile"]
+    (run / "summary.json").write_text(json.dumps(summary))
+    assert page_data(open_run(run), run)["profile"] is None

@@ -210,6 +210,41 @@ def _room_centres(
     return centres
 
 
+def _finite(value: Any) -> float | None:
+    """A finite number from untrusted JSON, else None."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        return None
+    return float(value)
+
+
+#: The run figures of summary.json's ``profile`` the page shows (the NAIS paper's Table III, per run).
+PROFILE_RUN_KEYS = ("cpu_s", "wall_s", "robot_s", "realtime_factor", "cpu_realtime_factor", "rss_peak_mb",
+                    "sim_cpu_s", "startup_cpu_s")
+
+
+def profile_view(summary: dict[str, Any]) -> dict[str, Any] | None:
+    """summary.json's ``profile`` for the page (None when the run has none).
+
+    Per node ``[ticks, rate_hz, cpu_s]``, the run's figures and each model role's ``[calls, p50 ms,
+    p95 ms]``; numbers that are not finite become null (the summary is read, not trusted).
+    """
+    profile = summary.get("profile")
+    if not isinstance(profile, dict):
+        return None
+    nodes: dict[str, list[float | None]] = {}
+    raw_nodes = profile.get("nodes")
+    for path, row in (raw_nodes.items() if isinstance(raw_nodes, dict) else []):
+        if isinstance(path, str) and isinstance(row, dict) and len(nodes) < MAX_SCENE_OBJECTS * 10:
+            nodes[path[:300]] = [_finite(row.get(k)) for k in ("ticks", "rate_hz", "cpu_s")]
+    run: dict[str, Any] = profile["run"] if isinstance(profile.get("run"), dict) else {}
+    models: dict[str, list[float | None]] = {}
+    raw_models = profile.get("models")
+    for role, row in (raw_models.items() if isinstance(raw_models, dict) else []):
+        if isinstance(role, str) and isinstance(row, dict) and len(models) < 100:
+            models[role[:80]] = [_finite(row.get(k)) for k in ("calls", "latency_ms_p50", "latency_ms_p95")]
+    return {"nodes": nodes, "run": {k: _finite(run.get(k)) for k in PROFILE_RUN_KEYS}, "models": models}
+
+
 def scene_layer(run_dir: Path | None, summary: dict[str, Any], events: list[Any]) -> dict[str, Any] | None:
     """The scene graph as the map's layer: objects, rooms (at their objects' centre) and the target.
 
@@ -299,6 +334,7 @@ def page_data(
         "map": _map_of(run_dir, runview),
         "frames": frames,
         "scene": scene_layer(run_dir, summary, replay.events),
+        "profile": profile_view(summary),
         "ending": replay.ending(),
     }
 

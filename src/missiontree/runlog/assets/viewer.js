@@ -124,11 +124,36 @@
       ["status at this tick", status], ["feedback", S[s.fb[selected]] || "—"], ["failure reason", S[s.rs[selected]] || "—"],
       ["last change", last >= 0 ? "tick " + tickNumber(changes.tick[last]) + " (" + times[changes.tick[last]].toFixed(1) + " s)" : "never"],
       ["status changes so far", String(count)], ["parameters", n.params === "{}" ? "—" : n.params], ["declared at", n.source || "—"]];
+    const prof = D.profile && D.profile.nodes[n.path];
+    if (prof) items.push(["profile (whole run)", num(prof[0], 0) + " ticks · " + num(prof[1], 1) + " Hz · " + num(prof[2], 3) + " s CPU"]);
     box.className = ""; box.innerHTML = "<dl></dl>";
     const dl = box.firstChild;
     for (const [k, v] of items) {
       const dt = document.createElement("dt"), dd = document.createElement("dd");
       dt.textContent = k; dd.textContent = v; dd.dataset.field = k; dl.append(dt, dd);
+    }
+  }
+
+  function num(v, digits) { return v === null || v === undefined ? "—" : Number(v).toFixed(digits); }
+
+  // The run's profile (the NAIS paper's Table III): the run's figures and the nodes that took the most CPU.
+  function profile() {
+    const P = D.profile; $("profpane").hidden = !P; if (!P) return;
+    const r = P.run;
+    $("profnote").textContent = num(r.cpu_s, 2) + " s CPU · " + num(r.cpu_realtime_factor, 1) + "× real time (CPU) · " +
+      num(r.rss_peak_mb, 0) + " MB peak";
+    const rows = Object.entries(P.nodes).filter(([, v]) => v[2] !== null).sort((a, b) => b[1][2] - a[1][2]).slice(0, 12);
+    const table = $("prof"); table.textContent = "";
+    const head = document.createElement("tr"); head.innerHTML = "<th>node</th><th>Hz</th><th>ticks</th><th>CPU s</th>"; table.appendChild(head);
+    for (const [path, v] of rows) {
+      const tr = document.createElement("tr"); tr.dataset.path = path;
+      for (const text of [path, num(v[1], 1), num(v[0], 0), num(v[2], 3)]) { const td = document.createElement("td"); td.textContent = text; tr.appendChild(td); }
+      table.appendChild(tr);
+    }
+    for (const [role, v] of Object.entries(P.models)) {
+      const tr = document.createElement("tr"); tr.className = "model";
+      for (const text of ["model " + role, num(v[1], 0) + " ms p50", num(v[0], 0) + " calls", num(v[2], 0) + " ms p95"]) { const td = document.createElement("td"); td.textContent = text; tr.appendChild(td); }
+      table.appendChild(tr);
     }
   }
 
@@ -404,6 +429,7 @@
   function start(data) {
     load(data); header(); buildTree(); loadMap(); drawMarks();
     placeFrame(-1);  // reserve the frame's column before the map is measured
+    profile();
     setTick(N - 1);
     if (D.meta.status === "FAILURE" && !D.meta.running) whyEnded();
   }
