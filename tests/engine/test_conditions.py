@@ -268,3 +268,16 @@ def test_type_mismatch_with_fixed_defaults_is_reported_before_the_run(tmp_path: 
                     "      - Script: {code: 'n = n + 1'}\n      - ScriptCondition: {code: 'n < 0.2'}\n")
     _, problems = check_mission(path, registry)
     assert [(p.line, "type" in p.message or "two numbers" in p.message) for p in problems] == [(6, True)]
+
+
+def test_conditions_on_an_include_go_on_the_subtree_root(tmp_path: Path, registry: NodeRegistry) -> None:
+    """An Include's skip_if applies to the subtree's root; problems are reported in the including file."""
+    (tmp_path / "sub.yaml").write_text("root:\n  Script: {code: 'n = 1', post: 'done = 1'}\n")
+    root, _ = _build(tmp_path, registry, _tree("Include: {file: sub.yaml, skip_if: 'a == 1'}"))
+    root.tick_once()
+    assert root.status == Status.SUCCESS and _bb("n") == 0 and _bb("done") == 0
+    path = tmp_path / "bad.yaml"
+    path.write_text("blackboard: {a: 1}\nroot:\n  Include: {file: sub.yaml, skip_if: 'a.b', post: 'n = 2'}\n")
+    _, problems = check_mission(path, registry)
+    assert [(p.file, p.line, p.col) for p in problems] == [(str(path), 3, 39), (str(path), 3, 45)]
+    assert "attribute access" in problems[0].message and "found both" in problems[1].message

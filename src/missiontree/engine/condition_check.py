@@ -155,10 +155,11 @@ def _reads_of(node: NodeSpec) -> list[tuple[tuple[str, ...], frozenset[str]]]:
 
 
 def _at(node: NodeSpec, key_path: tuple[str, ...], message: str, hint: str) -> Problem:
-    if node.located is None:
+    located = node.condition_sites.get(key_path[0], node.located)
+    if located is None:
         src = node.source
         return Problem(src.file, src.line, src.col, node.path, message, hint)
-    return node.located.problem_at(key_path, message, hint, where=node.path)
+    return located.problem_at(key_path, message, hint, where=node.path)
 
 
 def _written(node: NodeSpec, key: str) -> str:

@@ -15,7 +15,6 @@ subtree. A resolved path must lie inside the mission's folder or a trusted tree 
 
 from __future__ import annotations
 
-import copy
 import difflib
 import re
 from dataclasses import dataclass, field
@@ -36,6 +35,8 @@ from missiontree.engine.spec import (
     RunSection,
     Source,
 )
+from missiontree.engine.substitution import kind as _kind
+from missiontree.engine.substitution import substitute
 from missiontree.engine.validate import check_tree, non_finite_issues
 from missiontree.errors import MissionFileError, Problem
 from missiontree.paths import REPO_ROOT
@@ -48,7 +49,6 @@ INCLUDE = "Include"
 MAX_INCLUDE_DEPTH = 16
 MAX_TREE_NODES = 10_000
 
-_PARAM_RE = re.compile(r"\$\{([^}]*)\}")
 _IDENT_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 _KEY_RE = re.compile(r"/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*\Z")
 
@@ -432,7 +432,22 @@ class _Loader:
             file.blackboard.setdefault(key, value)
         if node is not None and NAME_KEY in params and isinstance(params[NAME_KEY], str):
             node.name = params[NAME_KEY]
+        if node is not None:
+            self._include_conditions(node, site, path)
         return node
+
+    def _include_conditions(self, node: NodeSpec, site: Located, path: str) -> None:
+        """An Include's conditions go on the subtree's root (the same key on both is a problem)."""
+        for key in CONDITION_KEYS:
+            if key not in site.data:
+                continue
+            if key in node.conditions:
+                self.problems.append(site.problem_at(
+                    (key,), f"expected `{key}` on the Include or on the subtree's root, found both",
+                    "keep one of them", key=True, where=path))
+                continue
+            node.conditions[key] = site.data[key]
+            node.condition_sites[key] = site
 
     def _include_target(
         self, file: _File, params: dict[str, Any], params_path: tuple[str | int, ...], path: str,
@@ -444,7 +459,7 @@ class _Loader:
         """
         doc = file.doc
         for key in params:
-            if key not in ("file", "params", NAME_KEY):
+            if key not in ("file", "params", NAME_KEY, *CONDITION_KEYS):
                 self.problems.append(doc.problem_at(
                     (*params_path, key),
                     f"expected `file`, `params` or `name` in an Include, found {shown(key)}",
@@ -515,46 +530,8 @@ class _Loader:
     # -- ${param} substitution ----------------------------------------------------------------
 
     def _substitute(self, value: Any, file: _File, key_path: tuple[str | int, ...], where: str) -> Any:
-        if isinstance(value, dict):
-            return {k: self._substitute(v, file, (*key_path, k), where) for k, v in value.items()}
-        if isinstance(value, list):
-            return [self._substitute(v, file, (*key_path, i), where) for i, v in enumerate(value)]
-        if not isinstance(value, str) or "${" not in value:
-            return value
-        whole = _PARAM_RE.fullmatch(value)
-        if whole and not value.startswith("$${"):
-            name = whole.group(1)
-            if self._check_param(name, file, key_path, where):
-                return copy.deepcopy(file.values[name])
-            return value
-
-        def replace(match: re.Match[str]) -> str:
-            name = match.group(1)
-            if match.start() > 0 and value[match.start() - 1] == "$":
-                return match.group(0)
-            if not self._check_param(name, file, key_path, where):
-                return match.group(0)
-            found = file.values[name]
-            if isinstance(found, dict | list):
-                self.problems.append(file.doc.problem_at(
-                    key_path, f"expected a plain value for ${{{name}}} inside text, found {_kind(found)}",
-                    f"use `${{{name}}}` alone as the whole value to pass a mapping or list", where=where))
-                return match.group(0)
-            return str(found)
-
-        return _PARAM_RE.sub(replace, value).replace("$${", "${")
-
-    def _check_param(self, name: str, file: _File, key_path: tuple[str | int, ...], where: str) -> bool:
-        if name in file.values:
-            return True
-        known = sorted(file.values)
-        near = difflib.get_close_matches(name, known, n=1)
-        self.problems.append(file.doc.problem_at(
-            key_path, f"expected a reference to a declared parameter ({', '.join(known) or 'none'}), "
-            f"found ${{{name}}}",
-            f"did you mean ${{{near[0]}}}?" if near else "declare it under `params:` at the top of the file "
-            "(write $${ for a literal ${)"))
-        return False
+        """``value`` with ``${name}`` replaced by ``file``'s parameter values (problems collected)."""
+        return substitute(value, file.values, file.doc, key_path, where, self.problems)
 
 
 def _display(path: Path) -> str:
@@ -571,16 +548,6 @@ def _is_file(path: Path) -> bool:
         return path.is_file()
     except (OSError, ValueError):
         return False
-
-
-def _kind(value: Any) -> str:
-    if isinstance(value, dict):
-        return "a mapping"
-    if isinstance(value, list):
-        return "a list"
-    if value is None:
-        return "nothing"
-    return f"{type(value).__name__} {shown(value)}"
 
 
 def _expected(err: Any) -> str:

@@ -152,6 +152,7 @@ def _include_schema() -> dict[str, Any]:
                 "file": {"type": "string", "description": "Subtree file, relative to this file or trees/."},
                 "params": {"type": "object", "description": "Values of the subtree's parameters."},
                 NAME_KEY: {"type": "string", "description": "Name of the subtree's root node."},
+                **_condition_properties(),
             },
             "required": ["file"],
             "additionalProperties": False,

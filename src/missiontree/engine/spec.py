@@ -99,6 +99,8 @@ class NodeSpec:
     child_key: str | None = None
     #: Pre- and post-conditions as written (``skip_if: ...``), by key.
     conditions: dict[str, Any] = field(default_factory=dict)
+    #: Where a condition was written when not in the node's own mapping (on an ``Include``), by key.
+    condition_sites: dict[str, Located] = field(default_factory=dict, repr=False, compare=False)
     #: The parsed conditions (a :class:`~missiontree.engine.conditions.NodeConditions`), set by the checker.
     prepost: Any = field(default=None, repr=False, compare=False)
 
