@@ -90,6 +90,7 @@ def test_script_assigns_in_order_with_both_assignment_forms() -> None:
     script.run(store.__getitem__, store.__setitem__)
     assert store == {"a": 1, "b": 13, "s": "x:=y"}
     assert script.writes == {"a", "b", "s"}
+    assert script.text == "a := 1; b = a + 2\nb += 10; s = 'x:=y'"  # as written, for the tick log
 
 
 @pytest.mark.parametrize("text", ["a + 1", "a = f()", "true = 1", "a, b = 1, 2", "a = b = 1", "a **= 2",

@@ -139,7 +139,8 @@ def parse_expression(text: Any) -> Expression:
 
 def parse_script(text: Any) -> Script:
     """Parse ``key = expr`` assignments (``:=`` accepted for ``=``), separated by ``;`` or new lines."""
-    source = _walrus_to_assign(_source(text))
+    written = _source(text)
+    source = _walrus_to_assign(written)
     tree = _parse(source, "exec")
     assert isinstance(tree, ast.Module)
     if not tree.body:
@@ -149,7 +150,7 @@ def parse_script(text: Any) -> Script:
         target, op, value = _assignment_parts(statement)
         segment = ast.get_source_segment(source, value) or ""
         assignments.append(Assignment(target, op, Expression(segment, value, _reads(value))))
-    return Script(source.strip(), tuple(assignments))
+    return Script(written.strip(), tuple(assignments))
 
 
 def _source(text: Any) -> str:
