@@ -22,10 +22,10 @@ died is taken over.
 
 A run whose directory is complete is never run again with ``resume=True``; stale ``.partial``
 directories of a killed batch are removed first, and a planned run's directory whose record is not
-whole (cut, edited, another version's) is set aside as ``.<run id>.damaged`` and run again. A crashed run (:class:`~.engines.Crash`) is retried
-once, isolated; crashing again, it is recorded as an infrastructure failure (``status: INFRA``),
-counted apart from the mission's own results and not written as a run (a later ``resume`` tries it
-again).
+whole (cut, edited, another version's) is set aside as ``.<run id>.damaged`` and run again. A
+crashed run (:class:`~.engines.Crash`) is retried once, isolated; crashing again, it is recorded as
+an infrastructure failure (``status: INFRA``), counted apart from the mission's own results and not
+written as a run (a later ``resume`` tries it again).
 """
 
 from __future__ import annotations
