@@ -10,7 +10,11 @@ Splits.
 
 - ``dev`` (tuned on): the 49 commands the team wrote (Table II's five, intuitive, referential, nothing
   satisfies, injected descriptions) on the office world and ``generated:3``, ours beside the NAIS
-  reference from the same starts.
+  reference from the same starts; and, ours only, generated commands on ``--dev-worlds`` generated
+  flats: paraphrases from the LibreOffice English thesaurus (``benchmarks/data/intent_dev_words.json``,
+  built once by ``tools/build_intent_dev_commands.py``, sharing no word with a test command) and
+  referential commands by colour, room and "on top of" in templates of the dev split's own
+  (:data:`DEV_TEMPLATES`).
 - ``test`` (never tuned on): commands from a source outside the team on worlds of another kind — the
   test worlds of :mod:`missiontree.evaluation.splits` (floorplans of corridors, open plans, suites,
   warehouses; real SLAM maps with placed objects and decoys), ``--test-worlds`` of them. The commands:
@@ -798,7 +802,7 @@ def run_perceived(bench: Bench, n: int, seed: int, max_duration: float,
         for case in TABLE2:
             outcomes[case.command].append(served.get(case.command, False))
             print(f"perceived start={start} {case.command:30} {'ok' if served.get(case.command) else 'MISS'} "
-                  f"{why.get(case.command, '')[:300]}", flush=True)
+                  f"{why.get(case.command, '')[:1200]}", flush=True)
     return outcomes, time.perf_counter() - t0
 
 
