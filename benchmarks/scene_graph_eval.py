@@ -18,8 +18,9 @@ the dev - test gap, and a markdown table of both; the last line is one JSON obje
 ``files`` (diagnostics on worlds built by hand).
 
 For each world the simulated robot visits viewpoints chosen from its map alone (rooms segmented from the
-occupancy map, free cells with room to turn, spread over each room) and turns a slow full circle
-at each; every camera frame is detected once and handed to both methods:
+occupancy map, free cells with room to turn, spread over each room, then more until every free cell
+beside a wall or furniture is within 2 m of one in sight on the map: :func:`surface_viewpoints`)
+and turns a slow full circle at each; every camera frame is detected once and handed to both methods:
 
 - ``ours`` — :class:`~missiontree.semantics.builder.SceneBuilder` as the ``BuildSceneGraph`` leaf runs
   it: the NAIS filters, fusion that refines, removes what is seen gone and moves what moved, rooms
