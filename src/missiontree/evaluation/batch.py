@@ -140,14 +140,12 @@ def complete_runs(out: Path) -> dict[str, dict[str, Any]]:
     return runs
 
 
-def _set_aside_damaged(runs_dir: Path, wanted: set[str], found: dict[str, dict[str, Any]]) -> None:
-    """Move a planned run's directory without a whole record to ``.<run id>.damaged`` (kept, run again)."""
-    for run_id in sorted(wanted - set(found)):
-        path = runs_dir / run_id
-        if path.is_dir():
-            aside = runs_dir / f".{run_id}{DAMAGED_SUFFIX}"
-            shutil.rmtree(aside, ignore_errors=True)
-            os.rename(path, aside)
+def _set_aside_damaged(runs_dir: Path, damaged: list[str]) -> None:
+    """Move each run directory without a whole record to ``.<run id>.damaged`` (kept, run again)."""
+    for run_id in damaged:
+        aside = runs_dir / f".{run_id}{DAMAGED_SUFFIX}"
+        shutil.rmtree(aside, ignore_errors=True)
+        os.rename(runs_dir / run_id, aside)
 
 
 def _lock_holder(lock: Path) -> int | None:
@@ -247,10 +245,13 @@ def _run_batch(
         shutil.rmtree(stale, ignore_errors=True)
     found = complete_runs(out)
     wanted = {spec.run_id for spec in plan.runs}
-    if found and not resume:
-        raise ConfigError(f"{out} already holds {len(found)} complete run(s); pass --resume to keep them "
-                          "and run the rest, or choose another --out")
-    _set_aside_damaged(runs_dir, wanted, found)
+    damaged = sorted(run_id for run_id in wanted - set(found) if (runs_dir / run_id).is_dir())
+    if (found or damaged) and not resume:  # nothing in --out is replaced without being asked
+        also = f" and {len(damaged)} without a whole record" if damaged else ""
+        raise ConfigError(f"{out} already holds {len(found)} complete run(s){also}; pass --resume to keep "
+                          "them and run the rest (a run without a whole record is set aside and run "
+                          "again), or choose another --out")
+    _set_aside_damaged(runs_dir, damaged)
     (out / "batch.json").write_text(json.dumps(plan.describe(), indent=2, sort_keys=True) + "\n",
                                     encoding="utf-8")
     records: dict[str, RunRecord] = {}
