@@ -224,22 +224,21 @@ class Approach(Leaf):
             return False
         if self.context.robot.now() <= deadline:
             return False
+        self._cancel_in_flight()
+        return True
+
+    def _cancel_in_flight(self) -> None:
+        """Cancel the model call and the navigation goal in flight, if any."""
         if self.call is not None:
             self.call.cancel()
             self.call = None
         if self.handle is not None:
             self.handle.cancel()
             self.handle = None
-        return True
 
     def terminate(self, new_status: Status) -> None:
         """Cancel the model call and the goal in flight; stop turning."""
-        if self.call is not None:
-            self.call.cancel()
-            self.call = None
-        if self.handle is not None:
-            self.handle.cancel()
-            self.handle = None
+        self._cancel_in_flight()
         if self.ctx is not None and new_status == Status.INVALID and self.step is _Step.FACE:
             self.ctx.robot.stop()
 
