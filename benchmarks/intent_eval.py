@@ -614,6 +614,20 @@ def test_world_names(count: int, first_seed: int, folder: Path) -> list[str]:
     return [str(write_split_world(w, folder)) for w in split_worlds("test", count, first_seed=first_seed)]
 
 
+def _dealt_words(words: dict[str, Any], world: Any, name: str, i: int, n: int, split: str) -> list[Case]:
+    """World ``i`` of ``n``'s share of a words file (groups ``<split>_need``, ``<split>_object``).
+
+    Every ``n``-th need paraphrase from offset ``i``, and every ``n``-th object name among the labels
+    the world holds.
+    """
+    present = {o.label for o in world.objects}
+    needs = words["needs"][i::n]
+    cases = [Case(name, e["command"], f"{split}_need", _labels(*e["satisfied_by"])) for e in needs]
+    named = [e for e in words["objects"] if present & set(e["satisfied_by"])]
+    cases += [Case(name, e["command"], f"{split}_object", _labels(*e["satisfied_by"])) for e in named[i::n]]
+    return cases
+
+
 def test_cases(bench: Bench, worlds: Sequence[str]) -> list[Case]:
     """The test split's commands on ``worlds`` (see the module docstring): WordNet words and the graph's own.
 
@@ -625,12 +639,7 @@ def test_cases(bench: Bench, worlds: Sequence[str]) -> list[Case]:
     n = len(worlds)
     for i, name in enumerate(worlds):
         world = bench.world(name)
-        present = {o.label for o in world.objects}
-        for entry in words["needs"][i::n]:
-            cases.append(Case(name, entry["command"], "test_need", _labels(*entry["satisfied_by"])))
-        named = [e for e in words["objects"] if present & set(e["satisfied_by"])]
-        for entry in named[i::n]:
-            cases.append(Case(name, entry["command"], "test_object", _labels(*entry["satisfied_by"])))
+        cases += _dealt_words(words, world, name, i, n, "test")
         for entry in words["absent"][i::n]:
             cases.append(Case(name, entry["command"], "none", _nothing))
         cases += referential_cases(world, name)
@@ -723,12 +732,7 @@ def dev_generated_cases(bench: Bench, worlds: Sequence[str]) -> list[Case]:
     n = len(worlds)
     for i, name in enumerate(worlds):
         world = bench.world(name)
-        present = {o.label for o in world.objects}
-        for entry in words["needs"][i::n]:
-            cases.append(Case(name, entry["command"], "dev_need", _labels(*entry["satisfied_by"])))
-        named = [e for e in words["objects"] if present & set(e["satisfied_by"])]
-        for entry in named[i::n]:
-            cases.append(Case(name, entry["command"], "dev_object", _labels(*entry["satisfied_by"])))
+        cases += _dealt_words(words, world, name, i, n, "dev")
         cases += referential_cases(world, name, templates=DEV_TEMPLATES, group="dev_referential")
     return cases
 
