@@ -152,3 +152,27 @@ def test_bad_settings_are_refused() -> None:
         LogOddsGrid(free_thresh=0.7, occupied_thresh=0.65)
     with pytest.raises(ValueError, match="rotated"):
         LogOddsGrid(origin=Pose2D(0.0, 0.0, 0.3))
+
+
+@pytest.mark.parametrize("accelerate", ACCEL)
+@pytest.mark.parametrize("direction", [1.0, -1.0])
+def test_noisy_returns_from_a_wall_on_a_cell_edge_leave_the_cell_before_it_free(accelerate: bool,
+                                                                                 direction: float) -> None:
+    """Returns with 1 cm of noise from a surface on a cell edge mark the wall's cell, not the free one before it."""
+    rng = np.random.default_rng(5)
+    g = LogOddsGrid(0.05, 6.0, 6.0, Pose2D(-3.0, -3.0), accelerate=accelerate)
+    wall_x = 1.0  # the surface; the wall lies beyond it, seen from the robot 1 m away
+    robot = Pose2D(wall_x - direction * 1.0, 0.0, 0.0 if direction > 0 else math.pi)
+    angles = np.linspace(-0.3, 0.3, 61)
+    for k in range(30):
+        ranges = 1.0 / np.cos(angles) + rng.normal(0.0, 0.01, len(angles))
+        g.integrate(LaserScan(float(k), -0.3, 0.01, 0.05, 10.0, ranges.astype(np.float32)), robot)
+    for y in np.arange(-0.2, 0.2, 0.05) + 0.025:
+        assert cell(g, wall_x - direction * 0.025, y) == FREE, y
+        assert cell(g, wall_x + direction * 0.025, y) == OCCUPIED, y
+
+
+def test_a_negative_hit_depth_is_refused() -> None:
+    """hit_depth below zero raises a ValueError naming it."""
+    with pytest.raises(ValueError, match="hit_depth"):
+        LogOddsGrid(hit_depth=-0.01)

@@ -4,6 +4,10 @@ Each scan is integrated at the pose the robot had *when the scan was taken* (loo
 in the robot's sensor history with :meth:`LogOddsGrid.update_from`, or pass it to
 :meth:`LogOddsGrid.integrate`). Every beam marks the cells it crosses as free and the cell of
 its end point as occupied; cells behind the end point are left alone (unknown stays unknown).
+The end point of a return is taken ``hit_depth`` beyond the measured range before its cell is
+found: a return comes from an obstacle's surface, and with range noise of about a centimetre half
+the returns from a surface lying on a cell's edge would otherwise fall into the free cell in front
+of it, which then reads occupied (a wall drawn a cell into the room, a doorway a cell narrower).
 A beam with no return (``inf``) marks free space up to the sensor's range (or ``max_range``);
 NaN readings are skipped. Within one scan a cell is updated at most once, and a cell hit by
 some beam is not also freed by another beam of the same scan (so a wall seen at a grazing angle
@@ -206,6 +210,8 @@ class LogOddsGrid:
         free_thresh: Probability below which a cell reads as free (map_server's 0.25).
         max_range: Beams are used up to this range (m); a return beyond it marks free space up
             to it and no obstacle. None: the scan's ``range_max``.
+        hit_depth: A return's end point is taken this far (m) beyond its range, at most 0.45 of a
+            cell, so that range noise does not put a surface's hit into the free cell before it.
         sensor_offset: (x, y) of the lidar in the robot base frame (LaserScan carries only the
             mount yaw).
         grow: Enlarge the grid when a scan reaches outside it (else beams are clipped).
@@ -217,7 +223,7 @@ class LogOddsGrid:
                  origin: Pose2D | None = None, *, l_occ: float = 0.85, l_free: float = -0.6,
                  l_min: float = -2.0, l_max: float = 3.5, occupied_thresh: float = OCCUPIED_THRESH,
                  free_thresh: float = FREE_THRESH, max_range: float | None = None,
-                 sensor_offset: tuple[float, float] = (0.0, 0.0), grow: bool = True,
+                 hit_depth: float = 0.02, sensor_offset: tuple[float, float] = (0.0, 0.0), grow: bool = True,
                  grow_step: float = 2.0, accelerate: bool = True) -> None:
         if resolution <= 0:
             raise ValueError(f"resolution must be > 0 m, found {resolution}")
@@ -226,6 +232,8 @@ class LogOddsGrid:
         if not 0.0 < free_thresh < occupied_thresh < 1.0:
             raise ValueError(f"expected 0 < free_thresh < occupied_thresh < 1, found {free_thresh} and "
                              f"{occupied_thresh}")
+        if not 0.0 <= hit_depth < math.inf:
+            raise ValueError(f"hit_depth must be >= 0 m, found {hit_depth}")
         if l_occ <= 0 or l_free >= 0:
             raise ValueError(f"expected l_occ > 0 and l_free < 0, found {l_occ} and {l_free}")
         origin = origin if origin is not None else Pose2D(-width_m / 2.0, -height_m / 2.0)
@@ -244,6 +252,7 @@ class LogOddsGrid:
         self._l_occupied = logit(occupied_thresh)
         self._l_free_below = logit(free_thresh)
         self.max_range = max_range
+        self.hit_depth = min(float(hit_depth), 0.45 * self.resolution)
         self.sensor_offset = (float(sensor_offset[0]), float(sensor_offset[1]))
         self.grow = grow
         self.grow_step = float(grow_step)
@@ -277,7 +286,7 @@ class LogOddsGrid:
         reach = min(scan.range_max, self.max_range) if self.max_range is not None else scan.range_max
         valid = ~np.isnan(ranges) & (ranges >= scan.range_min)
         hit = valid & np.isfinite(ranges) & (ranges <= reach)
-        length = np.where(hit, ranges, reach)[valid]
+        length = np.where(hit, ranges + self.hit_depth, reach)[valid]
         angles, hit = angles[valid], hit[valid]
         ex_m = sx_m + length * np.cos(angles)
         ey_m = sy_m + length * np.sin(angles)
