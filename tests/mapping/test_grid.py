@@ -158,7 +158,7 @@ def test_bad_settings_are_refused() -> None:
 @pytest.mark.parametrize("direction", [1.0, -1.0])
 def test_noisy_returns_from_a_wall_on_a_cell_edge_leave_the_cell_before_it_free(accelerate: bool,
                                                                                  direction: float) -> None:
-    """Returns with 1 cm of noise from a surface on a cell edge mark the wall's cell, not the free one before it."""
+    """Noisy returns from a surface on a cell edge mark the wall's cell, not the free one before it."""
     rng = np.random.default_rng(5)
     g = LogOddsGrid(0.05, 6.0, 6.0, Pose2D(-3.0, -3.0), accelerate=accelerate)
     wall_x = 1.0  # the surface; the wall lies beyond it, seen from the robot 1 m away
