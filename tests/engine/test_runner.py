@@ -12,6 +12,7 @@ import pytest
 
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Leaf, Status
+from missiontree.engine.recorder import RunRecorder
 from missiontree.engine.runner import Runner
 from missiontree.errors import ConfigError, PluginError
 from missiontree.plugins.hookspecs import hookimpl
@@ -488,14 +489,14 @@ def test_a_summary_that_cannot_be_written_is_a_clear_error_after_the_robot_stopp
 
     robot = ClockRobot()
     runner = _runner(ScriptedLeaf("a", script="RRS"), robot, run_dir=tmp_path)
-    original = Runner._write_summary
+    original = RunRecorder.write_summary
 
-    def full_at_the_end(self: Runner, summary: dict) -> None:
+    def full_at_the_end(self: RunRecorder, summary: dict) -> None:
         if summary.get("complete"):
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         original(self, summary)
 
-    monkeypatch.setattr(Runner, "_write_summary", full_at_the_end)
+    monkeypatch.setattr(RunRecorder, "write_summary", full_at_the_end)
     with pytest.raises(ConfigError, match="summary could not be written .*No space left on device"):
         runner.run()
     assert robot.stop_calls == 1

@@ -9,6 +9,8 @@ valid summary that says why, nothing logged before the fault lost.
 
 from __future__ import annotations
 
+import errno
+import io
 import json
 import os
 import shutil
@@ -25,19 +27,31 @@ from conftest import REPO, assert_clean_end, read_lines
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.runner import Runner
-from missiontree.engine.tick_log import DISK_FULL_AFTER_ENV
 from missiontree.testing import ClockRobot, ScriptedLeaf
 
 TIMER = REPO / "trees" / "examples" / "timer_and_blackboard.yaml"
 
 
-def test_a_disk_that_fills_ends_the_run_with_the_reason(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                        ) -> None:
-    """The tick log's writer hits ENOSPC (the test hook): the run stops, says why, keeps the lines."""
-    monkeypatch.setenv(DISK_FULL_AFTER_ENV, "4000")
+class _DiskThatFills(io.TextIOWrapper):
+    """A log file on a disk with ``room`` bytes left: the write that would pass it fails with ENOSPC."""
+
+    def __init__(self, path: Path, room: int) -> None:
+        super().__init__(path.open("wb"), encoding="utf-8", newline="\n", write_through=True)
+        self.room = room
+
+    def write(self, text: str) -> int:
+        self.room -= len(text.encode("utf-8"))
+        if self.room < 0:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return super().write(text)
+
+
+def test_a_disk_that_fills_ends_the_run_with_the_reason(tmp_path: Path) -> None:
+    """The tick log's stream hits ENOSPC (an injected stream): the run stops, says why, keeps the lines."""
     robot = ClockRobot()
-    result = Runner(ScriptedLeaf("forever", script="R"), MissionContext(robot=robot), run_dir=tmp_path,
-                    handle_signals=False, max_duration=600).run()
+    with _DiskThatFills(tmp_path / "ticks.jsonl", room=4000) as disk:
+        result = Runner(ScriptedLeaf("forever", script="R"), MissionContext(robot=robot), run_dir=tmp_path,
+                        log_stream=disk, handle_signals=False, max_duration=600).run()
     assert (result.stopped_by, result.exit_code) == ("error", 1)
     summary = assert_clean_end(tmp_path, why="No space left on device", stopped_by="error",
                                stopped=lambda: robot.stop_calls == 1, finished_line=False)

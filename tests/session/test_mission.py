@@ -13,7 +13,7 @@ import pytest
 from missiontree.cli.main import main
 from missiontree.errors import ConfigError, MissionFileError
 from missiontree.plugins.manager import load_plugins
-from missiontree.session import MissionRequest, Session, run_mission
+from missiontree.session import MissionRequest, Session, process, run_mission
 from missiontree.session.params import parse_overrides
 from missiontree.session.progress import ProgressLine
 from missiontree.testing import ClockRobot, clean_state
@@ -187,7 +187,10 @@ def test_on_tick_sees_the_robot_between_ticks(tmp_path: Path) -> None:
     assert len(seen) == result.ticks and seen[:3] == pytest.approx([0.0, 0.1, 0.2])
 
 
-def test_what_the_session_opened_is_frozen_for_the_run_and_unfrozen_after(tmp_path: Path) -> None:
+def test_what_the_session_opened_is_frozen_for_the_run_and_unfrozen_after(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """In a process the application tuned, the run's heap is frozen during the run only."""
+    monkeypatch.setattr(process, "_tuned", True)  # as tune_process() leaves it, without pinning glibc
     plugins, _ = _plugins_with_fake()
     frozen: list[int] = []
     request = MissionRequest(mission=_mission(tmp_path, backend="fake"), plugins=plugins,
@@ -196,6 +199,19 @@ def test_what_the_session_opened_is_frozen_for_the_run_and_unfrozen_after(tmp_pa
     run_mission(request)
     assert frozen and min(frozen) > before  # full collections skip the session's objects during the run
     assert gc.get_freeze_count() == before  # and a batch worker's next mission starts unfrozen
+
+
+def test_a_process_nobody_tuned_keeps_its_garbage_collector_as_it_was(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Library use alone (no tune_process) leaves the process's settings alone: nothing frozen."""
+    monkeypatch.setattr(process, "_tuned", False)  # as in a program that only imports missiontree
+    plugins, _ = _plugins_with_fake()
+    frozen: list[int] = []
+    request = MissionRequest(mission=_mission(tmp_path, backend="fake"), plugins=plugins,
+                             out=tmp_path / "run", on_tick=lambda _: frozen.append(gc.get_freeze_count()))
+    before = gc.get_freeze_count()
+    run_mission(request)
+    assert frozen and set(frozen) == {before}
 
 
 def test_a_missing_models_config_is_a_problem_before_any_robot_is_built(tmp_path: Path) -> None:

@@ -67,6 +67,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if stopped:
         print("missiontree: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    from missiontree.session.process import tune_process  # loaded by the subcommands already
+
+    tune_process()  # the process settings for long runs are the application's to set: here
     with safe_terminal():
         return _run(args)
 

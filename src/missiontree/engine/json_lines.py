@@ -9,10 +9,8 @@ from __future__ import annotations
 
 import dataclasses
 import enum
-import errno
 import json
 import math
-import os
 import time
 from pathlib import Path
 from typing import Any, TextIO
@@ -96,16 +94,13 @@ class LineWriter:
     Args:
         stream: Where lines go.
         flush_each_line: Flush after every line (a real robot's run).
-        room: Bytes the stream may still take before a write fails as a full disk does (fault
-            injection; None: no limit).
     """
 
-    def __init__(self, stream: TextIO, flush_each_line: bool, room: int | None = None) -> None:
+    def __init__(self, stream: TextIO, flush_each_line: bool) -> None:
         self._write = stream.write
         self._flush = stream.flush if flush_each_line else None
         self._stream = stream
         self.error: OSError | None = None
-        self._room = room
 
     def msg(self, message: str) -> None:
         """Write one line (dropped after a failed write)."""
@@ -121,10 +116,6 @@ class LineWriter:
                                        "redacted": "this line held a trace of a secret"})
         line = message + "\n"
         try:
-            if self._room is not None:
-                self._room -= len(line.encode("utf-8"))
-                if self._room < 0:
-                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
             self._write(line)
             if self._flush is not None:
                 self._flush()

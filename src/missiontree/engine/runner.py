@@ -19,15 +19,15 @@ says so in the summary (``fault``: the node and the error). A halt
 whose cancel raises is reported the same way. py_trees' own composites and decorators, which only
 manage their children, are trusted and ticked without a wrapper (:data:`TRUSTED_TYPES`).
 
-The run directory gets ``ticks.jsonl`` (:mod:`missiontree.engine.tick_log`), ``summary.json``
-and whatever pictures the backend draws (:class:`~missiontree.robot.interface.Drawable`).
+The run directory's files (``ticks.jsonl``, ``summary.json``, the backend's pictures) are the
+:class:`~missiontree.engine.recorder.RunRecorder`'s; the lines are the
+:mod:`~missiontree.engine.tick_log`'s. Process settings for long runs (the heap, the garbage
+collector) are the application's, not the runner's: :mod:`missiontree.session.process`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import io
-import json
 import math
 import os
 import signal
@@ -45,13 +45,12 @@ import py_trees
 from missiontree.engine.context import MissionContext
 from missiontree.engine.faults import fault_of
 from missiontree.engine.guards import TRUSTED_TYPES, guard_exceptions
-from missiontree.engine.native_memory import pin_mmap_threshold
 from missiontree.engine.node_words import node_paths
 from missiontree.engine.profile import RunProfile
+from missiontree.engine.recorder import RunRecorder
 from missiontree.engine.tick_log import TickLog, TickRecorder, plain
 from missiontree.errors import ConfigError, MissionTreeError, PluginError
 from missiontree.redact import scrub_data
-from missiontree.robot.interface import Drawable
 
 Status = py_trees.common.Status
 Behaviour = py_trees.behaviour.Behaviour
@@ -64,7 +63,7 @@ STOPPED_BY_ERROR = "error"
 
 _FINAL = (Status.SUCCESS, Status.FAILURE)
 
-__all__ = ["TRUSTED_TYPES", "RunResult", "Runner", "guard_exceptions", "run_tree"]
+__all__ = ["TRUSTED_TYPES", "RunResult", "Runner", "guard_exceptions"]
 
 
 @dataclass
@@ -156,8 +155,8 @@ class Runner:
         context.realtime = realtime
         self.on_tick = on_tick
         self.final_state = final_state
-        self._own_stream = log_stream is None and self.run_dir is not None
-        self._stream: TextIO = log_stream if log_stream is not None else io.StringIO()
+        #: The run directory's files: the log's stream, the summary, the pictures.
+        self.files = RunRecorder(self.run_dir, log_stream)
         self._signal = 0
         #: ``running`` (setup and ticks: a second signal interrupts at once) or ``stopping`` (halt,
         #: robot stop, summary: later signals are only noted, so the summary and log are whole).
@@ -166,10 +165,6 @@ class Runner:
         #: Why the run ended when stopped_by is ``error`` (written as the summary's ``reason``).
         self._reason = ""
         self._fault: tuple[Behaviour, str] | None = None
-        #: The run directory was deleted during the run (the log is recovered from the open file).
-        self._dir_lost = False
-        #: Writing the summary or the log failed: (what, error); the run then raises ConfigError.
-        self._write_failure: tuple[str, OSError] | None = None
         self.log: TickLog | None = None
         self.recorder: TickRecorder | None = None
         self._set_up = False
@@ -189,17 +184,10 @@ class Runner:
         """
         if self._set_up:
             return
+        self.files.open(self._provisional_summary())
         if self.run_dir is not None:
-            try:
-                self.run_dir.mkdir(parents=True, exist_ok=True)
-                if self._own_stream:  # w+: a deleted directory's log can be read back (_recover_log)
-                    self._stream = (self.run_dir / "ticks.jsonl").open("w+", encoding="utf-8", newline="\n")
-                self._write_summary(self._provisional_summary())
-            except OSError as error:
-                raise ConfigError(f"cannot write the run directory {self.run_dir}: "
-                                  f"{error.strerror or error}") from error
             self.context.run_dir = self.run_dir
-        self.log = TickLog(self._stream, self.mission, self.robot.now, bool(self.robot.simulated))
+        self.log = TickLog(self.files.stream, self.mission, self.robot.now, bool(self.robot.simulated))
         self.context.events = self.log
         self.log.bind()
         guard_exceptions(self.root, self._on_node_error)
@@ -289,7 +277,6 @@ class Runner:
             PluginError: A mission started/finished hook failed.
         """
         self._install_signal_handlers()
-        pin_mmap_threshold()  # glibc: big buffers not in the heap, no growth by fragmentation in long runs
         status = Status.INVALID
         stopped_by = STOPPED_BY_ERROR
         start = self.robot.now()
@@ -333,11 +320,11 @@ class Runner:
         except PluginError as error:  # the run is complete: keep its outcome, say what failed after it
             result.plugin_error = str(error)
             result.summary["plugin_error"] = str(error)
-            if self.run_dir is not None and self._write_failure is None:
+            if self.run_dir is not None and self.files.write_failure is None:
                 with contextlib.suppress(OSError):
-                    self._write_summary(result.summary)
-        if self._write_failure is not None:
-            what, failure = self._write_failure
+                    self.files.write_summary(result.summary)
+        if self.files.write_failure is not None:
+            what, failure = self.files.write_failure
             raise ConfigError(f"the run ended ({result.status.name}, stopped by {result.stopped_by}) but its "
                               f"{what} could not be written in {self.run_dir}: {failure.strerror or failure}")
         return result
@@ -392,33 +379,11 @@ class Runner:
             self._reason = (f"the tick log could not be written: {error.strerror or error}; the lines "
                             f"before the failure are kept")
             return True
-        if self._own_stream and os.fstat(self._stream.fileno()).st_nlink == 0:
-            self._dir_lost = True
+        if self.files.directory_deleted():
             self._reason = (f"the run directory {self.run_dir} was deleted during the run; it was made "
                             f"again with the tick log read back from the open file (other files are lost)")
             return True
         return False
-
-    def _recover_log(self) -> None:
-        """After the run directory was deleted: make it again, copy the unlinked log into it, go on there."""
-        assert self.run_dir is not None and self.log is not None
-        old = self._stream
-        try:
-            old.flush()
-            self.run_dir.mkdir(parents=True, exist_ok=True)
-            fd, offset = old.fileno(), 0
-            with (self.run_dir / "ticks.jsonl").open("wb") as copy:
-                while chunk := os.pread(fd, 1 << 20, offset):
-                    copy.write(chunk)
-                    offset += len(chunk)
-            self._stream = (self.run_dir / "ticks.jsonl").open("a", encoding="utf-8", newline="\n")
-        except OSError as error:
-            self._write_failure = ("tick log (its directory was deleted)", error)
-            return
-        finally:
-            with contextlib.suppress(OSError):
-                old.close()
-        self.log.redirect(self._stream)
 
     def _provisional_summary(self) -> dict[str, Any]:
         """The summary written as the run starts: valid JSON marked incomplete until the run ends."""
@@ -426,35 +391,39 @@ class Runner:
                       "stopped_by": "", "signal": "", "ticks": 0, "tick_hz": self.tick_hz,
                       "seed": self.context.seed, "robot": self.robot.name})
 
-    def _write_summary(self, summary: dict[str, Any]) -> None:
-        """Write summary.json whole or not at all (a temporary file renamed over it)."""
-        assert self.run_dir is not None
-        target = self.run_dir / "summary.json"
-        temporary = self.run_dir / ".summary.json.tmp"
-        try:
-            text = json.dumps(scrub_data(summary), indent=2, sort_keys=True) + "\n"
-            temporary.write_text(text, encoding="utf-8")
-            os.replace(temporary, target)
-        except OSError:
-            with contextlib.suppress(OSError):
-                temporary.unlink()
-            raise
-
     def _finish(self, status: Status, stopped_by: str, duration: float) -> RunResult:
         """Draw pictures, write the summary and close the log (never raises: failures are kept)."""
-        if self._dir_lost:
-            self._recover_log()
+        if self.files.dir_lost and self.log is not None:
+            self.files.recover_log(self.log.redirect)
         if self.log is not None:
             self.log.flush_pending()
         profile = self._profile_summary(duration)
-        pictures: list[str] = []
-        if self.run_dir is not None and isinstance(self.robot, Drawable) and self._write_failure is None:
-            try:
-                pictures = [p.name for p in self.robot.draw(self.run_dir, self.context.markers)]
-            except Exception as error:  # noqa: BLE001 - a failed picture must not lose the summary
-                if self.log is not None:
-                    self.log.emit("error", node="", error=f"drawing failed: {type(error).__name__}: {error}",
-                                  where="draw")
+        pictures = self.files.draw(self.robot, self.context.markers, self._on_draw_error)
+        summary = self._summary(status, stopped_by, duration, pictures)
+        if profile:
+            summary["profile"] = profile
+        summary.update(self._final_pose())
+        summary = scrub_data(plain(summary))  # kept, printed and recorded by batches: no secret in it
+        if self.recorder is not None:
+            self.recorder.close()
+        if self.log is not None:
+            self.log.line("mission_finished", status=status.name, stopped_by=stopped_by,
+                          ticks=summary["ticks"], duration=duration, reason=summary.get("reason"),
+                          fault=summary.get("fault"))
+            self.log.unbind()
+            self.log.flush()
+        self.files.finish(summary, log_failed=self.log is not None and self.log.write_error is not None)
+        return RunResult(status=status, stopped_by=stopped_by, ticks=summary["ticks"], duration=duration,
+                         run_dir=self.run_dir, summary=summary, signal=self._signal)
+
+    def _on_draw_error(self, error: Exception) -> None:
+        if self.log is not None:
+            self.log.emit("error", node="", error=f"drawing failed: {type(error).__name__}: {error}",
+                          where="draw")
+
+    def _summary(self, status: Status, stopped_by: str, duration: float,
+                 pictures: list[str]) -> dict[str, Any]:
+        """How the run ended, what its nodes did and what its leaves reported (no profile, no pose)."""
         summary: dict[str, Any] = {
             "mission": self.mission,
             "complete": True,
@@ -480,34 +449,7 @@ class Runner:
             summary["outcome"] = dict(self.context.outcome)
         if self.recorder is not None:
             summary.update(self.recorder.summary())
-        if profile:
-            summary["profile"] = profile
-        summary.update(self._final_pose())
-        summary = scrub_data(plain(summary))  # kept, printed and recorded by batches: no secret in it
-        if self.recorder is not None:
-            self.recorder.close()
-        if self.log is not None:
-            self.log.line("mission_finished", status=status.name, stopped_by=stopped_by,
-                          ticks=summary["ticks"], duration=duration, reason=summary.get("reason"),
-                          fault=summary.get("fault"))
-            self.log.unbind()
-            self.log.flush()
-        if self.run_dir is not None and self._write_failure is None:
-            try:
-                self.run_dir.mkdir(parents=True, exist_ok=True)
-                self._write_summary(summary)
-            except OSError as error:
-                self._write_failure = ("summary", error)
-        try:
-            if self._own_stream:
-                self._stream.close()
-            else:
-                self._stream.flush()
-        except OSError as error:
-            if self._write_failure is None and (self.log is None or self.log.write_error is None):
-                self._write_failure = ("tick log", error)
-        return RunResult(status=status, stopped_by=stopped_by, ticks=summary["ticks"], duration=duration,
-                         run_dir=self.run_dir, summary=summary, signal=self._signal)
+        return summary
 
     def _profile_summary(self, duration: float) -> dict[str, Any]:
         """The profile of the run so far (empty when off); the wrappers are removed (never raises)."""
@@ -565,7 +507,3 @@ class Runner:
             signal.signal(signum, handler)
         self._previous = {}
 
-
-def run_tree(root: Behaviour, context: MissionContext, **options: Any) -> RunResult:
-    """Shorthand: ``Runner(root, context, **options).run()``."""
-    return Runner(root, context, **options).run()

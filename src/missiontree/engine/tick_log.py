@@ -33,7 +33,6 @@ write ("success is failure") are replaced by the mission file's names
 from __future__ import annotations
 
 import json
-import os
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -58,11 +57,6 @@ MAX_REASONS = 10
 Status = py_trees.common.Status
 Behaviour = py_trees.behaviour.Behaviour
 
-#: Test hook (fault injection): when this environment variable holds a number of bytes, the tick
-#: log's writer raises ``OSError(ENOSPC)`` on the first line that would take the file past it, as a
-#: full disk does. Read when a :class:`TickLog` is made; unset in normal runs.
-DISK_FULL_AFTER_ENV = "MISSIONTREE_TEST_DISK_FULL_AFTER"
-
 
 class TickLog:
     """Writes the run's JSON lines; the event sink leaves emit to.
@@ -82,9 +76,7 @@ class TickLog:
         self.event_counts: dict[str, int] = {}
         #: The kind (and node) of the last event a leaf emitted, for progress lines.
         self.last_event = ""
-        limit = os.environ.get(DISK_FULL_AFTER_ENV, "").strip()
-        room = int(limit) if limit.isdigit() else None
-        writer = LineWriter(stream, flush_each_line=not simulated, room=room)
+        writer = LineWriter(stream, flush_each_line=not simulated)
         self._writer = writer
         render = structlog.processors.JSONRenderer(serializer=dumps)  # keys sorted by ENCODE
         stamp = [] if simulated else [add_wall_time]

@@ -6,7 +6,8 @@ only when the run is complete, with its ``record.json`` inside. So a killed batc
 runs under a final name, and an engine that runs a task twice (Dask retries a dead worker's task)
 finds the run already there and returns its record: the task is atomic and idempotent.
 
-Thread counts are pinned in the worker (:func:`pin_threads`): BLAS/OpenMP/numba through the
+The worker tunes its process for long runs (:func:`~missiontree.session.process.tune_process`) and
+pins thread counts (:func:`pin_threads`): BLAS/OpenMP/numba through the
 environment, onnxruntime through the models config (``threads: 1`` for every provider that takes
 ``threads`` and was not given one), so a run's numbers do not depend on the machine's cores.
 
@@ -125,7 +126,10 @@ def execute_run(task: RunTask) -> dict[str, Any]:
     A mission that fails, errs or hits its limit is a result (the record says which); only the
     death of this process is an infrastructure failure, which the engine reports.
     """
+    from missiontree.session.process import tune_process
+
     pin_threads()
+    tune_process()
     runs_dir = Path(task.runs_dir)
     final = runs_dir / task.spec.run_id
     done = _read_record(final)

@@ -20,7 +20,6 @@ run's files; the lock goes when the session closes.
 
 from __future__ import annotations
 
-import gc
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -41,6 +40,7 @@ from missiontree.robot.envelope import EnvelopedRobot, wrap_robot
 from missiontree.session.models import build_models
 from missiontree.session.params import parse_overrides
 from missiontree.session.preflight import check_references, resolve_mission_path
+from missiontree.session.process import run_span
 from missiontree.session.progress import ProgressLine
 from missiontree.session.rundir import RunDirectory
 
@@ -289,15 +289,10 @@ class Session:
         """
         if self.result is not None:
             raise ConfigError("a session runs its mission once; open a new session to run it again")
-        # What the session opened (models, robot, imported modules) lives as long as the run: frozen,
-        # the garbage collector's full passes no longer walk it, so they stop landing as ~25 ms stalls
-        # in a tick. Unfrozen after the run, so a process running many missions (a batch worker)
-        # still collects each one's cycles.
-        gc.freeze()
         try:
-            self.result = self.runner.run()
+            with run_span():  # the heap the session opened, frozen when the application tuned the process
+                self.result = self.runner.run()
         finally:
-            gc.unfreeze()
             if self.progress is not None:
                 self.progress.close()
         return self.result
