@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from missiontree.runlog.html import write_page
-from missiontree.runlog.synthetic import synthesize_run
+from missiontree.testing_runs import synthesize_run
 
 CHROMIUM = "/usr/bin/chromium"
 FLAGS = [

@@ -57,6 +57,7 @@ LAYERS: dict[str, int] = {
     "__main__": 13,  # `python -m missiontree` and the console script: the command line's entry
     "testing": 14,  # helpers for tests of the layers above
     "testing_models": 14,  # conformance suites for model providers
+    "testing_runs": 14,  # synthetic run directories for tests and the viewer benchmark
 }
 #: Parts that never import each other in either direction, whatever their layers.
 APART: set[frozenset[str]] = {

@@ -8,7 +8,7 @@ import pytest
 
 from missiontree.cli.main import main
 from missiontree.runlog.btlog import read_btlog
-from missiontree.runlog.synthetic import synthesize_run
+from missiontree.testing_runs import synthesize_run
 
 
 @pytest.fixture

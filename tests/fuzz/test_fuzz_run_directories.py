@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from strategies import mutations, values
 
 from missiontree.cli.main import main
-from missiontree.runlog.synthetic import synthesize_run
+from missiontree.testing_runs import synthesize_run
 
 _BASE: dict[str, Any] = {}
 

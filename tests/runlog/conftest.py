@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from missiontree.paths import REPO_ROOT
-from missiontree.runlog.synthetic import synthesize_run
+from missiontree.testing_runs import synthesize_run
 
 
 @pytest.fixture(scope="session")

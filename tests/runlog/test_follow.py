@@ -13,7 +13,7 @@ import pytest
 
 from missiontree.runlog import follow
 from missiontree.runlog.follow import make_server
-from missiontree.runlog.synthetic import synthesize_run
+from missiontree.testing_runs import synthesize_run
 
 
 @pytest.fixture

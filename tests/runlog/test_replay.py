@@ -212,7 +212,7 @@ def test_a_damaged_recorded_tree_is_refused_naming_the_file(tmp_path: Path) -> N
 
     from missiontree.errors import ConfigError
     from missiontree.runlog.replay import open_run
-    from missiontree.runlog.synthetic import synthesize_run
+    from missiontree.testing_runs import synthesize_run
 
     run = tmp_path / "run"
     synthesize_run(run, 20)
@@ -228,7 +228,7 @@ def test_recorded_poses_that_are_not_finite_numbers_are_left_out(tmp_path: Path)
     import json as _json
 
     from missiontree.runlog.replay import open_run
-    from missiontree.runlog.synthetic import synthesize_run
+    from missiontree.testing_runs import synthesize_run
 
     run = tmp_path / "run"
     synthesize_run(run, 20)

@@ -21,7 +21,7 @@ from runlog_helpers import read_lines, statuses_by_replaying
 from missiontree.runlog.follow import make_server
 from missiontree.runlog.html import write_page
 from missiontree.runlog.record import write_runview
-from missiontree.runlog.synthetic import synthesize_run
+from missiontree.testing_runs import synthesize_run
 
 CHROMIUM = "/usr/bin/chromium"
 FLAGS = [

@@ -11,7 +11,7 @@ import numpy as np
 
 from missiontree.runlog.html import page_data, render_page, write_page
 from missiontree.runlog.replay import open_run
-from missiontree.runlog.synthetic import synthesize_run
+from missiontree.testing_runs import synthesize_run
 
 
 def test_the_page_needs_no_network(patrol_run: Path, tmp_path: Path):

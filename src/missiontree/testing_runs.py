@@ -1,4 +1,4 @@
-"""A synthetic run directory of any length, for tests and the viewer's size benchmark.
+"""Test helper: a synthetic run directory of any length, for tests and the viewer's size benchmark.
 
 :func:`synthesize_run` writes what a patrol-like run writes — ``ticks.jsonl`` in the runner's
 format (sorted keys, compact separators), ``runview.json`` with a declared tree, a map and a
