@@ -41,6 +41,7 @@ from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
 from missiontree.backends.ros2 import conversions as conv
+from missiontree.backends.ros2.pacing import next_stride
 from missiontree.backends.ros2.profile import Ros2Profile
 from missiontree.backends.ros2.robot import latched_qos, reliable_qos
 from missiontree.backends.ros2.spin import spin_until, stop_spinning
@@ -179,8 +180,13 @@ class SimBridge:
         with self._sim_lock:
             if self.paused:
                 self.paused = False
-                self._wall0, self._sim0 = time.monotonic(), self.sim.now()
-                self._epoch = self._ros_now() - self.sim.now()  # wall-clock stamps restart from now
+                self._anchor()
+
+    def _anchor(self) -> None:
+        """Pace from here: wall time and simulated time start together, wall-clock stamps from now."""
+        self._wall0, self._sim0 = time.monotonic(), self.sim.now()
+        if not self.sim_time:
+            self._epoch = max(self._epoch, self._ros_now() - self.sim.now())  # stamps never go back
 
     # ------------------------------------------------------------------------------ commands in
 
@@ -425,11 +431,13 @@ class SimBridge:
                 continue
             with self._sim_lock:
                 dt = self.sim.profile.physics_dt
-                elapsed = (time.monotonic() - self._wall0) * self.rate
-                # whole physics steps only, so that no stamp lies ahead of ROS time
-                self.sim.spin_until(self._sim0 + math.floor(elapsed / dt + 1e-6) * dt)
+                wall_elapsed = time.monotonic() - self._wall0
+                stride = next_stride(self.sim.now(), self._sim0, wall_elapsed, self.rate, dt)
+                self.sim.spin_until(stride.target)
+                if stride.slipped:  # the machine cannot keep up: the world's clock slows, never leaps
+                    self._anchor()
+                self.publish_sensors()  # before the clock: no client sees a time its data has not reached
                 self._publish_clock()
-                self.publish_sensors()
                 next_wall = self._wall0 + (self.sim.now() - self._sim0 + dt) / self.rate
             self._stop.wait(max(0.0, next_wall - time.monotonic()))
 
