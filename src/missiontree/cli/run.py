@@ -13,12 +13,13 @@ from typing import Any
 
 from missiontree.cli import add_plugin_flag, plugins_from_args
 from missiontree.engine.runner import RunResult
+from missiontree.engine.substitute import Rule, load_rules, substitute_session
 from missiontree.session.mission import (
     DEFAULT_BACKEND,
     DEFAULT_SEED,
     DEFAULT_TICK_HZ,
     MissionRequest,
-    run_mission,
+    Session,
 )
 from missiontree.session.params import parse_assignment
 from missiontree.session.rundir import RunDirectory
@@ -31,6 +32,11 @@ checked against the type of that default and of every node parameter that reads 
 
   missiontree run trees/patrol.yaml --set laps=3 --set route=scenario_b
   missiontree run trees/find_object.yaml --set target="red backpack" --unknown-map
+
+`--substitute rules.yaml` swaps nodes for stubs without editing the mission (a test with its
+perception stubbed; see docs/testing-missions.md):
+
+  missiontree run trees/find_object.yaml --substitute tests/substitutions/find_object.yaml
 
 A progress line (robot time, real-time factor, root status, last event) goes to stderr: redrawn
 in place on a terminal, a plain line every 10 s otherwise; --quiet silences it.
@@ -75,6 +81,9 @@ def register(subparsers: Any) -> None:
                         help="serve the live viewer on 127.0.0.1:8765 while the mission runs")
     parser.add_argument("--allow-outside", action="store_true",
                         help="let subtree includes leave the mission's folder")
+    parser.add_argument("--substitute", type=Path, metavar="RULES",
+                        help="a rules file: nodes matched by path or type glob are replaced by stubs "
+                        "(fixed status, delay, blackboard writes); recorded in the log and summary")
     add_plugin_flag(parser)
     parser.set_defaults(func=run)
 
@@ -100,8 +109,25 @@ def request_from_args(args: argparse.Namespace) -> MissionRequest:
         allow_outside=bool(args.allow_outside), plugins=plugins_from_args(args))
 
 
+def run_substituted(request: MissionRequest, rules: list[Rule] | None = None) -> RunResult:
+    """Run a mission through the session, its nodes substituted by ``rules`` first (the Python API).
+
+    Raises:
+        MissionFileError: The mission is broken or a rule matches no node.
+    """
+    with Session.open(request) as session:
+        if rules:
+            substitute_session(session, rules)
+        return session.run()
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the mission; print a one-line result and where the run directory is."""
+    rules = load_rules(args.substitute) if getattr(args, "substitute", None) is not None else None
+
+    def run_mission(request: MissionRequest) -> RunResult:
+        return run_substituted(request, rules)
+
     if getattr(args, "view", False):
         from missiontree.cli.view import run_with_viewer
 
