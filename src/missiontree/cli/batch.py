@@ -97,6 +97,8 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--unknown-map", action="store_true", default=None,
                         help="every run starts without the world's map")
     parser.add_argument("--no-logs", action="store_true", help="do not keep each run's ticks.jsonl")
+    parser.add_argument("--log", choices=("sqlite",), help="also write every run's tick log into "
+                        "<out>/log.sqlite (appended; query it with `missiontree log query`)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     parser.add_argument("--allow-outside", action="store_true",
                         help="let subtree includes leave the mission's folder")
@@ -117,6 +119,8 @@ def _rate(text: str) -> float:
 
 def plan_from_args(args: argparse.Namespace) -> BatchPlan:
     """The batch plan the flags describe (checked: see :func:`preflight`)."""
+    if getattr(args, "log", None) and args.no_logs:
+        raise ConfigError("--log sqlite is written from each run's ticks.jsonl; drop --no-logs")
     if not args.tree.is_file():
         raise ConfigError(f"mission file {str(args.tree)!r} does not exist")
     if args.jobs is not None and args.jobs < 1:
@@ -201,9 +205,28 @@ def _run_locked(args: argparse.Namespace, plan: BatchPlan, out: Path) -> int:
 
     (out / "summary.json").write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n", encoding="utf-8")
     write_junit(records, out / "junit.xml", name=f"missiontree.batch.{args.tree.stem}")
+    if getattr(args, "log", None) == "sqlite":
+        write_sqlite_log(records, out, args.tree)
     print(format_table(summary))
     verdict = "passed" if passed else "FAILED"
     need = f" (needs {100 * args.min_success:.1f}%)" if args.min_success is not None else ""
     print(f"batch {verdict}{need}: {summary['passed']}/{summary['results']} runs succeeded, "
           f"{summary['infra_failures']} lost to infrastructure, {wall:.1f} s; results in {out}")
     return 0 if passed else 1
+
+
+def write_sqlite_log(records: list[Any], out: Path, mission: Path) -> Path:
+    """Append every run of the batch that has a tick log to ``out/log.sqlite``; return its path."""
+    from missiontree.runlog.sqlite_log import add_run, connect
+
+    path = out / "log.sqlite"
+    db = connect(path)
+    try:
+        for record in records:
+            if record.run_dir is None or not (out / record.run_dir / "ticks.jsonl").is_file():
+                continue
+            add_run(db, out / record.run_dir, name=record.run_id,
+                    extra={"world": record.world, "seed": record.seed, "params": record.params})
+    finally:
+        db.close()
+    return path

@@ -49,9 +49,41 @@ def register(subparsers: Any) -> None:
     from missiontree.cli import log_profile  # `log profile`: summary.json's profile as a table
 
     log_profile.add_to(actions)
-    from missiontree.cli import export  # `log export`: Groot2 .btlog and MCAP (owned by the viewer)
+    from missiontree.cli import export  # `log export`: Groot2 .btlog, MCAP and SQLite
 
     export.add_to(actions)
+    add_query(actions)
+
+
+def add_query(actions: Any) -> None:
+    """Add ``log query DB SQL``: a read-only SQL query on a SQLite log."""
+    from missiontree.runlog.sqlite_log import EXAMPLES
+
+    examples = "\n".join(f"  {name}:\n    {sql}" for name, sql in EXAMPLES.items())
+    query = actions.add_parser(
+        "query", help="run a read-only SQL query on a SQLite log",
+        description="Query a SQLite log written by `log export --format sqlite` or `batch --log sqlite` "
+        "(tables runs, nodes, transitions, events; see docs/queryable-log.md). The database is opened "
+        "read-only. SQL may also be the name of an example below.",
+        epilog=f"Examples:\n{examples}", formatter_class=argparse.RawDescriptionHelpFormatter)
+    query.add_argument("db", type=Path, help="the SQLite log")
+    query.add_argument("sql", help="the SQL query, or an example's name ('failures per node')")
+    query.add_argument("--json", action="store_true", help="print the rows as JSON objects, one a line")
+    query.set_defaults(func=run_query)
+
+
+def run_query(args: argparse.Namespace) -> int:
+    """Print the query's rows (a table, or JSON lines)."""
+    from missiontree.redact import terminal_safe
+    from missiontree.runlog.sqlite_log import EXAMPLES, format_rows, query
+
+    columns, rows = query(args.db, EXAMPLES.get(args.sql, args.sql))
+    if args.json:
+        for row in rows:
+            print(json.dumps(dict(zip(columns, row, strict=True)), sort_keys=True))
+    else:
+        print(terminal_safe(format_rows(columns, rows)))
+    return 0
 
 
 def log_file(run_path: Path) -> Path:
