@@ -261,3 +261,45 @@ def test_onnx_detector_keeps_each_boxs_score_for_every_class(tmp_path: Path) -> 
     ]
     _, _, _, rows = decode_yolo_with_scores(out, 2, 0.25, 0.45, 100)
     np.testing.assert_allclose(rows, [[0.7, 0.2], [0.005, 0.6]], atol=1e-6)
+
+
+def _flip_counts(tmp_path: Path, score: float, band: tuple[float, float] | None) -> dict[str, int]:
+    model = constant_yolo_model(tmp_path / "m.onnx", yolo_output([(20, 20, 8, 8, [score, 0.0])], 2),
+                                names=NAMES)
+    detector = YoloOnnxDetector(model, test_time_flip=True, flip_band=band, score_threshold=0.1, recent=0)
+    detector.detect(_image())
+    return detector.passes
+
+
+def test_mirror_pass_runs_when_a_candidate_scores_inside_the_band(tmp_path: Path) -> None:
+    """A candidate at 0.5 lies in [0.3, 0.7): the frame is mirrored too."""
+    assert _flip_counts(tmp_path, 0.5, (0.3, 0.7)) == {"single": 1, "mirror": 1}
+
+
+def test_mirror_pass_is_skipped_when_every_candidate_is_outside_the_band(tmp_path: Path) -> None:
+    """Candidates at 0.9 or 0.2 are settled by the single pass: no mirror pass."""
+    assert _flip_counts(tmp_path, 0.9, (0.3, 0.7)) == {"single": 1, "mirror": 0}
+    assert _flip_counts(tmp_path, 0.2, (0.3, 0.7)) == {"single": 1, "mirror": 0}
+
+
+def test_without_a_band_every_frame_is_mirrored(tmp_path: Path) -> None:
+    """flip_band None keeps the mirror pass on every frame."""
+    assert _flip_counts(tmp_path, 0.9, None) == {"single": 1, "mirror": 1}
+
+
+def test_a_band_in_the_wrong_order_is_refused(tmp_path: Path) -> None:
+    """[0.7, 0.3] is no band: a clear configuration error."""
+    model = constant_yolo_model(tmp_path / "m.onnx", yolo_output([(5, 5, 2, 2, [0.0, 0.9])], 2), names=NAMES)
+    with pytest.raises(ModelConfigError, match="flip_band"):
+        YoloOnnxDetector(model, test_time_flip=True, flip_band=(0.7, 0.3))
+
+
+def test_a_caller_can_ask_for_or_skip_the_mirror_pass_on_one_frame(tmp_path: Path) -> None:
+    """mirror=True mirrors a frame the band would skip; mirror=False skips one it would mirror."""
+    output = yolo_output([(20, 20, 8, 8, [0.9, 0.0])], 2)
+    model = constant_yolo_model(tmp_path / "m.onnx", output, names=NAMES)
+    detector = YoloOnnxDetector(model, test_time_flip=True, flip_band=(0.3, 0.7), score_threshold=0.1)
+    detector.detect(_image(), mirror=True)
+    assert detector.passes == {"single": 1, "mirror": 1}
+    detector.detect(_image(), mirror=False)  # not the remembered mirrored answer: another request
+    assert detector.passes == {"single": 2, "mirror": 1}

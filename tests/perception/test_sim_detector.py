@@ -73,7 +73,7 @@ def test_reports_nothing_at_mission_confidence_in_an_empty_room(tmp_path: Path) 
 def test_with_the_mirror_pass_a_mirrored_frame_gives_the_mirrored_detections(frame_and_truth) -> None:  # noqa: ANN001
     """Both passes pooled: the frame and its mirror image give the same detections, mirrored."""
     frame, _ = frame_and_truth
-    detector = create_sim_detector({"score_threshold": 0.05})
+    detector = create_sim_detector({"score_threshold": 0.05, "flip_band": None})
     assert detector.test_time_flip  # the provider's default
     image = frame.color
     width = image.shape[1]
@@ -91,3 +91,14 @@ def test_with_the_mirror_pass_a_mirrored_frame_gives_the_mirrored_detections(fra
 def test_the_mirror_pass_can_be_switched_off() -> None:
     detector = create_sim_detector({"test_time_flip": False})
     assert detector.test_time_flip is False and detector.describe()["test_time_flip"] is False
+
+
+def test_the_shipped_detector_mirrors_only_frames_with_a_candidate_in_its_band(frame_and_truth) -> None:  # noqa: ANN001
+    """By default the mirror pass runs on a frame with objects near the decision, not on a blank one."""
+    frame, _ = frame_and_truth
+    detector = create_sim_detector({})
+    assert detector.flip_band == (0.3, 0.7)
+    detector.detect(np.zeros_like(frame.color))
+    assert detector.passes == {"single": 1, "mirror": 0}
+    detector.detect(frame.color)
+    assert detector.passes == {"single": 2, "mirror": 1}

@@ -172,15 +172,24 @@ def detect_checked(detector: Any, image: np.ndarray) -> list[Detection]:
     return kept
 
 
-def detection_job(detector: Any, frame: RGBDFrame) -> Callable[[], list[Detection]]:
+def detection_job(
+    detector: Any, frame: RGBDFrame, mirror: bool | None = None,
+) -> Callable[[], list[Detection]]:
     """The blocking work of detecting in ``frame``, to be submitted as a model call.
 
     Call this on the tick thread: a detector that must read state the tick thread owns (the
     simulation oracle reads the simulator's instance mask) does so here, through its
     ``prepare_frame(frame)``; the returned function does the rest on a worker and checks the answer.
+    ``mirror`` asks a detector with a mirror pass (:class:`YoloOnnxDetector`) for it (True) or for
+    the single pass only (False); None, and other detectors, detect as configured.
     """
     prepare = getattr(detector, "prepare_frame", None)
-    work: Callable[[], Any] = prepare(frame) if callable(prepare) else (lambda: detector.detect(frame.color))
+    if callable(prepare):
+        work: Callable[[], Any] = prepare(frame)
+    elif mirror is not None and isinstance(detector, YoloOnnxDetector):
+        work = lambda: detector.detect(frame.color, mirror=mirror)  # noqa: E731
+    else:
+        work = lambda: detector.detect(frame.color)  # noqa: E731
     name = str(getattr(detector, "name", type(detector).__name__))
     height, width = frame.color.shape[:2]
 
@@ -334,6 +343,10 @@ class YoloOnnxDetector:
             boxes (the mirrored ones mapped back) before NMS, as Ultralytics' ``augment`` does with
             flips: an object one pass misses or misnames the other often gets right. Twice the
             inference time.
+        flip_band: With ``test_time_flip``, run the mirror pass only on frames whose single pass
+            left a candidate scoring in ``[low, high)`` (its best class), where the pooled
+            answer can change a caller's decision; None runs it on every frame. Frames whose
+            candidates all score below ``low`` or at ``high`` and above keep the single pass.
         threads: onnxruntime intra-op threads (the robot's CPU is shared: default 2).
         input_size: (height, width) for a model whose input size is dynamic; ignored otherwise.
         name: Provider name used in errors and events.
@@ -353,6 +366,7 @@ class YoloOnnxDetector:
         multi_label: bool = False,
         test_time_flip: bool = False,
         recent: int = 8,
+        flip_band: tuple[float, float] | None = None,
     ) -> None:
         self.name = name
         self.model_path = Path(model)
@@ -361,6 +375,13 @@ class YoloOnnxDetector:
         self.max_detections = int(max_detections)
         self.multi_label = bool(multi_label)
         self.test_time_flip = bool(test_time_flip)
+        self.flip_band = None if flip_band is None else (float(flip_band[0]), float(flip_band[1]))
+        if self.flip_band is not None and not 0.0 <= self.flip_band[0] <= self.flip_band[1]:
+            raise ModelConfigError(
+                f"detector {name!r}: flip_band {list(flip_band or ())} must be [low, high] with "
+                f"0 <= low <= high")
+        #: Model runs on images (``single``) and mirror passes among them (``mirror``).
+        self.passes = {"single": 0, "mirror": 0}
         self.recent = RecentDetections(recent)
         self._session = self._open_session(int(threads))
         self._input = self._session.get_inputs()[0]
@@ -464,17 +485,26 @@ class YoloOnnxDetector:
         tensor = padded.transpose(2, 0, 1)[None].astype(self._input_dtype) / self._input_dtype(255.0)  # type: ignore[operator]
         return np.ascontiguousarray(tensor), box
 
-    def detect(self, image: np.ndarray) -> list[Detection]:
-        """Detections in ``image`` (HxWx3 uint8 RGB), boxes in its pixels, best score first."""
+    def detect(self, image: np.ndarray, mirror: bool | None = None) -> list[Detection]:
+        """Detections in ``image`` (HxWx3 uint8 RGB), boxes in its pixels, best score first.
+
+        Args:
+            image: The colour image.
+            mirror: Whether to add the mirror pass: None as configured (``test_time_flip`` and
+                ``flip_band``), True on this frame whatever the band says (a caller verifying),
+                False not (a caller that needs only the single pass's answer).
+        """
         image = check_image(image, self.name)
-        key = self.recent.key(image) if self.recent.size else None
+        key = (*self.recent.key(image), mirror) if self.recent.size else None
         if key is not None:
             remembered = self.recent.get(key)
             if remembered is not None:
                 return remembered
         tensor, box = self.preprocess(image)
         output = self._run(tensor)
-        if self.test_time_flip:
+        self.passes["single"] += 1
+        if mirror if mirror is not None else (self.test_time_flip and self._mirror_pays(output)):
+            self.passes["mirror"] += 1
             mirrored = self._run(np.ascontiguousarray(tensor[..., ::-1]))
             mirrored[:, 0] = self.input_width - mirrored[:, 0]  # box centres back in the unflipped input
             output = np.concatenate([output, mirrored], axis=2)
@@ -498,6 +528,15 @@ class YoloOnnxDetector:
         if key is not None:
             self.recent.put(key, kept)
         return kept
+
+    def _mirror_pays(self, output: np.ndarray) -> bool:
+        """Whether the single pass ``output`` left a candidate in :attr:`flip_band` (always without one)."""
+        if self.flip_band is None:
+            return True
+        scores = output[0, 4 : 4 + len(self._labels)]
+        best = scores.max(axis=0) if scores.size else scores.reshape(-1)
+        low, high = self.flip_band
+        return bool(((best >= low) & (best < high)).any())
 
     def _run(self, tensor: np.ndarray) -> np.ndarray:
         """The model's raw ``[1, 4 + classes, N]`` output for one input tensor, its layout checked."""
@@ -536,4 +575,6 @@ class YoloOnnxDetector:
             "score_threshold": self.score_threshold,
             "multi_label": self.multi_label,
             "test_time_flip": self.test_time_flip,
+            "flip_band": None if self.flip_band is None else list(self.flip_band),
+            "passes": dict(self.passes),
         }
