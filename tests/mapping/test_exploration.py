@@ -144,3 +144,44 @@ def test_a_speck_between_beams_is_no_candidate_even_at_the_end() -> None:
     data[1:8, 1:8] = 0
     data[15, 20:22] = -1
     assert planner("gain", min_unknown_m2=1.0, min_gain_m2=1.0).candidates(grid(data), (3.0, 2.0)) == []
+
+
+def room_in_a_large_unknown() -> np.ndarray:
+    """A 30 x 20 m grid, unknown but for a room (x 10-14 m, y 8-11 m) with a doorway east at x 14."""
+    data = np.full((200, 300), -1, np.int8)
+    data[80:110, 100:140] = 0
+    data[78:80, 98:142] = 100          # walls two cells thick (no gain ray slips through a corner)
+    data[110:112, 98:142] = 100
+    data[78:112, 98:100] = 100
+    data[78:90, 140:142] = 100
+    data[100:112, 140:142] = 100
+    return data
+
+
+def test_the_window_is_the_known_box_with_a_margin_snapped_to_its_step() -> None:
+    """known_window keeps the known cells' box padded by the margin, edges snapped out, origin moved."""
+    from missiontree.mapping.exploration import known_window
+
+    w = known_window(grid(room_in_a_large_unknown()), margin_m=1.0, step_m=2.0)
+    # known rows 78-111 and cols 98-141; padded by 10 cells, snapped to 20: rows 60-140, cols 80-160
+    assert w.data.shape == (80, 80)
+    assert (w.origin.x, w.origin.y) == pytest.approx((8.0, 6.0))
+    assert (w.data >= 0).sum() == (room_in_a_large_unknown() >= 0).sum()
+
+
+def test_ranking_on_the_window_offers_the_same_goals_and_measures_paths_on_the_window() -> None:
+    """The window gives the goals of the whole grid, and the path search sees only the window."""
+    g = grid(room_in_a_large_unknown())
+    shapes: list[tuple[int, ...]] = []
+
+    def lengths(grid_: OccupancyGrid, start: tuple[float, float], goals: object, r: float) -> list:
+        shapes.append(grid_.data.shape)
+        return straight_line_lengths(grid_, start, goals, r)  # type: ignore[arg-type]
+
+    whole = planner("gain", window_margin_m=100.0).candidates(g, (12.0, 9.5))
+    cut = ExplorationPlanner(strategy="gain", path_lengths=lengths, footprint_radius=0.2,
+                             sensor_range=4.0).candidates(g, (12.0, 9.5))
+    assert [v for c in cut for v in (c.x, c.y, *c.target)] == pytest.approx(
+        [v for c in whole for v in (c.x, c.y, *c.target)])
+    assert [c.gain_m2 for c in cut] == pytest.approx([c.gain_m2 for c in whole])
+    assert cut and shapes and all(s[0] * s[1] <= 80 * 80 for s in shapes)

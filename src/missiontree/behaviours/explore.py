@@ -173,7 +173,7 @@ class Explore(Leaf):
         now = robot.now()
         grid = robot.occupancy()
         stamped = robot.pose()
-        if grid is None or stamped is None or not free_mask(grid).any():
+        if grid is None or stamped is None or (self.last_grid is None and not free_mask(grid).any()):
             if now - self.started > self.params.map_timeout:
                 got = "nothing" if grid is None else "no free cell"
                 return self.fail(f"no map with free space within {self.params.map_timeout:g} s "

@@ -27,6 +27,13 @@ Path lengths come from :func:`missiontree.mapping.planner.path_lengths` (one Dij
 robot over the inflated costmap, unknown cells traversable as with a SLAM map); a goal it cannot
 reach is no candidate.
 
+Every question is asked of the map's *window* (:meth:`ExplorationPlanner.window`): the box of its
+known cells, padded by ``window_margin_m`` and snapped outwards to ``window_step_m``. Frontiers,
+goals and gains are the same as on the whole grid (every cell outside the box is unknown, as is
+everything beyond a grid's border); path lengths no longer wander through the unknown far from
+anything seen. On a 30 x 50 m map at 3 cm the whole grid is 1.7 million cells, and every ranking
+flooded all of them, most still unknown.
+
 A try that fails is not the end of a frontier. :meth:`ExplorationPlanner.fail` records it, and the
 frontier is offered again from another approach: the first try stands back from it as above, the
 second goes *through* it (a goal ``through_m`` past the frontier, in the unknown it faces: the path
@@ -56,7 +63,7 @@ from missiontree.mapping.frontiers import find_frontiers, visible_unknown_area
 from missiontree.mapping.grid import occupied_mask
 from missiontree.mapping.planner import Costmap
 from missiontree.mapping.scan_points import scan_points
-from missiontree.types import OccupancyGrid
+from missiontree.types import OccupancyGrid, Pose2D
 
 STRATEGIES = ("gain", "nearest", "scan_points")
 
@@ -103,6 +110,30 @@ def straight_line_lengths(grid: OccupancyGrid, start: tuple[float, float],
                           footprint_radius: float) -> list[float | None]:
     """Euclidean distances (every goal counts as reachable)."""
     return [math.hypot(g[0] - start[0], g[1] - start[1]) for g in goals]
+
+
+def known_window(grid: OccupancyGrid, margin_m: float, step_m: float) -> OccupancyGrid:
+    """``grid`` cut to the box of its known cells padded by ``margin_m``, edges snapped out to ``step_m``.
+
+    The cut keeps the grid's cells (its origin moves by whole cells); the whole grid when nothing
+    is known or the box reaches every border.
+    """
+    known = grid.data >= 0
+    rows, cols = np.flatnonzero(known.any(axis=1)), np.flatnonzero(known.any(axis=0))
+    if not len(rows):
+        return grid
+    res = grid.resolution
+    h, w = grid.data.shape
+    m = int(math.ceil(margin_m / res))
+    step = max(1, int(math.ceil(step_m / res)))
+    r0 = max(0, (int(rows[0]) - m) // step * step)
+    c0 = max(0, (int(cols[0]) - m) // step * step)
+    r1 = min(h, -(-(int(rows[-1]) + 1 + m) // step) * step)
+    c1 = min(w, -(-(int(cols[-1]) + 1 + m) // step) * step)
+    if (r0, c0, r1, c1) == (0, 0, h, w):
+        return grid
+    origin = Pose2D(grid.origin.x + c0 * res, grid.origin.y + r0 * res, grid.origin.yaw)
+    return OccupancyGrid(grid.stamp, res, origin, grid.data[r0:r1, c0:c1])
 
 
 @dataclass(frozen=True)
@@ -186,6 +217,9 @@ class ExplorationPlanner(FrontierGoals):
             other frontiers go first and the map around it can grow meanwhile.
         path_lengths: How path lengths are measured (default: the planner, on a costmap kept
             between calls and updated where the map changed).
+        window_margin_m: Unknown margin (m) kept round the known cells' box (:meth:`window`).
+        window_step_m: The window's edges are snapped outwards to this step (m), so that it changes
+            seldom (the costmap kept between calls starts over when it does).
     """
 
     strategy: str = "gain"
@@ -213,6 +247,8 @@ class ExplorationPlanner(FrontierGoals):
     through_m: float = 0.6
     retry_discount: float = 0.5
     path_lengths: PathLengths = field(default_factory=KeptCostmapLengths)
+    window_margin_m: float = 1.0
+    window_step_m: float = 2.0
     blacklist: list[Blacklisted] = field(default_factory=list)
     visited: list[tuple[float, float]] = field(default_factory=list)
     failures: list[Blacklisted] = field(default_factory=list)
@@ -296,8 +332,23 @@ class ExplorationPlanner(FrontierGoals):
         finally:
             self.min_frontier_m, self.min_unknown_m2, self.min_gain_m2 = kept
 
+    def window(self, grid: OccupancyGrid) -> OccupancyGrid:
+        """The part of ``grid`` the planner works on: its known cells' box with an unknown margin.
+
+        The box is padded by ``window_margin_m`` and snapped outwards to ``window_step_m`` (cut at
+        the grid's border); the same grid object when that is the whole grid. Kept for the last
+        grid given.
+        """
+        cached = self.__dict__.get("_window")
+        if cached is not None and cached[0] is grid:
+            return cached[1]
+        out = known_window(grid, self.window_margin_m, self.window_step_m)
+        self.__dict__["_window"] = (grid, out)
+        return out
+
     def _ranked(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[Candidate]:
         """Candidates at the current thresholds, best first."""
+        grid = self.window(grid)
         raw, grid = grid, self.close_wall_gaps(grid)
         if self.strategy == "scan_points":
             points = [(p.x, p.y, p.cells, p.x, p.y) for p in scan_points(grid, self.erosion_m)]
@@ -363,7 +414,7 @@ class ExplorationPlanner(FrontierGoals):
         unknown inside a piece of furniture or along a wall's far side is no such space (the line
         crosses the far side, or nothing past it is clear), a doorway onto an unseen room is.
         """
-        grid = self.close_wall_gaps(grid)
+        grid = self.close_wall_gaps(self.window(grid))
         res = grid.resolution
         min_cells = max(1, int(math.ceil(self.min_frontier_m / res)))
         piece = max(min_cells, int(math.ceil(self.frontier_piece_m / res)))

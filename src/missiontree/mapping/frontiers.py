@@ -123,11 +123,12 @@ def _split(cells: np.ndarray, max_size: int | None) -> list[np.ndarray]:
 
 def _make(cells: np.ndarray, grid: OccupancyGrid) -> Frontier:
     res, ox, oy = grid.resolution, grid.origin.x, grid.origin.y
-    xs = ox + (cells[:, 1] + 0.5) * res
-    ys = oy + (cells[:, 0] + 0.5) * res
-    cx, cy = float(xs.mean()), float(ys.mean())
-    nearest = int(np.argmin((xs - cx) ** 2 + (ys - cy) ** 2))
-    goal = (float(xs[nearest]), float(ys[nearest]))
+    # the nearest cell is found in cell units, where ties are exact (a window of the map breaks
+    # them the same way as the whole map)
+    mr, mc = cells[:, 0].mean(), cells[:, 1].mean()
+    nearest = int(np.argmin((cells[:, 0] - mr) ** 2 + (cells[:, 1] - mc) ** 2))
+    cx, cy = ox + (float(mc) + 0.5) * res, oy + (float(mr) + 0.5) * res
+    goal = (ox + (int(cells[nearest, 1]) + 0.5) * res, oy + (int(cells[nearest, 0]) + 0.5) * res)
     return Frontier(cells=cells, size=len(cells), centroid=(cx, cy), goal=goal)
 
 
