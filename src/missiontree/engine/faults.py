@@ -16,12 +16,89 @@ carries a fault (:func:`mark_fault`: the reason, on the node), kept until the no
 
 from __future__ import annotations
 
+import os
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
 import py_trees
 
 Behaviour = py_trees.behaviour.Behaviour
 Status = py_trees.common.Status
 
 _ATTRIBUTE = "missiontree_fault"
+
+#: Longest exception message kept in a reason (a message may carry a model's or a peer's text).
+MAX_MESSAGE = 300
+#: Frames kept in an error event's traceback (the innermost ones).
+MAX_FRAMES = 12
+
+
+@dataclass(frozen=True)
+class ErrorSite:
+    """Where an exception was raised, for a reason and the tick log.
+
+    Attributes:
+        reason: ``ValueError: message (at plugin/leaves.py:42 in update)``.
+        where: ``plugin/leaves.py:42`` (the frame in the node's own file when the error passed
+            through it, else the innermost frame), or empty.
+        function: That frame's function.
+        frames: The traceback, innermost last, as ``file:line in function`` (no source text, no values).
+    """
+
+    reason: str
+    where: str
+    function: str
+    frames: tuple[str, ...]
+
+
+def error_site(error: BaseException, own_file: str | None = None) -> ErrorSite:
+    """Describe ``error``: its type, message (one line, capped) and where it was raised.
+
+    Only file names, line numbers and function names are taken from the traceback, never source
+    lines or local values; the message is the one part the error's raiser wrote, so it is flattened
+    to one line and cut at :data:`MAX_MESSAGE` characters.
+
+    Args:
+        error: The exception caught.
+        own_file: The node's own source file: when a frame is in it, that frame is named (the plugin
+            line that called into a library), else the innermost frame.
+    """
+    message = " ".join(str(error).split())
+    if len(message) > MAX_MESSAGE:
+        message = message[:MAX_MESSAGE - 1] + "…"
+    text = f"{type(error).__name__}: {message}" if message else type(error).__name__
+    frames = traceback.extract_tb(error.__traceback__) if error.__traceback__ is not None else []
+    if not frames:
+        return ErrorSite(text, "", "", ())
+    chosen = frames[-1]
+    if own_file is not None:
+        own = [frame for frame in frames if _same_file(frame.filename, own_file)]
+        if own:
+            chosen = own[-1]
+    where = f"{shown_file(chosen.filename)}:{chosen.lineno}"
+    listed = tuple(f"{shown_file(f.filename)}:{f.lineno} in {f.name}" for f in frames[-MAX_FRAMES:])
+    return ErrorSite(f"{text} (at {where} in {chosen.name})", where, chosen.name, listed)
+
+
+def shown_file(filename: str) -> str:
+    """A source file as a reader finds it: relative to the working directory, else from site-packages."""
+    path = Path(filename)
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except (ValueError, OSError):
+        pass
+    parts = path.parts
+    if "site-packages" in parts:
+        return "/".join(parts[parts.index("site-packages") + 1:])
+    return filename
+
+
+def _same_file(a: str, b: str) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return a == b
 
 
 def mark_fault(node: Behaviour, reason: str) -> None:

@@ -10,14 +10,16 @@ Lifecycle, as in py_trees' ``Behaviour``, each piece of work in the method where
   expected failure, which sets the feedback message the tick log records.
 - ``terminate(new_status)`` cancels what ``initialise()`` started when halted.
 
-An exception raised in any of them becomes FAILURE of this leaf with the error as the reason,
-an ``error`` event and a fault (:mod:`missiontree.engine.faults`: no Inverter or ForceSuccess
+An exception raised in any of them becomes FAILURE of this leaf with the error and where it was
+raised as the reason (``ValueError: ... (at my_plugin/leaves.py:42 in update)``), an ``error``
+event carrying ``where`` (file:line) and the ``traceback`` (file, line and function of each frame;
+no source text or values), and a fault (:mod:`missiontree.engine.faults`: no Inverter or ForceSuccess
 turns it into SUCCESS); the run goes on.
 """
 
 from __future__ import annotations
 
-import traceback
+import inspect
 from collections.abc import Iterator
 from typing import Any, ClassVar
 
@@ -25,7 +27,7 @@ import py_trees
 from pydantic import BaseModel, TypeAdapter
 
 from missiontree.engine.context import MissionContext
-from missiontree.engine.faults import clear_fault, mark_fault
+from missiontree.engine.faults import clear_fault, error_site, mark_fault
 from missiontree.engine.ports import BlackboardRef, ports_of
 
 Status = py_trees.common.Status
@@ -100,15 +102,21 @@ class Leaf(py_trees.behaviour.Behaviour):
             self.iterator = self.tick()
 
     def _report_error(self, error: Exception) -> str:
-        """Record ``error`` as this leaf's feedback and send an ``error`` event; return the reason."""
-        reason = f"{type(error).__name__}: {error}"
-        self.feedback_message = reason
+        """Record ``error`` (and where it was raised) as this leaf's feedback; send an ``error`` event.
+
+        Returns the reason: the error and the file:line in this leaf's own source that it passed
+        through (else where it was raised).
+        """
+        try:
+            own = inspect.getsourcefile(type(self))
+        except TypeError:  # a class made at run time (a test's) has no file
+            own = None
+        site = error_site(error, own)
+        self.feedback_message = site.reason
         if self.ctx is not None:
-            self.ctx.events.emit(
-                "error", node=self.name, error=reason,
-                where=traceback.extract_tb(error.__traceback__)[-1].name if error.__traceback__ else "",
-            )
-        return reason
+            self.ctx.events.emit("error", node=self.name, error=site.reason, where=site.where,
+                                 function=site.function, traceback=list(site.frames))
+        return site.reason
 
     def _fail_on_exception(self, error: Exception) -> None:
         self.failure_reason = self._report_error(error)
