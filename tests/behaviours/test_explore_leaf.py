@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -13,6 +14,7 @@ from patrol_doubles import Events, FakeHandle, FakeRobot
 from missiontree.behaviours.explore import Explore
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Status
+from missiontree.mapping.exploration import Candidate, ExplorationPlanner
 from missiontree.mapping.mapfile import read_map
 from missiontree.robot.actions import ActionStatus
 from missiontree.types import OccupancyGrid, Pose2D, Tolerance
@@ -256,3 +258,62 @@ def test_a_frontier_whose_edge_moves_a_little_keeps_its_goal() -> None:
         leaf.tick_once()
         robot.advance(0.1)
     assert len(robot.goals) == 1, [(round(g.goal.x, 2), round(g.goal.y, 2)) for g in robot.goals]
+
+
+class SeesawPlanner(ExplorationPlanner):
+    """A planner whose two frontiers, west and east, take turns at scoring clearly best, never seen."""
+
+    def candidates(self, grid: OccupancyGrid, robot_xy: tuple[float, float],
+                   ignore_blacklist: bool = False) -> list[Candidate]:
+        self.calls = getattr(self, "calls", 0) + 1
+        west = Candidate(2.0, 0.8, "frontier", 10, 5.0, 1.0, 5.0, (1.6, 0.8))
+        east = Candidate(4.0, 0.8, "frontier", 10, 5.0, 1.0, 5.0, (4.4, 0.8))
+        low = [dataclasses.replace(c, score=1.0) for c in (west, east)]
+        return [west, low[1]] if self.calls % 2 else [east, low[0]]
+
+    def still_frontier(self, grid: OccupancyGrid, x: float, y: float, radius: float = 0.3) -> bool:
+        return True
+
+
+def test_a_place_left_for_a_better_one_is_not_switched_back_to() -> None:
+    """Two frontiers taking turns at scoring best: the robot switches once, not back and forth."""
+    robot = MapRobot(corridor_map(), polls=10_000)
+
+    class Seesaw(Explore):
+        def make_planner(self) -> ExplorationPlanner:
+            return SeesawPlanner(**self.planner_options())
+
+    events = Events()
+    leaf = Seesaw("explore", Explore.Params(strategy="gain"))
+    leaf.setup(context=MissionContext(robot=robot, events=events, run_dir=None))
+    for _ in range(300):                            # 30 s: 15 replans
+        leaf.tick_once()
+        robot.advance(0.1)
+    assert len(robot.goals) == 2, [(round(g.goal.x, 2), round(g.goal.y, 2)) for g in robot.goals]
+
+
+class FlickerPlanner(ExplorationPlanner):
+    """A planner whose one frontier reads seen at every check yet is offered again each time."""
+
+    def candidates(self, grid: OccupancyGrid, robot_xy: tuple[float, float],
+                   ignore_blacklist: bool = False) -> list[Candidate]:
+        return [Candidate(4.0, 0.8, "frontier", 10, 5.0, 1.0, 5.0, (4.4, 0.8))]
+
+    def still_frontier(self, grid: OccupancyGrid, x: float, y: float, radius: float = 0.3) -> bool:
+        return False
+
+
+def test_a_flickering_frontier_is_gone_to_instead_of_being_sent_again_and_again() -> None:
+    """A frontier that reads seen, then is offered again, is left twice at most; then the robot goes there."""
+    robot = MapRobot(corridor_map(), polls=10_000)
+
+    class Flicker(Explore):
+        def make_planner(self) -> ExplorationPlanner:
+            return FlickerPlanner(**self.planner_options())
+
+    leaf = Flicker("explore", Explore.Params(strategy="gain"))
+    leaf.setup(context=MissionContext(robot=robot, events=Events(), run_dir=None))
+    for _ in range(300):                            # 30 s: 15 replans
+        leaf.tick_once()
+        robot.advance(0.1)
+    assert len(robot.goals) == 3

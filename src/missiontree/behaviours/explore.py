@@ -63,6 +63,9 @@ _SELECT, _DRIVE, _LOOK = "select", "drive", "look"
 #: Known area must grow by this much (m^2), or the robot move this far (m), to count as progress.
 _AREA_PROGRESS = 0.25
 _MOVE_PROGRESS = 0.25
+#: A frontier place left this many times before it was reached (its frontier flickering seen and
+#: unseen) is no longer left as seen: the robot goes there and looks.
+_MAX_LEFT = 2
 
 
 class Explore(Leaf):
@@ -133,6 +136,7 @@ class Explore(Leaf):
         self.goals = 0
         self.last_grid: OccupancyGrid | None = None
         self.left: list[LeftOpen] | None = None   # set when nothing is left but frontiers given up open
+        self.dropped: list[tuple[float, float]] = []  # frontier places left before they were reached
         #: explored | partial | failed | stopped (halted, or ended by a subclass's own rule)
         self.outcome = "stopped"
         self._reset_timers(0.0)
@@ -163,6 +167,7 @@ class Explore(Leaf):
         self.goals = 0
         self.last_grid = None
         self.left = None
+        self.dropped = []
         self.outcome = "stopped"
         self.started = self.context.robot.now()
         self._reset_timers(self.started)
@@ -345,21 +350,44 @@ class Explore(Leaf):
             # piece's own point shifts as its far edge flickers in the scans, and a 0.3 m test sent
             # the robot back and forth between two frontiers for the whole run)
             seen = not self.planner.still_frontier(grid, *target.target, radius=self.planner.blacklist_radius)
+            if seen and self._times_left(target.target) >= _MAX_LEFT:
+                seen = False  # it flickers: go there and look (reached, its frontier decides)
             if seen or self.params.strategy == "gain":
-                candidates = self.planner.candidates(grid, (pose.x, pose.y))
-                if not candidates:
-                    self.handle.cancel()
-                    self.handle = None
-                    self.state = _SELECT
-                    return None
-                best = candidates[0]
-                if seen:
-                    self._send(now, best)  # its frontier has been seen meanwhile: on to the next
-                else:
-                    current = _matching(candidates, target, radius=0.5)
-                    if current is not None and best is not current and self.planner.better(best, current):
-                        self._send(now, best)
+                return self._replan(now, grid, pose, target, seen)
         return self.running(self._feedback(pose))
+
+    def _replan(self, now: float, grid: OccupancyGrid, pose: Pose2D, target: Candidate,
+                seen: bool) -> Status | None:
+        """Leave a goal whose frontier was seen for the best one, or switch to a clearly better one.
+
+        A place once left before it was reached is never switched back to for scoring better (it
+        is chosen again only when the goal in hand ends): two goals scoring alike in turn sent the
+        robot back and forth between them for whole runs.
+        """
+        assert self.planner is not None and self.handle is not None
+        candidates = self.planner.candidates(grid, (pose.x, pose.y))
+        if not candidates:
+            self.handle.cancel()
+            self.handle = None
+            self.state = _SELECT
+            return None
+        best = candidates[0]
+        if seen:
+            self.dropped.append(target.target)
+            self._send(now, best)  # its frontier has been seen meanwhile: on to the next
+        else:
+            current = _matching(candidates, target, radius=0.5)
+            if current is not None and best is not current and self.planner.better(best, current) \
+                    and self._times_left(best.target) == 0:
+                self.dropped.append(target.target)
+                self._send(now, best)
+        return self.running(self._feedback(pose))
+
+    def _times_left(self, place: tuple[float, float]) -> int:
+        """How often a goal for the frontier place ``place`` was left before it was reached."""
+        assert self.planner is not None
+        r = self.planner.blacklist_radius
+        return sum(math.dist(place, p) <= r for p in self.dropped)
 
     def _send(self, now: float, candidate: Candidate) -> None:
         robot = self.context.robot
