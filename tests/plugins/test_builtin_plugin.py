@@ -83,3 +83,36 @@ def test_ros2_event_mirroring_is_listed_and_imports_without_rclpy() -> None:
     had_rclpy = "rclpy" in sys.modules
     importlib.import_module("missiontree.backends.ros2.plugin")
     assert ("rclpy" in sys.modules) == had_rclpy
+
+
+def test_lazy_node_types_are_exactly_what_the_behaviours_module_registers() -> None:
+    """LAZY_NODE_TYPES names every behaviour leaf, each declaring the same type as registered eagerly."""
+    from missiontree.behaviours import register_nodes
+    from missiontree.engine.registry import NodeRegistry
+
+    eager = NodeRegistry()
+    register_nodes(eager)
+    lazy = NodeRegistry()
+    for name, target in builtin.LAZY_NODE_TYPES.items():
+        lazy.add_lazy(name, target)
+    assert lazy.names() == eager.names()
+    for node_type in eager:
+        assert lazy.get(node_type.name).params is node_type.params  # type: ignore[union-attr]
+
+
+def test_loading_plugins_imports_no_behaviour_module() -> None:
+    """load_plugins leaves the behaviour modules (and their numba/scipy/OpenCV imports) unimported."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from missiontree.plugins.manager import load_plugins; "
+            "p = load_plugins(autoload=False); assert 'Explore' in p.nodes; "
+            "print(sorted(m for m in sys.modules if m.startswith('missiontree.behaviours.')))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"
+
+
+def test_a_mission_node_type_is_imported_when_asked_for() -> None:
+    """Asking the registry for Patrol imports its module and gives the built-in's declaration."""
+    node_type = load_plugins(autoload=False).nodes.get("Patrol")
+    assert node_type is not None and node_type.provider == "builtin" and node_type.category == "leaf"

@@ -6,7 +6,11 @@ built-ins.
 
 Everything it pulls in is listed here, in one place:
 
-- :data:`NODE_MODULES`: modules exposing ``register_nodes(registry)``.
+- :data:`NODE_MODULES`: modules exposing ``register_nodes(registry)`` (the engine's own nodes,
+  cheap to import).
+- :data:`LAZY_NODE_TYPES`: the behaviour leaves, node type name → ``"module:attribute"``, imported
+  only when a mission (or a listing) asks for that type: a patrol does not import exploration's
+  numba kernels, the scene graph's scipy or the search's OpenCV code.
 - :data:`PROVIDER_MODULES`: modules exposing ``register_providers(providers)``.
 - :data:`BACKENDS`: backend name → ``"module:function"``, resolved only when a run asks for that
   backend (so listing backends never imports rclpy), see :func:`resolve_factory`.
@@ -32,9 +36,28 @@ if TYPE_CHECKING:
 #: Modules whose ``register_nodes(registry)`` adds built-in node types.
 NODE_MODULES: list[str] = [
     "missiontree.engine.nodes",
-    "missiontree.behaviours",
     "missiontree.engine.nodes.sensors",  # SensorCondition, WaitForSensor: any numeric plugin sensor
 ]
+
+#: The behaviour leaves (what :func:`missiontree.behaviours.register_nodes` adds), registered by
+#: name and imported when first asked for (:meth:`~missiontree.engine.registry.NodeRegistry.add_lazy`).
+LAZY_NODE_TYPES: dict[str, str] = {
+    "NavigateTo": "missiontree.behaviours.motion:NavigateTo",
+    "Rotate": "missiontree.behaviours.motion:Rotate",
+    "Patrol": "missiontree.behaviours.patrol:Patrol",
+    "Surveillance": "missiontree.behaviours.surveillance:Surveillance",
+    "ServoToTarget": "missiontree.behaviours.servo:ServoToTarget",
+    "GoToIntent": "missiontree.behaviours.intent:GoToIntent",
+    "ServeCommands": "missiontree.behaviours.commands:SERVE_COMMANDS",
+    "Explore": "missiontree.behaviours.explore:Explore",
+    "BuildSceneGraph": "missiontree.behaviours.scene:BuildSceneGraph",
+    "ScanRotate": "missiontree.behaviours.search:ScanRotate",
+    "ColourAttention": "missiontree.behaviours.search:ColourAttention",
+    "ResumeExplore": "missiontree.behaviours.search:ResumeExplore",
+    "Locate": "missiontree.behaviours.search:Locate",
+    "Approach": "missiontree.behaviours.search:Approach",
+    "Verify": "missiontree.behaviours.search:Verify",
+}
 
 #: Modules whose ``register_providers(providers)`` adds built-in model providers.
 PROVIDER_MODULES: list[str] = [
@@ -75,9 +98,11 @@ def _import_listed(module_name: str, list_name: str) -> ModuleType:
 
 @hookimpl
 def missiontree_register_nodes(registry: NodeRegistry) -> None:
-    """Add the node types of every module in :data:`NODE_MODULES`."""
+    """Add the node types of every module in :data:`NODE_MODULES`, and :data:`LAZY_NODE_TYPES` by name."""
     for module_name in NODE_MODULES:
         _import_listed(module_name, "NODE_MODULES").register_nodes(registry)
+    for name, target in LAZY_NODE_TYPES.items():
+        registry.add_lazy(name, target)
 
 
 @hookimpl

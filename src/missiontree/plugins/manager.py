@@ -159,6 +159,11 @@ class _ProviderScopedRegistry:
             name = node_type.name if isinstance(node_type, NodeType) else node_type.__name__
             self._added.append(name)
 
+    def add_lazy(self, name: str, target: str, provider: str | None = None) -> None:
+        """Register node type ``name`` as coming from this plugin, imported from ``target`` when used."""
+        self._registry.add_lazy(name, target, provider=self._provider)
+        self._added.append(name)
+
     def __getattr__(self, name: str) -> Any:
         return getattr(self._registry, name)
 
@@ -361,19 +366,17 @@ def _collect_plugin(pm: pluggy.PluginManager, plugin: PluginInfo) -> _Found:
 def _merge(plugin: PluginInfo, found: _Found, nodes: NodeRegistry, targets: dict[str, dict[str, Any]],
            owners: dict[str, dict[str, str]]) -> None:
     """Add one plugin's registrations, refusing any name already taken (nothing is added then)."""
-    for node_type in found.nodes:
-        existing = nodes.get(node_type.name)
-        if existing is not None:
-            raise PluginError(f"node type {node_type.name!r} registered twice: by {existing.provider!r} "
+    for name in found.nodes.names():  # by name: a lazily registered type stays unimported
+        if name in nodes:
+            raise PluginError(f"node type {name!r} registered twice: by {nodes.provider_of(name)!r} "
                               f"and by {plugin.name!r}; rename one of them")
     for kind, local in found.named.items():
         for name in local:
             if name in targets[kind]:
                 raise PluginError(f"{kind[:-1]} {name!r} registered twice: by {owners[kind][name]!r} and by "
                                   f"{plugin.name!r}; uninstall or rename one of them")
-    for node_type in found.nodes:
-        nodes.add(node_type)
-    plugin.nodes = [t.name for t in found.nodes]
+    nodes.absorb(found.nodes)
+    plugin.nodes = found.nodes.names()
     for kind, local in found.named.items():
         targets[kind].update(local)
         owners[kind].update(dict.fromkeys(local, plugin.name))
