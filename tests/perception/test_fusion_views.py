@@ -81,9 +81,9 @@ def test_frames_of_several_visits_add_up() -> None:
 def test_boxes_cut_at_the_bottom_or_a_side_do_not_confirm_alone() -> None:
     """A 'refrigerator' whose boxes the image's side and bottom cut waits; views with its foot in confirm it.
 
-    The top may cut them (a tall object seen from close).
+    The top may cut them (a tall object seen from close) when the whole-view rule is off.
     """
-    fusion = InstanceFusion(SemanticMap(), FusionParams(min_bounded_share=0))
+    fusion = InstanceFusion(SemanticMap(), FusionParams(min_bounded_share=0, whole_size=None))
     cut = (0.0, 0.0, 220.0, 240.0)
     whole = (100.0, 0.0, 220.0, 200.0)
     stamp = 1.0
@@ -100,6 +100,29 @@ def test_boxes_cut_at_the_bottom_or_a_side_do_not_confirm_alone() -> None:
             [projection("refrigerator", stamp, whole, (3.0, 0, 0.8), 2.7, (0.7, 0.7, 1.6))],
         )
         stamp += 1.0
+    assert [i.label for i in fusion.map] == ["refrigerator"]
+
+
+def test_a_large_candidate_every_box_of_which_the_top_cuts_is_not_confirmed() -> None:
+    """A wall seen from close called a refrigerator, cut by the image's top in every box, never becomes one.
+
+    One view that shows it whole (no border cuts it) confirms it.
+    """
+    fusion = InstanceFusion(SemanticMap(), FusionParams(min_bounded_share=0))
+    top_cut = (100.0, 0.0, 220.0, 200.0)
+    whole = (120.0, 20.0, 200.0, 200.0)
+    stamp = 1.0
+    for _ in range(30):
+        fusion.process(
+            frame(stamp, room_depth()),
+            [projection("refrigerator", stamp, top_cut, (3.0, 0, 0.8), 2.7, (0.7, 0.7, 1.6))],
+        )
+        stamp += 1.0
+    assert len(fusion.map) == 0
+    fusion.process(
+        frame(stamp, room_depth()),
+        [projection("refrigerator", stamp, whole, (3.0, 0, 0.8), 2.7, (0.7, 0.7, 1.6))],
+    )
     assert [i.label for i in fusion.map] == ["refrigerator"]
 
 
@@ -286,3 +309,19 @@ def test_the_outline_keeps_the_cells_of_a_large_instance_at_its_place() -> None:
         centres[(size, margin)] = fusion._outline_centre(_Track(cells=Counter(cells)), (7.45, 7.3, 0.3), tv)
     assert centres[(0.93, 0.05)] == centres[(0.93, None)] is not None
     assert centres[(0.4, 0.05)] != centres[(0.93, None)]
+
+
+def test_the_colour_comes_from_the_pixels_at_the_objects_depth_not_the_wall_behind() -> None:
+    """A blue chair's back fills a quarter of its box, the wall behind the rest: the instance is blue."""
+    from missiontree.perception.fusion import _colour
+
+    depth = np.full((K.height, K.width), 4.0, np.float32)  # the wall behind the chair
+    colour = np.zeros((K.height, K.width, 3), np.uint8)
+    colour[:] = (214, 210, 200)  # the wall
+    box = (100.0, 60.0, 200.0, 180.0)
+    depth[60:180, 140:155] = 2.0  # the chair's back and legs: a quarter of the inner box
+    colour[60:180, 140:155] = (35, 70, 200)
+    f = RGBDFrame(1.0, colour, depth, K, Pose2D(0.0, 0.0, 0.0), CAMERA_HEIGHT)
+    det = Detection("chair", 0.9, box)
+    assert _colour(f, det) != "blue"  # the whole inner box: mostly wall
+    assert _colour(f, det, 2.0) == "blue"

@@ -14,6 +14,7 @@ names are those world files use (the simulator's palette names map onto them thr
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -185,6 +186,56 @@ def dominant_colour(
         position=horizontal_position(centroid[0], image.shape[1]),
         centroid=centroid,
     )
+
+
+def surface_mask(depth: np.ndarray, surface: float, band: float) -> np.ndarray:
+    """HxW bool mask of the pixels whose depth lies within ``band`` metres of ``surface``.
+
+    A box holds more than its object: the wall behind a chair's legs and back, the table in front
+    of a chair pushed under it. The pixels at the depth of the object's measured surface are the
+    object's; those far behind or in front are not, and must not name its colour.
+    """
+    d = np.asarray(depth, dtype=np.float32)
+    return np.isfinite(d) & (d > 0) & (np.abs(d - surface) <= band)
+
+
+#: Only pixels this close in depth to the box's measured surface name its colour, metres: the
+#: object's own faces (a chair 0.45 m deep, seen corner-on), not the wall behind or a table before it.
+COLOUR_DEPTH_BAND = 0.35
+#: Least share of the inner box's pixels at the surface's depth for the depth mask to be used (else
+#: the whole inner box names the colour, as without depth).
+COLOUR_MIN_SHARE = 0.1
+
+
+def box_colour(
+    image: np.ndarray,
+    depth: np.ndarray | None,
+    box: tuple[float, float, float, float],
+    mask: np.ndarray | None = None,
+    surface: float | None = None,
+    inner: float = 0.6,
+) -> str | None:
+    """The colour name of a detection's box: its ``inner`` part, at the depth of its surface when given.
+
+    With ``surface`` (the depth the box's object was measured at) and a depth image registered to
+    ``image``, only the pixels within :data:`COLOUR_DEPTH_BAND` of it count (:func:`surface_mask`),
+    unless fewer than :data:`COLOUR_MIN_SHARE` of the inner box's pixels are there.
+    """
+    if surface is not None and math.isfinite(surface) and depth is not None:
+        if np.asarray(depth).shape == image.shape[:2]:
+            near = surface_mask(depth, surface, COLOUR_DEPTH_BAND)
+            if mask is not None:
+                near = near & np.asarray(mask, dtype=bool)
+            x1, y1, x2, y2 = box
+            cx, cy = (x1 + x2) / 2.0, (y1 + y2) / 2.0
+            hw, hh = (x2 - x1) * inner / 2.0, (y2 - y1) * inner / 2.0
+            r0, r1 = max(0, int(cy - hh)), max(0, int(math.ceil(cy + hh)))
+            c0, c1 = max(0, int(cx - hw)), max(0, int(math.ceil(cx + hw)))
+            part = near[r0:r1, c0:c1]
+            if part.size and part.mean() >= COLOUR_MIN_SHARE:
+                mask = near
+    reading = dominant_colour(image, box, mask, inner=inner)
+    return reading.name if reading is not None else None
 
 
 @dataclass(frozen=True, slots=True)

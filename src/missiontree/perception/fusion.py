@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from missiontree.perception.absence import AbsenceJudge
-from missiontree.perception.colour import dominant_colour
+from missiontree.perception.colour import box_colour
 from missiontree.perception.detectors import CLASS_SCORES
 from missiontree.perception.footprint import (
     footprint_sides,
@@ -54,7 +54,6 @@ from missiontree.types import CameraIntrinsics, Detection, RGBDFrame
 
 #: Inner share of a box whose pixels name its colour (a box holds background at its edges).
 COLOUR_INNER = 0.6
-
 #: Second opinion on a candidate before it becomes an instance: (frame, its detection in it) →
 #: True (it is what the detector said), False (it is not: rejected), None (cannot tell: accepted).
 Verifier = Callable[[RGBDFrame, Detection], "bool | None"]
@@ -162,7 +161,7 @@ class InstanceFusion:
             self._bounded[id(p)] = self._stands_out(frame, p)
         seen: set[str] = set()
         for p in sorted(kept, key=lambda q: -q.score):
-            colour = _colour(frame, p.detection)
+            colour = _colour(frame, p.detection, p.depth)
             instance = self._associate(p, seen)
             if instance is not None:
                 self._refine(instance, p, colour, frame)
@@ -313,7 +312,22 @@ class InstanceFusion:
         judged = [self._bounded[id(q)] for q in cand.projections if id(q) in self._bounded]
         if judged and self.params.min_bounded_share > 0:
             enough = enough and sum(judged) >= self.params.min_bounded_share * len(judged)
-        return enough and self._plausible_size(cand)
+        return enough and self._seen_whole(cand) and self._plausible_size(cand)
+
+    def _seen_whole(self, cand: Candidate) -> bool:
+        """Whether a large candidate was seen whole once: a box no image border cuts, top included.
+
+        See ``whole_size``; a candidate smaller than it passes.
+        """
+        limit, size = self.params.edge_clip, self.params.whole_size
+        if size is None or not cand.projections or self._k is None:
+            return True
+        width = float(np.median([q.size[0] for q in cand.projections]))
+        height = float(np.median([q.size[2] for q in cand.projections]))
+        if max(width, height) < size:
+            return True
+        bottom = self._k.height - limit
+        return any(q.box[1] > limit and q.box[3] < bottom and not self._clipped(q) for q in cand.projections)
 
     def _plausible_size(self, cand: Candidate) -> bool:
         """Whether the candidate's median measured size reaches its class's least size (``SIZE_PRIORS``)."""
@@ -562,9 +576,9 @@ def _class_scores(p: Projection) -> dict[str, float]:
     return {p.label: p.score}
 
 
-def _colour(frame: RGBDFrame, detection: Detection) -> str | None:
-    reading = dominant_colour(frame.color, detection.box, detection.mask, inner=COLOUR_INNER)
-    return reading.name if reading is not None else None
+def _colour(frame: RGBDFrame, detection: Detection, surface: float | None = None) -> str | None:
+    """The box's colour (:func:`.colour.box_colour`: its inner part, at its surface's depth when given)."""
+    return box_colour(frame.color, frame.depth, detection.box, detection.mask, surface, COLOUR_INNER)
 
 
 def _majority(votes: Counter[str], default: str) -> str:

@@ -62,6 +62,11 @@ class FusionParams:
             refrigerator; an object is seen with its foot and both sides in view a few times; the
             top may cut a tall one seen from close).
         min_uncut_share: Least share of a candidate's recent projections that must be whole.
+        whole_size: A candidate this large (the larger of its boxes' median width and height at
+            their depth, metres) is confirmed only once a box of it is cut by no image border, the
+            top included: a wall seen from close fills the view like a refrigerator, and every box
+            of such a phantom is cut by the image's top; a real tall object is seen whole from a
+            few metres. None turns the rule off.
         small_size: A candidate whose boxes measure at most this much (larger side, median,
             metres) is small: the detector finds a bottle or a cup in a few frames of each visit.
         small_min_frames: Frames a small candidate needs instead of ``filters.min_frames``.
@@ -153,6 +158,7 @@ class FusionParams:
     surface_cell: float = 0.05
     min_uncut: int = 3
     min_uncut_share: float = 0.2
+    whole_size: float | None = 0.6
     small_size: float = 0.3
     small_min_frames: int = 5
     size_margin: float = 0.7
