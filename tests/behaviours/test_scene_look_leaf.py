@@ -69,3 +69,46 @@ def test_with_nothing_doubtful_the_leaf_ends_at_once() -> None:
     leaf.setup(context=MissionContext(robot=robot, events=Events(), scene=LiveScene()))
     leaf.tick_once()
     assert leaf.status is Status.SUCCESS and not robot.goals
+
+
+def _frame_robot() -> RoomRobot:
+    from missiontree.types import CameraIntrinsics, RGBDFrame
+
+    robot = RoomRobot()
+    robot.set_pose(Pose2D(1.0, 1.0, 0.0))
+    k = CameraIntrinsics(width=320, height=240, fx=228.5, fy=228.5, cx=159.5, cy=119.5)
+    colour = np.zeros((240, 320, 3), np.uint8)
+    depth = np.ones((240, 320), np.float32)
+    robot.frame = RGBDFrame(0.0, colour, depth, k, Pose2D(1.0, 1.0, 0.0), 0.4)
+    return robot
+
+
+def test_with_surfaces_the_robot_looks_at_a_table_top_from_where_its_top_is_in_view() -> None:
+    """A 0.75 m table gets a stand far enough that 0.3 m above its top is in the vertical field of view."""
+    robot = _frame_robot()
+    scene = LiveScene()
+    scene.map.add("table", (4.5, 2.0, 0.375), 0.0, size=(1.2, 1.2, 0.75))
+    scene.map.add("cup", (1.5, 3.0, 0.05), 0.0, size=(0.09, 0.09, 0.11))  # below the camera: no look
+    leaf = LookAgain("look", LookAgain.Params(surfaces=True))
+    leaf.setup(context=MissionContext(robot=robot, events=Events(), scene=scene))
+    for _ in range(600):
+        leaf.tick_once()
+        if leaf.status in (Status.SUCCESS, Status.FAILURE):
+            break
+        robot.advance(0.1)
+    assert leaf.status is Status.SUCCESS and len(robot.goals) == 1
+    goal = robot.goals[0].goal
+    d = math.hypot(goal.x - 4.5, goal.y - 2.0)
+    need = (0.75 + 0.3 - 0.4) / (120.0 / 228.5) + 0.6  # rise over tan(half vfov), plus half the table
+    assert need - 1e-6 <= d <= need + 1.5
+
+
+def test_without_surfaces_a_table_gets_no_look() -> None:
+    """Without ``surfaces`` the leaf looks only at doubtful places: a table in the graph gets none."""
+    robot = _frame_robot()
+    scene = LiveScene()
+    scene.map.add("table", (4.5, 2.0, 0.375), 0.0, size=(1.2, 1.2, 0.75))
+    leaf = LookAgain("look", LookAgain.Params())
+    leaf.setup(context=MissionContext(robot=robot, events=Events(), scene=scene))
+    leaf.tick_once()
+    assert leaf.status is Status.SUCCESS and not robot.goals

@@ -10,6 +10,14 @@ each side, so the camera sees it whole for a few seconds and the fusion confirms
 nothing there. It ends SUCCESS once every place was visited (or could not be), naming how many are
 now in the graph. Nothing here reads the simulator's truth.
 
+With ``surfaces`` it also looks at the top of every object of the graph whose measured top lies above
+the camera and low enough to put things on (a table, a desk, a counter, a sofa's seat): from close,
+a camera below the top sees the object's edge and nothing on it, and the objects standing there
+(a cup, a bottle) are above the image's top. The stand is where the top and ``object_height``
+above it are inside the vertical field of view (:func:`surface_distance`: the camera's height and
+intrinsics from its frames), plus half the object's footprint. The objects are chosen by their
+measured size, never by their label.
+
 Use it after exploration, beside the builder::
 
     Parallel: {policy: success_on_one, children: [
@@ -28,6 +36,19 @@ from missiontree.robot.actions import ActionHandle
 from missiontree.semantics.second_look import BEST, FAR, NEAR, look_stand
 from missiontree.types import Pose2D, Tolerance
 
+#: A place to look at: (label, x, y, nearest, best, farthest stand distance in metres).
+Place = tuple[str, float, float, float, float, float]
+
+
+def surface_distance(top: float, object_height: float, camera_height: float, tan_half_vfov: float) -> float:
+    """Least distance (m) at which a camera sees up to ``object_height`` above a surface ``top`` high.
+
+    The vertical half field of view's tangent bounds what is in the image above the optical axis: a
+    point ``h`` above the camera is in view from ``h / tan`` metres on.
+    """
+    rise = max(top + object_height - camera_height, 0.0)
+    return rise / max(tan_half_vfov, 1e-3)
+
 
 class LookAgain(Leaf):
     """Visit every doubtful place of the live scene for a second look; SUCCESS when all were visited."""
@@ -42,13 +63,25 @@ class LookAgain(Leaf):
             60.0, gt=0, description="Seconds to reach a stand before looking from where it is."
         )
         max_places: int = Field(30, ge=1, description="Most places visited in one run of the leaf.")
+        doubtful: bool = Field(True, description="Look at the doubtful places (scene.doubtful).")
+        surfaces: bool = Field(
+            False, description="Also look at the top of every object whose top is above the camera and "
+            "below max_top (objects on tables and desks).",
+        )
+        object_height: float = Field(
+            0.3, gt=0, description="Height above a surface to bring into view (m): a bottle."
+        )
+        max_top: float = Field(1.3, gt=0, description="Highest surface top looked at (m).")
+        min_footprint: float = Field(
+            0.5, gt=0, description="Least measured width (m) of an object whose top is looked at."
+        )
 
     params: Params
 
     def __init__(self, name: str, params: BaseModel | None = None) -> None:
         super().__init__(name, params)
-        self.visited: list[tuple[str, float, float]] = []
-        self.place: tuple[str, float, float] | None = None
+        self.visited: list[Place] = []
+        self.place: Place | None = None
         self.handle: ActionHandle | None = None
         self.started = 0.0
         self.turns: list[tuple[float, float]] = []
@@ -99,14 +132,39 @@ class LookAgain(Leaf):
 
     # -- steps ---------------------------------------------------------------------------------
 
-    def _pending(self) -> list[tuple[str, float, float]]:
+    def _pending(self) -> list[Place]:
         scene = self.context.scene
-        doubtful = list(getattr(scene, "doubtful", []) or [])
-        return [
-            p
-            for p in doubtful
-            if not any(p[0] == v[0] and math.hypot(p[1] - v[1], p[2] - v[2]) < 0.5 for v in self.visited)
+        p = self.params
+        places: list[Place] = [
+            (label, x, y, p.min_distance, p.distance, p.max_distance)
+            for label, x, y in (list(getattr(scene, "doubtful", []) or []) if p.doubtful else [])
         ]
+        places += self._surfaces()
+        return [
+            q
+            for q in places
+            if not any(q[0] == v[0] and math.hypot(q[1] - v[1], q[2] - v[2]) < 0.5 for v in self.visited)
+        ]
+
+    def _surfaces(self) -> list[Place]:
+        """Tops to look at (see ``surfaces``): by measured size, from where objects on them are in view."""
+        scene = self.context.scene
+        frame = self.context.robot.rgbd()
+        if not self.params.surfaces or scene is None or frame is None:
+            return []
+        k, height = frame.intrinsics, frame.camera_height
+        tan = (k.cy + 0.5) / k.fy
+        out: list[Place] = []
+        for inst in scene.map:
+            top = inst.position[2] + 0.5 * inst.size[2] if len(inst.position) > 2 else inst.size[2]
+            if not height < top <= self.params.max_top:
+                continue
+            if max(inst.size[0], inst.size[1]) < self.params.min_footprint:
+                continue
+            near = surface_distance(top, self.params.object_height, height, tan)
+            near += 0.5 * max(inst.size[0], inst.size[1])
+            out.append((inst.label, inst.position[0], inst.position[1], near, near + 0.4, near + 1.5))
+        return out
 
     def _next(self) -> Status:
         robot = self.context.robot
@@ -118,12 +176,7 @@ class LookAgain(Leaf):
         place = min(pending, key=lambda p: math.hypot(p[1] - here[0], p[2] - here[1]))
         self.visited.append(place)
         grid = robot.occupancy()
-        p = self.params
-        stand = (
-            look_stand(grid, (place[1], place[2]), p.min_distance, p.distance, p.max_distance)
-            if grid is not None
-            else None
-        )
+        stand = look_stand(grid, (place[1], place[2]), *place[3:]) if grid is not None else None
         if stand is None:
             self.no_stand += 1
             return self.running(self._feedback())
@@ -160,7 +213,7 @@ class LookAgain(Leaf):
         scene = self.context.scene
         confirmed = 0
         if scene is not None:
-            confirmed = sum(1 for label, x, y in self.visited if scene.map.near(x, y, 0.5, label=label))
+            confirmed = sum(1 for label, x, y, *_ in self.visited if scene.map.near(x, y, 0.5, label=label))
         return self.succeed(
             f"looked again at {len(self.visited) - self.no_stand} places: {confirmed} now in the scene graph"
             + (f", {self.no_stand} with no stand in sight on the map" if self.no_stand else "")
