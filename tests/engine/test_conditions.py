@@ -281,3 +281,33 @@ def test_conditions_on_an_include_go_on_the_subtree_root(tmp_path: Path, registr
     _, problems = check_mission(path, registry)
     assert [(p.file, p.line, p.col) for p in problems] == [(str(path), 3, 39), (str(path), 3, 45)]
     assert "attribute access" in problems[0].message and "found both" in problems[1].message
+
+
+def _log(tmp_path: Path, registry: NodeRegistry, text: str) -> list[dict[str, Any]]:
+    path = tmp_path / "m.yaml"
+    path.write_text(text)
+    spec = load_mission(path, registry)
+    _, lines = capture_tick_log(build_tree(spec, registry), blackboard=spec.blackboard)
+    return lines
+
+
+def test_the_tick_log_records_each_nodes_conditions_as_the_run_starts(tmp_path: Path,
+                                                                       registry: NodeRegistry) -> None:
+    """A `conditions` event names the node's path and every condition's text, as written."""
+    lines = _log(tmp_path, registry, _tree('Succeed: {name: x, skip_if: "a == 1", on_success: "n := n + 1"}'))
+    (event,) = [line for line in lines if line["event"] == "conditions"]
+    assert event["node"] == "Sequence/x"
+    assert event["conditions"] == {"skip_if": "a == 1", "on_success": "n := n + 1"}
+
+
+def test_a_condition_that_decides_gives_its_reason_once(tmp_path: Path, registry: NodeRegistry) -> None:
+    """A skip decided on every tick of a Selector without memory is one `condition` event with its reason."""
+    text = ("blackboard: {a: 1}\nroot:\n  Sequence:\n    memory: true\n    children:\n"
+            "      - Repeat:\n          times: 5\n          child:\n"
+            "            Succeed: {name: x, skip_if: a == 1}\n")
+    lines = _log(tmp_path, registry, text)
+    decided = [line for line in lines if line["event"] == "condition"]
+    assert len(decided) == 1
+    assert decided[0]["node"] == "Sequence/Repeat/x" and decided[0]["status"] == "SUCCESS"
+    assert decided[0]["key"] == "skip_if" and decided[0]["expression"] == "a == 1"
+    assert decided[0]["reason"] == "skip_if: `a == 1` is true, skipped"

@@ -17,6 +17,12 @@ A node in a mission file may carry, beside its parameters:
 A condition or assignment that cannot be evaluated (a key not set, a type mismatch) fails the node
 with a fault (:mod:`missiontree.engine.faults`) naming the reason; it is never read as false.
 
+Recorded in the tick log through the event sink the runner gives every node at setup: a
+``conditions`` event per conditioned node as the run starts (its path and every condition's text:
+what the viewer and the ``.btlog`` export show), and a ``condition`` event with the node, the key,
+the expression, the status and the ``reason`` each time a pre-condition decides a node's status
+(once while the same decision repeats tick after tick).
+
 :func:`attach` switches a built behaviour to a subclass of its own class (:func:`conditioned_class`)
 whose ``tick`` and ``stop`` do this (the runner's guards and
 recorder wrap it like any node); the tree keeps its shape, so node paths are unchanged.
@@ -46,6 +52,8 @@ Behaviour = py_trees.behaviour.Behaviour
 Status = py_trees.common.Status
 
 _ATTRIBUTE = "missiontree_conditions"
+_EVENTS = "missiontree_condition_events"
+_DECIDED = "missiontree_condition_decided"
 
 
 @dataclass
@@ -124,9 +132,13 @@ def conditioned_class(cls: type) -> type:
         def stop(self: Behaviour, new_status: Status) -> None:
             _stop(self, new_status, cls.stop)  # type: ignore[attr-defined]
 
+        def setup(self: Behaviour, **kwargs: Any) -> None:
+            _setup(self, kwargs.get("context"))
+            cls.setup(self, **kwargs)  # type: ignore[attr-defined]
+
         found = _CLASSES[cls] = type(cls.__name__, (cls,), {
-            "tick": tick, "stop": stop, "__module__": cls.__module__, "__qualname__": cls.__qualname__,
-            BASE_CLASS: base})
+            "tick": tick, "stop": stop, "setup": setup, "__module__": cls.__module__,
+            "__qualname__": cls.__qualname__, BASE_CLASS: base})
     return found
 
 
@@ -137,9 +149,12 @@ def _tick(self: Behaviour, parent_tick: Callable[[Behaviour], Iterator[Behaviour
     try:
         decided = _before(self, conditions)
     except EvaluationError as error:
-        yield from _end(self, Status.FAILURE, f"condition: {error}", fault=True)
+        reason = f"condition: {error}"
+        _announce(self, Status.FAILURE, reason, conditions)
+        yield from _end(self, Status.FAILURE, reason, fault=True)
         return
     if decided is None:
+        setattr(self, _DECIDED, None)
         done = False
         for node in parent_tick(self):
             if node is self and not done:  # a parent may stop iterating once it sees this node: act first
@@ -148,7 +163,49 @@ def _tick(self: Behaviour, parent_tick: Callable[[Behaviour], Iterator[Behaviour
             yield node
         return
     status, reason, ran = decided
+    _announce(self, status, reason, conditions)
     yield from _end(self, status, reason, conditions if ran else None)
+
+
+def node_path(node: Behaviour) -> str:
+    """The node's path as the tick log writes it (:func:`~missiontree.engine.node_words.node_paths`)."""
+    parts: list[str] = []
+    while node.parent is not None:
+        siblings = node.parent.children
+        index = next(i for i, child in enumerate(siblings) if child is node)
+        repeated = sum(child.name == node.name for child in siblings) > 1
+        parts.append(f"{node.name}[{index}]" if repeated else node.name)
+        node = node.parent
+    parts.append(node.name)
+    return "/".join(reversed(parts))
+
+
+def texts(conditions: NodeConditions) -> dict[str, str]:
+    """Every condition's text as written, by key (BT.CPP's order: pre-conditions, then assignments)."""
+    found = {key: conditions.pre[key].text for key in PRE_KEYS if key in conditions.pre}
+    found.update({key: conditions.post[key].text for key in POST_KEYS if key in conditions.post})
+    return found
+
+
+def _setup(self: Behaviour, context: Any) -> None:
+    """Keep the run's event sink and record the node's conditions in the tick log."""
+    events = getattr(context, "events", None)
+    setattr(self, _EVENTS, events)
+    setattr(self, _DECIDED, None)
+    if events is not None:
+        events.emit("conditions", node=node_path(self), conditions=texts(getattr(self, _ATTRIBUTE)))
+
+
+def _announce(self: Behaviour, status: Status, reason: str, conditions: NodeConditions) -> None:
+    """A ``condition`` event: which pre-condition decided the node's status and why (once per decision)."""
+    events = getattr(self, _EVENTS, None)
+    if events is None or getattr(self, _DECIDED, None) == (status, reason):
+        return
+    setattr(self, _DECIDED, (status, reason))
+    key = reason.split(":", 1)[0]
+    test = conditions.pre.get(key)
+    events.emit("condition", node=node_path(self), key=key, expression=test.text if test is not None else "",
+                status=status.name, reason=reason)
 
 
 def _before(self: Behaviour, conditions: NodeConditions) -> tuple[Status, str, bool] | None:
@@ -223,4 +280,4 @@ def _stop(self: Behaviour, new_status: Status, parent_stop: Callable[[Behaviour,
 
 
 __all__ = ["CONDITION_KEYS", "POST_KEYS", "PRE_KEYS", "NodeConditions", "attach", "conditioned_class",
-           "conditions_of", "parse_conditions"]
+           "conditions_of", "node_path", "parse_conditions", "texts"]

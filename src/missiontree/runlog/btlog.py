@@ -17,9 +17,13 @@ closed with ``/>``): ``<root BTCPP_format="4">``, one ``<BehaviorTree ID="MainTr
 node as an element named by its type, carrying ``name``, ``_uid`` (1, 2, ... in depth-first order,
 as BehaviorTree.CPP numbers nodes it creates) and the node's parameters as attributes; then a
 ``<TreeNodesModel>`` declaring each type (``Action``, ``Decorator`` or ``Control``) with its
-parameters as input ports, sorted by type name. Times are the robot clock's (simulated seconds in
-the simulator, so the same run gives the same bytes). py_trees' INVALID is Groot's IDLE; the halt
-at the end of a run is written too, as BehaviorTree.CPP logs transitions to IDLE.
+parameters as input ports, sorted by type name. A node's conditions (the tick log's ``conditions``
+events) are written as BT.CPP 4's attributes (``skip_if`` as ``_skipIf``, ``on_success`` as
+``_onSuccess``, ...), with missiontree's expression text as written (BT.CPP spells ``and`` as
+``&&``: Groot2 shows them, it does not evaluate them), and are not ports. Times are the robot
+clock's (simulated seconds in the simulator, so the same run gives the same bytes). py_trees'
+INVALID is Groot's IDLE; the halt at the end of a run is written too, as BehaviorTree.CPP logs
+transitions to IDLE.
 """
 
 from __future__ import annotations
@@ -41,6 +45,22 @@ GROOT_STATUS = ("IDLE", "RUNNING", "SUCCESS", "FAILURE", "SKIPPED")
 _MODEL_ELEMENT = {"leaf": "Action", "decorator": "Decorator", "composite": "Control"}
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_.\-]*$")
 _MAX_OFFSET = (1 << 48) - 1
+#: missiontree's condition keys and BehaviorTree.CPP 4's attribute names for them.
+BTCPP_CONDITIONS = {"fail_if": "_failureIf", "succeed_if": "_successIf", "skip_if": "_skipIf",
+                    "while": "_while", "on_success": "_onSuccess", "on_failure": "_onFailure",
+                    "on_halted": "_onHalted", "post": "_post"}
+
+
+def node_conditions(replay: Replay) -> dict[str, dict[str, str]]:
+    """Each conditioned node's conditions by path (``{"skip_if": "at_dock"}``), from the log's events."""
+    found: dict[str, dict[str, str]] = {}
+    for event in replay.events:
+        if event.kind != "conditions":
+            continue
+        node, written = event.fields.get("node"), event.fields.get("conditions")
+        if isinstance(node, str) and isinstance(written, dict):
+            found[node] = {k: str(v) for k, v in written.items() if k in BTCPP_CONDITIONS}
+    return found
 
 
 def _escape(text: str) -> str:
@@ -86,14 +106,20 @@ def tree_xml(replay: Replay, tree_id: str = "MainTree") -> tuple[str, dict[int, 
         )
     uids = {index: uid for uid, index in enumerate(order, start=1)}
     lines = ['<root BTCPP_format="4">', f'    <BehaviorTree ID="{_escape(tree_id)}" _fullpath="">']
+    conditions = node_conditions(replay)
 
     def write(index: int, depth: int) -> None:
         node = replay.nodes[index]
         element = _element_name(node.type)
         attrs = [f'name="{_escape(node.name)}"', f'_uid="{uids[index]}"']
         attrs += [
-            f'{key}="{_escape(_attr_value(value))}"' for key, value in node.params.items() if _NAME.match(key)
+            f'{key}="{_escape(_attr_value(value))}"' for key, value in node.params.items()
+            if _NAME.match(key) and key not in BTCPP_CONDITIONS
         ]
+        written = {**{k: v for k, v in node.params.items() if k in BTCPP_CONDITIONS},
+                   **conditions.get(node.path, {})}
+        attrs += [f'{BTCPP_CONDITIONS[key]}="{_escape(str(written[key]))}"'
+                  for key in BTCPP_CONDITIONS if key in written]
         pad = "    " * depth
         if node.children:
             lines.append(f"{pad}<{element} {' '.join(attrs)}>")
@@ -113,7 +139,7 @@ def tree_xml(replay: Replay, tree_id: str = "MainTree") -> tuple[str, dict[int, 
             "composite" if len(node.children) > 1 else "decorator" if node.children else "leaf"
         )
         kind, ports = models.setdefault(element, (_MODEL_ELEMENT.get(category, "Action"), set()))
-        ports.update(k for k in node.params if _NAME.match(k))
+        ports.update(k for k in node.params if _NAME.match(k) and k not in BTCPP_CONDITIONS)
     lines.append("    <TreeNodesModel>")
     for element in sorted(models):
         kind, ports = models[element]

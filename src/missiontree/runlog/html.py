@@ -26,6 +26,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from missiontree.runlog.btlog import node_conditions
 from missiontree.runlog.replay import (
     STATUSES,
     UNSET,
@@ -362,15 +363,17 @@ def _tick_arrays(replay: Replay, strings: _Strings) -> dict[str, list[Any]]:
     """The tree's nodes, the status changes, the blackboard writes and the tick times, packed flat.
 
     Changes and writes give the tick as a step from the one before, times in milliseconds as steps;
-    texts are indices into ``strings``.
+    texts are indices into ``strings``. A node's conditions (``skip_if`` ..., from the log's
+    ``conditions`` events) are shown with its parameters, as the mission file writes them.
     """
+    conditions = node_conditions(replay)
     nodes = [
         [
             n.parent,
             strings(n.name),
             strings(n.type),
             strings(n.category),
-            strings(_json(n.params)),
+            strings(_json({**n.params, **conditions.get(n.path, {})})),
             strings(n.source),
         ]
         for n in replay.nodes
