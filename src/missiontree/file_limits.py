@@ -43,3 +43,44 @@ EMBEDDER_FILES = {"model_path": FileOption("ONNX model", MAX_MODEL_BYTES),
 def model_dirs() -> list[Path]:
     """The folders ``$MISSIONTREE_MODEL_PATH`` allows model files in, besides the config's own folder."""
     return [Path(p).resolve() for p in os.environ.get(MODEL_PATH_ENV, "").split(os.pathsep) if p]
+
+
+#: Largest scene-graph file read (``scene_graph.json``; 64 MiB is about 300,000 objects).
+MAX_SCENE_GRAPH_BYTES = 64 * 2**20
+#: Largest room-polygon file read.
+MAX_ROOMS_BYTES = 16 * 2**20
+#: Largest run view file read (``runview.json``: tree, map picture, trajectory).
+MAX_RUNVIEW_BYTES = 256 * 2**20
+#: Largest pose trail read (``poses.jsonl``).
+MAX_POSES_BYTES = 256 * 2**20
+#: Largest ROS 2 robot profile read.
+MAX_PROFILE_BYTES = 2**20
+
+
+class FileTooLargeError(OSError):
+    """A file is larger than the limit for what it holds (raised before it is read whole)."""
+
+
+def read_bounded(path: str | os.PathLike[str], limit: int, what: str) -> bytes:
+    """The bytes of a file, refused before reading when it holds more than ``limit`` bytes.
+
+    The size is checked on the open file (``fstat``) and the read stops at ``limit + 1`` bytes, so a
+    file that grows while read, a FIFO or a device is bounded too.
+
+    Raises:
+        FileTooLargeError: The file is larger than ``limit`` (names the file, its size and the limit).
+        OSError: The file cannot be opened or read.
+    """
+    with open(path, "rb") as file:
+        size = os.fstat(file.fileno()).st_size
+        if size > limit:
+            raise FileTooLargeError(f"{path}: the {what} is {size:,} bytes, over the limit of {limit:,}")
+        data = file.read(limit + 1)
+    if len(data) > limit:
+        raise FileTooLargeError(f"{path}: the {what} is over the limit of {limit:,} bytes")
+    return data
+
+
+def read_text_bounded(path: str | os.PathLike[str], limit: int, what: str) -> str:
+    """:func:`read_bounded` decoded as UTF-8 (``UnicodeDecodeError`` when it is not)."""
+    return read_bounded(path, limit, what).decode("utf-8")

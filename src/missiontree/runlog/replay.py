@@ -23,6 +23,7 @@ from typing import Any
 
 from missiontree.engine.tick_log import read_records
 from missiontree.errors import ConfigError
+from missiontree.file_limits import MAX_POSES_BYTES, MAX_RUNVIEW_BYTES, read_bounded, read_text_bounded
 
 #: Status names in the order of their codes (py_trees' INVALID is Groot's IDLE).
 STATUSES = ("INVALID", "RUNNING", "SUCCESS", "FAILURE")
@@ -451,8 +452,8 @@ def read_runview(run_dir: Path) -> dict[str, Any]:
     if not path.is_file():
         return {}
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as error:
+        data = json.loads(read_text_bounded(path, MAX_RUNVIEW_BYTES, "run view file"))
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as error:
         raise ConfigError(
             f"{path}: not a readable run view file ({error}); delete it to view the log alone"
         ) from error
@@ -539,7 +540,12 @@ def read_pose_trail(run_dir: Path) -> list[tuple[float, float, float]]:
     if not path.is_file():
         return []
     rows = []
-    for line in path.read_text(encoding="utf-8").splitlines():
+    try:
+        text = read_bounded(path, MAX_POSES_BYTES, "pose trail").decode("utf-8", errors="replace")
+    except OSError as error:
+        raise ConfigError(
+            f"{path}: not a readable pose trail ({error}); delete it to view the log alone") from None
+    for line in text.splitlines():
         try:
             t, x, y = json.loads(line)[:3]
             rows.append((float(t), float(x), float(y)))

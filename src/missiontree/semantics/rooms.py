@@ -25,7 +25,6 @@ A :class:`RoomRegion` carries a type (``unknown`` until a classifier gives one; 
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,6 +36,7 @@ import yaml
 from scipy import ndimage
 
 from missiontree.errors import ConfigError
+from missiontree.file_limits import MAX_ROOMS_BYTES, FileTooLargeError, read_text_bounded
 from missiontree.semantics.room_watershed import drop_small_cores as _drop_small_cores
 from missiontree.semantics.room_watershed import flood as _flood
 from missiontree.semantics.room_watershed import grow as _grow
@@ -377,7 +377,11 @@ def load_room_polygons(path: str | Path) -> list[RoomRegion]:
     """
     target = Path(path)
     try:
-        text = target.read_text(encoding="utf-8")
+        text = read_text_bounded(target, MAX_ROOMS_BYTES, "room polygon file")
+    except FileTooLargeError as exc:
+        raise ConfigError(str(exc)) from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{target}: not UTF-8 text; room polygons are YAML or JSON") from None
     except OSError as exc:
         raise ConfigError(f"cannot read room polygons {target}: {exc.strerror or exc}") from None
     try:
@@ -480,13 +484,3 @@ def _overlaps(old: Segmentation, new: Segmentation) -> dict[int, dict[int, float
             continue
         result[label] = {int(o): float(c) / total for o, c in enumerate(pairs[label]) if o > 0 and c > 0}
     return result
-
-
-def room_of_point(rooms: Sequence[RoomRegion], x: float, y: float) -> RoomRegion | None:
-    """The first room whose polygon holds (x, y), else the one whose centroid is nearest within 1 m."""
-    for room in rooms:
-        if room.contains(x, y):
-            return room
-    near = [(math.hypot(r.centroid[0] - x, r.centroid[1] - y), r) for r in rooms]
-    near = [n for n in near if n[0] <= 1.0]
-    return min(near, key=lambda n: n[0])[1] if near else None

@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any, NamedTuple, Protocol
 
 from missiontree.errors import ConfigError
+from missiontree.file_limits import MAX_SCENE_GRAPH_BYTES, FileTooLargeError, read_text_bounded
 from missiontree.files import write_whole
 
 #: The building node's id and label, as the NAIS prompt fixes them.
@@ -150,7 +151,11 @@ class SceneGraph:
     def load(cls, path: str | os.PathLike[str]) -> SceneGraph:
         """Read a graph from a JSON file (``scene_graph.json`` or the paper's ``Scene_Graph.json``)."""
         try:
-            text = Path(path).read_text(encoding="utf-8")
+            text = read_text_bounded(path, MAX_SCENE_GRAPH_BYTES, "scene graph file")
+        except FileTooLargeError as exc:
+            raise SceneGraphError(str(exc)) from None
+        except UnicodeDecodeError:
+            raise SceneGraphError(f"{path}: not UTF-8 text; a scene graph file is JSON") from None
         except OSError as exc:
             raise SceneGraphError(f"cannot read scene graph {path}: {exc.strerror or exc}") from None
         try:
