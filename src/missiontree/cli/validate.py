@@ -120,15 +120,6 @@ def _check_mission(path: Path, registry: NodeRegistry, allow_outside: bool,
     return sorted([*problems, *more], key=lambda p: (p.file != str(path), p.file, p.line, p.col))
 
 
-def check_files(
-    paths: list[Path], registry: NodeRegistry, *, allow_outside: bool = False,
-    providers: Mapping[str, Any] | None = None, references: Mapping[str, Any] | None = None,
-) -> dict[Path, list[Problem]]:
-    """Check each file; return its problems (empty for a valid file)."""
-    return {path: check_file(path, registry, allow_outside=allow_outside, providers=providers,
-                             references=references)[1] for path in paths}
-
-
 def run(args: argparse.Namespace) -> int:
     """Check every file named; print ok lines and problem lines; exit 2 on any problem."""
     plugins = plugins_from_args(args)

@@ -383,11 +383,6 @@ class LogOddsGrid:
         return float(np.count_nonzero(self.trinary() != UNKNOWN)) * self.resolution**2
 
 
-def numba_available() -> bool:
-    """Whether the compiled kernel can be used."""
-    return HAVE_NUMBA
-
-
 # -- reading any OccupancyGrid (trinary or scaled 0..100) ------------------------------------------
 
 #: Cell values at or above this read as occupied, values 0 up to FREE_BELOW as free (map_server's

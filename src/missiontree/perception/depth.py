@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from missiontree.types import Detection, Pose2D, RGBDFrame
+from missiontree.types import Detection, RGBDFrame
 
 
 @dataclass(frozen=True)
@@ -211,8 +211,3 @@ def detection_position(
     z = rng * math.cos(ray)
     x, y = pixel_to_map(frame, u, z)
     return x, y, rng
-
-
-def range_from(pose: Pose2D, x: float, y: float) -> float:
-    """Planar distance from ``pose`` to the map point (x, y)."""
-    return math.hypot(x - pose.x, y - pose.y)

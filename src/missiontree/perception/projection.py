@@ -183,12 +183,6 @@ def project(
     )
 
 
-def project_all(frame: RGBDFrame, detections: list[Detection], **options: object) -> list[Projection]:
-    """:func:`project` every detection; those without valid depth are left out."""
-    found = [project(frame, d, **options) for d in detections]  # type: ignore[arg-type]
-    return [p for p in found if p is not None]
-
-
 def to_camera(pose: Pose2D, x: float, y: float) -> tuple[float, float]:
     """A map point in the camera frame: (forward, left) metres."""
     dx, dy = x - pose.x, y - pose.y

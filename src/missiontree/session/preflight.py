@@ -31,7 +31,7 @@ from typing import Any
 
 from missiontree.behaviours.waypoints import misfits, parse_waypoints, read_waypoint_file
 from missiontree.engine.ports import BlackboardRef
-from missiontree.engine.spec import MissionSpec, NodeSpec, RunSection, Source
+from missiontree.engine.spec import MissionSpec, NodeSpec
 from missiontree.errors import ConfigError, MissionTreeError, Problem, ProblemsError
 from missiontree.yamlio import Located, load_yaml, validation_problems
 
@@ -81,24 +81,6 @@ def check_references(
     problems, loaded_world = _run_references(spec, providers, backend, world, robot, models, check_models)
     problems += _check_waypoints(spec, loaded_world)
     return problems
-
-
-def check_run_references(
-    mission: Path,
-    run: RunSection,
-    *,
-    providers: Mapping[str, Any] | None = None,
-    backend: str | None = None,
-    world: str | None = None,
-    robot: str | None = None,
-    models: str | os.PathLike[str] | Mapping[str, Any] | None = None,
-) -> list[Problem]:
-    """Only the world, robot and models a mission's ``run:`` section (or the flags) name.
-
-    For a mission whose tree has problems: its references are still checked and reported with them.
-    """
-    spec = MissionSpec(path=mission, root=NodeSpec("", "", {}, [], Source(str(mission), 1, 1), ""), run=run)
-    return _run_references(spec, providers, backend, world, robot, models, True)[0]
 
 
 def _run_references(spec: MissionSpec, providers: Mapping[str, Any] | None, backend: str | None,

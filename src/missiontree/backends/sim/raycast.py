@@ -353,11 +353,6 @@ if HAVE_NUMBA:
     _columns_jit = numba.njit(cache=True, nogil=True)(_columns_loops)
 
 
-def first_hit(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray, prims: Primitives) -> np.ndarray:
-    """Nearest entry parameter per ray (numpy; rays of any directions)."""
-    return first_hit_numpy(ox, oy, dx, dy, prims)
-
-
 def fan_first_hit(ox: float, oy: float, angle0: float, increment: float, n: int, kind: np.ndarray,
                   geom: np.ndarray, accelerate: bool = True) -> np.ndarray:
     """Range of the nearest entry for ``n`` unit rays at world angles ``angle0 + i * increment``.
