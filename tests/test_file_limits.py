@@ -92,3 +92,16 @@ def test_the_limits_are_documented_constants() -> None:
     names = [n for n in dir(file_limits) if n.startswith("MAX_") and n.endswith("_BYTES")]
     assert len(names) >= 8
     assert all(getattr(file_limits, n) > 0 for n in names)
+
+
+def test_an_oversized_map_image_is_refused_naming_the_map(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """A map_server image over its limit: a MapFileError naming the yaml, before the image is read."""
+    from missiontree.mapping import mapfile
+
+    monkeypatch.setattr(mapfile, "MAX_MAP_IMAGE_BYTES", 100)
+    (tmp_path / "map.pgm").write_bytes(b"P5\n20 20\n255\n" + bytes(400))
+    text = "image: map.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n"
+    (tmp_path / "map.yaml").write_text(text, encoding="utf-8")
+    with pytest.raises(mapfile.MapFileError, match=r"map\.yaml: cannot read the map image: .*over the limit"):
+        mapfile.read_map(tmp_path / "map.yaml")

@@ -53,6 +53,8 @@ MAX_ROOMS_BYTES = 16 * 2**20
 MAX_RUNVIEW_BYTES = 256 * 2**20
 #: Largest pose trail read (``poses.jsonl``).
 MAX_POSES_BYTES = 256 * 2**20
+#: Largest map image read by the map_server reader (``map convert``, ``--map`` files).
+MAX_MAP_IMAGE_BYTES = 64 * 2**20
 #: Largest ROS 2 robot profile read.
 MAX_PROFILE_BYTES = 2**20
 

@@ -20,6 +20,7 @@ import numpy as np
 import yaml
 
 from missiontree.errors import ProblemsError
+from missiontree.file_limits import MAX_MAP_IMAGE_BYTES, read_bounded
 from missiontree.files import write_whole
 from missiontree.mapping.grid import FREE_BELOW, OCCUPIED_FROM
 from missiontree.types import OccupancyGrid, Pose2D
@@ -121,7 +122,10 @@ def read_map(yaml_path: str | Path, stamp: float = 0.0) -> OccupancyGrid:
 def _read_image(image_path: Path, yaml_path: Path) -> np.ndarray:
     if not image_path.is_file():
         raise MapFileError(f"{yaml_path}: map image {image_path} does not exist")
-    data = image_path.read_bytes()
+    try:
+        data = read_bounded(image_path, MAX_MAP_IMAGE_BYTES, "map image")
+    except OSError as exc:
+        raise MapFileError(f"{yaml_path}: cannot read the map image: {exc}") from None
     if data[:2] == b"P5":
         return _parse_pgm(data, image_path)
     import cv2
