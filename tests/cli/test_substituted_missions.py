@@ -55,3 +55,33 @@ def test_cli_run_substitute_and_a_rule_matching_nothing(tmp_path: Path,
                  str(tmp_path / "run"), "-q"])
     assert code == 2
     assert f"{rules}:4:5: rules[1].match" in capsys.readouterr().err
+
+
+def test_run_watch_reloads_an_edited_subtree_on_the_simulator(tmp_path: Path) -> None:
+    """`run --watch` through the session: an included subtree edited at 2 s is running by 3 s, count kept."""
+    import py_trees
+
+    mission = tmp_path / "main.yaml"
+    mission.write_text("blackboard: {count: 0}\nroot:\n  Sequence:\n    name: main\n    memory: true\n"
+                       "    children:\n      - Include: {file: sub.yaml}\n      - Wait: {seconds: 100}\n")
+    sub = tmp_path / "sub.yaml"
+    sub.write_text("root:\n  Script: {code: 'count = count + 1'}\n")
+    edited: list[float] = []
+
+    def edit(session: object) -> None:
+        now = session.robot.now()  # type: ignore[attr-defined]
+        if not edited and now >= 2.0:
+            sub.write_text("root:\n  Script: {code: 'count = count + 10'}\n")
+            edited.append(now)
+
+    clean_state()
+    out = tmp_path / "run"
+    result = run_substituted(MissionRequest(mission=mission, out=out, max_duration=5.0, quiet=True,
+                                            handle_signals=False, on_tick=edit), watch=True)
+    count = py_trees.blackboard.Blackboard.get("/count")
+    clean_state()
+    assert result.stopped_by == "limit"
+    lines = [json.loads(line) for line in (out / "ticks.jsonl").read_text().splitlines()]
+    (reloaded,) = [line for line in lines if line["event"] == "reloaded"]
+    assert reloaded["files"] == [str(sub)] and reloaded["t"] - edited[0] <= 1.0
+    assert count == 11

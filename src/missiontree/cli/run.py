@@ -8,12 +8,18 @@ then the defaults (:mod:`missiontree.session.mission`). Exit code 0 when the mis
 from __future__ import annotations
 
 import argparse
+import dataclasses
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from missiontree.cli import add_plugin_flag, plugins_from_args
+from missiontree.engine.build import build_tree
+from missiontree.engine.loader import load_mission
+from missiontree.engine.reload import TreeWatcher
 from missiontree.engine.runner import RunResult
-from missiontree.engine.substitute import Rule, load_rules, substitute_session
+from missiontree.engine.spec import MissionSpec
+from missiontree.engine.substitute import Rule, apply_rules, load_rules, substitute_session
 from missiontree.session.mission import (
     DEFAULT_BACKEND,
     DEFAULT_SEED,
@@ -21,7 +27,7 @@ from missiontree.session.mission import (
     MissionRequest,
     Session,
 )
-from missiontree.session.params import parse_assignment
+from missiontree.session.params import parse_assignment, parse_overrides
 from missiontree.session.rundir import RunDirectory
 
 EPILOG = """\
@@ -37,6 +43,11 @@ checked against the type of that default and of every node parameter that reads 
 perception stubbed; see docs/testing-missions.md):
 
   missiontree run trees/find_object.yaml --substitute tests/substitutions/find_object.yaml
+
+`--watch` reloads the mission when its file (or a subtree it includes) changes: checked again,
+then the running tree is halted (robot stopped), rebuilt and restarted with the blackboard kept; a
+broken edit is printed and the old tree goes on. Both are in the tick log (reloaded,
+reload_refused).
 
 A progress line (robot time, real-time factor, root status, last event) goes to stderr: redrawn
 in place on a terminal, a plain line every 10 s otherwise; --quiet silences it.
@@ -84,6 +95,9 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--substitute", type=Path, metavar="RULES",
                         help="a rules file: nodes matched by path or type glob are replaced by stubs "
                         "(fixed status, delay, blackboard writes); recorded in the log and summary")
+    parser.add_argument("--watch", action="store_true",
+                        help="reload the mission when its file or an included subtree changes (checked "
+                        "first; the tree restarts, the blackboard is kept)")
     add_plugin_flag(parser)
     parser.set_defaults(func=run)
 
@@ -109,16 +123,59 @@ def request_from_args(args: argparse.Namespace) -> MissionRequest:
         allow_outside=bool(args.allow_outside), plugins=plugins_from_args(args))
 
 
-def run_substituted(request: MissionRequest, rules: list[Rule] | None = None) -> RunResult:
-    """Run a mission through the session, its nodes substituted by ``rules`` first (the Python API).
+def run_substituted(request: MissionRequest, rules: list[Rule] | None = None, *,
+                    watch: bool = False) -> RunResult:
+    """Run a mission through the session (the Python API of ``run --substitute`` and ``--watch``).
+
+    Args:
+        request: What to run.
+        rules: Substitution rules applied to the tree before it runs (and to every reloaded tree).
+        watch: Reload the mission when its files change (:class:`~missiontree.engine.reload.TreeWatcher`).
 
     Raises:
         MissionFileError: The mission is broken or a rule matches no node.
     """
+    watchers: list[TreeWatcher] = []
+    if watch:
+        request = dataclasses.replace(request, on_tick=_watching(request.on_tick, watchers))
     with Session.open(request) as session:
         if rules:
             substitute_session(session, rules)
+        if watch:
+            watchers.append(TreeWatcher(session.spec, _loader(request, session), _builder(session, rules)))
         return session.run()
+
+
+def _watching(previous: Callable[[Session], None] | None,
+              watchers: list[TreeWatcher]) -> Callable[[Session], None]:
+    """The session's per-tick callback: the watcher (once made), then the one asked for."""
+
+    def on_tick(session: Session) -> None:
+        for watcher in watchers:
+            watcher(session.runner)
+        session.root = session.runner.root
+        if previous is not None:
+            previous(session)
+
+    return on_tick
+
+
+def _loader(request: MissionRequest, session: Session) -> Callable[[], MissionSpec]:
+    mission = Path(request.mission)
+
+    def load() -> MissionSpec:
+        return load_mission(mission, session.plugins.nodes, allow_outside=request.allow_outside,
+                            params=parse_overrides(mission, request.params))
+
+    return load
+
+
+def _builder(session: Session, rules: list[Rule] | None) -> Callable[[MissionSpec], Any]:
+    def build(spec: MissionSpec) -> Any:
+        root = build_tree(spec, session.plugins.nodes)
+        return apply_rules(spec, root, rules)[0] if rules else root
+
+    return build
 
 
 def run(args: argparse.Namespace) -> int:
@@ -126,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
     rules = load_rules(args.substitute) if getattr(args, "substitute", None) is not None else None
 
     def run_mission(request: MissionRequest) -> RunResult:
-        return run_substituted(request, rules)
+        return run_substituted(request, rules, watch=bool(getattr(args, "watch", False)))
 
     if getattr(args, "view", False):
         from missiontree.cli.view import run_with_viewer
