@@ -217,26 +217,55 @@ def make_case(index: int, seed: int, absent: bool, folder: Path) -> tuple[Case, 
     return case, path
 
 
+def held_out_seeds(count: int, first_seed: int, order: str = "maps-first") -> list[int]:
+    """The test split's seeds of a sample of ``count``: whole rounds of the cycle, real maps first.
+
+    Round ``r`` holds each of the cycle's ``n`` places once (seeds ``first_seed + r n`` to
+    ``first_seed + r n + n - 1``). With ``maps-first`` each round gives its real maps (the SLAM maps,
+    MRPT's grids) before its generated floorplans, so a sample smaller than the cycle still holds
+    the large real maps (TurtleBot 4's warehouse and depot); ``cycle``: the seeds in order.
+    """
+    from missiontree.evaluation.splits import current_test_cycle
+
+    cycle = current_test_cycle()
+    n = len(cycle)
+    if order == "cycle":
+        return list(range(first_seed, first_seed + count))
+    places = [p for p in range(n) if cycle[p][0] != "floorplan"] + [
+        p for p in range(n) if cycle[p][0] == "floorplan"
+    ]
+    seeds: list[int] = []
+    r = 0
+    while len(seeds) < count:
+        seeds += [first_seed + r * n + (p - first_seed) % n for p in places]
+        r += 1
+    return seeds[:count]
+
+
 def held_out_cases(
-    n_present: int, n_absent: int, first_seed: int, folder: Path
+    n_present: int, n_absent: int, first_seed: int, folder: Path, order: str = "maps-first"
 ) -> tuple[list[tuple[Case, Path]], list[str]]:
-    """The test split's cases (the splits API's held-out worlds, edited) and the worlds skipped."""
+    """The test split's cases (the splits API's held-out worlds, edited) and the worlds skipped.
+
+    The seeds come from :func:`held_out_seeds`: the cases with the target first, then the absent
+    ones (the next places of the same order, so they too start with the real maps).
+    """
     import copy
     from dataclasses import replace
 
     from missiontree.evaluation.splits import split_worlds, write_split_world
 
     n = n_present + n_absent
-    worlds = split_worlds("test", n + 4, first_seed=first_seed, people=False, min_objects=3)
+    seeds = held_out_seeds(n + 4, first_seed, order)
     cases: list[tuple[Case, Path]] = []
     skipped: list[str] = []
-    for world in worlds:
+    for seed in seeds:
         if len(cases) >= n:
             break
+        world = split_worlds("test", 1, first_seed=seed, people=False, min_objects=3)[0]
         index = len(cases)
         absent = index >= n_present
         data = copy.deepcopy(world.data)
-        seed = first_seed + index
         try:
             label, colour, target_id = edit_world(data, seed, absent)
         except ValueError as error:
@@ -483,6 +512,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--first-seed", type=int, default=100, help="dev: the first generator seed")
     parser.add_argument("--test-first-seed", type=int, default=0, help="test: the splits API's first seed")
     parser.add_argument(
+        "--test-order",
+        choices=["maps-first", "cycle"],
+        default="maps-first",
+        help="test: each round of the cycle's real maps first (a small sample holds them), or in order",
+    )
+    parser.add_argument(
         "--reference",
         choices=["dev", "test", "both", "none"],
         default="dev",
@@ -514,7 +549,9 @@ def main(argv: list[str] | None = None) -> int:
                 n = n_present + n_absent
                 cases = [make_case(i, args.first_seed + i, i >= n_present, folder) for i in range(n)]
             else:
-                cases, skipped = held_out_cases(n_present, n_absent, args.test_first_seed, folder)
+                cases, skipped = held_out_cases(
+                    n_present, n_absent, args.test_first_seed, folder, args.test_order
+                )
             for line in skipped:
                 print(f"{split}: skipped {line}", flush=True)
             methods = ["ours"] + (["report"] if args.reference in (split, "both") else [])

@@ -283,3 +283,112 @@ def test_a_candidate_carries_the_deadline_of_its_approach() -> None:
     leaf.file_objects = [GraphObject("b", "backpack", "a red backpack", xy=(3.0, 1.0))]
     assert _offer(leaf, robot) == Status.SUCCESS
     assert leaf.read("candidate")["deadline"] == 137.0
+
+
+class SlowRobot(CameraRobot):
+    """A robot whose goals stay under way (it never arrives) and that sends no camera frame."""
+
+    def rgbd(self) -> RGBDFrame | None:
+        return None
+
+    def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> FakeHandle:
+        handle = FakeHandle(goal, tolerance, ActionStatus.SUCCEEDED, "", 10_000)
+        self.goals.append(handle)
+        return handle
+
+
+def _east_open_corridor() -> np.ndarray:
+    """A corridor closed to the west, known free from x = 0.5 to 4.5 m, unknown beyond to the east."""
+    data = np.full((32, 160), -1, np.int8)
+    data[:, 10:90] = 0
+    data[0, 10:90] = data[-1, 10:90] = 100
+    data[:, 10] = 100
+    return data
+
+
+def _reveal_east(data: np.ndarray) -> None:
+    """The lidar maps the corridor's east end whole: no frontier is left."""
+    data[:, 90:130] = 0
+    data[0, 90:130] = data[-1, 90:130] = 100
+    data[:, 130] = 100
+
+
+def test_a_frontier_goal_the_lidar_mapped_is_kept_until_the_camera_looked_there() -> None:
+    """The lidar maps the east end while the robot drives there: the goal stays until the camera saw it."""
+    robot = SlowRobot(_east_open_corridor(), Pose2D(1.5, 0.8, 0.0))
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+    leaf.setup(context=MissionContext(robot=robot, events=Events(), models={"detector": Detector()}))  # type: ignore[arg-type]
+    for _ in range(5):
+        leaf.tick_once()
+        robot.advance(0.1)
+    assert len(robot.goals) == 1 and robot.goals[0].goal.x > 3.5
+    goal = robot.goals[0]
+    _reveal_east(robot.data)
+    for _ in range(60):  # several re-plans
+        leaf.tick_once()
+        robot.advance(0.1)
+    assert not goal.cancelled and robot.goals == [goal], "dropped before the camera looked there"
+    assert leaf.coverage is not None
+    grid = robot.occupancy()
+    assert grid is not None
+    for x in (3.0, 4.0, 5.0):  # the camera has now looked at the east end
+        for yaw in np.linspace(-math.pi, math.pi, 8, endpoint=False):
+            for _ in range(3):
+                leaf.coverage.add_view(grid, Pose2D(x, 0.8, float(yaw)), K.hfov)
+    for _ in range(60):
+        leaf.tick_once()
+        robot.advance(0.1)
+    assert goal.cancelled
+
+
+def test_a_goal_reached_or_failed_is_judged_by_the_lidar_alone() -> None:
+    """The planner's hold answers only the re-plan's test (the blacklist's radius), not a reached goal's."""
+    from missiontree.behaviours.search_resume import PriorPlanner
+
+    grid = grid_of(hall())  # all known: no lidar frontier anywhere
+    planner = PriorPlanner(lambda c: 0.0, 0.0)
+    planner.held = lambda g, x, y: True
+    planner.hold_active = True
+    assert planner.still_frontier(grid, 4.0, 1.0, radius=planner.blacklist_radius)
+    assert not planner.still_frontier(grid, 4.0, 1.0)  # a reached goal's and a failed try's test
+    planner.hold_active = False
+    assert not planner.still_frontier(grid, 4.0, 1.0, radius=planner.blacklist_radius)
+
+
+def test_a_glimpse_of_the_targets_class_is_offered_for_a_closer_look() -> None:
+    """A backpack seen a few times far off that did not become an object is a candidate to approach."""
+    from missiontree.semantics.live import LiveScene
+
+    robot = CameraRobot(hall(), Pose2D(1.0, 1.0, 0.0))
+    scene = LiveScene(doubtful=[("bottle", 2.0, 1.0), ("backpack", 6.0, 1.2)])
+    ctx = MissionContext(robot=robot, events=Events(), models={"detector": Detector()})  # type: ignore[arg-type]
+    ctx.scene = scene
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+    leaf.setup(context=ctx)
+    assert _offer(leaf, robot) == Status.SUCCESS
+    picked = leaf.read("candidate")
+    assert (picked["label"], picked["source"], picked["x"]) == ("backpack", "glimpse", 6.0)
+
+
+def test_exploring_again_after_the_looks_does_not_end_stuck_at_once() -> None:
+    """Back to new frontiers after 100 s of looking, standing where exploring stopped: not 'stuck'."""
+    data = np.full((40, 240), -1, np.int8)
+    data[:, :180] = hall()
+    data[10:30, 179:181] = 0  # a doorway onto the unknown east of the hall
+    robot = SlowRobot(data, Pose2D(1.0, 1.0, 0.0))
+    events = Events()
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+    leaf.setup(context=MissionContext(robot=robot, events=events, models={"detector": Detector()}))  # type: ignore[arg-type]
+    leaf.tick_once()
+    assert leaf.handle is not None  # exploring: on the way to the door
+    leaf.handle.cancel()  # as if exploring had ended here, and the looks had begun
+    leaf.handle, leaf.state = None, "select"
+    leaf.frontiers_done, leaf.frontiers_left, leaf.cover_state = True, [], "select"
+    leaf.progress_area = 1e9  # the known area, as Explore last counted it, has not grown since
+    robot.advance(100.0)  # the looks took 100 s; the robot is back where exploring stopped
+    for _ in range(3):
+        leaf.tick_once()
+        robot.advance(0.1)
+    assert events.of("search_frontiers_again")
+    assert not [e for e in events.of("search_explored") if str(e["reason"]).startswith("stuck")]
+    assert leaf.status == Status.RUNNING and leaf.handle is not None, leaf.feedback_message

@@ -131,6 +131,27 @@ class ViewCoverage:
         """The reachable floor's cells the camera has not looked at (and not given up)."""
         return self.floor(grid, robot_xy) - self.seen - self.skipped
 
+    def unseen_near(self, grid: OccupancyGrid, xy: tuple[float, float], radius: float) -> float:
+        """Known-free floor (m^2) within ``radius`` of ``xy`` the camera has not looked at (nor given up).
+
+        A local count (a window of the map, not the whole floor): cheap enough for every re-plan.
+        """
+        res = grid.resolution
+        r0, c0 = grid.world_to_cell(*xy)
+        k = int(math.ceil(radius / res))
+        h, w = grid.data.shape
+        rs, re_, cs, ce = max(0, r0 - k), min(h, r0 + k + 1), max(0, c0 - k), min(w, c0 + k + 1)
+        if rs >= re_ or cs >= ce:
+            return 0.0
+        rr, cc = np.nonzero(free_mask(OccupancyGrid(grid.stamp, res, grid.origin, grid.data[rs:re_, cs:ce])))
+        xs = grid.origin.x + (cc + cs + 0.5) * res
+        ys = grid.origin.y + (rr + rs + 0.5) * res
+        near = (xs - xy[0]) ** 2 + (ys - xy[1]) ** 2 <= radius * radius
+        keys = zip(np.floor(xs[near] / self.cell).astype(int).tolist(),
+                   np.floor(ys[near] / self.cell).astype(int).tolist(), strict=True)
+        done = self.seen | self.skipped
+        return sum(1 for k_ in keys if k_ not in done) * res * res
+
     def seen_share(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> tuple[float, float]:
         """(m^2 of the reachable floor looked at, m^2 of that floor)."""
         floor = self.floor(grid, robot_xy)

@@ -332,6 +332,19 @@ class Locate(LookExplore):
                 "observations": inst.observations,
             }
             options.append(self._ranked(entry, rejected, here, with_mismatch))
+        for label, x, y in list(getattr(scene, "doubtful", None) or []):
+            # seen a few times, not made an object (far, oblique, brief): a closer look decides
+            if fold_label(label) != fold_label(goal.label):
+                continue
+            entry = {
+                "id": f"glimpse_{label}_{x:.1f}_{y:.1f}",
+                "label": label,
+                "colour": "unknown",
+                "x": round(float(x), 3),
+                "y": round(float(y), 3),
+                "source": "glimpse",
+            }
+            options.append(self._ranked(entry, rejected, here, with_mismatch))
         for obj in self.file_objects:
             if obj.xy is None or fold_label(obj.label) != fold_label(goal.label):
                 continue

@@ -18,7 +18,7 @@ import math
 from pydantic import BaseModel, Field
 
 from missiontree.behaviours.search_coverage import ViewCoverage, ViewGoal, known_path_lengths, view_goals
-from missiontree.behaviours.search_resume import ResumeExplore
+from missiontree.behaviours.search_resume import PriorPlanner, ResumeExplore
 from missiontree.engine.leaf import Status
 from missiontree.robot.actions import ActionHandle, ActionStatus
 from missiontree.types import OccupancyGrid, Pose2D, Tolerance, wrap_angle
@@ -63,6 +63,15 @@ class LookExplore(ResumeExplore):
             description="Give up a place to look from the robot got no closer to for this long (s).",
         )
         look_speed: float = Field(1.0, gt=0, description="Turn rate of the look at a view goal (rad/s).")
+        hold_radius: float = Field(
+            1.0,
+            ge=0,
+            description="A frontier goal the lidar has mapped is kept while the camera has not looked at "
+            "hold_area of the floor within this range of its frontier (m; 0: dropped as the lidar maps it).",
+        )
+        hold_area: float = Field(
+            0.5, ge=0, description="Unseen floor (m^2) near a frontier that keeps its goal while driving."
+        )
 
     params: Params
 
@@ -102,6 +111,30 @@ class LookExplore(ResumeExplore):
         if self.cover_state == "look" and self.ctx is not None:
             self.ctx.robot.drive(0.0, 0.0)
         self.cover_state = "select"
+
+    def explore_step(self) -> Status:
+        """One step of exploration; a goal being driven to is kept until the camera has looked there."""
+        planner = self.planner
+        if not isinstance(planner, PriorPlanner):
+            return super().explore_step()
+        planner.held = self._camera_waits
+        planner.hold_active = bool(
+            self.params.view_coverage
+            and self.params.hold_radius > 0
+            and self.state == "drive"
+            and self.handle is not None
+        )
+        planner.driving = self.target if planner.hold_active else None
+        try:
+            return super().explore_step()
+        finally:
+            planner.hold_active, planner.driving = False, None
+
+    def _camera_waits(self, grid: OccupancyGrid, x: float, y: float) -> bool:
+        """Whether the camera has yet to look at ``hold_area`` of the floor near a frontier place."""
+        if self.coverage is None:
+            return False
+        return self.coverage.unseen_near(grid, (x, y), self.params.hold_radius) >= self.params.hold_area
 
     def look_step(self) -> Status:
         """One step: explore while frontiers are left, then look at the floor not yet seen."""
@@ -164,6 +197,9 @@ class LookExplore(ResumeExplore):
             if self._frontier_places(self.frontiers_left):
                 self.frontier_rounds += 1
                 self.frontiers_done = False
+                # the stuck timer restarts: the robot moved and looked meanwhile, unseen by Explore;
+                # kept from before the looks, it ended the new round "stuck" at once where it stopped
+                self.progress_xy = (math.nan, math.nan)
                 self.emit("search_frontiers_again", round=self.frontier_rounds)
                 return self.running("new frontiers on the map: exploring on")
         goals, unplaced = view_goals(

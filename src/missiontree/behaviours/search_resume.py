@@ -17,6 +17,7 @@ Tick-log events: ``explore_retry``, ``explore_second_chance`` (and Explore's).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -51,21 +52,54 @@ class PriorPlanner(ExplorationPlanner):
         super().__init__(**kwargs)
         self.bias = bias
         self.weight = weight
+        #: held(grid, x, y): whether a frontier place the lidar has seen still waits for the camera.
+        self.held: Callable[[OccupancyGrid, float, float], bool] | None = None
+        #: Set by the leaf while a goal is being driven to: that goal (it may be held).
+        self.hold_active = False
+        self.driving: Frontier | None = None
+
+    def still_frontier(self, grid: OccupancyGrid, x: float, y: float, radius: float = 0.3) -> bool:
+        """The lidar's answer; while driving, a place the camera has not looked at yet still counts.
+
+        The search's coverage is the camera's: dropping a goal once the lidar had mapped its frontier
+        (4 m ahead, before the camera came within range of that floor) sent the robot to another
+        frontier and back for it later. Only the re-plan's test (at the blacklist's radius) is held;
+        a goal reached or failed is judged by the lidar alone (its tries, its blacklisting).
+        """
+        if super().still_frontier(grid, x, y, radius):
+            return True
+        if not self.hold_active or self.held is None or radius < self.blacklist_radius:
+            return False
+        return bool(self.held(grid, x, y))
 
     def candidates(
         self, grid: Any, robot_xy: tuple[float, float], *args: Any, **kwargs: Any
     ) -> list[Frontier]:
-        """The planner's candidates (goals given room), best first after the prior (options passed on)."""
+        """The planner's candidates (goals given room), best first after the prior (options passed on).
+
+        While driving, the goal driven to stays on offer (last) when the lidar has mapped its
+        frontier but the camera has not looked there yet (:attr:`held`).
+        """
         found = super().candidates(grid, robot_xy, *args, **kwargs)
+        kept = [self.driving] if self._still_held(grid, found) and self.driving is not None else []
         if not found:
-            return found
+            return kept
         room = self.footprint_radius + self.goal_margin
         clear = clearance_map(grid)
         found = [_with_room(c, grid, clear, room) for c in found]
-        if self.weight <= 0:
-            return found
-        scored = [replace(c, score=c.score * (1.0 + self.weight * self.bias(c))) for c in found]
-        return sorted(scored, key=lambda c: -c.score)
+        if self.weight > 0:
+            found = [replace(c, score=c.score * (1.0 + self.weight * self.bias(c))) for c in found]
+            found = sorted(found, key=lambda c: -c.score)
+        return found + kept
+
+    def _still_held(self, grid: OccupancyGrid, found: list[Frontier]) -> bool:
+        """Whether the goal driven to is gone from the lidar's frontiers but waits for the camera."""
+        kept = self.driving
+        if not self.hold_active or kept is None or kept.kind != "frontier" or self.held is None:
+            return False
+        if any(math.dist((c.x, c.y), (kept.x, kept.y)) <= 0.5 for c in found):
+            return False
+        return bool(self.held(grid, *kept.target))
 
 
 def clearance_map(grid: OccupancyGrid) -> np.ndarray:

@@ -1,0 +1,34 @@
+"""The search benchmark's held-out sample: the real maps come first in every round of the test cycle."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from missiontree.evaluation.splits import current_test_cycle
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+import search_eval  # noqa: E402
+
+
+def test_a_sample_smaller_than_the_cycle_holds_every_real_map() -> None:
+    """The first seeds of the sample are the cycle's real maps (warehouse and depot among them)."""
+    cycle = current_test_cycle()
+    maps = [p for p in cycle if p[0] != "floorplan"]
+    seeds = search_eval.held_out_seeds(len(maps), first_seed=0)
+    assert sorted(cycle[s % len(cycle)] for s in seeds) == sorted(maps)
+    assert ("map", "warehouse") in maps and ("map", "depot") in maps
+
+
+def test_a_whole_round_holds_every_place_once_and_no_seed_twice() -> None:
+    """Two rounds from any first seed: every place twice, every seed distinct, none below the first."""
+    cycle = current_test_cycle()
+    seeds = search_eval.held_out_seeds(2 * len(cycle), first_seed=5)
+    assert len(set(seeds)) == len(seeds) and min(seeds) >= 5
+    places = [cycle[s % len(cycle)] for s in seeds]
+    assert all(places.count(p) == 2 for p in cycle)
+
+
+def test_the_cycle_order_is_the_seeds_in_order() -> None:
+    """--test-order cycle keeps the seeds from the first one on."""
+    assert search_eval.held_out_seeds(4, first_seed=3, order="cycle") == [3, 4, 5, 6]
