@@ -9,7 +9,9 @@ report's scan points, largest region first).
 
 While driving it re-plans every ``replan_period`` seconds: a goal whose frontier has been seen
 meanwhile is dropped for the next one (the lidar reaches far ahead of the robot), and the
-``gain`` strategy also switches when another goal scores clearly (1.3 times) better.
+``gain`` strategy also switches, at every third re-plan, when another goal scores clearly (1.3
+times) better -- but never back to a place it left before reaching it, and a place left twice as
+seen (its frontier flickering in the scans) is gone to and looked at instead of left again.
 
 A frontier is given up only when the map proves it closed. A try fails when the navigation stack
 aborts the goal, when the path left to it (the navigator's feedback; the straight line without
@@ -66,6 +68,9 @@ _MOVE_PROGRESS = 0.25
 #: A frontier place left this many times before it was reached (its frontier flickering seen and
 #: unseen) is no longer left as seen: the robot goes there and looks.
 _MAX_LEFT = 2
+#: The goal in hand is compared with every other (a ranking of the whole window) at every this many
+#: re-plans; whether its own frontier was seen is checked at each (a look at its place only).
+_COMPARE_EVERY = 3
 
 
 class Explore(Leaf):
@@ -143,6 +148,7 @@ class Explore(Leaf):
 
     def _reset_timers(self, now: float) -> None:
         self.next_replan = now
+        self.replans = 0
         self.goal_started = now
         self.goal_best = math.inf
         self.goal_best_at = now
@@ -352,7 +358,8 @@ class Explore(Leaf):
             seen = not self.planner.still_frontier(grid, *target.target, radius=self.planner.blacklist_radius)
             if seen and self._times_left(target.target) >= _MAX_LEFT:
                 seen = False  # it flickers: go there and look (reached, its frontier decides)
-            if seen or self.params.strategy == "gain":
+            self.replans += 1
+            if seen or (self.params.strategy == "gain" and self.replans % _COMPARE_EVERY == 0):
                 return self._replan(now, grid, pose, target, seen)
         return self.running(self._feedback(pose))
 
