@@ -12,7 +12,11 @@ Splits. ``dev`` (what the search is tuned on): apartments from
 :func:`missiontree.evaluation.splits.split_worlds` ("test") -- a second generator family (long
 corridors with many 0.8-0.9 m doors, L and T corridors, open plan, rooms off rooms, clutter near
 doors, warehouse floors) and real SLAM maps with objects placed by a placement generator. The test
-figures are printed with 95 % Wilson intervals, beside dev's, with the dev - test gap.
+sample is taken in whole rounds of the split's cycle, each round's real maps first
+(``--test-order maps-first``, :func:`held_out_seeds`): a sample smaller than the cycle still holds
+TurtleBot 4's warehouse and depot maps, the maze, Nav2's sandbox and (when installed) MRPT's grids;
+the absent cases follow in the same order. The test figures are printed with 95 % Wilson intervals,
+beside dev's, with the dev - test gap.
 
 Worlds are edited here for the search (benchmark-side editing; the generators are untouched), the
 same way on both splits: a target (class and colour, e.g. "red backpack") is chosen per world among

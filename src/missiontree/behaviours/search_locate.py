@@ -61,7 +61,9 @@ class Locate(LookExplore):
     """A candidate of the target: from the semantic map or a loaded graph, else explore where it is likely.
 
     SUCCESS with ``search_candidate`` written as soon as an object of the target's class that was
-    not rejected is known (colour matches first, then colour unknown). Otherwise explores (frontiers
+    not rejected is known (colour matches first, then colour unknown: a glimpse, a place where the
+    detector saw the class a few times without it becoming an object, is approached for a closer
+    look like an object of unknown colour). Otherwise explores (frontiers
     by gain, weighted by the room priors) until one is seen. When nothing is left to explore, a
     candidate rejected only because it could not be reached is offered once more (the map has grown
     since), and objects of the class whose other colour rests on fewer than

@@ -5,7 +5,10 @@ the frontiers (as :class:`~missiontree.behaviours.search_resume.ResumeExplore`, 
 search's rounds); once no frontier is left (or the exploration ended partial), it goes to look at the
 reachable floor the camera has not had in view (:mod:`~missiontree.behaviours.search_coverage`),
 with a full turn at each place, and goes back to frontiers that appear meanwhile (a room seen
-through a door). ``Locate`` builds on it with the candidates and the time budget.
+through a door). While driving to a frontier, the goal is kept after the lidar has mapped its
+frontier as long as the camera has not looked at the floor there (``hold_radius``, ``hold_area``):
+the search's coverage is the camera's, and dropping such a goal sent the robot elsewhere and back.
+``Locate`` builds on it with the candidates and the time budget.
 
 Tick-log events: ``search_explored``, ``search_view_goal``, ``search_view_given_up``,
 ``search_covered``, ``search_frontiers_again``.
