@@ -106,3 +106,11 @@ def test_cli_export_then_query(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert main(["log", "query", str(out), "outcomes", "--json"]) == 0
     rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert rows == [{"runs": 4, "status": "SUCCESS", "stopped_by": "status"}]
+
+
+def test_a_run_directory_is_queried_without_an_export(tmp_path: Path) -> None:
+    """`log query RUN_DIR SQL` reads the run into memory: the same tables, nothing written."""
+    run = _runs(tmp_path, 2)[1]
+    sql = "SELECT node, COUNT(*) FROM transitions WHERE status = 'FAILURE' GROUP BY node ORDER BY node"
+    assert query(run, sql)[1] == [("try/door_open", 1), ("try/window_open", 1)]
+    assert not list(run.glob("*.sqlite"))

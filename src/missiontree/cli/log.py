@@ -66,7 +66,7 @@ def add_query(actions: Any) -> None:
         "(tables runs, nodes, transitions, events; see docs/queryable-log.md). The database is opened "
         "read-only. SQL may also be the name of an example below.",
         epilog=f"Examples:\n{examples}", formatter_class=argparse.RawDescriptionHelpFormatter)
-    query.add_argument("db", type=Path, help="the SQLite log")
+    query.add_argument("db", type=Path, help="the SQLite log, or a run directory (queried in memory)")
     query.add_argument("sql", help="the SQL query, or an example's name ('failures per node')")
     query.add_argument("--json", action="store_true", help="print the rows as JSON objects, one a line")
     query.set_defaults(func=run_query)

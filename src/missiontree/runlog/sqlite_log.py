@@ -170,9 +170,16 @@ def _reason(summary: Mapping[str, Any], finished: Mapping[str, Any]) -> str:
 def query(path: Path, sql: str) -> tuple[list[str], list[tuple[Any, ...]]]:
     """Run ``sql`` on a log database opened read-only; return the column names and rows.
 
+    ``path`` may also be a run directory (or its ticks.jsonl): the run is written into a database in
+    memory first, so one run is queried without an export.
+
     Raises:
         ConfigError: The file does not exist, is not a database, or the query fails (or writes).
     """
+    if path.is_dir() or path.suffix == ".jsonl":
+        db = connect(Path(":memory:"))
+        add_run(db, path)
+        return _run_query(db, path, sql)
     if not path.is_file():
         raise ConfigError(f"{path}: no such SQLite log; write one with `missiontree log export RUN --format "
                           "sqlite --out FILE` or `missiontree batch ... --log sqlite`")
@@ -180,6 +187,11 @@ def query(path: Path, sql: str) -> tuple[list[str], list[tuple[Any, ...]]]:
         db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
     except sqlite3.Error as error:
         raise ConfigError(f"cannot open {path}: {error}") from error
+    return _run_query(db, path, sql)
+
+
+def _run_query(db: sqlite3.Connection, path: Path, sql: str) -> tuple[list[str], list[tuple[Any, ...]]]:
+    """Run ``sql`` with writes refused (``query_only``); close the connection."""
     try:
         db.execute("PRAGMA query_only = ON")
         cursor = db.execute(sql)
