@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from missiontree.errors import ConfigError, ProblemsError
+from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.paths import find_config
 from missiontree.types import OccupancyGrid, Pose2D
 from missiontree.yamlio import YamlLimits, load_yaml
@@ -175,7 +176,7 @@ def misfits(waypoints: Sequence[Waypoint], grid: OccupancyGrid) -> list[str]:
         at = f"{w.name} ({x:g}, {y:g})"
         if not (0 <= row < rows and 0 <= col < cols):
             found.append(f"{at} lies outside the map ({x0:.1f}..{x1:.1f}, {y0:.1f}..{y1:.1f})")
-        elif grid.data[row, col] >= 50:
+        elif grid.data[row, col] >= BLOCKED_FROM:
             found.append(f"{at} lies inside an obstacle")
         elif grid.data[row, col] < 0:
             found.append(f"{at} lies in unknown space")

@@ -37,6 +37,15 @@ from collections.abc import Callable
 
 import numpy as np
 
+from missiontree.mapping.occupancy import (  # noqa: F401 - the grid's cell values, kept importable here
+    FREE,
+    FREE_BELOW,
+    FREE_THRESH,
+    OCCUPIED,
+    OCCUPIED_FROM,
+    OCCUPIED_THRESH,
+    UNKNOWN,
+)
 from missiontree.types import LaserScan, OccupancyGrid, Pose2D
 
 try:  # numba is an optional accelerator (extra `accel`); numpy is the fallback.
@@ -46,11 +55,6 @@ try:  # numba is an optional accelerator (extra `accel`); numpy is the fallback.
 except ImportError:  # pragma: no cover - exercised only without numba
     numba = None
     HAVE_NUMBA = False
-
-#: map_server's default trinary thresholds (probability of occupancy).
-OCCUPIED_THRESH = 0.65
-FREE_THRESH = 0.25
-UNKNOWN, FREE, OCCUPIED = -1, 0, 100
 
 
 def logit(p: float) -> float:
@@ -385,10 +389,7 @@ class LogOddsGrid:
 
 # -- reading any OccupancyGrid (trinary or scaled 0..100) ------------------------------------------
 
-#: Cell values at or above this read as occupied, values 0 up to FREE_BELOW as free (map_server's
-#: thresholds on the 0..100 scale); the rest, and -1, is unknown.
-OCCUPIED_FROM = int(round(OCCUPIED_THRESH * 100))
-FREE_BELOW = int(round(FREE_THRESH * 100))
+# the thresholds that read any grid: missiontree.mapping.occupancy (FREE_BELOW, OCCUPIED_FROM)
 
 
 def free_mask(grid: OccupancyGrid) -> np.ndarray:

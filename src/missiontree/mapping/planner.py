@@ -65,6 +65,7 @@ from missiontree.mapping.grid_search import (
     trace_jit,
     trace_loops,
 )
+from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.types import OccupancyGrid, Pose2D
 
 #: Weighted A*: the heuristic counts this much (1.0 is optimal; 1.2 expands ~20x fewer cells on a
@@ -148,7 +149,7 @@ class Costmap:
         if br1 <= br0 or bc1 <= bc0:
             return
         window = self.grid.data[br0 * BLOCK: br1 * BLOCK, bc0 * BLOCK: bc1 * BLOCK]
-        bad = window >= 50
+        bad = window >= BLOCKED_FROM
         if not self.allow_unknown:
             bad |= window < 0
         ph, pw = (br1 - br0) * BLOCK, (bc1 - bc0) * BLOCK
@@ -195,7 +196,7 @@ class Costmap:
         self.grid = grid
         if grid.data is old.data:
             return
-        changed = (grid.data >= 50) != (old.data >= 50)
+        changed = (grid.data >= BLOCKED_FROM) != (old.data >= BLOCKED_FROM)
         if not self.allow_unknown:
             changed |= (grid.data < 0) != (old.data < 0)
         if not changed.any():
@@ -294,7 +295,7 @@ class Costmap:
         r1, c1 = min(r0 + TILE, h), min(c0 + TILE, w)
         wr0, wc0, wr1, wc1 = max(r0 - pad, 0), max(c0 - pad, 0), min(r1 + pad, h), min(c1 + pad, w)
         window = self.grid.data[wr0:wr1, wc0:wc1]
-        lethal = window >= 50
+        lethal = window >= BLOCKED_FROM
         if len(self.extra_lethal):
             lethal = lethal.copy()
             self._stamp_points(lethal, wr0, wc0)

@@ -18,11 +18,12 @@ from typing import Any
 import cv2
 import numpy as np
 
+from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.mapping.planner import Costmap, path_lengths
 from missiontree.types import OccupancyGrid, Pose2D
 
-#: Occupancy values at or above this are obstacles (Nav2's map_server threshold, as the simulator plans).
-OCCUPIED = 50
+#: Occupancy values at or above this are obstacles (as the simulator plans).
+OCCUPIED = BLOCKED_FROM
 #: Extra clearance a standoff pose keeps beyond the robot's radius (m).
 STANDOFF_MARGIN = 0.08
 #: How far beyond the object's edge a standoff pose may be (m): the robot stands close to what it fetches.

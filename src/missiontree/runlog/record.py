@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.plugins.hookspecs import hookimpl
 from missiontree.runlog.replay import POSES_FILE, RUNVIEW_FILE, declared_tree
 
@@ -46,8 +47,8 @@ def encode_map(
 
     grid = np.asarray(data)
     image = np.full(grid.shape, UNKNOWN, dtype=np.uint8)
-    image[(grid >= 0) & (grid < 50)] = FREE
-    image[grid >= 50] = OCCUPIED
+    image[(grid >= 0) & (grid < BLOCKED_FROM)] = FREE
+    image[grid >= BLOCKED_FROM] = OCCUPIED
     ok, png = cv2.imencode(".png", np.flipud(image), [cv2.IMWRITE_PNG_COMPRESSION, 9])
     if not ok:  # pragma: no cover - cv2 encodes any uint8 image
         raise ValueError("could not encode the map as PNG")

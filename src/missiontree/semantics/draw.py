@@ -15,6 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.semantics.live import LiveScene
 from missiontree.types import OccupancyGrid
 
@@ -52,10 +53,11 @@ class _Canvas:
         self.scale = max(1, min(8, _SCALE_MAX // max(self.h, w, 1)))
         img: np.ndarray = np.full((self.h, w, 3), 255, np.uint8)
         img[data < 0] = (200, 200, 200)
-        img[data >= 50] = (0, 0, 0)
+        img[data >= BLOCKED_FROM] = (0, 0, 0)
         size = (w * self.scale, self.h * self.scale)
         self.img = cv2.resize(img[::-1], size, interpolation=cv2.INTER_NEAREST)
-        walls = cv2.resize((data >= 50)[::-1].astype(np.uint8), size, interpolation=cv2.INTER_NEAREST)
+        blocked = (data >= BLOCKED_FROM)[::-1].astype(np.uint8)
+        walls = cv2.resize(blocked, size, interpolation=cv2.INTER_NEAREST)
         #: Occupied cells at the picture's scale: drawn black again over the rooms' tint.
         self.walls = walls > 0
 

@@ -51,6 +51,7 @@ from missiontree.backends.sim.schema import NavMapYaml
 from missiontree.backends.sim.world import Room, World, load_robot_profile, register_world_source
 from missiontree.errors import Problem, WorldFileError
 from missiontree.mapping.clearance import clearance_metres
+from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.paths import config_dirs
 from missiontree.semantics.rooms import segment_rooms
 from missiontree.types import OccupancyGrid, Pose2D
@@ -300,7 +301,7 @@ def _map_pieces(grid: OccupancyGrid, inside: tuple[float, float]) -> list[tuple[
     floor, so the result is kept for the process (keyed by the grid's content and that piece).
     """
     data = np.ascontiguousarray(grid.data)
-    _, comp = cv2.connectedComponents(((data >= 0) & (data < 50)).astype(np.uint8), connectivity=4)
+    _, comp = cv2.connectedComponents(((data >= 0) & (data < BLOCKED_FROM)).astype(np.uint8), connectivity=4)
     row, col = grid.world_to_cell(*inside)
     piece = int(comp[row, col]) if 0 <= row < data.shape[0] and 0 <= col < data.shape[1] else -1
     key = (

@@ -25,6 +25,7 @@ from scipy import ndimage
 
 from missiontree.backends.sim.world import World, build_world
 from missiontree.mapping.clearance import clearance_metres
+from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.types import OccupancyGrid
 from missiontree.yamlio import Located
 
@@ -156,7 +157,7 @@ def scene_of(world: World) -> Scene:
     """The rasters :func:`place_objects` works on, for a built world."""
     grid = world.grid
     shape = grid.data.shape
-    walls = (grid.data >= 50) | (grid.data < 0)
+    walls = (grid.data >= BLOCKED_FROM) | (grid.data < 0)
     blocked = walls.copy()
     for obj in world.objects:
         blocked |= footprint_mask(shape, grid, obj.footprint())
@@ -447,7 +448,7 @@ class Placer:
         return self._corner_cache[key]
 
     def _find_corners(self, reach: float) -> np.ndarray:
-        walls = (self.s.grid.data >= 50) | (self.s.grid.data < 0)
+        walls = (self.s.grid.data >= BLOCKED_FROM) | (self.s.grid.data < 0)
         k = max(1, int(round(reach / self.res)))
         near_x = np.zeros_like(walls)
         near_y = np.zeros_like(walls)

@@ -21,6 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.types import Marker, OccupancyGrid, Pose2D
 
 PIXELS_PER_METRE = 60
@@ -152,7 +153,7 @@ def draw_topdown(scene: Scene, markers: list[Marker], path: Path,
         cv2.addWeighted(overlay, 0.5, img, 0.5, 0, dst=img)
     if metre_grid:
         _draw_metre_grid(canvas, scene.bounds)
-    _shade_cells(canvas, scene.grid, scene.grid.data >= 50,
+    _shade_cells(canvas, scene.grid, scene.grid.data >= BLOCKED_FROM,
                  lambda region: (region * 0.55 + 60).astype(np.uint8))
     for x1, y1, x2, y2 in scene.walls:
         cv2.line(img, canvas.px(x1, y1), canvas.px(x2, y2), (60, 60, 60), 2, cv2.LINE_AA)
@@ -240,7 +241,7 @@ def _draw_learned(canvas: _Canvas, learned: OccupancyGrid) -> None:
         region, big = found
         sel = big > 0
         region[sel] = (region[sel] * 0.45 + np.array(_UNMAPPED_BGR) * 0.55).astype(np.uint8)
-    found = _cells_region(canvas, learned, learned.data >= 50)
+    found = _cells_region(canvas, learned, learned.data >= BLOCKED_FROM)
     if found is not None:
         region, big = found
         region[big > 0] = (40, 40, 40)

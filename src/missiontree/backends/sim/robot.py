@@ -39,6 +39,7 @@ from missiontree.backends.sim.timing import TimingLog
 from missiontree.backends.sim.truth import GroundTruth
 from missiontree.backends.sim.world import World
 from missiontree.mapping.grid import LogOddsGrid, logit
+from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.robot.commands import Command, LineCommands
 from missiontree.robot.history import StampedHistory
 from missiontree.robot.sensors import SensorKind, SensorReading, SimSensors
@@ -483,7 +484,7 @@ class SimRobot:
             fresh[window < logit(grid.free_thresh)] = 0
             fresh[window > logit(grid.occupied_thresh)] = 100
             old = known[r0:r1, c0:c1]
-            lethal_changed = (fresh >= 50) != (old >= 50)
+            lethal_changed = (fresh >= BLOCKED_FROM) != (old >= BLOCKED_FROM)
             old[...] = fresh
             if lethal_changed.any():
                 rows = np.flatnonzero(lethal_changed.any(axis=1))

@@ -41,6 +41,7 @@ from missiontree.backends.sim.schema import (
     WorldSpec,
 )
 from missiontree.errors import ConfigError, Problem, WorldFileError
+from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.paths import find_config
 from missiontree.types import OccupancyGrid, Pose2D
 from missiontree.yamlio import Located, load_yaml
@@ -309,7 +310,7 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem],
         map_grid = read_nav2_map(spec, doc, path, problems)
         if map_grid is not None:
             cells, res, origin = map_grid
-            map_segments = contour_segments(cells >= 50, res, origin)
+            map_segments = contour_segments(cells >= BLOCKED_FROM, res, origin)
             segments += map_segments
             rows += [(SEGMENT, s, 0.0, spec.map.height, spec.map.rgb, WALL_INSTANCE) for s in map_segments]
             ceiling = max(ceiling if spec.walls else 0.0, spec.map.height)
@@ -353,7 +354,8 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem],
         return None
     _check_objects(doc, objects, seg_array, walls_grid, grid, problems, object_at)
     _check_routes(doc, spec, seg_array, problems, person_at)
-    clearance = cv2.distanceTransform((grid.data < 50).astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
+    open_cells = (grid.data < BLOCKED_FROM).astype(np.uint8)
+    clearance = cv2.distanceTransform(open_cells, cv2.DIST_L2, 5) * grid.resolution
     start = Pose2D(spec.robot.start.x, spec.robot.start.y, spec.robot.start.heading)
     rooms = [Room(r.name, r.type, np.array(r.polygon, float), r.floor_rgb) for r in spec.rooms]
     world = World(
@@ -384,7 +386,7 @@ def _rasterise(spec: WorldSpec, segs: np.ndarray, objects: list[WorldObject],
     unknown = None
     if map_grid is not None:
         cells, res, origin = map_grid
-        walls = cells >= 50
+        walls = cells >= BLOCKED_FROM
         unknown = cells < 0
     else:
         res = spec.resolution
