@@ -317,3 +317,21 @@ def test_a_flickering_frontier_is_gone_to_instead_of_being_sent_again_and_again(
         leaf.tick_once()
         robot.advance(0.1)
     assert len(robot.goals) == 3
+
+
+@pytest.mark.parametrize(("res", "expected"), [(0.05, 0.27), (0.03, 0.23)])
+def test_reachability_is_judged_with_the_navigators_footprint_on_the_maps_resolution(res: float,
+                                                                                     expected: float) -> None:
+    """The body padded by two cells of the map: on a 3 cm map gaps of 0.46-0.54 m count as open."""
+
+    class FineRobot(MapRobot):
+        def occupancy(self) -> OccupancyGrid | None:  # type: ignore[override]
+            return OccupancyGrid(self.time, res, Pose2D(0.0, 0.0), self.data.copy())
+
+    robot = FineRobot(corridor_map())
+    leaf, _ = make(robot)
+    leaf.tick_once()
+    assert leaf.planner is not None and leaf.planner.reach_radius == pytest.approx(expected)
+    fixed, _ = make(FineRobot(corridor_map()), nav_footprint_radius=0.3)
+    fixed.tick_once()
+    assert fixed.planner is not None and fixed.planner.reach_radius == pytest.approx(0.3)

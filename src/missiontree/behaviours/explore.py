@@ -98,10 +98,14 @@ class Explore(Leaf):
         min_frontier_size: float = Field(0.5, gt=0, description="Ignore frontiers shorter than this (m).")
         footprint_radius: float = Field(
             0.2, gt=0, description="Robot radius for planning and goal clearance (m).")
-        nav_footprint_radius: float = Field(
-            0.27, gt=0, description="Radius the navigation stack plans with on the learned map (m; the "
-            "simulator's: a TurtleBot 4's 0.17 padded by two 5 cm cells): a frontier it shows no way "
-            "to is closed, not left open.")
+        nav_footprint_radius: float | None = Field(
+            None, gt=0, description="Radius the navigation stack plans with on the learned map (m): a "
+            "frontier it shows no way to is closed, not left open. Default: nav_body_radius padded by "
+            "nav_padding_cells cells of the map (the simulator's navigator: 0.27 m at 5 cm, 0.23 m at 3 cm).")
+        nav_body_radius: float = Field(0.17, gt=0, description="The robot body's radius (m; TurtleBot 4).")
+        nav_padding_cells: float = Field(
+            2.0, ge=0, description="Cells of the map the navigation pads the body with (the default "
+            "nav_footprint_radius).")
         xy_tolerance: float = Field(0.3, gt=0, description="Distance at which a goal counts as reached (m).")
         replan_period: float = Field(
             2.0, gt=0, description="Re-evaluate the goal this often while driving (s).")
@@ -191,6 +195,8 @@ class Explore(Leaf):
                                  f"(is the robot mapping? occupancy() gave {got})")
             return self.running("waiting for the map")
         self.last_grid = grid
+        assert self.planner is not None
+        self.planner.reach_radius = self.nav_radius(grid.resolution)
         pose = stamped.pose
         if self._stuck(now, grid, pose):
             return self.fail(f"stuck: the map did not grow and the robot did not move for "
@@ -233,9 +239,21 @@ class Explore(Leaf):
         """The exploration planner's options, from the parameters."""
         p = self.params
         return {"strategy": p.strategy, "footprint_radius": p.footprint_radius,
-                "reach_radius": p.nav_footprint_radius,
+                "reach_radius": self.nav_radius(0.05),
                 "sensor_range": p.sensor_range, "min_frontier_m": p.min_frontier_size,
                 "cost_rate": p.cost_rate, "erosion_m": p.scan_point_erosion, "min_gain_m2": p.min_gain}
+
+    def nav_radius(self, resolution: float) -> float:
+        """The footprint the navigation plans with on a map of ``resolution`` (m per cell).
+
+        A planner judging reachability with a larger one than the navigator's dropped frontiers
+        behind gaps the robot could drive through (on a 3 cm map, 0.46-0.54 m), and could end
+        "explored" with the rooms behind them unseen.
+        """
+        p = self.params
+        if p.nav_footprint_radius is not None:
+            return p.nav_footprint_radius
+        return p.nav_body_radius + p.nav_padding_cells * resolution
 
     def make_planner(self) -> ExplorationPlanner:
         """The planner for a run of the leaf (called by :meth:`initialise`; a new one each run here).
