@@ -8,7 +8,11 @@ frame by frame so that machine load affects them alike:
 - ``sim_detector`` — the shipped ONNX model (missiontree/data/models/sim_detector.onnx) through
   :class:`~missiontree.perception.detectors.YoloOnnxDetector`, onnxruntime on 2 threads, as the
   ``sim_detector`` provider configures it: detecting in the image and in its mirror image
-  (``test_time_flip``);
+  (``test_time_flip``) on frames whose single pass left a candidate scoring in its ``flip_band``
+  (``frames_mirrored_share`` says how many);
+- ``mirror_every_frame`` — the same with the mirror pass on every frame (``flip_band: null``, the
+  previous default), whose figures (``map50_mirror_every_frame``,
+  ``ms_per_frame_mirror_every_frame_median``) say what the band gives up and saves;
 - ``single_pass`` — the same model without the mirror image, whose figures
   (``map50_single_pass``, ``ms_per_frame_single_pass_median``) say what the flip buys and costs;
 - ``oracle`` — the quality reference: :class:`~missiontree.perception.oracle.OracleDetector` reading
@@ -220,6 +224,7 @@ def main(argv: list[str] | None = None) -> None:
         options["model"] = args.model
     detector = create_sim_detector(options)
     single_pass = create_sim_detector({**options, "test_time_flip": False})
+    every_frame = create_sim_detector({**options, "flip_band": None})
     detector_all_scores = create_sim_detector({**options, "score_threshold": ALL_SCORES_THRESHOLD})
     detector_multi_label = create_sim_detector({**options, "multi_label": True})
     rng = np.random.default_rng(args.seed)
@@ -234,8 +239,9 @@ def main(argv: list[str] | None = None) -> None:
     wall_ours: list[float] = []
     wall_single: list[float] = []
     flip_ratios: list[float] = []
-    ours_single = APAccumulator(0.5)
-    for warming in (detector, single_pass):  # load and warm the timed sessions once
+    ours_single, ours_every = APAccumulator(0.5), APAccumulator(0.5)
+    ms_every: list[float] = []
+    for warming in (detector, single_pass, every_frame):  # load and warm the timed sessions once
         warming.detect(np.zeros((240, 320, 3), np.uint8))
     frames = 0
     for w in range(args.worlds):
@@ -247,17 +253,19 @@ def main(argv: list[str] | None = None) -> None:
             truth_api.mask = view.instances
             frame = SimpleNamespace(stamp=float(frames), color=color)
             truth = truth_of(kept, ignored)
-            order = [(frames + k) % 3 for k in range(3)]  # rotate which runs first
-            timings = [0.0, 0.0, 0.0]
-            walls = [0.0, 0.0, 0.0]
+            order = [(frames + k) % 4 for k in range(4)]  # rotate which runs first
+            timings = [0.0, 0.0, 0.0, 0.0]
+            walls = [0.0, 0.0, 0.0, 0.0]
             for which in order:
                 started, cpu = time.perf_counter(), time.process_time()
                 if which == 0:
                     found = detector.detect(color)
                 elif which == 1:
                     ref = oracle.detect_frame(frame)  # type: ignore[arg-type]
-                else:
+                elif which == 2:
                     found_single = single_pass.detect(color)
+                else:
+                    found_every = every_frame.detect(color)
                 timings[which] = (time.process_time() - cpu) * 1000.0
                 walls[which] = (time.perf_counter() - started) * 1000.0
             ours.add(found, truth)
@@ -274,6 +282,8 @@ def main(argv: list[str] | None = None) -> None:
             ours_look_alike.add(*merged(found, truth, lambda k: LOOK_ALIKE.get(k, k), detector.iou_threshold))
             reference.add(ref, truth)
             ours_single.add(found_single, truth)
+            ours_every.add(found_every, truth)
+            ms_every.append(timings[3])
             ms_ours.append(timings[0])
             ms_ref.append(timings[1])
             ms_single.append(timings[2])
@@ -282,6 +292,7 @@ def main(argv: list[str] | None = None) -> None:
             flip_ratios.append(timings[0] / max(timings[2], 1e-6))
             frames += 1
 
+    mirrored = detector.passes["mirror"] / max(detector.passes["single"], 1)  # the fresh worlds' views
     shipped, shipped_frames = score_shipped_worlds(detector, args.shipped_views, args.seed) \
         if args.shipped_views > 0 else (APAccumulator(0.5), 0)
     per_class = ours.per_class()
@@ -294,7 +305,9 @@ def main(argv: list[str] | None = None) -> None:
             print(f"{label:<14} {counts[label]:>7} {per_class[label]:>7.3f}")
     print(f"mAP@0.5  sim_detector {ours.mean_ap():.3f}   oracle {reference.mean_ap():.3f}   "
           f"ratio {ours.mean_ap() / max(reference.mean_ap(), 1e-9):.3f}")
-    print(f"mAP@0.5 without the mirror image (single pass) {ours_single.mean_ap():.3f}")
+    print(f"mAP@0.5 without the mirror image (single pass) {ours_single.mean_ap():.3f}; with it on every "
+          f"frame {ours_every.mean_ap():.3f}; sim_detector mirrored {mirrored:.0%} of the frames "
+          f"(band {detector.flip_band})")
     print(f"mAP@0.5 with detections down to score {ALL_SCORES_THRESHOLD} (not {SCORE_THRESHOLD}) "
           f"sim_detector {ours_all_scores.mean_ap():.3f}")
     print(f"mAP@0.5 with every class above {SCORE_THRESHOLD} a box scores (multi-label) sim_detector "
@@ -314,6 +327,9 @@ def main(argv: list[str] | None = None) -> None:
                   f"{k} {v:.2f}" for k, v in sorted(shipped.per_class().items())))
     print(f"CPU ms/frame sim_detector min/median/max {spread(ms_ours)}  (wall {spread(wall_ours)})")
     print(f"CPU ms/frame single pass  min/median/max {spread(ms_single)}  (wall {spread(wall_single)})")
+    print(f"CPU ms/frame mirror on every frame min/median/max {spread(ms_every)}; mean: sim_detector "
+          f"{statistics.mean(ms_ours):.3f}, every frame {statistics.mean(ms_every):.3f}, single "
+          f"{statistics.mean(ms_single):.3f}")
     print(f"CPU ms/frame oracle (reads the mask; no speed reference) min/median/max {spread(ms_ref)}")
     print(f"ratio sim_detector/single pass per frame (CPU) min/median/max {spread(flip_ratios)}")
     print(json.dumps({
@@ -327,6 +343,13 @@ def main(argv: list[str] | None = None) -> None:
         "ap50_per_class": {k: round(v, 4) for k, v in per_class.items()},
         "score_threshold": SCORE_THRESHOLD,
         "test_time_flip": detector.test_time_flip,
+        "flip_band": None if detector.flip_band is None else list(detector.flip_band),
+        "frames_mirrored_share": round(mirrored, 4),
+        "map50_mirror_every_frame": round(ours_every.mean_ap(), 4),
+        "ms_per_frame_mirror_every_frame_median": round(statistics.median(ms_every), 3),
+        "ms_per_frame_mean": {"sim_detector": round(statistics.mean(ms_ours), 3),
+                              "mirror_every_frame": round(statistics.mean(ms_every), 3),
+                              "single_pass": round(statistics.mean(ms_single), 3)},
         "map50_single_pass": round(ours_single.mean_ap(), 4),
         "ap50_single_pass_per_class": {k: round(v, 4) for k, v in ours_single.per_class().items()},
         "ms_per_frame_single_pass_median": round(statistics.median(ms_single), 3),
