@@ -42,7 +42,9 @@ from missiontree.backends.sim.floorplans import FLOORPLAN_PREFIX, KINDS, floorpl
 from missiontree.backends.sim.generator import GENERATED_PREFIX, generate_world
 from missiontree.backends.sim.mrpt_worlds import INSTALL_HINT, MRPT_PREFIX, map_yaml, mrpt_available
 from missiontree.backends.sim.placement import MAP_PREFIX, map_world, place_objects, shipped_map, small_kinds
+from missiontree.errors import WorldFileError
 from missiontree.files import write_whole
+from missiontree.yamlio import load_yaml
 
 #: The split names.
 SPLITS = ("dev", "test")
@@ -185,7 +187,7 @@ def write_split_world(world: SplitWorld, directory: Path) -> Path:
         source = Path(section["yaml"])
         target_dir = (directory / "maps").resolve()
         target_dir.mkdir(exist_ok=True)
-        image = Path(yaml.safe_load(source.read_text(encoding="utf-8"))["image"])
+        image = Path(str(load_yaml(source, error=WorldFileError).data["image"]))
         if image.is_absolute() or ".." in image.parts:
             raise ValueError(f"{source}: expected an image path inside the map's folder, found {image}")
         _copy(source, target_dir / source.name)

@@ -19,7 +19,7 @@ from typing import Any
 import yaml
 
 from missiontree.errors import ConfigError, ProblemsError
-from missiontree.yamlio import load_yaml
+from missiontree.yamlio import load_yaml, parse_yaml
 
 __all__ = ["declared_params", "parse_assignment", "parse_overrides"]
 
@@ -114,10 +114,12 @@ def _convert(name: str, given: Any, default: Any) -> Any:
 def _read(name: str, given: Any) -> Any:
     if not isinstance(given, str):
         return given
-    try:
-        return yaml.safe_load(given) if given.strip() else ""
-    except yaml.YAMLError as error:
-        problem = getattr(error, "problem", None) or "not a YAML value"
+    if not given.strip():
+        return ""
+    try:  # the same reader as every file: plain values only, timestamps stay text
+        return parse_yaml(given, f"--set {name}").data
+    except ProblemsError as error:
+        problem = error.problems[0].message if error.problems else "not a YAML value"
         raise ConfigError(f"--set {name}: cannot read {given!r} ({problem}); quote text values") from None
 
 

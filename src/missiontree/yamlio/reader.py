@@ -1,36 +1,15 @@
-"""A safe, bounded YAML loader that remembers where every key and value came from.
+"""The safe, bounded YAML reader: text or a file in, a :class:`~missiontree.yamlio.located.Located` out.
 
-Mission files, world files and configs are read with :func:`load_yaml` (or :func:`parse_yaml` for
-text already in memory). The result is a :class:`Located`: the plain data (dicts, lists, str, int,
-float, bool, None) plus the line and column of every mapping key and every value, so a later check
-can say ``file:line:col`` for any key path::
-
-    doc = load_yaml("trees/patrol.yaml", error=MissionFileError)
-    doc.data["root"]                                        # plain data
-    doc.position(("root", "Sequence", "children", 2))       # (line, col), 1-based
-    raise MissionFileError([doc.problem_at(("run", "tick_hz"), "expected a number, found 'fast'")])
-
-What it refuses, each as a :class:`~missiontree.errors.Problem` with line and column, raised
-together through the ``error`` class (a :class:`~missiontree.errors.ProblemsError` subclass):
-
-- empty files, binary files (NUL bytes, not UTF-8), files larger than ``limits.max_bytes``;
-- tabs in indentation (every such line is reported), YAML syntax errors, several documents;
-- duplicate keys in one mapping, keys that are not scalars;
-- tags that would build objects (anything but the standard ``!!str``/``!!int``/... tags);
-- nesting deeper than ``limits.max_depth`` (checked while composing, before Python recursion);
-- more than ``limits.max_nodes`` values after alias expansion, so a "billion laughs" alias bomb
-  stops after ``max_nodes`` steps in bounded memory.
-
-Mapping keys are always strings (``on:`` stays ``"on"``); scalar values follow YAML 1.1 as PyYAML's
-safe loader reads them, except timestamps, which stay strings. Merge keys (``<<: *base``) work.
+Refuses, each as a located :class:`~missiontree.errors.Problem`: binary or non-UTF-8 input, control
+characters, tabs in indentation, syntax errors, several documents, duplicate or non-scalar keys,
+object-building tags, nesting deeper than the limit and more values than the limit after alias
+expansion (checked while composing and building, so an alias bomb stops in bounded memory).
 """
 
 from __future__ import annotations
 
 import os
 import re
-from collections.abc import Iterable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -41,9 +20,7 @@ from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 from yaml.resolver import Resolver
 
 from missiontree.errors import Problem, ProblemsError
-
-#: A key path into the data: mapping keys (str) and sequence indices (int).
-KeyPath = tuple[str | int, ...]
+from missiontree.yamlio.located import DEFAULT_LIMITS, KeyPath, Located, YamlLimits, format_path
 
 _STANDARD_TAGS = {
     "tag:yaml.org,2002:str", "tag:yaml.org,2002:int", "tag:yaml.org,2002:float",
@@ -54,101 +31,6 @@ _MERGE_TAG = "tag:yaml.org,2002:merge"
 _MAX_TAB_REPORTS = 20
 _CONTROL = re.compile("[\x01-\x08\x0b\x0c\x0e-\x1f\x7f]")
 
-
-@dataclass(frozen=True)
-class YamlLimits:
-    """What one file may cost to read.
-
-    Attributes:
-        max_bytes: Largest file accepted, in bytes.
-        max_depth: Deepest nesting of mappings and sequences.
-        max_nodes: Most values (after alias expansion) in the whole document.
-    """
-
-    max_bytes: int = 256 * 1024
-    max_depth: int = 64
-    max_nodes: int = 100_000
-
-
-DEFAULT_LIMITS = YamlLimits()
-
-
-class Located:
-    """Plain YAML data plus the source position of every key and value.
-
-    Attributes:
-        data: The document as plain Python data.
-        file: The file name used in problems (as the user named it).
-    """
-
-    def __init__(
-        self,
-        data: Any,
-        file: str,
-        values: dict[KeyPath, tuple[int, int]],
-        keys: dict[KeyPath, tuple[int, int]],
-        prefix: KeyPath = (),
-    ) -> None:
-        self.data = data
-        self.file = file
-        self._values = values
-        self._keys = keys
-        self._prefix = prefix
-
-    def position(self, path: Iterable[str | int], *, key: bool = False) -> tuple[int, int]:
-        """The 1-based (line, col) of the value at ``path`` (or of its key when ``key=True``).
-
-        A path that does not exist (a missing key) falls back to its nearest existing ancestor,
-        so "missing parameter" problems point at the mapping that lacks it.
-        """
-        full = self._prefix + tuple(path)
-        if key and full in self._keys:
-            return self._keys[full]
-        while full:
-            if full in self._values:
-                return self._values[full]
-            full = full[:-1]
-        return self._values.get((), (1, 1))
-
-    def has(self, path: Iterable[str | int]) -> bool:
-        """Whether ``path`` names a value that was in the file."""
-        return self._prefix + tuple(path) in self._values
-
-    def problem_at(
-        self,
-        path: Iterable[str | int],
-        message: str,
-        hint: str = "",
-        *,
-        key: bool = False,
-        where: str | None = None,
-    ) -> Problem:
-        """A Problem located at ``path``; ``where`` is the path shown (default: the key path)."""
-        path = tuple(path)
-        line, col = self.position(path, key=key)
-        shown = format_path(self._prefix + path) if where is None else where
-        return Problem(self.file, line, col, shown, message, hint)
-
-    def child(self, path: Iterable[str | int]) -> Located:
-        """A view of the value at ``path`` whose positions and paths are relative to it."""
-        path = tuple(path)
-        data = self.data
-        for part in path:
-            data = data[part]
-        return Located(data, self.file, self._values, self._keys, self._prefix + path)
-
-
-    def view(self, path: Iterable[str | int], data: Any) -> Located:
-        """Like :meth:`child`, but with ``data`` given (e.g. after substitution changed the value)."""
-        return Located(data, self.file, self._values, self._keys, self._prefix + tuple(path))
-
-
-def format_path(path: Iterable[str | int]) -> str:
-    """Render a key path as ``root.children[2].Wait``."""
-    text = ""
-    for part in path:
-        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
-    return text
 
 
 def load_yaml(
@@ -491,125 +373,3 @@ class _LimitExceededError(ProblemsError):
 
 def _pos(node: Node) -> tuple[int, int]:
     return node.start_mark.line + 1, node.start_mark.column + 1
-
-
-# -- pydantic errors as located problems -----------------------------------------------------------
-
-
-def validation_problems(
-    exc: Any,
-    doc: Located,
-    model: Any = None,
-    *,
-    prefix: KeyPath = (),
-    docs: str = "",
-) -> list[Problem]:
-    """Every error of a pydantic ``ValidationError`` as a :class:`Problem` at its key in ``doc``.
-
-    The one place where a config file's schema errors become ``file:line:col`` problems (worlds,
-    robot profiles, map yamls, models configs). Unknown keys point at the key and list the known
-    ones; missing keys point at the mapping that lacks them; a wrong value shows what was found,
-    shortened, never a whole nested value (so a file read by mistake is not echoed back).
-
-    Args:
-        exc: The ``pydantic.ValidationError`` raised by validating ``doc.data`` (or a part of it).
-        doc: The located document.
-        model: The pydantic model validated, to list the known keys of an unknown key's mapping.
-        prefix: Where the validated data sits in ``doc`` (empty when it is the whole document).
-        docs: The document that describes the format, named in hints (e.g. ``docs/worlds.md``).
-    """
-    problems: list[Problem] = []
-    for err in exc.errors():
-        loc = tuple(p for p in err["loc"] if isinstance(p, str | int))
-        written = _written(doc.data, prefix, loc)
-        problems.append(doc.problem_at(
-            (*prefix, *written), error_message(err, model), _hint_for(err, docs),
-            key=err["type"] == "extra_forbidden"))
-    return problems
-
-
-def error_message(err: Any, model: Any = None) -> str:
-    """One pydantic error as "what was expected, what was found" (short; values are truncated)."""
-    loc = tuple(err["loc"])
-    if err["type"] == "extra_forbidden":
-        allowed = _allowed_keys(model, loc[:-1]) if model is not None else []
-        known = f"; expected one of: {', '.join(allowed)}" if allowed else ""
-        return f"unknown key {str(loc[-1])!r}{known}"
-    if err["type"] == "missing":
-        return f"missing required key {str(loc[-1])!r}"
-    msg = str(err.get("msg", "invalid value"))
-    for prefix in ("Value error, ", "Assertion failed, "):
-        msg = msg.removeprefix(prefix)
-    found = err.get("input")
-    if err["type"] == "finite_number" or (isinstance(found, float) and found != found):  # NaN
-        msg = "expected a finite number"
-    elif msg.startswith("Input should be "):
-        msg = "expected " + msg.removeprefix("Input should be ")
-    return f"{msg}, found {short_repr(found)}"
-
-
-def short_repr(value: Any, limit: int = 60) -> str:
-    """``repr(value)`` when short; else its kind ("a mapping", "a list", "text of 1,234 characters")."""
-    if isinstance(value, dict):
-        text = repr(value)
-        return text if len(text) <= limit else f"a mapping of {len(value)} keys"
-    if isinstance(value, list | tuple):
-        text = repr(value)
-        return text if len(text) <= limit else f"a list of {len(value)} values"
-    if isinstance(value, str) and len(value) > limit:
-        return f"text of {len(value):,} characters"
-    text = repr(value)
-    return text if len(text) <= limit else f"a {type(value).__name__}"
-
-
-def _written(data: Any, prefix: KeyPath, loc: tuple[str | int, ...]) -> tuple[str | int, ...]:
-    """The leading part of ``loc`` that names keys and indices present in the data (drops union tags)."""
-    for part in prefix:
-        try:
-            data = data[part]
-        except (KeyError, IndexError, TypeError):
-            return ()
-    kept: list[str | int] = []
-    for i, part in enumerate(loc):
-        if isinstance(data, dict) and part in data:
-            data = data[part]
-        elif isinstance(data, list) and isinstance(part, int) and 0 <= part < len(data):
-            data = data[part]
-        elif i == len(loc) - 1:
-            kept.append(part)  # a missing or unknown key itself: position() falls back to its mapping
-            break
-        else:
-            continue
-        kept.append(part)
-    return tuple(kept)
-
-
-def _hint_for(err: Any, docs: str) -> str:
-    where = f" ({docs} lists every key)" if docs else ""
-    if err["type"] == "extra_forbidden":
-        return f"check the spelling{where}"
-    if err["type"] == "missing":
-        return f"add the key{where}"
-    return ""
-
-
-def _allowed_keys(model: Any, loc: tuple[Any, ...]) -> list[str]:
-    """Field names of the model reached by following ``loc`` through nested models and lists."""
-    import types
-    import typing
-
-    current: Any = model
-    for part in loc:
-        if isinstance(part, int):
-            continue
-        fields = getattr(current, "model_fields", None)
-        if not fields or part not in fields:
-            return []
-        current = fields[part].annotation
-        for _ in range(3):  # unwrap Optional[...] / list[...] down to a model
-            origin = typing.get_origin(current)
-            if origin in (list, typing.Union, types.UnionType):
-                args = [a for a in typing.get_args(current) if a is not type(None)]
-                current = args[0] if args else current
-    fields = getattr(current, "model_fields", None)
-    return list(fields) if fields else []
