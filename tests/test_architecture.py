@@ -541,3 +541,67 @@ def test_the_allow_list_is_not_stale() -> None:
     stale = sorted(set(ALLOWED) - set(violations()))
     assert not stale, "fixed, so remove from ALLOWED:\n" + "\n".join(stale)
 
+
+
+# -- the floor plan in the README ----------------------------------------------------------------------
+
+README = PACKAGE_DIR.parent.parent / "README.md"
+#: The generated table sits between these lines of README.md's "Where things are" section.
+README_BEGIN = ("<!-- packages: generated from each package's docstring by "
+                "`python tests/test_architecture.py --write-readme`, which checks it -->")
+README_END = "<!-- end of packages -->"
+
+
+def _summary(doc: str | None) -> str:
+    """A docstring's first line as Markdown: Sphinx roles and double backticks as plain code."""
+    import re
+
+    first = (doc or "").strip().split("\n\n", 1)[0].replace("\n", " ")
+    first = re.sub(r":(?:mod|func|class|data|meth|attr):`~?([^`]+)`", r"`\1`", first)
+    return first.replace("``", "`").replace("|", "\\|")
+
+
+def readme_packages() -> str:
+    """The README's table of packages, top floor first: each package's path, floor and docstring summary."""
+    rows = []
+    for path in sorted(PACKAGE_DIR.rglob("__init__.py")):
+        parts = path.parent.relative_to(PACKAGE_DIR).parts
+        if not parts or not (path.parent / "__init__.py").is_file() or "data" in parts:
+            continue
+        doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8")))
+        rows.append((-LAYERS[parts[0]], "/".join(parts), _summary(doc)))
+    modules = [f"`{stem}`" for stem in sorted(p.stem for p in PACKAGE_DIR.glob("*.py")
+                                              if p.stem not in ("__init__", "__main__"))]
+    lines = [README_BEGIN, "", "| package (`src/missiontree/`) | floor | what |", "|---|---|---|"]
+    lines += [f"| `{name}/` | {-floor} | {summary} |" for floor, name, summary in sorted(rows)]
+    lines += [f"| modules | 0-14 | {', '.join(modules)}: see each module's docstring |", "", README_END]
+    return "\n".join(lines)
+
+
+def _readme_with(table: str) -> str:
+    text = README.read_text(encoding="utf-8")
+    start, end = text.find(README_BEGIN), text.find(README_END)
+    assert 0 <= start < end, f"README.md has no {README_BEGIN!r} ... {README_END!r} block"
+    return text[:start] + table + text[end + len(README_END):]
+
+
+def test_every_package_docstring_has_a_summary_line() -> None:
+    """Each package says in its first docstring line what lives in it (the README's table is made of them)."""
+    missing = [str(p) for p in PACKAGE_DIR.rglob("__init__.py")
+               if "data" not in p.parts and not ast.get_docstring(ast.parse(p.read_text(encoding="utf-8")))]
+    assert not missing, f"packages without a docstring: {missing}"
+
+
+def test_the_readme_lists_every_package_from_its_docstring() -> None:
+    """README's "Where things are" is the table made from the package docstrings, floor by floor."""
+    assert README.read_text(encoding="utf-8") == _readme_with(readme_packages()), (
+        "README.md's package table is out of date: run `python tests/test_architecture.py --write-readme`")
+
+
+if __name__ == "__main__":
+    import sys
+
+    if sys.argv[1:] == ["--write-readme"]:
+        README.write_text(_readme_with(readme_packages()), encoding="utf-8")
+    else:
+        print(readme_packages())

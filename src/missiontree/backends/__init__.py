@@ -1,1 +1,1 @@
-"""Robot backends: the simulator (sim) and ROS 2 (ros2). Only the CLI wires them in."""
+"""Robot backends: the simulator (sim), ROS 2 (ros2), recordings (recorded); only the session wires them."""
