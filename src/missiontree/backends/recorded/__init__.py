@@ -1,10 +1,12 @@
 """The recorded backend: a recording played through the robot interface (motion refused).
 
 ``create_robot({"world": "<file>.rawlog", ...})`` reads an MRPT rawlog of 2-D scans and odometry
-and returns a :class:`RecordedRobot`. Options: ``world`` (the rawlog), ``rgbd`` (an MRPT rawlog of
-RGB-D frames to play as well), ``correct`` (correct the odometry by scan matching; needs the
-``realdata`` extra), ``map`` (a map file to serve: any kind ``missiontree map convert`` reads),
-``name``.
+and returns a :class:`RecordedRobot`; ``"world": "<file>.mcap"`` reads a ROS 2 bag (rosbag2's MCAP
+layout, TurtleBot 4 topics: :mod:`missiontree.mapping.ros2bag`, the ``realdata`` extra) with its
+scans, /tf poses, RGB-D frames and /map. Options: ``world`` (the recording), ``rgbd`` (an MRPT
+rawlog of RGB-D frames to play as well), ``correct`` (correct the odometry by scan matching; needs
+the ``realdata`` extra), ``map`` (a map file to serve: any kind ``missiontree map convert`` reads),
+``live_map`` (a bag: serve the map of the scans played instead of the bag's /map), ``name``.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from missiontree.errors import ConfigError
 
 __all__ = ["RecordedRobot", "create_robot"]
 
-_OPTIONS = {"world", "rgbd", "correct", "map", "name", "robot", "seed", "config", "sensors"}
+_OPTIONS = {"world", "rgbd", "correct", "map", "live_map", "name", "robot", "seed", "config", "sensors"}
 
 
 def create_robot(options: Mapping[str, Any] | None = None) -> RecordedRobot:
@@ -37,8 +39,11 @@ def create_robot(options: Mapping[str, Any] | None = None) -> RecordedRobot:
     if unknown:
         raise ConfigError(f"recorded backend: unknown options {unknown} (known: {sorted(_OPTIONS)})")
     source = options.get("world")
+    if source and str(source).endswith(".mcap"):
+        return _bag_robot(options)
     if not source or not str(source).endswith(".rawlog"):
-        raise ConfigError(f"recorded backend: expected --world to name an MRPT .rawlog, found {source!r}")
+        raise ConfigError("recorded backend: expected --world to name an MRPT .rawlog or a ROS 2 bag "
+                          f"(.mcap), found {source!r}")
     try:
         log = read_rawlog(source)
         frames = read_rgbd_frames(options["rgbd"]) if options.get("rgbd") else []
@@ -53,4 +58,22 @@ def create_robot(options: Mapping[str, Any] | None = None) -> RecordedRobot:
     try:
         return RecordedRobot(log, poses, frames, occupancy, name=str(options.get("name") or "recorded"))
     except ValueError as exc:
+        raise ConfigError(f"recorded backend: {exc}") from None
+
+
+def _bag_robot(options: dict[str, Any]) -> RecordedRobot:
+    """A robot playing a ROS 2 bag (``rgbd`` and ``correct`` are rawlog options: refused)."""
+    from missiontree.mapping.map_sources import MapSourceError, load_map_source
+    from missiontree.mapping.ros2bag import BagError, read_bag
+
+    for option in ("rgbd", "correct"):
+        if options.get(option):
+            raise ConfigError(f"recorded backend: {option!r} applies to a rawlog, not to a bag "
+                              f"(a bag carries its own frames and poses)")
+    try:
+        bag = read_bag(options["world"])
+        occupancy = load_map_source(options["map"]).grid if options.get("map") else None
+        return RecordedRobot.from_bag(bag, occupancy, live_map=bool(options.get("live_map")),
+                                      name=str(options.get("name") or "recorded"))
+    except (BagError, MapSourceError, ValueError) as exc:
         raise ConfigError(f"recorded backend: {exc}") from None

@@ -1,4 +1,6 @@
-"""A recorded run as a robot: MRPT rawlog scans, poses and RGB-D frames played at their timestamps.
+"""A recorded run as a robot: scans, poses, RGB-D frames (and maps) played at their timestamps.
+
+The recording is an MRPT rawlog (the constructor) or a ROS 2 bag (:meth:`RecordedRobot.from_bag`).
 
 :class:`RecordedRobot` implements the :class:`~missiontree.robot.interface.Robot` protocol over a
 recording, so a mission's perception and mapping leaves run on real data without a robot:
@@ -11,7 +13,8 @@ recording, so a mission's perception and mapping leaves run on real data without
   ``pose_at`` interpolates between the poses of the scans around a stamp and ``scan_at`` gives the
   scan nearest to it;
 - the poses are the recording's odometry, or the odometry corrected by scan matching
-  (``correct=True``, the ``realdata`` extra); ``occupancy()`` is a map given with the recording, or
+  (``correct=True``, the ``realdata`` extra), or a bag's /tf (or /odom) track at each scan's
+  stamp; ``occupancy()`` is a map given with the recording, else a bag's latest /map played, or
   else the map of the scans played so far (a log-odds grid each new scan is laid into when the map
   is asked for, as the simulator maps an unknown world), so that a mission's mapping and
   scene-graph leaves work on the recording;
@@ -30,14 +33,29 @@ import bisect
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Protocol
 
 from missiontree.errors import BackendError
 from missiontree.mapping.grid import LogOddsGrid
-from missiontree.mapping.mrpt_rgbd import RgbdObservation
 from missiontree.mapping.rawlog import ScanLog
+from missiontree.mapping.ros2bag import BagRecording
 from missiontree.robot.actions import RefusedAction
 from missiontree.robot.sensors import SensorKind, SensorReading, UnknownSensorError, unknown_sensor_message
 from missiontree.types import LaserScan, OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
+
+
+class PlayedFrame(Protocol):
+    """A recorded RGB-D frame: its stamp, and the frame seen from a robot pose (MRPT's or a bag's)."""
+
+    @property
+    def stamp(self) -> float:
+        """The frame's stamp."""
+        ...
+
+    def to_frame(self, camera_pose: Pose2D | None = None) -> RGBDFrame:
+        """The frame as an RGBDFrame, the robot at ``camera_pose``."""
+        ...
+
 
 #: How far (s) from a stamp the nearest scan may be for ``scan_at``.
 SCAN_GAP = 0.5
@@ -62,32 +80,63 @@ class RecordedRobot:
     simulated = True
 
     def __init__(self, log: ScanLog, poses: Sequence[Pose2D] | None = None,
-                 frames: Sequence[RgbdObservation] = (), occupancy: OccupancyGrid | None = None,
+                 frames: Sequence[PlayedFrame] = (), occupancy: OccupancyGrid | None = None,
                  name: str = "recorded") -> None:
         poses = list(poses if poses is not None else log.poses)
         if len(poses) != len(log.scans):
             raise ValueError(f"expected one pose per scan, found {len(poses)} for {len(log.scans)} scans")
-        stamped = [(s.stamp, s, p) for s, p in zip(log.scans, poses, strict=True) if math.isfinite(s.stamp)]
+        stamped = [(s.stamp, s.to_laser_scan(), p, (s.sensor_pose.x, s.sensor_pose.y))
+                   for s, p in zip(log.scans, poses, strict=True) if math.isfinite(s.stamp)]
+        self._setup(log.source, stamped, frames, occupancy, (), name)
+
+    @classmethod
+    def from_bag(cls, bag: BagRecording, occupancy: OccupancyGrid | None = None, live_map: bool = False,
+                 name: str = "recorded") -> RecordedRobot:
+        """A robot playing a ROS 2 bag (:func:`~missiontree.mapping.ros2bag.read_bag`).
+
+        Each scan gets the pose of the bag's pose track at its stamp (scans outside the track are
+        left out). ``occupancy()`` serves ``occupancy`` when given; else the bag's /map messages as
+        they play (unless ``live_map``); else the map of the scans played so far.
+
+        Raises:
+            ValueError: No scan falls within the pose track.
+        """
+        stamped = []
+        for scan in bag.scans:
+            pose = bag.pose_at(scan.stamp)
+            if pose is not None:
+                stamped.append((scan.stamp, scan, pose, bag.lidar_offset))
+        robot = cls.__new__(cls)
+        robot._setup(bag.source, stamped, bag.frames, occupancy, () if live_map else bag.maps, name)
+        return robot
+
+    def _setup(self, source: str, stamped: Sequence[tuple[float, LaserScan, Pose2D, tuple[float, float]]],
+               frames: Sequence[PlayedFrame], occupancy: OccupancyGrid | None, maps: Sequence[OccupancyGrid],
+               name: str) -> None:
+        """Index the records: (stamp, scan, pose, lidar x/y offset) per scan, frames, maps."""
+        stamped = sorted(stamped, key=lambda r: r[0])
         if not stamped:
-            raise ValueError(f"{log.source}: expected timestamped scans to play, found none")
+            raise ValueError(f"{source}: expected timestamped scans to play, found none")
         self.name = name
-        self.source = log.source
-        self._stamps = [t for t, _, _ in stamped]
-        self._scans = [s.to_laser_scan() for _, s, _ in stamped]
-        self._poses = [p for _, _, p in stamped]
-        first = stamped[0][1]
-        self.lidar_offset = (first.sensor_pose.x, first.sensor_pose.y)
+        self.source = source
+        self._stamps = [r[0] for r in stamped]
+        self._scans = [r[1] for r in stamped]
+        self._poses = [r[2] for r in stamped]
+        self._offsets = [r[3] for r in stamped]
+        self.lidar_offset = self._offsets[0]
         ordered = sorted((f for f in frames if math.isfinite(f.stamp)), key=lambda f: f.stamp)
         self._frame_stamps = [f.stamp for f in ordered]
         self._frames = ordered
         self._map = occupancy
-        self._offsets = [(s.sensor_pose.x, s.sensor_pose.y) for _, s, _ in stamped]
+        self._maps = sorted(maps, key=lambda g: g.stamp)
+        self._map_stamps = [g.stamp for g in self._maps]
         self._grid: LogOddsGrid | None = None
         self._mapped = 0  # scans laid into the live map
         self._live: OccupancyGrid | None = None
-        start = min(self._stamps[0], self._frame_stamps[0]) if ordered else self._stamps[0]
-        self._now = start
-        self.end = max(self._stamps[-1], self._frame_stamps[-1]) if ordered else self._stamps[-1]
+        starts = [self._stamps[0]] + self._frame_stamps[:1]
+        ends = [self._stamps[-1]] + self._frame_stamps[-1:]
+        self._now = min(starts)
+        self.end = max(ends)
         self.closed = False
 
     # -- time ----------------------------------------------------------------------------------
@@ -132,6 +181,9 @@ class RecordedRobot:
         """The map given with the recording, else the map of every scan played so far (None before one)."""
         if self._map is not None:
             return self._map
+        if self._maps:
+            i = self._last(self._map_stamps)  # the latest /map played, as a robot's map topic
+            return self._maps[i] if i >= 0 else None
         last = self._last(self._stamps)
         if last < self._mapped:
             return self._live
