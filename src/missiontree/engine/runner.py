@@ -315,6 +315,10 @@ class Runner:
                 self.robot.stop()
             result = self._finish(status, stopped_by, duration)
             self._restore_signal_handlers()
+        return self._after_run(result)
+
+    def _after_run(self, result: RunResult) -> RunResult:
+        """Call the mission-finished hooks; raise when the summary or the log could not be written."""
         try:
             self._call_hook("missiontree_mission_finished", context=self.context, summary=result.summary)
         except PluginError as error:  # the run is complete: keep its outcome, say what failed after it
