@@ -1,20 +1,21 @@
-"""Build the intent benchmark's generated dev words: thesaurus paraphrases the test split does not use.
+"""Build the intent benchmark's generated dev words from a thesaurus that is not WordNet (Aiksaurus).
 
-    apt-get install mythes-en-us
+    apt-get install aiksaurus
     python -m tools.build_intent_dev_commands      # writes benchmarks/data/intent_dev_words.json
 
-The dev split is tuned on, so it should be as hard and as varied as the test split without sharing
-its words. This file is built mechanically, once, from another source than the test split's: the
-English thesaurus of LibreOffice (Debian's ``mythes-en-us``, ``th_en_US_v2``), in templates neither
-the team's dev commands nor the test split use. Any word that occurs in a test-split command is left
-out, so tuning on these words says nothing about the test words. Sources:
+The dev split is tuned on, so it should be varied without sharing a source with the test split,
+whose commands come from WordNet (and whose reasoner reads WordNet too). This file is built
+mechanically, once, from a source of another kind: Aiksaurus (Debian's ``aiksaurus``, GPL-2+, Jared
+Davis' English thesaurus): loose groups of associated words under a heading, written independently of
+WordNet, where WordNet is a sense-by-sense lexical database (the LibreOffice thesaurus used before is
+derived from WordNet, so it was not independent). Any word that occurs in a test-split command is
+left out. Sources:
 
-- **Need paraphrases**: the thesaurus meanings of the dev commands' need words (thirsty, tired,
-  bored, hungry, sleep, read, movie, rain, print), each meaning of the part of speech the dev
-  command uses, its synonyms and similar terms (never its antonyms or generic terms), judged by the
-  objects the dev split judges to satisfy the need word.
-- **Object names**: the synonyms of each benchmark label's thesaurus meanings that name an object
-  (judged: that label).
+- **Need paraphrases**: for each dev need word, the Aiksaurus groups (by heading) that carry that
+  need; every word of the group except the ones listed as not carrying it (a group mixes senses and
+  parts of speech: "monsoon" sits in the group of "sup"), in templates neither the team's dev
+  commands nor the test split use; judged by the objects the dev split judges to satisfy the need.
+- **Object names**: the words of a label's Aiksaurus group that name that object (judged: that label).
 
 The benchmark adds, per generated dev world, referential commands by colour, room and relation in
 templates of its own.
@@ -24,68 +25,81 @@ from __future__ import annotations
 
 import json
 import re
+import subprocess
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks" / "data" / "intent_dev_words.json"
 TEST_WORDS = ROOT / "benchmarks" / "data" / "intent_test_words.json"
-THESAURUS = Path("/usr/share/mythes/th_en_US_v2.dat")
 
 DRINK = ["bottle", "cup", "refrigerator", "sink"]
 REST = ["sofa", "chair", "bed", "stool", "bench"]
 FUN = ["tv", "laptop", "book", "bookshelf"]
 FOOD = ["refrigerator", "microwave", "oven", "dining table"]
+SLEEP = ["bed", "sofa"]
 
-#: Dev need words, the part of speech and thesaurus meanings (1-based, in the file's order) meant,
-#: and what satisfies them.
-NEEDS: list[tuple[str, str, tuple[int, ...], list[str]]] = [
-    ("thirsty", "adj", (1,), DRINK),
-    ("drink", "verb", (1,), DRINK),
-    ("tired", "adj", (1,), REST),
-    ("sit", "verb", (1,), REST),
-    ("bored", "adj", (1, 2), FUN),
-    ("boredom", "noun", (1,), FUN),
-    ("hungry", "adj", (1,), FOOD),
-    ("hunger", "noun", (1,), FOOD),
-    ("sleep", "verb", (1,), ["bed", "sofa"]),
-    ("sleepy", "adj", (1,), ["bed", "sofa"]),
-    ("movie", "noun", (1,), ["tv", "laptop"]),
-    ("rain", "noun", (1,), ["umbrella"]),
+#: (look-up word, group heading, template kind, judged satisfied by, words of the group not carrying
+#: the need). The heading names the group Aiksaurus prints for the look-up word.
+NEEDS: list[tuple[str, str, str, list[str], frozenset[str]]] = [
+    ("tired", "worn out", "state", REST,
+     frozenset({"done", "used up", "spent", "beaten", "beat up", "tired"})),
+    ("hungry", "empty", "state", FOOD, frozenset({"empty", "hollow", "unfilled", "fasting", "hungry"})),
+    ("drink", "sup", "act", DRINK, frozenset({
+        "dollop", "dram", "drench", "drink", "drink to", "infiltrate", "jigger", "jolt", "libation",
+        "monsoon",
+        "pledge", "potation", "potion", "rainy day", "snifter", "stormy weather", "suck", "suck in", "suckle",
+        "tablet", "toast", "tot", "wet", "gargle"})),
+    ("beverage", "spirits", "thing", DRINK, frozenset({"punch bowl", "inebriant", "spirits"})),
+    ("food", "sustenance", "thing", FOOD, frozenset({
+        "keep", "livelihood", "pap", "support", "nurture", "food", "alimentation", "bread"})),
+    ("nap", "slumber", "thing", SLEEP, frozenset({
+        "bedtime", "dorm", "dreamland", "hibernation", "oversleep", "sleep", "sleepwalking", "slumberland",
+        "snore", "somnambulism", "doss"})),
+    ("relax", "beguile", "act_me", FUN, frozenset({
+        "betray", "convulse", "kill", "loosen up", "refresh", "relax", "slay", "solace", "titillate", "wow",
+        "exhilarate"})),
+    ("boredom", "stupor", "thing", FUN, frozenset({
+        "drowsiness", "lethargy", "phlegm", "sleepiness", "sloth", "slowness", "somnolence", "stupor",
+        "boredom", "hebetude"})),
+    ("movie", "trailer", "show", ["tv", "laptop"], frozenset({
+        "nudie", "skin flick", "preview", "sneak preview", "short", "trailer", "technicolor", "picture",
+        "flicker", "movie"})),
+    ("rain", "spate", "weather", ["umbrella"], frozenset({
+        "brash", "cascade", "cataract", "flood", "inundation", "plash", "pour", "scud", "soaker", "spate",
+        "waterspout", "rain", "downfall"})),
 ]
-#: Templates by part of speech; none is the shape of a team-written or a test-split command.
+#: Templates by kind; none is the shape of a team-written or a test-split command.
 TEMPLATES = {
-    "adj": ["I'm getting {w}.", "Feeling pretty {w} at the moment."],
-    "verb": ["I'd love to {w} for a while.", "Somewhere to {w}, please."],
-    "noun": ["So much {w} today.", "I could do with some {w}."],
+    "state": ["Honestly I'm {w} right now.", "I feel {w} after today."],
+    "act": ["Somewhere I can {w} something?", "I'd like to {w} a little."],
+    "act_me": ["Anything around to {w} me?", "Something that could {w} me."],
+    "thing": ["Some {w} would be nice.", "I'm in need of {w}."],
+    "show": ["I'd enjoy a {w} tonight.", "Time for a {w}, I think."],
+    "weather": ["There's {w} on the way.", "Expecting {w} when I head out."],
 }
-#: Labels whose thesaurus synonyms name them (a noun meaning each).
-OBJECTS: dict[str, tuple[str, tuple[int, ...]]] = {
-    "sofa": ("sofa", (1,)), "chair": ("chair", (1,)), "bottle": ("bottle", (1,)), "cup": ("cup", (1,)),
-    "refrigerator": ("refrigerator", (1,)), "tv": ("television", (2,)), "laptop": ("laptop", (1,)),
-    "backpack": ("backpack", (1,)), "umbrella": ("umbrella", (2,)), "bed": ("bed", (1,)),
-    "bookshelf": ("bookshelf", (1,)), "trash can": ("ashcan", (1,)), "toilet": ("toilet", (1,)),
-    "sink": ("sink", (1,)), "wardrobe": ("wardrobe", (1,)), "desk": ("desk", (1,)),
-}
-OBJECT_TEMPLATE = "Lead me over to the {w}."
-#: Words never taken: another dev need's own word (bored is no way of being tired) and room names.
-NOT_TAKEN = frozenset({w for w, _, _, _ in NEEDS} | {"kitchen", "bathroom", "bedroom", "office", "hall"})
+#: (look-up word, heading, label, the group's words that name the label).
+OBJECTS: list[tuple[str, str, str, frozenset[str]]] = [
+    ("toilet", "can", "toilet", frozenset({
+        "can", "comfort station", "john", "johnny", "latrine", "lavatory", "loo", "outhouse", "potty",
+        "privy", "rest room", "urinal", "washroom", "water closet", "wc"})),
+    ("sink", "washer", "sink", frozenset({"basin", "washbasin", "washstand"})),
+]
+OBJECT_TEMPLATE = "Could we stop by the {w}?"
 
 
-def meanings(word: str) -> list[tuple[str, list[str]]]:
-    """(part of speech, [synonyms and similar terms]) of each meaning of ``word`` in the thesaurus."""
-    lines = THESAURUS.read_text(encoding="utf-8", errors="replace").splitlines()
-    for i, line in enumerate(lines):
-        head, _, count = line.partition("|")
-        if head == word and count.isdigit():
-            out = []
-            for entry in lines[i + 1:i + 1 + int(count)]:
-                pos, *terms = entry.split("|")
-                kept = [t.replace(" (similar term)", "") for t in terms
-                        if "(antonym)" not in t and "(generic term)" not in t and "(related term)" not in t]
-                out.append((pos.strip("()"), [t.lower() for t in kept]))
-            return out
-    return []
+def groups(word: str) -> dict[str, list[str]]:
+    """Heading → the words of each Aiksaurus group printed for ``word`` (lower case)."""
+    out = subprocess.run(["aiksaurus", word], capture_output=True, text=True, check=True).stdout
+    found: dict[str, list[str]] = {}
+    heading = ""
+    for line in out.splitlines():
+        if line.startswith("==="):
+            heading = line.strip("= ").strip()
+        elif heading and line.strip():
+            found[heading] = [w.strip().lower() for w in line.split(",") if w.strip()]
+            heading = ""
+    return found
 
 
 def test_words() -> set[str]:
@@ -96,45 +110,36 @@ def test_words() -> set[str]:
 
 
 def fits(word: str, banned: set[str]) -> bool:
-    """A single- or multi-word term none of whose words a test command uses."""
+    """A plain single- or multi-word term none of whose words a test command uses."""
     parts = re.findall(r"[a-z]+", word)
-    plain = re.fullmatch(r"[a-z' -]+", word) is not None
-    return plain and bool(parts) and word not in NOT_TAKEN and not (set(parts) & banned)
+    return re.fullmatch(r"[a-z' -]+", word) is not None and bool(parts) and not set(parts) & banned
 
 
 def need_paraphrases(banned: set[str]) -> list[dict[str, object]]:
-    """Commands from the thesaurus meanings of the dev need words."""
+    """Commands from the Aiksaurus groups of the dev need words."""
     out: list[dict[str, object]] = []
     seen: set[str] = set()
-    for word, pos, which, satisfied in NEEDS:
-        found = [m for m in meanings(word) if m[0] == pos]
-        for k in which:
-            if k > len(found):
-                continue
-            for i, term in enumerate(t for t in found[k - 1][1] if t != word and fits(t, banned)):
-                if term in seen:
-                    continue
-                seen.add(term)
-                templates = TEMPLATES[pos]
-                out.append({"command": templates[i % len(templates)].format(w=term),
-                            "satisfied_by": satisfied, "source": f"{word} ({pos} {k}) {term}"})
+    for word, heading, kind, satisfied, not_taken in NEEDS:
+        terms = groups(word).get(heading)
+        if terms is None:
+            raise SystemExit(f"aiksaurus prints no group {heading!r} for {word!r}")
+        kept = [t for t in terms if t not in not_taken and t not in seen and fits(t, banned)]
+        for i, term in enumerate(kept):
+            seen.add(term)
+            templates = TEMPLATES[kind]
+            out.append({"command": templates[i % len(templates)].format(w=term),
+                        "satisfied_by": satisfied, "source": f"aiksaurus {word} [{heading}]", "term": term})
     return out
 
 
 def object_names(banned: set[str]) -> list[dict[str, object]]:
-    """Commands naming a label by a thesaurus synonym."""
+    """Commands naming a label by a word of its Aiksaurus group."""
     out: list[dict[str, object]] = []
-    seen: set[str] = set(OBJECTS)
-    for label, (word, which) in OBJECTS.items():
-        found = [m for m in meanings(word) if m[0] == "noun"]
-        for k in which:
-            if k > len(found):
-                continue
-            for term in found[k - 1][1]:
-                if term not in seen and fits(term, banned):
-                    seen.add(term)
-                    out.append({"command": OBJECT_TEMPLATE.format(w=term), "satisfied_by": [label],
-                                "source": f"{word} (noun {k}) {term}"})
+    for word, heading, label, names in OBJECTS:
+        for term in groups(word).get(heading, []):
+            if term in names and fits(term, banned):
+                out.append({"command": OBJECT_TEMPLATE.format(w=term), "satisfied_by": [label],
+                            "source": f"aiksaurus {word} [{heading}]", "term": term})
     return out
 
 
@@ -142,8 +147,8 @@ def main() -> int:
     """Write the dev words file."""
     banned = test_words()
     document = {
-        "about": "Built by tools/build_intent_dev_commands.py from the LibreOffice English thesaurus "
-                 "(mythes-en-us); no word of a test-split command; do not edit by hand.",
+        "about": "Built by tools/build_intent_dev_commands.py from Aiksaurus (Debian's aiksaurus), a "
+                 "thesaurus not derived from WordNet; no word of a test-split command; do not edit by hand.",
         "needs": need_paraphrases(banned),
         "objects": object_names(banned),
     }

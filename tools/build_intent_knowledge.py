@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -57,6 +58,7 @@ NEEDS: dict[str, tuple[str, list[tuple[str, int]]]] = {
             ("hunger.n.1", 1),
             ("eat.v.1", 2),
             ("eat.v.2", 1),
+            ("food.n.1", 1),
             ("food.n.2", 2),
             ("meal.n.1", 2),
             ("snack.v.1", 0),
@@ -293,7 +295,17 @@ LABELS: dict[str, tuple[str, dict[str, float]]] = {
 #: Colour words are attributes, never the name of a class.
 COLOURS = frozenset(COLOUR_NAMES) | frozenset(ALIASES)
 #: Weight of a word by how it was reached from a need's sense.
-OWN, RELATED, SECOND, HYPONYM = 1.0, 0.85, 0.7, (0.85, 0.7, 0.6)
+OWN, RELATED, SECOND, HYPONYM = 1.0, 0.85, 0.7, (0.85, 0.8, 0.75)
+#: Weight of a word whose most frequent sense's definition says the need ("tipple: drink moderately"):
+#: above the reasoner's strong threshold (0.7), so that a label serving the need fully serves it.
+GLOSS = 0.75
+#: A definition is read for a need word in its first this many words (its genus or its verb).
+GLOSS_WORDS = 5
+#: The needs a definition is read for: bodily states and pastimes people say they have.
+GLOSS_NEEDS = frozenset({"drink", "eat", "rest", "sleep", "wash", "bathe", "toilet"})
+#: Definition words that turn the need around ("awake: not in a state of sleep"): not read past them.
+#: ("lack of food" is hunger, so "lack" is no negation).
+NEGATIONS = frozenset({"not", "no", "never", "free", "unable"})
 #: A word reached from a need sense (not one of its own words) means the need only when the sense it
 #: was reached through is among its this many most frequent senses.
 FREQUENT_SENSES = 2
@@ -435,6 +447,53 @@ def need_words(wn: WordNet, show: bool) -> dict[str, dict[str, float]]:
     return {w: {n: v for n, v in needs.items() if v == max(needs.values())} for w, needs in words.items()}
 
 
+def _definition(gloss: str) -> list[str]:
+    """The first words of a gloss's definition (before its examples), lower case."""
+    text = gloss.split(";")[0].split('"')[0].lower()
+    return re.findall(r"[a-z]+(?:-[a-z]+)?", text)
+
+
+def gloss_words(wn: WordNet, words: dict[str, dict[str, float]],
+                named: set[str]) -> dict[str, dict[str, float]]:
+    """Adjectives and verbs the lexicon lacks whose most frequent sense is *defined* by a need.
+
+    WordNet defines "tipple" as "drink moderately but regularly" and "wolfish" as "devouring or craving
+    food in great quantities": such a word, whose first sense's definition names within its first
+    :data:`GLOSS_WORDS` words a word of a seed sense of exactly one of the :data:`GLOSS_NEEDS` whose
+    most frequent sense that seed is, means that need at :data:`GLOSS`. Nouns are not read this way (a noun
+    mentioning water is no drink), nor needs whose words are everyday verbs (carry, type, plant).
+    """
+    own: dict[str, set[str]] = {}
+    for need, (_, seeds) in NEEDS.items():
+        for spec, _ in seeds if need in GLOSS_NEEDS else ():
+            synset = sense(wn, spec)
+            for lemma in synset.lemmas:  # a word whose most frequent sense is the need's ("water" is not)
+                if len(lemma) > 3 and lemma not in GENERAL and wn.synsets(lemma, synset.pos)[:1] == [synset]:
+                    own.setdefault(lemma, set()).add(need)
+    own = {w: needs for w, needs in own.items() if len(needs) == 1}
+    found: dict[str, dict[str, float]] = {}
+    for pos in ("a", "v"):
+        for lemma in wn._index[pos]:  # noqa: SLF001 - the reader's own table
+            word = lemma.replace("_", " ")
+            if (word in words or word in named or word in GENERAL or word in COLOURS or len(word) < 3
+                    or word.startswith(("un", "in", "non"))):
+                continue
+            first = wn.synsets(lemma, pos)[:1]
+            if not first:
+                continue
+            reach = _definition(first[0].gloss)[:GLOSS_WORDS]
+            for i, token in enumerate(reach):
+                if token in NEGATIONS:
+                    break
+                pair = f"{token} {reach[i + 1]}" if i + 1 < len(reach) else ""
+                bases = [b.replace("_", " ") for p in ("n", "v") for b in wn.base_forms(token, p)]
+                hit = next((own[w] for w in (pair, token, *bases) if w in own), None)
+                if hit:
+                    found[word] = {need: GLOSS for need in hit}
+                    break
+    return found
+
+
 def label_words(wn: WordNet) -> tuple[dict[str, str], dict[str, list[str]]]:
     """(word -> label it names, word -> labels a more general word covers)."""
     names: dict[str, str] = {}
@@ -499,8 +558,10 @@ def compounds(wn: WordNet, known: set[str], objects: set[str]) -> list[str]:
 def build(root: Path, show: bool = False) -> dict[str, object]:
     """The knowledge document."""
     wn = WordNet(root)
-    words = {_plain(w): v for w, v in need_words(wn, show).items()}
+    words = need_words(wn, show)
     names, general = label_words(wn)
+    words = {**gloss_words(wn, words, set(names) | set(general)), **words}
+    words = {_plain(w): v for w, v in words.items()}
     names = {_plain(w): label for w, label in names.items()}
     general = {_plain(w): labels for w, labels in general.items()}
     forms = irregular_forms(wn, set(words) | set(names) | set(general))

@@ -143,6 +143,15 @@ def test_a_strong_choice_nothing_can_confirm_is_served_and_says_so() -> None:
     assert "NOT confirmed" in of(log, "command_served")[0]["reason"]
 
 
+def test_a_choice_read_only_by_embedding_is_driven_to_but_never_served_unconfirmed() -> None:
+    """'I want my essay on paper' (no listed word) is read as printing by embedding: the printer is driven
+    to, but nothing can confirm it, so it is doubted and the command fails instead of a SUCCESS."""
+    status, log = run_leaf(["printer_1"], command="I want my essay on paper", look=True)
+    assert [e["object"] for e in of(log, "goal_sent")] == ["printer_1"]
+    assert status == "FAILURE" and not of(log, "intent_served")
+    assert "only by embedding" in of(log, "command_served")[0]["reason"]
+
+
 def test_bored_goes_to_the_laptop_when_the_tv_cannot_be_reached(tmp_path: Path) -> None:
     """The offline reasoner offers the laptop tier too: the TV (no place to reach it) hands over to it."""
     graph = json.loads(Path(OFFICE_GRAPH).read_text(encoding="utf-8"))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from missiontree.reasoning.embedder import MiniLMEmbedder
-from missiontree.reasoning.knowledge import knowledge
+from missiontree.reasoning.knowledge import STRONG, knowledge
 from missiontree.reasoning.offline_llm import OfflineLanguageModel
 
 LABELS = ["bottle", "cup", "sofa", "chair", "bed", "tv", "laptop", "backpack", "umbrella", "sink", "book"]
@@ -81,3 +81,22 @@ def test_hyphenated_word_is_read_whole(model: OfflineLanguageModel) -> None:
 def test_word_reached_through_a_rare_sense_does_not_mean_the_need() -> None:
     """"cut" is a kind of food only in a rare sense of it (a cut of meat): it expresses no hunger."""
     assert "eat" not in knowledge().read("I need a cut").needs
+
+
+@pytest.mark.parametrize(("word", "need"),
+                         [("tipple", "drink"), ("hit the sack", "sleep"), ("starving", "eat")])
+def test_word_defined_by_a_need_is_read_as_it(word: str, need: str) -> None:
+    """A word whose WordNet definition says the need ("tipple: drink moderately") means that need."""
+    reading = knowledge().read(f"I want to {word}")
+    assert need in reading.needs and reading.needs[need][0] >= STRONG
+
+
+def test_a_kind_of_beverage_serves_thirst_strongly() -> None:
+    """A deep hyponym of a need's sense (rum, under beverage) still serves it: a bottle is a strong choice."""
+    kb = knowledge()
+    assert kb.score("bottle", kb.read("I'm in need of rum"))[0] >= STRONG
+
+
+def test_a_definition_that_negates_the_need_is_not_read() -> None:
+    """'undrinkable' (not fit to drink) does not mean thirst."""
+    assert "drink" not in knowledge().read("it is undrinkable").needs

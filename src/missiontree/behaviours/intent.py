@@ -44,6 +44,7 @@ from missiontree.behaviours.intent_look import ArrivalLook, Step
 from missiontree.behaviours.intent_look import camera_view as _camera_view
 from missiontree.engine.leaf import Status
 from missiontree.engine.ports import Input, Output
+from missiontree.errors import ConfigError
 from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
 from missiontree.reasoning.intent import (
     Candidate,
@@ -55,7 +56,8 @@ from missiontree.reasoning.intent import (
     plan_candidates,
     prompt_objects,
 )
-from missiontree.reasoning.knowledge import STRONG, knowledge
+from missiontree.reasoning.knowledge import STRONG, Reading, knowledge
+from missiontree.reasoning.need_embedding import by_embedding, embedded_reading
 from missiontree.reasoning.phrases import fold_label
 from missiontree.reasoning.prompts import intent_messages
 from missiontree.reasoning.schemas import IntentResolution
@@ -476,8 +478,33 @@ class GoToIntent(ArrivalLook):
         if self.named and fold_label(self.named) == label:
             return 1.0, f"the command names a {raw}"
         kb = knowledge()
-        score, why = kb.score(label if label in kb.serves else raw, kb.read(self.text))
+        score, why = kb.score(label if label in kb.serves else raw, self._reading())
         return score, (f"{raw} serves {why}" if why else f"nothing known says a {raw} serves {self.text!r}")
+
+    def _reading(self) -> Reading:
+        """The command in the knowledge's terms, by its words or else by embedding (once per command).
+
+        Whatever model chose the object, the knowledge vouches for it; a command none of whose words
+        the knowledge lists is read by the embedder role's clear match, when the models have one.
+        """
+        cached = getattr(self, "_read_cache", None)
+        if cached is not None and cached[0] == self.text:
+            return cached[1]
+        kb = knowledge()
+        reading = kb.read(self.text)
+        if reading.empty:
+            try:
+                embedder = self.context.model("embedder")
+            except ConfigError:
+                embedder = None
+            if embedder is not None:
+                reading = embedded_reading(embedder, self.text, reading, kb)
+        self._read_cache = (self.text, reading)
+        return reading
+
+    def _by_embedding(self) -> bool:
+        """Whether the command was understood only by embedding similarity (a weaker reading)."""
+        return not self.named and by_embedding(self._reading())
 
     # -- failing over ----------------------------------------------------------------------------
 

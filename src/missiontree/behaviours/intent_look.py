@@ -90,6 +90,9 @@ class ArrivalLook(Leaf):
     def _doubt(self, reason: str) -> Status:
         raise NotImplementedError
 
+    def _by_embedding(self) -> bool:
+        raise NotImplementedError
+
     def _drive_to(self, candidate: Candidate) -> Status:
         raise NotImplementedError
 
@@ -126,6 +129,8 @@ class ArrivalLook(Leaf):
             strength, why = self._strength()
             if strength < STRONG:
                 return self._doubt(f"{unseen}, and it was a weak choice ({why}, {strength:.2f} < {STRONG:g})")
+            if self._by_embedding():  # a reading by likeness alone is never served unchecked
+                return self._doubt(f"{unseen}, and the command was understood only by embedding ({why})")
             self.emit("object_unverifiable", command=self.text, object=self.target.id, reason=unseen)
             return self._served(False, f"not confirmed: {unseen}; a strong choice: {why} {strength:.2f}")
         self.call = model_caller(self.context).submit(

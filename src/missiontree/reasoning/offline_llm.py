@@ -35,8 +35,8 @@ from pydantic import BaseModel
 
 from missiontree.errors import ModelError
 from missiontree.perception.colour import canonical_colour
-from missiontree.reasoning.embedder import similarity
 from missiontree.reasoning.knowledge import STRONG, Knowledge, Reading, knowledge
+from missiontree.reasoning.need_embedding import embedded_reading
 from missiontree.reasoning.phrases import fold_label, parse_reference, split_relation
 from missiontree.reasoning.prompts import parse_intent_messages
 from missiontree.reasoning.protocols import Embedder, Message
@@ -92,11 +92,6 @@ AFFORDANCES: dict[str, str] = {
 #: :data:`~missiontree.reasoning.knowledge.STRONG` (a bottle 1.0 and a cup 1.0 for thirst, not a sink 0.4).
 SERVE_MIN = STRONG
 KNOWN_MARGIN = 0.25
-#: A request the knowledge's words do not cover is matched to a need's description by embedding only
-#: at this similarity or more ...
-NEED_MATCH = 0.45
-#: ... and then read at this strength (weaker than a word the knowledge knows).
-EMBEDDED_STRENGTH = 0.6
 
 
 
@@ -229,20 +224,8 @@ class OfflineLanguageModel:
         return reading.needs[need][0] * self.knowledge.serves.get(label, {}).get(need, 0.0) >= STRONG
 
     def _embedded_reading(self, request: str, known: Reading) -> Reading:
-        """The need a request's words leave unsaid, by embedding similarity to each need's description.
-
-        Only a clear match counts (at least :data:`NEED_MATCH` and ``margin`` ahead of the next need),
-        and it counts as a weaker reading than the knowledge's own words (:data:`EMBEDDED_STRENGTH`).
-        """
-        needs = list(self.knowledge.needs)
-        scores = similarity(self.embedder, request, [self.knowledge.needs[n] for n in needs])
-        order = sorted(range(len(needs)), key=lambda i: -float(scores[i]))
-        best = float(scores[order[0]])
-        second = float(scores[order[1]]) if len(order) > 1 else -1.0
-        if best < NEED_MATCH or best - second < self.margin:
-            return known
-        return Reading(needs={needs[order[0]]: (EMBEDDED_STRENGTH, f"similarity {best:.2f}")},
-                       unknown=known.unknown)
+        """The need a request's words leave unsaid, by embedding similarity (see :func:`embedded_need`)."""
+        return embedded_reading(self.embedder, request, known, self.knowledge, self.margin)
 
     def _resolve_reference(
         self, ref: ReferenceParse, objects: Sequence[Mapping[str, Any]]
