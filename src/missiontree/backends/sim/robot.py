@@ -474,9 +474,9 @@ class SimRobot:
             self._known = grid.trinary()
             self._nav.update_map(OccupancyGrid(scan.stamp, grid.resolution, grid.origin, self._known))
         else:
-            reach = scan.range_max + 2 * grid.resolution
-            r0, c0 = grid.world_to_cell(pose.x - reach, pose.y - reach)
-            r1, c1 = grid.world_to_cell(pose.x + reach, pose.y + reach)
+            x0, y0, x1, y1 = _scan_box(scan, pose, grid)
+            r0, c0 = grid.world_to_cell(x0, y0)
+            r1, c1 = grid.world_to_cell(x1, y1)
             r0, c0 = max(r0, 0), max(c0, 0)
             r1, c1 = min(r1 + 1, shape[0]), min(c1 + 1, shape[1])
             window = grid.logodds[r0:r1, c0:c1]
@@ -498,3 +498,24 @@ class SimRobot:
         m = self.profile.camera.mount
         x, y = base.transform(m.x, m.y)
         return Pose2D(x, y, math.remainder(base.yaw + mount_yaw, 2 * math.pi))
+
+
+def _scan_box(scan: LaserScan, pose: Pose2D, grid: LogOddsGrid) -> tuple[float, float, float, float]:
+    """The map box (x0, y0, x1, y1) holding every cell that integrating ``scan`` at ``pose`` can change.
+
+    The sensor and every beam's end point (a beam without a return at the sensor's range, a return
+    ``hit_depth`` beyond its range), widened by two cells: in a room or a corridor the window to
+    re-read is theirs, not the lidar's whole range (12 m: a 480-cell square at 5 cm) on every scan.
+    """
+    sx, sy = pose.transform(*grid.sensor_offset)
+    ranges = np.asarray(scan.ranges, np.float64)
+    angles = pose.yaw + scan.mount_yaw + scan.angle_min + scan.angle_increment * np.arange(len(ranges))
+    limit = scan.range_max if grid.max_range is None else min(scan.range_max, grid.max_range)
+    used = ~np.isnan(ranges) & (ranges >= scan.range_min)
+    length = np.minimum(ranges[used], limit) + grid.hit_depth
+    xs, ys = sx + length * np.cos(angles[used]), sy + length * np.sin(angles[used])
+    pad = 2 * grid.resolution
+    if not len(xs):
+        return sx - pad, sy - pad, sx + pad, sy + pad
+    return (min(float(xs.min()), sx) - pad, min(float(ys.min()), sy) - pad,
+            max(float(xs.max()), sx) + pad, max(float(ys.max()), sy) + pad)
