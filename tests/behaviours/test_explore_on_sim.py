@@ -147,4 +147,7 @@ def test_a_door_the_robot_cannot_pass_while_the_map_shows_it_open_ends_partial(t
     assert report["outcome"] == "partial" and report["complete"] is False
     assert len(report["frontiers_left"]) == 1 and 4.0 <= report["frontiers_left"][0]["x"] <= 5.0
     assert report["unknown_left_m2"] > 5.0
-    assert len([e for e in events if e["event"] == "explore_try_failed"]) == 2
+    # the doorway's frontier may come in one piece or two (tried apart); the one left was tried three times
+    assert len([e for e in events if e["event"] == "explore_try_failed"]) >= 2
+    given_up = [e for e in events if e["event"] == "explore_blacklist"]
+    assert len(given_up) == 1 and "after 3 tries" in given_up[0]["reason"]

@@ -50,13 +50,13 @@ import json
 import math
 from typing import Annotated, Any, Literal
 
-import numpy as np
 from pydantic import BaseModel, Field
 
+from missiontree.behaviours.explore_report import exploration_report, known_area, said
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Output
 from missiontree.mapping.exploration import Candidate, ExplorationPlanner, LeftOpen
-from missiontree.mapping.grid import free_mask, unknown_mask
+from missiontree.mapping.grid import free_mask
 from missiontree.mapping.mapfile import write_map
 from missiontree.robot.actions import ActionHandle, ActionStatus
 from missiontree.types import OccupancyGrid, Pose2D, Tolerance, wrap_angle
@@ -540,7 +540,7 @@ class Explore(Leaf):
         if self.ctx is not None and report["outcome"] in ("explored", "partial"):
             self.ctx.report("exploration", {**{k: report[k] for k in (
                 "outcome", "complete", "known_m2", "unknown_left_m2")},
-                "frontiers_left": report["frontiers_left"][:20], "text": _said(report)})
+                "frontiers_left": report["frontiers_left"][:20], "text": said(report)})
         run_dir = self.ctx.run_dir if self.ctx is not None else None
         if run_dir is None:
             return
@@ -552,45 +552,12 @@ class Explore(Leaf):
         (run_dir / name).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
 
     def _report(self, grid: OccupancyGrid) -> dict[str, Any]:
-        """How the exploration ended, what is left (positions, why, unknown area) and what was given up."""
-        planner = self.planner
-        left: list[dict[str, Any]] = []
-        unknown_left = 0.0
-        if planner is not None:
-            if self.outcome == "partial" and self.left:
-                left = [{"x": round(o.candidate.target[0], 3), "y": round(o.candidate.target[1], 3),
-                         "reason": o.entry.reason} for o in self.left]
-                unknown_left = planner.unknown_behind(grid, [o.candidate.target for o in self.left])
-            elif self.outcome in ("stopped", "failed") and self.ctx is not None:
-                stamped = self.ctx.robot.pose()
-                if stamped is not None:  # what it would have gone to next
-                    offered = planner.candidates(grid, (stamped.pose.x, stamped.pose.y))
-                    left = [{"x": round(c.target[0], 3), "y": round(c.target[1], 3),
-                             "reason": "not explored yet"} for c in offered]
-                    unknown_left = planner.unknown_behind(grid, [c.target for c in offered])
-        return {
-            "outcome": self.outcome, "complete": self.outcome == "explored",
-            "known_m2": round(known_area(grid), 3),
-            "goals": self.goals, "frontiers_left": left, "unknown_left_m2": round(unknown_left, 2),
-            "given_up": [] if planner is None else [
-                {"x": round(b.x, 3), "y": round(b.y, 3), "reason": b.reason, "proved_closed": b.proved_closed}
-                for b in planner.blacklist],
-        }
-
-
-def _said(report: dict[str, Any]) -> str:
-    """How the exploration ended, in a line for the run's result (summary.json's outcome text)."""
-    if report["outcome"] == "explored":
-        return f"explored: no reachable frontier left ({report['known_m2']:.0f} m^2 known)"
-    left = report["frontiers_left"]
-    return (f"exploration partial: {len(left)} frontier(s) left though the map shows a way, about "
-            f"{report['unknown_left_m2']:.0f} m^2 unknown behind them ({report['known_m2']:.0f} m^2 known; "
-            "exploration.json lists them)")
-
-
-def known_area(grid: OccupancyGrid) -> float:
-    """Area of the map's known cells, free or occupied (m^2)."""
-    return float(np.count_nonzero(~unknown_mask(grid))) * grid.resolution ** 2
+        """exploration.json's content (:func:`exploration_report`)."""
+        robot_xy = None
+        if self.outcome in ("stopped", "failed") and self.ctx is not None:
+            stamped = self.ctx.robot.pose()
+            robot_xy = None if stamped is None else (stamped.pose.x, stamped.pose.y)
+        return exploration_report(self.planner, self.outcome, self.goals, grid, self.left, robot_xy)
 
 
 def _matching(candidates: list[Candidate], target: Candidate, radius: float) -> Candidate | None:

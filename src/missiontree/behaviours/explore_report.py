@@ -1,0 +1,60 @@
+"""What the Explore leaf writes when it ends: ``exploration.json``'s content and its one-line outcome.
+
+Kept apart from the leaf (:mod:`missiontree.behaviours.explore`) as the part that only reads: the
+planner's blacklist, the frontiers left and the map.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from missiontree.mapping.exploration import ExplorationPlanner, LeftOpen
+from missiontree.mapping.grid import unknown_mask
+from missiontree.types import OccupancyGrid
+
+
+def exploration_report(planner: ExplorationPlanner | None, outcome: str, goals: int, grid: OccupancyGrid,
+                       left_open: list[LeftOpen] | None,
+                       robot_xy: tuple[float, float] | None) -> dict[str, Any]:
+    """How the exploration ended, what is left (positions, why, unknown area) and what was given up.
+
+    ``left_open``: the frontiers a partial end left; ``robot_xy``: where the robot stands, to list
+    what it would have gone to next when it was stopped or failed (None: not listed).
+    """
+    left: list[dict[str, Any]] = []
+    unknown_left = 0.0
+    if planner is not None:
+        if outcome == "partial" and left_open:
+            left = [{"x": round(o.candidate.target[0], 3), "y": round(o.candidate.target[1], 3),
+                     "reason": o.entry.reason} for o in left_open]
+            unknown_left = planner.unknown_behind(grid, [o.candidate.target for o in left_open])
+        elif outcome in ("stopped", "failed") and robot_xy is not None:
+            offered = planner.candidates(grid, robot_xy)
+            left = [{"x": round(c.target[0], 3), "y": round(c.target[1], 3),
+                     "reason": "not explored yet"} for c in offered]
+            unknown_left = planner.unknown_behind(grid, [c.target for c in offered])
+    return {
+        "outcome": outcome, "complete": outcome == "explored",
+        "known_m2": round(known_area(grid), 3),
+        "goals": goals, "frontiers_left": left, "unknown_left_m2": round(unknown_left, 2),
+        "given_up": [] if planner is None else [
+            {"x": round(b.x, 3), "y": round(b.y, 3), "reason": b.reason, "proved_closed": b.proved_closed}
+            for b in planner.blacklist],
+    }
+
+
+def said(report: dict[str, Any]) -> str:
+    """How the exploration ended, in a line for the run's result (summary.json's outcome text)."""
+    if report["outcome"] == "explored":
+        return f"explored: no reachable frontier left ({report['known_m2']:.0f} m^2 known)"
+    left = report["frontiers_left"]
+    return (f"exploration partial: {len(left)} frontier(s) left though the map shows a way, about "
+            f"{report['unknown_left_m2']:.0f} m^2 unknown behind them ({report['known_m2']:.0f} m^2 known; "
+            "exploration.json lists them)")
+
+
+def known_area(grid: OccupancyGrid) -> float:
+    """Area of the map's known cells, free or occupied (m^2)."""
+    return float(np.count_nonzero(~unknown_mask(grid))) * grid.resolution ** 2
