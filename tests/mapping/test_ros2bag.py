@@ -106,6 +106,10 @@ def test_a_file_that_is_not_a_bag_is_refused_naming_it(tmp_path: Path) -> None:
     junk.write_text("not a bag")
     with pytest.raises(BagError, match="junk.mcap"):
         read_bag(junk)
+    short = tmp_path / "short.mcap"
+    short.write_bytes(b"abc")
+    with pytest.raises(BagError, match="short.mcap"):
+        read_bag(short)
     with pytest.raises(BagError, match="no such bag"):
         read_bag(tmp_path / "absent.mcap")
 

@@ -36,6 +36,7 @@ SUBCOMMANDS: list[str] = [
     "missiontree.cli.view",
     "missiontree.cli.batch",
     "missiontree.cli.map",
+    "missiontree.cli.bag",
 ]
 
 EXIT_BAD_INPUT = 2

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import bisect
 import math
+import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -183,7 +184,7 @@ def _decoded(path: Path, topics: set[str]) -> Iterator[tuple[str, Any]]:
             reader = make_reader(stream, decoder_factories=[DecoderFactory()])
             for _schema, channel, _message, decoded in reader.iter_decoded_messages(topics=sorted(topics)):
                 yield channel.topic, decoded
-        except (McapError, ValueError, KeyError, IndexError) as error:
+        except (McapError, ValueError, KeyError, IndexError, struct.error, EOFError) as error:
             raise _bag_error(path, error) from None
 
 
@@ -199,7 +200,7 @@ def _topic_counts(path: Path) -> dict[str, int]:
     try:
         with path.open("rb") as stream:
             summary = make_reader(stream).get_summary()
-    except (McapError, ValueError) as error:
+    except (McapError, ValueError, struct.error, EOFError) as error:
         raise _bag_error(path, error) from None
     if summary is None:
         raise BagError(f"{path}: the MCAP file has no summary (was the recording cut off?)")

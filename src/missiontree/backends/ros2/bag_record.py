@@ -73,15 +73,16 @@ def _msg_file(package: str, name: str) -> Path:
                        f"{name}.msg); is the interface package installed?")
 
 
-def _dependencies(text: str, package: str) -> list[str]:
+def msg_dependencies(text: str, package: str) -> list[str]:
     """The ``pkg/msg/Type`` names of the non-primitive fields of a ``.msg`` text, in order."""
     found: list[str] = []
     for line in text.splitlines():
         words = line.split("#", 1)[0].split()
-        if len(words) < 2 or "=" in words[0]:
+        if len(words) < 2:
             continue
         base = words[0].split("[", 1)[0].split("<=", 1)[0]
-        if base in _PRIMITIVES or "=" in words[1]:  # a primitive field or a constant
+        constant = "=" in words[1] or (len(words) > 2 and words[2].startswith("="))
+        if base in _PRIMITIVES or constant:
             continue
         pkg, _, name = base.rpartition("/")
         if base == "Header" and not pkg:
@@ -104,7 +105,7 @@ def message_definition(type_name: str) -> str:
 
     root = text_of(type_name)
     parts, seen = [root], {type_name}
-    queue = _dependencies(root, type_name.split("/")[0])
+    queue = msg_dependencies(root, type_name.split("/")[0])
     while queue:
         dep = queue.pop(0)
         if dep in seen:
@@ -112,11 +113,11 @@ def message_definition(type_name: str) -> str:
         seen.add(dep)
         text = text_of(dep)
         parts.append(f"{SEPARATOR}\nMSG: {dep}\n{text}")
-        queue.extend(_dependencies(text, dep.split("/")[0]))
+        queue.extend(msg_dependencies(text, dep.split("/")[0]))
     return "\n".join(parts)
 
 
-def _header_stamp(data: bytes) -> float:
+def header_stamp(data: bytes) -> float:
     """The header stamp of a serialized header-first message (after CDR's 4-byte encapsulation)."""
     if len(data) < 12:
         return math.nan
@@ -158,7 +159,7 @@ def _message_class(type_name: str) -> Any:
                            f"({error})") from None
 
 
-class _Throttle:
+class StampThrottle:
     """Keeps a message when its header stamp enters a new 1/rate slot (see the module docstring)."""
 
     def __init__(self, rate: float) -> None:
@@ -166,7 +167,7 @@ class _Throttle:
         self.slot: int | None = None
 
     def keep(self, data: bytes) -> bool:
-        stamp = _header_stamp(data)
+        stamp = header_stamp(data)
         if not math.isfinite(stamp):
             return True
         slot = math.floor(stamp * self.rate)
@@ -217,12 +218,14 @@ def record_bag(out: str | Path, duration: float, topics: Sequence[str] | None = 
         with path.open("wb") as stream:
             writer = Writer(stream, compression=CompressionType[compression.upper()])
             writer.start(profile="ros2", library="missiontree bag record (rosbag2 MCAP layout)")
-            _subscribe(node, writer, found, rates, summary)
             started = time.monotonic()
-            while time.monotonic() - started < duration and context.ok():
-                executor.spin_once(timeout_sec=0.05)
-            summary.seconds = time.monotonic() - started
-            writer.finish()
+            try:  # a Ctrl-C still leaves a complete file (summary and index written)
+                _subscribe(node, writer, found, rates, summary)
+                while time.monotonic() - started < duration and context.ok():
+                    executor.spin_once(timeout_sec=0.05)
+            finally:
+                summary.seconds = time.monotonic() - started
+                writer.finish()
         return summary
     finally:
         executor.shutdown(timeout_sec=1.0)
@@ -254,10 +257,10 @@ def _subscribe(node: Any, writer: Any, found: dict[str, str], rates: dict[str, f
         channel = writer.register_channel(topic=topic, message_encoding="cdr", schema_id=schemas[type_name],
                                           metadata={"offered_qos_profiles": _qos_yaml(infos)})
         summary.counts[topic] = 0
-        throttle = _Throttle(rates[topic]) if topic in rates else None
+        throttle = StampThrottle(rates[topic]) if topic in rates else None
 
         def on_message(data: bytes, topic: str = topic, channel: int = channel,
-                       throttle: _Throttle | None = throttle) -> None:
+                       throttle: StampThrottle | None = throttle) -> None:
             if throttle is not None and not throttle.keep(data):
                 summary.dropped[topic] = summary.dropped.get(topic, 0) + 1
                 return
