@@ -99,7 +99,9 @@ NEEDS: dict[str, tuple[str, list[tuple[str, int]]]] = {
             ("boredom.n.1", 0),
             ("entertainment.n.1", 2),
             ("play.v.5", 0),
+            ("amuse.v.1", 0),
             ("amuse.v.2", 0),
+            ("entertain.v.1", 0),
             ("movie.n.1", 2),
             ("television program.n.1", 1),
             ("watch.v.3", 0),
@@ -155,7 +157,7 @@ NEEDS: dict[str, tuple[str, list[tuple[str, int]]]] = {
     ),
     "rain": (
         "keeping dry in the rain",
-        [("rain.n.1", 1), ("rain.v.1", 1), ("wet.a.1", 0), ("drizzle.n.1", 0)],
+        [("rain.n.1", 1), ("rain.v.1", 1), ("wet.a.1", 0), ("drizzle.n.1", 0), ("storm.n.1", 1)],
     ),
     "carry": (
         "carrying belongings on a trip",

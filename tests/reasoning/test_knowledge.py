@@ -100,3 +100,10 @@ def test_a_kind_of_beverage_serves_thirst_strongly() -> None:
 def test_a_definition_that_negates_the_need_is_not_read() -> None:
     """'undrinkable' (not fit to drink) does not mean thirst."""
     assert "drink" not in knowledge().read("it is undrinkable").needs
+
+
+@pytest.mark.parametrize(("request_", "need"), [("something to divert me", "entertainment"),
+                                                ("a thunderstorm is coming", "rain")])
+def test_a_needs_most_frequent_sense_is_read(request_: str, need: str) -> None:
+    """The most frequent sense of a need's verb ("amuse, divert") and storms (rain) are read as the need."""
+    assert need in knowledge().read(request_).needs
