@@ -104,6 +104,19 @@ def test_a_killed_dask_worker_is_an_infrastructure_failure(tmp_path: Path) -> No
     assert "KilledWorker" in records[0].reason
 
 
+def chunk_sizes(engine: DaskEngine) -> list[int]:
+    """The runs in each Dask task the engine submits from now on (its client's ``map`` observed)."""
+    sizes: list[int] = []
+    submit = engine.client.map
+
+    def observed(func: Any, *iterables: Any, **kwargs: Any) -> Any:
+        sizes.extend(len(chunk) for chunk in iterables[1])  # (the run function, the chunks)
+        return submit(func, *iterables, **kwargs)
+
+    engine.client.map = observed
+    return sizes
+
+
 def _comparable(path: Path) -> list[dict[str, Any]]:
     lines = [json.loads(line) for line in path.read_text().splitlines()]
     for line in lines:
@@ -122,6 +135,7 @@ def test_pool_dask_and_serial_give_the_same_results(tmp_path: Path) -> None:
     outputs = {}
     engines = (("pool", PoolEngine(2)), ("dask", DaskEngine("local", 2)), ("serial", SerialEngine()),
                ("dask_chunks", DaskEngine("local", 1, chunk=3)))
+    chunked = chunk_sizes(engines[3][1])
     for name, engine in engines:
         with engine:
             records = run_batch(plan, engine, tmp_path / name)
@@ -131,7 +145,7 @@ def test_pool_dask_and_serial_give_the_same_results(tmp_path: Path) -> None:
     assert all(r["status"] == "SUCCESS" and r["path_length_m"] > 0.5 for r in outputs["pool"])
     assert {r["robot_time_s"] for r in outputs["pool"]} != {outputs["pool"][0]["robot_time_s"]}  # x matters
     assert outputs["pool"] == outputs["dask"] == outputs["serial"] == outputs["dask_chunks"]
-    assert engines[3][1].chunk_sizes == [2, 1, 1]  # several runs in one Dask task change nothing
+    assert chunked == [2, 1, 1]  # several runs in one Dask task change nothing
 
 
 def kill_own_process_on_seed_1(task: RunTask) -> dict[str, Any]:
@@ -155,8 +169,8 @@ def test_a_chunk_whose_worker_dies_keeps_its_finished_runs_and_runs_the_rest_one
     cloudpickle.register_pickle_by_value(sys.modules[__name__])
     plan = expand_plan(_mission(tmp_path, WAIT_MISSION.format(realtime="false")), seeds=range(7))
     with DaskEngine("local", 1, chunk=4) as engine:
+        sizes = chunk_sizes(engine)
         records = run_batch(plan, engine, tmp_path / "out", fn=kill_own_process_on_seed_1)
-        sizes = engine.chunk_sizes
     assert [r.status for r in records] == ["SUCCESS", INFRA, "SUCCESS", "SUCCESS", "SUCCESS", "SUCCESS",
                                            "SUCCESS"]
     assert "KilledWorker" in records[1].reason and records[1].attempt == 2
@@ -179,23 +193,24 @@ def test_dask_auto_chunks_short_runs_after_two_runs_per_worker(tmp_path: Path,
 
     plan = expand_plan(_mission(tmp_path, WAIT_MISSION.format(realtime="false")), seeds=range(12))
     with DaskEngine("local", 2) as engine:
+        sizes = chunk_sizes(engine)
         monkeypatch.setattr(dask_engine, "SHORT_RUN_S", 60.0)
         monkeypatch.setattr(dask_engine, "CHUNK_S", 600.0)  # chunks as large as guided scheduling allows
         records = run_batch(plan, engine, tmp_path / "short")
-        short = list(engine.chunk_sizes)
-        engine.chunk_sizes.clear()
+        short = list(sizes)
+        sizes.clear()
         monkeypatch.setattr(dask_engine, "SHORT_RUN_S", 0.0)
         long_records = run_batch(plan, engine, tmp_path / "long")
-        long = list(engine.chunk_sizes)
-        engine.chunk_sizes.clear()
+        long = list(sizes)
+        sizes.clear()
         monkeypatch.setattr(dask_engine, "SHORT_RUN_S", 60.0)
         again = run_batch(plan, engine, tmp_path / "again")  # the engine has seen this mission's runs
-        known = list(engine.chunk_sizes)
-        engine.chunk_sizes.clear()
+        known = list(sizes)
+        sizes.clear()
         (recent,) = engine.run_seconds.values()
         recent.append(120.0)  # one run slowed by the machine: the median of the latest decides
         run_batch(plan, engine, tmp_path / "outlier")
-        after_outlier = engine.chunk_sizes
+        after_outlier = sizes
     assert all(r.status == "SUCCESS" for r in records + long_records + again) and len(again) == 12
     assert short[:4] == [1, 1, 1, 1] and sum(short) == 12
     assert short == [1, 1, 1, 1, 3, 2, 1, 1, 1]  # 8 left: 8 over 3 rounded up, ..., the last 3 alone

@@ -138,8 +138,6 @@ class DaskEngine(Engine):
             raise ConfigError(f"Dask chunk: expected 'auto' or a whole number >= 1, found {chunk!r}")
         self.address = address
         self.chunk = chunk
-        #: Runs in each Dask task submitted so far, in order (for reports and tests).
-        self.chunk_sizes: list[int] = []
         #: ``chunk="auto"``: wall seconds of the latest runs (:data:`RECENT_RUNS`) seen of each mission
         #: file, as Dask's scheduler keeps a duration for each kind of task; chunks are sized from their
         #: lower quartile (a worker's first run, or one slowed by the machine's load, weighs little).
@@ -190,7 +188,6 @@ class DaskEngine(Engine):
         def submit(chunks: list[list[RunTask]]) -> list[Any]:
             # one graph update for all of them (client.map), not one round trip a run
             futures = self.client.map(_run_chunk, [fn] * len(chunks), chunks, pure=False)
-            self.chunk_sizes.extend(len(chunk) for chunk in chunks)
             for future, chunk in zip(futures, chunks, strict=True):
                 running[future.key] = (future, chunk)
             return futures
