@@ -293,8 +293,9 @@ def _log(tmp_path: Path, registry: NodeRegistry, text: str) -> list[dict[str, An
 
 def test_the_tick_log_records_each_nodes_conditions_as_the_run_starts(tmp_path: Path,
                                                                        registry: NodeRegistry) -> None:
-    """A `conditions` event names the node's path and every condition's text, as written."""
+    """A `conditions` event names the node's path and every condition's text; mission_started stays first."""
     lines = _log(tmp_path, registry, _tree('Succeed: {name: x, skip_if: "a == 1", on_success: "n := n + 1"}'))
+    assert lines[0]["event"] == "mission_started"
     (event,) = [line for line in lines if line["event"] == "conditions"]
     assert event["node"] == "Sequence/x"
     assert event["conditions"] == {"skip_if": "a == 1", "on_success": "n := n + 1"}

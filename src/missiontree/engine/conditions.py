@@ -18,8 +18,9 @@ A condition or assignment that cannot be evaluated (a key not set, a type mismat
 with a fault (:mod:`missiontree.engine.faults`) naming the reason; it is never read as false.
 
 Recorded in the tick log through the event sink the runner gives every node at setup: a
-``conditions`` event per conditioned node as the run starts (its path and every condition's text:
-what the viewer and the ``.btlog`` export show), and a ``condition`` event with the node, the key,
+``conditions`` event per conditioned node (its path and every condition's text: what the viewer and
+the ``.btlog`` export show), all written when the first conditioned node is ticked (so after the
+log's ``mission_started`` line, which stays first), and a ``condition`` event with the node, the key,
 the expression, the status and the ``reason`` each time a pre-condition decides a node's status
 (once while the same decision repeats tick after tick).
 
@@ -30,6 +31,7 @@ recorder wrap it like any node); the tree keeps its shape, so node paths are unc
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -54,6 +56,8 @@ Status = py_trees.common.Status
 _ATTRIBUTE = "missiontree_conditions"
 _EVENTS = "missiontree_condition_events"
 _DECIDED = "missiontree_condition_decided"
+#: Conditions of the nodes set up with an event sink, written at the first tick of one of them.
+_PENDING: weakref.WeakKeyDictionary[Any, list[tuple[str, dict[str, str]]]] = weakref.WeakKeyDictionary()
 
 
 @dataclass
@@ -144,6 +148,7 @@ def conditioned_class(cls: type) -> type:
 
 def _tick(self: Behaviour, parent_tick: Callable[[Behaviour], Iterator[Behaviour]]) -> Iterator[Behaviour]:
     conditions: NodeConditions = getattr(self, _ATTRIBUTE)
+    _flush(getattr(self, _EVENTS, None))
     if self.status != Status.RUNNING:
         clear_fault(self)
     try:
@@ -192,8 +197,25 @@ def _setup(self: Behaviour, context: Any) -> None:
     events = getattr(context, "events", None)
     setattr(self, _EVENTS, events)
     setattr(self, _DECIDED, None)
-    if events is not None:
-        events.emit("conditions", node=node_path(self), conditions=texts(getattr(self, _ATTRIBUTE)))
+    if events is None:
+        return
+    announced = (node_path(self), texts(getattr(self, _ATTRIBUTE)))
+    try:
+        _PENDING.setdefault(events, []).append(announced)
+    except TypeError:  # a sink that cannot be weakly referenced: written now
+        events.emit("conditions", node=announced[0], conditions=announced[1])
+
+
+def _flush(events: Any) -> None:
+    """Write the ``conditions`` events waiting for ``events`` (at the first tick of a conditioned node)."""
+    if events is None:
+        return
+    try:
+        pending = _PENDING.pop(events, None)
+    except TypeError:
+        return
+    for path, written in pending or ():
+        events.emit("conditions", node=path, conditions=written)
 
 
 def _announce(self: Behaviour, status: Status, reason: str, conditions: NodeConditions) -> None:
