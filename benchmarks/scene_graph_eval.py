@@ -17,15 +17,18 @@ the dev - test gap, and a markdown table of both; the last line is one JSON obje
 ``nais`` nested). ``--world-file PATH`` (repeatable) runs given world files instead, as split
 ``files`` (diagnostics on worlds built by hand).
 
-For each world the simulated robot visits viewpoints chosen from its map alone (rooms segmented from the
-occupancy map, free cells with room to turn, spread over each room, then more until every free cell
-beside a wall or furniture is within 2 m of one in sight on the map: :func:`surface_viewpoints`)
-and turns a slow full circle at each; every camera frame is detected once and handed to both methods:
+For each world the benchmark runs the shipped mission, ``trees/map_scene.yaml`` (``Explore`` with
+``look_around`` beside ``BuildSceneGraph``, on an unknown map), through the session as
+``missiontree run`` does, until the exploration ends it (or its ``max_duration``). The scores of
+``ours`` are those of the mission's own graph. A probe (:class:`SceneEvalProbe`) reads, after every
+tick, the frame the mission's ``BuildSceneGraph`` took and the detections the mission's detector gave
+it, and hands the same frame and detections to the NAIS reference, so both methods see exactly the
+frames the mission's camera produced on the mission's own route:
 
-- ``ours`` — :class:`~missiontree.semantics.builder.SceneBuilder` as the ``BuildSceneGraph`` leaf runs
-  it: the NAIS filters, fusion that refines, removes what is seen gone and moves what moved, rooms
-  segmented from the map and typed from the objects seen in them, colours measured in the pixels;
-- ``nais`` — the NAIS paper's pipeline: :class:`~missiontree.perception.tracking.NaisTracker` (its
+- ``ours`` -- the mission's :class:`~missiontree.semantics.builder.SceneBuilder`: the NAIS
+  filters, fusion that refines, removes what is seen gone and moves what moved, rooms segmented
+  from the learned map and typed from the objects seen in them, colours measured in the pixels;
+- ``nais`` -- the NAIS paper's pipeline: :class:`~missiontree.perception.tracking.NaisTracker` (its
   filters at the paper's values: confidence 0.7, no dynamic classes, depth at the box centre,
   4.5 m, 10 frames, 0.5 m over the last 100, room-change replacement), the room context from the
   vision-language model on the current frame about once a second (LLaVA's rate in the paper),
@@ -40,33 +43,32 @@ objects whose room node is the one paired with their true room; graph rooms and 
 one to one to agree on the most objects), **room_type_accuracy** (true rooms whose paired node
 names their type), **colour_accuracy** (matched objects with the true colour name), and
 **relation_precision** (ours: relations between matched objects that also hold between the true
-objects, by the same geometry). Then the **dynamic phase**: three objects are moved, two removed
-and one added (``--changes-seed``) while the robot patrols the same viewpoints once more, plus a
-look (face the place, sweep 0.5 rad to each side) from a free cell near every object *its own
+objects, by the same geometry). Each world's row also gives the mission's outcome, robot time and
+explored share. Then the **dynamic phase**, driven by the benchmark and not by the mission (the
+shipped mission ends when its exploration ends, and exploring a known map again ends at once):
+three objects are moved, two removed and one added (``--changes-seed``), then the robot patrols
+viewpoints chosen from its own learned map (free cells with room to turn spread over each
+segmented room, then near every wall and furniture side: :func:`viewpoints`), turning a full circle
+at each, plus a look (face the place, sweep 0.5 rad to each side) from a free cell near every object *its own
 graph* holds that no viewpoint is within 2.2 m of, and at the end a look with a clear line of
 sight in its map at every place of its graph that no frame of the pass could check (every view of
 it occluded: the fusion's own bookkeeping; the route reads the robot's map and graph only);
 **changes_reflected** is the share of those six changes the final graph shows (a moved object
 found at its new place and nothing of its label at the old, a removed one gone, an added one
-found). **rebuild_ms_300** times rebuilding relations and graph for 300 objects (min / median /
-max over repetitions), beside the NAIS reference's rebuild, which is a GPT-4 round trip not
-timed here.
-
-``--verify`` makes ours ask the VLM whether a crop 20 % larger than the box shows the label before
-a candidate becomes an instance (off by default: the offline stand-in re-runs the detector on the
-small crop and turns down most true small objects).
+found). Every frame of this patrol goes through the mission's own builder (its state as the
+mission left it) with the mission's detector, and to the NAIS reference. **rebuild_ms_300**
+times rebuilding relations and graph for 300 objects (min / median / max over repetitions),
+beside the NAIS reference's rebuild, which is a GPT-4 round trip not timed here.
 
 ``--diagnose`` prints each false and missed object of ours with its cause and each change of the
 dynamic phase with what the fusion judged at its places (``scene_graph_diagnosis.py``).
 
 Each world is one run of the batch runner (:func:`missiontree.evaluation.run_batch`, the wiring every
-evaluation benchmark shares): a mission that ends at its first tick, before the robot's clock moves,
-opens the session (the world's robot with its seed, the ``--models``), and a probe
-(:class:`SceneEvalProbe`) runs the world's whole evaluation in the worker on them — visit, score,
-change the world, patrol, score — and hands back the world's figures and what it printed
-(``--debug``, ``--diagnose``), which are printed here per world, in order, and aggregated.
-``--workers N`` runs worlds on a process pool of N (one world a task), ``--workers 1`` in this process.
-A world whose evaluation raised is reported on stderr and left out (exit 1).
+evaluation benchmark shares) of the shipped mission with the world and its seed; the probe hands back
+the world's figures and what it printed (``--debug``, ``--diagnose``), which are printed here per
+world, in order, and aggregated. ``--workers N`` runs worlds on a process pool of N (one world a
+task), ``--workers 1`` in this process. A world whose evaluation raised is reported on stderr and
+left out (exit 1).
 
 Scoring reads the simulator's truth; both pipelines see only frames, detections, poses and the
 map. ``--quick`` runs 3 generated worlds and the office world (dev) and 4 test worlds.
@@ -83,233 +85,44 @@ import statistics
 import sys
 import time
 from collections import Counter
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scene_eval_route import (  # benchmarks/scene_eval_route.py, beside this script
+    Stop,
+    add_object,
+    free_spot,
+    move_object,
+    reachable_floor,
+    remove_object,
+    revisit_points,
+    surface_viewpoints,
+    viewpoints,
+)
 from scene_rebuild import rebuild_figures  # benchmarks/scene_rebuild.py, beside this script
 from scipy.optimize import linear_sum_assignment
 
-from missiontree.backends.sim.raycast import BOX, CYLINDER, Primitives
-from missiontree.backends.sim.schema import ObjectSpec
-from missiontree.backends.sim.world import InstanceInfo, World, _make_object
+from missiontree.backends.sim.world import World
 from missiontree.perception.colour import canonical_colour
 from missiontree.perception.projection import project
 from missiontree.perception.tracking import NaisTracker
-from missiontree.reasoning.offline_scene import measured_description, room_type_from_objects
 from missiontree.reasoning.prompts import object_description_prompt
-from missiontree.reasoning.scene_prompts import crop_verifier, expanded_crop
+from missiontree.reasoning.scene_prompts import expanded_crop
 from missiontree.reasoning.schemas import ObjectDescription, RoomClassification
-from missiontree.semantics.builder import BuilderParams, SceneBuilder
+from missiontree.semantics.builder import SceneBuilder
 from missiontree.semantics.relations import Body, compute_relations
-from missiontree.semantics.rooms import segment_rooms
 from missiontree.types import Pose2D, Tolerance
+
+__all__ = ["surface_viewpoints"]  # re-exported for the route's tests
 
 #: Truth labels the simulator draws as another class's prism (the detector's README).
 TRUTH_ALIAS = {"desk": "table", "dining table": "table", "coffee table": "table"}
 MATCH_RADIUS = 0.5
 TURN_SPEED = 0.5
-COVER_RADIUS = 3.0
-#: Every free cell beside a wall or furniture (where objects stand) gets a viewpoint within this many
-#: metres with a clear line of sight on the map, when one exists: the detector finds a cup from about
-#: 14 pixels, 1.8 m away (see :func:`surface_viewpoints`).
-SURFACE_RADIUS = 2.0
-#: A cell is beside a wall or furniture when it lies this close to an obstacle of the map, metres.
-SURFACE_BAND = 0.35
-#: Greedy cover stops when a new viewpoint would see fewer uncovered surface cells than this.
-SURFACE_MIN_GAIN = 4
-#: The dynamic phase's pass adds a viewpoint this far (min, best, max) from each known instance no
-#: viewpoint of the route is within REVISIT_MAX of.
-REVISIT_MIN, REVISIT_BEST, REVISIT_MAX = 0.9, 1.5, 2.2
 #: Radians swept to each side of a revisited place.
 LOOK_SWEEP = 0.5
 NAIS_ROOM_PERIOD = 1.0
-DEBUG = False
-DIAGNOSE = False
-SINGLE_PASS = False
-VERIFY = False
-#: After each pass, look again from a good distance at the candidates it left unconfirmed (off by
-#: default: on dev it confirmed more false objects than true ones, and doubled some worlds' time).
-SECOND_LOOK = False
-#: ours' depth method (the BuildSceneGraph leaf's default unless --depth-method says otherwise).
-DEPTH_METHOD = "centre"
-
-
-# -- the robot's route (from its map only) ---------------------------------------------------------
-
-
-def viewpoints(robot: Any) -> list[tuple[float, float]]:
-    """Free points with room to turn, spread over each segmented room, in a nearest-neighbour tour."""
-    import cv2
-
-    grid = robot.occupancy()
-    start = robot.pose().pose
-    seg = segment_rooms(grid, inside=(start.x, start.y))
-    free = (grid.data >= 0) & (grid.data < 50)
-    clearance = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
-    points: list[tuple[float, float]] = []
-    for label, room in enumerate(seg.rooms, start=1):
-        ok = (seg.labels == label) & (clearance >= 0.45)
-        rows, cols = np.nonzero(ok)
-        if not len(rows):
-            continue
-        xy = np.stack(
-            [grid.origin.x + (cols + 0.5) * grid.resolution, grid.origin.y + (rows + 0.5) * grid.resolution],
-            axis=1,
-        )
-        wanted = 1 if room.area < 25 else 2
-        first = int(np.argmax(clearance[rows, cols]))
-        chosen = [xy[first]]
-        while len(chosen) < wanted:
-            d = np.min(np.linalg.norm(xy[:, None, :] - np.array(chosen)[None], axis=2), axis=1)
-            if d.max() < 2.5:
-                break
-            chosen.append(xy[int(np.argmax(d))])
-        points += [(float(p[0]), float(p[1])) for p in chosen]
-    # then cover what the rooms missed (a room the segmentation joined to another): no free spot with
-    # room to turn farther than COVER_RADIUS from a viewpoint
-    rows, cols = np.nonzero(free & (clearance >= 0.45) & (seg.labels > 0))
-    if len(rows):
-        every = np.stack(
-            [grid.origin.x + (cols + 0.5) * grid.resolution, grid.origin.y + (rows + 0.5) * grid.resolution],
-            axis=1,
-        )[::7]
-        while True:
-            chosen_xy = np.array(points) if points else np.array([[start.x, start.y]])
-            d = np.min(np.linalg.norm(every[:, None, :] - chosen_xy[None], axis=2), axis=1)
-            if d.max() <= COVER_RADIUS:
-                break
-            far = every[int(np.argmax(d))]
-            points.append((float(far[0]), float(far[1])))
-    points += surface_viewpoints(grid, (seg.labels > 0) & free, clearance, points)
-    tour, here = [], (start.x, start.y)
-    while points:
-        nxt = min(points, key=lambda p: math.hypot(p[0] - here[0], p[1] - here[1]))
-        points.remove(nxt)
-        tour.append(nxt)
-        here = nxt
-    return tour
-
-
-def surface_viewpoints(
-    grid: Any, inside: np.ndarray, clearance: np.ndarray, chosen: list[tuple[float, float]]
-) -> list[tuple[float, float]]:
-    """Viewpoints to add so the camera comes near every surface objects may stand on or against.
-
-    Objects stand against walls, in corners and by furniture; a cup is found only from about 1.8 m.
-    The surface cells are the map's free cells within ``SURFACE_BAND`` of an obstacle (on a 0.3 m
-    lattice); a cell is seen from a viewpoint within ``SURFACE_RADIUS`` whose line of sight on the
-    map is free. Viewpoints (free cells with room to turn, on a 0.5 m lattice) are added greedily,
-    each the one that sees the most cells no viewpoint sees yet, until none adds ``SURFACE_MIN_GAIN``.
-    The robot's map only: nothing here reads the simulator's truth.
-    """
-    from scipy.spatial import cKDTree
-
-    res = grid.resolution
-
-    def lattice(mask: np.ndarray, step: float) -> np.ndarray:
-        k = max(1, int(round(step / res)))
-        sub = np.zeros_like(mask)
-        sub[::k, ::k] = mask[::k, ::k]
-        rows, cols = np.nonzero(sub)
-        return np.stack([grid.origin.x + (cols + 0.5) * res, grid.origin.y + (rows + 0.5) * res], axis=1)
-
-    targets = lattice(inside & (clearance <= SURFACE_BAND), 0.3)
-    stands = lattice(inside & (clearance >= 0.45), 0.5)
-    if not len(targets) or not len(stands):
-        return []
-    old = np.array(chosen, dtype=float).reshape(-1, 2)
-    every = np.concatenate([old, stands])
-    tree = cKDTree(every)
-    sees: list[set[int]] = [set() for _ in range(len(every))]
-    for t, near in enumerate(tree.query_ball_point(targets, SURFACE_RADIUS)):
-        if not near:
-            continue
-        idx = np.array(near)
-        ok = _line_of_sight(grid, every[idx], (float(targets[t, 0]), float(targets[t, 1])), own=0.1)
-        for i in idx[ok]:
-            sees[int(i)].add(t)
-    seen: set[int] = set().union(*sees[: len(old)]) if len(old) else set()
-    added: list[tuple[float, float]] = []
-    while True:
-        gains = [len(s - seen) for s in sees]
-        best = int(np.argmax(gains))
-        if gains[best] < SURFACE_MIN_GAIN:
-            return added
-        seen |= sees[best]
-        added.append((float(every[best, 0]), float(every[best, 1])))
-
-
-Stop = tuple[float, float, "tuple[float, float] | None"]
-
-
-def revisit_points(
-    robot: Any,
-    places: list[tuple[float, float]],
-    route: list[tuple[float, float]],
-    clear_view: bool = False,
-    every: bool = False,
-) -> list[Stop]:
-    """The route plus a look at every known instance's place that no viewpoint is close to.
-
-    ``places`` are the instances of the robot's own graph (what it believes is where), so the
-    dynamic phase's pass looks at the old places again; a viewpoint is a free cell with room to
-    turn, between ``REVISIT_MIN`` and ``REVISIT_MAX`` metres from the place (as close to
-    ``REVISIT_BEST`` as the map allows), where the robot faces the place and sweeps ``LOOK_SWEEP``
-    to each side instead of turning a full circle. With ``clear_view`` the map must also be free
-    along the line of sight to the place (the last 0.35 m excepted). With ``every`` each place gets
-    its look unless a viewpoint of ``route`` is near it (not skipped for another place's look).
-    Returns (x, y, place to look at or None for a full circle) in a nearest-neighbour tour.
-    Nothing here reads the simulator's truth.
-    """
-    import cv2
-
-    grid = robot.occupancy()
-    free = (grid.data >= 0) & (grid.data < 50)
-    clearance = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
-    rows, cols = np.nonzero(clearance >= 0.45)
-    if not len(rows):
-        return [(x, y, None) for x, y in route]
-    res = grid.resolution
-    xy = np.stack([grid.origin.x + (cols + 0.5) * res, grid.origin.y + (rows + 0.5) * res], axis=1)
-    points: list[Stop] = [(x, y, None) for x, y in route]
-    for px, py in places:
-        near = [(a, b) for a, b, _ in points] if not every else list(route)
-        if any(math.hypot(px - a, py - b) <= REVISIT_MAX for a, b in near):
-            continue
-        d = np.hypot(xy[:, 0] - px, xy[:, 1] - py)
-        ok = (d >= REVISIT_MIN) & (d <= REVISIT_MAX)
-        if clear_view and ok.any():
-            ok[ok] = _line_of_sight(grid, xy[ok], (px, py))
-        if not ok.any():
-            continue
-        best = int(np.argmin(np.where(ok, np.abs(d - REVISIT_BEST), np.inf)))
-        points.append((float(xy[best, 0]), float(xy[best, 1]), (px, py)))
-    start = robot.pose().pose
-    tour: list[Stop] = []
-    here = (start.x, start.y)
-    while points:
-        nxt = min(points, key=lambda p: math.hypot(p[0] - here[0], p[1] - here[1]))
-        points.remove(nxt)
-        tour.append(nxt)
-        here = (nxt[0], nxt[1])
-    return tour
-
-
-def _line_of_sight(
-    grid: Any, points: np.ndarray, place: tuple[float, float], own: float = 0.35
-) -> np.ndarray:
-    """Whether the map is free along each point's line to ``place`` (its last ``own`` metres not checked)."""
-    res = grid.resolution
-    t = np.linspace(0.0, 1.0, 24)[None, :]
-    dx, dy = place[0] - points[:, 0], place[1] - points[:, 1]
-    length = np.hypot(dx, dy)
-    stop = np.clip(1.0 - own / np.maximum(length, 1e-6), 0.0, 1.0)[:, None]
-    xs = points[:, :1] + dx[:, None] * t * stop
-    ys = points[:, 1:] + dy[:, None] * t * stop
-    cols = np.clip(((xs - grid.origin.x) / res).astype(int), 0, grid.data.shape[1] - 1)
-    rows = np.clip(((ys - grid.origin.y) / res).astype(int), 0, grid.data.shape[0] - 1)
-    cells = grid.data[rows, cols]
-    return np.all((cells >= 0) & (cells < 50), axis=1)
 
 
 # -- the NAIS reference ------------------------------------------------------------------------------
@@ -379,99 +192,6 @@ def ours_predictions(builder: SceneBuilder) -> list[dict[str, Any]]:
         }
         for i in builder.scene.map
     ]
-
-
-# -- changing the world (the evaluator's hand, not the robot's) ---------------------------------------
-
-
-def _set_static(world: World, prims: Primitives) -> None:
-    world.static = prims
-
-
-def move_object(world: World, object_id: str, x: float, y: float) -> None:
-    obj = world.object(object_id)
-    prims = world.static
-    geom = prims.geom.copy()
-    rows = prims.inst == obj.inst
-    geom[rows, 0] = x
-    geom[rows, 1] = y
-    _set_static(world, dataclasses.replace(prims, geom=geom))
-    world.objects[world.objects.index(obj)] = dataclasses.replace(obj, pose=Pose2D(x, y, obj.pose.yaw))
-
-
-def remove_object(world: World, object_id: str) -> None:
-    obj = world.object(object_id)
-    _set_static(world, world.static.select(world.static.inst != obj.inst))
-    world.objects.remove(obj)
-
-
-def add_object(
-    world: World, label: str, colour: str, size: tuple[float, float, float], shape: str, x: float, y: float
-) -> str:
-    inst = max(world.instances) + 1
-    oid = f"added_{label.replace(' ', '_')}"
-    spec = ObjectSpec(id=oid, label=label, color=colour, size=size, shape=shape, pose={"x": x, "y": y})
-    obj = _make_object(spec, oid, inst)
-    row: tuple[Any, ...]
-    if obj.shape == "cylinder":
-        row = (CYLINDER, (x, y, obj.size[0] / 2), obj.elevation, obj.top, obj.rgb, inst, obj.pattern)
-    else:
-        row = (
-            BOX,
-            (x, y, 1.0, 0.0, obj.size[0] / 2, obj.size[1] / 2),
-            obj.elevation,
-            obj.top,
-            obj.rgb,
-            inst,
-            obj.pattern,
-        )
-    _set_static(world, world.static.concat(Primitives.build([row])))
-    world.objects.append(obj)
-    world.instances[inst] = InstanceInfo(inst, "object", oid, label)
-    return oid
-
-
-def reachable_floor(world: World, x: float, y: float) -> np.ndarray:
-    """The world's free cells connected to (x, y) (the evaluator's truth: where a changed object may go).
-
-    A real map's free cells include pockets the robot cannot reach (behind glass, outside the
-    building's scan); a changed object must stand where the robot could see it.
-    """
-    from scipy import ndimage
-
-    g = world.grid
-    free = g.data == 0
-    labels, _ = ndimage.label(free)
-    row, col = g.world_to_cell(x, y)
-    if not (0 <= row < free.shape[0] and 0 <= col < free.shape[1]) or labels[row, col] == 0:
-        return free
-    return labels == labels[row, col]
-
-
-def free_spot(
-    world: World, rng: np.random.Generator, avoid: list[tuple[float, float]], floor: np.ndarray | None = None
-) -> tuple[float, float]:
-    """A free floor point away from walls, objects and the route's viewpoints (the evaluator's choice).
-
-    ``floor`` (cells) limits the choice to where the robot can go; a world without rooms (a real map
-    with placed objects) takes any free point with the clearance. A cramped world (a small real map
-    whose viewpoints cover it densely) gets the spot at smaller distances (0.6 m from walls, 1 m
-    from viewpoints and objects; then 0.45 m and 0.6 m) before none is found.
-    """
-    g = world.grid
-    rows, cols = np.nonzero((g.data == 0) if floor is None else floor)
-    for wall, apart in ((0.6, 1.0), (0.45, 0.6)):
-        for _ in range(2000):
-            i = int(rng.integers(len(rows)))
-            x, y = g.cell_to_world(int(rows[i]), int(cols[i]))
-            if (world.rooms and world.room_at(x, y) is None) or world.clearance(x, y) < wall:
-                continue
-            if any(math.hypot(x - a, y - b) < apart for a, b in avoid):
-                continue
-            if any(math.hypot(x - o.pose.x, y - o.pose.y) < apart for o in world.objects):
-                continue
-            return x, y
-    raise RuntimeError("no free spot for a changed object")
 
 
 # -- scoring ------------------------------------------------------------------------------------------
@@ -624,165 +344,210 @@ def change_reflected(preds: list[dict[str, Any]], change: dict[str, Any]) -> boo
     return near(label, *change["to"])
 
 
-# -- one world -----------------------------------------------------------------------------------------
+# -- one world: the shipped mission, then the dynamic phase ----------------------------------------------
+
+#: The mission each world runs: the shipped scene-graph mission (Explore + BuildSceneGraph, unknown map).
+MISSION = Path(__file__).resolve().parents[1] / "trees" / "map_scene.yaml"
 
 
-def run_world(name: str, seed: int, robot: Any, models: dict[str, Any], changes_seed: int) -> dict[str, Any]:
-    """One world's whole evaluation on ``robot`` (the session's): visit, score, change, patrol, score.
+@dataclasses.dataclass(frozen=True)
+class EvalOptions:
+    """The flags a worker's evaluation needs (picklable, handed to every probe)."""
 
-    The robot is the batch run's (its session closes it); the row returned is plain JSON data.
+    changes_seed: int = 7
+    debug: bool = False
+    single_pass: bool = False
+    diagnose: bool = False
+
+
+def scene_leaf(session: Any) -> Any:
+    """The mission's BuildSceneGraph leaf (None when the tree has none)."""
+    from missiontree.behaviours.scene import BuildSceneGraph
+
+    for node in session.root.iterate():
+        if isinstance(node, BuildSceneGraph):
+            return node
+    return None
+
+
+class SceneEvalProbe:
+    """Scores one world's run of the shipped mission, in the batch worker.
+
+    After every tick it hands the frame the mission's ``BuildSceneGraph`` took (with the detections
+    the mission's detector gave it) to the NAIS reference, so both methods see the same frames. When
+    the mission has ended, :meth:`finish` scores the mission's own graph and the reference's against
+    the simulator's truth, then runs the dynamic phase (:func:`dynamic_phase`).
     """
-    detector, vlm = models["detector"], models["vlm"]
-    classes = set(detector.labels) - {"person"}
 
-    def typer(room: Any, labels: list[str]) -> tuple[str, float, list[str]]:
-        answer = room_type_from_objects(labels)
-        return answer.room_type, answer.confidence, answer.evidence
+    def __init__(self, options: EvalOptions) -> None:
+        self.options = options
+        self.leaf: Any = None
+        self.nais: NaisPipeline | None = None
+        self.diag: Any = None
+        self.last = -math.inf
+        self.frames = 0
+        self.wall_nais = 0.0
 
-    def describer(inst: Any) -> tuple[str, str, str]:
-        d = measured_description(inst.label, inst.colour, inst.size)
-        return d.description, d.shape, d.size
+    def __getstate__(self) -> dict[str, Any]:
+        return {"options": self.options}
 
-    verifier = crop_verifier(vlm) if VERIFY else None
-    ours = SceneBuilder(
-        BuilderParams(depth_method=DEPTH_METHOD),  # type: ignore[arg-type]
-        room_typer=typer,
-        describer=describer,
-        verifier=verifier,
-    )
-    nais = NaisPipeline(vlm)
-    route = viewpoints(robot)
-    diag = None
-    if DIAGNOSE:
-        from scene_graph_diagnosis import Diagnosis
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__init__(state["options"])  # type: ignore[misc]
 
-        diag = Diagnosis(robot, classes, ours.params.depth_method)
-        diag.watch(ours.scene.map, ours.fusion)
-    state = {"last": -math.inf, "frames": 0, "wall_ours": 0.0, "wall_nais": 0.0}
+    def on_tick(self, session: Any) -> None:
+        """Give the frame the mission's leaf took this tick to the NAIS reference (and the diagnosis)."""
+        if self.leaf is None:
+            self.leaf = scene_leaf(session)
+        if self.leaf is None or self.leaf.builder is None:
+            return
+        if self.nais is None:
+            self.nais = NaisPipeline(session.models["vlm"])
+            if self.options.diagnose:
+                from scene_graph_diagnosis import Diagnosis
 
-    def tick() -> None:
-        robot.spin_until(robot.now() + 0.1)
-        frame = robot.rgbd()
-        if frame is not None and frame.stamp > state["last"]:
-            state["last"] = frame.stamp
-            state["frames"] += 1
-            detections = detector.detect(frame.color)
-            if diag is not None:
-                diag.frame(frame, detections)
-            # alternate which method goes first, so machine load falls on both alike
-            order: list[tuple[Any, str]] = [(ours, "wall_ours"), (nais, "wall_nais")]
-            for method, key in order if state["frames"] % 2 else order[::-1]:
-                t0 = time.perf_counter()
-                method.add_frame(frame, detections)
-                state[key] += time.perf_counter() - t0
-        pose = robot.pose()
+                builder = self.leaf.builder
+                self.diag = Diagnosis(session.robot, _classes(session), builder.params.depth_method)
+                self.diag.watch(builder.scene.map, builder.fusion)
+        seen = self.leaf.last_input
+        if seen is None or seen[0].stamp <= self.last:
+            return
+        frame, detections = seen
+        self.last = frame.stamp
+        self.frames += 1
+        if self.diag is not None:
+            self.diag.frame(frame, detections)
         t0 = time.perf_counter()
-        ours.update_rooms(robot.occupancy(), (pose.pose.x, pose.pose.y), robot.now())
-        ours.step(robot.now())
-        state["wall_ours"] += time.perf_counter() - t0
+        self.nais.add_frame(frame, detections)
+        self.wall_nais += time.perf_counter() - t0
 
-    def turn(speed: float, seconds: float) -> None:
-        robot.drive(0.0, speed)
-        end = robot.now() + seconds
-        while robot.now() < end:
-            tick()
-        robot.stop()
+    def finish(self, session: Any, result: Any) -> dict[str, Any]:
+        """The world's row (``scene_eval``) and its printed lines (``scene_eval_output``)."""
+        import io
 
-    def second_look() -> None:
-        """A look from a good distance at every doubtful place of ours (a candidate left unconfirmed)."""
-        places = [(x, y) for _, x, y in ours.scene.doubtful]
-        ours.scene.doubtful.clear()
-        if places:
-            patrol(revisit_points(robot, places, [], clear_view=True, every=True))
+        name = str(session.request.world)
+        seed = int(session.settings["seed"])
+        printed = io.StringIO()
+        t0 = time.perf_counter()
+        try:
+            with contextlib.redirect_stdout(printed):
+                row = self.evaluate(name, seed, session, result)
+        except BaseException:
+            sys.stdout.write(printed.getvalue())  # what the world printed before it failed
+            sys.stdout.flush()
+            raise
+        row["wall_s"] = time.perf_counter() - t0
+        return {"scene_eval": row, "scene_eval_output": printed.getvalue()}
 
-    def patrol(points: list[Stop]) -> None:
-        for x, y, look in points:
-            handle = robot.navigate_to(Pose2D(x, y, 0.0), Tolerance(0.35, 2 * math.pi))
-            limit = robot.now() + 90.0
-            while not handle.status().done and robot.now() < limit:
-                tick()
-            if not handle.status().done:
-                handle.cancel()
-            if look is None:
-                turn(TURN_SPEED, 2 * math.pi / TURN_SPEED)
-                continue
-            here = robot.pose().pose
-            error = math.remainder(math.atan2(look[1] - here.y, look[0] - here.x) - here.yaw, 2 * math.pi)
-            turn(math.copysign(TURN_SPEED, error), abs(error) / TURN_SPEED)  # face the place
-            turn(TURN_SPEED, LOOK_SWEEP / TURN_SPEED)
-            turn(-TURN_SPEED, 2 * LOOK_SWEEP / TURN_SPEED)
-            turn(TURN_SPEED, LOOK_SWEEP / TURN_SPEED)
-
-    patrol([(x, y, None) for x, y in route])
-    if SECOND_LOOK:
-        second_look()
-    ours.rebuild(robot.now())
-    world = robot.world
-    first = {
-        "ours": score_phase(ours_predictions(ours), world, classes),
-        "nais": score_phase(nais.predictions(), world, classes),
-    }
-    rel_good, rel_total = relation_precision(ours, first["ours"], world)
-    if diag is not None:
-        for line in diag.report(
-            name, first["ours"], world, lambda p, w: on_unknown_object(p, w, classes), truth_label
-        ):
-            print(line, flush=True)
-    if DEBUG:
-        for m in ("ours", "nais"):
-            sc = first[m]
-            matched = {i for i, _ in sc["pairs"]}
-            for i, p in enumerate(sc["preds"]):
-                if i in matched:
-                    continue
-                near = min(
-                    world.objects,
-                    key=lambda o: math.hypot(o.pose.x - p["position"][0], o.pose.y - p["position"][1]),
-                )
-                d = math.hypot(near.pose.x - p["position"][0], near.pose.y - p["position"][1])
-                print(
-                    f"  FP {m} {p['id']} {p['label']} {[round(v, 2) for v in p['position']]} -> "
-                    f"{near.id} {near.label} {d:.2f}"
-                )
-            found = {j for _, j in sc["pairs"]}
-            for j, t in enumerate(sc["truths"]):
-                if j not in found:
-                    print(f"  FN {m} {t.id} {t.label} ({t.pose.x:.2f}, {t.pose.y:.2f}) elev {t.elevation}")
-
-    if SINGLE_PASS:
-        return {
+    def evaluate(self, name: str, seed: int, session: Any, result: Any) -> dict[str, Any]:
+        """Score the mission's graph and the reference's, then the dynamic phase; the world's row."""
+        if self.leaf is None or self.leaf.builder is None or self.nais is None:
+            raise RuntimeError("the mission's BuildSceneGraph never took a frame")
+        robot, ours, nais = session.robot, self.leaf.builder, self.nais
+        classes = _classes(session)
+        ours.rebuild(robot.now())
+        world = robot.world
+        first = {
+            "ours": score_phase(ours_predictions(ours), world, classes),
+            "nais": score_phase(nais.predictions(), world, classes),
+        }
+        rel_good, rel_total = relation_precision(ours, first["ours"], world)
+        if self.diag is not None:
+            for line in self.diag.report(
+                name, first["ours"], world, lambda p, w: on_unknown_object(p, w, classes), truth_label
+            ):
+                print(line)
+        if self.options.debug:
+            debug_lines(first, world)
+        coverage = self.leaf.coverage.to_dict() if self.leaf.coverage is not None else {}
+        mission = {
+            "status": result.status.name,
+            "sim_s": round(result.duration, 1),
+            "explored_share": coverage.get("explored_share"),
+        }
+        frames = self.frames
+        reflected = {"ours": 0, "nais": 0}
+        changes: list[dict[str, Any]] = []
+        if not self.options.single_pass:
+            changes, reflected = dynamic_phase(
+                session, ours, nais, classes, first, self.options.changes_seed + seed, self.diag
+            )
+            if self.options.debug:
+                for c in changes:
+                    print(
+                        f"  change {c['kind']} {c['id']} {c['label']} from {c.get('from')} to {c.get('to')}"
+                    )
+        out: dict[str, Any] = {
             "world": name,
-            "frames": state["frames"],
+            "frames": frames,
             "sim_s": robot.now(),
-            "changes": 0,
+            "mission": mission,
+            "changes": len(changes),
             "relations_good": rel_good,
             "relations": rel_total,
             "ms_per_frame": {
-                "ours": 1000 * state["wall_ours"] / max(state["frames"], 1),
-                "nais": 1000 * state["wall_nais"] / max(state["frames"], 1),
-            },
-            **{
-                m: {
-                    **{
-                        k: first[m][k]
-                        for k in (
-                            "tp",
-                            "pred",
-                            "pred_all",
-                            "truth",
-                            "in_room",
-                            "colour_ok",
-                            "rooms",
-                            "types_ok",
-                        )
-                    },
-                    "reflected": 0,
-                }
-                for m in ("ours", "nais")
+                "ours": 1000 * self.leaf.work_s / max(self.leaf.frames, 1),
+                "nais": 1000 * self.wall_nais / max(frames, 1),
             },
         }
-    # dynamic phase: move 3, remove 2, add 1, then one more pass
-    rng = np.random.default_rng(changes_seed + seed)
+        for m in ("ours", "nais"):
+            s = first[m]
+            out[m] = {
+                k: s[k]
+                for k in ("tp", "pred", "pred_all", "truth", "in_room", "colour_ok", "rooms", "types_ok")
+            }
+            out[m]["reflected"] = reflected[m]
+        return out
+
+
+def _classes(session: Any) -> set[str]:
+    """The detector's classes that the graph may hold (not people)."""
+    return set(session.models["detector"].labels) - {"person"}
+
+
+def debug_lines(first: dict[str, Any], world: World) -> None:
+    """Print each method's false and missed objects (``--debug``)."""
+    for m in ("ours", "nais"):
+        sc = first[m]
+        matched = {i for i, _ in sc["pairs"]}
+        for i, p in enumerate(sc["preds"]):
+            if i in matched:
+                continue
+            near = min(
+                world.objects,
+                key=lambda o: math.hypot(o.pose.x - p["position"][0], o.pose.y - p["position"][1]),
+            )
+            d = math.hypot(near.pose.x - p["position"][0], near.pose.y - p["position"][1])
+            print(
+                f"  FP {m} {p['id']} {p['label']} {[round(v, 2) for v in p['position']]} -> "
+                f"{near.id} {near.label} {d:.2f}"
+            )
+        found = {j for _, j in sc["pairs"]}
+        for j, t in enumerate(sc["truths"]):
+            if j not in found:
+                print(f"  FN {m} {t.id} {t.label} ({t.pose.x:.2f}, {t.pose.y:.2f}) elev {t.elevation}")
+
+
+def dynamic_phase(
+    session: Any,
+    ours: SceneBuilder,
+    nais: NaisPipeline,
+    classes: set[str],
+    first: dict[str, Any],
+    rng_seed: int,
+    diag: Any,
+) -> tuple[list[dict[str, Any]], dict[str, int]]:
+    """Change the world (move 3, remove 2, add 1) and patrol once more; the changes and how many each shows.
+
+    The shipped mission ends when its exploration ends, so this phase is driven by the benchmark:
+    the robot patrols viewpoints chosen from its own learned map (:func:`viewpoints`) plus a look at
+    every place its graph holds an object (:func:`revisit_points`), then a clear-line look at every
+    place no frame of the pass could check (the fusion's own bookkeeping). Every frame goes through
+    the mission's own ``SceneBuilder`` (its state continued from the mission) with the mission's
+    detector, and to the NAIS reference. Nothing of the route reads the simulator's truth.
+    """
+    robot, detector = session.robot, session.models["detector"]
+    world = robot.world
+    rng = np.random.default_rng(rng_seed)
     candidates = [
         o
         for o in world.objects
@@ -792,6 +557,7 @@ def run_world(name: str, seed: int, robot: Any, models: dict[str, Any], changes_
     # objects the robot has seen first (found by either method): a change to an object nobody saw says little
     seen = {id(first[m]["truths"][j]) for m in first for _, j in first[m]["pairs"]}
     candidates.sort(key=lambda o: id(o) not in seen)
+    route = viewpoints(robot)
     changes: list[dict[str, Any]] = []
     avoid = list(route)
     here = robot.pose().pose
@@ -822,127 +588,82 @@ def run_world(name: str, seed: int, robot: Any, models: dict[str, Any], changes_
     to = free_spot(world, rng, avoid, floor)
     oid = add_object(world, "backpack", "green", (0.32, 0.22, 0.45), "box", *to)
     changes.append({"kind": "added", "label": "backpack", "id": oid, "to": to})
-    # the pass of the dynamic phase looks again at every place the robot's graph holds an object
     if diag is not None:
         diag.new_phase()
+    walker = Patrol(robot, detector, ours, nais, diag)
     pass_start = robot.now()
-    patrol(revisit_points(robot, [inst.xy for inst in ours.scene.map], route))
-    # then a look, with a clear line of sight, at every place of its graph no frame of the pass could
-    # check (each view of it was occluded): the robot's own bookkeeping, no truth
+    walker.patrol(revisit_points(robot, [inst.xy for inst in ours.scene.map], route))
     unchecked = [inst.xy for inst in ours.fusion.unchecked_since(pass_start)]
     if unchecked:
-        patrol(revisit_points(robot, unchecked, [], clear_view=True))
-    if SECOND_LOOK:
-        second_look()
+        walker.patrol(revisit_points(robot, unchecked, [], clear_view=True))
     ours.rebuild(robot.now())
     after = {"ours": ours_predictions(ours), "nais": nais.predictions()}
     reflected = {m: sum(change_reflected(after[m], c) for c in changes) for m in after}
     if diag is not None:
-        for line in diag.report_changes(name, changes, after["ours"], change_reflected):
-            print(line, flush=True)
-    if DEBUG:
-        for c in changes:
-            print(
-                f"  change {c['kind']} {c['id']} {c['label']} from {c.get('from')} to {c.get('to')}: "
-                f"ours {change_reflected(after['ours'], c)} nais {change_reflected(after['nais'], c)}"
-            )
-    out = {
-        "world": name,
-        "frames": state["frames"],
-        "sim_s": robot.now(),
-        "changes": len(changes),
-        "relations_good": rel_good,
-        "relations": rel_total,
-        "ms_per_frame": {
-            "ours": 1000 * state["wall_ours"] / max(state["frames"], 1),
-            "nais": 1000 * state["wall_nais"] / max(state["frames"], 1),
-        },
-    }
-    for m in ("ours", "nais"):
-        s = first[m]
-        out[m] = {
-            k: s[k] for k in ("tp", "pred", "pred_all", "truth", "in_room", "colour_ok", "rooms", "types_ok")
-        }
-        out[m]["reflected"] = reflected[m]
-    return out
+        for line in diag.report_changes(str(session.request.world), changes, after["ours"], change_reflected):
+            print(line)
+    return changes, reflected
 
 
-# -- one world as a run of the batch runner -------------------------------------------------------------
+class Patrol:
+    """The dynamic phase's scripted drive: every new frame to the mission's builder and the reference."""
 
-#: The mission each world's batch run opens: it ends at its first tick (``Succeed``, before the robot's
-#: clock moves), so the session has built the robot (world and seed of the run) and the models, and the
-#: probe then runs the world's whole evaluation on them in the worker (:class:`SceneEvalProbe`).
-MISSION = """version: 1
-description: >
-  One world of the scene-graph evaluation (benchmarks/scene_graph_eval.py): the session builds the
-  robot and the models; the evaluation's probe drives the robot once this mission has ended.
-run:
-  backend: sim
-  tick_hz: 10
-root:
-  Succeed: {name: session_open}
-"""
+    def __init__(self, robot: Any, detector: Any, ours: SceneBuilder, nais: NaisPipeline, diag: Any) -> None:
+        self.robot, self.detector, self.ours, self.nais, self.diag = robot, detector, ours, nais, diag
+        self.last = -math.inf
 
+    def tick(self) -> None:
+        """One tenth of a second: the newest frame to both methods, rooms and rebuilds for ours."""
+        robot = self.robot
+        robot.spin_until(robot.now() + 0.1)
+        frame = robot.rgbd()
+        if frame is not None and frame.stamp > self.last:
+            self.last = frame.stamp
+            detections = self.detector.detect(frame.color)
+            if self.diag is not None:
+                self.diag.frame(frame, detections)
+            self.ours.add_frame(frame, detections)
+            self.nais.add_frame(frame, detections)
+        pose = robot.pose()
+        self.ours.update_rooms(robot.occupancy(), (pose.pose.x, pose.pose.y), robot.now())
+        self.ours.step(robot.now())
 
-@dataclasses.dataclass(frozen=True)
-class EvalOptions:
-    """The flags a worker's evaluation needs (picklable, handed to every probe)."""
+    def turn(self, speed: float, seconds: float) -> None:
+        """Turn in place at ``speed`` rad/s for ``seconds`` of robot time."""
+        self.robot.drive(0.0, speed)
+        end = self.robot.now() + seconds
+        while self.robot.now() < end:
+            self.tick()
+        self.robot.stop()
 
-    changes_seed: int = 7
-    debug: bool = False
-    single_pass: bool = False
-    verify: bool = False
-    diagnose: bool = False
-    depth_method: str = "centre"
-    second_look: bool = False
-
-
-class SceneEvalProbe:
-    """Runs one world's evaluation in the batch worker, on the run's robot and models.
-
-    The mission ends at its first tick; :meth:`finish` then visits, scores, changes the world, patrols
-    and scores again (:func:`run_world`), and returns the world's row and everything it printed (the
-    ``--debug`` and ``--diagnose`` lines) as the run's figures: the caller prints them per world, so
-    they read the same whether the world ran here, in a pool worker or on a Dask worker.
-    """
-
-    def __init__(self, options: EvalOptions) -> None:
-        self.options = options
-
-    def on_tick(self, session: Any) -> None:
-        """Nothing between ticks (the mission has one)."""
-
-    def finish(self, session: Any, result: Any) -> dict[str, Any]:
-        """The world's row (``scene_eval``) and its printed lines (``scene_eval_output``)."""
-        import io
-
-        global DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE, DEPTH_METHOD, SECOND_LOOK
-        o = self.options
-        DEBUG, SINGLE_PASS, VERIFY, DIAGNOSE, DEPTH_METHOD, SECOND_LOOK = (
-            o.debug,
-            o.single_pass,
-            o.verify,
-            o.diagnose,
-            o.depth_method,
-            o.second_look,
-        )
-        name = str(session.request.world)
-        seed = int(session.settings["seed"])
-        printed = io.StringIO()
-        t0 = time.perf_counter()
-        try:
-            with contextlib.redirect_stdout(printed):
-                row = run_world(name, seed, session.robot, session.models, o.changes_seed)
-        except BaseException:
-            sys.stdout.write(printed.getvalue())  # what the world printed before it failed
-            sys.stdout.flush()
-            raise
-        row["wall_s"] = time.perf_counter() - t0
-        return {"scene_eval": row, "scene_eval_output": printed.getvalue()}
+    def patrol(self, points: list[Stop]) -> None:
+        """Go to each stop; a full circle there, or face its place and sweep."""
+        robot = self.robot
+        for x, y, look in points:
+            handle = robot.navigate_to(Pose2D(x, y, 0.0), Tolerance(0.35, 2 * math.pi))
+            limit = robot.now() + 90.0
+            while not handle.status().done and robot.now() < limit:
+                self.tick()
+            if not handle.status().done:
+                handle.cancel()
+            if look is None:
+                self.turn(TURN_SPEED, 2 * math.pi / TURN_SPEED)
+                continue
+            here = robot.pose().pose
+            error = math.remainder(math.atan2(look[1] - here.y, look[0] - here.x) - here.yaw, 2 * math.pi)
+            self.turn(math.copysign(TURN_SPEED, error), abs(error) / TURN_SPEED)  # face the place
+            self.turn(TURN_SPEED, LOOK_SWEEP / TURN_SPEED)
+            self.turn(-TURN_SPEED, 2 * LOOK_SWEEP / TURN_SPEED)
+            self.turn(TURN_SPEED, LOOK_SWEEP / TURN_SPEED)
 
 
 def run_worlds(
-    worlds: list[tuple[int, str]], models: str, workers: int, options: EvalOptions, on_row: Any
+    worlds: list[tuple[int, str]],
+    models: str,
+    workers: int,
+    options: EvalOptions,
+    on_row: Any,
+    max_duration: float | None = None,
 ) -> list[dict[str, Any]]:
     """Each (seed, world) on the batch runner (a pool of ``workers``, or this process for 1).
 
@@ -951,7 +672,6 @@ def run_worlds(
     """
     import functools
     import tempfile
-    from pathlib import Path
 
     from missiontree.evaluation import BatchPlan, PoolEngine, RunSpec, SerialEngine, run_batch
 
@@ -970,7 +690,9 @@ def run_worlds(
             while shown < len(specs) and specs[shown].run_id in arrived:
                 done = arrived[specs[shown].run_id]
                 shown += 1
-                if done.status == "SUCCESS" and "scene_eval" in done.figures:
+                # the mission's own outcome (SUCCESS, FAILURE when exploration ended partial, RUNNING at
+                # its max_duration) is in the row; a run without the probe's row raised (ERROR)
+                if "scene_eval" in (done.figures or {}):
                     rows.append(done.figures["scene_eval"])
                     on_row(done.figures["scene_eval"], done.figures.get("scene_eval_output", ""))
                     continue
@@ -984,9 +706,10 @@ def run_worlds(
                 if trace:
                     print(trace, file=sys.stderr, end="")
 
-        mission = folder / "scene_graph_eval_world.yaml"
-        mission.write_text(MISSION, encoding="utf-8")
-        plan = BatchPlan(mission=mission, runs=specs, request={"models": models})
+        request: dict[str, Any] = {"models": models}
+        if max_duration is not None:
+            request["max_duration"] = max_duration
+        plan = BatchPlan(mission=MISSION, runs=specs, request=request)
         engine = PoolEngine(workers) if workers > 1 else SerialEngine()
         with engine:
             run_batch(
@@ -1108,7 +831,6 @@ def test_worlds(args: argparse.Namespace, folder: Any) -> list[tuple[str, str]]:
 
 def main(argv: list[str] | None = None) -> int:
     import tempfile
-    from pathlib import Path
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(
@@ -1143,39 +865,20 @@ def main(argv: list[str] | None = None) -> int:
         help="print each false and missed object of ours with its cause, and each change (reads the "
         "simulator's truth for the diagnosis only)",
     )
-    parser.add_argument(
-        "--depth-method",
-        choices=("centre", "robust"),
-        default="centre",
-        help="ours' depth: the median at the box centre (NAIS, the leaf's default) or the box's nearest "
-        "depth cluster",
-    )
     parser.add_argument("--only", help="comma-separated world names to run (diagnostics)")
+    parser.add_argument(
+        "--max-duration",
+        type=float,
+        help="stop each mission after this many robot seconds (smoke runs; default: the mission's own)",
+    )
     parser.add_argument("--single-pass", action="store_true", help="skip the dynamic phase (diagnostics)")
-    parser.add_argument(
-        "--second-look",
-        action="store_true",
-        help="after each pass, look again at the places ours left doubtful (a candidate seen a few times)",
-    )
-    parser.add_argument(
-        "--verify",
-        action="store_true",
-        help="ours asks the VLM whether a 20%% larger crop shows the label before adding an instance "
-        "(off by default: the offline stand-in turns down most true small objects)",
-    )
     args = parser.parse_args(argv)
-    global DEBUG, SINGLE_PASS
-    DEBUG = args.debug
-    SINGLE_PASS = args.single_pass
     started = time.perf_counter()
     options = EvalOptions(
         changes_seed=args.changes_seed,
-        debug=DEBUG,
-        single_pass=SINGLE_PASS,
-        verify=args.verify,
+        debug=args.debug,
+        single_pass=args.single_pass,
         diagnose=args.diagnose,
-        depth_method=args.depth_method,
-        second_look=args.second_look,
     )
     result: dict[str, Any] = {}
     failed = 0
@@ -1198,8 +901,11 @@ def main(argv: list[str] | None = None) -> int:
                     print(printed, end="", flush=True)  # the world's --debug / --diagnose lines
                 row["world"] = display.get(row["world"], row["world"])
                 o, n = row["ours"], row["nais"]
+                mission = row.get("mission", {})
                 print(
                     f"{split:4s} {row['world']:22s} {row['wall_s']:5.1f} s wall, {row['sim_s']:5.0f} s sim, "
+                    f"mission {mission.get('status')} after {mission.get('sim_s')} s, "
+                    f"explored {mission.get('explored_share')}, "
                     f"{row['frames']} frames | ours tp {o['tp']}/{o['pred']} of {o['truth']}, "
                     f"rooms {o['in_room']}, colour {o['colour_ok']}, "
                     f"changes {o['reflected']}/{row['changes']} | "
@@ -1209,7 +915,7 @@ def main(argv: list[str] | None = None) -> int:
                 )
 
             worlds = [(k, w) for k, (_, w) in enumerate(named)]
-            rows = run_worlds(worlds, args.models, args.workers, options, show)
+            rows = run_worlds(worlds, args.models, args.workers, options, show, args.max_duration)
             failed += len(worlds) - len(rows)
             if rows:
                 result[split] = split_figures(rows)

@@ -29,7 +29,17 @@ def test_a_world_whose_run_fails_is_reported_on_stderr_and_left_out(
 def test_the_probe_options_reach_the_worker_as_plain_data() -> None:
     import pickle
 
-    options = scene_graph_eval.EvalOptions(changes_seed=3, diagnose=True, depth_method="robust")
+    options = scene_graph_eval.EvalOptions(changes_seed=3, diagnose=True)
     probe = pickle.loads(pickle.dumps(scene_graph_eval.SceneEvalProbe(options)))
     assert probe.options == options
-    assert "Succeed" in scene_graph_eval.MISSION  # the mission ends at its first tick: the probe drives
+
+
+def test_each_world_runs_the_shipped_scene_graph_mission() -> None:
+    """The benchmark's mission is trees/map_scene.yaml itself: exploration and the graph on an unknown map."""
+    import yaml
+
+    mission = scene_graph_eval.MISSION
+    assert mission.name == "map_scene.yaml" and mission.parent.name == "trees"
+    text = mission.read_text(encoding="utf-8")
+    assert "Explore" in text and "BuildSceneGraph" in text
+    assert yaml.safe_load(text)["run"]["map"] == "unknown"

@@ -9,7 +9,7 @@ from pathlib import Path
 from missiontree.backends.sim import create_robot
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
-import scene_graph_eval  # noqa: E402
+import scene_eval_route as scene_graph_eval  # noqa: E402
 
 
 def test_revisit_adds_a_look_near_each_place_far_from_the_route() -> None:

@@ -11,6 +11,7 @@ import numpy as np
 from missiontree.backends.sim.world import load_world
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+import scene_eval_route  # noqa: E402
 import scene_graph_eval  # noqa: E402
 
 
@@ -63,8 +64,8 @@ def test_free_spot_on_a_world_without_rooms_stays_on_reachable_floor() -> None:
     world = load_world("office")
     world = dataclasses.replace(world, rooms=[])
     start = world.start
-    floor = scene_graph_eval.reachable_floor(world, start.x, start.y)
-    x, y = scene_graph_eval.free_spot(world, np.random.default_rng(3), [], floor)
+    floor = scene_eval_route.reachable_floor(world, start.x, start.y)
+    x, y = scene_eval_route.free_spot(world, np.random.default_rng(3), [], floor)
     row_, col = world.grid.world_to_cell(x, y)
     assert floor[row_, col]
 
@@ -76,5 +77,5 @@ def test_free_spot_in_a_cramped_world_comes_closer_before_giving_up() -> None:
     rows, cols = np.nonzero(g.data == 0)
     every = [g.cell_to_world(int(r), int(c)) for r, c in zip(rows[::40], cols[::40], strict=True)]
     dense = [p for k, p in enumerate(every) if k % 2 == 0]  # no spot 1 m from all of them
-    x, y = scene_graph_eval.free_spot(world, np.random.default_rng(1), dense)
+    x, y = scene_eval_route.free_spot(world, np.random.default_rng(1), dense)
     assert min(np.hypot(x - a, y - b) for a, b in dense) >= 0.6

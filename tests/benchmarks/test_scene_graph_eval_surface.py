@@ -12,7 +12,7 @@ import numpy as np
 from missiontree.types import OccupancyGrid, Pose2D
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
-import scene_graph_eval  # noqa: E402
+import scene_eval_route as scene_graph_eval  # noqa: E402
 
 
 def _corridor() -> OccupancyGrid:

@@ -34,6 +34,7 @@ pixels, size from depth), which use only what the robot saw.
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -129,6 +130,11 @@ class BuildSceneGraph(Leaf):
         self.publish_due = False
         self.coverage: Coverage | None = None
         self.last_coverage = -math.inf
+        #: The last frame the builder took and its detections (an evaluation's probe reads it after
+        #: each tick to give a reference pipeline the very frames the mission's camera produced).
+        self.last_input: tuple[Any, list[Any]] | None = None
+        #: Wall seconds spent in the builder (frames, rooms, rebuilds): the method's cost per frame.
+        self.work_s = 0.0
 
     # -- lifecycle -------------------------------------------------------------------------------
 
@@ -166,6 +172,7 @@ class BuildSceneGraph(Leaf):
         self.context.scene = self.builder.scene
         self.last_frame = -math.inf
         self.last_publish = -math.inf
+        self.last_input = None
         self.coverage = None
         self.last_coverage = -math.inf
         if p.room_types == "vlm" or p.describe == "vlm" or p.semantic_relations:
@@ -178,11 +185,14 @@ class BuildSceneGraph(Leaf):
         now = robot.now()
         self._settle(now)
         frame = robot.rgbd()
+        started = time.perf_counter()
         if frame is not None and frame.stamp > self.last_frame:
             self.last_frame = frame.stamp
             self.frames += 1
             detections = self.context.model(self.params.detector).detect(frame.color)
+            started = time.perf_counter()
             self.builder.add_frame(frame, detections)
+            self.last_input = (frame, list(detections))
             self._ask_about(frame, now)
         pose = robot.pose()
         inside = (pose.pose.x, pose.pose.y) if pose is not None else None
@@ -192,6 +202,7 @@ class BuildSceneGraph(Leaf):
             self.last_coverage = now
             self.coverage = explored_share(grid, inside)
         changes = self.builder.step(now)
+        self.work_s += time.perf_counter() - started
         if changes is not None:
             self._record(changes, now)
         since = now - self.last_publish
