@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from missiontree.cli.log import format_summary, summarize
 from missiontree.cli.main import main
 from missiontree.cli.run import run_substituted
 from missiontree.engine.substitute import load_rules
@@ -85,3 +86,20 @@ def test_run_watch_reloads_an_edited_subtree_on_the_simulator(tmp_path: Path) ->
     (reloaded,) = [line for line in lines if line["event"] == "reloaded"]
     assert reloaded["files"] == [str(sub)] and reloaded["t"] - edited[0] <= 1.0
     assert count == 11
+    assert f"reloaded {sub} at " in format_summary(summarize(lines))
+
+
+def test_a_substituted_run_says_so_on_the_terminal_and_in_its_summary(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """An outcome reached with stubs is marked: the result line counts them, `log summarize` lists them."""
+    rules = tmp_path / "rules.yaml"
+    rules.write_text("rules:\n  - match: Explore\n    status: SUCCESS\n    after: 1\n")
+    out = tmp_path / "run"
+    clean_state()
+    assert main(["run", str(REPO_ROOT / "trees" / "explore.yaml"), "--substitute", str(rules),
+                 "--out", str(out), "-q"]) == 0
+    assert "SUCCESS (1 node(s) substituted)" in capsys.readouterr().out
+    assert main(["log", "summarize", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "substituted (stubs ran, not these nodes):" in said
+    assert f"explore (Explore): SUCCESS after 1.0 s, rule at {rules}:2:5" in said

@@ -34,7 +34,9 @@ def test_btlog_writes_conditions_as_btcpp_attributes_not_ports(timer_run: Path) 
     root = ElementTree.fromstring(xml)
     conditioned = [e for e in root.iter("Wait") if "_onSuccess" in e.attrib]
     assert [e.attrib["_onSuccess"] for e in conditioned] == ["phase = 'done'"]
-    ports = {p.attrib["name"] for model in root.find("TreeNodesModel") for p in model}
+    models = root.find("TreeNodesModel")
+    assert models is not None
+    ports = {p.attrib["name"] for model in models for p in model}
     assert "on_success" not in ports and "_onSuccess" not in ports
 
 

@@ -205,6 +205,8 @@ def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
     ended_by = own or ended_by[:1]
     events: dict[str, int] = {}
     errors: list[dict[str, Any]] = []
+    stubs: list[dict[str, Any]] = []
+    reloads: list[dict[str, Any]] = []
     for record in lines:
         kind = record.get("event", "?")
         if kind in _RUNNER_LINES:
@@ -212,6 +214,11 @@ def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
         events[kind] = events.get(kind, 0) + 1
         if kind == "error":
             errors.append({k: record.get(k) for k in ("tick", "t", "node", "error", "where")})
+        elif kind == "substituted":
+            stubs.append({k: record.get(k) for k in ("node", "type", "status", "after", "where")})
+        elif kind in ("reloaded", "reload_refused"):
+            reloads.append({"t": record.get("t"), "reloaded": kind == "reloaded",
+                            "files": record.get("files"), "problems": record.get("count", 0)})
     return {
         "mission": started.get("mission") or last.get("mission", ""),
         "status": finished.get("status") or last.get("status", "UNKNOWN"),
@@ -223,6 +230,8 @@ def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
         "running_at_end": sorted(n for n, c in latest.items() if c.get("status") == "RUNNING"),
         "failures": dict(sorted(failures.items())),
         "errors": errors,
+        "substituted": stubs,
+        "reloads": reloads,
         "events": dict(sorted(events.items())),
         **({"fault": finished["fault"]} if isinstance(finished.get("fault"), dict) else {}),
     }
@@ -259,10 +268,19 @@ def format_summary(summary: dict[str, Any]) -> str:
             out.append(f"  {node}: {sum(entry['absorbed_by'].values())}, absorbed by {by} — {reasons}")
     if not summary["failures"]:
         out.append("no node failed")
+    if summary.get("substituted"):  # the run did not run these nodes: its outcome is a test's
+        out.append("substituted (stubs ran, not these nodes):")
+        out += [f"  {s['node']} ({s['type']}): {s['status']} after {s['after']} s, rule at {s['where']}"
+                for s in summary["substituted"]]
+    for reload in summary.get("reloads") or []:
+        files = ", ".join(reload.get("files") or [])
+        out.append(f"reloaded {files} at {reload['t']:.2f} s" if reload["reloaded"] else
+                   f"not reloaded {files} at {reload['t']:.2f} s ({reload['problems']} problem(s))")
     if summary["errors"]:
         out.append("errors:")
         out += [f"  tick {e['tick']} {e['node'] or '(run)'}: {e['error']}"
-                + (f" (in {e['where']})" if e.get("where") else "") for e in summary["errors"]]
+                + (f" (in {e['where']})" if e.get("where") and str(e["where"]) not in str(e["error"]) else "")
+                for e in summary["errors"]]
     if summary["events"]:
         out.append("events: " + ", ".join(f"{k} {v}" for k, v in summary["events"].items()))
     return "\n".join(out)

@@ -207,6 +207,9 @@ def describe(result: RunResult) -> str:
            "signal": f" (stopped by {result.summary.get('signal') or 'a signal'})"}[result.stopped_by]
     if result.plugin_error:
         why += f" ({result.plugin_error})"
+    stubs = result.summary.get("substitutions")
+    if isinstance(stubs, list) and stubs:  # an outcome reached with stubs is a test's, not the robot's
+        why += f" ({len(stubs)} node(s) substituted)"
     fault = result.summary.get("fault")
     if isinstance(fault, dict):  # failed because of an error, not because a condition was false
         why += f" (fault in {fault.get('node')}: {fault.get('error')})"
