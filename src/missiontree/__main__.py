@@ -22,7 +22,20 @@ def main() -> int:
     except KeyboardInterrupt:
         print("missiontree: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except Exception:
+        # a Ctrl-C inside a class body of an imported module comes out as another error (a
+        # RuntimeError from __set_name__): with one recorded, it is the interrupt
+        if _interrupted():
+            print("missiontree: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        raise
     return cli_main()
+
+
+def _interrupted() -> bool:
+    """Whether start-up recorded a Ctrl-C (False when the recorder itself was not imported yet)."""
+    startup = sys.modules.get("missiontree.startup")
+    return startup is not None and bool(startup.interrupted())
 
 
 if __name__ == "__main__":
