@@ -36,7 +36,7 @@ PACKAGE_DIR = Path(missiontree.__file__).parent
 #: Layer of each top-level part of the package: a part may import a part of a lower layer only.
 LAYERS: dict[str, int] = {
     # under everything
-    "": 0, "types": 0, "errors": 0, "events": 0,
+    "": 0, "types": 0, "errors": 0,
     "file_limits": 0,  # model files' size limits and allow-list (constants only)
     "startup": 0,  # records a Ctrl-C during the command's start-up (signal only)
     "redact": 0,  # secrets and control characters out of every output (text functions only)
@@ -517,6 +517,12 @@ def test_every_part_of_the_package_has_a_layer() -> None:
     """Each top-level part of the package is placed on a floor."""
     parts = {part_of(m) for m in module_files()}
     assert parts <= set(LAYERS), f"add these parts to LAYERS: {sorted(parts - set(LAYERS))}"
+
+
+def test_every_layer_names_a_part_that_exists() -> None:
+    """LAYERS names no module or package the package does not have (the floor plan is today's)."""
+    parts = {part_of(m) for m in module_files()}
+    assert set(LAYERS) <= parts, f"remove from LAYERS: {sorted(set(LAYERS) - parts)}"
 
 
 def test_every_allowed_violation_says_why_and_names_its_issue() -> None:
