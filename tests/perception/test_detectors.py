@@ -303,3 +303,14 @@ def test_a_caller_can_ask_for_or_skip_the_mirror_pass_on_one_frame(tmp_path: Pat
     assert detector.passes == {"single": 1, "mirror": 1}
     detector.detect(_image(), mirror=False)  # not the remembered mirrored answer: another request
     assert detector.passes == {"single": 2, "mirror": 1}
+
+
+def test_decoding_keeps_only_candidates_above_the_threshold_in_either_mode() -> None:
+    """Low candidates are dropped before the finite check; kept ones are as before, multi-label too."""
+    rows_in = [(10, 10, 4, 4, [0.9, 0.2]), (30, 30, 4, 4, [0.1, 0.05]), (50, 50, 4, 4, [0.4, 0.6])]
+    out = yolo_output(rows_in, 2)
+    boxes, scores, ids, rows = decode_yolo_with_scores(out, 2, 0.3, 0.45, 10)
+    assert ids.tolist() == [0, 1] and np.allclose(scores, [0.9, 0.6]) and rows.shape == (2, 2)
+    _, ml_scores, ml_ids, _ = decode_yolo_with_scores(out, 2, 0.3, 0.45, 10, multi_label=True)
+    found = sorted(zip(ml_ids.tolist(), np.round(ml_scores, 2).tolist(), strict=True))
+    assert found == [(0, 0.4), (0, 0.9), (1, 0.6)]

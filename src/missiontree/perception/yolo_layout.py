@@ -152,6 +152,10 @@ def decode_yolo_with_scores(
         (boxes Kx4 xyxy in input pixels, scores K, class ids K, class scores KxC), best score first.
     """
     preds = output[0].T  # N x (4 + C)
+    # Only candidates with a class above the threshold can be kept: the others are dropped first,
+    # so the checks below read tens of rows, not thousands (a NaN score never passes).
+    with np.errstate(invalid="ignore"):
+        preds = preds[(preds[:, 4 : 4 + num_classes] > score_threshold).any(axis=1)]
     # A candidate with a non-finite number (a broken export, an fp16 overflow) is no candidate: NMS
     # on a NaN box would suppress or keep others at random.
     preds = preds[np.isfinite(preds[:, : 4 + num_classes]).all(axis=1)]
