@@ -111,3 +111,17 @@ def test_the_map_recording_mission_maps_the_bag_and_finds_the_sofa(tmp_path: Pat
     assert rooms and sofas
     x, y = sofas[0]["coordinates"][:2]  # the world file's brown sofa stands at (8.6, 4.0): scoring only
     assert abs(x - 8.6) < 0.3 and abs(y - 4.0) < 0.3
+
+
+def test_every_frame_played_has_a_known_camera_pose(bag) -> None:
+    """Frames outside the scans' time (no pose known there) are left out; each one kept sits on the track."""
+    robot = create_robot({"world": str(BAG)})
+    first, last = bag.scans[0].stamp, bag.scans[-1].stamp
+    played = [f for f in bag.frames if first <= f.stamp <= last]
+    assert played
+    for frame in played:
+        robot.spin_until(frame.stamp)
+        rgbd = robot.rgbd()
+        base = robot.pose_at(frame.stamp)
+        assert rgbd is not None and rgbd.stamp == frame.stamp and base is not None
+        assert rgbd.camera_pose.distance_to(base) == pytest.approx(0.06, abs=1e-6)

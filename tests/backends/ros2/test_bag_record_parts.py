@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import struct
+from types import SimpleNamespace
 
 import pytest
 
-from missiontree.backends.ros2.bag_record import StampThrottle, header_stamp, msg_dependencies
+from missiontree.backends.ros2.bag_record import StampThrottle, header_stamp, msg_dependencies, type_hash
 
 
 def _cdr(sec: int, nanosec: int) -> bytes:
@@ -17,7 +18,8 @@ def _cdr(sec: int, nanosec: int) -> bytes:
 def test_dependencies_name_non_primitive_fields_with_their_package() -> None:
     """Fields of other packages keep theirs, bare names are the message's own package, Header is std_msgs."""
     text = ("# a comment: Pose pose\nstd_msgs/Header header\nMapMetaData info\nint8[] data\n"
-            "uint8 KIND=3\nuint8 OTHER = 4\ngeometry_msgs/Point[<=4] corners\nstring<=10 name\nHeader other\n")
+            "uint8 KIND=3\nuint8 OTHER = 4\ngeometry_msgs/Point[<=4] corners\nstring<=10 name\n"
+            "Header other\n")
     assert msg_dependencies(text, "nav_msgs") == [
         "std_msgs/msg/Header", "nav_msgs/msg/MapMetaData", "geometry_msgs/msg/Point"]
 
@@ -34,3 +36,10 @@ def test_throttle_keeps_one_message_per_slot_the_same_for_every_topic() -> None:
     for _ in range(2):  # colour and depth with the same stamps: the same choice
         throttle = StampThrottle(1.0)
         assert [throttle.keep(_cdr(*s)) for s in stamps] == [True, False, False, True, True]
+
+
+def test_type_hash_is_written_as_ros_writes_it() -> None:
+    """Version 1 and 32 bytes give RIHS01_ and 64 hex digits; a publisher without a hash gives nothing."""
+    info = SimpleNamespace(topic_type_hash=SimpleNamespace(version=1, value=bytes(range(32))))
+    assert type_hash(info) == "RIHS01_" + bytes(range(32)).hex()
+    assert type_hash(SimpleNamespace(topic_type_hash=SimpleNamespace(version=-1, value=b""))) == ""

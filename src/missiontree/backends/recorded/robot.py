@@ -95,8 +95,9 @@ class RecordedRobot:
         """A robot playing a ROS 2 bag (:func:`~missiontree.mapping.ros2bag.read_bag`).
 
         Each scan gets the pose of the bag's pose track at its stamp (scans outside the track are
-        left out). ``occupancy()`` serves ``occupancy`` when given; else the bag's /map messages as
-        they play (unless ``live_map``); else the map of the scans played so far.
+        left out, and so are frames outside the scans' time, where no pose is known).
+        ``occupancy()`` serves ``occupancy`` when given; else the bag's /map messages as they play
+        (unless ``live_map``); else the map of the scans played so far.
 
         Raises:
             ValueError: No scan falls within the pose track.
@@ -106,8 +107,11 @@ class RecordedRobot:
             pose = bag.pose_at(scan.stamp)
             if pose is not None:
                 stamped.append((scan.stamp, scan, pose, bag.lidar_offset))
+        # a frame outside the scans' poses would be placed at no known pose: left out
+        first, last = (min(r[0] for r in stamped), max(r[0] for r in stamped)) if stamped else (0.0, -1.0)
+        frames = [f for f in bag.frames if first <= f.stamp <= last]
         robot = cls.__new__(cls)
-        robot._setup(bag.source, stamped, bag.frames, occupancy, () if live_map else bag.maps, name)
+        robot._setup(bag.source, stamped, frames, occupancy, () if live_map else bag.maps, name)
         return robot
 
     def _setup(self, source: str, stamped: Sequence[tuple[float, LaserScan, Pose2D, tuple[float, float]]],

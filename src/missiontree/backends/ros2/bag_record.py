@@ -6,7 +6,8 @@ rosbag2's MCAP storage plugin lays it out, so ``ros2 bag info``, ``ros2 bag play
 read it: the ``ros2`` profile; one schema per message type named ``pkg/msg/Type`` with encoding
 ``ros2msg`` and the complete message definition (the type's ``.msg`` text followed by every type
 it uses, each after a line of 80 ``=`` and ``MSG: pkg/msg/Type``); one channel per topic with
-message encoding ``cdr`` and the publishers' ``offered_qos_profiles`` in its metadata; log time
+message encoding ``cdr`` and the publishers' ``offered_qos_profiles`` (and ``topic_type_hash``)
+in its metadata; log time
 = the time of receipt. The subscription's QoS follows the publishers' (reliable and transient
 local only where every publisher offers it), as rosbag2 does, so a latched /map and /tf_static
 arrive. Chunks are zstd-compressed (``compression``), which rosbag2 and Foxglove also read.
@@ -139,6 +140,15 @@ def _qos_yaml(infos: Sequence[Any]) -> str:
     return "\n".join(rows) if rows else "[]"
 
 
+def type_hash(info: Any) -> str:
+    """A publisher's type hash as ROS writes it (``RIHS01_<hex>``); empty when it has none."""
+    found = getattr(info, "topic_type_hash", None)
+    version = getattr(found, "version", -1)
+    if found is None or version < 1:
+        return ""
+    return f"RIHS{version:02d}_{bytes(found.value).hex()}"
+
+
 def _subscription_qos(infos: Sequence[Any]) -> Any:
     """Reliable / transient local only where every publisher offers it (what rosbag2 does)."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -167,6 +177,7 @@ class StampThrottle:
         self.slot: int | None = None
 
     def keep(self, data: bytes) -> bool:
+        """Whether to write this serialized message (a message without a stamp is always kept)."""
         stamp = header_stamp(data)
         if not math.isfinite(stamp):
             return True
@@ -254,8 +265,12 @@ def _subscribe(node: Any, writer: Any, found: dict[str, str], rates: dict[str, f
             schemas[type_name] = writer.register_schema(
                 name=type_name, encoding="ros2msg", data=message_definition(type_name).encode("utf-8"))
         infos = node.get_publishers_info_by_topic(topic)
+        metadata = {"offered_qos_profiles": _qos_yaml(infos)}
+        hashes = {type_hash(i) for i in infos} - {""}
+        if len(hashes) == 1:  # as rosbag2 on Jazzy: the type's RIHS01 hash
+            metadata["topic_type_hash"] = hashes.pop()
         channel = writer.register_channel(topic=topic, message_encoding="cdr", schema_id=schemas[type_name],
-                                          metadata={"offered_qos_profiles": _qos_yaml(infos)})
+                                          metadata=metadata)
         summary.counts[topic] = 0
         throttle = StampThrottle(rates[topic]) if topic in rates else None
 
