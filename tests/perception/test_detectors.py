@@ -312,5 +312,5 @@ def test_decoding_keeps_only_candidates_above_the_threshold_in_either_mode() -> 
     boxes, scores, ids, rows = decode_yolo_with_scores(out, 2, 0.3, 0.45, 10)
     assert ids.tolist() == [0, 1] and np.allclose(scores, [0.9, 0.6]) and rows.shape == (2, 2)
     _, ml_scores, ml_ids, _ = decode_yolo_with_scores(out, 2, 0.3, 0.45, 10, multi_label=True)
-    found = sorted(zip(ml_ids.tolist(), np.round(ml_scores, 2).tolist(), strict=True))
+    found = sorted(zip(ml_ids.tolist(), [round(float(v), 2) for v in ml_scores], strict=True))
     assert found == [(0, 0.4), (0, 0.9), (1, 0.6)]
