@@ -44,6 +44,7 @@ from pathlib import Path
 from typing import Any
 
 from missiontree.evaluation import DaskEngine, Engine, PoolEngine, SerialEngine, expand_plan, run_batch
+from missiontree.testing_runs import observe_dask_chunks
 
 MISSION = """\
 version: 1
@@ -173,6 +174,7 @@ def main() -> int:
         started = time.perf_counter()
         dask = DaskEngine("local", args.jobs)
         dask.warm_up()
+        dask_chunks = observe_dask_chunks(dask)
         dask_start_s = time.perf_counter() - started
         engines: dict[str, Engine] = {"serial": SerialEngine(), "pool": pool, "dask": dask}
         if args.reference and not args.no_reference:  # the Dask engine as it was: one run a task, alone
@@ -193,7 +195,7 @@ def main() -> int:
             seed += count
             turn = index % len(engines)
             order = list(engines)[turn:] + list(engines)[:turn]  # rotate who goes first
-            dask.chunk_sizes.clear()
+            dask_chunks.clear()
             walls: dict[str, float] = {}
             for name in order:
                 cpu_before = cpu_seconds()
@@ -212,7 +214,7 @@ def main() -> int:
             print(f"round {index + 1}: {count} runs each, order {'/'.join(order)}: "
                   + "  ".join(f"{n} {w:.1f} s" for n, w in walls.items())
                   + "  speed-up " + " ".join(f"{n} {r[-1]:.2f}" for n, r in ratios.items())
-                  + f"  dask runs a task {dask.chunk_sizes}"
+                  + f"  dask runs a task {dask_chunks}"
                   + f"  machine ceiling {ceilings[-1]:.2f}", flush=True)
         for engine in engines.values():
             engine.close()

@@ -1,4 +1,7 @@
-"""Test helper: a synthetic run directory of any length, for tests and the viewer's size benchmark.
+"""Test helpers for runs: a synthetic run directory of any length, and a watch on Dask's chunks.
+
+Used by tests and the benchmarks (the viewer's size, the batch engines' scaling), never by the
+product. :func:`observe_dask_chunks` records how many runs each Dask task of an engine holds.
 
 :func:`synthesize_run` writes what a patrol-like run writes — ``ticks.jsonl`` in the runner's
 format (sorted keys, compact separators), ``runview.json`` with a declared tree, a map and a
@@ -305,3 +308,23 @@ def _closing_lines(active: dict[str, str], ticks: int, period: float) -> list[st
         )
     )
     return lines
+
+
+def observe_dask_chunks(engine: Any) -> list[int]:
+    """The runs in each Dask task ``engine`` submits from now on (its client's ``map`` observed).
+
+    Args:
+        engine: A :class:`~missiontree.evaluation.dask_engine.DaskEngine`.
+
+    Returns:
+        A list that grows by one size a task as the engine submits them (clear it between rounds).
+    """
+    sizes: list[int] = []
+    submit = engine.client.map
+
+    def observed(func: Any, *iterables: Any, **kwargs: Any) -> Any:
+        sizes.extend(len(chunk) for chunk in iterables[1])  # (the run function, the chunks)
+        return submit(func, *iterables, **kwargs)
+
+    engine.client.map = observed
+    return sizes

@@ -19,6 +19,7 @@ from missiontree.evaluation.engines import PoolEngine, SerialEngine
 from missiontree.evaluation.plan import expand_plan
 from missiontree.evaluation.worker import RunTask, execute_run
 from missiontree.testing import clean_state
+from missiontree.testing_runs import observe_dask_chunks
 
 WAIT_MISSION = """\
 version: 1
@@ -104,19 +105,6 @@ def test_a_killed_dask_worker_is_an_infrastructure_failure(tmp_path: Path) -> No
     assert "KilledWorker" in records[0].reason
 
 
-def chunk_sizes(engine: DaskEngine) -> list[int]:
-    """The runs in each Dask task the engine submits from now on (its client's ``map`` observed)."""
-    sizes: list[int] = []
-    submit = engine.client.map
-
-    def observed(func: Any, *iterables: Any, **kwargs: Any) -> Any:
-        sizes.extend(len(chunk) for chunk in iterables[1])  # (the run function, the chunks)
-        return submit(func, *iterables, **kwargs)
-
-    engine.client.map = observed
-    return sizes
-
-
 def _comparable(path: Path) -> list[dict[str, Any]]:
     lines = [json.loads(line) for line in path.read_text().splitlines()]
     for line in lines:
@@ -135,7 +123,7 @@ def test_pool_dask_and_serial_give_the_same_results(tmp_path: Path) -> None:
     outputs = {}
     engines = (("pool", PoolEngine(2)), ("dask", DaskEngine("local", 2)), ("serial", SerialEngine()),
                ("dask_chunks", DaskEngine("local", 1, chunk=3)))
-    chunked = chunk_sizes(engines[3][1])
+    chunked = observe_dask_chunks(engines[3][1])
     for name, engine in engines:
         with engine:
             records = run_batch(plan, engine, tmp_path / name)
@@ -169,7 +157,7 @@ def test_a_chunk_whose_worker_dies_keeps_its_finished_runs_and_runs_the_rest_one
     cloudpickle.register_pickle_by_value(sys.modules[__name__])
     plan = expand_plan(_mission(tmp_path, WAIT_MISSION.format(realtime="false")), seeds=range(7))
     with DaskEngine("local", 1, chunk=4) as engine:
-        sizes = chunk_sizes(engine)
+        sizes = observe_dask_chunks(engine)
         records = run_batch(plan, engine, tmp_path / "out", fn=kill_own_process_on_seed_1)
     assert [r.status for r in records] == ["SUCCESS", INFRA, "SUCCESS", "SUCCESS", "SUCCESS", "SUCCESS",
                                            "SUCCESS"]
@@ -193,7 +181,7 @@ def test_dask_auto_chunks_short_runs_after_two_runs_per_worker(tmp_path: Path,
 
     plan = expand_plan(_mission(tmp_path, WAIT_MISSION.format(realtime="false")), seeds=range(12))
     with DaskEngine("local", 2) as engine:
-        sizes = chunk_sizes(engine)
+        sizes = observe_dask_chunks(engine)
         monkeypatch.setattr(dask_engine, "SHORT_RUN_S", 60.0)
         monkeypatch.setattr(dask_engine, "CHUNK_S", 600.0)  # chunks as large as guided scheduling allows
         records = run_batch(plan, engine, tmp_path / "short")
