@@ -20,7 +20,8 @@ and the tick period's percentiles. The last line is one JSON object:
 
 On glibc the heap's in-use and free MiB (``mallinfo2``) are sampled with the RSS, and printed
 over time: growth in the free part is fragmentation, growth in the in-use part is memory kept
-(the runner pins glibc's mmap threshold against the former: ``missiontree.engine.native_memory``).
+(the process is tuned as the command line tunes its own, glibc's mmap threshold pinned against the
+former: ``missiontree.session.process``).
 ``heap_inuse_growth_mib`` and ``heap_free_growth_mib`` are their changes over the same span as
 ``rss_growth_mib``. A single sample carries what is in flight at that instant (frames held by model
 calls, the oracle detector's recent frames; the simulator's 10 s of instance masks sit in one fixed
@@ -55,6 +56,7 @@ from missiontree.errors import ModelError
 from missiontree.plugins.manager import load_plugins
 from missiontree.reasoning.providers import create_offline_vlm
 from missiontree.session import MissionRequest, Session
+from missiontree.session.process import tune_process
 
 REPO = Path(__file__).resolve().parents[1]
 MISSION = REPO / "trees" / "patrol.yaml"
@@ -257,6 +259,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--hours", type=float, default=2.0, help="simulated hours (default 2)")
     parser.add_argument("--out", type=Path, default=REPO / "runs" / "soak", help="run directory")
     args = parser.parse_args(argv)
+    tune_process()  # as `missiontree run` does: the mmap threshold pinned, the heap frozen during the run
     print(f"soak: {MISSION.name} for {args.hours:g} simulated hours, people and model faults", flush=True)
     figures = soak(args.hours, args.out)
     print(json.dumps(figures, sort_keys=True))
