@@ -178,3 +178,15 @@ def test_colour_encodings_decode_to_rgb() -> None:
     assert tuple(color_from_image(_image("bgr8", bgr))[0, 0]) == (0, 0, 255)
     grey = np.array([[7, 9]], np.uint8)
     assert color_from_image(_image("mono8", grey)).shape == (1, 2, 3)
+
+
+def test_frames_and_maps_are_thinned_by_stamp(bag) -> None:
+    """At 0.5 frames a second one frame per 2 s slot is kept; maps 3 s apart keep the latest one."""
+    thin = read_bag(BAG, frame_rate=0.5, map_period=3.0)
+    slots = [int(f.stamp * 0.5) for f in thin.frames]
+    assert len(slots) == len(set(slots)) and 5 <= len(thin.frames) < len(bag.frames)
+    stamps = [g.stamp for g in thin.maps]
+    assert all(b - a >= 3.0 - 1e-6 for a, b in zip(stamps[:-2], stamps[1:-1], strict=True))
+    assert stamps[-1] == bag.maps[-1].stamp and len(thin.maps) < len(bag.maps)
+    everything = read_bag(BAG, frame_rate=None, map_period=0.0)
+    assert len(everything.frames) == len(bag.frames) == 13  # the bag holds 1 frame a second

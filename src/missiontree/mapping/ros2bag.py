@@ -15,7 +15,11 @@ with Nav2 use) into a :class:`BagRecording`:
   latest camera_info, as :class:`BagFrame` (16UC1 depth is millimetres, 0 = no reading → NaN;
   32FC1 is metres); the camera's planar mount and height come from /tf_static, following the
   image's frame up to ``base_link`` (the optical frame's rotation is not planar and is skipped);
-- **maps**: every ``nav_msgs/OccupancyGrid`` on /map (a SLAM map grows over the run).
+- **maps**: the ``nav_msgs/OccupancyGrid`` messages on /map (a SLAM map grows over the run).
+
+A real camera's 30 frames a second, decoded, fill memory within minutes, and a SLAM map
+republished every second can be megabytes each: by default images are thinned to 5 a second (by
+header stamp, as the recorder's ``max_rate``) and maps to one a second (the latest always kept).
 
 Times are the messages' header stamps (the sensors' times), not the recorder's receipt times.
 """
@@ -37,6 +41,10 @@ from missiontree.types import CameraIntrinsics, LaserScan, OccupancyGrid, Pose2D
 
 #: Largest depth-to-colour stamp gap paired into one frame (s).
 MAX_DEPTH_LAG = 0.2
+#: Images kept a second at most by default (the TurtleBot 4 simulation's camera rate).
+FRAME_RATE = 5.0
+#: Least time (s) between two maps kept by default.
+MAP_PERIOD = 1.0
 #: Largest image side read (pixels).
 MAX_SIDE = 8192
 #: The extra that brings the decoder.
@@ -287,8 +295,34 @@ class _Collected:
     maps: list[OccupancyGrid] = field(default_factory=list)
 
 
-def _collect(path: Path, names: BagTopics) -> _Collected:
+class _Slots:
+    """Keeps a stamp when it enters a new 1/rate-second slot (all stamps without a rate)."""
+
+    def __init__(self, rate: float | None) -> None:
+        self.rate = rate
+        self.last: int | None = None
+
+    def keep(self, stamp: float) -> bool:
+        if self.rate is None:
+            return True
+        slot = math.floor(stamp * self.rate)
+        if slot == self.last:
+            return False
+        self.last = slot
+        return True
+
+
+def _add_map(maps: list[OccupancyGrid], grid: OccupancyGrid, period: float) -> None:
+    """Append a map, or replace the latest when it is under ``period`` newer than the one before it."""
+    if len(maps) >= 2 and maps[-1].stamp - maps[-2].stamp < period:
+        maps[-1] = grid
+    else:
+        maps.append(grid)
+
+
+def _collect(path: Path, names: BagTopics, frame_rate: float | None, map_period: float) -> _Collected:
     got = _Collected()
+    colours, depths = _Slots(frame_rate), _Slots(frame_rate)
     for topic, msg in _decoded(path, {names.scan, names.odom, names.tf, names.tf_static, names.map,
                                       names.color, names.color_info, names.depth}):
         if topic == names.scan:
@@ -304,9 +338,9 @@ def _collect(path: Path, names: BagTopics) -> _Collected:
                     got.dynamic.setdefault((parent, child), []).append((_stamp(t.header), pose))
         elif topic == names.odom:
             got.odom.append((_stamp(msg.header), _pose_msg(msg.pose.pose)))
-        elif topic == names.color:
+        elif topic == names.color and colours.keep(_stamp(msg.header)):
             got.colors.append((_stamp(msg.header), msg.header.frame_id.lstrip("/"), color_from_image(msg)))
-        elif topic == names.depth:
+        elif topic == names.depth and depths.keep(_stamp(msg.header)):
             got.depths.append((_stamp(msg.header), depth_from_image(msg)))
         elif topic == names.color_info:
             k = msg.k
@@ -314,7 +348,7 @@ def _collect(path: Path, names: BagTopics) -> _Collected:
                                           float(k[2]), float(k[5]))
             got.infos.append((_stamp(msg.header), intrinsics))
         elif topic == names.map:
-            got.maps.append(_grid(msg))
+            _add_map(got.maps, _grid(msg), map_period)
     return got
 
 
@@ -376,8 +410,17 @@ def _frames(got: _Collected, names: BagTopics) -> list[BagFrame]:
     return frames
 
 
-def read_bag(path: str | Path, names: BagTopics | None = None) -> BagRecording:
+def read_bag(path: str | Path, names: BagTopics | None = None, *, frame_rate: float | None = FRAME_RATE,
+             map_period: float = MAP_PERIOD) -> BagRecording:
     """Read a rosbag2 MCAP file's scans, poses, RGB-D frames and maps (see the module docstring).
+
+    Args:
+        path: The ``.mcap`` file.
+        names: Topic and frame names (default: the TurtleBot 4's).
+        frame_rate: Images kept a second at most, by header stamp (None: every one): a real
+            camera's 30 frames a second would fill memory within minutes.
+        map_period: Maps kept at least this many seconds apart, the latest always kept (a SLAM
+            map republished every second can be megabytes each).
 
     Raises:
         BagError: The file is not a rosbag2 MCAP bag, or a message is inconsistent.
@@ -388,7 +431,9 @@ def read_bag(path: str | Path, names: BagTopics | None = None) -> BagRecording:
     if not path.is_file():
         raise BagError(f"{path}: no such bag file")
     counts = _topic_counts(path)
-    got = _collect(path, names)
+    if frame_rate is not None and frame_rate <= 0:
+        raise BagError(f"frame_rate must be positive or None, found {frame_rate}")
+    got = _collect(path, names, frame_rate, map_period)
     stamps, poses, source = _track(got, names)
     scans = []
     mount_yaw, offset = 0.0, (0.0, 0.0)

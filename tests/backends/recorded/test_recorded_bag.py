@@ -125,3 +125,16 @@ def test_every_frame_played_has_a_known_camera_pose(bag) -> None:
         base = robot.pose_at(frame.stamp)
         assert rgbd is not None and rgbd.stamp == frame.stamp and base is not None
         assert rgbd.camera_pose.distance_to(base) == pytest.approx(0.06, abs=1e-6)
+
+
+def test_frame_rate_thins_the_frames_played(bag) -> None:
+    """With frame_rate 0.5 fewer distinct frames come out of rgbd() than the bag holds, each a bag frame."""
+    robot = create_robot({"world": str(BAG), "frame_rate": 0.5})
+    seen = set()
+    for frame in bag.frames:
+        robot.spin_until(frame.stamp)
+        rgbd = robot.rgbd()
+        if rgbd is not None:
+            seen.add(rgbd.stamp)
+    assert 3 <= len(seen) < len(bag.frames) - 3
+    assert seen <= {f.stamp for f in bag.frames}

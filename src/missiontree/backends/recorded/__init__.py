@@ -6,7 +6,8 @@ layout, TurtleBot 4 topics: :mod:`missiontree.mapping.ros2bag`, the ``realdata``
 scans, /tf poses, RGB-D frames and /map. Options: ``world`` (the recording), ``rgbd`` (an MRPT
 rawlog of RGB-D frames to play as well), ``correct`` (correct the odometry by scan matching; needs
 the ``realdata`` extra), ``map`` (a map file to serve: any kind ``missiontree map convert`` reads),
-``live_map`` (a bag: serve the map of the scans played instead of the bag's /map), ``name``.
+``live_map`` (a bag: serve the map of the scans played instead of the bag's /map),
+``frame_rate`` (a bag: images kept a second at most, default 5), ``name``.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from missiontree.errors import ConfigError
 
 __all__ = ["RecordedRobot", "create_robot"]
 
-_OPTIONS = {"world", "rgbd", "correct", "map", "live_map", "name", "robot", "seed", "config", "sensors"}
+_OPTIONS = {"world", "rgbd", "correct", "map", "live_map", "frame_rate", "name", "robot", "seed", "config",
+            "sensors"}
 
 
 def create_robot(options: Mapping[str, Any] | None = None) -> RecordedRobot:
@@ -64,14 +66,15 @@ def create_robot(options: Mapping[str, Any] | None = None) -> RecordedRobot:
 def _bag_robot(options: dict[str, Any]) -> RecordedRobot:
     """A robot playing a ROS 2 bag (``rgbd`` and ``correct`` are rawlog options: refused)."""
     from missiontree.mapping.map_sources import MapSourceError, load_map_source
-    from missiontree.mapping.ros2bag import BagError, read_bag
+    from missiontree.mapping.ros2bag import FRAME_RATE, BagError, read_bag
 
     for option in ("rgbd", "correct"):
         if options.get(option):
             raise ConfigError(f"recorded backend: {option!r} applies to a rawlog, not to a bag "
                               f"(a bag carries its own frames and poses)")
     try:
-        bag = read_bag(options["world"])
+        rate = options.get("frame_rate")
+        bag = read_bag(options["world"], frame_rate=float(rate) if rate is not None else FRAME_RATE)
         occupancy = load_map_source(options["map"]).grid if options.get("map") else None
         return RecordedRobot.from_bag(bag, occupancy, live_map=bool(options.get("live_map")),
                                       name=str(options.get("name") or "recorded"))
