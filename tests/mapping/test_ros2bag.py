@@ -121,10 +121,9 @@ def _schemas() -> dict[str, str]:
     return {s.name: s.data.decode() for s in summary.schemas.values()}
 
 
-def test_without_tf_the_poses_come_from_odometry(tmp_path: Path) -> None:
-    """A bag with /odom and /scan only (no /tf): poses from the odometry, scans with no mount."""
+def _odom_scan_bag(path: Path, prefix: str = "") -> Path:
+    """Five /odom and /scan messages 1 s apart (x = 0..4 m, yaw 0.2 rad a second), no /tf."""
     texts = _schemas()
-    path = tmp_path / "odom_only.mcap"
     with path.open("wb") as stream:
         writer = Ros2Writer(stream)
         odom = writer.register_msgdef("nav_msgs/msg/Odometry", texts["nav_msgs/msg/Odometry"])
@@ -132,7 +131,7 @@ def test_without_tf_the_poses_come_from_odometry(tmp_path: Path) -> None:
         for i in range(5):
             stamp = {"sec": 100 + i, "nanosec": 0}
             half = 0.1 * i
-            writer.write_message("/odom", odom, {
+            writer.write_message(prefix + "/odom", odom, {
                 "header": {"stamp": stamp, "frame_id": "odom"}, "child_frame_id": "base_link",
                 "pose": {"pose": {"position": {"x": float(i), "y": 0.0, "z": 0.0},
                                   "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half),
@@ -141,12 +140,17 @@ def test_without_tf_the_poses_come_from_odometry(tmp_path: Path) -> None:
                 "twist": {"twist": {"linear": {"x": 0.0, "y": 0.0, "z": 0.0},
                                     "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}, "covariance": [0.0] * 36}},
                 log_time=(100 + i) * 10**9)
-            writer.write_message("/scan", scan, {
+            writer.write_message(prefix + "/scan", scan, {
                 "header": {"stamp": stamp, "frame_id": "laser"}, "angle_min": -1.0, "angle_max": 1.0,
                 "angle_increment": 0.5, "time_increment": 0.0, "scan_time": 0.1, "range_min": 0.1,
                 "range_max": 10.0, "ranges": [2.0] * 5, "intensities": []}, log_time=(100 + i) * 10**9 + 1)
         writer.finish()
-    got = read_bag(path)
+    return path
+
+
+def test_without_tf_the_poses_come_from_odometry(tmp_path: Path) -> None:
+    """A bag with /odom and /scan only (no /tf): poses from the odometry, scans with no mount."""
+    got = read_bag(_odom_scan_bag(tmp_path / "odom_only.mcap"))
     assert got.pose_source == "odometry" and len(got.scans) == 5
     assert got.pose_at(102.0).x == pytest.approx(2.0) and got.pose_at(102.0).yaw == pytest.approx(0.4)
     assert got.scans[0].mount_yaw == 0.0 and not got.frames and not got.maps
@@ -190,3 +194,11 @@ def test_frames_and_maps_are_thinned_by_stamp(bag) -> None:
     assert stamps[-1] == bag.maps[-1].stamp and len(thin.maps) < len(bag.maps)
     everything = read_bag(BAG, frame_rate=None, map_period=0.0)
     assert len(everything.frames) == len(bag.frames) == 13  # the bag holds 1 frame a second
+
+
+def test_a_namespaced_robots_topics_read_with_its_namespace(tmp_path: Path) -> None:
+    """/robot1/scan and /robot1/odom are read with the namespace /robot1, and not without it."""
+    path = _odom_scan_bag(tmp_path / "ns.mcap", "/robot1")
+    assert BagTopics().namespaced("robot1/").scan == "/robot1/scan"
+    assert len(read_bag(path, BagTopics().namespaced("/robot1")).scans) == 5
+    assert not read_bag(path).scans

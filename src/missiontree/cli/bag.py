@@ -37,6 +37,8 @@ def register(subparsers: Any) -> None:
     record.add_argument("--duration", type=float, required=True, metavar="S", help="wall seconds to record")
     record.add_argument("--topics", nargs="+", metavar="TOPIC",
                         help="topics to record (default: TurtleBot 4's)")
+    record.add_argument("--namespace", default="",
+                        help="the robot's namespace, put before the default topics (e.g. /robot1)")
     record.add_argument("--max-rate", action="append", default=[], metavar="TOPIC=HZ",
                         help="keep at most HZ messages a second of TOPIC, by header stamp (repeatable)")
     record.add_argument("--domain-id", type=int, metavar="N",
@@ -49,6 +51,7 @@ def register(subparsers: Any) -> None:
     info = actions.add_parser("info",
                               help="topics, counts and what the recorded backend reads (no ROS needed)")
     info.add_argument("bag", type=Path, help="the .mcap file")
+    info.add_argument("--namespace", default="", help="the robot's namespace in the bag (e.g. /robot1)")
     info.set_defaults(func=run_info)
 
 
@@ -67,11 +70,13 @@ def _rates(items: list[str]) -> dict[str, float]:
 
 def run_record(args: argparse.Namespace) -> int:
     """Record a bag and print what was written."""
-    from missiontree.session.ros2bag import record_bag
+    from missiontree.session.ros2bag import default_topics, record_bag
 
     if not str(args.out).endswith(".mcap"):
         raise ConfigError(f"--out: expected an .mcap file name, found {args.out}")
-    summary = record_bag(args.out, args.duration, args.topics, domain_id=args.domain_id,
+    prefix = "/" + args.namespace.strip("/") if args.namespace.strip("/") else ""
+    topics = args.topics or [prefix + t for t in default_topics()]
+    summary = record_bag(args.out, args.duration, topics, domain_id=args.domain_id,
                          max_rate=_rates(args.max_rate), discovery_timeout=args.discovery_timeout,
                          compression=args.compression)
     size = summary.path.stat().st_size / 1e6
@@ -88,10 +93,10 @@ def run_record(args: argparse.Namespace) -> int:
 def run_info(args: argparse.Namespace) -> int:
     """Print a bag's topics and what the recorded backend reads from it."""
     from missiontree.errors import BackendUnavailableError
-    from missiontree.mapping.ros2bag import BagError, read_bag
+    from missiontree.mapping.ros2bag import BagError, BagTopics, read_bag
 
     try:
-        bag = read_bag(args.bag)
+        bag = read_bag(args.bag, BagTopics().namespaced(args.namespace))
     except (BagError, BackendUnavailableError) as error:
         raise ConfigError(str(error)) from None
     for topic, count in sorted(bag.topics.items()):

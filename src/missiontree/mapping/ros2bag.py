@@ -30,7 +30,7 @@ import bisect
 import math
 import struct
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +73,12 @@ class BagTopics:
     map_frame: str = "map"
     odom_frame: str = "odom"
     base_frame: str = "base_link"
+
+    def namespaced(self, namespace: str) -> BagTopics:
+        """The same names under a robot's namespace (``/robot1``: ``/robot1/scan``, ``/robot1/tf``...)."""
+        prefix = "/" + namespace.strip("/") if namespace.strip("/") else ""
+        topics = ("scan", "odom", "tf", "tf_static", "map", "color", "color_info", "depth")
+        return replace(self, **{name: prefix + getattr(self, name) for name in topics})
 
 
 @dataclass(frozen=True)

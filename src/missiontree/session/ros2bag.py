@@ -29,3 +29,9 @@ def record_bag(out: str | Path, duration: float, topics: Sequence[str] | None = 
     return record(out, duration, topics, domain_id=domain_id, max_rate=max_rate,
                   discovery_timeout=discovery_timeout, compression=compression)
 
+
+def default_topics() -> tuple[str, ...]:
+    """The TurtleBot 4 topics recorded when none are named (the recorder need not import to list them)."""
+    from missiontree.backends.ros2.bag_record import DEFAULT_TOPICS
+
+    return DEFAULT_TOPICS

@@ -138,3 +138,9 @@ def test_frame_rate_thins_the_frames_played(bag) -> None:
             seen.add(rgbd.stamp)
     assert 3 <= len(seen) < len(bag.frames) - 3
     assert seen <= {f.stamp for f in bag.frames}
+
+
+def test_a_bag_without_scans_on_the_topic_names_the_topics_it_has() -> None:
+    """With a namespace the bag does not use, the error names the scan topic sought and the bag's topics."""
+    with pytest.raises(ConfigError, match=r"no scans on /robot1/scan; its topics: /map, .*/scan"):
+        create_robot({"world": str(BAG), "namespace": "/robot1"})

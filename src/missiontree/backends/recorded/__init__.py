@@ -7,7 +7,8 @@ scans, /tf poses, RGB-D frames and /map. Options: ``world`` (the recording), ``r
 rawlog of RGB-D frames to play as well), ``correct`` (correct the odometry by scan matching; needs
 the ``realdata`` extra), ``map`` (a map file to serve: any kind ``missiontree map convert`` reads),
 ``live_map`` (a bag: serve the map of the scans played instead of the bag's /map),
-``frame_rate`` (a bag: images kept a second at most, default 5), ``name``.
+``frame_rate`` (a bag: images kept a second at most, default 5), ``namespace`` (a bag from a
+namespaced robot: ``/robot1`` reads ``/robot1/scan``...), ``name``.
 """
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ from missiontree.errors import ConfigError
 
 __all__ = ["RecordedRobot", "create_robot"]
 
-_OPTIONS = {"world", "rgbd", "correct", "map", "live_map", "frame_rate", "name", "robot", "seed", "config",
-            "sensors"}
+_OPTIONS = {"world", "rgbd", "correct", "map", "live_map", "frame_rate", "namespace", "name", "robot", "seed",
+            "config", "sensors"}
 
 
 def create_robot(options: Mapping[str, Any] | None = None) -> RecordedRobot:
@@ -66,7 +67,7 @@ def create_robot(options: Mapping[str, Any] | None = None) -> RecordedRobot:
 def _bag_robot(options: dict[str, Any]) -> RecordedRobot:
     """A robot playing a ROS 2 bag (``rgbd`` and ``correct`` are rawlog options: refused)."""
     from missiontree.mapping.map_sources import MapSourceError, load_map_source
-    from missiontree.mapping.ros2bag import FRAME_RATE, BagError, read_bag
+    from missiontree.mapping.ros2bag import FRAME_RATE, BagError, BagTopics, read_bag
 
     for option in ("rgbd", "correct"):
         if options.get(option):
@@ -74,7 +75,12 @@ def _bag_robot(options: dict[str, Any]) -> RecordedRobot:
                               f"(a bag carries its own frames and poses)")
     try:
         rate = options.get("frame_rate")
-        bag = read_bag(options["world"], frame_rate=float(rate) if rate is not None else FRAME_RATE)
+        names = BagTopics().namespaced(str(options.get("namespace") or ""))
+        bag = read_bag(options["world"], names, frame_rate=float(rate) if rate is not None else FRAME_RATE)
+        if not bag.scans:
+            raise ConfigError(f"recorded backend: {bag.source} has no scans on {names.scan}; its topics: "
+                              f"{', '.join(sorted(bag.topics)) or 'none'} (a namespaced robot: set "
+                              "namespace)")
         occupancy = load_map_source(options["map"]).grid if options.get("map") else None
         return RecordedRobot.from_bag(bag, occupancy, live_map=bool(options.get("live_map")),
                                       name=str(options.get("name") or "recorded"))
