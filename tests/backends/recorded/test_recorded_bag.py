@@ -144,3 +144,17 @@ def test_a_bag_without_scans_on_the_topic_names_the_topics_it_has() -> None:
     """With a namespace the bag does not use, the error names the scan topic sought and the bag's topics."""
     with pytest.raises(ConfigError, match=r"no scans on /robot1/scan; its topics: /map, .*/scan"):
         create_robot({"world": str(BAG), "namespace": "/robot1"})
+
+
+def test_options_come_from_the_config_files_recorded_mapping(bag) -> None:
+    """A --config file's recorded: mapping sets the options; an unknown key there is refused by name."""
+    with pytest.raises(ConfigError, match=r"^recorded backend: \S+ has no scans on /robot1/scan"):
+        create_robot({"world": str(BAG), "config": {"recorded": {"namespace": "/robot1"}}})
+    with pytest.raises(ConfigError, match="unknown options \\['speed'\\]"):
+        create_robot({"world": str(BAG), "config": {"recorded": {"speed": 2}}})
+    robot = create_robot({"world": str(BAG), "config": {"recorded": {"live_map": True}}})
+    robot.spin_until(robot.now() + 1.0)
+    grid = robot.occupancy()
+    scan = robot.scan()
+    assert grid is not None and scan is not None
+    assert grid.stamp == scan.stamp and grid.stamp not in {g.stamp for g in bag.maps}  # the scans' own map

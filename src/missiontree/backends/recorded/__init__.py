@@ -8,7 +8,8 @@ rawlog of RGB-D frames to play as well), ``correct`` (correct the odometry by sc
 the ``realdata`` extra), ``map`` (a map file to serve: any kind ``missiontree map convert`` reads),
 ``live_map`` (a bag: serve the map of the scans played instead of the bag's /map),
 ``frame_rate`` (a bag: images kept a second at most, default 5), ``namespace`` (a bag from a
-namespaced robot: ``/robot1`` reads ``/robot1/scan``...), ``name``.
+namespaced robot: ``/robot1`` reads ``/robot1/scan``...), ``name``. From the command line they go
+in the ``--config`` file's ``recorded:`` mapping (``world`` is ``--world``).
 """
 
 from __future__ import annotations
@@ -37,10 +38,7 @@ def create_robot(options: Mapping[str, Any] | None = None) -> RecordedRobot:
     from missiontree.mapping.mrpt_rgbd import read_rgbd_frames
     from missiontree.mapping.rawlog import read_rawlog
 
-    options = dict(options or {})
-    unknown = sorted(set(options) - _OPTIONS)
-    if unknown:
-        raise ConfigError(f"recorded backend: unknown options {unknown} (known: {sorted(_OPTIONS)})")
+    options = _with_config(dict(options or {}))
     source = options.get("world")
     if source and str(source).endswith(".mcap"):
         return _bag_robot(options)
@@ -64,6 +62,24 @@ def create_robot(options: Mapping[str, Any] | None = None) -> RecordedRobot:
         raise ConfigError(f"recorded backend: {exc}") from None
 
 
+def _with_config(options: dict[str, Any]) -> dict[str, Any]:
+    """The options, with a ``recorded:`` mapping of the --config file under them (given options win).
+
+    Raises:
+        ConfigError: An unknown option, or a ``recorded:`` entry that is not a mapping.
+    """
+    config = options.get("config")
+    section = config.get("recorded") if isinstance(config, Mapping) else None
+    if section is not None and not isinstance(section, Mapping):
+        raise ConfigError(f"recorded backend: the config's 'recorded' entry must be a mapping, found "
+                          f"{section!r}")
+    merged = {**dict(section or {}), **options}
+    unknown = sorted(set(merged) - _OPTIONS)
+    if unknown:
+        raise ConfigError(f"recorded backend: unknown options {unknown} (known: {sorted(_OPTIONS)})")
+    return merged
+
+
 def _bag_robot(options: dict[str, Any]) -> RecordedRobot:
     """A robot playing a ROS 2 bag (``rgbd`` and ``correct`` are rawlog options: refused)."""
     from missiontree.mapping.map_sources import MapSourceError, load_map_source
@@ -74,11 +90,11 @@ def _bag_robot(options: dict[str, Any]) -> RecordedRobot:
             raise ConfigError(f"recorded backend: {option!r} applies to a rawlog, not to a bag "
                               f"(a bag carries its own frames and poses)")
     try:
-        rate = options.get("frame_rate")
+        rate = options.get("frame_rate")  # a string that is no number: ValueError, refused below
         names = BagTopics().namespaced(str(options.get("namespace") or ""))
         bag = read_bag(options["world"], names, frame_rate=float(rate) if rate is not None else FRAME_RATE)
         if not bag.scans:
-            raise ConfigError(f"recorded backend: {bag.source} has no scans on {names.scan}; its topics: "
+            raise BagError(f"{bag.source} has no scans on {names.scan}; its topics: "
                               f"{', '.join(sorted(bag.topics)) or 'none'} (a namespaced robot: set "
                               "namespace)")
         occupancy = load_map_source(options["map"]).grid if options.get("map") else None
