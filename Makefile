@@ -2,6 +2,8 @@
 VENV ?= .venv
 PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
+# pytest workers for `make test` (one per core of CI's 2; each test file stays on one worker)
+TEST_JOBS ?= 2
 EXAMPLE_PLUGIN := plugins/missiontree-example
 BATTERY_PLUGIN := plugins/missiontree-battery
 
@@ -47,7 +49,7 @@ lint: setup
 test: setup setup-ros2 setup-browser setup-mrpt setup-train
 	$(VENV)/bin/ruff check src tests examples benchmarks tools plugins
 	$(VENV)/bin/mypy
-	MISSIONTREE_REQUIRE_ROS2=1 MISSIONTREE_REQUIRE_BROWSER=1 MISSIONTREE_REQUIRE_TRAIN=1 $(VENV)/bin/pytest -q tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests) $(if $(wildcard $(BATTERY_PLUGIN)/tests),$(BATTERY_PLUGIN)/tests)
+	MISSIONTREE_REQUIRE_ROS2=1 MISSIONTREE_REQUIRE_BROWSER=1 MISSIONTREE_REQUIRE_TRAIN=1 $(VENV)/bin/pytest -q -n $(TEST_JOBS) --dist loadfile tests $(if $(wildcard $(EXAMPLE_PLUGIN)/tests),$(EXAMPLE_PLUGIN)/tests) $(if $(wildcard $(BATTERY_PLUGIN)/tests),$(BATTERY_PLUGIN)/tests)
 
 bench: setup
 	for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
