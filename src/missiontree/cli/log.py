@@ -169,6 +169,37 @@ def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
     started = next((r for r in lines if r.get("event") == "mission_started"), {})
     finished: dict[str, Any] = next((r for r in reversed(lines) if r.get("event") == "mission_finished"), {})
     ticks = [r for r in lines if r.get("event") == "tick"]
+    latest, failures, explained = _tally_failures(ticks)
+    last = ticks[-1] if ticks else {}
+    ended_by = [c["node"] for c in last.get("changed", []) if c.get("status") == "FAILURE" and "node" in c]
+    ended_by.sort(key=lambda n: -_depth(n))
+    own = [n for n in ended_by if explained[n]["origin"] == n]
+    # Composites failing "because a child did" add nothing to the leaf's reason; when no node of this
+    # tick has words of its own (the leaf failed earlier), the deepest composite carries them.
+    ended_by = own or ended_by[:1]
+    return {
+        "mission": started.get("mission") or last.get("mission", ""),
+        "status": finished.get("status") or last.get("status", "UNKNOWN"),
+        "stopped_by": finished.get("stopped_by", "unknown (the log has no mission_finished line)"),
+        "ticks": len(ticks),
+        "duration": finished.get("duration", (last.get("t", 0.0) - ticks[0].get("t", 0.0)) if ticks else 0.0),
+        "ended_by": [{"node": n, "reason": explained[n]["reason"]} if explained[n]["reason"] else {"node": n}
+                     for n in ended_by],
+        "running_at_end": sorted(n for n, c in latest.items() if c.get("status") == "RUNNING"),
+        "failures": dict(sorted(failures.items())),
+        **_tally_events(lines),
+        **({"fault": finished["fault"]} if isinstance(finished.get("fault"), dict) else {}),
+    }
+
+
+_Nodes = dict[str, dict[str, Any]]
+
+
+def _tally_failures(ticks: list[dict[str, Any]]) -> tuple[_Nodes, _Nodes, dict[str, dict[str, str]]]:
+    """Each node's latest change, its failures, and the explanations of the last tick's failures.
+
+    A failure is counted with its reasons and classified as deciding or absorbed (by which node).
+    """
     latest: dict[str, dict[str, Any]] = {}
     failures: dict[str, dict[str, Any]] = {}
     explained: dict[str, dict[str, str]] = {}
@@ -179,30 +210,28 @@ def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
         for change in changed:
             node = change.get("node", "?")
             entry = latest[node] = dict(change)
-            if change.get("status") == "FAILURE":
-                failed_now.append(node)
-                why = explained.get(node, {"reason": "", "origin": "", "own": ""})
-                entry.update(reason=why["reason"], origin=why["origin"], own=why["own"])
-                failure = failures.setdefault(
-                    node, {"count": 0, "decided": 0, "absorbed_by": {}, "reasons": {}})
-                failure.setdefault("first_tick", record.get("tick"))
-                failure["count"] += 1
-                reason = why["reason"] or "(no reason given)"
-                failure["reasons"][reason] = failure["reasons"].get(reason, 0) + 1
-                failure["last_tick"] = record.get("tick")
+            if change.get("status") != "FAILURE":
+                continue
+            failed_now.append(node)
+            why = explained.get(node, {"reason": "", "origin": "", "own": ""})
+            entry.update(reason=why["reason"], origin=why["origin"], own=why["own"])
+            failure = failures.setdefault(node, {"count": 0, "decided": 0, "absorbed_by": {}, "reasons": {}})
+            failure.setdefault("first_tick", record.get("tick"))
+            failure["count"] += 1
+            reason = why["reason"] or "(no reason given)"
+            failure["reasons"][reason] = failure["reasons"].get(reason, 0) + 1
+            failure["last_tick"] = record.get("tick")
         for node in failed_now:  # classified on the statuses at the end of the tick
             by = absorber(node, lambda path: latest.get(path, {}).get("status"))
             if by is None:
                 failures[node]["decided"] += 1
             else:
                 failures[node]["absorbed_by"][by] = failures[node]["absorbed_by"].get(by, 0) + 1
-    last = ticks[-1] if ticks else {}
-    ended_by = [c["node"] for c in last.get("changed", []) if c.get("status") == "FAILURE" and "node" in c]
-    ended_by.sort(key=lambda n: -_depth(n))
-    own = [n for n in ended_by if explained[n]["origin"] == n]
-    # Composites failing "because a child did" add nothing to the leaf's reason; when no node of this
-    # tick has words of its own (the leaf failed earlier), the deepest composite carries them.
-    ended_by = own or ended_by[:1]
+    return latest, failures, explained
+
+
+def _tally_events(lines: list[dict[str, Any]]) -> dict[str, Any]:
+    """The events counted by kind, with the errors, substitutions and reloads listed."""
     events: dict[str, int] = {}
     errors: list[dict[str, Any]] = []
     stubs: list[dict[str, Any]] = []
@@ -219,22 +248,8 @@ def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
         elif kind in ("reloaded", "reload_refused"):
             reloads.append({"t": record.get("t"), "reloaded": kind == "reloaded",
                             "files": record.get("files"), "problems": record.get("count", 0)})
-    return {
-        "mission": started.get("mission") or last.get("mission", ""),
-        "status": finished.get("status") or last.get("status", "UNKNOWN"),
-        "stopped_by": finished.get("stopped_by", "unknown (the log has no mission_finished line)"),
-        "ticks": len(ticks),
-        "duration": finished.get("duration", (last.get("t", 0.0) - ticks[0].get("t", 0.0)) if ticks else 0.0),
-        "ended_by": [{"node": n, "reason": explained[n]["reason"]} if explained[n]["reason"] else {"node": n}
-                     for n in ended_by],
-        "running_at_end": sorted(n for n, c in latest.items() if c.get("status") == "RUNNING"),
-        "failures": dict(sorted(failures.items())),
-        "errors": errors,
-        "substituted": stubs,
-        "reloads": reloads,
-        "events": dict(sorted(events.items())),
-        **({"fault": finished["fault"]} if isinstance(finished.get("fault"), dict) else {}),
-    }
+    return {"errors": errors, "substituted": stubs, "reloads": reloads,
+            "events": dict(sorted(events.items()))}
 
 
 def format_summary(summary: dict[str, Any]) -> str:
