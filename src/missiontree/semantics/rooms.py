@@ -224,17 +224,7 @@ def segment_rooms(
         return Segmentation(grid, np.zeros(full.shape, np.int32), [])
     dist = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, 5) * res
     min_cells, max_cells = p.min_room_area / res**2, p.max_room_area / res**2
-    best_markers, best_count, best_radius = None, -1, p.min_door_half
-    radius = p.min_door_half
-    while radius <= p.max_door_half + 1e-9:
-        count, markers = cv2.connectedComponents((dist > radius).astype(np.uint8), connectivity=8)
-        sizes = np.bincount(markers.ravel(), minlength=count)[1:]
-        # a piece at this radius is the core of a room: its room is larger than the core itself
-        found = int(np.sum((sizes >= min_cells * 0.1) & (sizes <= max_cells)))
-        if found > best_count:
-            best_markers, best_count, best_radius = markers, found, radius
-        radius += p.step
-    assert best_markers is not None
+    best_markers, best_radius = _room_cores(dist, p, min_cells, max_cells)
     markers = _drop_small_cores(best_markers, min_cells * 0.1)
     small = (best_markers > 0) & (markers == 0)
     markers = _late_cores(
@@ -248,6 +238,30 @@ def segment_rooms(
     placed[window] = labels
     rooms = _regions(grid, placed)
     return Segmentation(grid, placed, rooms)
+
+
+def _room_cores(dist: np.ndarray, p: SegmentationParams, min_cells: float,
+                max_cells: float) -> tuple[np.ndarray, float]:
+    """The cores of rooms: free space farther from walls than a door's half width.
+
+    The radius is tried from ``min_door_half`` to ``max_door_half``; the one giving the most
+    room-sized pieces wins.
+
+    Returns:
+        The labelled cores and the radius that made them.
+    """
+    best_markers, best_count, best_radius = None, -1, p.min_door_half
+    radius = p.min_door_half
+    while radius <= p.max_door_half + 1e-9:
+        count, markers = cv2.connectedComponents((dist > radius).astype(np.uint8), connectivity=8)
+        sizes = np.bincount(markers.ravel(), minlength=count)[1:]
+        # a piece at this radius is the core of a room: its room is larger than the core itself
+        found = int(np.sum((sizes >= min_cells * 0.1) & (sizes <= max_cells)))
+        if found > best_count:
+            best_markers, best_count, best_radius = markers, found, radius
+        radius += p.step
+    assert best_markers is not None
+    return best_markers, best_radius
 
 
 def _box(mask: np.ndarray, shape: tuple[int, ...], margin: int) -> tuple[slice, slice] | None:
