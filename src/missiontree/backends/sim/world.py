@@ -292,59 +292,12 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem],
     kept = kept or {}
     object_at = kept.get("objects") or list(range(len(spec.objects)))
     person_at = kept.get("people") or list(range(len(spec.people)))
-    segments: list[tuple[float, float, float, float]] = []
-    rows: list[Row] = []
-    ceiling = 2.5
-    map_grid: tuple[np.ndarray, float, Pose2D] | None = None
-    if spec.walls is not None:
-        walls = spec.walls
-        segments += [(a[0], a[1], b[0], b[1]) for a, b in walls.segments]
-        for line in walls.polylines:
-            segments += [(a[0], a[1], b[0], b[1]) for a, b in zip(line[:-1], line[1:], strict=True)]
-        for poly in walls.polygons:
-            closed = [*poly, poly[0]]
-            segments += [(a[0], a[1], b[0], b[1]) for a, b in zip(closed[:-1], closed[1:], strict=True)]
-        rows += [(SEGMENT, s, 0.0, walls.height, walls.rgb, WALL_INSTANCE) for s in segments]
-        ceiling = walls.height
-    if spec.map is not None:
-        map_grid = read_nav2_map(spec, doc, path, problems)
-        if map_grid is not None:
-            cells, res, origin = map_grid
-            map_segments = contour_segments(cells >= BLOCKED_FROM, res, origin)
-            segments += map_segments
-            rows += [(SEGMENT, s, 0.0, spec.map.height, spec.map.rgb, WALL_INSTANCE) for s in map_segments]
-            ceiling = max(ceiling if spec.walls else 0.0, spec.map.height)
-    seg_array = np.array(segments, dtype=float).reshape(-1, 4)
-
+    seg_array, rows, ceiling, map_grid = _wall_rows(spec, doc, path, problems)
     instances = {FLOOR_INSTANCE: InstanceInfo(0, "floor", "floor", "floor"),
                  WALL_INSTANCE: InstanceInfo(1, "wall", "wall", "wall")}
-    objects: list[WorldObject] = []
-    counts: dict[str, int] = {}
-    for i, ospec in enumerate(spec.objects):
-        inst = 2 + i
-        counts[ospec.label] = counts.get(ospec.label, 0) + 1
-        oid = ospec.id or f"{ospec.label.replace(' ', '_')}_{counts[ospec.label]}"
-        obj = _make_object(ospec, oid, inst)
-        objects.append(obj)
-        instances[inst] = InstanceInfo(inst, "object", oid, obj.label)
-        if obj.shape == "cylinder":
-            rows.append((CYLINDER, (obj.pose.x, obj.pose.y, obj.size[0] / 2), obj.elevation, obj.top, obj.rgb,
-                         inst, obj.pattern))
-        else:
-            rows.append((BOX, (obj.pose.x, obj.pose.y, math.cos(obj.pose.yaw), math.sin(obj.pose.yaw),
-                               obj.size[0] / 2, obj.size[1] / 2), obj.elevation, obj.top, obj.rgb, inst,
-                         obj.pattern))
-    ids = [o.id for o in objects]
-    for i, oid in enumerate(ids):
-        if oid in ids[:i]:
-            problems.append(doc.problem_at(("objects", object_at[i], "id"), f"duplicate object id {oid!r}",
-                                           "give every object a unique id"))
-    people = []
-    for j, pspec in enumerate(spec.people):
-        inst = 2 + len(objects) + j
-        people.append(Person(pspec, inst))
-        instances[inst] = InstanceInfo(inst, "person", pspec.id, "person")
-
+    objects = _object_rows(spec, doc, problems, object_at, rows, instances)
+    people = [Person(pspec, 2 + len(objects) + j) for j, pspec in enumerate(spec.people)]
+    instances.update({p.inst: InstanceInfo(p.inst, "person", p.spec.id, "person") for p in people})
     try:
         grid, walls_grid = _rasterise(spec, seg_array, objects, map_grid)
     except WorldTooLargeError as exc:
@@ -367,6 +320,61 @@ def _build(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem],
     if spec.map is None or map_grid is not None:  # without its map the start cannot be judged
         _check_start(doc, world, problems)
     return world
+
+
+def _wall_rows(spec: WorldSpec, doc: Located, path: Path, problems: list[Problem]
+               ) -> tuple[np.ndarray, list[Row], float, tuple[np.ndarray, float, Pose2D] | None]:
+    """The walls: their segments (n x 4), their render rows, the ceiling and the map they came from."""
+    segments: list[tuple[float, float, float, float]] = []
+    rows: list[Row] = []
+    ceiling = 2.5
+    map_grid: tuple[np.ndarray, float, Pose2D] | None = None
+    if spec.walls is not None:
+        walls = spec.walls
+        segments += [(a[0], a[1], b[0], b[1]) for a, b in walls.segments]
+        for line in walls.polylines:
+            segments += [(a[0], a[1], b[0], b[1]) for a, b in zip(line[:-1], line[1:], strict=True)]
+        for poly in walls.polygons:
+            closed = [*poly, poly[0]]
+            segments += [(a[0], a[1], b[0], b[1]) for a, b in zip(closed[:-1], closed[1:], strict=True)]
+        rows += [(SEGMENT, s, 0.0, walls.height, walls.rgb, WALL_INSTANCE) for s in segments]
+        ceiling = walls.height
+    if spec.map is not None:
+        map_grid = read_nav2_map(spec, doc, path, problems)
+        if map_grid is not None:
+            cells, res, origin = map_grid
+            map_segments = contour_segments(cells >= BLOCKED_FROM, res, origin)
+            segments += map_segments
+            rows += [(SEGMENT, s, 0.0, spec.map.height, spec.map.rgb, WALL_INSTANCE) for s in map_segments]
+            ceiling = max(ceiling if spec.walls else 0.0, spec.map.height)
+    return np.array(segments, dtype=float).reshape(-1, 4), rows, ceiling, map_grid
+
+
+def _object_rows(spec: WorldSpec, doc: Located, problems: list[Problem], object_at: list[int],
+                 rows: list[Row], instances: dict[int, InstanceInfo]) -> list[WorldObject]:
+    """The world's objects, with their render rows and instances added; duplicate ids are problems."""
+    objects: list[WorldObject] = []
+    counts: dict[str, int] = {}
+    for i, ospec in enumerate(spec.objects):
+        inst = 2 + i
+        counts[ospec.label] = counts.get(ospec.label, 0) + 1
+        oid = ospec.id or f"{ospec.label.replace(' ', '_')}_{counts[ospec.label]}"
+        obj = _make_object(ospec, oid, inst)
+        objects.append(obj)
+        instances[inst] = InstanceInfo(inst, "object", oid, obj.label)
+        if obj.shape == "cylinder":
+            rows.append((CYLINDER, (obj.pose.x, obj.pose.y, obj.size[0] / 2), obj.elevation, obj.top, obj.rgb,
+                         inst, obj.pattern))
+        else:
+            rows.append((BOX, (obj.pose.x, obj.pose.y, math.cos(obj.pose.yaw), math.sin(obj.pose.yaw),
+                               obj.size[0] / 2, obj.size[1] / 2), obj.elevation, obj.top, obj.rgb, inst,
+                         obj.pattern))
+    ids = [o.id for o in objects]
+    for i, oid in enumerate(ids):
+        if oid in ids[:i]:
+            problems.append(doc.problem_at(("objects", object_at[i], "id"), f"duplicate object id {oid!r}",
+                                           "give every object a unique id"))
+    return objects
 
 
 def _make_object(ospec: ObjectSpec, oid: str, inst: int) -> WorldObject:
