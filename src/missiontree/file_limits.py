@@ -9,6 +9,7 @@ or a folder of ``$MISSIONTREE_MODEL_PATH``, and no larger than its limit.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -86,3 +87,24 @@ def read_bounded(path: str | os.PathLike[str], limit: int, what: str) -> bytes:
 def read_text_bounded(path: str | os.PathLike[str], limit: int, what: str) -> str:
     """:func:`read_bounded` decoded as UTF-8 (``UnicodeDecodeError`` when it is not)."""
     return read_bounded(path, limit, what).decode("utf-8")
+
+
+def read_input_text(path: str | os.PathLike[str], limit: int, what: str, expected: str,
+                    error: Callable[[str], Exception]) -> str:
+    """A user's text file, bounded, every way it can fail said as ``error`` naming the file.
+
+    Args:
+        path: The file.
+        limit: Its size limit in bytes.
+        what: What the file holds, for messages ("scene graph file").
+        expected: What its text should be, said when it is not UTF-8 ("a scene graph file is JSON").
+        error: The exception raised, made from the message (a ``ConfigError`` class, usually).
+    """
+    try:
+        return read_text_bounded(path, limit, what)
+    except FileTooLargeError as exc:
+        raise error(str(exc)) from None
+    except UnicodeDecodeError:
+        raise error(f"{path}: not UTF-8 text; {expected}") from None
+    except OSError as exc:
+        raise error(f"cannot read the {what} {path}: {exc.strerror or exc}") from None

@@ -36,7 +36,7 @@ import yaml
 from scipy import ndimage
 
 from missiontree.errors import ConfigError
-from missiontree.file_limits import MAX_ROOMS_BYTES, FileTooLargeError, read_text_bounded
+from missiontree.file_limits import MAX_ROOMS_BYTES, read_input_text
 from missiontree.semantics.room_watershed import drop_small_cores as _drop_small_cores
 from missiontree.semantics.room_watershed import flood as _flood
 from missiontree.semantics.room_watershed import grow as _grow
@@ -390,14 +390,8 @@ def load_room_polygons(path: str | Path) -> list[RoomRegion]:
         ConfigError: The file is missing or not in that shape (says what was found).
     """
     target = Path(path)
-    try:
-        text = read_text_bounded(target, MAX_ROOMS_BYTES, "room polygon file")
-    except FileTooLargeError as exc:
-        raise ConfigError(str(exc)) from None
-    except UnicodeDecodeError:
-        raise ConfigError(f"{target}: not UTF-8 text; room polygons are YAML or JSON") from None
-    except OSError as exc:
-        raise ConfigError(f"cannot read room polygons {target}: {exc.strerror or exc}") from None
+    text = read_input_text(target, MAX_ROOMS_BYTES, "room polygon file", "room polygons are YAML or JSON",
+                           ConfigError)
     try:
         data = json.loads(text) if target.suffix == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError) as exc:

@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any, NamedTuple, Protocol
 
 from missiontree.errors import ConfigError
-from missiontree.file_limits import MAX_SCENE_GRAPH_BYTES, FileTooLargeError, read_text_bounded
+from missiontree.file_limits import MAX_SCENE_GRAPH_BYTES, read_input_text
 from missiontree.files import write_whole
 
 #: The building node's id and label, as the NAIS prompt fixes them.
@@ -150,14 +150,8 @@ class SceneGraph:
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> SceneGraph:
         """Read a graph from a JSON file (``scene_graph.json`` or the paper's ``Scene_Graph.json``)."""
-        try:
-            text = read_text_bounded(path, MAX_SCENE_GRAPH_BYTES, "scene graph file")
-        except FileTooLargeError as exc:
-            raise SceneGraphError(str(exc)) from None
-        except UnicodeDecodeError:
-            raise SceneGraphError(f"{path}: not UTF-8 text; a scene graph file is JSON") from None
-        except OSError as exc:
-            raise SceneGraphError(f"cannot read scene graph {path}: {exc.strerror or exc}") from None
+        text = read_input_text(path, MAX_SCENE_GRAPH_BYTES, "scene graph file", "a scene graph file is JSON",
+                               SceneGraphError)
         try:
             return cls.from_json(text)
         except SceneGraphError as exc:
