@@ -175,3 +175,31 @@ def test_a_lock_left_by_a_dead_batch_is_taken_over_and_released(mission: Path, t
     (out / "batch.lock").write_text("999999999\n")
     assert main(["batch", str(mission), "--seeds", "0", "--jobs", "1", "--out", str(out), "--quiet"]) == 0
     assert (out / "results.jsonl").is_file() and not (out / "batch.lock").exists()
+
+
+def test_substitute_stubs_every_run_and_each_summary_lists_it(mission: Path, tmp_path: Path) -> None:
+    """`batch --substitute`: every run's summary.json lists the substitution, and the stub decides."""
+    rules = tmp_path / "rules.yaml"
+    rules.write_text("rules:\n  - match: CheckBlackboard\n    status: SUCCESS\n", encoding="utf-8")
+    out = tmp_path / "out"
+    code = main(["batch", str(mission), "--seeds", "0-1", "--set", "fail=true", "--jobs", "1",
+                 "--out", str(out), "--quiet", "--substitute", str(rules)])
+    assert code == 0  # without the stub, CheckBlackboard fails every run
+    runs = sorted((out / "runs").iterdir())
+    assert len(runs) == 2
+    for run_dir in runs:
+        subs = json.loads((run_dir / "summary.json").read_text())["substitutions"]
+        assert [(s["node"], s["type"], s["status"]) for s in subs] == [
+            ("main/CheckBlackboard", "CheckBlackboard", "SUCCESS")]
+
+
+def test_substitute_rule_matching_nothing_is_exit_2_before_any_run(
+        mission: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A rules file whose rule matches no node stops the batch before any run starts."""
+    rules = tmp_path / "rules.yaml"
+    rules.write_text("rules:\n  - match: NoSuchNode\n    status: SUCCESS\n", encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["batch", str(mission), "--seeds", "0", "--out", str(out), "--quiet",
+                 "--substitute", str(rules)]) == 2
+    assert "rules.yaml:2" in capsys.readouterr().err
+    assert not (out / "runs").exists()

@@ -312,3 +312,30 @@ def test_quiet_cli_run_writes_no_progress(tmp_path: Path, capsys: pytest.Capture
     captured = capsys.readouterr()
     assert captured.err == ""
     assert "m: SUCCESS" in captured.out
+
+
+def test_request_substitute_stubs_nodes_and_the_summary_lists_them(tmp_path: Path) -> None:
+    """`MissionRequest(substitute=...)`: the session swaps matched nodes for stubs; summary.json says so."""
+    plugins, _ = _plugins_with_fake()
+    rules = tmp_path / "rules.yaml"
+    rules.write_text("rules:\n  - match: Wait\n    status: SUCCESS\n", encoding="utf-8")
+    request = MissionRequest(mission=_mission(tmp_path, backend="fake"), out=tmp_path / "run",
+                             plugins=plugins, handle_signals=False, substitute=rules)
+    result = run_mission(request)
+    assert result.status.name == "SUCCESS"
+    assert result.duration < 0.5  # the stub ended at once; the real Wait takes 0.5 s
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert [(s["node"], s["type"]) for s in summary["substitutions"]] == [("main/Wait", "Wait")]
+
+
+def test_a_bad_rules_file_is_refused_before_the_robot_starts(tmp_path: Path) -> None:
+    """A rules file with a bad rule is a located problem and no robot is built."""
+    plugins, fake = _plugins_with_fake()
+    rules = tmp_path / "rules.yaml"
+    rules.write_text("rules:\n  - match: Wait\n    status: MAYBE\n", encoding="utf-8")
+    request = MissionRequest(mission=_mission(tmp_path, backend="fake"), plugins=plugins,
+                             handle_signals=False, substitute=rules)
+    with pytest.raises(MissionFileError) as caught:
+        Session.open(request)
+    assert "rules.yaml:3" in str(caught.value)
+    assert fake.robots == []

@@ -102,6 +102,9 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     parser.add_argument("--allow-outside", action="store_true",
                         help="let subtree includes leave the mission's folder")
+    parser.add_argument("--substitute", type=Path, metavar="RULES",
+                        help="a rules file: in every run, nodes matched by path or type glob are replaced by "
+                        "stubs; recorded in each run's log and summary (checked before any run starts)")
     add_plugin_flag(parser)
     parser.set_defaults(func=run)
 
@@ -131,6 +134,8 @@ def plan_from_args(args: argparse.Namespace) -> BatchPlan:
     }.items() if v is not None}
     if args.allow_outside:
         request["allow_outside"] = True
+    if getattr(args, "substitute", None) is not None:  # absolute: workers may run in another directory
+        request["substitute"] = str(Path(args.substitute).resolve())
     return expand_plan(
         args.tree, seeds=parse_seeds(args.seeds), worlds=parse_worlds(args.worlds) if args.worlds else None,
         fixed=parse_assignments(args.params), sweeps=parse_sweeps(args.sweep), base_seed=args.base_seed,
@@ -140,10 +145,15 @@ def plan_from_args(args: argparse.Namespace) -> BatchPlan:
 def preflight(plan: BatchPlan, plugins: Any) -> None:
     """Check the mission with every parameter combination and every world before any run starts.
 
+    The substitution rules file (``--substitute``) is read and its rules matched against the tree too.
+
     Raises:
-        ProblemsError: The mission, a ``--set``/``--sweep`` value or a world is bad (all reported).
+        ProblemsError: The mission, a ``--set``/``--sweep`` value, a world or the rules file is bad (all
+            reported).
     """
+    from missiontree.engine.build import build_tree
     from missiontree.engine.loader import load_mission
+    from missiontree.engine.substitute import apply_rules, load_rules
     from missiontree.session.params import parse_overrides
     from missiontree.session.preflight import check_references
 
@@ -154,6 +164,9 @@ def preflight(plan: BatchPlan, plugins: Any) -> None:
     for params in combos:
         overrides = parse_overrides(plan.mission, dict(params) or None)
         spec = load_mission(plan.mission, plugins.nodes, allow_outside=allow, params=overrides)
+    substitute = plan.request.get("substitute")
+    if substitute is not None and spec is not None:  # a rule matching no node is refused before any run
+        apply_rules(spec, build_tree(spec, plugins.nodes), load_rules(substitute))
     problems = []
     for world in worlds:
         problems += check_references(spec,  # type: ignore[arg-type]  # a plan has runs, so spec is loaded

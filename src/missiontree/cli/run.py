@@ -120,7 +120,8 @@ def request_from_args(args: argparse.Namespace) -> MissionRequest:
         config=args.config, seed=args.seed, out=args.out, max_duration=args.max_duration,
         tick_hz=args.tick_hz,
         realtime=args.realtime, params=params, unknown_map=args.unknown_map, quiet=bool(args.quiet),
-        allow_outside=bool(args.allow_outside), plugins=plugins_from_args(args))
+        allow_outside=bool(args.allow_outside), plugins=plugins_from_args(args),
+        substitute=getattr(args, "substitute", None))
 
 
 def run_substituted(request: MissionRequest, rules: list[Rule] | None = None, *,
@@ -129,7 +130,8 @@ def run_substituted(request: MissionRequest, rules: list[Rule] | None = None, *,
 
     Args:
         request: What to run.
-        rules: Substitution rules applied to the tree before it runs (and to every reloaded tree).
+        rules: Substitution rules applied to the tree before it runs (and to every reloaded tree);
+            default: the rules of ``request.substitute``, which the session itself applies.
         watch: Reload the mission when its files change (:class:`~missiontree.engine.reload.TreeWatcher`).
 
     Raises:
@@ -138,8 +140,10 @@ def run_substituted(request: MissionRequest, rules: list[Rule] | None = None, *,
     watchers: list[TreeWatcher] = []
     if watch:
         request = dataclasses.replace(request, on_tick=_watching(request.on_tick, watchers))
+    if request.substitute and rules is None:  # the session applies them; a reloaded tree needs them too
+        rules = load_rules(request.substitute)
     with Session.open(request) as session:
-        if rules:
+        if rules and not request.substitute:
             substitute_session(session, rules)
         if watch:
             watchers.append(TreeWatcher(session.spec, _loader(request, session), _builder(session, rules)))

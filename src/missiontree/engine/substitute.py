@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -90,13 +91,13 @@ class Substitution:
     type: str
 
 
-def load_rules(path: str | Path) -> list[Rule]:
+def load_rules(path: str | os.PathLike[str]) -> list[Rule]:
     """Read and check a rules file.
 
     Raises:
         MissionFileError: The file is missing, not YAML or a rule is bad (every problem located).
     """
-    return parse_rules(load_yaml(path, error=MissionFileError))
+    return parse_rules(load_yaml(Path(path), error=MissionFileError))
 
 
 def parse_rules(doc: Located) -> list[Rule]:

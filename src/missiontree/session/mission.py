@@ -32,6 +32,7 @@ from missiontree.engine.context import MissionContext
 from missiontree.engine.loader import load_mission
 from missiontree.engine.runner import Runner, RunResult
 from missiontree.engine.spec import MissionSpec
+from missiontree.engine.substitute import load_rules, substitute_session
 from missiontree.errors import ConfigError, MissionFileError, ProblemsError
 from missiontree.paths import find_config
 from missiontree.plugins.manager import Plugins, load_plugins
@@ -78,6 +79,8 @@ class MissionRequest:
             ticks); it must return at once.
         progress_stream: Where the progress line goes (default stderr).
         log_stream: Write the tick log here instead of ``<out>/ticks.jsonl``.
+        substitute: A substitution rules file (``--substitute``): nodes it matches run as stubs,
+            recorded in the tick log and the summary (:mod:`missiontree.engine.substitute`).
     """
 
     mission: Path
@@ -100,6 +103,7 @@ class MissionRequest:
     on_tick: Callable[[Session], None] | None = None
     progress_stream: TextIO | None = None
     log_stream: TextIO | None = None
+    substitute: str | os.PathLike[str] | None = None
 
 
 def _pick(flag: Any, from_file: Any, default: Any) -> Any:
@@ -183,6 +187,8 @@ class Session:
                                     world=request.world, robot=request.robot, models=request.models)
         if problems:
             raise MissionFileError(problems)
+        # the rules file is read before the robot starts; its rules are matched once the tree is built
+        rules = load_rules(request.substitute) if request.substitute else None
         run = self.spec.run
         seed = _pick(request.seed, run.seed, DEFAULT_SEED)
         if isinstance(seed, bool) or not isinstance(seed, int):
@@ -227,6 +233,8 @@ class Session:
             realtime=realtime, handle_signals=request.handle_signals, log_stream=request.log_stream,
             on_tick=self._on_tick if (self.progress is not None or request.on_tick is not None) else None,
             final_state=self._final_state)
+        if rules is not None:  # stubs in place before the first tick; a rule matching nothing is exit 2
+            substitute_session(self, rules)
 
     def _robot_options(self, seed: int, config: dict[str, Any], unknown_map: bool) -> dict[str, Any]:
         """The backend factory's options: ``seed``, and ``world``, ``robot``, ``config`` when given.
