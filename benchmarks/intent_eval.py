@@ -11,10 +11,13 @@ Splits.
 - ``dev`` (tuned on): the 49 commands the team wrote (Table II's five, intuitive, referential, nothing
   satisfies, injected descriptions) on the office world and ``generated:3``, ours beside the NAIS
   reference from the same starts; and, ours only, generated commands on ``--dev-worlds`` generated
-  flats: paraphrases from the LibreOffice English thesaurus (``benchmarks/data/intent_dev_words.json``,
-  built once by ``tools/build_intent_dev_commands.py``, sharing no word with a test command) and
-  referential commands by colour, room and "on top of" in templates of the dev split's own
-  (:data:`DEV_TEMPLATES`).
+  flats: paraphrases from Aiksaurus, a thesaurus of loose word groups written independently of
+  WordNet (``benchmarks/data/intent_dev_words.json``, built once by
+  ``tools/build_intent_dev_commands.py``, sharing no word with a test command), and referential
+  commands by colour, room and "on top of" in templates of the dev split's own
+  (:data:`DEV_TEMPLATES`). The test split's words come from WordNet, which the reasoner's knowledge
+  is also built from: dev and test words differ in source and in kind, and the test figure says how
+  well WordNet-built knowledge reads WordNet's own words, not how it reads words from anywhere.
 - ``test`` (never tuned on): commands from a source outside the team on worlds of another kind — the
   test worlds of :mod:`missiontree.evaluation.splits` (floorplans of corridors, open plans, suites,
   warehouses; real SLAM maps with placed objects and decoys), ``--test-worlds`` of them. The commands:
