@@ -93,3 +93,43 @@ def test_an_unchanged_write_is_not_a_reload(tmp_path: Path) -> None:
     """Writing the same content again (a save without edits) reloads nothing."""
     _, lines, _, _ = _run(tmp_path, FIRST)
     assert not [line for line in lines if line["event"] in ("reloaded", "reload_refused")]
+
+
+class _Broken(py_trees.behaviour.Behaviour):
+    """A plain py_trees behaviour (not a Leaf) whose update raises."""
+
+    def update(self) -> py_trees.common.Status:
+        raise ZeroDivisionError("in a reloaded tree")
+
+
+def test_a_reloaded_trees_non_leaf_error_is_reported_as_the_first_trees(tmp_path: Path) -> None:
+    """After a reload, a non-Leaf error event has its path, file:line and frames (Runner.replace_tree)."""
+    import json
+
+    mission = tmp_path / "m.yaml"
+    mission.write_text(FIRST)
+    registry = fresh_plugins().nodes
+    spec = load_mission(mission, registry)
+
+    def build(new: Any) -> Any:
+        if new is spec:
+            return build_tree(new, registry)
+        return py_trees.composites.Selector("top", memory=False, children=[_Broken("plain")])
+
+    watcher = TreeWatcher(spec, lambda: load_mission(mission, registry), build, out=io.StringIO())
+
+    def on_tick(runner: Runner) -> None:
+        if runner.robot.now() >= 1.0 and mission.read_text() == FIRST:
+            mission.write_text(SECOND)
+        watcher(runner)
+
+    stream = io.StringIO()
+    runner = Runner(build(spec), MissionContext(robot=ClockRobot()), tick_hz=10, max_duration=4.0,
+                    log_stream=stream, blackboard=spec.blackboard, handle_signals=False, on_tick=on_tick)
+    runner.run()
+    lines = [json.loads(line) for line in stream.getvalue().splitlines()]
+    assert any(line["event"] == "reloaded" for line in lines)
+    error = next(line for line in lines if line["event"] == "error")
+    assert error["node"] == "top/plain"
+    assert error["where"].startswith("tests/engine/test_reload.py:")
+    assert error["traceback"][-1].endswith(" in update")

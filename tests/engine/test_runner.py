@@ -512,3 +512,42 @@ def test_run_directory_that_is_a_file_is_a_config_error(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="cannot write the run directory"):
         _runner(ScriptedLeaf("a", script="S"), robot, run_dir=afile).run()
     assert robot.stop_calls == 1 and afile.read_text() == "x"
+
+
+def test_a_non_leaf_error_event_has_its_file_line_and_frames() -> None:
+    """A plain behaviour's error event names file:line and lists the frames, as a leaf's does."""
+    root = py_trees.composites.Selector("root", memory=False, children=[_BrokenBehaviour("plain")])
+    _, lines = capture_tick_log(root)
+    error = next(line for line in lines if line["event"] == "error")
+    assert error["where"].startswith("tests/engine/test_runner.py:")
+    assert error["function"] == "update"
+    assert "(at tests/engine/test_runner.py:" in error["error"]
+    assert error["traceback"] and error["traceback"][-1].endswith(" in update")
+
+
+def test_the_summary_fault_lists_the_traceback_frames_without_source(tmp_path: Path) -> None:
+    """A run that fails on a non-Leaf error: summary.json's fault has file:line frames, no source text."""
+    result = _runner(_BrokenBehaviour("plain"), run_dir=tmp_path / "run").run()
+    assert result.status == Status.FAILURE
+    fault = json.loads((tmp_path / "run" / "summary.json").read_text())["fault"]
+    assert fault["node"] == "plain"
+    frames = fault["traceback"]
+    assert frames and frames[-1].startswith("tests/engine/test_runner.py:")
+    assert frames[-1].endswith(" in update")
+    assert not any("raise ZeroDivisionError" in frame for frame in frames)
+
+
+def test_the_summary_fault_of_a_leaf_lists_its_frames(tmp_path: Path) -> None:
+    """A leaf's fault in summary.json carries the frames of its error event."""
+    result = _runner(_RaisingLeaf("bad"), run_dir=tmp_path / "run").run()
+    assert result.status == Status.FAILURE
+    fault = json.loads((tmp_path / "run" / "summary.json").read_text())["fault"]
+    assert fault["node"] == "bad"
+    assert any(frame.endswith(" in update") for frame in fault["traceback"])
+
+
+class _RaisingLeaf(Leaf):
+    """A leaf whose update raises."""
+
+    def update(self) -> Status:
+        raise RuntimeError("leaf bug")

@@ -28,8 +28,6 @@ from typing import Any, TextIO
 
 import py_trees
 
-from missiontree.engine.guards import guard_exceptions
-from missiontree.engine.node_words import node_paths
 from missiontree.engine.spec import MissionSpec
 from missiontree.errors import ConfigError, ProblemsError
 
@@ -99,7 +97,6 @@ class TreeWatcher:
         try:
             spec = self.load()
             root = self.build(spec)
-            guard_exceptions(root, _error_event(events))
             for node in root.iterate():
                 node.setup(context=runner.context)
         except ProblemsError as error:
@@ -117,10 +114,7 @@ class TreeWatcher:
             name = key if key.startswith("/") else f"/{key}"
             if not py_trees.blackboard.Blackboard.exists(name):
                 py_trees.blackboard.Blackboard.set(name, value)
-        runner.root = root
-        if runner.recorder is not None:
-            runner.recorder.root = root
-            runner.recorder.paths.update(node_paths(root))
+        runner.replace_tree(root)  # guarded as the first tree; the log names its nodes by path
         runner.spec = spec
         for path in self._files(spec):  # a subtree newly included is watched from now on
             self._seen.setdefault(path, _state(path))
@@ -158,15 +152,6 @@ def _state(path: Path) -> tuple[tuple[int, int] | None, str]:
     except OSError:
         digest = ""
     return stat, digest
-
-
-def _error_event(events: Any) -> Callable[[Behaviour, Exception], None]:
-    """The error callback of a rebuilt tree's guarded nodes: an ``error`` event, as the runner's."""
-
-    def on_error(node: Behaviour, error: Exception) -> None:
-        events.emit("error", node=node.name, error=f"{type(error).__name__}: {error}")
-
-    return on_error
 
 
 __all__ = ["CHECK_EVERY", "TreeWatcher"]

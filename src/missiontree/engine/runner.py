@@ -33,7 +33,6 @@ import os
 import signal
 import threading
 import time
-import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,7 +42,7 @@ from typing import Any, TextIO
 import py_trees
 
 from missiontree.engine.context import MissionContext
-from missiontree.engine.faults import fault_of
+from missiontree.engine.faults import error_site, fault_of
 from missiontree.engine.guards import TRUSTED_TYPES, guard_exceptions
 from missiontree.engine.node_words import node_paths
 from missiontree.engine.profile import RunProfile
@@ -165,6 +164,9 @@ class Runner:
         #: Why the run ended when stopped_by is ``error`` (written as the summary's ``reason``).
         self._reason = ""
         self._fault: tuple[Behaviour, str] | None = None
+        #: Traceback frames (``file:line in function``) of each node's last error, for the summary's fault.
+        self._error_frames: dict[Behaviour, tuple[str, ...]] = {}
+        self._leaf_frames: dict[str, tuple[str, ...]] = {}  # by node name, as a leaf's error event has it
         self.log: TickLog | None = None
         self.recorder: TickRecorder | None = None
         self._set_up = False
@@ -188,7 +190,7 @@ class Runner:
         if self.run_dir is not None:
             self.context.run_dir = self.run_dir
         self.log = TickLog(self.files.stream, self.mission, self.robot.now, bool(self.robot.simulated))
-        self.context.events = self.log
+        self.context.events = _ErrorFrames(self.log, self._leaf_frames)
         self.log.bind()
         guard_exceptions(self.root, self._on_node_error)
         paths = node_paths(self.root)
@@ -241,13 +243,32 @@ class Runner:
         if self.recorder is not None:
             self.recorder.record(self.robot.now(), [], event="halted")
 
+    def replace_tree(self, root: Behaviour) -> None:
+        """Tick ``root`` from the next tick on (a reloaded tree, already set up; the old one halted).
+
+        The new tree's non-Leaf nodes are guarded as the first tree's were, and the tick log names
+        its nodes by their paths.
+        """
+        guard_exceptions(root, self._on_node_error)
+        self.root = root
+        if self.recorder is not None:
+            self.recorder.root = root
+            self.recorder.paths.update(node_paths(root))
+            self.recorder.watch_stops()
+
     def _on_node_error(self, node: Behaviour, error: Exception) -> None:
+        """A non-Leaf node's exception: an ``error`` event as a leaf's (reason, file:line, frames)."""
+        site = error_site(error)
+        self._error_frames[node] = site.frames
         if self.log is None:
             return
-        frames = traceback.extract_tb(error.__traceback__) if error.__traceback__ else []
         path = self.recorder.path(node) if self.recorder is not None else node.name
-        self.log.emit("error", node=path, error=f"{type(error).__name__}: {error}",
-                      where=frames[-1].name if frames else "")
+        self.log.emit("error", node=path, error=site.reason, where=site.where, function=site.function,
+                      traceback=list(site.frames))
+
+    def _fault_frames(self, node: Behaviour) -> tuple[str, ...]:
+        """The traceback of the error behind ``node``'s fault: its own (non-Leaf) or its leaf event's."""
+        return self._error_frames.get(node) or self._leaf_frames.get(node.name, ())
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
         """First signal: stop after this tick; a second one while running: stop now.
@@ -448,7 +469,7 @@ class Runner:
         if faulted is not None:  # failed because of an error, not because a condition was false
             node, cause = faulted
             summary["fault"] = {"node": self.recorder.path(node) if self.recorder else node.name,
-                                "error": cause}
+                                "error": cause, "traceback": list(self._fault_frames(node))}
         if self.context.outcome:  # what the mission did, in its leaves' words
             summary["outcome"] = dict(self.context.outcome)
         if self.recorder is not None:
@@ -511,3 +532,23 @@ class Runner:
             signal.signal(signum, handler)
         self._previous = {}
 
+
+class _ErrorFrames:
+    """The context's event sink: the tick log, noting each leaf ``error`` event's traceback frames.
+
+    A leaf reports its own errors (:meth:`missiontree.engine.leaf.Leaf._report_error`); the summary's
+    ``fault`` repeats the frames of the one behind the run's FAILURE.
+    """
+
+    def __init__(self, log: TickLog, frames: dict[str, tuple[str, ...]]) -> None:
+        self._log = log
+        self._frames = frames
+
+    def emit(self, event: str, /, **fields: Any) -> None:
+        """Note an error's frames, then write the event to the tick log."""
+        if event == "error" and isinstance(fields.get("traceback"), list):
+            self._frames[str(fields.get("node"))] = tuple(str(f) for f in fields["traceback"])
+        self._log.emit(event, **fields)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._log, name)
