@@ -58,3 +58,15 @@ def test_render_of_broken_mission_exits_two(tmp_path: Path, capsys: pytest.Captu
     captured = capsys.readouterr()
     assert captured.out == ""
     assert "m.yaml:2:3: root/Sequence: expected `memory: true` or `memory: false`" in captured.err
+
+
+def test_text_tree_shows_node_conditions(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A node's conditions are drawn after its parameters, expressions quoted."""
+    mission = tmp_path / "m.yaml"
+    mission.write_text('version: 1\nblackboard: {battery: 1.0, done: false}\nroot:\n  Sequence:\n'
+                       '    name: main\n    memory: true\n    children:\n'
+                       '      - Wait: {seconds: 1, skip_if: "battery < 0.2", on_success: "done = true"}\n',
+                       encoding="utf-8")
+    assert main(["render", "--no-plugins", str(mission)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[1] == '└── Wait  seconds=1 skip_if="battery < 0.2" on_success="done = true"'

@@ -236,3 +236,17 @@ def test_recorded_poses_that_are_not_finite_numbers_are_left_out(tmp_path: Path)
     view["poses"] = [[0.0, 1.0, 2.0], [0.1, float("nan"), 2.0], [0.2, "x", 1.0], [0.3, 1.0], [0.4, 1.5, 2.5]]
     (run / "runview.json").write_text(_json.dumps(view))
     assert open_run(run).poses == [(0.0, 1.0, 2.0), (0.4, 1.5, 2.5)]
+
+
+def test_a_declared_tree_lists_node_conditions_among_params(tmp_path: Path):
+    """A tree read from a mission file carries its nodes' conditions (as the viewer shows parameters)."""
+    from missiontree.engine.loader import load_mission
+    from missiontree.runlog.replay import declared_tree
+    from missiontree.testing import fresh_plugins
+
+    mission = tmp_path / "m.yaml"
+    mission.write_text('version: 1\nblackboard: {battery: 1.0}\nroot:\n  Sequence:\n    name: main\n'
+                       '    memory: true\n    children:\n      - Wait: {seconds: 1, skip_if: "battery < 0.2"}\n',
+                       encoding="utf-8")
+    tree = declared_tree(load_mission(mission, fresh_plugins().nodes))
+    assert tree["children"][0]["params"] == {"seconds": 1, "skip_if": "battery < 0.2"}

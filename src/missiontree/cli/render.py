@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -20,6 +21,7 @@ from missiontree.engine.spec import MissionSpec, NodeSpec
 from missiontree.errors import ConfigError
 
 _MAX_VALUE = 40
+_SPACE = re.compile(r"\s")
 _SHAPES = {"composite": "box", "decorator": "hexagon", "leaf": "ellipse"}
 
 
@@ -66,11 +68,17 @@ def label(node: NodeSpec) -> str:
 
 
 def params_text(node: NodeSpec) -> str:
-    """The parameters as written, ``key=value`` separated by spaces, long values shortened."""
+    """The parameters and conditions as written, ``key=value`` separated by spaces, long values shortened.
+
+    Text with spaces in it (an expression: ``skip_if="battery < 0.2"``) is quoted.
+
+    Conditions (``skip_if``, ``on_success``, ...) are shown after the parameters: they change what
+    the node does, so a drawn tree without them would mislead.
+    """
     parts = []
-    for key, value in node.raw.items():
+    for key, value in [*node.raw.items(), *node.conditions.items()]:
         shown = f"{{bb: {value['bb']}}}" if isinstance(value, dict) and set(value) == {"bb"} else (
-            value if isinstance(value, str) else json.dumps(value, default=str))
+            value if isinstance(value, str) and not _SPACE.search(value) else json.dumps(value, default=str))
         text = str(shown)
         if len(text) > _MAX_VALUE:
             text = text[: _MAX_VALUE - 1] + "…"
@@ -105,7 +113,8 @@ def dot_source(spec: MissionSpec) -> str:
         nonlocal counter
         ident = f"n{counter}"
         counter += 1
-        text = _escape(label(node)) + (f"\\n{_escape(params_text(node))}" if node.raw else "")
+        extra = params_text(node)
+        text = _escape(label(node)) + (f"\\n{_escape(extra)}" if extra else "")
         shape = _SHAPES.get(node.category or "leaf", "ellipse")
         out.append(f'  {ident} [label="{text}", shape={shape}];')
         for child in node.children:

@@ -95,6 +95,8 @@ class NodeState:
 def declared_tree(spec: Any) -> dict[str, Any]:
     """The tree of a checked mission spec as plain data (names, types, parameters, sources).
 
+    A node's conditions (``skip_if``, ``post``, ...) are among its ``params``, as written.
+
     Paths follow :func:`missiontree.engine.node_words.node_paths` (``[i]`` added to repeated names).
     """
     from missiontree.engine.json_lines import plain
@@ -110,7 +112,7 @@ def declared_tree(spec: Any) -> dict[str, Any]:
             "name": node.name,
             "type": node.type,
             "category": node.category or "",
-            "params": plain(node.raw),
+            "params": plain({**node.raw, **node.conditions}),
             "source": str(node.source),
             "children": children,
         }
