@@ -442,3 +442,24 @@ def test_a_person_the_detector_missed_gets_the_vlms_box() -> None:
     events, _ = watch_two([(elsewhere, 0.8)])
     alarms = events.of("alarm")
     assert alarms and alarms[0]["box"] == list(elsewhere)
+
+
+@pytest.mark.parametrize(("params", "expected"), [({}, False), ({"mirror": True}, True),
+                                                  ({"mirror": None}, None)])
+def test_the_detector_is_asked_for_the_single_pass_unless_told(monkeypatch: pytest.MonkeyPatch,
+                                                               params: dict, expected: bool | None) -> None:
+    """By default the leaf asks the detector for no mirror pass; ``mirror`` overrides it."""
+    import missiontree.behaviours.surveillance as surveillance
+
+    asked: list[bool | None] = []
+    real = surveillance.detection_job
+
+    def recording_job(detector: object, frame: RGBDFrame, mirror: bool | None = None) -> object:
+        asked.append(mirror)
+        return real(detector, frame, mirror=mirror)
+
+    monkeypatch.setattr(surveillance, "detection_job", recording_job)
+    robot = FakeRobot()
+    leaf, _, _ = setup_leaf(robot, **params)
+    step(robot, leaf, None)
+    assert asked == [expected]

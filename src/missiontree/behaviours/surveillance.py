@@ -111,6 +111,9 @@ class Surveillance(Leaf):
             "patrol-robot thesis).")
         min_score: float = Field(0.5, ge=0, le=1, description="Detector score needed to count a person.")
         label: str = Field("person", description="Detector label that counts as a person.")
+        mirror: bool | None = Field(
+            False, description="detect mode: also run the detector's mirror pass (null: as its models "
+            "config says). Off: for people it costs 40 % of the patrol's CPU and adds no precision.")
         surface_offset: float = Field(
             0.1, ge=0, description="Added to measured ranges: sensors see a person's near surface (m).")
         forget_after: float = Field(
@@ -226,7 +229,8 @@ class Surveillance(Leaf):
         """Send ``frame`` to the detector; the answer is read on a later tick (``_collect_detections``)."""
         detector = self.context.model("detector")
         call = model_caller(self.context).submit(  # the role's timeout; only failures are logged
-            "detector", detection_job(detector, frame), node=self.name, log_success=False)
+            "detector", detection_job(detector, frame, mirror=self.params.mirror), node=self.name,
+            log_success=False)
         self.detecting = (call, frame)
 
     def _collect_detections(self) -> None:
