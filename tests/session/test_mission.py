@@ -14,7 +14,7 @@ from missiontree.cli.main import main
 from missiontree.errors import ConfigError, MissionFileError
 from missiontree.plugins.manager import load_plugins
 from missiontree.session import MissionRequest, Session, process, run_mission
-from missiontree.session.params import parse_overrides
+from missiontree.engine.loader import load_mission
 from missiontree.session.progress import ProgressLine
 from missiontree.testing import ClockRobot, clean_state
 
@@ -76,26 +76,39 @@ def _plugins_with_fake() -> tuple[Any, _Recorded]:
 # -- --set ---------------------------------------------------------------------------------------------
 
 
+def _load(path: Path, given: dict[str, Any]) -> Any:
+    return load_mission(path, load_plugins(autoload=False).nodes, params=given)
+
+
+def _param(spec: Any, name: str) -> Any:
+    """The value the mission's Wait/SetBlackboard nodes got for ``name`` (through ${name})."""
+    nodes = {node.type: node for node in spec.nodes()}
+    return {"wait": nodes["Wait"].raw["seconds"], "label": nodes["SetBlackboard"].raw["value"]}[name]
+
+
 def test_set_values_take_the_type_of_the_default(tmp_path: Path) -> None:
+    """--set text is read as YAML and held to the default's type; text stays text as typed."""
     path = _mission(tmp_path)
-    values = parse_overrides(path, {"wait": "2", "laps": "3", "label": "red backpack", "flag": "false"})
-    assert values == {"wait": 2.0, "laps": 3, "label": "red backpack", "flag": False}
-    assert parse_overrides(path, {"label": "3"}) == {"label": "3"}  # text stays text as typed
+    spec = _load(path, {"wait": "2", "laps": "3", "label": "red backpack", "flag": "false"})
+    assert _param(spec, "wait") == 2.0 and isinstance(_param(spec, "wait"), float)
+    assert _param(spec, "label") == "red backpack"
+    assert _param(_load(path, {"label": "3"}), "label") == "3"
 
 
-@pytest.mark.parametrize(("given", "words"), [
-    ({"lap": "3"}, "declares no parameter 'lap'; did you mean 'laps'?"),
-    ({"laps": "two"}, "--set laps: expected a whole number (the default is 1), found 'two'"),
-    ({"laps": "2.5"}, "--set laps: expected a whole number"),
-    ({"flag": "maybe"}, "--set flag: expected a true/false"),
+@pytest.mark.parametrize(("given", "words", "line"), [
+    ({"lap": "3"}, "params.lap: --set lap: the mission declares no parameter 'lap'; did you mean 'laps'?", 2),
+    ({"laps": "two"}, "params.laps: --set laps: expected a whole number (the default is 1), found 'two'", 4),
+    ({"laps": "2.5"}, "params.laps: --set laps: expected a whole number", 4),
+    ({"flag": "maybe"}, "params.flag: --set flag: expected a true/false", 6),
 ])
-def test_a_bad_set_names_the_problem_and_lists_the_params(tmp_path: Path, given: dict[str, str],
-                                                           words: str) -> None:
-    with pytest.raises(ConfigError) as caught:
-        parse_overrides(_mission(tmp_path), given)
-    assert words in str(caught.value)
-    assert "wait=0.5 (number), laps=1 (whole number), label=start (text), flag=true (true/false)" in \
-        str(caught.value)
+def test_a_bad_set_is_a_problem_at_the_param_with_its_position(tmp_path: Path, given: dict[str, str],
+                                                               words: str, line: int) -> None:
+    """A bad --set value is reported while loading, at params.<name> with file:line:col, listing the params."""
+    with pytest.raises(MissionFileError) as caught:
+        _load(_mission(tmp_path), given)
+    text = str(caught.value)
+    assert f"m.yaml:{line}:" in text and words in text
+    assert "wait=0.5 (number), laps=1 (whole number), label=start (text), flag=true (true/false)" in text
 
 
 def test_set_replaces_the_default_in_the_run(tmp_path: Path) -> None:

@@ -154,7 +154,6 @@ def preflight(plan: BatchPlan, plugins: Any) -> None:
     from missiontree.engine.build import build_tree
     from missiontree.engine.loader import load_mission
     from missiontree.engine.substitute import apply_rules, load_rules
-    from missiontree.session.params import parse_overrides
     from missiontree.session.preflight import check_references
 
     allow = bool(plan.request.get("allow_outside"))
@@ -162,8 +161,7 @@ def preflight(plan: BatchPlan, plugins: Any) -> None:
     worlds = list(dict.fromkeys(run.world for run in plan.runs))
     spec = None
     for params in combos:
-        overrides = parse_overrides(plan.mission, dict(params) or None)
-        spec = load_mission(plan.mission, plugins.nodes, allow_outside=allow, params=overrides)
+        spec = load_mission(plan.mission, plugins.nodes, allow_outside=allow, params=dict(params))
     substitute = plan.request.get("substitute")
     if substitute is not None and spec is not None:  # a rule matching no node is refused before any run
         apply_rules(spec, build_tree(spec, plugins.nodes), load_rules(substitute))

@@ -27,7 +27,7 @@ from missiontree.session.mission import (
     MissionRequest,
     Session,
 )
-from missiontree.session.params import parse_assignment, parse_overrides
+from missiontree.session.params import parse_assignment
 from missiontree.session.rundir import RunDirectory
 
 EPILOG = """\
@@ -169,7 +169,7 @@ def _loader(request: MissionRequest, session: Session) -> Callable[[], MissionSp
 
     def load() -> MissionSpec:
         return load_mission(mission, session.plugins.nodes, allow_outside=request.allow_outside,
-                            params=parse_overrides(mission, request.params))
+                            params=dict(request.params or {}))
 
     return load
 

@@ -23,6 +23,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from missiontree.engine.overrides import OverrideError, convert_override, describe_params
 from missiontree.engine.registry import NodeRegistry
 from missiontree.engine.spec import (
     CHILD_KEY,
@@ -72,8 +73,9 @@ def load_mission(path: str | Path, registry: NodeRegistry, *, allow_outside: boo
         registry: The node types the mission may use.
         allow_outside: Allow includes that resolve outside the mission's folder and the trusted
             tree folders.
-        params: Values that replace the mission's ``params:`` defaults (``run --set``; the names
-            must be declared, see :func:`missiontree.session.params.parse_overrides`).
+        params: Values that replace the mission's ``params:`` defaults (``run --set``): text is read
+            as YAML, each is held to its default's type (:mod:`missiontree.engine.overrides`); an
+            unknown name or a wrong type is a problem at ``params.<name>``.
 
     Returns:
         The checked mission, every node's ``params`` validated.
@@ -154,7 +156,7 @@ class _Loader:
         if not self._check_top(doc, is_subtree=False):
             return None
         values = self._declared_params(doc, given=None, include_site=None)
-        values.update(self.overrides)
+        values.update(self._checked_overrides(doc))
         file = _File(self.path, doc, values, (), (self.path.resolve(),))
         blackboard = self._blackboard(file)
         run = self._run_section(doc)
@@ -201,6 +203,26 @@ class _Loader:
                 ("version",), f"expected format version 1, found {shown(version)}", "write `version: 1`",
                 where=""))
         return ok
+
+    def _checked_overrides(self, doc: Located) -> dict[str, Any]:
+        """The ``--set`` values, each read and held to its default's type; problems at ``params.<name>``."""
+        declared = doc.data.get("params")
+        declared = {str(k): v for k, v in declared.items()} if isinstance(declared, dict) else {}
+        values: dict[str, Any] = {}
+        for name, given in self.overrides.items():
+            hint = describe_params(self.path, declared)
+            if name not in declared:
+                near = difflib.get_close_matches(name, list(declared), n=1)
+                also = f"; did you mean {near[0]!r}?" if near else ""
+                self.problems.append(doc.problem_at(
+                    ("params",), f"--set {name}: the mission declares no parameter {name!r}{also}", hint,
+                    key=True, where=f"params.{name}"))
+                continue
+            try:
+                values[name] = convert_override(name, given, declared[name])
+            except OverrideError as error:
+                self.problems.append(doc.problem_at(("params", name), str(error), hint))
+        return values
 
     def _declared_params(
         self, doc: Located, given: dict[str, Any] | None, include_site: tuple[Located, str] | None

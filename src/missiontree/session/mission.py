@@ -39,7 +39,6 @@ from missiontree.plugins.manager import Plugins, load_plugins
 from missiontree.reasoning.calls import CALLER_KEY
 from missiontree.robot.envelope import EnvelopedRobot, wrap_robot
 from missiontree.session.models import build_models
-from missiontree.session.params import parse_overrides
 from missiontree.session.preflight import check_references, resolve_mission_path
 from missiontree.session.process import run_span
 from missiontree.session.progress import ProgressLine
@@ -178,7 +177,7 @@ class Session:
     def _wire(self) -> None:
         request = self.request
         mission = Path(request.mission)
-        overrides = parse_overrides(mission, request.params)
+        overrides = dict(request.params or {})  # read and checked against the params' types while loading
         self.spec: MissionSpec = load_mission(
             mission, self.plugins.nodes, allow_outside=request.allow_outside, params=overrides)
         # what the mission references (world, robot, waypoint files, the models config and its model
