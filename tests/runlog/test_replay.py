@@ -246,7 +246,8 @@ def test_a_declared_tree_lists_node_conditions_among_params(tmp_path: Path):
 
     mission = tmp_path / "m.yaml"
     mission.write_text('version: 1\nblackboard: {battery: 1.0}\nroot:\n  Sequence:\n    name: main\n'
-                       '    memory: true\n    children:\n      - Wait: {seconds: 1, skip_if: "battery < 0.2"}\n',
+                       '    memory: true\n    children:\n'
+                       '      - Wait: {seconds: 1, skip_if: "battery < 0.2"}\n',
                        encoding="utf-8")
     tree = declared_tree(load_mission(mission, fresh_plugins().nodes))
     assert tree["children"][0]["params"] == {"seconds": 1, "skip_if": "battery < 0.2"}

@@ -11,10 +11,10 @@ from typing import Any
 import pytest
 
 from missiontree.cli.main import main
+from missiontree.engine.loader import load_mission
 from missiontree.errors import ConfigError, MissionFileError
 from missiontree.plugins.manager import load_plugins
 from missiontree.session import MissionRequest, Session, process, run_mission
-from missiontree.engine.loader import load_mission
 from missiontree.session.progress import ProgressLine
 from missiontree.testing import ClockRobot, clean_state
 
@@ -103,7 +103,7 @@ def test_set_values_take_the_type_of_the_default(tmp_path: Path) -> None:
 ])
 def test_a_bad_set_is_a_problem_at_the_param_with_its_position(tmp_path: Path, given: dict[str, str],
                                                                words: str, line: int) -> None:
-    """A bad --set value is reported while loading, at params.<name> with file:line:col, listing the params."""
+    """A bad --set value is a problem while loading, at params.<name> with file:line:col, params listed."""
     with pytest.raises(MissionFileError) as caught:
         _load(_mission(tmp_path), given)
     text = str(caught.value)
