@@ -8,7 +8,7 @@ import pytest
 
 from missiontree.backends.ros2 import profile_from_options
 from missiontree.backends.ros2.profile import load_profile
-from missiontree.errors import ConfigError
+from missiontree.errors import ConfigError, ProblemsError
 
 
 def test_turtlebot4_profile_names_the_turtlebot4_topics() -> None:
@@ -60,3 +60,28 @@ def test_unknown_profile_name_lists_the_known_ones() -> None:
     """A profile name that does not exist lists the shipped ones."""
     with pytest.raises(ConfigError, match="turtlebot4"):
         load_profile("no-such-robot")
+
+
+def test_profile_problems_have_file_line_and_col(tmp_path: Path) -> None:
+    """Every problem of a profile file is reported at once, each at its file:line:col."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("topics:\n  scann: /scan\nnavigation:\n  interface: carrier-pigeon\n")
+    with pytest.raises(ProblemsError) as caught:
+        load_profile(bad)
+    shown = [str(problem) for problem in caught.value.problems]
+    assert shown[0].startswith(f"{bad}:2:3: topics.scann:")
+    assert shown[1].startswith(f"{bad}:4:14: navigation.interface:") and "carrier-pigeon" in shown[1]
+
+
+def test_a_profile_that_is_not_yaml_is_located(tmp_path: Path) -> None:
+    """A YAML syntax error in a profile names the file and line (the shared YAML reader's message)."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("topics: [1\n")
+    with pytest.raises(ProblemsError, match=r"bad\.yaml:2:1: YAML syntax error"):
+        load_profile(bad)
+
+
+def test_a_bad_override_names_the_key() -> None:
+    """An option given over the file with an unknown key is a ConfigError naming the key."""
+    with pytest.raises(ConfigError, match=r"topics\.scann"):
+        load_profile("turtlebot4", {"topics": {"scann": "/x"}})

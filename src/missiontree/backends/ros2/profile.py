@@ -10,13 +10,16 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from missiontree.errors import ConfigError
+from missiontree.errors import ConfigError, ProblemsError
 from missiontree.paths import find_config
+from missiontree.yamlio import load_yaml, short_repr, validation_problems
 
 DEFAULT_PROFILE = "turtlebot4"
+#: The profile that lists every key (named in problems' hints).
+_DOCS = "config/backends/turtlebot4.yaml"
+_DOCS_HINT = f"write `key: value` lines ({_DOCS} lists every key)"
 
 
 class _Section(BaseModel):
@@ -151,24 +154,33 @@ def _merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
 def load_profile(name: str | Path = DEFAULT_PROFILE, overrides: dict[str, Any] | None = None) -> Ros2Profile:
     """Read a profile by shipped name or path, with ``overrides`` merged over it.
 
+    The file is read through :mod:`missiontree.yamlio` and checked on its own first, so a problem in
+    it is reported at its ``file:line:col``; the ``overrides`` (options given to ``create_robot``, a
+    run config's ``ros2:`` mapping) are checked after merging and named by key.
+
     Raises:
-        ConfigError: The file is missing, not YAML, or has an unknown key or a value of the wrong type;
-            the message names the file and the key.
+        ProblemsError: The file is missing, not YAML, or has an unknown key or a value of the wrong
+            type (every problem located).
+        ConfigError: An override has an unknown key or a value of the wrong type.
     """
     path = find_config("backends", name)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
+    doc = load_yaml(path, error=ProblemsError)
+    data = doc.data if doc.data is not None else {}
     if not isinstance(data, dict):
-        raise ConfigError(f"{path}: expected a mapping of profile keys, found {type(data).__name__}")
-    data = _merge(data, overrides or {})
+        raise ProblemsError([doc.problem_at((), f"expected a mapping of profile keys, found "
+                                            f"{type(data).__name__}", _DOCS_HINT, where="")])
     try:
-        return Ros2Profile.model_validate(data)
+        profile = Ros2Profile.model_validate(data)
+    except ValidationError as exc:
+        raise ProblemsError(validation_problems(exc, doc, Ros2Profile, docs=_DOCS)) from None
+    if not overrides:
+        return profile
+    try:
+        return Ros2Profile.model_validate(_merge(data, overrides))
     except ValidationError as exc:
         problems = "; ".join(
-            f"{'.'.join(str(p) for p in err['loc'])}: {err['msg']} (found {err.get('input')!r})"
+            f"{'.'.join(str(p) for p in err['loc'])}: {err['msg']} (found {short_repr(err.get('input'))})"
             for err in exc.errors()
         )
-        raise ConfigError(f"{path}: ROS 2 profile is invalid: {problems} "
-                          "(see config/backends/turtlebot4.yaml for every key)") from None
+        raise ConfigError(f"the options given over {path} make an invalid ROS 2 profile: {problems} "
+                          f"({_DOCS} lists every key)") from None
