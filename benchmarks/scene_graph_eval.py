@@ -435,7 +435,7 @@ class SceneEvalProbe:
             sys.stdout.write(printed.getvalue())  # what the world printed before it failed
             sys.stdout.flush()
             raise
-        row["wall_s"] = time.perf_counter() - t0
+        row["eval_wall_s"] = time.perf_counter() - t0
         return {"scene_eval": row, "scene_eval_output": printed.getvalue()}
 
     def evaluate(self, name: str, seed: int, session: Any, result: Any) -> dict[str, Any]:
@@ -693,6 +693,7 @@ def run_worlds(
                 # the mission's own outcome (SUCCESS, FAILURE when exploration ended partial, RUNNING at
                 # its max_duration) is in the row; a run without the probe's row raised (ERROR)
                 if "scene_eval" in (done.figures or {}):
+                    done.figures["scene_eval"]["wall_s"] = done.wall_time_s  # mission and evaluation
                     rows.append(done.figures["scene_eval"])
                     on_row(done.figures["scene_eval"], done.figures.get("scene_eval_output", ""))
                     continue
@@ -768,7 +769,8 @@ def split_figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "room_accuracy": round(tot["in_room"] / max(tot["tp"], 1), 4),
             "room_type_accuracy": round(tot["types_ok"] / max(tot["rooms"], 1), 4),
             "colour_accuracy": round(tot["colour_ok"] / max(tot["tp"], 1), 4),
-            "changes_reflected": round(tot["reflected"] / max(tot["changes"], 1), 4),
+            # None without a dynamic phase (--single-pass): no change was made, none measured
+            "changes_reflected": round(tot["reflected"] / tot["changes"], 4) if tot["changes"] else None,
             "ms_per_frame_median": round(statistics.median(ms), 3) if ms else None,
         }
         if m == "ours":
@@ -788,6 +790,11 @@ def split_figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def _fmt(value: float | None) -> str:
+    """A figure with three decimals, or a dash when it was not measured."""
+    return "-" if value is None else f"{value:.3f}"
+
+
 def markdown_table(result: dict[str, Any]) -> list[str]:
     """Ours per split (test with its 95 % interval) and the dev-test gap, as a markdown table."""
     splits = [s for s in ("dev", "test") if s in result]
@@ -801,7 +808,7 @@ def markdown_table(result: dict[str, Any]) -> list[str]:
             ci = result[s].get("ci95", {}).get(key)
             counts = result[s].get("counts", {}).get(key)
             text = "-" if value is None else f"{value:.3f}"
-            if ci is not None and counts is not None:
+            if value is not None and ci is not None and counts is not None:
                 text += f" [{ci[0]:.3f}, {ci[1]:.3f}] ({counts[0]}/{counts[1]})"
             cells.append(text)
         gap = result.get("gap", {}).get(key)
@@ -933,7 +940,7 @@ def main(argv: list[str] | None = None) -> int:
             r = result[split]
             print(
                 f"{split}: {r['worlds']} worlds, ours precision {r['object_precision']:.3f} recall "
-                f"{r['object_recall']:.3f} changes {r['changes_reflected']:.3f} | nais precision "
+                f"{r['object_recall']:.3f} changes {_fmt(r['changes_reflected'])} | nais precision "
                 f"{r['nais']['object_precision']:.3f} recall {r['nais']['object_recall']:.3f}"
             )
     if "test" in result:

@@ -48,6 +48,15 @@ def test_split_figures_pool_counts_and_give_wilson_intervals() -> None:
     assert fig["nais"]["relation_precision"] is None
 
 
+def test_without_a_dynamic_phase_changes_reflected_is_not_measured() -> None:
+    """Worlds run without changes (--single-pass) give no changes figure, not a zero."""
+    single = row(9, 10, 10, 0)
+    single["changes"] = 0
+    fig = scene_graph_eval.split_figures([single])
+    assert fig["changes_reflected"] is None
+    assert any("| changes_reflected | - |" in line for line in scene_graph_eval.markdown_table({"dev": fig}))
+
+
 def test_markdown_table_shows_both_splits_and_the_gap() -> None:
     """The table has a row per headline figure with dev, test (interval and counts) and the gap."""
     dev = scene_graph_eval.split_figures([row(10, 10, 10, 6)])
