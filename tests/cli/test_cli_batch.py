@@ -203,3 +203,13 @@ def test_substitute_rule_matching_nothing_is_exit_2_before_any_run(
                  "--substitute", str(rules)]) == 2
     assert "rules.yaml:2" in capsys.readouterr().err
     assert not (out / "runs").exists()
+
+
+def test_substitute_needs_a_regular_file(mission: Path, tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    """Every run reads the rules file, so a missing file (or a pipe) is exit 2 before any run."""
+    out = tmp_path / "out"
+    assert main(["batch", str(mission), "--seeds", "0", "--out", str(out), "--quiet",
+                 "--substitute", str(tmp_path / "none.yaml")]) == 2
+    assert "--substitute" in capsys.readouterr().err
+    assert not (out / "runs").exists()

@@ -135,6 +135,9 @@ def plan_from_args(args: argparse.Namespace) -> BatchPlan:
     if args.allow_outside:
         request["allow_outside"] = True
     if getattr(args, "substitute", None) is not None:  # absolute: workers may run in another directory
+        if not Path(args.substitute).is_file():  # every run reads it: a pipe would be empty after the first
+            raise ConfigError(f"--substitute: {str(args.substitute)!r} is not a file; batch runs read the "
+                              "rules file in every run, give a regular file")
         request["substitute"] = str(Path(args.substitute).resolve())
     return expand_plan(
         args.tree, seeds=parse_seeds(args.seeds), worlds=parse_worlds(args.worlds) if args.worlds else None,

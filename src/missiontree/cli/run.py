@@ -120,8 +120,7 @@ def request_from_args(args: argparse.Namespace) -> MissionRequest:
         config=args.config, seed=args.seed, out=args.out, max_duration=args.max_duration,
         tick_hz=args.tick_hz,
         realtime=args.realtime, params=params, unknown_map=args.unknown_map, quiet=bool(args.quiet),
-        allow_outside=bool(args.allow_outside), plugins=plugins_from_args(args),
-        substitute=getattr(args, "substitute", None))
+        allow_outside=bool(args.allow_outside), plugins=plugins_from_args(args))
 
 
 def run_substituted(request: MissionRequest, rules: list[Rule] | None = None, *,
@@ -184,6 +183,7 @@ def _builder(session: Session, rules: list[Rule] | None) -> Callable[[MissionSpe
 
 def run(args: argparse.Namespace) -> int:
     """Run the mission; print a one-line result and where the run directory is."""
+    # read once, here (the file may be a pipe: --substitute /dev/stdin); run_substituted applies them
     rules = load_rules(args.substitute) if getattr(args, "substitute", None) is not None else None
 
     def run_mission(request: MissionRequest) -> RunResult:
