@@ -214,6 +214,19 @@ def test_look_around_turns_a_full_circle_at_a_goal_reached() -> None:
     assert robot.drives[-1] == (0.0, 0.0)
 
 
+def test_a_frontier_reached_and_looked_around_from_that_stays_unknown_is_a_failed_try() -> None:
+    """With look_around, a frontier still unknown after the look is a failed try; three end it partial."""
+    data = corridor_map()
+    data[:, :30] = 100  # the west end is a wall; the east end never reveals (the lidar cannot see in)
+    robot = MapRobot(data)
+    leaf, events = make(robot, look_around=True, look_steps=4, look_pause=0.0, turn_speed=2.0)
+    run(leaf, robot, max_ticks=2000)
+    tries = events.of("explore_try_failed") + events.of("explore_blacklist")
+    assert any("looked around" in e["reason"] for e in tries)
+    assert len(events.of("explore_reached")) == 3  # three tries, then given up: not looked from forever
+    assert leaf.status == Status.FAILURE and leaf.feedback_message.startswith("partial: ")
+
+
 def test_learned_map_is_written_into_the_run_directory(tmp_path: Path) -> None:
     """When the leaf ends, map.pgm + map.yaml (map_server format) hold the map it explored."""
     data = corridor_map()

@@ -75,11 +75,6 @@ LONG_RULES: tuple[tuple[str, int, tuple[int, ...]], ...] = (
 #: Documented commands that end FAILURE because of the code, not the docs (command -> what goes
 #: wrong); each runs and is reported as xfail until the code is fixed (then XPASS: remove it here).
 KNOWN_FAILURES: dict[str, str] = {
-    "missiontree run trees/explore.yaml --world generated:7":
-        "exploration of generated:7 ends FAILURE on some runs (3353 ticks, on a loaded machine) and "
-        "SUCCESS on others (2730 ticks): not repeatable from run to run",
-    "missiontree run trees/explore.yaml --world generated:7 --set look_around=true --out runs/explore7":
-        "as the run without look_around: generated:7's exploration is not repeatable",
     'missiontree run trees/examples/report_search.yaml --set target="red backpack"':
         "the report's method (as the report describes it) ends FAILURE in the office after three rounds: "
         "the red backpack lies 6 m from the centre of the largest region its scan points reach",

@@ -165,6 +165,7 @@ class Explore(Leaf):
         self.look_pause_until = -math.inf
         self.look_started = now
         self.look_steps_done = 0
+        self.look_target: Candidate | None = None  # the frontier reached that the look is for
 
     # -- lifecycle ---------------------------------------------------------------------------------
 
@@ -205,6 +206,7 @@ class Explore(Leaf):
             if not self._look(now, pose):
                 return self.running(f"looking around: {math.degrees(self.look_turned):.0f} deg")
             self.state = _SELECT
+            self._after_look(grid, pose)
         if self.state == _DRIVE:
             status = self._drive(now, grid, pose)
             if status is not None:
@@ -347,6 +349,7 @@ class Explore(Leaf):
                     self._try_failed(target, "reached, but its frontier stays unknown from there", grid, pose)
                 if self.params.look_around:
                     self._start_look(now, pose)
+                    self.look_target = target if target.kind == "frontier" else None
                     return self.running("looking around")
             else:
                 reason = (result.reason if result is not None and result.reason else status.value)
@@ -471,6 +474,14 @@ class Explore(Leaf):
         self.look_pause_until = -math.inf
         self.look_started = now
         self.look_steps_done = 0
+
+    def _after_look(self, grid: OccupancyGrid, pose: Pose2D) -> None:
+        """A frontier reached and looked around from that still stays unknown counts as a failed try."""
+        target, self.look_target = self.look_target, None
+        assert self.planner is not None
+        if target is not None and self.planner.still_frontier(grid, *target.target):
+            self._try_failed(target, "reached and looked around, but its frontier stays unknown from there",
+                             grid, pose)
 
     def _look(self, now: float, pose: Pose2D) -> bool:
         """Turn a full circle in steps with pauses; True when done (or given up after a timeout)."""

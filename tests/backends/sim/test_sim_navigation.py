@@ -20,7 +20,7 @@ from missiontree.backends.sim.navigation import (
 from missiontree.backends.sim.schema import NavigationSpec
 from missiontree.errors import ConfigError
 from missiontree.robot.actions import ActionStatus
-from missiontree.types import Pose2D, Tolerance
+from missiontree.types import LaserScan, Pose2D, Tolerance
 
 ANY = Tolerance(0.25, 2 * math.pi)
 
@@ -321,3 +321,23 @@ def test_learned_map_goal_beside_a_wall_is_reached_within_its_tolerance():
     result = _run(robot, handle, 60.0)
     assert result.succeeded, result
     assert robot.truth.robot_pose().distance_to(goal) <= 0.3 and robot.bumps == 0
+
+
+def _ring_scan(hit_bearing: float | None, hit_range: float = 0.25) -> LaserScan:
+    """A 360-beam scan with no returns but one at ``hit_bearing`` (robot frame), if given."""
+    ranges = np.full(360, np.inf, np.float32)
+    if hit_bearing is not None:
+        ranges[int(round(math.degrees(hit_bearing))) % 360] = hit_range
+    return LaserScan(0.0, 0.0, math.radians(1.0), 0.05, 12.0, ranges)
+
+
+@pytest.mark.parametrize(("seen", "marked"), [(False, 1), (True, 0)])
+def test_a_contact_the_lidar_sees_is_not_marked_as_a_hazard(seen: bool, marked: int) -> None:
+    """A bump the lidar sees (a person's legs) leaves no lethal mark; an unseen one is kept."""
+    robot = create_robot({"world": "conformance"})
+    nav = Navigator(robot.world.grid, robot.profile.body.radius, robot.profile, robot.profile.navigation,
+                    allow_unknown=True)
+    pose = Pose2D(2.0, 2.0, 0.0)
+    scan = _ring_scan(0.0 if seen else None)
+    nav.mark_hazard(2.21, 2.0, 1.0, scan, pose)
+    assert len(nav.costmap.extra_lethal) == marked

@@ -58,6 +58,7 @@ _RECOVER_AFTER = 2.0       # s blocked with something inside the kept clearance 
 _RECOVERY_BACKUP = 0.25    # m the blocked recovery reverses at most (less when something is behind)
 _MAX_RECOVERIES = 3        # blocked recoveries per goal (then the goal aborts when blocked_timeout runs out)
 _HAZARD_LIFETIME = 60.0   # s a bumper hit stays in the costmap
+_HAZARD_SEEN_RADIUS = 0.2  # m: a lidar return this close to a contact means the lidar sees what was touched
 _MAX_HAZARDS = 2_000
 _STOP_TIME = 0.5          # s of travel at the commanded speed kept clear ahead (stopping distance)
 _CREEP_SPEED = 0.05        # m/s: the slowest approach the speed regulation allows
@@ -163,17 +164,23 @@ class Navigator:
         self.costmap.update(grid, region)
         self._map_changed = True
 
-    def mark_hazard(self, x: float, y: float, now: float) -> None:
+    def mark_hazard(self, x: float, y: float, now: float, scan: LaserScan | None = None,
+                    pose: Pose2D | None = None) -> None:
         """An obstacle the robot touched (a bumper hit): lethal for a while, the path checked again.
 
         Low things under the lidar's plane never reach a learned map; like a hazard layer fed by
-        the TurtleBot 4's bumper, the costmap keeps them for ``_HAZARD_LIFETIME`` seconds (what
-        was touched may have been a person, who moves on).
+        the TurtleBot 4's bumper, the costmap keeps them for ``_HAZARD_LIFETIME`` seconds. What the
+        lidar sees at the contact (``scan`` taken at ``pose``: a person's legs, a wall) is not marked:
+        the lidar already keeps it in view, and a person who walks on must not seal a doorway.
         """
         follow = self._follow
         if follow is not None and follow.backing_until is None:
             follow.backing_until = now + _BACKUP_TIME   # the base's bump reflex: back off first
             self.recoveries += 1
+        if scan is not None and pose is not None:
+            seen = self._scan_points(scan, pose)
+            if len(seen) and float(np.min(np.hypot(seen[:, 0] - x, seen[:, 1] - y))) < _HAZARD_SEEN_RADIUS:
+                return
         if any(math.hypot(x - hx, y - hy) < 0.05 for _, hx, hy in self._hazards):
             return
         self._hazards.append((now, x, y))

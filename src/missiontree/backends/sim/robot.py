@@ -341,7 +341,7 @@ class SimRobot:
                     c, s = math.cos(est.yaw - here.yaw), math.sin(est.yaw - here.yaw)
                     ux, uy = dx / step, dy / step   # the push direction, turned into the estimate's frame
                     hx, hy = est.x + reach * (c * ux - s * uy), est.y + reach * (s * ux + c * uy)
-                    self._nav.mark_hazard(hx, hy, self._t)
+                    self._nav.mark_hazard(hx, hy, self._t, self._scan, est)
             self._base.halt()
             self.bumps += 1
             if self._t - self._last_refused > _CONTACT_GAP:  # pushing on against the same thing is one
