@@ -116,3 +116,9 @@ def test_a_mission_node_type_is_imported_when_asked_for() -> None:
     """Asking the registry for Patrol imports its module and gives the built-in's declaration."""
     node_type = load_plugins(autoload=False).nodes.get("Patrol")
     assert node_type is not None and node_type.provider == "builtin" and node_type.category == "leaf"
+
+
+def test_the_scene_graphs_second_look_is_a_node_type_missions_can_name() -> None:
+    """LookAgain (second looks at doubtful places and table tops) is a built-in node type."""
+    plugins = load_plugins(autoload=False)
+    assert "LookAgain" in [t.name for t in plugins.nodes]

@@ -26,6 +26,7 @@ def register_nodes(registry: NodeRegistry) -> None:
     from missiontree.behaviours.motion import NavigateTo, Rotate
     from missiontree.behaviours.patrol import Patrol
     from missiontree.behaviours.scene import BuildSceneGraph
+    from missiontree.behaviours.scene_look import LookAgain
     from missiontree.behaviours.search import (
         Approach,
         ColourAttention,
@@ -42,5 +43,6 @@ def register_nodes(registry: NodeRegistry) -> None:
     registry.add(SERVE_COMMANDS)
     registry.add(Explore)
     registry.add(BuildSceneGraph)
+    registry.add(LookAgain)
     for search_leaf in (ScanRotate, ColourAttention, ResumeExplore, Locate, Approach, Verify):
         registry.add(search_leaf)

@@ -51,6 +51,7 @@ LAZY_NODE_TYPES: dict[str, str] = {
     "ServeCommands": "missiontree.behaviours.commands:SERVE_COMMANDS",
     "Explore": "missiontree.behaviours.explore:Explore",
     "BuildSceneGraph": "missiontree.behaviours.scene:BuildSceneGraph",
+    "LookAgain": "missiontree.behaviours.scene_look:LookAgain",
     "ScanRotate": "missiontree.behaviours.search:ScanRotate",
     "ColourAttention": "missiontree.behaviours.search:ColourAttention",
     "ResumeExplore": "missiontree.behaviours.search:ResumeExplore",
