@@ -144,8 +144,11 @@ def test_a_strong_choice_nothing_can_confirm_is_served_and_says_so() -> None:
 
 
 def test_a_choice_read_only_by_embedding_is_driven_to_but_never_served_unconfirmed() -> None:
-    """'I want my essay on paper' (no listed word) is read as printing by embedding: the printer is driven
-    to, but nothing can confirm it, so it is doubted and the command fails instead of a SUCCESS."""
+    """A choice read by embedding alone is driven to but, unconfirmable, fails instead of a SUCCESS.
+
+    'I want my essay on paper' (no listed word) is read as printing: the printer is driven to, but
+    nothing can confirm it, so it is doubted.
+    """
     status, log = run_leaf(["printer_1"], command="I want my essay on paper", look=True)
     assert [e["object"] for e in of(log, "goal_sent")] == ["printer_1"]
     assert status == "FAILURE" and not of(log, "intent_served")
