@@ -18,8 +18,10 @@ keeps from something (every arc towards its path sweeps it) first backs away fro
 scan behind allows, Nav2's BackUp recovery, and replans from there; for a while after a recovery the
 pure-pursuit line also keeps that clearance from what the map lacks (it no longer cuts the bend round it).
 
-The navigator is built from what it needs -- the map, the footprint radius, the robot profile's
-limits and step, the navigation settings -- not from the robot. On a learned map
+The lidar's geometry (the arc a command sweeps, lines clear of what the map lacks, the room
+behind) is :class:`~missiontree.backends.sim.nav_scan.ScanView`'s. The navigator is built from
+what it needs -- the map, the footprint radius, the robot profile's limits and step, the
+navigation settings -- not from the robot. On a learned map
 (``allow_unknown``, as Nav2 with a SLAM map) unknown cells are traversable; :meth:`Navigator.update_map`
 takes each map update, and a path the learned map now blocks is replanned at the next step; the
 goal aborts with a reason when it proves unreachable. Results are values with a reason, never
@@ -38,6 +40,7 @@ import numpy as np
 
 from missiontree.backends.sim.nav_costmap import Costmap, free_goal_within, path_length, plan
 from missiontree.backends.sim.nav_handle import SimNavHandle
+from missiontree.backends.sim.nav_scan import CREEP_SPEED, SIDE_MARGIN, STOP_TIME, UNMAPPED_MARGIN, ScanView
 from missiontree.backends.sim.schema import NavigationSpec, RobotProfile
 from missiontree.backends.sim.timing import TimingLog
 from missiontree.mapping import planner
@@ -60,12 +63,7 @@ _MAX_RECOVERIES = 3        # blocked recoveries per goal (then the goal aborts w
 _HAZARD_LIFETIME = 60.0   # s a bumper hit stays in the costmap
 _HAZARD_SEEN_RADIUS = 0.2  # m: a lidar return this close to a contact means the lidar sees what was touched
 _MAX_HAZARDS = 2_000
-_STOP_TIME = 0.5          # s of travel at the commanded speed kept clear ahead (stopping distance)
-_CREEP_SPEED = 0.05        # m/s: the slowest approach the speed regulation allows
-_SIDE_MARGIN = 0.03        # m beside the footprint the swept arc keeps clear of mapped obstacles
-_UNMAPPED_MARGIN = 0.12    # m it keeps clear of what the map does not hold (people reach past their legs)
 _WARY_TIME = 3.0           # s the follower aims round what the map lacks after a recovery (or a blocked arc)
-_CLOSER_SLACK = 0.01       # m a line may come nearer to what the robot is already too close to
 _TURN_WHEN_BLOCKED = 0.15  # rad: blocked with the path this far off the heading, turn in place
 _COST_SLACK = 12           # costmap units a lookahead line may exceed the path's own cost by (~2 cm)
 _SWERVE_SPEEDS = (0.05, 0.1)          # m/s: the arcs tried when the pure-pursuit arc is blocked
@@ -149,10 +147,7 @@ class Navigator:
         self.recoveries = 0
         self._hazards: deque[tuple[float, float, float]] = deque(maxlen=_MAX_HAZARDS)
         self._map_changed = False
-        self._xy_cache: tuple[LaserScan, np.ndarray, np.ndarray] | None = None
-        self._trig: tuple[tuple[float, float, int, float], np.ndarray, np.ndarray] | None = None
-        self._mapped_cache: tuple[LaserScan, np.ndarray] | None = None
-        self._scan_pose = Pose2D(0.0, 0.0, 0.0)
+        self.scan_view = ScanView(self.costmap, spec, radius)  # the lidar's geometry for the follower
 
     @property
     def radius(self) -> float:
@@ -178,7 +173,7 @@ class Navigator:
             follow.backing_until = now + _BACKUP_TIME   # the base's bump reflex: back off first
             self.recoveries += 1
         if scan is not None and pose is not None:
-            seen = self._scan_points(scan, pose)
+            seen = ScanView.world_points(scan, pose)
             if len(seen) and float(np.min(np.hypot(seen[:, 0] - x, seen[:, 1] - y))) < _HAZARD_SEEN_RADIUS:
                 return
         if any(math.hypot(x - hx, y - hy) < 0.05 for _, hx, hy in self._hazards):
@@ -239,7 +234,7 @@ class Navigator:
                                       self.recoveries)
             follow.last_step = now
             return 0.0, 0.0   # no way on the map learned so far: wait for one (people move on)
-        self._scan_pose = pose
+        self.scan_view.pose = pose
         gap = now - follow.last_step - self.physics_dt
         if gap > 1e-6:  # drive() overrode us meanwhile: the goal's timers pause
             follow.best_time += gap
@@ -256,7 +251,7 @@ class Navigator:
                                f"({remaining:.2f} m from the goal)", NO_PROGRESS)
         if follow.backing_until is not None:
             # reverse until the time is up or something comes near behind (people walk there too)
-            if now < follow.backing_until and self._rear_room(scan) > _BACKUP_SPEED * _STOP_TIME:
+            if now < follow.backing_until and self.scan_view.rear_room(scan) > _BACKUP_SPEED * STOP_TIME:
                 return -_BACKUP_SPEED, 0.0
             follow.backing_until = None
             # plan around what the lidar sees as well (as a blocked path's replan does): on the map
@@ -379,11 +374,11 @@ class Navigator:
     def _plan_around(self, scan: LaserScan | None, pose: Pose2D, goal: Pose2D) -> np.ndarray | None:
         """A plan that keeps as clear of what the lidar sees now as the follower will.
 
-        The follower keeps ``_UNMAPPED_MARGIN`` beside its radius from what the map does not hold;
+        The follower keeps ``UNMAPPED_MARGIN`` beside its radius from what the map does not hold;
         a plan passing closer (the planner's default discs are smaller) is blocked again at once.
         """
-        seen = self._scan_points(scan, pose)
-        return self._plan(self.costmap.with_points(seen, radius=_UNMAPPED_MARGIN + _SIDE_MARGIN), pose, goal)
+        seen = ScanView.world_points(scan, pose)
+        return self._plan(self.costmap.with_points(seen, radius=UNMAPPED_MARGIN + SIDE_MARGIN), pose, goal)
 
     def _remaining(self, follow: _Follow, pose: Pose2D) -> float:
         """Distance along the path from the robot; moves the progress index to the nearest point ahead."""
@@ -407,18 +402,18 @@ class Navigator:
         if abs(err) > _ROTATE_FIRST:
             follow.blocked_since = None
             return 0.0, w
-        obstacle = self._obstacle_ahead(scan, v, w)
+        obstacle = self.scan_view.obstacle_ahead(scan, v, w)
         if obstacle is not None and wary:
             follow.wary_until = now + _WARY_TIME
         if obstacle is not None:
             # regulate the speed to what lidar sees ahead (as Nav2's regulated pure pursuit): creep
             # on while the stopping distance at a lower speed keeps clear of it
             # on the same arc (the curvature kept, as Nav2's regulated pure pursuit scales speed)
-            slower = (obstacle[0] - self.radius - self.spec.obstacle_margin - 0.01) / _STOP_TIME
-            if _CREEP_SPEED <= slower < v:
+            slower = (obstacle[0] - self.radius - self.spec.obstacle_margin - 0.01) / STOP_TIME
+            if CREEP_SPEED <= slower < v:
                 w *= slower / v
                 v = slower
-                obstacle = self._obstacle_ahead(scan, v, w)
+                obstacle = self.scan_view.obstacle_ahead(scan, v, w)
         if obstacle is not None:
             swerve = self._swerve(follow, pose, scan)
             if swerve is not None:
@@ -483,7 +478,7 @@ class Navigator:
         for v in _SWERVE_SPEEDS:
             for k in _SWERVE_CURVATURES:
                 w = v * k
-                if abs(w) > self.limits.max_w or self._obstacle_ahead(scan, v, w) is not None:
+                if abs(w) > self.limits.max_w or self.scan_view.obstacle_ahead(scan, v, w) is not None:
                     continue
                 d = v * _SWERVE_TIME
                 if abs(k) < 1e-6:
@@ -530,7 +525,7 @@ class Navigator:
         line_cost = line_cost.reshape(len(_CORNER_SAMPLES), -1).max(axis=0)
         path_cost = np.maximum.accumulate(follow.costs[start:stop + 1])
         allowed = np.maximum(path_cost, here) + _COST_SLACK
-        clear = self._lines_clear(scan, pose, ends)
+        clear = self.scan_view.lines_clear(scan, pose, ends)
         for k in range(len(chosen) - 1, -1, -1):
             if line_cost[k] <= allowed[k] and line_cost[k] <= MAX_FREE and clear[k]:
                 far_enough = math.hypot(ends[k][0] - pose.x, ends[k][1] - pose.y) >= _SHORT_LOOKAHEAD
@@ -543,32 +538,6 @@ class Navigator:
                 return points[i]
         return points[-1]
 
-    def _lines_clear(self, scan: LaserScan | None, pose: Pose2D, ends: np.ndarray) -> np.ndarray:
-        """Per end point (K, 2): whether the straight line to it keeps clear of what the map lacks.
-
-        Clear means the arc check's clearance (radius plus ``_UNMAPPED_MARGIN``) from every scan point
-        off the map, or for a point already nearer, no nearer than now (less ``_CLOSER_SLACK``) and
-        never within the side margin (a line out of there is not ruled out before the arc check).
-        """
-        if scan is None:
-            return np.ones(len(ends), bool)
-        x, y = self._scan_xy(scan)
-        reach = self.spec.lookahead + self.radius + _UNMAPPED_MARGIN
-        near = (np.abs(x) < reach) & (np.abs(y) < reach) & ~self._mapped(scan)
-        if not near.any():
-            return np.ones(len(ends), bool)
-        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-        qx, qy = pose.x + c * x[near] - s * y[near], pose.y + s * x[near] + c * y[near]
-        kept = self.radius + _UNMAPPED_MARGIN
-        now_gap = np.hypot(x[near], y[near])
-        need = np.where(now_gap < kept, np.maximum(self.radius + _SIDE_MARGIN, now_gap - _CLOSER_SLACK), kept)
-        dx, dy = ends[:, 0] - pose.x, ends[:, 1] - pose.y                       # (K,)
-        length2 = np.maximum(dx * dx + dy * dy, 1e-12)
-        t = ((qx[None, :] - pose.x) * dx[:, None] + (qy[None, :] - pose.y) * dy[:, None]) / length2[:, None]
-        t = np.clip(t, 0.0, 1.0)                                                # (K, N)
-        gap = np.hypot(pose.x + t * dx[:, None] - qx[None, :], pose.y + t * dy[:, None] - qy[None, :])
-        return (gap >= need[None, :]).all(axis=1)
-
     def _pinned(self, follow: _Follow, now: float, pose: Pose2D) -> bool:
         """Whether the robot has been driving forward without moving (pinned against something)."""
         if follow.anchor is None or math.hypot(pose.x - follow.anchor[0], pose.y - follow.anchor[1]) > 0.02:
@@ -580,8 +549,8 @@ class Navigator:
                  obstacle: tuple[float, float, float]) -> tuple[float, float] | None:
         """Nav2's BackUp recovery for a robot stuck inside the clearance it keeps: the command, or None.
 
-        The follower keeps ``_UNMAPPED_MARGIN`` beside its footprint clear of what the map lacks
-        (``_SIDE_MARGIN`` of the map's own obstacles); a robot already closer than that to
+        The follower keeps ``UNMAPPED_MARGIN`` beside its footprint clear of what the map lacks
+        (``SIDE_MARGIN`` of the map's own obstacles); a robot already closer than that to
         something (it came in on a swerve, or the thing was put there) finds every arc towards its
         path blocked, and replans there start inside the obstacle's zone too: it would stand still
         until ``blocked_timeout``, goal after goal. When what blocks the arc lies within that
@@ -592,13 +561,13 @@ class Navigator:
         """
         if follow.blocked_recoveries >= _MAX_RECOVERIES:
             return None
-        ox, oy = self._scan_pose.transform(obstacle[1], obstacle[2])
-        mapped = self.costmap.cost_at(ox, oy) >= INSCRIBED   # as _mapped judges scan points
-        kept = self.radius + (_SIDE_MARGIN if mapped else _UNMAPPED_MARGIN)
+        ox, oy = self.scan_view.pose.transform(obstacle[1], obstacle[2])
+        mapped = self.costmap.cost_at(ox, oy) >= INSCRIBED   # as ScanView.mapped judges scan points
+        kept = self.radius + (SIDE_MARGIN if mapped else UNMAPPED_MARGIN)
         if math.hypot(obstacle[1], obstacle[2]) >= kept:
             return None   # an ordinary stop before something: wait, replan, abort as before
-        room = min(self._rear_room(scan), _RECOVERY_BACKUP)
-        if room <= _BACKUP_SPEED * _STOP_TIME:
+        room = min(self.scan_view.rear_room(scan), _RECOVERY_BACKUP)
+        if room <= _BACKUP_SPEED * STOP_TIME:
             return None   # boxed in behind as well
         follow.blocked_recoveries += 1
         follow.backing_until = now + room / _BACKUP_SPEED
@@ -607,21 +576,6 @@ class Navigator:
         self.recoveries += 1
         return -_BACKUP_SPEED, 0.0
 
-    def _rear_room(self, scan: LaserScan | None) -> float:
-        """How far the robot can reverse straight before its footprint (and side margin) meets a scan point.
-
-        Infinite without a scan (nothing known behind).
-        """
-        if scan is None:
-            return math.inf
-        x, y = self._scan_xy(scan)
-        side = self.radius + _SIDE_MARGIN
-        behind = (x < 0.0) & (np.abs(y) < side)
-        if not behind.any():
-            return math.inf
-        room = -x[behind] - np.sqrt(side * side - y[behind] ** 2)
-        return max(0.0, float(room.min()))
-
     def _back_up(self, follow: _Follow, now: float) -> tuple[float, float]:
         """Nav2's BackUp recovery: reverse a little, then plan again from there."""
         follow.backing_until = now + _BACKUP_TIME
@@ -629,77 +583,6 @@ class Navigator:
         follow.anchor = None
         self.recoveries += 1
         return -_BACKUP_SPEED, 0.0
-
-    def _obstacle_ahead(self, scan: LaserScan | None, v: float,
-                        w: float = 0.0) -> tuple[float, float, float] | None:
-        """The first scan point the footprint would sweep on the arc ``(v, w)`` within stopping reach.
-
-        The footprint (radius plus a small side margin) is swept along the circular arc the command
-        drives (a straight corridor when ``w`` is about 0), as a controller's collision check
-        projects its command forward; a point counts when the arc reaches its side within the
-        stopping distance ``radius + obstacle_margin + v * 0.5 s``. Returns (arc length to it, x, y)
-        in the robot frame, or None.
-        """
-        if scan is None:
-            return None
-        x, y = self._scan_xy(scan)
-        reach = self.radius + self.spec.obstacle_margin + max(v, _CREEP_SPEED) * _STOP_TIME
-        box = reach + self.radius + _UNMAPPED_MARGIN
-        near = (np.abs(x) < box) & (np.abs(y) < box)
-        if not near.any():
-            return None
-        x, y = x[near], y[near]
-        side = self.radius + np.where(self._mapped(scan)[near], _SIDE_MARGIN, _UNMAPPED_MARGIN)
-        k = w / v if v > 1e-3 else 0.0
-        mirrored = k < 0.0
-        if abs(k) < 1e-3:
-            lateral, along = np.abs(y), x
-        else:
-            if mirrored:
-                y, k = -y, -k   # mirror a right turn into a left one
-            r = 1.0 / k
-            lateral = np.abs(np.hypot(x, y - r) - r)
-            along = np.mod(np.arctan2(x, r - y), 2.0 * math.pi) * r
-        hit = (along > 0.0) & (along < reach) & (lateral < side)
-        if not hit.any():
-            return None
-        i = int(np.argmin(np.where(hit, along, np.inf)))
-        return float(along[i]), float(x[i]), float(-y[i] if mirrored and abs(k) >= 1e-3 else y[i])
-
-    def _mapped(self, scan: LaserScan) -> np.ndarray:
-        """Per scan point: whether it lies on the map's own obstacles (not on something the map lacks).
-
-        A wall the plan already keeps clear of needs a small side margin; a person may step closer.
-        """
-        if self._mapped_cache is None or self._mapped_cache[0] is not scan:
-            x, y = self._scan_xy(scan)
-            pose = self._scan_pose
-            c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-            world = np.stack([pose.x + c * x - s * y, pose.y + s * x + c * y], axis=1)
-            self._mapped_cache = (scan, self.costmap.costs_along(world) >= INSCRIBED)
-        return self._mapped_cache[1]
-
-    def _scan_xy(self, scan: LaserScan) -> tuple[np.ndarray, np.ndarray]:
-        """Scan end points in the robot frame (cached per scan)."""
-        if self._xy_cache is None or self._xy_cache[0] is not scan:
-            layout = (scan.angle_min, scan.angle_increment, len(scan.ranges), scan.mount_yaw)
-            if self._trig is None or self._trig[0] != layout:
-                ang = scan.angles()
-                self._trig = (layout, np.cos(ang), np.sin(ang))
-            r = np.asarray(scan.ranges, float)
-            ok = np.isfinite(r)
-            self._xy_cache = (scan, r[ok] * self._trig[1][ok], r[ok] * self._trig[2][ok])
-        return self._xy_cache[1], self._xy_cache[2]
-
-    def _scan_points(self, scan: LaserScan | None, pose: Pose2D) -> np.ndarray:
-        if scan is None:
-            return np.zeros((0, 2))
-        r = np.asarray(scan.ranges, float)
-        ang = scan.angles()
-        ok = np.isfinite(r) & (r < 3.0)
-        x, y = r[ok] * np.cos(ang[ok]), r[ok] * np.sin(ang[ok])
-        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-        return np.stack([pose.x + c * x - s * y, pose.y + s * x + c * y], axis=1)
 
     def _succeed(self) -> tuple[float, float]:
         assert self.handle is not None
