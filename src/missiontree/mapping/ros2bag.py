@@ -29,7 +29,7 @@ from __future__ import annotations
 import bisect
 import math
 import struct
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -229,30 +229,42 @@ def _topic_counts(path: Path) -> dict[str, int]:
     return {c.topic: int(stats.get(c.id, 0)) for c in summary.channels.values()}
 
 
-def image_pixels(msg: Any) -> np.ndarray:
-    """The pixels of a decoded ``sensor_msgs/Image`` (HxW or HxWxC, row padding dropped)."""
-    kinds = {"rgb8": (np.uint8, 3), "bgr8": (np.uint8, 3), "rgba8": (np.uint8, 4), "bgra8": (np.uint8, 4),
-             "mono8": (np.uint8, 1), "8UC1": (np.uint8, 1), "8UC3": (np.uint8, 3), "16UC1": (np.uint16, 1),
-             "mono16": (np.uint16, 1), "32FC1": (np.float32, 1)}
-    if msg.encoding not in kinds:
-        raise BagError(f"image on frame {msg.header.frame_id!r}: unsupported encoding {msg.encoding!r}")
+#: The ``sensor_msgs/Image`` encodings read: (element type, channels).
+IMAGE_ENCODINGS: dict[str, tuple[type, int]] = {
+    "rgb8": (np.uint8, 3), "bgr8": (np.uint8, 3), "rgba8": (np.uint8, 4), "bgra8": (np.uint8, 4),
+    "mono8": (np.uint8, 1), "8UC1": (np.uint8, 1), "8UC3": (np.uint8, 3), "16UC1": (np.uint16, 1),
+    "mono16": (np.uint16, 1), "32FC1": (np.float32, 1)}
+
+#: What raises a decoding problem: the bag reader's BagError, the live robot's BackendError.
+ErrorMaker = Callable[[str], Exception]
+
+
+def image_pixels(msg: Any, error: ErrorMaker = BagError) -> np.ndarray:
+    """The pixels of a ``sensor_msgs/Image`` (decoded from a bag or received live), HxW or HxWxC.
+
+    Row padding is dropped and the result is a native-endian copy. Raises ``error`` naming the frame
+    for an unknown encoding, a size out of range or a message shorter than its header says.
+    """
+    if msg.encoding not in IMAGE_ENCODINGS:
+        raise error(f"image on frame {msg.header.frame_id!r}: unsupported encoding {msg.encoding!r}; "
+                    f"expected one of {', '.join(IMAGE_ENCODINGS)} (set the camera driver's output encoding)")
     if not (0 < msg.height <= MAX_SIDE and 0 < msg.width <= MAX_SIDE):
-        raise BagError(f"image on frame {msg.header.frame_id!r}: {msg.width} x {msg.height} is out of range")
-    kind, channels = kinds[msg.encoding]
+        raise error(f"image on frame {msg.header.frame_id!r}: {msg.width} x {msg.height} is out of range")
+    kind, channels = IMAGE_ENCODINGS[msg.encoding]
     dtype = np.dtype(kind).newbyteorder(">" if msg.is_bigendian else "<")
     row = msg.step // dtype.itemsize
     raw = np.frombuffer(bytes(msg.data), dtype=dtype)
     if raw.size < msg.height * row or row < msg.width * channels:
-        raise BagError(f"image on frame {msg.header.frame_id!r}: {raw.size} values for {msg.height} x "
-                       f"{msg.width} x {channels} with step {msg.step}; the message is truncated")
+        raise error(f"image on frame {msg.header.frame_id!r}: {raw.size} values for {msg.height} x "
+                    f"{msg.width} x {channels} with step {msg.step}; the message is truncated")
     rows = raw[: msg.height * row].reshape(msg.height, row)[:, : msg.width * channels]
     shape = (msg.height, msg.width) if channels == 1 else (msg.height, msg.width, channels)
     return rows.reshape(shape).astype(dtype.newbyteorder("="))
 
 
-def color_from_image(msg: Any) -> np.ndarray:
-    """An HxWx3 uint8 RGB image from a decoded 8-bit colour or mono ``sensor_msgs/Image``."""
-    pixels = image_pixels(msg)
+def color_from_image(msg: Any, error: ErrorMaker = BagError) -> np.ndarray:
+    """An HxWx3 uint8 RGB image from an 8-bit colour or mono ``sensor_msgs/Image``."""
+    pixels = image_pixels(msg, error)
     if pixels.ndim == 2:
         return np.repeat(pixels[:, :, None].astype(np.uint8), 3, axis=2)
     if msg.encoding in ("bgr8", "bgra8"):
@@ -260,17 +272,17 @@ def color_from_image(msg: Any) -> np.ndarray:
     return np.ascontiguousarray(pixels[:, :, :3].astype(np.uint8))
 
 
-def depth_from_image(msg: Any) -> np.ndarray:
-    """HxW float32 metres from a decoded depth image: 16UC1 millimetres (0 = no reading → NaN), 32FC1."""
-    pixels = image_pixels(msg)
+def depth_from_image(msg: Any, error: ErrorMaker = BagError) -> np.ndarray:
+    """HxW float32 metres from a depth image: 16UC1 millimetres (0 = no reading → NaN), 32FC1."""
+    pixels = image_pixels(msg, error)
     if msg.encoding in ("16UC1", "mono16"):
         depth = pixels.astype(np.float32) / 1000.0
         depth[pixels == 0] = np.nan
         return depth
     if msg.encoding == "32FC1":
         return pixels.astype(np.float32)
-    raise BagError(f"depth image on frame {msg.header.frame_id!r}: {msg.encoding!r} is not a depth encoding "
-                   "(expected 16UC1 millimetres or 32FC1 metres)")
+    raise error(f"depth image on frame {msg.header.frame_id!r}: {msg.encoding!r} is not a depth encoding "
+                "(expected 16UC1 millimetres or 32FC1 metres)")
 
 
 def _grid(msg: Any) -> OccupancyGrid:

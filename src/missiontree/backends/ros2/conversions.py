@@ -22,6 +22,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from sensor_msgs.msg import LaserScan as LaserScanMsg
 
 from missiontree.errors import BackendError
+from missiontree.mapping.ros2bag import IMAGE_ENCODINGS, color_from_image, depth_from_image, image_pixels
 from missiontree.types import CameraIntrinsics, LaserScan, OccupancyGrid, Pose2D, PoseStamped
 
 # ------------------------------------------------------------------------------------------ arrays
@@ -193,65 +194,35 @@ def scan_to_msg(scan: LaserScan, scan_time: float = 0.0) -> LaserScanMsg:
 
 # ------------------------------------------------------------------------------------------ images
 
-_CHANNELS = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4, "mono8": 1, "8UC1": 1, "8UC3": 3,
-             "16UC1": 1, "mono16": 1, "32FC1": 1}
-_DTYPES = {"16UC1": np.uint16, "mono16": np.uint16, "32FC1": np.float32}
 
 
 def image_from_msg(msg: Image) -> np.ndarray:
-    """The pixels of a ``sensor_msgs/Image`` as an HxW or HxWxC array (a copy, row padding dropped).
+    """The pixels of a ``sensor_msgs/Image`` as an HxW or HxWxC array (the bag reader's decoder).
 
     Raises:
-        BackendError: The encoding is not one of rgb8, bgr8, rgba8, bgra8, mono8, 8UC1, 8UC3,
-            16UC1, mono16, 32FC1, or the data is shorter than the header says.
+        BackendError: An encoding it does not read, a size out of range, or data shorter than the
+            header says.
     """
-    enc = msg.encoding
-    if enc not in _CHANNELS:
-        raise BackendError(f"image on frame {msg.header.frame_id!r}: unsupported encoding {enc!r}; expected "
-                           f"one of {', '.join(_CHANNELS)} (set the camera driver's output encoding)")
-    dtype = np.dtype(_DTYPES.get(enc, np.uint8)).newbyteorder(">" if msg.is_bigendian else "<")
-    channels = _CHANNELS[enc]
-    row_items = msg.step // dtype.itemsize
-    raw = np.frombuffer(bytes(msg.data), dtype=dtype)
-    if raw.size < msg.height * row_items or row_items < msg.width * channels:
-        raise BackendError(f"image on frame {msg.header.frame_id!r}: {raw.size} values for {msg.height}x"
-                           f"{msg.width}x{channels} with step {msg.step}; the message is truncated")
-    rows = raw[: msg.height * row_items].reshape(msg.height, row_items)[:, : msg.width * channels]
-    shape = (msg.height, msg.width) if channels == 1 else (msg.height, msg.width, channels)
-    return rows.reshape(shape).astype(dtype.newbyteorder("="), copy=True)
+    return image_pixels(msg, BackendError)
 
 
 def color_from_msg(msg: Image) -> np.ndarray:
     """An HxWx3 uint8 RGB image from any 8-bit colour or mono ``sensor_msgs/Image``."""
-    pixels = image_from_msg(msg)
-    enc = msg.encoding
-    if enc in ("bgr8", "bgra8"):
-        return np.ascontiguousarray(pixels[:, :, 2::-1])
-    if enc in ("rgba8",):
-        return np.ascontiguousarray(pixels[:, :, :3])
-    if pixels.ndim == 2:
-        return np.repeat(pixels[:, :, None].astype(np.uint8), 3, axis=2)
-    return pixels.astype(np.uint8, copy=False)
+    return color_from_image(msg, BackendError)
 
 
 def depth_from_msg(msg: Image) -> np.ndarray:
     """An HxW float32 depth image in metres; 16-bit encodings are millimetres, 0 (no data) becomes NaN."""
-    pixels = image_from_msg(msg)
-    if msg.encoding in ("16UC1", "mono16"):
-        depth = pixels.astype(np.float32) / 1000.0
-        depth[pixels == 0] = np.nan
-        return depth
-    if msg.encoding == "32FC1":
-        return pixels.astype(np.float32, copy=False)
-    raise BackendError(f"depth image on frame {msg.header.frame_id!r}: encoding {msg.encoding!r} is not a "
-                       "depth encoding; expected 16UC1 (millimetres) or 32FC1 (metres)")
+    return depth_from_image(msg, BackendError)
 
 
 def image_to_msg(pixels: np.ndarray, encoding: str, stamp: float, frame_id: str) -> Image:
     """A ``sensor_msgs/Image`` from an array (rgb8/bgr8/mono8 uint8, 16UC1 uint16, 32FC1 float32)."""
-    if encoding not in _CHANNELS:
-        raise BackendError(f"cannot encode an image as {encoding!r}; expected one of {', '.join(_CHANNELS)}")
-    dtype = np.dtype(_DTYPES.get(encoding, np.uint8))
+    if encoding not in IMAGE_ENCODINGS:
+        raise BackendError(f"cannot encode an image as {encoding!r}; "
+                           f"expected one of {', '.join(IMAGE_ENCODINGS)}")
+    kind, channels = IMAGE_ENCODINGS[encoding]
+    dtype = np.dtype(kind)
     data = np.ascontiguousarray(pixels, dtype=dtype)
     msg = Image()
     msg.header.stamp = sec_to_time(stamp)
@@ -259,7 +230,7 @@ def image_to_msg(pixels: np.ndarray, encoding: str, stamp: float, frame_id: str)
     msg.height, msg.width = int(data.shape[0]), int(data.shape[1])
     msg.encoding = encoding
     msg.is_bigendian = 0
-    msg.step = int(data.shape[1] * _CHANNELS[encoding] * dtype.itemsize)
+    msg.step = int(data.shape[1] * channels * dtype.itemsize)
     msg.data = _packed(data.view(np.uint8).ravel(), "B")
     return msg
 
