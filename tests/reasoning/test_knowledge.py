@@ -107,3 +107,26 @@ def test_a_definition_that_negates_the_need_is_not_read() -> None:
 def test_a_needs_most_frequent_sense_is_read(request_: str, need: str) -> None:
     """The most frequent sense of a need's verb ("amuse, divert") and storms (rain) are read as the need."""
     assert need in knowledge().read(request_).needs
+
+
+def test_knowledge_file_over_its_limit_is_refused_before_reading(tmp_path, monkeypatch) -> None:
+    """A knowledge file larger than its limit is a ConfigError naming the file, not read whole."""
+    from missiontree.errors import ConfigError
+    from missiontree.reasoning import knowledge as module
+
+    big = tmp_path / "intent_knowledge.json"
+    big.write_bytes(b" " * 2048)
+    monkeypatch.setattr(module, "MAX_KNOWLEDGE_BYTES", 1024)
+    with pytest.raises(ConfigError, match="intent_knowledge.json"):
+        module.read_knowledge(big)
+
+
+def test_knowledge_file_of_the_wrong_shape_is_a_config_error(tmp_path) -> None:
+    """A JSON file that is no knowledge document is a ConfigError naming the file."""
+    from missiontree.errors import ConfigError
+    from missiontree.reasoning.knowledge import read_knowledge
+
+    wrong = tmp_path / "k.json"
+    wrong.write_text('{"needs": []}', encoding="utf-8")
+    with pytest.raises(ConfigError, match="k.json"):
+        read_knowledge(wrong)

@@ -21,13 +21,19 @@ Words outside the file are left to the caller's embedding fallback.
 from __future__ import annotations
 
 import json
+import os
 import re
 from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
 from typing import Any
 
+from missiontree.errors import ConfigError
+from missiontree.file_limits import read_input_text
+
 KNOWLEDGE_FILE = "data/intent_knowledge.json"
+#: Largest knowledge file read (8 MiB; the shipped one is about 0.2 MiB), checked before it is read whole.
+MAX_KNOWLEDGE_BYTES = 8 * 2**20
 _WORD = re.compile(r"[a-z]+")
 #: A label serving a request at least this well is a strong choice: it serves it outright, not as a
 #: stand-in (a bookshelf 0.9 for reading, a refrigerator 0.7 for thirst; a sink 0.4 is a weak one).
@@ -195,8 +201,22 @@ class Knowledge:
         return sorted(label for label, serves in self.serves.items() if serves.get(need, 0.0) >= 0.9)
 
 
+def read_knowledge(path: str | os.PathLike[str]) -> Knowledge:
+    """The knowledge file at ``path``, read bounded (:data:`MAX_KNOWLEDGE_BYTES`).
+
+    Raises:
+        ConfigError: The file is too large, not UTF-8, unreadable or not a knowledge document.
+    """
+    text = read_input_text(path, MAX_KNOWLEDGE_BYTES, "intent knowledge file",
+                           "the intent knowledge file is JSON", ConfigError)
+    try:
+        return Knowledge(json.loads(text))
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise ConfigError(f"{path}: not an intent knowledge document ({type(exc).__name__})") from None
+
+
 @lru_cache(maxsize=1)
 def knowledge() -> Knowledge:
     """The shipped knowledge (read once per process)."""
-    path = resources.files("missiontree").joinpath(KNOWLEDGE_FILE)
-    return Knowledge(json.loads(path.read_text(encoding="utf-8")))
+    with resources.as_file(resources.files("missiontree").joinpath(KNOWLEDGE_FILE)) as path:
+        return read_knowledge(path)
