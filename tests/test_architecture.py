@@ -41,6 +41,8 @@ LAYERS: dict[str, int] = {
     "startup": 0,  # records a Ctrl-C during the command's start-up (signal only)
     "redact": 0,  # secrets and control characters out of every output (text functions only)
     "files": 0,  # writing a file whole (standard library only)
+    "events": 0,  # the event-sink protocol every layer writes to
+    "services": 0,  # the scene and model-call protocols a mission context carries (typing only)
     # reading files and options, raising the package's errors
     "yamlio": 1, "paths": 1, "options": 1,
     "robot": 2,  # the abstract robot
@@ -547,6 +549,69 @@ def test_the_allow_list_is_not_stale() -> None:
     stale = sorted(set(ALLOWED) - set(violations()))
     assert not stale, "fixed, so remove from ALLOWED:\n" + "\n".join(stale)
 
+
+
+# -- one definition, one place -------------------------------------------------------------------------
+
+#: Calls that change the whole process (allocator and garbage collector): only ``session.process``
+#: makes them, and only the applications (:data:`TUNING_CALLERS`) ask it to (issue 31, deliverable 6).
+PROCESS_SETTINGS = {"gc.freeze", "gc.unfreeze", "gc.disable", "gc.enable", "gc.set_threshold",
+                    "pin_mmap_threshold", "mallopt"}
+TUNING_CALLERS = {"missiontree.cli.main", "missiontree.evaluation.worker"}
+
+
+def _called_names(tree: ast.AST) -> list[tuple[str, int]]:
+    """(dotted name, line) of every call whose function is a plain or dotted name."""
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            func, parts = node.func, []
+            while isinstance(func, ast.Attribute):
+                parts.append(func.attr)
+                func = func.value
+            if isinstance(func, ast.Name):
+                found.append((".".join([func.id, *reversed(parts)]), node.lineno))
+    return found
+
+
+def _is_protocol(node: ast.ClassDef) -> bool:
+    for base in node.bases:
+        base = base.value if isinstance(base, ast.Subscript) else base
+        if (isinstance(base, ast.Name) and base.id == "Protocol") or (
+                isinstance(base, ast.Attribute) and base.attr == "Protocol"):
+            return True
+    return False
+
+
+def test_every_protocol_is_defined_once() -> None:
+    """No two modules define a Protocol of the same name (the event sink was defined twice)."""
+    where: dict[str, list[str]] = defaultdict(list)
+    for name, path in module_files().items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ClassDef) and _is_protocol(node):
+                where[node.name].append(name)
+    twice = {protocol: modules for protocol, modules in where.items() if len(modules) > 1}
+    assert not twice, f"protocols defined more than once (keep one, import it): {twice}"
+
+
+def test_only_the_process_module_changes_the_process_and_only_applications_ask() -> None:
+    """gc.freeze, the mmap threshold and the like live in session.process; tune_process is the CLI's call."""
+    wrong = []
+    for name, path in module_files().items():
+        for called, line in _called_names(ast.parse(path.read_text(encoding="utf-8"))):
+            short = called.rsplit(".", 1)[-1]
+            if (called in PROCESS_SETTINGS or short in PROCESS_SETTINGS) and name not in {
+                    "missiontree.session.process", "missiontree.engine.native_memory"}:
+                wrong.append(f"{path}:{line}: {called}")
+            if short == "tune_process" and name not in TUNING_CALLERS:
+                wrong.append(f"{path}:{line}: {called} (only {sorted(TUNING_CALLERS)} tune the process)")
+    assert not wrong, "process settings changed outside session.process:\n" + "\n".join(wrong)
+
+
+def test_the_call_reader_finds_dotted_and_plain_calls() -> None:
+    """gc.freeze() and pin_mmap_threshold() are read as called names; an attribute without a call is not."""
+    tree = ast.parse("import gc\ngc.freeze()\npin_mmap_threshold()\nx = gc.freeze\na.b.c(1)\n")
+    assert _called_names(tree) == [("gc.freeze", 2), ("pin_mmap_threshold", 3), ("a.b.c", 5)]
 
 
 # -- the floor plan in the README ----------------------------------------------------------------------

@@ -169,6 +169,21 @@ def test_flags_override_the_run_section_which_overrides_defaults(tmp_path: Path)
     assert all(robot.closed for robot in fake.robots)
 
 
+def test_the_session_binds_the_model_caller_before_any_leaf_is_set_up(tmp_path: Path) -> None:
+    """Once open, the context holds the mission's caller (paced as the run is) and its typed models."""
+    from missiontree.reasoning.calls import ModelCaller
+    from missiontree.reasoning.models import Models
+
+    plugins, _ = _plugins_with_fake()
+    request = MissionRequest(mission=_mission(tmp_path, backend="fake"), plugins=plugins, out=tmp_path / "a",
+                             realtime=True)
+    with Session.open(request) as session:
+        assert isinstance(session.models, Models) and session.context.models is session.models
+        calls = session.context.calls
+        assert isinstance(calls, ModelCaller) and session.models.caller is calls
+        assert calls.realtime is True
+
+
 @pytest.mark.parametrize(("extra", "flag", "expected"), [
     ("  map: unknown", None, True), ("  map: known", None, False), ("", True, True),
     ("  map: known", True, True), ("", None, False),

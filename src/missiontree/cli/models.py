@@ -15,13 +15,12 @@ from typing import Any
 import numpy as np
 
 from missiontree.cli import add_plugin_flag, plugins_from_args, print_json
-from missiontree.reasoning.calls import SETTINGS_KEY, CallSettings
+from missiontree.reasoning.models import Models
 from missiontree.session.models import (
     DEFAULT_MODELS,
     build_models,
     describe_source,
     load_models_config,
-    model_roles,
 )
 
 EXIT_UNUSABLE = 1
@@ -87,11 +86,10 @@ def run(args: argparse.Namespace) -> int:
     plugins = plugins_from_args(args)
     name = args.models if args.models is not None else DEFAULT_MODELS
     document = load_models_config(name)
-    models = build_models(name, plugins.providers, strict=False)  # unknown providers become rows
-    settings = models.get(SETTINGS_KEY)
-    settings = settings if isinstance(settings, CallSettings) else CallSettings()
+    models = Models(build_models(name, plugins.providers, strict=False))  # unknown providers become rows
+    settings = models.settings
     rows: list[dict[str, Any]] = []
-    providers = model_roles(models)
+    providers = models.roles()
     for role, section in document.data["roles"].items():
         provider = providers[role]
         latency = settings.latency.get(role)

@@ -1,36 +1,29 @@
 """What a running mission gives its leaves: the robot, the models, the event sink, the run directory.
 
 Leaves receive it in ``setup(context=...)`` (py_trees passes setup keyword arguments to every
-node), never in their constructor: trees build, validate and render with no robot.
+node), never in their constructor: trees build, validate and render with no robot. The session
+fills it whole before any leaf sees it: the model providers by role, the mission's bound model
+caller (``calls``), the event sink; a ``BuildSceneGraph`` leaf adds the live ``scene``. The
+services are typed by protocols under everything (:mod:`missiontree.services`,
+:mod:`missiontree.events`): the engine names no map and no model.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
+from missiontree.events import EventSink, NullEvents
 from missiontree.robot.interface import Robot
+from missiontree.services import ModelCalls, Scene
 from missiontree.types import Marker
+
+__all__ = ["MAX_MARKERS", "EventSink", "MissionContext", "NullEvents"]
 
 #: Most markers a run keeps for its picture; past it the oldest is dropped (a patrol that runs for
 #: days marks one alarm per encounter: the list must not grow with the run).
 MAX_MARKERS = 2000
-
-
-class EventSink(Protocol):
-    """Where leaves send typed events (goal sent, model call, alarm, ...) for the tick log."""
-
-    def emit(self, event: str, /, **fields: Any) -> None:
-        """Record one event of kind ``event``; fields must be JSON-serialisable."""
-        ...
-
-
-class NullEvents:
-    """An event sink that drops everything (for trees ticked outside the runner)."""
-
-    def emit(self, event: str, /, **fields: Any) -> None:
-        """Drop the event."""
 
 
 @dataclass
@@ -39,7 +32,12 @@ class MissionContext:
 
     Attributes:
         robot: The robot (simulated or ROS 2).
-        models: Model providers by role (``detector``, ``vlm``, ``llm``, ``embedder``, ...).
+        models: Model providers by role (``detector``, ``vlm``, ``llm``, ``embedder``, ...): the
+            session's :class:`missiontree.reasoning.models.Models` (a mapping, so ``models[role]``
+            reads a provider); use :meth:`model` for a message naming the configured roles.
+        calls: The mission's model caller (:class:`missiontree.reasoning.calls.ModelCaller`), bound
+            by the session before any leaf is set up; None for a context made by hand (then
+            ``reasoning.calls.model_caller(context)`` makes one on first use).
         events: Sink for typed tick-log events.
         run_dir: The run's output directory (alarm frames, pictures), None when not writing.
         markers: Things to draw on the run's top-down picture, added through :meth:`mark`:
@@ -51,8 +49,9 @@ class MissionContext:
         started_files: Run-directory files this run has begun (see :meth:`starts`).
         realtime: The run is paced to wall time (set by the runner): model calls then never wait
             for a worker on the tick thread, even in the simulator.
-        scene: The live scene (a :class:`missiontree.semantics.live.LiveScene`: semantic map, rooms,
-            latest scene graph) once a ``BuildSceneGraph`` leaf has set it up; None before.
+        scene: The live scene (a :class:`~missiontree.services.Scene` such as
+            :class:`missiontree.semantics.live.LiveScene`: semantic map, rooms, latest scene graph)
+            once a ``BuildSceneGraph`` leaf has set it up; None before.
         outcome: What the mission did, in its own words, through :meth:`report`: summary.json's
             ``outcome`` section (which object was served and why, what the exploration left, ...).
     """
@@ -66,9 +65,10 @@ class MissionContext:
     seed: int = 0
     started_files: set[Path] = field(default_factory=set)
     realtime: bool = False
-    scene: Any = None
+    scene: Scene | None = None
     markers_dropped: int = 0
     outcome: dict[str, Any] = field(default_factory=dict)
+    calls: ModelCalls | None = None
     _marker_keys: set[tuple[str, str, float, float]] = field(default_factory=set, repr=False)
 
     def report(self, section: str, value: Any) -> None:

@@ -55,7 +55,9 @@ from typing import TYPE_CHECKING, Any, Protocol
 from pydantic import BaseModel
 
 from missiontree.errors import ConfigError, MissionTreeError, ModelConfigError, ModelError, ModelTimeoutError
+from missiontree.events import EventSink, NullEvents
 from missiontree.reasoning.protocols import provider_name
+from missiontree.services import ModelCalls
 
 if TYPE_CHECKING:
     from missiontree.robot.interface import Robot
@@ -69,21 +71,6 @@ SETTINGS_KEY = "_calls"
 DEFAULT_WALL_TIMEOUT = 300.0
 
 
-class EventSink(Protocol):
-    """Where ``model_call`` events go (the engine's tick log is one)."""
-
-    def emit(self, event: str, /, **fields: Any) -> None:
-        """Record one event of kind ``event``."""
-        ...
-
-
-class _NullEvents:
-    """Drops every event (a caller used outside a run)."""
-
-    def emit(self, event: str, /, **fields: Any) -> None:
-        """Drop the event."""
-
-
 class CallContext(Protocol):
     """What a caller needs from the running mission (the engine's ``MissionContext`` provides it).
 
@@ -94,6 +81,7 @@ class CallContext(Protocol):
     models: dict[str, Any]
     events: EventSink
     seed: int
+    calls: ModelCalls | None
 
 
 class BrokenProvider:
@@ -414,7 +402,7 @@ class ModelCaller:
         realtime: bool = False,
     ) -> None:
         self.clock = clock
-        self.events: EventSink = events if events is not None else _NullEvents()
+        self.events: EventSink = events if events is not None else NullEvents()
         self.simulated = simulated
         self.latency = dict(latency or {})
         self.timeouts = dict(timeouts or {})
@@ -429,14 +417,19 @@ class ModelCaller:
         self._lock = threading.Lock()
 
     @classmethod
-    def for_context(cls, context: CallContext, settings: CallSettings | None = None) -> ModelCaller:
-        """A caller on the context's robot clock, events, models and seed, with ``settings``."""
+    def for_context(cls, context: CallContext, settings: CallSettings | None = None,
+                    events: EventSink | None = None, realtime: bool | None = None) -> ModelCaller:
+        """A caller on the context's robot clock, models and seed, with ``settings``.
+
+        ``events`` and ``realtime`` default to the context's own as they are now.
+        """
         robot = context.robot
         settings = settings or CallSettings()
-        return cls(robot.now, context.events, simulated=bool(getattr(robot, "simulated", False)),
+        return cls(robot.now, context.events if events is None else events,
+                   simulated=bool(getattr(robot, "simulated", False)),
                    latency=settings.latency, timeouts=settings.timeouts, models=context.models,
                    seed=context.seed, workers=settings.workers, default_timeout=settings.default_timeout,
-                   realtime=bool(getattr(context, "realtime", False)))
+                   realtime=bool(getattr(context, "realtime", False)) if realtime is None else realtime)
 
     def submit(
         self,
@@ -557,26 +550,39 @@ class ModelCaller:
 
 
 def model_caller(context: CallContext) -> ModelCaller:
-    """The mission's ModelCaller, made on first use from the context and the models config's settings.
+    """The mission's ModelCaller: the one the session bound (``context.calls``), else made on first use.
 
-    On first use it also binds the providers marked ``needs_robot`` (the simulation oracle detector)
-    to ``context.robot``; one that refuses the robot is replaced by a
-    :class:`BrokenProvider` carrying the reason, so the leaves that use it
-    fail with that reason.
+    A session binds the caller before any leaf is set up
+    (:meth:`missiontree.reasoning.models.Models.bind`). A context made by hand (a test, an example)
+    gets one here on first use, from its models and their call settings, and the providers marked
+    ``needs_robot`` are bound then (see :func:`bind_providers`).
     """
+    calls = getattr(context, "calls", None)  # a context made before it had the field
+    if isinstance(calls, ModelCaller):
+        return calls
     caller = context.models.get(CALLER_KEY)
     if not isinstance(caller, ModelCaller):
         settings = context.models.get(SETTINGS_KEY)
         caller = ModelCaller.for_context(context, settings if isinstance(settings, CallSettings) else None)
-        for role, provider in list(context.models.items()):
-            if role.startswith("_") or getattr(provider, "needs_robot", False) is not True:
-                continue
-            try:
-                provider.bind(context.robot)
-            except MissionTreeError as exc:
-                context.models[role] = BrokenProvider(role, provider_name(provider), str(exc))
+        bind_providers(context.models, context.robot)
         context.models[CALLER_KEY] = caller
+    context.calls = caller
     return caller
+
+
+def bind_providers(models: dict[str, Any], robot: Robot) -> None:
+    """Bind the providers marked ``needs_robot`` (the simulation oracle detector) to ``robot``.
+
+    One that refuses the robot is replaced by a :class:`BrokenProvider` carrying the reason, so the
+    leaves that use it fail with that reason.
+    """
+    for role, provider in list(models.items()):
+        if role.startswith("_") or getattr(provider, "needs_robot", False) is not True:
+            continue
+        try:
+            provider.bind(robot)
+        except MissionTreeError as exc:
+            models[role] = BrokenProvider(role, provider_name(provider), str(exc))
 
 
 def _describe(exc: BaseException, provider: str) -> str:

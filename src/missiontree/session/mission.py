@@ -36,7 +36,7 @@ from missiontree.engine.substitute import load_rules, substitute_session
 from missiontree.errors import ConfigError, MissionFileError, ProblemsError
 from missiontree.paths import find_config
 from missiontree.plugins.manager import Plugins, load_plugins
-from missiontree.reasoning.calls import CALLER_KEY
+from missiontree.reasoning.models import Models
 from missiontree.robot.envelope import EnvelopedRobot, wrap_robot
 from missiontree.session.models import build_models
 from missiontree.session.preflight import check_references, resolve_mission_path
@@ -138,7 +138,7 @@ class Session:
         spec: The checked mission.
         root: The built tree's root.
         robot: The backend's robot.
-        models: Providers by role (plus the call settings).
+        models: Providers by role, the call settings and the mission's bound caller.
         context: What the leaves get.
         runner: The runner that will tick the tree.
         run_dir: Where the log, summary and pictures go (None when writing nothing).
@@ -150,7 +150,7 @@ class Session:
         self.request = request
         self.plugins: Plugins = request.plugins if request.plugins is not None else load_plugins()
         self.robot: Any = None
-        self.models: dict[str, Any] = {}
+        self.models = Models()
         self.result: RunResult | None = None
         self.progress: ProgressLine | None = None
         self.run_claim: RunDirectory | None = None
@@ -219,21 +219,31 @@ class Session:
         self.options = self._robot_options(seed, backend_config, unknown_map)
         factory = self.plugins.backend(backend)
         self.robot = wrap_robot(factory(self.options), config)  # goals and speeds pass the safety envelope
-        self.models = build_models(models_config, providers=self.plugins.providers, seed=seed)
+        self.models = Models(build_models(models_config, providers=self.plugins.providers, seed=seed))
         self.context = MissionContext(robot=self.robot, models=self.models, config=config, seed=seed)
         if isinstance(self.robot, EnvelopedRobot):
             self.robot.emit = self._safety_event
+        self._make_runner()
+        if rules is not None:  # stubs in place before the first tick; a rule matching nothing is exit 2
+            substitute_session(self, rules)
+
+    def _make_runner(self) -> None:
+        """The runner over the built tree and context; then the model services bound, whole.
+
+        The caller and the providers that need the robot are bound before any leaf is set up: leaves
+        only use them (``context.calls``).
+        """
+        request, settings = self.request, self.settings
         if not request.quiet:
             self.progress = ProgressLine(self.mission_name, request.progress_stream)
         self.runner = Runner(
-            self.root, self.context, tick_hz=tick_hz, max_duration=max_duration, run_dir=self.run_dir,
-            mission=self.mission_name, hook=self.plugins.hook, spec=self.spec,
-            blackboard=self.spec.blackboard,
-            realtime=realtime, handle_signals=request.handle_signals, log_stream=request.log_stream,
+            self.root, self.context, tick_hz=settings["tick_hz"], max_duration=settings["max_duration"],
+            run_dir=self.run_dir, mission=self.mission_name, hook=self.plugins.hook, spec=self.spec,
+            blackboard=self.spec.blackboard, realtime=settings["realtime"],
+            handle_signals=request.handle_signals, log_stream=request.log_stream,
             on_tick=self._on_tick if (self.progress is not None or request.on_tick is not None) else None,
             final_state=self._final_state)
-        if rules is not None:  # stubs in place before the first tick; a rule matching nothing is exit 2
-            substitute_session(self, rules)
+        self.models.bind(self.context, realtime=settings["realtime"])
 
     def _robot_options(self, seed: int, config: dict[str, Any], unknown_map: bool) -> dict[str, Any]:
         """The backend factory's options: ``seed``, and ``world``, ``robot``, ``config`` when given.
@@ -309,9 +319,7 @@ class Session:
         if self._closed:
             return
         self._closed = True
-        caller = self.models.get(CALLER_KEY)
-        if caller is not None and hasattr(caller, "close"):
-            caller.close()
+        self.models.close()
         try:
             if self.robot is not None:
                 self.robot.close()
