@@ -131,6 +131,19 @@ def test_plain_behaviour_exception_becomes_failure_of_that_node() -> None:
     assert "ZeroDivisionError" in failed["root/plain"]["reason"]
 
 
+def test_a_plain_behaviours_fault_names_where_it_was_raised() -> None:
+    """The reason of a non-Leaf node's error ends with the raising code's file:line and function."""
+    broken = _BrokenBehaviour("plain")
+    result, lines = capture_tick_log(py_trees.composites.Selector("root", memory=False, children=[broken]))
+    assert result.status == Status.FAILURE
+    first_tick = next(line for line in lines if line["event"] == "tick")
+    reason = {c["node"]: c for c in first_tick["changed"]}["root/plain"]["reason"]
+    line = _BrokenBehaviour.update.__code__.co_firstlineno + 1  # the raise
+    assert reason.endswith(f"test_runner.py:{line} in update)"), reason
+    error = next(line for line in lines if line["event"] == "error")
+    assert error["error"] == reason and error["where"].endswith(f"test_runner.py:{line}")
+
+
 class _BrokenDecorator(py_trees.decorators.Decorator):
     """A decorator whose update raises once its child is running."""
 

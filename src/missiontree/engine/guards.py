@@ -1,13 +1,16 @@
 """Exceptions escaping a node become FAILURE of that node: the guards the runner puts on a tree.
 
 An exception escaping a behaviour that is not a :class:`~missiontree.engine.leaf.Leaf` (those
-handle their own) becomes FAILURE of that node, reported through ``on_error``; a halt whose cancel
+handle their own) becomes FAILURE of that node, its reason naming the error and where it was
+raised (``file:line in function``, in the node's own file when the error passed through it, as a
+leaf's reason does), reported through ``on_error``; a halt whose cancel
 raises is reported the same way. py_trees' own composites and decorators, which only manage their
 children, are trusted and ticked without a wrapper (:data:`TRUSTED_TYPES`).
 """
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable, Iterator
 
 import py_trees
@@ -16,6 +19,7 @@ from missiontree.engine.faults import (
     FaultKeepingForceSuccess,
     FaultKeepingInverter,
     clear_fault,
+    error_site,
     mark_fault,
 )
 from missiontree.engine.leaf import Leaf
@@ -66,7 +70,7 @@ def _guarded_tick(
         try:
             yield from original()
         except Exception as error:  # noqa: BLE001 - a node's bug must not kill the mission
-            reason = f"{type(error).__name__}: {error}"
+            reason = error_site(error, source_file(node)).reason  # "...: message (at file:line in f)"
             try:
                 node.stop(Status.INVALID)  # halt its children so their work is cancelled
             except Exception:  # noqa: BLE001 - already failing; the first error is the one to report
@@ -79,6 +83,14 @@ def _guarded_tick(
             yield node
 
     return tick
+
+
+def source_file(node: Behaviour) -> str | None:
+    """The file that defines ``node``'s class (None for a class made at run time): its error site."""
+    try:
+        return inspect.getsourcefile(type(node))
+    except TypeError:
+        return None
 
 
 def _guarded_stop(

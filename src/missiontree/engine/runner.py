@@ -43,7 +43,7 @@ import py_trees
 
 from missiontree.engine.context import MissionContext
 from missiontree.engine.faults import error_site, fault_of
-from missiontree.engine.guards import TRUSTED_TYPES, guard_exceptions
+from missiontree.engine.guards import TRUSTED_TYPES, guard_exceptions, source_file
 from missiontree.engine.node_words import node_paths
 from missiontree.engine.profile import RunProfile
 from missiontree.engine.recorder import RunRecorder
@@ -258,7 +258,7 @@ class Runner:
 
     def _on_node_error(self, node: Behaviour, error: Exception) -> None:
         """A non-Leaf node's exception: an ``error`` event as a leaf's (reason, file:line, frames)."""
-        site = error_site(error)
+        site = error_site(error, source_file(node))
         self._error_frames[node] = site.frames
         if self.log is None:
             return
