@@ -496,11 +496,35 @@ def gloss_words(wn: WordNet, words: dict[str, dict[str, float]],
     return found
 
 
+#: Words of :data:`GENERAL` that still name the things under them when said as the object asked for ("the
+#: container", "some equipment"); the rest ("being", "product", "article") say too little in a request.
+CATEGORY_WORDS = frozenset({"container", "device", "equipment", "instrumentality", "instrumentation",
+                            "artifact", "artefact", "organism"})
+#: A hypernym names the labels under it only from this depth below WordNet's root on (artifact, living
+#: thing and what is below them): "object", "whole" and "entity" name everything and so nothing.
+MIN_GENERAL_DEPTH = 4
+
+
+def _depth(wn: WordNet, synset: Synset, memo: dict[str, int]) -> int:
+    """The length of the shortest hypernym chain from ``synset`` up to WordNet's root."""
+    if synset.key not in memo:
+        memo[synset.key] = 0
+        ups = wn.related(synset, "@", "@i")
+        memo[synset.key] = 1 + min(_depth(wn, up, memo) for up in ups) if ups else 0
+    return memo[synset.key]
+
+
 def label_words(wn: WordNet) -> tuple[dict[str, str], dict[str, list[str]]]:
-    """(word -> label it names, word -> labels a more general word covers)."""
+    """(word -> label it names, word -> labels a more general word covers).
+
+    A label's own sense's words name it; a kind of it (a hyponym, two levels down) names the label
+    nearest above it ("escritoire", a kind of desk, names the desk although a desk is a kind of
+    table). Every hypernym of a label down from :data:`MIN_GENERAL_DEPTH` names all the labels under it
+    (seat: chair, sofa, bench, stool; personal computer: laptop), when that is among the two most
+    frequent senses of the word ("set" is a group before it is a television set).
+    """
     names: dict[str, str] = {}
     general: dict[str, set[str]] = {}
-    nearest: dict[str, int] = {}
     synsets = {label: sense(wn, spec) for label, (spec, _) in LABELS.items()}
     for label in synsets:
         names.setdefault(label, label)
@@ -508,22 +532,38 @@ def label_words(wn: WordNet) -> tuple[dict[str, str], dict[str, list[str]]]:
         for lemma in synset.lemmas:
             if lemma not in GENERAL:
                 names.setdefault(lemma, label)
+    nearest: dict[str, tuple[int, str]] = {}
+    own = {synset.key for synset in synsets.values()}
     for label, synset in synsets.items():
         # kinds of people are roles, not what a camera sees ("red" is a kind of radical)
-        for hyponym, _ in wn.hyponyms(synset, 0 if label == "person" else 2):
+        for hyponym, level in wn.hyponyms(synset, 0 if label == "person" else 2):
+            if hyponym.key in own:
+                continue
             for lemma in hyponym.lemmas:
-                if lemma not in GENERAL and lemma not in COLOURS:
-                    names.setdefault(lemma, label)
-    for label, synset in synsets.items():
-        for level, hypernym in enumerate(wn.hypernym_closure(synset)):
-            if level >= 2:
-                break
+                if lemma not in GENERAL and lemma not in COLOURS and lemma not in names:
+                    if lemma not in nearest or level < nearest[lemma][0]:
+                        nearest[lemma] = (level, label)
+    names.update({lemma: label for lemma, (_, label) in nearest.items()})
+    memo: dict[str, int] = {}
+    closures = {label: wn.hypernym_closure(synset) for label, synset in synsets.items()}
+    accepted: set[tuple[str, str]] = set()   # (word, hypernym) pairs that name what is under them
+    for closure in closures.values():
+        for level, hypernym in enumerate(closure):
+            if _depth(wn, hypernym, memo) < MIN_GENERAL_DEPTH:
+                continue
             for lemma in hypernym.lemmas:
-                if lemma not in GENERAL and lemma not in names:
-                    general.setdefault(lemma, set()).add(label)
-                    nearest.setdefault(lemma, level)
-    # a word two levels up names a family only when it covers several labels (seat, furniture)
-    return names, {w: sorted(ls) for w, ls in general.items() if len(ls) > 1 or nearest[w] == 0}
+                if lemma in names or lemma in COLOURS or lemma in GENERAL - CATEGORY_WORDS:
+                    continue
+                # a label's two nearest hypernyms in any sense (a seat, a vessel); farther ones in a
+                # frequent sense of the word
+                if level < 2 or _frequent(wn, lemma, hypernym):
+                    accepted.add((lemma, hypernym.key))
+    for label, closure in closures.items():
+        keys = {hypernym.key for hypernym in closure}
+        for lemma, key in accepted:
+            if key in keys:
+                general.setdefault(lemma, set()).add(label)
+    return names, {w: sorted(ls) for w, ls in general.items()}
 
 
 def irregular_forms(wn: WordNet, words: set[str]) -> dict[str, str]:

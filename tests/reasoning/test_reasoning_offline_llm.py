@@ -164,3 +164,26 @@ def test_a_strong_server_stands_in_for_a_lacking_better_one(llm: OfflineLanguage
     reply = llm.chat(intent_messages("I am bored", scene), IntentResolution)
     assert {"laptop_1", "laptop_2"} <= set(IntentResolution.model_validate_json(reply).candidates)
 
+
+
+DESKS_AND_TABLES = [obj("desk_1", "desk", 1.0, 0.0), obj("table_1", "table", 3.0, 0.0),
+                    obj("counter_1", "counter", 5.0, 0.0), obj("laptop_1", "laptop", 7.0, 0.0),
+                    obj("backpack_1", "backpack", 9.0, 0.0)]
+
+
+@pytest.mark.parametrize(("request_", "expected"), [
+    ("the desk", ["desk_1"]), ("the table", ["table_1"]), ("go to the escritoire", ["desk_1"]),
+    ("the writing table", ["desk_1"]), ("take me to the checkout counter", ["counter_1"])])
+def test_a_kind_names_the_nearest_class_above_it(llm: OfflineLanguageModel, request_: str,
+                                                 expected: list[str]) -> None:
+    """A scene listing desks and tables keeps them apart, and a kind of desk (WordNet) is a desk."""
+    assert llm.resolve(request_, DESKS_AND_TABLES).candidates == expected
+
+
+@pytest.mark.parametrize(("request_", "expected"), [
+    ("can you show me the personal computer", ["laptop_1"]), ("take me to the container", ["backpack_1"]),
+    ("where is the furniture", ["counter_1", "desk_1", "table_1"])])
+def test_a_more_general_word_names_the_classes_under_it(llm: OfflineLanguageModel, request_: str,
+                                                        expected: list[str]) -> None:
+    """A WordNet hypernym of a class (a pc, a container, furniture) names the scene's classes under it."""
+    assert sorted(llm.resolve(request_, DESKS_AND_TABLES).candidates) == expected

@@ -35,7 +35,7 @@ from pydantic import BaseModel
 
 from missiontree.errors import ModelError
 from missiontree.perception.colour import canonical_colour
-from missiontree.reasoning.knowledge import STRONG, Knowledge, Reading, knowledge
+from missiontree.reasoning.knowledge import STRONG, Knowledge, Reading, knowledge, normalise
 from missiontree.reasoning.need_embedding import embedded_reading
 from missiontree.reasoning.phrases import fold_label, parse_reference, split_relation
 from missiontree.reasoning.prompts import parse_intent_messages
@@ -230,7 +230,7 @@ class OfflineLanguageModel:
     def _resolve_reference(
         self, ref: ReferenceParse, objects: Sequence[Mapping[str, Any]]
     ) -> IntentResolution:
-        matching = [o for o in objects if fold_label(str(o["label"])) == fold_label(ref.label)]
+        matching = _of_label(objects, ref.label)
         described = [o for o in matching if all(_has_attribute(o, a) for a in ref.attributes)]
         what = " ".join([*ref.attributes, ref.label])
         if not described:
@@ -240,7 +240,7 @@ class OfflineLanguageModel:
         if ref.relation is None or ref.anchor is None:
             return IntentResolution(candidates=[str(o["id"]) for o in described], reference=ref,
                                     reason=f"{len(described)} {what} in the scene")
-        anchors = [o for o in objects if fold_label(str(o["label"])) == fold_label(ref.anchor)]
+        anchors = _of_label(objects, ref.anchor)
         in_room = [o for o in described if str(o.get("room", "")).lower() == ref.anchor.lower()]
         if not anchors and ref.relation == "in":
             return IntentResolution(candidates=[str(o["id"]) for o in in_room], reference=ref,
@@ -252,6 +252,16 @@ class OfflineLanguageModel:
         return IntentResolution(candidates=[str(o["id"]) for _, o in scored], reference=ref, reason=(
             f"{len(scored)} {what} {relation} a {ref.anchor}" if scored
             else f"no {what} {relation} a {ref.anchor} ({len(anchors)} {ref.anchor} in the scene)"))
+
+
+def _of_label(objects: Sequence[Mapping[str, Any]], label: str) -> list[Mapping[str, Any]]:
+    """The objects listed as ``label`` itself; when none is, those whose label folds to the same class.
+
+    A scene that lists desks and tables keeps them apart ("the desk" is no table), while a scene
+    listing a "couch" still answers "the sofa".
+    """
+    own = [o for o in objects if normalise(str(o["label"])) == normalise(label)]
+    return own or [o for o in objects if fold_label(str(o["label"])) == fold_label(label)]
 
 
 def _rooms(objects: Sequence[Mapping[str, Any]]) -> list[str]:

@@ -79,27 +79,15 @@ def label_words() -> dict[str, tuple[str, ...]]:
 
 
 def find_label(text: str, labels: Iterable[str]) -> tuple[str, int] | None:
-    """The known label mentioned in ``text`` (longest match wins) and where it starts, or None."""
+    """The known label mentioned in ``text`` (longest match wins) and where it starts, or None.
+
+    A word names the label that is its own first: "desk" is the desk when the scene lists desks and
+    tables, and folds to the table only when it lists no desk.
+    """
     words = normalise(text)
     padded = f" {words} "
     candidates: list[tuple[int, int, str]] = []
-    forms: dict[str, str] = {}
-    for label in labels:
-        canonical = fold_label(label)
-        forms[canonical] = label
-        forms[canonical + "s"] = label
-        forms[canonical + "es"] = label
-    for synonym, canonical in SYNONYMS.items():
-        for label in labels:
-            if fold_label(label) == canonical:
-                forms.setdefault(synonym, label)
-                forms.setdefault(synonym + "s", label)
-    known = label_words()
-    for label in labels:
-        for word in known.get(fold_label(label), ()):
-            forms.setdefault(word, label)
-            forms.setdefault(word + "s", label)
-    for form, label in forms.items():
+    for form, label in _label_forms(tuple(labels)).items():
         at = padded.find(f" {form} ")
         if at >= 0 and form:
             candidates.append((-len(form), at, label))
@@ -107,6 +95,35 @@ def find_label(text: str, labels: Iterable[str]) -> tuple[str, int] | None:
         return None
     _, at, label = min(candidates)
     return label, at
+
+
+@lru_cache(maxsize=64)
+def _label_forms(labels: tuple[str, ...]) -> dict[str, str]:
+    """Each word (and its plural) that names one of ``labels``, to that label, by priority.
+
+    A label's own name first, then the words the knowledge gives that very label, then the synonyms
+    folded to it, then the words of what it folds to.
+    """
+    known = label_words()
+    ranked: dict[str, tuple[int, str]] = {}
+
+    def add(word: str, label: str, rank: int) -> None:
+        for form in (word, word + "s", word + "es"):
+            if form and (form not in ranked or rank < ranked[form][0]):
+                ranked[form] = (rank, label)
+
+    for label in labels:
+        own, canonical = normalise(label).replace("_", " "), fold_label(label)
+        add(own, label, 0)
+        for word in known.get(own, ()):
+            add(word, label, 1)
+        add(canonical, label, 2)
+        for synonym, target in SYNONYMS.items():
+            if target in (own, canonical):
+                add(synonym, label, 2 if target == own else 3)
+        for word in known.get(canonical, ()):
+            add(word, label, 3)
+    return {form: label for form, (_, label) in ranked.items()}
 
 
 def colour_words(text: str) -> list[str]:
