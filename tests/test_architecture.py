@@ -44,7 +44,8 @@ LAYERS: dict[str, int] = {
     "events": 0,  # the event-sink protocol every layer writes to
     "services": 0,  # the scene and model-call protocols a mission context carries (typing only)
     # reading files and options, raising the package's errors
-    "yamlio": 1, "paths": 1, "options": 1,
+    "yamlio": 1, "paths": 1,
+    "options": 2,  # a provider's options checked, worded by yamlio's one translation of pydantic errors
     "robot": 2,  # the abstract robot
     # the domain, one concept a floor: per-frame geometry < the learned map < what is where < words
     "perception": 3, "mapping": 4, "semantics": 5, "reasoning": 6,
@@ -79,31 +80,11 @@ class Allowed:
     issue: int
 
 
-_SEMANTIC_MAP = "scene graph (perception/fusion, merge, absence, plausibility)"
-_MAP_HOME = "the semantic map (fusion, merge, absence) moves under semantics/ over a shared fusion state"
 _SIM = "simulator (backends/sim world, robot, navigation)"
 _NAV_SPLIT = "navigation split into planner, controller, recovery and a handle that owns its state"
 
 #: Known violations by their key (see :func:`violations`); grouped by the area that owns the files.
 ALLOWED: dict[str, Allowed] = {
-    # -- the semantic map, still in perception (issue 31, deliverable 1)
-    "circle missiontree.perception.absence, missiontree.perception.fusion, missiontree.perception.merge":
-        Allowed(_SEMANTIC_MAP, f"fusion, merge and absence import each other; {_MAP_HOME}", 31),
-    "private missiontree.perception.merge -> missiontree.perception.fusion._Track":
-        Allowed(_SEMANTIC_MAP, f"merge reaches into fusion's track; {_MAP_HOME}", 31),
-    "private missiontree.perception.merge -> ._k":
-        Allowed(_SEMANTIC_MAP, f"merge reads fusion's private tunable; {_MAP_HOME}", 31),
-    "private missiontree.perception.merge -> ._outline_centre":
-        Allowed(_SEMANTIC_MAP, f"merge calls fusion's private method; {_MAP_HOME}", 31),
-    "upward missiontree.perception.absence -> missiontree.semantics.semantic_map":
-        Allowed(_SEMANTIC_MAP, _MAP_HOME, 31),
-    "upward missiontree.perception.fusion -> missiontree.semantics.semantic_map":
-        Allowed(_SEMANTIC_MAP, _MAP_HOME, 31),
-    "upward missiontree.perception.merge -> missiontree.semantics.semantic_map":
-        Allowed(_SEMANTIC_MAP, _MAP_HOME, 31),
-    "upward missiontree.perception.plausibility -> missiontree.mapping.grid":
-        Allowed(_SEMANTIC_MAP, "a fusion check that reads the learned map's cells: it goes with the "
-                "semantic map (above mapping), not per-frame perception", 31),
     # -- the simulator's navigator writes its handle's state (issue 31, deliverable 7)
     "private missiontree.backends.sim.navigation -> ._finish":
         Allowed(_SIM, f"the navigator ends SimNavHandle from outside; {_NAV_SPLIT}", 31),
@@ -606,6 +587,38 @@ def test_only_the_process_module_changes_the_process_and_only_applications_ask()
             if short == "tune_process" and name not in TUNING_CALLERS:
                 wrong.append(f"{path}:{line}: {called} (only {sorted(TUNING_CALLERS)} tune the process)")
     assert not wrong, "process settings changed outside session.process:\n" + "\n".join(wrong)
+
+
+#: Modules that read pydantic's error dictionaries (``err["msg"]``, ``err["loc"]``) themselves, besides
+#: the one translation in ``yamlio.problems`` (issue 31, deliverable 5), each with its reason.
+PYDANTIC_READERS = {
+    "missiontree.yamlio.problems": "the one translation of pydantic errors into problems and messages",
+    "missiontree.engine.validate": "merges a union's alternatives into one node-parameter issue, worded "
+                                   "by yamlio's expected_text",
+    "missiontree.backends.sim.world": "drops a world's broken objects to check the rest (no wording)",
+    "missiontree.backends.sim.robot_profiles": "names an override's key path (not in a file); the message is "
+                                               "yamlio's error_message",
+    "missiontree.reasoning.checks": "a model answer's errors fed back to the model (not a config file); "
+                                    "owned by the intent work",
+    "missiontree.backends.ros2.profile": "to move to yamlio's error_lines (owned by the ROS 2 work)",
+}
+
+
+def _reads_error_dicts(tree: ast.AST) -> list[int]:
+    """Lines that subscript something with the string ``"msg"`` or ``"loc"`` (a pydantic error's keys)."""
+    return [node.lineno for node in ast.walk(tree) if isinstance(node, ast.Subscript)
+            and isinstance(node.slice, ast.Constant) and node.slice.value in ("msg", "loc")]
+
+
+def test_pydantic_errors_are_worded_in_one_place() -> None:
+    """Only yamlio.problems (and the listed exceptions) reads pydantic's error dictionaries."""
+    found = {name: lines for name, path in module_files().items()
+             if (lines := _reads_error_dicts(ast.parse(path.read_text(encoding="utf-8"))))}
+    extra = sorted(set(found) - set(PYDANTIC_READERS))
+    assert not extra, f"word pydantic errors with missiontree.yamlio (error_lines, validation_problems): " \
+                      f"{[(m, found[m]) for m in extra]}"
+    stale = sorted(set(PYDANTIC_READERS) - set(found))
+    assert not stale, f"no longer reads pydantic errors, so remove from PYDANTIC_READERS: {stale}"
 
 
 def test_the_call_reader_finds_dotted_and_plain_calls() -> None:

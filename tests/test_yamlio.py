@@ -160,3 +160,36 @@ def test_control_characters_are_refused_with_position() -> None:
     """A control character (other than tab and line breaks) is named with its line and column."""
     (line,) = problems_of("a: 1\nb: x\x07\n")
     assert line.startswith("f.yaml:2:5: expected printable text, found the control character '\\x07'")
+
+
+# -- the one translation of pydantic errors ----------------------------------------------------------
+
+
+def test_a_misspelt_key_is_located_with_the_nearest_known_one() -> None:
+    """validation_problems points at an unknown key and suggests the closest field name."""
+    from pydantic import BaseModel, ConfigDict, ValidationError
+
+    from missiontree.yamlio import validation_problems
+
+    class Section(BaseModel):
+        model_config = ConfigDict(extra="forbid")
+        backend: str = "sim"
+        seed: int = 0
+
+    doc = parse_yaml("run:\n  backnd: sim\n  seed: x\n", "m.yaml")
+    with pytest.raises(ValidationError) as caught:
+        Section.model_validate(doc.data["run"])
+    problems = {p.path: p for p in validation_problems(caught.value, doc, Section, prefix=("run",))}
+    assert (problems["run.backnd"].line, problems["run.backnd"].hint) == (2, "did you mean 'backend'?")
+    assert problems["run.backnd"].message.startswith("unknown key 'backnd'; expected one of: backend, seed")
+    assert problems["run.seed"].message.startswith("expected a valid integer") and "found 'x'" in \
+        problems["run.seed"].message
+
+
+def test_a_union_member_tag_is_not_shown_as_a_key() -> None:
+    """written_loc keeps the written keys and a missing key, and drops pydantic's union tags."""
+    from missiontree.yamlio import written_loc
+
+    data = {"a": {"b": 1}}
+    assert written_loc(data, ("a", "b", "int"), "int_parsing") == ("a", "b")
+    assert written_loc(data, ("a", "c"), "missing") == ("a", "c")

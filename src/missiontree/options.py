@@ -1,4 +1,7 @@
-"""Checking a provider's options (a section of a models config) against its pydantic model."""
+"""Checking a provider's options (a section of a models config) against its pydantic model.
+
+The errors are worded by :mod:`missiontree.yamlio.problems`, the one translation of pydantic's errors.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +11,7 @@ from typing import Any, TypeVar
 from pydantic import BaseModel, ValidationError
 
 from missiontree.errors import ModelConfigError
+from missiontree.yamlio.problems import error_lines
 
 M = TypeVar("M", bound=BaseModel)
 
@@ -21,8 +25,7 @@ def parse_provider_options(model: type[M], options: Mapping[str, Any], provider:
     try:
         return model.model_validate(dict(options))
     except ValidationError as exc:
-        problems = "; ".join(
-            f"{'.'.join(str(p) for p in e['loc']) or 'options'}: {e['msg']}" for e in exc.errors())
+        problems = "; ".join(error_lines(exc))  # the known options follow once
         raise ModelConfigError(
             f"model provider {provider!r}: invalid options ({problems}); known options: "
             f"{', '.join(model.model_fields)}") from None

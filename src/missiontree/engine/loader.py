@@ -41,7 +41,7 @@ from missiontree.engine.substitution import substitute
 from missiontree.engine.validate import check_tree, non_finite_issues
 from missiontree.errors import MissionFileError, Problem
 from missiontree.paths import REPO_ROOT
-from missiontree.yamlio import Located, load_yaml
+from missiontree.yamlio import Located, load_yaml, validation_problems
 from missiontree.yamlio import short_repr as shown
 
 #: The node type name the loader handles itself: a subtree from another file.
@@ -298,26 +298,15 @@ class _Loader:
         raw = doc.data.get("run")
         if raw is None:
             return RunSection()
+        if not isinstance(raw, dict):
+            self.problems.append(doc.problem_at(
+                ("run",), f"expected a mapping of run defaults, found {_kind(raw)}",
+                "write `run: {backend: sim, tick_hz: 10}`", where="run"))
+            return RunSection()
         try:
             return RunSection.model_validate(raw)
         except ValidationError as exc:
-            for err in exc.errors():
-                loc = tuple(err["loc"])
-                if err["type"] == "extra_forbidden":
-                    known = list(RunSection.model_fields)
-                    near = difflib.get_close_matches(str(loc[-1]), known, n=1)
-                    self.problems.append(doc.problem_at(
-                        ("run", *loc), f"expected one of {', '.join(known)}; found {shown(loc[-1])}",
-                        f"did you mean {near[0]!r}?" if near else "remove it", key=True, where="run"))
-                elif not loc:
-                    self.problems.append(doc.problem_at(
-                        ("run",), f"expected a mapping of run defaults, found {_kind(raw)}",
-                        "write `run: {backend: sim, tick_hz: 10}`", where="run"))
-                else:
-                    self.problems.append(doc.problem_at(
-                        ("run", *loc),
-                        f"{loc[-1]}: expected {_expected(err)}, found {shown(err.get('input'))}",
-                        "fix the value", where="run"))
+            self.problems.extend(validation_problems(exc, doc, RunSection, prefix=("run",)))
             return RunSection()
 
     # -- nodes ------------------------------------------------------------------------------
@@ -570,14 +559,6 @@ def _is_file(path: Path) -> bool:
         return path.is_file()
     except (OSError, ValueError):
         return False
-
-
-def _expected(err: Any) -> str:
-    msg = str(err.get("msg", "a valid value"))
-    for prefix in ("Input should be ", "Value error, "):
-        if msg.startswith(prefix):
-            msg = msg[len(prefix):]
-    return msg
 
 
 __all__ = ["INCLUDE", "MAX_INCLUDE_DEPTH", "MAX_TREE_NODES", "check_mission", "load_mission",

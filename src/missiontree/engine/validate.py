@@ -27,7 +27,7 @@ from missiontree.engine.ports import BlackboardRef, ports_of
 from missiontree.engine.registry import NodeRegistry, NodeType
 from missiontree.engine.spec import CHILD_KEY, CHILDREN_KEY, MissionSpec, NodeSpec
 from missiontree.errors import Problem
-from missiontree.yamlio import format_path, short_repr
+from missiontree.yamlio import expected_text, format_path, short_repr, written_loc
 
 _UNRESOLVED = re.compile(r"(?<!\$)\$\{[^}]*\}")
 
@@ -147,12 +147,12 @@ def _validation_issues(
         if isinstance(err.get("input"), str) and _UNRESOLVED.search(err["input"]):
             continue  # an unknown ${param}: the loader reported it where it was written
         # drop union-member tags (``int``, ``str``...) that pydantic puts in loc: keep written keys
-        by_loc.setdefault(_written_loc(plain, loc, err["type"]), []).append(err)
+        by_loc.setdefault(written_loc(plain, loc, err["type"]), []).append(err)
     issues = []
     for loc, errs in by_loc.items():
         merged = dict(errs[0], loc=loc)
         if len(errs) > 1 and all(e["type"] not in ("missing", "extra_forbidden") for e in errs):
-            merged["msg"] = " or ".join(dict.fromkeys(_expected_text(e) for e in errs))
+            merged["msg"] = " or ".join(dict.fromkeys(expected_text(e) for e in errs))
             merged["type"] = "union"
         issues.append(_issue(model, merged))
     return issues
@@ -189,7 +189,7 @@ def _issue(model: type[BaseModel], err: Any) -> ParamIssue:
     if err["type"] == "extra_forbidden":
         return ParamIssue(loc, f"expected no parameter {'.'.join(map(str, loc))!r}, found one", "remove it",
                           at_key=True)
-    msg = _expected_text(err)
+    msg = expected_text(err)
     where = format_path(loc)
     found = err.get("input")
     found_text = ("nothing" if found is None else short_repr(found) if not isinstance(found, dict)
@@ -198,29 +198,6 @@ def _issue(model: type[BaseModel], err: Any) -> ParamIssue:
         return ParamIssue(loc, f"{where}: {msg}" if where else msg, doc)
     return ParamIssue(loc, f"{where}: expected {msg}, found {found_text}" if where else f"expected {msg}",
                       doc or "fix the value")
-
-
-def _expected_text(err: Any) -> str:
-    msg = str(err.get("msg", ""))
-    for prefix in ("Input should be ", "Value error, ", "Assertion failed, "):
-        msg = msg.removeprefix(prefix)
-    return msg
-
-
-def _written_loc(data: Any, loc: tuple[Any, ...], kind: str) -> tuple[str | int, ...]:
-    """The part of a pydantic ``loc`` that names keys and indices present in the written data."""
-    kept: list[str | int] = []
-    for part in loc:
-        if isinstance(data, dict) and part in data:
-            data = data[part]
-        elif isinstance(data, list) and isinstance(part, int) and 0 <= part < len(data):
-            data = data[part]
-        elif kind in ("missing", "extra_forbidden") and not isinstance(part, int) and part == loc[-1]:
-            pass  # the missing/extra key itself is kept below
-        else:
-            continue
-        kept.append(part)
-    return tuple(kept)
 
 
 def type_label(annotation: Any) -> str:

@@ -30,8 +30,16 @@ The parts: :mod:`~missiontree.yamlio.located` (the located data and the limits),
 """
 
 from missiontree.yamlio.located import DEFAULT_LIMITS, KeyPath, Located, YamlLimits, format_path
-from missiontree.yamlio.problems import error_message, short_repr, validation_problems
+from missiontree.yamlio.problems import (
+    error_lines,
+    error_message,
+    expected_text,
+    short_repr,
+    validation_problems,
+    written_loc,
+)
 from missiontree.yamlio.reader import load_yaml, parse_yaml
 
-__all__ = ["DEFAULT_LIMITS", "KeyPath", "Located", "YamlLimits", "error_message", "format_path", "load_yaml",
-           "parse_yaml", "short_repr", "validation_problems"]
+__all__ = ["DEFAULT_LIMITS", "KeyPath", "Located", "YamlLimits", "error_lines", "error_message",
+           "expected_text", "format_path", "load_yaml", "parse_yaml", "short_repr", "validation_problems",
+           "written_loc"]
