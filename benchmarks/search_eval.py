@@ -57,13 +57,16 @@ are up to 30 x 50 m). Last line: JSON, ``{"dev": {...}, "test": {...}, "gap": {.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
+import shutil
 import statistics
 import sys
 import tempfile
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -209,11 +212,17 @@ def _relabel(obj: dict[str, Any], label: str, colour: str, like: dict[str, Any] 
     obj.update(label=label, color=colour, size=list(size), shape=shape)
 
 
-def make_case(index: int, seed: int, absent: bool, folder: Path) -> tuple[Case, Path]:
-    """A dev case: generate, edit and write the apartment of ``seed``; return the case and its file."""
+def make_case(
+    index: int, seed: int, absent: bool, folder: Path, rooms: int = 4, size: tuple[float, float] | None = None
+) -> tuple[Case, Path]:
+    """A dev case: generate, edit and write the apartment of ``seed``; return the case and its file.
+
+    ``rooms`` and ``size`` (m) give larger apartments of the same generator (``--dev-rooms``,
+    ``--dev-size``): tuning for large floors without looking at the test split's.
+    """
     from missiontree.backends.sim.generator import generate_world
 
-    data = generate_world(seed, rooms=4, people=0)
+    data = generate_world(seed, rooms=rooms, people=0, size=size)
     label, colour, target_id = edit_world(data, seed, absent)
     case = Case(index, seed, label, colour, absent, target_id, "dev", f"generated:{seed}")
     path = folder / f"dev_{index:03d}.yaml"
@@ -514,6 +523,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--test-max-duration", type=float, default=900.0, help="robot s a test mission")
     parser.add_argument("--workers", type=int, default=1, help="missions run at once")
     parser.add_argument("--first-seed", type=int, default=100, help="dev: the first generator seed")
+    parser.add_argument("--dev-rooms", type=int, default=4, help="dev: rooms an apartment (large floors)")
+    parser.add_argument("--dev-size", default="", help="dev: apartment size WxH in m (default: the seed's)")
     parser.add_argument("--test-first-seed", type=int, default=0, help="test: the splits API's first seed")
     parser.add_argument(
         "--test-order",
@@ -527,6 +538,7 @@ def main(argv: list[str] | None = None) -> int:
         default="dev",
         help="splits the report's method runs on (dev: the test floors take it most of the limit)",
     )
+    parser.add_argument("--keep", default="", help="keep the worlds and runs (tick logs) in this directory")
     args = parser.parse_args(argv)
     splits = list(SPLITS) if args.split == "both" else [args.split]
     counts = {
@@ -543,7 +555,7 @@ def main(argv: list[str] | None = None) -> int:
     trials: list[Trial] = []
     results: dict[str, Any] = {}
     started = time.perf_counter()
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() if not args.keep else _kept(args.keep) as tmp:
         for split in splits:
             folder = Path(tmp) / split
             folder.mkdir()
@@ -551,7 +563,11 @@ def main(argv: list[str] | None = None) -> int:
             skipped: list[str] = []
             if split == "dev":
                 n = n_present + n_absent
-                cases = [make_case(i, args.first_seed + i, i >= n_present, folder) for i in range(n)]
+                size = _size(args.dev_size)
+                cases = [
+                    make_case(i, args.first_seed + i, i >= n_present, folder, args.dev_rooms, size)
+                    for i in range(n)
+                ]
             else:
                 cases, skipped = held_out_cases(
                     n_present, n_absent, args.test_first_seed, folder, args.test_order
@@ -601,6 +617,24 @@ def s_get(split: dict[str, Any], method: str) -> float | None:
     """A method's median time to find in one split's results."""
     value = split.get(method, {}).get("time_to_find_s_median")
     return float(value) if value else None
+
+
+@contextlib.contextmanager
+def _kept(folder: str) -> Iterator[str]:
+    """A directory kept after the benchmark (for the runs' tick logs), made empty first."""
+    path = Path(folder)
+    if path.exists():
+        shutil.rmtree(path)
+    path.mkdir(parents=True)
+    yield str(path)
+
+
+def _size(text: str) -> tuple[float, float] | None:
+    """'30x20' -> (30.0, 20.0); '' -> None (the generator draws the size)."""
+    if not text:
+        return None
+    w, h = text.lower().split("x")
+    return float(w), float(h)
 
 
 def run_split(

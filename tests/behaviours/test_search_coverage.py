@@ -132,7 +132,8 @@ def test_frontiers_that_appear_while_looking_are_explored_first() -> None:
 
     robot = Opening(data, Pose2D(1.0, 1.0, math.pi))
     events = Events()
-    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+    # the looks after the frontiers (view_window 0: no looking while exploring)
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none", view_window=0))
     models = {"detector": Detector()}
     leaf.setup(context=MissionContext(robot=robot, events=events, models=models))  # type: ignore[arg-type]
     for _ in range(3000):
@@ -392,3 +393,121 @@ def test_exploring_again_after_the_looks_does_not_end_stuck_at_once() -> None:
     assert events.of("search_frontiers_again")
     assert not [e for e in events.of("search_explored") if str(e["reason"]).startswith("stuck")]
     assert leaf.status == Status.RUNNING and leaf.handle is not None, leaf.feedback_message
+
+
+def _corridor_open_both_ends() -> np.ndarray:
+    """A corridor known free from x = 3 to 6 m, unknown beyond both ends (a frontier west and east)."""
+    data = np.full((32, 180), -1, np.int8)
+    data[:, 60:120] = 0
+    data[0, 60:120] = data[-1, 60:120] = 100
+    return data
+
+
+def test_a_frontier_with_floor_the_camera_has_not_seen_near_it_ranks_first() -> None:
+    """Two frontiers alike for the lidar: the one whose goal has unseen floor near it comes first."""
+    from missiontree.behaviours.search_resume import PriorPlanner
+
+    grid = grid_of(_corridor_open_both_ends())
+    planner = PriorPlanner(lambda c: 0.0, 0.0)
+    plain = planner.candidates(grid, (4.5, 0.8))
+    assert {c.target[0] < 4.5 for c in plain} == {True, False}
+    planner.camera_unseen = lambda g, x, y: 6.0 if x > 4.5 else 0.0
+    ranked = planner.candidates(grid, (4.5, 0.8))
+    assert ranked[0].target[0] > 4.5 and ranked[0].gain_m2 > max(c.gain_m2 for c in plain)
+
+
+def test_places_to_look_from_compete_with_frontiers_but_not_in_reachability_checks() -> None:
+    """A place to look from scoring best comes first; the map's reachability tests never see it."""
+    from missiontree.behaviours.search_resume import PriorPlanner
+    from missiontree.mapping.exploration import Candidate
+
+    grid = grid_of(_corridor_open_both_ends())
+    planner = PriorPlanner(lambda c: 0.0, 0.0)
+    view = Candidate(4.0, 0.8, "view", 16, 8.0, 0.5, 100.0, (4.2, 0.8))
+    planner.views = lambda g, xy: [view]
+    assert planner.candidates(grid, (4.5, 0.8))[0] is view
+    assert all(c.kind == "frontier" for c in planner.reach_candidates(grid, (4.5, 0.8)))
+
+
+def test_the_goal_in_hand_is_not_left_for_a_farther_one() -> None:
+    """A clearly better goal farther away does not replace the goal in hand; a nearer one does."""
+    from missiontree.behaviours.search_resume import PriorPlanner
+    from missiontree.mapping.exploration import Candidate
+
+    planner = PriorPlanner(lambda c: 0.0, 0.0)
+    current = Candidate(5.0, 0.0, "frontier", 10, 5.0, 5.0, 1.0, (5.5, 0.0))
+    far = Candidate(14.0, 0.0, "frontier", 10, 50.0, 14.0, 3.0, (14.5, 0.0))
+    near = Candidate(2.0, 0.0, "frontier", 10, 5.0, 2.0, 3.0, (2.5, 0.0))
+    assert not planner.better(far, current)
+    assert planner.better(near, current)
+
+
+def test_a_place_to_look_from_is_dropped_once_its_floor_was_seen_on_the_way() -> None:
+    """No frontier in a hall the camera has not seen: a view goal while exploring, left once seen."""
+    robot = SlowRobot(hall(), Pose2D(1.0, 1.0, math.pi))
+    events = Events()
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+    leaf.setup(context=MissionContext(robot=robot, events=events, models={"detector": Detector()}))  # type: ignore[arg-type]
+    leaf.tick_once()
+    goals = events.of("explore_goal")
+    assert goals and goals[0]["kind"] == "view", goals
+    first = robot.goals[0]
+    assert leaf.target is not None and leaf.coverage is not None
+    tx, ty = leaf.target.target
+    grid = robot.occupancy()
+    assert grid is not None
+    for yaw in np.linspace(-math.pi, math.pi, 8, endpoint=False):  # the camera saw it on the way
+        for _ in range(3):
+            leaf.coverage.add_view(grid, Pose2D(tx, ty, float(yaw)), K.hfov)
+    for _ in range(30):
+        leaf.tick_once()
+        robot.advance(0.1)
+    assert first.cancelled and len(robot.goals) > 1
+
+
+def test_a_place_to_look_from_not_reached_gives_its_floor_up_without_a_blacklist() -> None:
+    """An aborted view goal: the floor near it is given up, no exploration place is blacklisted."""
+
+    class Refusing(SlowRobot):
+        def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> FakeHandle:
+            handle = FakeHandle(goal, tolerance, ActionStatus.ABORTED, "no path", 1)
+            self.goals.append(handle)
+            return handle
+
+    robot = Refusing(hall(), Pose2D(1.0, 1.0, math.pi))
+    events = Events()
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+    leaf.setup(context=MissionContext(robot=robot, events=events, models={"detector": Detector()}))  # type: ignore[arg-type]
+    for _ in range(3):
+        leaf.tick_once()
+        robot.advance(0.1)
+    assert events.of("search_view_given_up")
+    assert leaf.planner is not None and not leaf.planner.blacklist
+    assert leaf.coverage is not None and leaf.coverage.skipped
+
+
+def test_reset_progress_restarts_the_stuck_timer() -> None:
+    """After reset_progress, an old progress time no longer ends the next step 'stuck'."""
+    robot = SlowRobot(hall(), Pose2D(1.0, 1.0, 0.0))
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none", stuck_timeout=10.0))
+    leaf.setup(context=MissionContext(robot=robot, events=Events(), models={"detector": Detector()}))  # type: ignore[arg-type]
+    grid = robot.occupancy()
+    assert grid is not None
+    pose = Pose2D(1.0, 1.0, 0.0)
+    leaf.progress_xy, leaf.progress_at, leaf.progress_area, leaf.area_at = (1.0, 1.0), 0.0, 1e9, 0.0
+    assert leaf._stuck(100.0, grid, pose)
+    leaf.reset_progress(100.0, pose)
+    assert not leaf._stuck(100.5, grid, pose)
+
+
+def test_the_floor_near_the_robot_is_labelled_in_a_window_and_the_whole_floor_kept() -> None:
+    """floor(radius=) holds only cells near the robot; the whole floor of one grid is labelled once."""
+    grid = grid_of(hall())
+    cov = ViewCoverage(view_range=2.5)
+    near = cov.floor(grid, (1.0, 1.0), radius=1.0)
+    assert near and all(abs((k[0] + 0.5) * cov.cell - 1.0) <= 1.3 for k in near)
+    whole = cov.floor(grid, (1.0, 1.0))
+    assert len(whole) > len(near)
+    calls = []
+    cov._floor_cells = lambda g, xy: calls.append(1) or set()  # type: ignore[method-assign]
+    assert cov.floor(grid, (1.0, 1.0)) is whole and not calls

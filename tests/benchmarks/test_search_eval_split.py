@@ -32,3 +32,14 @@ def test_a_whole_round_holds_every_place_once_and_no_seed_twice() -> None:
 def test_the_cycle_order_is_the_seeds_in_order() -> None:
     """--test-order cycle keeps the seeds from the first one on."""
     assert search_eval.held_out_seeds(4, first_seed=3, order="cycle") == [3, 4, 5, 6]
+
+
+def test_large_dev_apartments_come_from_the_dev_generator_at_the_size_asked(tmp_path: Path) -> None:
+    """--dev-rooms and --dev-size make a larger apartment of the same generator, still a dev case."""
+    import yaml
+
+    assert search_eval._size("36x24") == (36.0, 24.0) and search_eval._size("") is None
+    case, path = search_eval.make_case(0, 310, False, tmp_path, rooms=12, size=(30.0, 20.0))
+    data = yaml.safe_load(path.read_text())
+    assert case.split == "dev" and case.world.startswith("generated:")
+    assert len(data["rooms"]) >= 8

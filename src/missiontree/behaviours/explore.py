@@ -40,24 +40,26 @@ gets ``explore_complete`` and ``unexplored`` (the frontiers left).
 
 Leaves built on Explore (the search's ``ResumeExplore`` and ``Locate``) use its public interface:
 :meth:`Explore.planner_options` and :meth:`Explore.make_planner` (the planner a run uses),
-:meth:`Explore.select_goal` (choose and send the next goal), :meth:`Explore.on_goal_reached` and
-:meth:`Explore.on_give_up` (hooks), :meth:`Explore.summary` and :func:`known_area`.
+:meth:`Explore.select_goal` (choose and send the next goal), the hooks :meth:`Explore.on_goal_reached`,
+:meth:`Explore.on_give_up`, :meth:`Explore.goal_still_wanted` (drop a goal in hand whose place was
+seen on the way), :meth:`Explore.wants_look` and :meth:`Explore.on_look_done` (a full turn at a goal
+and what it showed), :meth:`Explore.on_goal_failed` (a goal of the subclass's own kind that failed),
+:meth:`Explore.reset_progress` (restart the stuck timer after the robot moved under a subclass's
+control), :meth:`Explore.summary` and :func:`known_area`.
 """
 
 from __future__ import annotations
 
-import json
 import math
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Field
 
-from missiontree.behaviours.explore_report import exploration_report, known_area, said
+from missiontree.behaviours.explore_report import exploration_report, known_area, save_exploration
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Output
 from missiontree.mapping.exploration import Candidate, ExplorationPlanner, LeftOpen
 from missiontree.mapping.grid import free_mask
-from missiontree.mapping.mapfile import write_map
 from missiontree.robot.actions import ActionHandle, ActionStatus
 from missiontree.types import OccupancyGrid, Pose2D, Tolerance, wrap_angle
 
@@ -165,7 +167,7 @@ class Explore(Leaf):
         self.look_pause_until = -math.inf
         self.look_started = now
         self.look_steps_done = 0
-        self.look_target: Candidate | None = None  # the frontier reached that the look is for
+        self.look_target: Candidate | None = None  # the goal reached that the look is for
 
     # -- lifecycle ---------------------------------------------------------------------------------
 
@@ -206,7 +208,9 @@ class Explore(Leaf):
             if not self._look(now, pose):
                 return self.running(f"looking around: {math.degrees(self.look_turned):.0f} deg")
             self.state = _SELECT
-            self._after_look(grid, pose)
+            target, self.look_target = self.look_target, None
+            if target is not None:
+                self.on_look_done(target, grid, pose)
         if self.state == _DRIVE:
             status = self._drive(now, grid, pose)
             if status is not None:
@@ -313,6 +317,42 @@ class Explore(Leaf):
     def on_give_up(self, goal: Candidate, reason: str) -> None:
         """Called when ``goal`` was blacklisted (``self.last_grid`` is the map then); nothing here."""
 
+    def goal_still_wanted(self, grid: OccupancyGrid, goal: Candidate) -> bool:
+        """Whether the goal being driven to is still worth going on to (asked at each re-plan).
+
+        Here: a frontier goal while its frontier is not seen -- judged within the blacklist's radius,
+        as the frontier piece's own point shifts as its far edge flickers in the scans (a 0.3 m test
+        sent the robot back and forth between two frontiers for a whole run); other kinds always.
+        Subclasses drop their own goals whose place was seen on the way.
+        """
+        if goal.kind != "frontier":
+            return True
+        assert self.planner is not None
+        return self.planner.still_frontier(grid, *goal.target, radius=self.planner.blacklist_radius)
+
+    def wants_look(self, goal: Candidate) -> bool:
+        """Whether to turn a full circle at ``goal`` once reached; here the ``look_around`` parameter."""
+        return self.params.look_around
+
+    def on_look_done(self, goal: Candidate, grid: OccupancyGrid, pose: Pose2D) -> None:
+        """Called after the full turn at ``goal``: a frontier still unknown from there is a failed try."""
+        assert self.planner is not None
+        if goal.kind == "frontier" and self.planner.still_frontier(grid, *goal.target):
+            self._try_failed(goal, "reached and looked around, but its frontier stays unknown from there",
+                             grid, pose)
+
+    def on_goal_failed(self, goal: Candidate, reason: str) -> None:
+        """A goal of another kind than a frontier failed (aborted, no progress): here it is given up."""
+        self._give_up(goal, reason, proved_closed=True)
+
+    def reset_progress(self, now: float, pose: Pose2D | None = None) -> None:
+        """Restart the stuck timer: the robot moved and looked under another's control meanwhile.
+
+        Kept from before, the timer ended the next step "stuck" at once where the robot had stopped.
+        """
+        self.progress_at, self.area_at, self.progress_area = now, -math.inf, -math.inf
+        self.progress_xy = (pose.x, pose.y) if pose is not None else (math.nan, math.nan)
+
     def summary(self, grid: OccupancyGrid) -> str:
         """Known area, goals sent and places given up, e.g. '20.8 m^2 known, 3 goals, 2 unreachable'.
 
@@ -343,13 +383,14 @@ class Explore(Leaf):
                 self.planner.visit(target.x, target.y)
                 self.emit("explore_reached", x=target.x, y=target.y)
                 self.on_goal_reached(target)
-                if target.kind == "frontier" and not self.params.look_around \
+                look = self.wants_look(target)
+                if target.kind == "frontier" and not look \
                         and self.planner.still_frontier(grid, *target.target):
                     # standing there did not reveal it (a gap the lidar cannot look into from there)
                     self._try_failed(target, "reached, but its frontier stays unknown from there", grid, pose)
-                if self.params.look_around:
+                if look:
                     self._start_look(now, pose)
-                    self.look_target = target if target.kind == "frontier" else None
+                    self.look_target = target
                     return self.running("looking around")
             else:
                 reason = (result.reason if result is not None and result.reason else status.value)
@@ -371,12 +412,9 @@ class Explore(Leaf):
                              grid, pose)
             self.state = _SELECT
             return None
-        if now >= self.next_replan and target.kind == "frontier":
+        if now >= self.next_replan and target.kind != "scan_point":
             self.next_replan = now + self.params.replan_period
-            # seen: no frontier left near its place (a radius as wide as the blacklist's: the frontier
-            # piece's own point shifts as its far edge flickers in the scans, and a 0.3 m test sent
-            # the robot back and forth between two frontiers for the whole run)
-            seen = not self.planner.still_frontier(grid, *target.target, radius=self.planner.blacklist_radius)
+            seen = not self.goal_still_wanted(grid, target)
             if seen and self._times_left(target.target) >= _MAX_LEFT:
                 seen = False  # it flickers: go there and look (reached, its frontier decides)
             self.replans += 1
@@ -444,7 +482,7 @@ class Explore(Leaf):
         planner = self.planner
         assert planner is not None
         if target.kind != "frontier":
-            self._give_up(target, reason, proved_closed=True)
+            self.on_goal_failed(target, reason)
             return
         tries = len(planner.tries(target.target)) + 1
         still = planner.still_frontier(grid, *target.target)
@@ -474,14 +512,6 @@ class Explore(Leaf):
         self.look_pause_until = -math.inf
         self.look_started = now
         self.look_steps_done = 0
-
-    def _after_look(self, grid: OccupancyGrid, pose: Pose2D) -> None:
-        """A frontier reached and looked around from that still stays unknown counts as a failed try."""
-        target, self.look_target = self.look_target, None
-        assert self.planner is not None
-        if target is not None and self.planner.still_frontier(grid, *target.target):
-            self._try_failed(target, "reached and looked around, but its frontier stays unknown from there",
-                             grid, pose)
 
     def _look(self, now: float, pose: Pose2D) -> bool:
         """Turn a full circle in steps with pauses; True when done (or given up after a timeout)."""
@@ -519,7 +549,7 @@ class Explore(Leaf):
         robot's own mapping.
         """
         moved = math.hypot(pose.x - self.progress_xy[0], pose.y - self.progress_xy[1])
-        if not moved <= _MOVE_PROGRESS:
+        if not moved <= _MOVE_PROGRESS:  # NaN (reset_progress without a pose) starts it here
             self.progress_xy, self.progress_at, self.progress_area = (pose.x, pose.y), now, -math.inf
             return False
         if now - self.area_at >= 1.0:
@@ -542,25 +572,8 @@ class Explore(Leaf):
         grid = self.last_grid
         if grid is None and self.ctx is not None:
             grid = self.ctx.robot.occupancy()
-        if grid is None:
-            return
-        self.write("explored_area", round(known_area(grid), 3))
-        report = self._report(grid)
-        self.write("explore_complete", report["complete"])
-        self.write("unexplored", report["frontiers_left"])
-        if self.ctx is not None and report["outcome"] in ("explored", "partial"):
-            self.ctx.report("exploration", {**{k: report[k] for k in (
-                "outcome", "complete", "known_m2", "unknown_left_m2")},
-                "frontiers_left": report["frontiers_left"][:20], "text": said(report)})
-        run_dir = self.ctx.run_dir if self.ctx is not None else None
-        if run_dir is None:
-            return
-        _, yaml_path = write_map(grid, run_dir, self.params.map_name)
-        self.write("map_yaml", str(yaml_path))
-        self.emit("map_saved", path=str(yaml_path), known_m2=round(known_area(grid), 3))
-        stem = "" if self.params.map_name == "map" else f"{self.params.map_name}_"
-        name = f"{stem}exploration.json"
-        (run_dir / name).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+        if grid is not None:
+            save_exploration(self, grid, self._report(grid))
 
     def _report(self, grid: OccupancyGrid) -> dict[str, Any]:
         """exploration.json's content (:func:`exploration_report`)."""

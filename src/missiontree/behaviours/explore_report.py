@@ -6,12 +6,14 @@ planner's blacklist, the frontiers left and the map.
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 import numpy as np
 
 from missiontree.mapping.exploration import ExplorationPlanner, LeftOpen
 from missiontree.mapping.grid import unknown_mask
+from missiontree.mapping.mapfile import write_map
 from missiontree.types import OccupancyGrid
 
 
@@ -43,6 +45,31 @@ def exploration_report(planner: ExplorationPlanner | None, outcome: str, goals: 
             {"x": round(b.x, 3), "y": round(b.y, 3), "reason": b.reason, "proved_closed": b.proved_closed}
             for b in planner.blacklist],
     }
+
+
+def save_exploration(leaf: Any, grid: OccupancyGrid, report: dict[str, Any]) -> None:
+    """Write what an ending Explore ``leaf`` leaves: its outputs, the map files, exploration.json.
+
+    The outputs (``explored_area``, ``explore_complete``, ``unexplored``, ``map_yaml``), the run's
+    ``exploration`` report, ``map.pgm`` + ``map.yaml`` and ``exploration.json`` in the run directory.
+    """
+    leaf.write("explored_area", round(known_area(grid), 3))
+    leaf.write("explore_complete", report["complete"])
+    leaf.write("unexplored", report["frontiers_left"])
+    ctx = leaf.ctx
+    if ctx is not None and report["outcome"] in ("explored", "partial"):
+        ctx.report("exploration", {**{k: report[k] for k in (
+            "outcome", "complete", "known_m2", "unknown_left_m2")},
+            "frontiers_left": report["frontiers_left"][:20], "text": said(report)})
+    run_dir = ctx.run_dir if ctx is not None else None
+    if run_dir is None:
+        return
+    name = leaf.params.map_name
+    _, yaml_path = write_map(grid, run_dir, name)
+    leaf.write("map_yaml", str(yaml_path))
+    leaf.emit("map_saved", path=str(yaml_path), known_m2=round(known_area(grid), 3))
+    stem = "" if name == "map" else f"{name}_"
+    (run_dir / f"{stem}exploration.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
 
 
 def said(report: dict[str, Any]) -> str:

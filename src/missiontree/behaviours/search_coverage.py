@@ -61,6 +61,8 @@ class ViewCoverage:
         self.views: dict[tuple[int, int], int] = {}
         self.seen: set[tuple[int, int]] = set()
         self.skipped: set[tuple[int, int]] = set()
+        #: The whole floor of the last grid asked about: (grid, robot's component cell, cells).
+        self._floor: tuple[OccupancyGrid, tuple[int, int], set[tuple[int, int]]] | None = None
 
     def key(self, x: float, y: float) -> tuple[int, int]:
         """The coverage cell holding (x, y)."""
@@ -100,8 +102,25 @@ class ViewCoverage:
                 self.seen.add(k)
         return len(self.seen) - before
 
-    def floor(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> set[tuple[int, int]]:
-        """The coverage cells of the free floor connected to the robot (most of the cell known free)."""
+    def floor(
+        self, grid: OccupancyGrid, robot_xy: tuple[float, float], radius: float | None = None
+    ) -> set[tuple[int, int]]:
+        """The coverage cells of the free floor connected to the robot (most of the cell known free).
+
+        With ``radius`` (m): only the square window of that half-side around the robot, connected
+        within it -- a labelling of the whole map cost about the map's size at every choice of a
+        goal (1.7 M cells on a warehouse map). The whole floor is kept for the grid last given.
+        """
+        if radius is not None:
+            return self._floor_cells(window(grid, robot_xy, radius), robot_xy)
+        cell = grid.world_to_cell(*robot_xy)
+        if self._floor is not None and self._floor[0] is grid and self._floor[1] == cell:
+            return self._floor[2]
+        cells = self._floor_cells(grid, robot_xy)
+        self._floor = (grid, cell, cells)
+        return cells
+
+    def _floor_cells(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> set[tuple[int, int]]:
         free = free_mask(grid)
         n, labels = cv2.connectedComponents(free.astype(np.uint8), connectivity=8)
         r0, c0 = grid.world_to_cell(*robot_xy)
@@ -127,9 +146,11 @@ class ViewCoverage:
         full = np.nonzero(counts >= 0.5 * per_cell)[0]
         return {(int(i // span) + x0, int(i % span) + y0) for i in full}
 
-    def unseen(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> set[tuple[int, int]]:
-        """The reachable floor's cells the camera has not looked at (and not given up)."""
-        return self.floor(grid, robot_xy) - self.seen - self.skipped
+    def unseen(
+        self, grid: OccupancyGrid, robot_xy: tuple[float, float], radius: float | None = None
+    ) -> set[tuple[int, int]]:
+        """The reachable floor's cells the camera has not looked at (and not given up); ``radius``: near."""
+        return self.floor(grid, robot_xy, radius) - self.seen - self.skipped
 
     def unseen_near(self, grid: OccupancyGrid, xy: tuple[float, float], radius: float) -> float:
         """Known-free floor (m^2) within ``radius`` of ``xy`` the camera has not looked at (nor given up).
@@ -147,10 +168,14 @@ class ViewCoverage:
         xs = grid.origin.x + (cc + cs + 0.5) * res
         ys = grid.origin.y + (rr + rs + 0.5) * res
         near = (xs - xy[0]) ** 2 + (ys - xy[1]) ** 2 <= radius * radius
-        keys = zip(np.floor(xs[near] / self.cell).astype(int).tolist(),
-                   np.floor(ys[near] / self.cell).astype(int).tolist(), strict=True)
-        done = self.seen | self.skipped
-        return sum(1 for k_ in keys if k_ not in done) * res * res
+        if not near.any():
+            return 0.0
+        keys = np.stack([np.floor(xs[near] / self.cell), np.floor(ys[near] / self.cell)], axis=1).astype(int)
+        cells, counts = np.unique(keys, axis=0, return_counts=True)
+        seen, skipped = self.seen, self.skipped
+        unseen = sum(n for (a, b), n in zip(cells.tolist(), counts.tolist(), strict=True)
+                     if (a, b) not in seen and (a, b) not in skipped)
+        return unseen * res * res
 
     def seen_share(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> tuple[float, float]:
         """(m^2 of the reachable floor looked at, m^2 of that floor)."""
@@ -161,6 +186,19 @@ class ViewCoverage:
     def skip(self, cells: set[tuple[int, int]]) -> None:
         """Give up looking at ``cells`` (no place to look from was reached)."""
         self.skipped |= cells
+
+
+def window(grid: OccupancyGrid, xy: tuple[float, float], radius: float) -> OccupancyGrid:
+    """The part of ``grid`` within ``radius`` (m, a square's half-side) of ``xy``, origin moved to match."""
+    res = grid.resolution
+    r0, c0 = grid.world_to_cell(*xy)
+    k = int(math.ceil(radius / res))
+    h, w = grid.data.shape
+    rs, re_, cs, ce = max(0, r0 - k), min(h, r0 + k + 1), max(0, c0 - k), min(w, c0 + k + 1)
+    if rs >= re_ or cs >= ce:
+        rs, re_, cs, ce = 0, 0, 0, 0
+    origin = Pose2D(grid.origin.x + cs * res, grid.origin.y + rs * res, grid.origin.yaw)
+    return OccupancyGrid(grid.stamp, res, origin, grid.data[rs:re_, cs:ce])
 
 
 def unseen_patches(
@@ -194,28 +232,31 @@ def view_goals(
     min_area_m2: float = 0.5,
     cost_rate: float = 0.15,
     max_patches: int = 8,
+    radius: float | None = None,
 ) -> tuple[list[ViewGoal], list[set[tuple[int, int]]]]:
     """Places to look at the unseen floor from, best first; and the patches no place was found for.
 
     Each patch of unseen floor (at least ``min_area_m2``) gets a goal: the free cell with ``room`` m
     of clearance nearest the patch's cell nearest the robot, at most ``view_range`` / 2 from it (the
     floor is swept outward from the robot). Scored by the patch's unseen floor within
-    ``view_range`` of the goal over (1 + cost_rate x path length) on the planner's path.
+    ``view_range`` of the goal over (1 + cost_rate x path length) on the planner's path. With
+    ``radius`` only the floor within that window around the robot is looked at (goals placed in it).
     """
-    cells = coverage.unseen(grid, robot_xy)
+    cells = coverage.unseen(grid, robot_xy, radius)
     per = coverage.cell * coverage.cell
     patches = unseen_patches(coverage, cells, max(1, int(math.ceil(min_area_m2 / per))))[:max_patches]
     if not patches:
         return [], []
-    res = grid.resolution
-    occupied = occupied_mask(grid)
+    near = grid if radius is None else window(grid, robot_xy, radius + coverage.view_range)
+    res = near.resolution
+    occupied = occupied_mask(near)
     clear = cv2.distanceTransform((~occupied).astype(np.uint8), cv2.DIST_L2, 5) * res
-    ok = free_mask(grid) & (clear >= room)
+    ok = free_mask(near) & (clear >= room)
     rr, cc = np.nonzero(ok)
     if not len(rr):
         return [], patches
-    wx = grid.origin.x + (cc + 0.5) * res
-    wy = grid.origin.y + (rr + 0.5) * res
+    wx = near.origin.x + (cc + 0.5) * res
+    wy = near.origin.y + (rr + 0.5) * res
     goals: list[tuple[tuple[float, float], tuple[float, float], float]] = []
     placed: list[set[tuple[int, int]]] = []
     unplaced: list[set[tuple[int, int]]] = []

@@ -5,7 +5,11 @@ the frontiers (as :class:`~missiontree.behaviours.search_resume.ResumeExplore`, 
 search's rounds); once no frontier is left (or the exploration ended partial), it goes to look at the
 reachable floor the camera has not had in view (:mod:`~missiontree.behaviours.search_coverage`),
 with a full turn at each place, and goes back to frontiers that appear meanwhile (a room seen
-through a door). While driving to a frontier, the goal is kept after the lidar has mapped its
+through a door). While exploring, it already prefers goals that bring floor the camera has not
+seen into view: a frontier's gain counts the unseen floor near its goal, and places near the robot
+from which unseen floor is looked at (``view_window``) compete with the frontiers on the same
+score (kind ``view``; dropped once that floor was seen on the way, a full turn where reached). While
+driving to a frontier, the goal is kept after the lidar has mapped its
 frontier as long as the camera has not looked at the floor there (``hold_radius``, ``hold_area``):
 the search's coverage is the camera's, and dropping such a goal sent the robot elsewhere and back.
 ``Locate`` builds on it with the candidates and the time budget.
@@ -17,12 +21,15 @@ Tick-log events: ``search_explored``, ``search_view_goal``, ``search_view_given_
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
+import numpy as np
 from pydantic import BaseModel, Field
 
 from missiontree.behaviours.search_coverage import ViewCoverage, ViewGoal, known_path_lengths, view_goals
 from missiontree.behaviours.search_resume import PriorPlanner, ResumeExplore
 from missiontree.engine.leaf import Status
+from missiontree.mapping.exploration import Candidate as Frontier
 from missiontree.robot.actions import ActionHandle, ActionStatus
 from missiontree.types import OccupancyGrid, Pose2D, Tolerance, wrap_angle
 
@@ -74,6 +81,22 @@ class LookExplore(ResumeExplore):
         )
         hold_area: float = Field(
             0.5, ge=0, description="Unseen floor (m^2) near a frontier that keeps its goal while driving."
+        )
+        camera_gain: bool = Field(
+            True,
+            description="While exploring, a frontier's gain counts the floor the camera has not looked at "
+            "within view_range of its goal beside the unknown area.",
+        )
+        view_window: float = Field(
+            6.0,
+            ge=0,
+            description="While exploring, places within this range (m) of the robot to look at unseen "
+            "floor from compete with the frontiers (gain: unseen floor within view_range; 0: after the "
+            "frontiers only).",
+        )
+        view_gain_min: float = Field(
+            2.0, ge=0,
+            description="Unseen floor (m^2) a place to look from must bring into view while exploring.",
         )
 
     params: Params
@@ -128,6 +151,9 @@ class LookExplore(ResumeExplore):
             and self.handle is not None
         )
         planner.driving = self.target if planner.hold_active else None
+        looking = self.params.view_coverage and self.coverage is not None
+        planner.camera_unseen = self._camera_unseen if looking and self.params.camera_gain else None
+        planner.views = self._view_places if looking and self.params.view_window > 0 else None
         try:
             return super().explore_step()
         finally:
@@ -138,6 +164,90 @@ class LookExplore(ResumeExplore):
         if self.coverage is None:
             return False
         return self.coverage.unseen_near(grid, (x, y), self.params.hold_radius) >= self.params.hold_area
+
+    def _camera_unseen(self, grid: OccupancyGrid, x: float, y: float) -> float:
+        """Floor (m^2) within view_range of (x, y) the camera has not looked at."""
+        assert self.coverage is not None
+        return self.coverage.unseen_near(grid, (x, y), self.params.view_range)
+
+    def _view_places(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[Frontier]:
+        """Places within ``view_window`` to look at unseen floor from, as exploration goals of kind view.
+
+        Scored like a frontier (gain x exp(-cost_rate x path)), the gain being the unseen floor
+        within view_range of the place; only the window around the robot is labelled.
+        """
+        assert self.coverage is not None and self.planner is not None
+        planner = self.planner
+
+        def lengths(g: OccupancyGrid, start: tuple[float, float], goals: Sequence[tuple[float, float]],
+                    radius: float) -> list[float | None]:
+            return planner.path_lengths(planner.window(g), start, goals, radius)
+
+        goals, _ = view_goals(self.coverage, grid, robot_xy, lengths, planner.nav_radius,
+                              min_area_m2=self.params.view_gain_min, cost_rate=self.params.cost_rate,
+                              radius=self.params.view_window)
+        per = self.coverage.cell ** 2
+        return [
+            Frontier(g.x, g.y, "view", int(round(g.area_m2 / per)), g.area_m2, g.path_m,
+                     g.area_m2 * float(np.exp(-self.params.cost_rate * g.path_m)), g.target)
+            for g in goals
+            if g.area_m2 >= self.params.view_gain_min and not planner.is_blacklisted(g.x, g.y)
+        ]
+
+    def goal_still_wanted(self, grid: OccupancyGrid, goal: Frontier) -> bool:
+        """A place to look from is wanted while the floor it is for was not seen on the way."""
+        if goal.kind == "view":
+            return self._camera_waits(grid, *goal.target)
+        return super().goal_still_wanted(grid, goal)
+
+    def wants_look(self, goal: Frontier) -> bool:
+        """A full turn where a place to look from was reached (the camera sees ahead only)."""
+        return goal.kind == "view" or super().wants_look(goal)
+
+    def on_look_done(self, goal: Frontier, grid: OccupancyGrid, pose: Pose2D) -> None:
+        """After the turn at a place to look from, the floor still unseen near it is hidden from there."""
+        if goal.kind != "view" or self.coverage is None:
+            super().on_look_done(goal, grid, pose)
+            return
+        self._skip_hidden(grid, pose, goal.target)
+
+    def on_goal_failed(self, goal: Frontier, reason: str) -> None:
+        """A place to look from not reached: the unseen floor near its patch is given up (not blacklisted)."""
+        if goal.kind != "view" or self.coverage is None:
+            super().on_goal_failed(goal, reason)
+            return
+        grid = self.last_grid
+        if grid is not None:
+            self._skip_near(grid, goal.target, (goal.x, goal.y))
+        self.cover_skipped += 1
+        self.emit("search_view_given_up", x=round(goal.x, 3), y=round(goal.y, 3), reason=reason)
+
+    def _skip_hidden(self, grid: OccupancyGrid, pose: Pose2D, target: tuple[float, float]) -> None:
+        """Floor still unseen within HIDDEN_WITHIN of the view range of ``pose`` is hidden: given up."""
+        assert self.coverage is not None
+        cov = self.coverage
+        near = HIDDEN_WITHIN * cov.view_range
+        hidden = {
+            k
+            for k in cov.unseen(grid, (pose.x, pose.y), radius=near + cov.cell)
+            if math.hypot((k[0] + 0.5) * cov.cell - pose.x, (k[1] + 0.5) * cov.cell - pose.y) <= near
+        }
+        cov.skip(hidden)
+        key = cov.key(*target)
+        if key not in cov.seen:
+            cov.skip({key})
+
+    def _skip_near(self, grid: OccupancyGrid, target: tuple[float, float], xy: tuple[float, float]) -> None:
+        """Give up the unseen cells within half the view range of ``target`` (seen from ``xy``'s floor)."""
+        assert self.coverage is not None
+        cov = self.coverage
+        half = cov.view_range / 2.0
+        near = {
+            k
+            for k in cov.unseen(grid, xy, radius=math.dist(xy, target) + cov.view_range)
+            if math.hypot((k[0] + 0.5) * cov.cell - target[0], (k[1] + 0.5) * cov.cell - target[1]) <= half
+        }
+        cov.skip(near | {cov.key(*target)})
 
     def look_step(self) -> Status:
         """One step: explore while frontiers are left, then look at the floor not yet seen."""
@@ -202,18 +312,19 @@ class LookExplore(ResumeExplore):
                 self.frontiers_done = False
                 # the stuck timer restarts: the robot moved and looked meanwhile, unseen by Explore;
                 # kept from before the looks, it ended the new round "stuck" at once where it stopped
-                self.progress_xy = (math.nan, math.nan)
+                self.reset_progress(now, pose)
                 self.emit("search_frontiers_again", round=self.frontier_rounds)
                 return self.running("new frontiers on the map: exploring on")
-        goals, unplaced = view_goals(
-            self.coverage,
-            grid,
-            (pose.x, pose.y),
-            known_path_lengths,
-            self.params.footprint_radius,
-            min_area_m2=self.params.view_min_area,
-            cost_rate=self.params.cost_rate,
-        )
+        goals: list[ViewGoal] = []
+        unplaced: list[set[tuple[int, int]]] = []
+        if self.params.view_window > 0:  # the floor near the robot first: labelled in a window only
+            goals, _ = view_goals(self.coverage, grid, (pose.x, pose.y), known_path_lengths,
+                                  self.params.footprint_radius, min_area_m2=self.params.view_min_area,
+                                  cost_rate=self.params.cost_rate, radius=self.params.view_window)
+        if not goals:
+            goals, unplaced = view_goals(self.coverage, grid, (pose.x, pose.y), known_path_lengths,
+                                         self.params.footprint_radius, min_area_m2=self.params.view_min_area,
+                                         cost_rate=self.params.cost_rate)
         for patch in unplaced:
             self.coverage.skip(patch)
             self.cover_skipped += 1
@@ -280,33 +391,14 @@ class LookExplore(ResumeExplore):
         robot.drive(0.0, 0.0)
         self.cover_state = "select"
         # what the camera still has not seen within reach of here is hidden from the floor: given up
-        cov = self.coverage
-        near = HIDDEN_WITHIN * cov.view_range
-        hidden = {
-            k
-            for k in cov.unseen(grid, (pose.x, pose.y))
-            if math.hypot((k[0] + 0.5) * cov.cell - pose.x, (k[1] + 0.5) * cov.cell - pose.y) <= near
-        }
-        self.coverage.skip(hidden)
-        target = self.coverage.key(*self.cover_goal.target)
-        if target not in self.coverage.seen:
-            self.coverage.skip({target})
+        self._skip_hidden(grid, pose, self.cover_goal.target)
         return self.running("looked around")
 
     def _give_up_view(self, grid: OccupancyGrid, pose: Pose2D, why: str) -> Status:
         """The place to look from was not reached: the unseen cells near its patch's centre are given up."""
         assert self.coverage is not None and self.cover_goal is not None
         goal = self.cover_goal
-        near = {
-            k
-            for k in self.coverage.unseen(grid, (pose.x, pose.y))
-            if math.hypot(
-                (k[0] + 0.5) * self.coverage.cell - goal.target[0],
-                (k[1] + 0.5) * self.coverage.cell - goal.target[1],
-            )
-            <= self.coverage.view_range / 2.0
-        }
-        self.coverage.skip(near | {self.coverage.key(*goal.target)})
+        self._skip_near(grid, goal.target, (pose.x, pose.y))
         self.cover_skipped += 1
         self.cover_state = "select"
         self.emit("search_view_given_up", x=round(goal.x, 3), y=round(goal.y, 3), reason=why)

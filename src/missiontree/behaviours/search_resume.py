@@ -46,6 +46,13 @@ class PriorPlanner(ExplorationPlanner):
     A frontier goal nearer an obstacle than the robot's radius plus margin (on a half-learned map a
     doorway's goal often lands beside a jamb seen later; the navigation stack refuses such a goal)
     is moved to the nearest known-free cell within :data:`NUDGE_M` that has that room.
+
+    The search looks with a camera: with :attr:`camera_unseen` set, a frontier's gain counts the
+    floor the camera has not looked at near its goal beside the unknown area, and with :attr:`views`
+    places from which such floor near the robot is looked at (kind ``view``) compete with the
+    frontiers on the same gain-per-path score. Floor the lidar mapped and the camera never saw was
+    otherwise gone to last, across the whole floor again. A goal in hand is left only for a clearly
+    better one that is no farther away (:meth:`better`): no going back and forth between far goals.
     """
 
     def __init__(self, bias: Any, weight: float, **kwargs: Any) -> None:
@@ -57,6 +64,11 @@ class PriorPlanner(ExplorationPlanner):
         #: Set by the leaf while a goal is being driven to: that goal (it may be held).
         self.hold_active = False
         self.driving: Frontier | None = None
+        #: camera_unseen(grid, x, y): floor (m^2) the camera has not looked at near a goal.
+        self.camera_unseen: Callable[[OccupancyGrid, float, float], float] | None = None
+        #: views(grid, robot_xy): places to look at unseen floor near the robot from (kind "view").
+        self.views: Callable[[OccupancyGrid, tuple[float, float]], list[Frontier]] | None = None
+        self._reach_mode = False
 
     def still_frontier(self, grid: OccupancyGrid, x: float, y: float, radius: float = 0.3) -> bool:
         """The lidar's answer; while driving, a place the camera has not looked at yet still counts.
@@ -80,17 +92,43 @@ class PriorPlanner(ExplorationPlanner):
         While driving, the goal driven to stays on offer (last) when the lidar has mapped its
         frontier but the camera has not looked there yet (:attr:`held`).
         """
-        found = super().candidates(grid, robot_xy, *args, **kwargs)
+        if args or kwargs:  # ignore_blacklist: super() comes back here for the ranking itself
+            return super().candidates(grid, robot_xy, *args, **kwargs)
+        found = super().candidates(grid, robot_xy)
         kept = [self.driving] if self._still_held(grid, found) and self.driving is not None else []
-        if not found:
+        looking = not self._reach_mode and self.strategy == "gain"
+        if looking and self.camera_unseen is not None and found:
+            found = [_with_camera_gain(c, self.camera_unseen(grid, c.x, c.y)) for c in found]
+        views = self.views(grid, robot_xy) if looking and self.views is not None else []
+        if not found and not views:
             return kept
         room = self.footprint_radius + self.goal_margin
-        clear = clearance_map(grid)
-        found = [_with_room(c, grid, clear, room) for c in found]
+        clear = clearance_map(grid) if found else None
+        found = [_with_room(c, grid, clear, room) for c in found] if clear is not None else []
+        found += views
         if self.weight > 0:
             found = [replace(c, score=c.score * (1.0 + self.weight * self.bias(c))) for c in found]
+        if self.weight > 0 or views:
             found = sorted(found, key=lambda c: -c.score)
         return found + kept
+
+    def reach_candidates(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[Frontier]:
+        """The frontiers as the navigation's footprint sees them (no places to look from)."""
+        self._reach_mode = True
+        try:
+            return super().reach_candidates(grid, robot_xy)
+        finally:
+            self._reach_mode = False
+
+    def better(self, best: Frontier, current: Frontier | None, margin: float = 1.3) -> bool:
+        """Leave the goal in hand only for a clearly better one no farther away (by path, +1 m).
+
+        Two far goals scoring alike in turn (the prior and the camera's gain shifting as the robot
+        drives) sent the robot 14 m one way and back again along an L corridor.
+        """
+        if current is None:
+            return True
+        return super().better(best, current, margin) and best.path_m <= current.path_m + 1.0
 
     def _still_held(self, grid: OccupancyGrid, found: list[Frontier]) -> bool:
         """Whether the goal driven to is gone from the lidar's frontiers but waits for the camera."""
@@ -100,6 +138,15 @@ class PriorPlanner(ExplorationPlanner):
         if any(math.dist((c.x, c.y), (kept.x, kept.y)) <= 0.5 for c in found):
             return False
         return bool(self.held(grid, *kept.target))
+
+
+def _with_camera_gain(c: Frontier, unseen_m2: float) -> Frontier:
+    """``c`` with the camera's unseen floor near its goal added to its gain (its score scaled to match)."""
+    if unseen_m2 <= 0 or c.kind != "frontier":
+        return c
+    gain = c.gain_m2 + unseen_m2
+    scale = gain / c.gain_m2 if c.gain_m2 > 0 else 1.0
+    return replace(c, gain_m2=gain, score=c.score * scale)
 
 
 def clearance_map(grid: OccupancyGrid) -> np.ndarray:
@@ -115,9 +162,9 @@ def clearance_at(grid: OccupancyGrid, clear: np.ndarray, x: float, y: float) -> 
     return float(clear[r, c]) if 0 <= r < h and 0 <= c < w else math.inf
 
 
-def _with_room(c: Frontier, grid: OccupancyGrid, clear: np.ndarray, room: float) -> Frontier:
+def _with_room(c: Frontier, grid: OccupancyGrid, clear: np.ndarray | None, room: float) -> Frontier:
     """``c`` with its goal moved to the nearest free cell within NUDGE_M that keeps ``room`` (m)."""
-    if c.kind != "frontier" or clearance_at(grid, clear, c.x, c.y) >= room:
+    if clear is None or c.kind != "frontier" or clearance_at(grid, clear, c.x, c.y) >= room:
         return c
     res = grid.resolution
     r0, c0 = grid.world_to_cell(c.x, c.y)
