@@ -45,6 +45,7 @@ NEEDS: dict[str, tuple[str, list[tuple[str, int]]]] = {
             ("thirst.n.1", 1),
             ("water.n.6", 0),
             ("drinking water.n.1", 0),
+            ("drink.n.1", 1),
             ("drink.v.1", 2),
             ("beverage.n.1", 3),
             ("sip.v.1", 0),
@@ -298,6 +299,11 @@ LABELS: dict[str, tuple[str, dict[str, float]]] = {
 COLOURS = frozenset(COLOUR_NAMES) | frozenset(ALIASES)
 #: Weight of a word by how it was reached from a need's sense.
 OWN, RELATED, SECOND, HYPONYM = 1.0, 0.85, 0.7, (0.85, 0.8, 0.75)
+#: Weight of a word reached through a less frequent sense of it (see :func:`_rare`), and how far down
+#: its senses that may be.
+RARE, RARE_SENSES = 0.7, 4
+#: The needs that are states of the body one says one is in ("I'm thirsty", "I'm beat").
+STATE_NEEDS = frozenset({"drink", "eat", "rest", "sleep"})
 #: Weight of a word whose most frequent sense's definition says the need ("tipple: drink moderately"):
 #: above the reasoner's strong threshold (0.7), so that a label serving the need fully serves it.
 GLOSS = 0.75
@@ -408,7 +414,7 @@ def sense(wn: WordNet, spec: str) -> Synset:
 
 
 def _add(table: dict[str, dict[str, float]], word: str, key: str, weight: float) -> None:
-    if word in GENERAL or len(word) < 2:
+    if word in GENERAL or len(word) < 2 or weight <= 0:
         return
     entry = table.setdefault(word, {})
     entry[key] = round(max(entry.get(key, 0.0), weight), 2)
@@ -420,6 +426,21 @@ def _frequent(wn: WordNet, word: str, synset: Synset) -> bool:
     A word reached through a rare sense of it ("cut", a cut of meat) does not mean the need.
     """
     return synset in wn.synsets(word.replace(" ", "_"), synset.pos)[:FREQUENT_SENSES]
+
+
+def _rare(wn: WordNet, word: str, synset: Synset, need: str) -> float:
+    """The weight of a word reached from a need through a less frequent sense of it: :data:`RARE` or 0.
+
+    An adjective said of oneself about a bodily state (:data:`STATE_NEEDS`) means it in that sense
+    when the sense is among its :data:`RARE_SENSES` most frequent: "I'm dead" (similar to tired), "I'm
+    empty" (similar to hungry); weakly (only a class serving the need fully serves it, and only when
+    no word of the request names a need outright). Nouns and verbs in a rare sense mean something
+    else first ("shake", "say", "stick") and colour words never mean a need.
+    """
+    if need not in STATE_NEEDS or synset.pos not in ("a", "s") or word in COLOURS:
+        return 0.0
+    senses = wn.synsets(word.replace(" ", "_"), "a")
+    return RARE if synset in senses[:RARE_SENSES] else 0.0
 
 
 def need_words(wn: WordNet, show: bool) -> dict[str, dict[str, float]]:
@@ -434,8 +455,8 @@ def need_words(wn: WordNet, show: bool) -> dict[str, dict[str, float]]:
                 _add(words, lemma, need, OWN)
             for near in wn.related(synset, *RELATIONS):
                 for lemma in near.lemmas:
-                    if _frequent(wn, lemma, near):
-                        _add(words, lemma, need, RELATED)
+                    weight = RELATED if _frequent(wn, lemma, near) else _rare(wn, lemma, near, need)
+                    _add(words, lemma, need, weight)
                 if near.pos in ("a", "s"):
                     for far in wn.related(near, "&"):
                         for lemma in far.lemmas:
@@ -443,8 +464,9 @@ def need_words(wn: WordNet, show: bool) -> dict[str, dict[str, float]]:
                                 _add(words, lemma, need, SECOND)
             for hyponym, level in wn.hyponyms(synset, depth):
                 for lemma in hyponym.lemmas:
-                    if _frequent(wn, lemma, hyponym):
-                        _add(words, lemma, need, HYPONYM[level - 1])
+                    weight = (HYPONYM[level - 1] if _frequent(wn, lemma, hyponym)
+                              else _rare(wn, lemma, hyponym, need))
+                    _add(words, lemma, need, weight)
     # a word means the need(s) it is closest to: "tired" is a seed of rest, and only echoes boredom
     return {w: {n: v for n, v in needs.items() if v == max(needs.values())} for w, needs in words.items()}
 

@@ -130,3 +130,17 @@ def test_knowledge_file_of_the_wrong_shape_is_a_config_error(tmp_path) -> None:
     wrong.write_text('{"needs": []}', encoding="utf-8")
     with pytest.raises(ConfigError, match="k.json"):
         read_knowledge(wrong)
+
+
+def test_a_general_word_beside_a_need_names_nothing_of_its_own() -> None:
+    """In "in any case, I'm thirsty" the case (a kind of container) names no suitcase; alone it does."""
+    assert "suitcase" not in knowledge().read("In any case, I'm thirsty").named
+    assert "suitcase" in knowledge().read("take me to the case").named
+
+
+@pytest.mark.parametrize(("request_", "need"), [
+    ("Gosh, I'm dead after today.", "rest"), ("I feel empty, it's been hours.", "eat"),
+    ("Time for a nightcap.", "drink"), ("A shandy would be lovely.", "drink")])
+def test_wordnet_state_adjectives_and_servings_of_drink_are_read(request_: str, need: str) -> None:
+    """A bodily-state adjective in a less frequent sense (dead: tired) and a kind of drink are read."""
+    assert need in knowledge().read(request_).needs

@@ -43,6 +43,8 @@ DIRECT = 1.0
 #: ... and the weight of a far link (a similar-to of a similar-to, a deep hyponym), read only when no
 #: word of the request names a need directly.
 FAR = 0.7
+#: Strength with which a more general word (a hypernym: seat, furniture, device) names the labels under it.
+GENERAL_NAMED = 0.8
 #: Share of each further need a label serves that adds to its score (see :meth:`Knowledge.score`).
 COMBINED = 0.25
 #: Words that carry no need or object of their own (pronouns, articles, auxiliaries, request verbs).
@@ -136,6 +138,7 @@ class Knowledge:
         words = normalise(text.replace("'", "")).split()
         needs: dict[str, tuple[float, str]] = {}
         named: dict[str, tuple[float, str]] = {}
+        general: dict[str, tuple[float, str]] = {}   # labels a more general word covers (seat, device)
         unknown: list[str] = []
         compounds: list[str] = []
         i = 0
@@ -164,8 +167,8 @@ class Knowledge:
                     if strength > named.get(label, (0.0, ""))[0]:
                         named[label] = (strength, phrase)
                 for label in self.general_words.get(key, []):
-                    if 0.8 > named.get(label, (0.0, ""))[0]:
-                        named[label] = (0.8, phrase)
+                    if GENERAL_NAMED > general.get(label, (0.0, ""))[0]:
+                        general[label] = (GENERAL_NAMED, phrase)
                 i += n - 1
                 break
             i += 1
@@ -173,6 +176,10 @@ class Knowledge:
             # a word that names a need outright outweighs another word's far echo of a different one
             # ("tired" is rest; its second-degree similar-to link to boredom is not read beside it)
             needs = {need: read for need, read in needs.items() if read[0] > FAR}
+        if not needs:
+            # a general word names what is under it only when the request says no need: "a seat" is
+            # any seat, but in "in any case, I'm thirsty" the case is no suitcase to be brought to
+            named = {**general, **named}
         return Reading(needs, named, tuple(unknown), tuple(compounds))
 
     def score(self, label: str, reading: Reading) -> tuple[float, str]:
