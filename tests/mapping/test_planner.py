@@ -174,3 +174,20 @@ def test_update_changed_finds_the_change_itself_and_equals_a_fresh_costmap() -> 
     np.testing.assert_array_equal(costmap.dense(), Costmap(changed, 0.2, allow_unknown=True).dense())
     assert costmap.tiles_computed - computed == 9   # the changed tiles and their neighbours, of 32
     assert costmap.path_lengths((2.0, 1.0), [(8.0, 1.0)]) == [None]
+
+
+@pytest.mark.parametrize("accelerate", [True, False])
+def test_a_narrow_door_beside_the_goal_is_not_left_for_the_way_round(accelerate: bool) -> None:
+    """Old: the coarse guide closed a 0.5 m door at its block scale and A* went round (13 m for 3 m).
+
+    Now a guided path that is a detour is checked by an unguided search; the shorter is taken, and
+    it is as long as the Dijkstra path (path_lengths) through the door.
+    """
+    data = two_rooms(door=False)
+    data[12:22, 100] = 0            # a 0.5 m door at y = 0.6..1.1 m, across two blocks of the guide
+    data[90:110, 100] = 0           # and the 1 m door far up the wall
+    costmap = Costmap(grid_of(data), 0.17, accelerate=accelerate)
+    path = costmap.plan((4.0, 0.85), (6.0, 0.85))
+    shortest = costmap.path_lengths((4.0, 0.85), [(6.0, 0.85)])[0]
+    assert path is not None and shortest is not None
+    assert path.length < 2.5 and path.length == pytest.approx(shortest, abs=0.15)

@@ -135,3 +135,32 @@ def test_the_scene_graph_benchmarks_added_backpack_is_passed_from_beside_it(tmp_
     result, nearest = _run(robot, robot.navigate_to(Pose2D(*goal), ANY), 90.0, bag)
     assert result.succeeded, result
     assert nearest > robot.profile.body.radius
+
+
+NICHE = """\
+name: niche
+robot: {profile: turtlebot4, start: {x: 0.35, y: 2.5, yaw: 0.0}}
+walls:
+  height: 2.5
+  polygons:
+    - [[0, 0], [6, 0], [6, 5], [0, 5]]
+  segments:
+    - [[0, 2.22], [1.0, 2.22]]
+    - [[0, 2.78], [1.0, 2.78]]
+"""
+
+
+def test_robot_deep_in_a_narrow_niche_plans_its_way_out(write_world):
+    """Old: from 0.65 m inside a niche narrower than the padded footprint, no plan; the goal aborted.
+
+    Now: the navigator plans from the nearest free point a straight line reaches (the niche's
+    mouth) and drives out to the goal without touching anything.
+    """
+    robot = create_robot({"world": str(write_world(NICHE)), "unknown_map": True})
+    robot.spin_until(0.3)
+    here = robot.pose().pose
+    assert robot._nav.costmap.cost_at(here.x, here.y) >= 253   # deep in the walls' inscribed zone
+    goal = Pose2D(4.0, 4.0, 0.0)
+    result, _ = _run(robot, robot.navigate_to(goal, ANY), 60.0, watch=(0.5, 2.5))
+    assert result.succeeded, result
+    assert robot._nav.escapes >= 1 and robot.bumps == 0

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 
 from missiontree.backends.sim.schema import NavigationSpec
@@ -15,7 +16,7 @@ from missiontree.mapping import planner
 from missiontree.mapping.planner import LETHAL, MAX_FREE
 from missiontree.types import OccupancyGrid, Pose2D
 
-__all__ = ["Costmap", "free_goal_within", "path_length", "plan"]
+__all__ = ["Costmap", "free_goal_within", "path_length", "plan", "way_out"]
 
 
 class Costmap:
@@ -96,4 +97,45 @@ def free_goal_within(costmap: planner.Costmap, goal: Pose2D, reach: float) -> Po
         x, y = costmap.grid.cell_to_world(r, c)
         if math.hypot(x - goal.x, y - goal.y) <= reach:
             return Pose2D(x, y, goal.yaw)
+    return None
+
+
+def way_out(costmap: planner.Costmap, start: Pose2D, reach: float, clearance: float) -> Pose2D | None:
+    """The nearest free point within ``reach`` m that the body reaches in a straight line; or None.
+
+    A robot standing deep in an obstacle's inscribed zone (a niche or a gap narrower than the padded
+    footprint, where a late-seen wall put it) has no plan: the planner lets a start leave the zone
+    only within its radius (plus 0.1 m). Planning from this point instead, with the straight line to
+    it in front, is the way out, as Nav2 plans again once a recovery has moved the robot clear. The
+    line keeps ``clearance`` (the body's radius and the follower's side margin) from every lethal cell,
+    so the follower can drive it: the nearest free cell itself often lies round a corner.
+    """
+    res = costmap.grid.resolution
+    k = int(math.floor(reach / res))
+    if k < 1:
+        return None
+    pad = int(math.ceil(clearance / res)) + 1
+    row, col = costmap.grid.world_to_cell(start.x, start.y)
+    n = k + pad
+    rr, cc = np.mgrid[row - n:row + n + 1, col - n:col + n + 1]
+    centres = np.stack([costmap.grid.origin.x + (cc.ravel() + 0.5) * res,
+                        costmap.grid.origin.y + (rr.ravel() + 0.5) * res], axis=1)
+    cost = costmap.costs_along(centres).reshape(rr.shape)
+    room = cv2.distanceTransform((cost < LETHAL).astype(np.uint8), cv2.DIST_L2, 5) * res
+    dr, dc = np.mgrid[-k:k + 1, -k:k + 1]
+    dr, dc = dr.ravel(), dc.ravel()
+    d2 = dr * dr + dc * dc
+    for j in np.argsort(d2, kind="stable").tolist():
+        if d2[j] > k * k:
+            break
+        r, c = n + int(dr[j]), n + int(dc[j])
+        if cost[r, c] > MAX_FREE:
+            continue
+        steps = max(2, int(math.ceil(math.sqrt(float(d2[j])) * 2.0)) + 1)
+        t = np.linspace(0.0, 1.0, steps)
+        lr = np.rint(n + t * (r - n)).astype(int)
+        lc = np.rint(n + t * (c - n)).astype(int)
+        if (room[lr[1:], lc[1:]] >= clearance).all():   # the start cell itself may be tight
+            return Pose2D(float(centres[r * rr.shape[1] + c, 0]), float(centres[r * rr.shape[1] + c, 1]),
+                          start.yaw)
     return None

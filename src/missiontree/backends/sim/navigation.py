@@ -31,19 +31,17 @@ exceptions.
 from __future__ import annotations
 
 import math
-import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
 from missiontree.backends.sim.nav_costmap import Costmap, free_goal_within, path_length, plan
+from missiontree.backends.sim.nav_follow import ROTATE_FIRST, Follow, PathFollower
 from missiontree.backends.sim.nav_handle import SimNavHandle
+from missiontree.backends.sim.nav_plan import NavPlanner
 from missiontree.backends.sim.nav_scan import CREEP_SPEED, SIDE_MARGIN, STOP_TIME, UNMAPPED_MARGIN, ScanView
 from missiontree.backends.sim.schema import NavigationSpec, RobotProfile
-from missiontree.backends.sim.timing import TimingLog
-from missiontree.mapping import planner
 from missiontree.mapping.planner import INSCRIBED, LETHAL, MAX_FREE
 from missiontree.robot.actions import ActionStatus, NavFeedback
 from missiontree.types import LaserScan, OccupancyGrid, Pose2D, Tolerance, wrap_angle
@@ -53,7 +51,6 @@ __all__ = ["BLOCKED", "GOAL_IN_OBSTACLE", "INSCRIBED", "LETHAL", "NO_PROGRESS", 
 
 #: Nav2-like error codes carried in ActionResult.code.
 NO_VALID_PATH, GOAL_IN_OBSTACLE, BLOCKED, NO_PROGRESS, OUT_OF_MAP = 204, 205, 206, 207, 208
-_ROTATE_FIRST = 0.7        # rad of heading error above which the follower turns in place
 _NO_PROGRESS_TIME = 30.0
 _PINNED_TIME = 1.0         # s driving forward without moving before backing up
 _BACKUP_TIME, _BACKUP_SPEED = 1.0, 0.1
@@ -65,51 +62,8 @@ _HAZARD_SEEN_RADIUS = 0.2  # m: a lidar return this close to a contact means the
 _MAX_HAZARDS = 2_000
 _WARY_TIME = 3.0           # s the follower aims round what the map lacks after a recovery (or a blocked arc)
 _TURN_WHEN_BLOCKED = 0.15  # rad: blocked with the path this far off the heading, turn in place
-_COST_SLACK = 12           # costmap units a lookahead line may exceed the path's own cost by (~2 cm)
-_SWERVE_SPEEDS = (0.05, 0.1)          # m/s: the arcs tried when the pure-pursuit arc is blocked
-_SWERVE_CURVATURES = tuple(np.linspace(-6.0, 6.0, 13).tolist())   # 1/m
-_SWERVE_TIME = 0.6         # s: how far along each tried arc its end point is judged
-_SHORT_LOOKAHEAD = 0.12    # m: the follower's target when the lookahead line would cut a corner
-_CORNER_SAMPLES = np.linspace(0.2, 1.0, 5)
 _MAX_GOALS_KEPT = 10_000   # goals remembered for pictures (the oldest are dropped on very long runs)
 _GOAL_SLACK = 0.05         # m: a learned-map goal in an obstacle's zone moves at most tolerance.xy less this
-
-
-@dataclass
-class _Follow:
-    path: np.ndarray
-    cumulative: np.ndarray = None  # type: ignore[assignment]  # arc length at each path point
-    points: list[tuple[float, float]] = None  # type: ignore[assignment]
-    cumulative_list: list[float] = None  # type: ignore[assignment]
-    costs: np.ndarray | None = None   # costmap cost under each path point
-    total: float = 0.0
-    index: int = 0
-    blocked_since: float | None = None
-    last_replan: float = -math.inf
-    best_remaining: float = math.inf
-    best_time: float = 0.0
-    last_step: float = 0.0
-    aligning: bool = False
-    anchor: tuple[float, float] | None = None   # where the robot was when it last moved
-    still_since: float = 0.0
-    backing_until: float | None = None
-    wary_until: float = -math.inf   # after a recovery: the pure-pursuit line keeps clear of unmapped things
-    blocked_recoveries: int = 0   # back-ups made for this goal because the way stayed blocked
-    unreachable_since: float | None = None   # learned map: no way to the goal since (waiting for one)
-    why: tuple[str, int] = ("", 0)
-
-    def __post_init__(self) -> None:
-        self.set_path(self.path)
-
-    def set_path(self, path: np.ndarray) -> None:
-        """Follow a new path from its start."""
-        self.path, self.index = path, 0
-        self.points = [(float(x), float(y)) for x, y in path]   # plain floats for the per-step loop
-        steps = np.hypot(*np.diff(path, axis=0).T) if len(path) > 1 else np.zeros(0)
-        self.cumulative = np.concatenate([[0.0], np.cumsum(steps)])
-        self.cumulative_list = self.cumulative.tolist()
-        self.total = self.cumulative_list[-1]
-        self.costs = None   # filled by the navigator from its costmap when first needed
 
 
 class Navigator:
@@ -134,20 +88,25 @@ class Navigator:
         self.clearance = clearance
         self.allow_unknown = allow_unknown
         self.body_radius = radius
-        # a learned map's edges are a cell off the truth (a wall's end, its thickness): pad the
-        # footprint by two cells there, as Nav2's footprint_padding
-        padded = radius + (2.0 * grid.resolution if allow_unknown else 0.0)
-        self.costmap = planner.Costmap(grid, padded, spec.inflation_radius, spec.cost_scaling, allow_unknown,
-                                       profile.accelerate)
+        # a learned map's edges are a cell off the truth (a wall's end, its thickness): the planner pads
+        # the footprint by two cells there, as Nav2's footprint_padding (see nav_plan)
+        self.planning = NavPlanner(grid, radius, spec, allow_unknown, profile.accelerate)
+        self.costmap = self.planning.costmap
         self.handle: SimNavHandle | None = None
-        self._follow: _Follow | None = None
-        self.plan_ms = TimingLog()
+        self._follow: Follow | None = None
+        self.plan_ms = self.planning.plan_ms
         self.goals: deque[Pose2D] = deque(maxlen=_MAX_GOALS_KEPT)
         self.replans = 0
         self.recoveries = 0
         self._hazards: deque[tuple[float, float, float]] = deque(maxlen=_MAX_HAZARDS)
         self._map_changed = False
         self.scan_view = ScanView(self.costmap, spec, radius)  # the lidar's geometry for the follower
+        self.follower = PathFollower(self.costmap, spec, self.limits, self.scan_view)
+
+    @property
+    def escapes(self) -> int:
+        """Plans made by way of a point out of an obstacle's inscribed zone."""
+        return self.planning.escapes
 
     @property
     def radius(self) -> float:
@@ -156,7 +115,7 @@ class Navigator:
 
     def update_map(self, grid: OccupancyGrid, region: tuple[int, int, int, int] | None = None) -> None:
         """Take a new version of the map (``region``: the rows/cols that changed, exclusive ends)."""
-        self.costmap.update(grid, region)
+        self.planning.update(grid, region)
         self._map_changed = True
 
     def mark_hazard(self, x: float, y: float, now: float, scan: LaserScan | None = None,
@@ -179,7 +138,7 @@ class Navigator:
         if any(math.hypot(x - hx, y - hy) < 0.05 for _, hx, hy in self._hazards):
             return
         self._hazards.append((now, x, y))
-        self.costmap.add_lethal(np.array([[x, y]]))
+        self.planning.add_lethal(np.array([[x, y]]))
         self._map_changed = True
 
     def _expire_hazards(self, now: float) -> None:
@@ -187,7 +146,7 @@ class Navigator:
             return
         while self._hazards and now - self._hazards[0][0] >= _HAZARD_LIFETIME:
             self._hazards.popleft()
-        self.costmap.set_lethal(np.array([(x, y) for _, x, y in self._hazards]).reshape(-1, 2))
+        self.planning.set_lethal(np.array([(x, y) for _, x, y in self._hazards]).reshape(-1, 2))
         self._map_changed = True
 
     def send(self, goal: Pose2D, tolerance: Tolerance | None, now: float) -> SimNavHandle:
@@ -242,7 +201,7 @@ class Navigator:
                 follow.blocked_since += gap
         follow.last_step = now
         h._status = ActionStatus.RUNNING
-        remaining = self._remaining(follow, pose)
+        remaining = self.follower.remaining(follow, pose)
         h._feedback = NavFeedback(pose, remaining, now - h.sent, self.recoveries)
         if remaining + 0.05 < follow.best_remaining:
             follow.best_remaining, follow.best_time = remaining, now
@@ -256,12 +215,14 @@ class Navigator:
             follow.backing_until = None
             # plan around what the lidar sees as well (as a blocked path's replan does): on the map
             # alone the new path runs into what pinned the robot again, back and forth
-            path = self._plan_around(scan, pose, self._target_of(h))
+            path = self.planning.around(scan, pose, self._target_of(h), follow.tight)
+            tight = follow.tight
             if path is None:
-                path = self._plan(self.costmap, pose, self._target_of(h))
+                path, tight = self.planning.way(pose, self._target_of(h))
             if path is not None:
                 follow.set_path(path)
-                remaining = self._remaining(follow, pose)
+                follow.tight = tight
+                remaining = self.follower.remaining(follow, pose)
         goal = h.goal
         dist = math.hypot(goal.x - pose.x, goal.y - pose.y)
         if dist <= h.tolerance.xy or follow.aligning:
@@ -314,22 +275,22 @@ class Navigator:
                       f"goal ({goal.x:.2f}, {goal.y:.2f}) is {what}{learned}: unreachable",
                       code)
             return False
-        path = self._plan(self.costmap, pose, goal)
+        path, tight = self.planning.way(pose, goal)
         if path is None and self.allow_unknown:
             return self._wait_for_way(now, pose, ("no path to it on the map learned so far", NO_VALID_PATH))
         if path is None:
             h._finish(ActionStatus.ABORTED, f"no valid path to ({goal.x:.2f}, {goal.y:.2f})", NO_VALID_PATH)
             return False
-        self._follow = _Follow(path, best_time=now, last_step=now - self.physics_dt)
+        self._follow = Follow(path, best_time=now, last_step=now - self.physics_dt, tight=tight)
         return True
 
     def _wait_for_way(self, now: float, pose: Pose2D, why: tuple[str, int]) -> bool:
         """Start a learned-map goal with no way yet: hold still and look again (see _check_learned_map)."""
-        self._follow = _Follow(np.array([[pose.x, pose.y]]), best_time=now, last_step=now - self.physics_dt,
+        self._follow = Follow(np.array([[pose.x, pose.y]]), best_time=now, last_step=now - self.physics_dt,
                                last_replan=now, unreachable_since=now, why=why)
         return True
 
-    def _check_learned_map(self, follow: _Follow, pose: Pose2D, now: float) -> tuple[float, float] | None:
+    def _check_learned_map(self, follow: Follow, pose: Pose2D, now: float) -> tuple[float, float] | None:
         """After a map update: replan when the path is blocked; abort when the goal proved unreachable.
 
         The goal proves unreachable when, for ``blocked_timeout`` seconds, the learned map shows it
@@ -343,13 +304,14 @@ class Navigator:
                                "learned map: unreachable", OUT_OF_MAP)
         if problem is None and follow.unreachable_since is None:
             ahead = follow.path[follow.index + 1:]
-            if not len(ahead) or not self.costmap.blocked_along(ahead):
+            if not len(ahead) or not self.planning.costmap_for(follow.tight).blocked_along(ahead):
                 return None
-        path = None if problem is not None else self._plan(self.costmap, pose, goal)
+        path, tight = (None, False) if problem is not None else self.planning.way(pose, goal)
         follow.last_replan = now
         self.replans += 1
         if path is not None:
             follow.set_path(path)
+            follow.tight = tight
             follow.best_remaining, follow.best_time = math.inf, now
             follow.unreachable_since = None
             return None
@@ -365,41 +327,15 @@ class Navigator:
                                f"{what} (for {self.spec.blocked_timeout:.0f} s)", code)
         return 0.0, 0.0
 
-    def _plan(self, costmap: planner.Costmap, pose: Pose2D, goal: Pose2D) -> np.ndarray | None:
-        t0 = time.perf_counter()
-        path = costmap.plan(pose, goal)
-        self.plan_ms.append((time.perf_counter() - t0) * 1000.0)
-        return None if path is None else path.points
-
-    def _plan_around(self, scan: LaserScan | None, pose: Pose2D, goal: Pose2D) -> np.ndarray | None:
-        """A plan that keeps as clear of what the lidar sees now as the follower will.
-
-        The follower keeps ``UNMAPPED_MARGIN`` beside its radius from what the map does not hold;
-        a plan passing closer (the planner's default discs are smaller) is blocked again at once.
-        """
-        seen = ScanView.world_points(scan, pose)
-        return self._plan(self.costmap.with_points(seen, radius=UNMAPPED_MARGIN + SIDE_MARGIN), pose, goal)
-
-    def _remaining(self, follow: _Follow, pose: Pose2D) -> float:
-        """Distance along the path from the robot; moves the progress index to the nearest point ahead."""
-        points = follow.points
-        best, best_i = math.inf, follow.index
-        for i in range(follow.index, min(len(points), follow.index + 40)):
-            d = math.hypot(points[i][0] - pose.x, points[i][1] - pose.y)
-            if d < best:
-                best, best_i = d, i
-        follow.index = best_i
-        return best + follow.total - follow.cumulative_list[best_i]
-
-    def _drive(self, follow: _Follow, now: float, pose: Pose2D, scan: LaserScan | None,
+    def _drive(self, follow: Follow, now: float, pose: Pose2D, scan: LaserScan | None,
                remaining: float) -> tuple[float, float]:
         # after a recovery the pure-pursuit line keeps the clearance the arc check keeps from what
         # the map lacks (round it the line cut the bend, the arc was blocked and swerves crept back
         # in), until the way has been clear for _WARY_TIME
         wary = now < follow.wary_until
-        target = self._target(follow, pose, scan if wary else None)
-        err, v, w = self._aim(pose, target, remaining)
-        if abs(err) > _ROTATE_FIRST:
+        target = self.follower.target(follow, pose, scan if wary else None)
+        err, v, w = self.follower.aim(pose, target, remaining)
+        if abs(err) > ROTATE_FIRST:
             follow.blocked_since = None
             return 0.0, w
         obstacle = self.scan_view.obstacle_ahead(scan, v, w)
@@ -415,7 +351,7 @@ class Navigator:
                 v = slower
                 obstacle = self.scan_view.obstacle_ahead(scan, v, w)
         if obstacle is not None:
-            swerve = self._swerve(follow, pose, scan)
+            swerve = self.follower.swerve(follow, pose, scan)
             if swerve is not None:
                 v, w = swerve
                 obstacle = None
@@ -439,7 +375,7 @@ class Navigator:
         if now - follow.last_replan >= self.spec.replan_period and now - follow.blocked_since >= 0.5:
             follow.last_replan = now
             goal = self._target_of(self.handle) if self.handle else None
-            path2 = self._plan_around(scan, pose, goal) if goal else None
+            path2 = self.planning.around(scan, pose, goal, follow.tight) if goal else None
             self.replans += 1
             if path2 is not None:
                 follow.set_path(path2)
@@ -449,103 +385,14 @@ class Navigator:
             return 0.0, w
         return 0.0, 0.0
 
-    def _aim(self, pose: Pose2D, target: tuple[float, float], remaining: float) -> tuple[float, float, float]:
-        """Heading error to ``target`` and the pure-pursuit command (v, w) to it (v 0: turn in place)."""
-        err = wrap_angle(math.atan2(target[1] - pose.y, target[0] - pose.x) - pose.yaw)
-        lim = self.limits
-        w = max(-lim.max_w, min(lim.max_w, self.spec.heading_gain * err))
-        if abs(err) > _ROTATE_FIRST:
-            return err, 0.0, w
-        return err, lim.max_v * max(0.0, math.cos(err)) * min(1.0, 0.3 + remaining / 0.6), w
-
-    def _swerve(self, follow: _Follow, pose: Pose2D, scan: LaserScan | None) -> tuple[float, float] | None:
-        """When the pure-pursuit arc is blocked: the best free arc back towards the path, or None.
-
-        A small sample of arcs (slow speeds, curvatures both ways, as a DWB-style local planner)
-        is swept against the scan; those ending on a cell the robot may not enter are dropped;
-        the one ending nearest the path point a lookahead ahead wins. None when no arc is free
-        (something stands on the path: the caller waits, turns or replans).
-        """
-        points = follow.points
-        far = follow.index
-        while far < len(points) - 1 and math.hypot(points[far][0] - pose.x,
-                                                   points[far][1] - pose.y) < self.spec.lookahead:
-            far += 1
-        fx, fy = points[far]
-        now_gap = math.hypot(fx - pose.x, fy - pose.y)
-        best: tuple[float, float, float] | None = None
-        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-        for v in _SWERVE_SPEEDS:
-            for k in _SWERVE_CURVATURES:
-                w = v * k
-                if abs(w) > self.limits.max_w or self.scan_view.obstacle_ahead(scan, v, w) is not None:
-                    continue
-                d = v * _SWERVE_TIME
-                if abs(k) < 1e-6:
-                    lx, ly, yaw = d, 0.0, 0.0
-                else:
-                    yaw = d * k
-                    lx, ly = math.sin(yaw) / k, (1.0 - math.cos(yaw)) / k
-                ex, ey = pose.x + c * lx - s * ly, pose.y + s * lx + c * ly
-                if self.costmap.cost_at(ex, ey) > MAX_FREE:
-                    continue
-                gap = math.hypot(fx - ex, fy - ey)
-                if gap < now_gap - 0.25 * d and (best is None or gap < best[0]):
-                    best = (gap, v, w)
-        return None if best is None else (best[1], best[2])
-
-    def _target(self, follow: _Follow, pose: Pose2D, scan: LaserScan | None = None) -> tuple[float, float]:
-        """The pure-pursuit point: the farthest path point in the lookahead a straight line reaches safely.
-
-        The line must not come nearer to obstacles than the path itself does there.
-        The straight line to a point past a bend cuts the bend's inside; near a door post or a
-        corner that is where the costmap's inflation cost rises. A line whose cost exceeds the path's
-        own over that stretch (plus a little slack) would clip the post, so a nearer point is
-        taken, down to ``_SHORT_LOOKAHEAD`` (in the open the full lookahead stands). What the map
-        lacks has no cost there: given ``scan`` (for a while after a recovery), the
-        line must also keep the clearance the arc check keeps from it (or, already nearer, come no
-        nearer).
-        """
-        points = follow.points
-        start = follow.index
-        stop = start
-        while stop < len(points) - 1 and math.hypot(points[stop][0] - pose.x,
-                                                    points[stop][1] - pose.y) < self.spec.lookahead:
-            stop += 1
-        here = self.costmap.cost_at(pose.x, pose.y)
-        if here > MAX_FREE:
-            return points[stop]   # leaving the inscribed zone: the path itself leads out
-        if follow.costs is None:
-            follow.costs = self.costmap.costs_along(follow.path)
-        chosen = list(range(start, stop + 1))
-        ends = follow.path[chosen]
-        t = _CORNER_SAMPLES[:, None, None]
-        line = (1.0 - t) * np.array([pose.x, pose.y]) + t * ends[None, :, :]     # (samples, K, 2)
-        line_cost = self.costmap.costs_along(line.reshape(-1, 2))
-        line_cost = line_cost.reshape(len(_CORNER_SAMPLES), -1).max(axis=0)
-        path_cost = np.maximum.accumulate(follow.costs[start:stop + 1])
-        allowed = np.maximum(path_cost, here) + _COST_SLACK
-        clear = self.scan_view.lines_clear(scan, pose, ends)
-        for k in range(len(chosen) - 1, -1, -1):
-            if line_cost[k] <= allowed[k] and line_cost[k] <= MAX_FREE and clear[k]:
-                far_enough = math.hypot(ends[k][0] - pose.x, ends[k][1] - pose.y) >= _SHORT_LOOKAHEAD
-                if far_enough or k == len(chosen) - 1:
-                    return points[chosen[k]]
-                break
-        for i in range(start, len(points)):   # nothing safe to aim at: keep to the path close by
-            px, py = points[i]
-            if math.hypot(px - pose.x, py - pose.y) >= _SHORT_LOOKAHEAD:
-                return points[i]
-        return points[-1]
-
-    def _pinned(self, follow: _Follow, now: float, pose: Pose2D) -> bool:
+    def _pinned(self, follow: Follow, now: float, pose: Pose2D) -> bool:
         """Whether the robot has been driving forward without moving (pinned against something)."""
         if follow.anchor is None or math.hypot(pose.x - follow.anchor[0], pose.y - follow.anchor[1]) > 0.02:
             follow.anchor, follow.still_since = (pose.x, pose.y), now
             return False
         return now - follow.still_since > _PINNED_TIME
 
-    def _recover(self, follow: _Follow, now: float, scan: LaserScan | None,
+    def _recover(self, follow: Follow, now: float, scan: LaserScan | None,
                  obstacle: tuple[float, float, float]) -> tuple[float, float] | None:
         """Nav2's BackUp recovery for a robot stuck inside the clearance it keeps: the command, or None.
 
@@ -576,7 +423,7 @@ class Navigator:
         self.recoveries += 1
         return -_BACKUP_SPEED, 0.0
 
-    def _back_up(self, follow: _Follow, now: float) -> tuple[float, float]:
+    def _back_up(self, follow: Follow, now: float) -> tuple[float, float]:
         """Nav2's BackUp recovery: reverse a little, then plan again from there."""
         follow.backing_until = now + _BACKUP_TIME
         follow.wary_until = follow.backing_until + _WARY_TIME
