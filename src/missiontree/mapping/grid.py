@@ -73,55 +73,79 @@ def _scan_kernel(logodds, free_mark, hit_mark, scan_id, sx, sy, ex, ey, hit,  # 
     (x along columns, y along rows, 0 at the grid's corner); ``hit[i]`` tells whether the end is
     an obstacle. Returns the number of cells updated.
     """
-    rows, cols = logodds.shape
-    n = len(ex)
     # occupied ends first, so that no beam of this scan frees a cell another beam hit
-    for i in range(n):
+    _mark_hits(hit_mark, scan_id, ex, ey, hit)
+    updated = 0
+    for i in range(len(ex)):
+        updated += _free_beam(logodds, free_mark, hit_mark, scan_id, sx, sy, ex[i], ey[i], hit[i],
+                              l_free, l_min)
+    return updated + _apply_hits(logodds, hit_mark, scan_id, ex, ey, hit, l_occ, l_max)
+
+
+def _mark_hits(hit_mark, scan_id, ex, ey, hit):  # noqa: ANN001, ANN202
+    """Mark the cells where beams of this scan (``scan_id``) ended on an obstacle."""
+    rows, cols = hit_mark.shape
+    for i in range(len(ex)):
         if hit[i]:
             c = int(np.floor(ex[i]))
             r = int(np.floor(ey[i]))
             if 0 <= r < rows and 0 <= c < cols:
                 hit_mark[r, c] = scan_id
+
+
+def _free_beam(logodds, free_mark, hit_mark, scan_id, sx, sy, ex, ey, hit,  # noqa: ANN001, ANN202
+               l_free, l_min):
+    """Free the cells one beam crosses (its end cell too when it has no return); cells updated.
+
+    A cell is freed once a scan and never when a beam of the scan ended on it.
+    """
+    rows, cols = logodds.shape
+    dx = ex - sx
+    dy = ey - sy
+    c = int(np.floor(sx))
+    r = int(np.floor(sy))
+    c_end = int(np.floor(ex))
+    r_end = int(np.floor(ey))
+    step_c = 1 if dx > 0 else -1
+    step_r = 1 if dy > 0 else -1
+    # ray parameter t in [0, 1] at the next column / row boundary, computed from the boundary
+    # itself (not accumulated) so the numpy version finds exactly the same cells
+    t_max_x = ((c + 1.0 if dx > 0 else float(c)) - sx) / dx if dx != 0.0 else np.inf
+    t_max_y = ((r + 1.0 if dy > 0 else float(r)) - sy) / dy if dy != 0.0 else np.inf
     updated = 0
-    for i in range(n):
-        dx = ex[i] - sx
-        dy = ey[i] - sy
-        c = int(np.floor(sx))
-        r = int(np.floor(sy))
-        c_end = int(np.floor(ex[i]))
-        r_end = int(np.floor(ey[i]))
-        step_c = 1 if dx > 0 else -1
-        step_r = 1 if dy > 0 else -1
-        # ray parameter t in [0, 1] at the next column / row boundary, computed from the boundary
-        # itself (not accumulated) so the numpy version finds exactly the same cells
-        t_max_x = ((c + 1.0 if dx > 0 else float(c)) - sx) / dx if dx != 0.0 else np.inf
-        t_max_y = ((r + 1.0 if dy > 0 else float(r)) - sy) / dy if dy != 0.0 else np.inf
-        while True:
-            if r == r_end and c == c_end:
-                break
-            if 0 <= r < rows and 0 <= c < cols:
-                if hit_mark[r, c] != scan_id and free_mark[r, c] != scan_id:
-                    free_mark[r, c] = scan_id
-                    v = logodds[r, c] + l_free
-                    logodds[r, c] = v if v > l_min else l_min
-                    updated += 1
-            t_next = t_max_x if t_max_x < t_max_y else t_max_y
-            if t_next >= 1.0:
-                break
-            if t_max_x <= t_next:  # both at once through a corner: the cells beside it are not crossed
-                c += step_c
-                t_max_x = ((c + 1.0 if dx > 0 else float(c)) - sx) / dx
-            if t_max_y <= t_next:
-                r += step_r
-                t_max_y = ((r + 1.0 if dy > 0 else float(r)) - sy) / dy
-        # the end cell of a beam without a return is free too
-        if not hit[i] and 0 <= r_end < rows and 0 <= c_end < cols:
-            if hit_mark[r_end, c_end] != scan_id and free_mark[r_end, c_end] != scan_id:
-                free_mark[r_end, c_end] = scan_id
-                v = logodds[r_end, c_end] + l_free
-                logodds[r_end, c_end] = v if v > l_min else l_min
+    while True:
+        if r == r_end and c == c_end:
+            break
+        if 0 <= r < rows and 0 <= c < cols:
+            if hit_mark[r, c] != scan_id and free_mark[r, c] != scan_id:
+                free_mark[r, c] = scan_id
+                v = logodds[r, c] + l_free
+                logodds[r, c] = v if v > l_min else l_min
                 updated += 1
-    for i in range(n):
+        t_next = t_max_x if t_max_x < t_max_y else t_max_y
+        if t_next >= 1.0:
+            break
+        if t_max_x <= t_next:  # both at once through a corner: the cells beside it are not crossed
+            c += step_c
+            t_max_x = ((c + 1.0 if dx > 0 else float(c)) - sx) / dx
+        if t_max_y <= t_next:
+            r += step_r
+            t_max_y = ((r + 1.0 if dy > 0 else float(r)) - sy) / dy
+    # the end cell of a beam without a return is free too
+    if not hit and 0 <= r_end < rows and 0 <= c_end < cols:
+        if hit_mark[r_end, c_end] != scan_id and free_mark[r_end, c_end] != scan_id:
+            free_mark[r_end, c_end] = scan_id
+            v = logodds[r_end, c_end] + l_free
+            logodds[r_end, c_end] = v if v > l_min else l_min
+            updated += 1
+    return updated
+
+
+def _apply_hits(logodds, hit_mark, scan_id, ex, ey, hit, l_occ, l_max):  # noqa: ANN001, ANN202
+    """Raise each marked end cell once however many beams ended there; cells updated."""
+    rows, cols = logodds.shape
+    updated = 0
+    for i in range(len(ex)):
         if hit[i]:
             c = int(np.floor(ex[i]))
             r = int(np.floor(ey[i]))
@@ -131,6 +155,12 @@ def _scan_kernel(logodds, free_mark, hit_mark, scan_id, sx, sy, ex, ey, hit,  # 
                 logodds[r, c] = v if v < l_max else l_max
                 updated += 1
     return updated
+
+
+if HAVE_NUMBA:  # the kernel's parts compiled too: called once a scan or once a beam
+    _mark_hits = numba.njit(cache=True, nogil=True)(_mark_hits)
+    _free_beam = numba.njit(cache=True, nogil=True)(_free_beam)
+    _apply_hits = numba.njit(cache=True, nogil=True)(_apply_hits)
 
 
 if HAVE_NUMBA:

@@ -117,66 +117,74 @@ def _hits_numpy(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray,
     t_out = np.full((n_rays, n_prims), np.inf)
     shade = np.ones((n_rays, n_prims))
     dlen = np.hypot(dx, dy)[:, None]
-    dxc, dyc = dx[:, None], dy[:, None]
-    g = prims.geom
-
-    idx = np.flatnonzero(prims.kind == SEGMENT)
-    if len(idx):
-        x1, y1, x2, y2 = (g[idx, j][None, :] for j in range(4))
-        ex, ey = x2 - x1, y2 - y1
-        wx, wy = x1 - ox, y1 - oy
-        denom = dxc * ey - dyc * ex
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (wx * ey - wy * ex) / denom
-            s = (wx * dyc - wy * dxc) / denom
-            ok = (np.abs(denom) > _EPS) & (t > _EPS) & (s >= 0.0) & (s <= 1.0)
-            t = np.where(ok, t, np.inf)
-            cos = np.abs(denom) / (dlen * np.hypot(ex, ey))
-        t_in[:, idx] = t
-        t_out[:, idx] = t
-        shade[:, idx] = cos
-
-    idx = np.flatnonzero(prims.kind == BOX)
-    if len(idx):
-        cx, cy, c, s_, hx, hy = (g[idx, j][None, :] for j in range(6))
-        qx = c * (ox - cx) + s_ * (oy - cy)
-        qy = -s_ * (ox - cx) + c * (oy - cy)
-        lx = c * dxc + s_ * dyc
-        ly = -s_ * dxc + c * dyc
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ax1, ax2 = (-hx - qx) / lx, (hx - qx) / lx
-            ay1, ay2 = (-hy - qy) / ly, (hy - qy) / ly
-        # a ray parallel to a slab is inside it everywhere or nowhere
-        par_x, par_y = np.abs(lx) < _EPS, np.abs(ly) < _EPS
-        in_x, in_y = np.abs(qx) <= hx, np.abs(qy) <= hy
-        xmin = np.where(par_x, np.where(in_x, -np.inf, np.inf), np.minimum(ax1, ax2))
-        xmax = np.where(par_x, np.where(in_x, np.inf, -np.inf), np.maximum(ax1, ax2))
-        ymin = np.where(par_y, np.where(in_y, -np.inf, np.inf), np.minimum(ay1, ay2))
-        ymax = np.where(par_y, np.where(in_y, np.inf, -np.inf), np.maximum(ay1, ay2))
-        tmin, tmax = np.maximum(xmin, ymin), np.minimum(xmax, ymax)
-        ok = (tmax >= tmin) & (tmin > _EPS)
-        t_in[:, idx] = np.where(ok, tmin, np.inf)
-        t_out[:, idx] = np.where(ok, tmax, np.inf)
-        shade[:, idx] = np.where(xmin >= ymin, np.abs(lx), np.abs(ly)) / dlen
-
-    idx = np.flatnonzero(prims.kind == CYLINDER)
-    if len(idx):
-        cx, cy, r = (g[idx, j][None, :] for j in range(3))
-        fx, fy = ox - cx, oy - cy
-        a = dxc * dxc + dyc * dyc
-        b = 2.0 * (dxc * fx + dyc * fy)
-        cc = fx * fx + fy * fy - r * r
-        disc = b * b - 4.0 * a * cc
-        root = np.sqrt(np.maximum(disc, 0.0))
-        t1 = (-b - root) / (2.0 * a)
-        t2 = (-b + root) / (2.0 * a)
-        ok = (disc >= 0.0) & (t1 > _EPS)
-        t_in[:, idx] = np.where(ok, t1, np.inf)
-        t_out[:, idx] = np.where(ok, t2, np.inf)
-        hx_ = fx + t1 * dxc
-        hy_ = fy + t1 * dyc
-        shade[:, idx] = np.abs(hx_ * dxc + hy_ * dyc) / (np.maximum(r, _EPS) * dlen)
+    for kind, hits in ((SEGMENT, _segment_hits), (BOX, _box_hits), (CYLINDER, _cylinder_hits)):
+        idx = np.flatnonzero(prims.kind == kind)
+        if len(idx):
+            t_in[:, idx], t_out[:, idx], shade[:, idx] = hits(ox, oy, dx[:, None], dy[:, None], dlen,
+                                                              prims.geom[idx])
     return t_in, t_out, shade
+
+
+Hits = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def _segment_hits(ox: float, oy: float, dxc: np.ndarray, dyc: np.ndarray, dlen: np.ndarray,
+                  g: np.ndarray) -> Hits:
+    """Entry, exit (the same) and |cos incidence| of (R, 1) rays against wall segments ``g`` (P, 4)."""
+    x1, y1, x2, y2 = (g[:, j][None, :] for j in range(4))
+    ex, ey = x2 - x1, y2 - y1
+    wx, wy = x1 - ox, y1 - oy
+    denom = dxc * ey - dyc * ex
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (wx * ey - wy * ex) / denom
+        s = (wx * dyc - wy * dxc) / denom
+        ok = (np.abs(denom) > _EPS) & (t > _EPS) & (s >= 0.0) & (s <= 1.0)
+        t = np.where(ok, t, np.inf)
+        cos = np.abs(denom) / (dlen * np.hypot(ex, ey))
+    return t, t, cos
+
+
+def _box_hits(ox: float, oy: float, dxc: np.ndarray, dyc: np.ndarray, dlen: np.ndarray,
+              g: np.ndarray) -> Hits:
+    """Entry, exit and |cos incidence| of (R, 1) rays against oriented boxes ``g`` (P, 6): slab test."""
+    cx, cy, c, s_, hx, hy = (g[:, j][None, :] for j in range(6))
+    qx = c * (ox - cx) + s_ * (oy - cy)
+    qy = -s_ * (ox - cx) + c * (oy - cy)
+    lx = c * dxc + s_ * dyc
+    ly = -s_ * dxc + c * dyc
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ax1, ax2 = (-hx - qx) / lx, (hx - qx) / lx
+        ay1, ay2 = (-hy - qy) / ly, (hy - qy) / ly
+    # a ray parallel to a slab is inside it everywhere or nowhere
+    par_x, par_y = np.abs(lx) < _EPS, np.abs(ly) < _EPS
+    in_x, in_y = np.abs(qx) <= hx, np.abs(qy) <= hy
+    xmin = np.where(par_x, np.where(in_x, -np.inf, np.inf), np.minimum(ax1, ax2))
+    xmax = np.where(par_x, np.where(in_x, np.inf, -np.inf), np.maximum(ax1, ax2))
+    ymin = np.where(par_y, np.where(in_y, -np.inf, np.inf), np.minimum(ay1, ay2))
+    ymax = np.where(par_y, np.where(in_y, np.inf, -np.inf), np.maximum(ay1, ay2))
+    tmin, tmax = np.maximum(xmin, ymin), np.minimum(xmax, ymax)
+    ok = (tmax >= tmin) & (tmin > _EPS)
+    return (np.where(ok, tmin, np.inf), np.where(ok, tmax, np.inf),
+            np.where(xmin >= ymin, np.abs(lx), np.abs(ly)) / dlen)
+
+
+def _cylinder_hits(ox: float, oy: float, dxc: np.ndarray, dyc: np.ndarray, dlen: np.ndarray,
+                   g: np.ndarray) -> Hits:
+    """Entry, exit and |cos incidence| of (R, 1) rays against upright cylinders ``g`` (P, 3)."""
+    cx, cy, r = (g[:, j][None, :] for j in range(3))
+    fx, fy = ox - cx, oy - cy
+    a = dxc * dxc + dyc * dyc
+    b = 2.0 * (dxc * fx + dyc * fy)
+    cc = fx * fx + fy * fy - r * r
+    disc = b * b - 4.0 * a * cc
+    root = np.sqrt(np.maximum(disc, 0.0))
+    t1 = (-b - root) / (2.0 * a)
+    t2 = (-b + root) / (2.0 * a)
+    ok = (disc >= 0.0) & (t1 > _EPS)
+    hx_ = fx + t1 * dxc
+    hy_ = fy + t1 * dyc
+    return (np.where(ok, t1, np.inf), np.where(ok, t2, np.inf),
+            np.abs(hx_ * dxc + hy_ * dyc) / (np.maximum(r, _EPS) * dlen))
 
 
 def first_hit_numpy(ox: float, oy: float, dx: np.ndarray, dy: np.ndarray, prims: Primitives) -> np.ndarray:

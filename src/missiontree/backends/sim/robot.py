@@ -91,31 +91,10 @@ class SimRobot:
         self._learned: LogOddsGrid | None = None
         self._known: np.ndarray | None = None  # the learned map's trinary cells, kept up to date
         self._occupancy: OccupancyGrid | None = None  # snapshot handed out by occupancy()
-        if unknown_map:
-            g = world.grid
-            rows, cols = g.data.shape
-            self._learned = LogOddsGrid(g.resolution, cols * g.resolution, rows * g.resolution, g.origin,
-                                        sensor_offset=(profile.lidar.mount.x, profile.lidar.mount.y),
-                                        accelerate=profile.accelerate)
-            self._known = self._learned.trinary()
-            start_grid = OccupancyGrid(0.0, g.resolution, g.origin, self._known)
-            self._nav = Navigator(start_grid, profile.body.radius, profile, profile.navigation,
-                                  allow_unknown=True)
-        else:
-            self._nav = Navigator(world.grid, profile.body.radius, profile, profile.navigation,
-                                  clearance=world.clearance)
+        self._nav = self._start_navigation(world, profile, unknown_map)
         self._floor = Floor.build(world.floor_rgb, world.grid.origin.x, world.grid.origin.y,
                             world.grid.resolution, world.ceiling)
-        self._steps = 0
-        self._t = 0.0
-        self._drive: tuple[float, float] | None = None
-        self._scan: LaserScan | None = None
-        self._frame: RGBDFrame | None = None
-        self._poses: StampedHistory[Pose2D] = StampedHistory(profile.history_horizon, maxlen=100_000)
-        self._scans: StampedHistory[LaserScan] = StampedHistory(profile.history_horizon)
-        self._next_scan = 0.0
-        self._next_frame = 0.0
-        self._quiet: set[str] = set()
+        self._start_clock(profile)
         #: Plugin sensors (missiontree.robot.sensors), configured by the world's ``plugins:`` sections.
         self.plugin_sensors = SimSensors(list(sensors or []), world.spec.plugins, seed)
         self.odometer = 0.0  # metres driven (true motion), for plugin sensor models
@@ -139,6 +118,33 @@ class SimRobot:
         self.command_input = LineCommands()
         self._record_pose()
         self._sense()
+
+    def _start_navigation(self, world: World, profile: RobotProfile, unknown_map: bool) -> Navigator:
+        """The navigator on the world's map, or on a learned map that starts unknown (``unknown_map``)."""
+        if not unknown_map:
+            return Navigator(world.grid, profile.body.radius, profile, profile.navigation,
+                             clearance=world.clearance)
+        g = world.grid
+        rows, cols = g.data.shape
+        self._learned = LogOddsGrid(g.resolution, cols * g.resolution, rows * g.resolution, g.origin,
+                                    sensor_offset=(profile.lidar.mount.x, profile.lidar.mount.y),
+                                    accelerate=profile.accelerate)
+        self._known = self._learned.trinary()
+        start_grid = OccupancyGrid(0.0, g.resolution, g.origin, self._known)
+        return Navigator(start_grid, profile.body.radius, profile, profile.navigation, allow_unknown=True)
+
+    def _start_clock(self, profile: RobotProfile) -> None:
+        """Time zero: no command, no sensor data yet, empty histories, every sensor publishing."""
+        self._steps = 0
+        self._t = 0.0
+        self._drive: tuple[float, float] | None = None
+        self._scan: LaserScan | None = None
+        self._frame: RGBDFrame | None = None
+        self._poses: StampedHistory[Pose2D] = StampedHistory(profile.history_horizon, maxlen=100_000)
+        self._scans: StampedHistory[LaserScan] = StampedHistory(profile.history_horizon)
+        self._next_scan = 0.0
+        self._next_frame = 0.0
+        self._quiet: set[str] = set()
 
     # -- Robot protocol ----------------------------------------------------------------------------
 
