@@ -223,36 +223,6 @@ def test_provider_timeout_error_is_timed_out_with_its_reason() -> None:
     caller.close()
 
 
-def test_model_caller_binds_providers_that_need_the_robot() -> None:
-    """model_caller(context) binds needs_robot providers once; one refusing the robot becomes broken."""
-    from missiontree.engine.context import MissionContext
-    from missiontree.errors import ModelConfigError
-    from missiontree.reasoning.calls import BrokenProvider, model_caller
-    from missiontree.testing import ClockRobot
-
-    class NeedsRobot:
-        name = "needy"
-        needs_robot = True
-
-        def __init__(self, refuse: bool) -> None:
-            self.refuse = refuse
-            self.bound: list[object] = []
-
-        def bind(self, robot: object) -> None:
-            if self.refuse:
-                raise ModelConfigError("detector 'needy' is simulation-only; configure a real detector")
-            self.bound.append(robot)
-
-    robot = ClockRobot()
-    good, bad = NeedsRobot(False), NeedsRobot(True)
-    context = MissionContext(robot=robot, models={"detector": good, "other": bad})
-    caller = model_caller(context)
-    assert model_caller(context) is caller
-    assert good.bound == [robot]
-    assert isinstance(context.models["other"], BrokenProvider)
-    assert "simulation-only" in context.models["other"].reason
-
-
 def test_a_failed_call_is_freed_with_its_images_without_the_garbage_collector() -> None:
     """A provider's exception must not tie the call into a cycle that holds its images until a gc pass."""
     import gc

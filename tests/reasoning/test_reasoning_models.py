@@ -88,10 +88,16 @@ def test_settings_and_roles_leave_out_the_reserved_entries() -> None:
 
 
 def test_a_hand_made_context_still_gets_a_caller_on_first_use() -> None:
-    """A context made without a session gets its caller from model_caller, kept under the old key too."""
-    context = MissionContext(robot=ClockRobot(), models={"embedder": NeedsRobot()})
+    """A context made without a session gets its caller (and bound providers) from model_caller, once."""
+    robot = ClockRobot()
+    good, bad = NeedsRobot(), NeedsRobot(refuse=True)
+    context = MissionContext(robot=robot, models={"embedder": good, "other": bad})
     caller = model_caller(context)
+    assert model_caller(context) is caller
     assert context.calls is caller and context.models[CALLER_KEY] is caller
+    assert good.bound == [robot]
+    broken = context.models["other"]
+    assert isinstance(broken, BrokenProvider) and "simulation-only" in broken.reason
     caller.close()
 
 
