@@ -511,3 +511,18 @@ def test_the_floor_near_the_robot_is_labelled_in_a_window_and_the_whole_floor_ke
     calls = []
     cov._floor_cells = lambda g, xy: calls.append(1) or set()  # type: ignore[method-assign]
     assert cov.floor(grid, (1.0, 1.0)) is whole and not calls
+
+
+def test_exploration_json_lists_frontiers_left_not_places_to_look_from() -> None:
+    """A search stopped with only unseen floor near it: no 'frontier left' is reported for it."""
+    from missiontree.behaviours.explore_report import exploration_report
+
+    robot = SlowRobot(hall(), Pose2D(1.0, 1.0, math.pi))
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+    leaf.setup(context=MissionContext(robot=robot, events=Events(), models={"detector": Detector()}))  # type: ignore[arg-type]
+    leaf.tick_once()
+    assert leaf.target is not None and leaf.target.kind == "view"
+    grid = robot.occupancy()
+    assert grid is not None
+    report = exploration_report(leaf.planner, "stopped", 1, grid, None, (1.0, 1.0))
+    assert report["frontiers_left"] == []

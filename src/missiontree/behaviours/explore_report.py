@@ -33,7 +33,8 @@ def exploration_report(planner: ExplorationPlanner | None, outcome: str, goals: 
                      "reason": o.entry.reason} for o in left_open]
             unknown_left = planner.unknown_behind(grid, [o.candidate.target for o in left_open])
         elif outcome in ("stopped", "failed") and robot_xy is not None:
-            offered = planner.candidates(grid, robot_xy)
+            # the frontiers (or scan points) only: a search's places to look from are no exploration left
+            offered = [c for c in planner.candidates(grid, robot_xy) if c.kind in ("frontier", "scan_point")]
             left = [{"x": round(c.target[0], 3), "y": round(c.target[1], 3),
                      "reason": "not explored yet"} for c in offered]
             unknown_left = planner.unknown_behind(grid, [c.target for c in offered])
