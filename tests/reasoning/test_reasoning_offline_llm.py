@@ -187,3 +187,11 @@ def test_a_more_general_word_names_the_classes_under_it(llm: OfflineLanguageMode
                                                         expected: list[str]) -> None:
     """A WordNet hypernym of a class (a pc, a container, furniture) names the scene's classes under it."""
     assert sorted(llm.resolve(request_, DESKS_AND_TABLES).candidates) == expected
+
+
+def test_a_room_named_before_the_object_without_a_relation_word_places_it() -> None:
+    """"Go to the bathroom and find the sink" asks for the sink in the bathroom."""
+    parsed = parse_reference("Go to the bathroom and find the sink.", ["sink", "toilet"],
+                             ["bathroom", "kitchen"])
+    assert parsed is not None
+    assert (parsed.label, parsed.relation, parsed.anchor) == ("sink", "in", "bathroom")

@@ -157,6 +157,13 @@ def split_relation(text: str) -> tuple[str, str | None, str]:
     return words[:at].strip(), relation, words[at + len(phrase) + 2:].strip()
 
 
+def _without(words: str, label: str, labels: list[str]) -> str:
+    """``words`` with the phrase that names ``label`` taken out (so "toilet" is not also read as a room)."""
+    form = next((f for f, named in sorted(_label_forms(tuple(labels)).items(), key=lambda kv: -len(kv[0]))
+                 if named == label and f" {f} " in f" {words} "), None)
+    return f" {words} ".replace(f" {form} ", " ", 1).strip() if form else words
+
+
 def parse_reference(text: str, labels: Iterable[str], places: Iterable[str] = ()) -> ReferenceParse | None:
     """Parse a referential phrase; None when it names none of ``labels``.
 
@@ -188,5 +195,10 @@ def parse_reference(text: str, labels: Iterable[str], places: Iterable[str] = ()
             relation = None
         else:
             anchor = anchor_found[0]
+    if relation is None and places:
+        # "go to the bathroom and find the sink": a room named beside the object, with no relation word
+        room = find_label(_without(normalise(text), label, labels), places)
+        if room is not None and fold_label(room[0]) != fold_label(label):
+            relation, anchor = "in", room[0]
     attributes = colour_words(target_part) + size_words(target_part)
     return ReferenceParse(label=label, attributes=attributes, relation=relation, anchor=anchor)
