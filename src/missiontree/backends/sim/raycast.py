@@ -242,21 +242,8 @@ def _hit_one(ox, oy, dx, dy, kind, g):  # noqa: ANN001, ANN202 - numba kernel, t
         qy = -s_ * (ox - g[0]) + c * (oy - g[1])
         lx = c * dx + s_ * dy
         ly = -s_ * dx + c * dy
-        hx, hy = g[4], g[5]
-        if abs(lx) < _EPS:
-            if abs(qx) > hx:
-                return np.inf, np.inf, 1.0
-            xmin, xmax = -np.inf, np.inf
-        else:
-            a1, a2 = (-hx - qx) / lx, (hx - qx) / lx
-            xmin, xmax = min(a1, a2), max(a1, a2)
-        if abs(ly) < _EPS:
-            if abs(qy) > hy:
-                return np.inf, np.inf, 1.0
-            ymin, ymax = -np.inf, np.inf
-        else:
-            b1, b2 = (-hy - qy) / ly, (hy - qy) / ly
-            ymin, ymax = min(b1, b2), max(b1, b2)
+        xmin, xmax = _slab(qx, lx, g[4])
+        ymin, ymax = _slab(qy, ly, g[5])
         tmin, tmax = max(xmin, ymin), min(xmax, ymax)
         if tmax >= tmin and tmin > _EPS:
             shade = abs(lx) / dlen if xmin >= ymin else abs(ly) / dlen
@@ -276,6 +263,17 @@ def _hit_one(ox, oy, dx, dy, kind, g):  # noqa: ANN001, ANN202 - numba kernel, t
     t2 = (-b + root) / (2.0 * a)
     hx_, hy_ = fx + t1 * dx, fy + t1 * dy
     return t1, t2, abs(hx_ * dx + hy_ * dy) / (max(r, _EPS) * dlen)
+
+
+def _slab(q, d, h):  # noqa: ANN001, ANN202 - numba kernel, typed by numba
+    """Ray parameters (enter, leave) of the slab |x| <= h for a ray at ``q`` moving ``d`` along x.
+
+    A ray parallel to the slab is inside it everywhere (-inf, inf) or nowhere (inf, -inf).
+    """
+    if abs(d) < _EPS:
+        return (-np.inf, np.inf) if abs(q) <= h else (np.inf, -np.inf)
+    a1, a2 = (-h - q) / d, (h - q) / d
+    return min(a1, a2), max(a1, a2)
 
 
 def _bound(kind, g):  # noqa: ANN001, ANN202
@@ -355,6 +353,7 @@ def _columns_loops(ox, oy, yaw, a, fx, cx, kind, geom, k):  # noqa: ANN001, ANN2
 if HAVE_NUMBA:
     # Rebinding the module globals first makes the loop kernels call the compiled helpers; the
     # kernels release the GIL so the camera can render on a worker thread while physics steps.
+    _slab = numba.njit(cache=True, nogil=True)(_slab)
     _hit_one = numba.njit(cache=True, nogil=True)(_hit_one)
     _bound = numba.njit(cache=True, nogil=True)(_bound)
     _fan_jit = numba.njit(cache=True, nogil=True)(_fan_loops)
