@@ -144,3 +144,10 @@ def test_a_general_word_beside_a_need_names_nothing_of_its_own() -> None:
 def test_wordnet_state_adjectives_and_servings_of_drink_are_read(request_: str, need: str) -> None:
     """A bodily-state adjective in a less frequent sense (dead: tired) and a kind of drink are read."""
     assert need in knowledge().read(request_).needs
+
+
+@pytest.mark.parametrize(("word", "need"), [("sleepily", "sleep"), ("hungrily", "eat"),
+                                            ("thirstier", "drink"), ("hungriest", "eat")])
+def test_adverbs_and_comparatives_are_read_through_their_adjective(word: str, need: str) -> None:
+    """An adverb (-ily) or a comparative (-ier, -iest) is read as the adjective it comes from."""
+    assert need in knowledge().read(f"I look at the fridge {word}").needs

@@ -55,9 +55,11 @@ FUNCTION_WORDS = frozenset(
     "might must want wanted wants need needs needed like would love feel feeling felt get getting got "
     "go going take bring fetch find show lead guide where what which who somewhere something anything "
     "thing things bit little lot kind sort piece right let ll ve re d s t not no".split())
-#: Suffix rules (WordNet's morphy) to find a word's dictionary form.
+#: Suffix rules (WordNet's morphy, and the adverb's -ly) to find a word's dictionary form.
 SUFFIXES = (("ies", "y"), ("es", "e"), ("es", ""), ("s", ""), ("ed", "e"), ("ed", ""), ("ing", "e"),
-            ("ing", ""), ("er", ""), ("est", ""), ("men", "man"))
+            ("ing", ""), ("ier", "y"), ("iest", "y"), ("er", ""), ("est", ""), ("men", "man"),
+            # adverbs read as their adjectives ("sleepily" is said of the sleepy)
+            ("ily", "y"), ("ly", ""))
 
 
 
