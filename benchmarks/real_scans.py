@@ -2,8 +2,9 @@
 
 Reads MRPT's ``2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog`` (Debian's ``mrpt-common``:
 225 SICK scans of 361 beams over 180°, with wheel odometry, a 76 m loop through a faculty hall),
-corrects the odometry by scan-to-map matching (KISS-ICP, the ``realdata`` extra) and prints, raw
-and corrected side by side:
+corrects the odometry by scan-to-map matching (KISS-ICP, the ``realdata`` extra) and then a pose
+graph with loop closures (:mod:`missiontree.mapping.pose_graph`), and prints raw odometry, the
+scan-to-map poses and the pose graph's side by side:
 
 - ``loop_gap_m`` (median and max) and ``loop_rot_deg``: where the robot comes back beside its
   start, the pose of each later scan relative to an early one along the trajectory, against the
@@ -14,6 +15,9 @@ and corrected side by side:
   drifted map has fewer wall cells rather than thicker walls: ``wall_cells`` says how many);
 - ``thin_share_endpoints``: the same share on the image of every return's end cell (no clearing),
   where drift draws one wall two or three times side by side;
+- ``second_pass_within_10cm``: of the second half's returns that fall within 1 m of a first-half
+  return (places seen twice), the share within 0.1 m of one: a doubled wall lowers it, a wall
+  laid on itself raises it (``second_pass_returns``: how many were counted);
 - ``vs_mrpt_map_*``: how far the trajectory is from MRPT's own map of the same loop
   (``malaga-cs-fac-building.simplemap.gz``: 99 of these scans, identical, at the poses MRPT's SLAM
   gave them), both taken relative to its first key frame. A reference, not ground truth: MRPT's
@@ -39,7 +43,14 @@ from pathlib import Path
 from missiontree.errors import BackendUnavailableError
 from missiontree.mapping.frontiers import find_frontiers
 from missiontree.mapping.rawlog import read_rawlog, read_simplemap
-from missiontree.mapping.recorded_map import build_grid, endpoint_grid, loop_gap, loop_pairs, wall_thickness
+from missiontree.mapping.recorded_map import (
+    build_grid,
+    endpoint_grid,
+    loop_gap,
+    loop_pairs,
+    pass_agreement,
+    wall_thickness,
+)
 from missiontree.mapping.scan_matching import correct_poses, relative
 from missiontree.semantics.rooms import segment_rooms
 
@@ -89,6 +100,7 @@ def figures(log, poses, pairs) -> dict[str, float]:  # noqa: ANN001 - a ScanLog,
     grid = wall_thickness(occupancy)
     ends = wall_thickness(endpoint_grid(log.scans, poses))
     rooms = segment_rooms(occupancy, inside=(poses[0].x, poses[0].y))
+    agree, counted = pass_agreement(log.scans, poses)
     return {
         "loop_gap_m_median": round(statistics.median(g.translation for g in gaps), 3) if gaps else math.nan,
         "loop_gap_m_max": round(max(g.translation for g in gaps), 3) if gaps else math.nan,
@@ -98,6 +110,8 @@ def figures(log, poses, pairs) -> dict[str, float]:  # noqa: ANN001 - a ScanLog,
         "wall_cells": grid.cells,
         "thin_share_endpoints": round(ends.thin_share, 4),
         "p90_thickness_endpoints": ends.p90,
+        "second_pass_within_10cm": round(agree, 4),
+        "second_pass_returns": counted,
         "frontiers": len(find_frontiers(occupancy)),
         "rooms": len(rooms.rooms),
         **against_mrpt_map(log, poses),
@@ -121,20 +135,23 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     match_cpu = time.process_time() - cpu
     pairs = loop_pairs(log.scans, log.poses, corrected.poses)
-    raw, fixed = figures(log, log.poses, pairs), figures(log, corrected.poses, pairs)
+    raw, front = figures(log, log.poses, pairs), figures(log, corrected.front_end, pairs)
+    fixed = figures(log, corrected.poses, pairs)
     print(f"{args.rawlog.name}: {len(log.scans)} scans, odometry path {log.path_length():.1f} m, "
           f"matching {match_cpu:.1f} s CPU, {len(corrected.refused)} matches refused, "
+          f"{len(corrected.closures)} loop closures in the pose graph, "
           f"{len(pairs)} loop pairs (overlap median {statistics.median(p[3] for p in pairs):.2f})")
-    print(f"{'figure':28s} {'raw odometry':>14s} {'corrected':>14s}")
+    print(f"{'figure':32s} {'raw odometry':>14s} {'scan-to-map':>14s} {'+ pose graph':>14s}")
     for key in raw:
-        print(f"{key:28s} {raw[key]!s:>14s} {fixed[key]!s:>14s}")
+        print(f"{key:32s} {raw[key]!s:>14s} {front[key]!s:>14s} {fixed[key]!s:>14s}")
     mrpt = mrpt_map_itself()
     if mrpt:
         print(f"MRPT's own map of the loop (its {MRPT_MAP.name}, same scans at its SLAM poses): "
               f"thin_share_endpoints_keyframes {mrpt['thin_share_endpoints_keyframes']}, "
               f"cells_endpoints_keyframes {mrpt['cells_endpoints_keyframes']}")
     print(json.dumps({"scans": len(log.scans), "loop_pairs": len(pairs), "match_cpu_s": round(match_cpu, 2),
-                      "raw": raw, "corrected": fixed, "mrpt_map": mrpt}))
+                      "closures": len(corrected.closures), "raw": raw, "scan_to_map": front,
+                      "corrected": fixed, "mrpt_map": mrpt}))
     return 0
 
 

@@ -11,13 +11,21 @@ import pytest
 
 from missiontree.errors import BackendUnavailableError
 from missiontree.mapping.frontiers import find_frontiers
-from missiontree.mapping.rawlog import RecordedScan, read_rawlog
-from missiontree.mapping.recorded_map import build_grid, endpoint_grid, loop_gap, loop_pairs, wall_thickness
-from missiontree.mapping.scan_matching import correct_poses, relative
+from missiontree.mapping.rawlog import RecordedScan, read_rawlog, read_simplemap
+from missiontree.mapping.recorded_map import (
+    build_grid,
+    endpoint_grid,
+    loop_gap,
+    loop_pairs,
+    pass_agreement,
+    wall_thickness,
+)
+from missiontree.mapping.scan_matching import MatchSettings, correct_poses, relative, well_constrained
 from missiontree.semantics.rooms import segment_rooms
 from missiontree.types import Pose2D
 
 LOOP = Path("/usr/share/mrpt/datasets/2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog")
+MRPT_MAP = Path("/usr/share/mrpt/datasets/malaga-cs-fac-building.simplemap.gz")
 
 
 def room_scan(pose: Pose2D, half: float = 4.0, beams: int = 361) -> RecordedScan:
@@ -62,6 +70,23 @@ def test_matching_removes_odometry_drift_in_a_room() -> None:
     assert max(p.distance_to(q) for p, q in zip(odometry, truth, strict=True)) > 0.6
 
 
+def test_a_corridor_match_is_not_well_constrained() -> None:
+    """Two long parallel walls fix the pose across the corridor, not along it: the match is refused."""
+    pytest.importorskip("kiss_icp", reason="KISS-ICP (the realdata extra) is not installed")
+    xs = np.arange(-8.0, 8.0, 0.05)
+    walls = np.concatenate([np.column_stack([xs, np.full_like(xs, y)]) for y in (1.0, -1.0)])
+    near = walls[np.abs(walls[:, 0]) < 4.0]
+    assert not well_constrained(walls, near, Pose2D(0.0, 0.0, 0.0), 0.3)
+
+
+def test_a_room_match_is_well_constrained() -> None:
+    """A room with a pillar fixes the whole pose: registrations started 0.3 m off all come back."""
+    pytest.importorskip("kiss_icp", reason="KISS-ICP (the realdata extra) is not installed")
+    anchor = room_scan(Pose2D(0.0, 0.0, 0.0)).points()
+    seen = room_scan(Pose2D(0.5, -0.5, 0.3)).points()
+    assert well_constrained(anchor, seen, Pose2D(0.5, -0.5, 0.3), 0.3)
+
+
 def test_wall_thickness_reads_a_doubled_wall_as_two_cells() -> None:
     """A one-cell wall reads 1 cell thick, the same wall drawn twice side by side reads 2, a 3-cell band 3."""
     image = np.zeros((20, 40), bool)
@@ -94,23 +119,66 @@ def real_loop():  # noqa: ANN201 - (ScanLog, Correction)
 
 
 @pytest.mark.realdata
-def test_real_loop_closes_within_30_cm_after_matching(real_loop) -> None:  # noqa: ANN001
-    """On MRPT's faculty loop the corrected path closes within 0.3 m (median); raw odometry is metres off."""
+def test_real_loop_closes_within_30_cm_after_loop_closure(real_loop) -> None:  # noqa: ANN001
+    """On MRPT's faculty loop the pose graph closes each loop pair within 0.3 m; odometry is metres off."""
     log, corrected = real_loop
+    assert corrected.closures, "no loop closure found"
     pairs = loop_pairs(log.scans, log.poses, corrected.poses)
     assert len(pairs) >= 10
     fixed = [loop_gap(log.scans, corrected.poses, s, e, (p, f)).translation for s, e, p, f in pairs]
+    front = [loop_gap(log.scans, corrected.front_end, s, e, (p, f)).translation for s, e, p, f in pairs]
     raw = [loop_gap(log.scans, log.poses, s, e, (p, f)).translation for s, e, p, f in pairs]
-    assert np.median(fixed) < 0.3
+    assert max(fixed) < 0.3
+    assert max(fixed) < max(front)
     assert np.median(raw) > 2.0
 
 
 @pytest.mark.realdata
-def test_real_loop_walls_are_thin_after_matching(real_loop) -> None:  # noqa: ANN001
-    """Every return laid at the corrected poses draws walls at most 2 cells thick over 90 % of their cells."""
+def test_real_loop_closure_moves_the_path_towards_mrpts_own_map(real_loop) -> None:  # noqa: ANN001
+    """The loop-closed path is nearer MRPT's own SLAM map of the loop than the scan-to-map path (median)."""
+    if not MRPT_MAP.is_file():
+        pytest.skip("MRPT's simplemap of the loop is not installed (Debian's mrpt-common)")
     log, corrected = real_loop
-    assert wall_thickness(endpoint_grid(log.scans, corrected.poses)).thin_share >= 0.9
+    reference = read_simplemap(MRPT_MAP)
+    index = {round(s.stamp, 4): i for i, s in enumerate(log.scans)}
+    matched = [(index[round(s.stamp, 4)], p) for s, p in zip(reference.scans, reference.poses, strict=True)]
+    first, origin = matched[0]
+
+    def median_gap(poses: list[Pose2D]) -> float:
+        gaps = []
+        for i, ref in matched:
+            ours, theirs = relative(poses[first], poses[i]), relative(origin, ref)
+            gaps.append(math.hypot(ours.x - theirs.x, ours.y - theirs.y))
+        return float(np.median(gaps))
+
+    assert median_gap(corrected.poses) < 0.2 < median_gap(corrected.front_end)
+
+
+@pytest.mark.realdata
+def test_real_loop_walls_are_thin_after_matching(real_loop) -> None:  # noqa: ANN001
+    """Returns laid at the scan-to-map poses draw walls at most 2 cells thick over 90 % of their cells."""
+    log, corrected = real_loop
+    assert wall_thickness(endpoint_grid(log.scans, corrected.front_end)).thin_share >= 0.9
     assert wall_thickness(endpoint_grid(log.scans, log.poses)).thin_share < 0.8
+
+
+@pytest.mark.realdata
+def test_real_loop_closure_lays_the_second_pass_on_the_first(real_loop) -> None:  # noqa: ANN001
+    """After loop closure most returns of places seen twice lie within 10 cm of the first pass's."""
+    log, corrected = real_loop
+    closed, _ = pass_agreement(log.scans, corrected.poses)
+    front, _ = pass_agreement(log.scans, corrected.front_end)
+    raw, _ = pass_agreement(log.scans, log.poses)
+    assert closed >= 0.75 and front < 0.5 and raw < 0.5
+
+
+@pytest.mark.realdata
+def test_without_loop_closure_the_front_end_is_returned(real_loop) -> None:  # noqa: ANN001
+    """loop_closure=False gives the scan-to-map poses alone (no closures)."""
+    log, corrected = real_loop
+    plain = correct_poses(log.scans[:40], log.poses[:40], MatchSettings(loop_closure=False))
+    assert plain.closures == [] and plain.poses == plain.front_end
+    assert max(p.distance_to(q) for p, q in zip(plain.poses, corrected.front_end[:40], strict=True)) < 1e-9
 
 
 @pytest.mark.realdata

@@ -18,7 +18,6 @@ against a relative pose measured by registering the loop's two scans directly.
 
 from __future__ import annotations
 
-import importlib
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -29,7 +28,7 @@ from scipy.spatial import cKDTree
 
 from missiontree.mapping.grid import OCCUPIED, LogOddsGrid
 from missiontree.mapping.rawlog import RecordedScan
-from missiontree.mapping.scan_matching import matrix_pose, overlap, pose_matrix, relative, require_kiss_icp
+from missiontree.mapping.scan_matching import register, relative
 from missiontree.types import OccupancyGrid, Pose2D
 
 #: The four directions a wall's thickness is measured along (row step, column step).
@@ -154,22 +153,11 @@ def measure_relative(anchor: Sequence[RecordedScan], anchor_poses: Sequence[Pose
     still overlaps it. Returns the pose and the share of ``scan``'s points within 0.2 m of the
     anchor's after registration (how much the two agree).
     """
-    registration = require_kiss_icp()
-    mapping = importlib.import_module("kiss_icp.mapping")
     origin = anchor_poses[0]
     pts_a = np.concatenate([s.points(relative(origin, p))[s.ranges[s.usable()] <= max_range]
                             for s, p in zip(anchor, anchor_poses, strict=True)])
     pts_b = scan.points()[scan.ranges[scan.usable()] <= max_range]
-    voxel_map = mapping.VoxelHashMap(voxel_size=0.1, max_distance=1e4, max_points_per_voxel=20)
-    voxel_map.add_points(np.column_stack([pts_a, np.zeros(len(pts_a))]))
-    icp = registration.Registration(max_num_iterations=200, convergence_criterion=1e-5, max_num_threads=1)
-    pose = guess
-    for distance, kernel in ((1.0, 0.3), (0.5, 0.15), (0.3, 0.1)):  # coarse to fine
-        out = icp.align_points_to_map(points=np.column_stack([pts_b, np.zeros(len(pts_b))]),
-                                      voxel_map=voxel_map, initial_guess=pose_matrix(pose),
-                                      max_correspondance_distance=distance, kernel=kernel)
-        pose = matrix_pose(out)
-    return pose, overlap(pts_b, pose, cKDTree(pts_a))
+    return register(pts_a, pts_b, guess)
 
 
 def endpoint_grid(scans: Sequence[RecordedScan], poses: Sequence[Pose2D], *, resolution: float = 0.05,
@@ -194,3 +182,24 @@ def loop_gap(scans: Sequence[RecordedScan], poses: Sequence[Pose2D], start: int,
     truth, fit = measured
     yaw = math.atan2(math.sin(along.yaw - truth.yaw), math.cos(along.yaw - truth.yaw))
     return LoopGap(start, end, truth, fit, along, math.hypot(along.x - truth.x, along.y - truth.y), abs(yaw))
+
+
+def pass_agreement(scans: Sequence[RecordedScan], poses: Sequence[Pose2D], *, within: float = 0.1,
+                   seen: float = 1.0, max_range: float = 15.0) -> tuple[float, int]:
+    """How well a run's second half lies on its first: the share of its returns within ``within`` m of one.
+
+    Only second-half returns with a first-half return within ``seen`` m count (the places seen
+    twice). Drift draws the second pass of a wall beside the first (a doubled wall, which the
+    thickness figure reads as two thin walls); closing the loop lays it on top. Returns the share
+    and the number of returns counted.
+    """
+    half = len(scans) // 2
+
+    def cloud(part: range) -> np.ndarray:
+        return np.concatenate([scans[k].points(poses[k])[scans[k].ranges[scans[k].usable()] <= max_range]
+                               for k in part])
+
+    early, late = cloud(range(half)), cloud(range(half, len(scans)))
+    dist, _ = cKDTree(early).query(late, distance_upper_bound=seen)
+    counted = dist[np.isfinite(dist)]
+    return (float(np.mean(counted <= within)) if len(counted) else math.nan), int(len(counted))

@@ -19,13 +19,14 @@ from __future__ import annotations
 import importlib
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import ModuleType
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from missiontree.errors import BackendUnavailableError
+from missiontree.mapping.pose_graph import Edge, optimise
 from missiontree.mapping.rawlog import RecordedScan, compose
 from missiontree.types import Pose2D
 
@@ -46,6 +47,17 @@ class MatchSettings:
         max_correction: A match that moves the pose more than this (m) from its odometry prior is
             refused and the prior kept (a false match is worse than drift).
         iterations: ICP iteration cap.
+        loop_closure: After the scan-to-map pass, look for loop closures and solve the pose graph.
+        closure_travel: A closure ties two scans at least this far apart along the path (m).
+        closure_radius: ... and at most this far apart on the scan-to-map trajectory (m).
+        closure_step: Every this many scans is tried as a closure's late end.
+        closure_window: The early end is registered on the scans this many either side of it.
+        closure_overlap: A closure is kept when this share of the late scan's points agrees
+            within 0.2 m after registration.
+        closure_max_shift: ... and the registration moved it at most this far from where the
+            trajectory had it (m): a larger jump is more likely a false match than drift.
+        closure_spread: ... and registrations started this far (m) to either side of the match
+            all return to it (see :func:`well_constrained`).
     """
 
     voxel: float = 0.10
@@ -54,6 +66,14 @@ class MatchSettings:
     max_correspondence: float = 0.6
     max_correction: float = 1.0
     iterations: int = 100
+    loop_closure: bool = True
+    closure_travel: float = 10.0
+    closure_radius: float = 3.0
+    closure_step: int = 2
+    closure_window: int = 5
+    closure_overlap: float = 0.5
+    closure_max_shift: float = 1.0
+    closure_spread: float = 0.3
 
 
 @dataclass
@@ -64,11 +84,15 @@ class Correction:
         poses: Corrected robot pose at each scan.
         fitness: Share of each scan's points within 0.2 m of the map after matching (NaN: first scan).
         refused: Indices of scans whose match was refused (the odometry prior was kept).
+        closures: Loop closures used by the pose graph (empty when none was found or asked for).
+        front_end: The scan-to-map poses before the pose graph (equal to ``poses`` without closures).
     """
 
     poses: list[Pose2D]
     fitness: list[float]
     refused: list[int]
+    closures: list[Edge] = field(default_factory=list)
+    front_end: list[Pose2D] = field(default_factory=list)
 
 
 def require_kiss_icp() -> ModuleType:
@@ -129,9 +153,11 @@ def overlap(points: np.ndarray, pose: Pose2D, tree: cKDTree, within: float = 0.2
 
 def correct_poses(scans: Sequence[RecordedScan], odometry: Sequence[Pose2D],
                   settings: MatchSettings | None = None) -> Correction:
-    """Scan-to-map matching of ``scans`` seeded by their ``odometry`` poses; the corrected poses.
+    """Scan-to-map matching of ``scans`` seeded by their ``odometry`` poses, then loop closure; the poses.
 
-    The first scan keeps its odometry pose (it anchors the map's frame).
+    The first scan keeps its odometry pose (it anchors the map's frame). With
+    ``settings.loop_closure`` the scan-to-map trajectory is the first estimate of a pose graph whose
+    edges are its consecutive steps and the loop closures :func:`find_closures` measures.
 
     Raises:
         BackendUnavailableError: KISS-ICP (the ``realdata`` extra) is not installed.
@@ -139,9 +165,29 @@ def correct_poses(scans: Sequence[RecordedScan], odometry: Sequence[Pose2D],
     """
     if len(scans) != len(odometry):
         raise ValueError(f"expected one odometry pose per scan, found {len(odometry)} for {len(scans)} scans")
+    cfg = settings or MatchSettings()
+    front = _scan_to_map(scans, odometry, cfg)
+    front.front_end = list(front.poses)
+    if not cfg.loop_closure or len(scans) < 3:
+        return front
+    closures = find_closures(scans, front.poses, cfg)
+    if closures:
+        steps = [Edge(k, k + 1, relative(front.poses[k], front.poses[k + 1]), STEP_SIGMA_XY, STEP_SIGMA_YAW)
+                 for k in range(len(scans) - 1)]
+        front.poses = optimise(front.poses, steps + closures)
+        front.closures = closures
+    return front
+
+
+#: Standard deviations of a scan-to-map step (m, rad) and of a loop closure in the pose graph.
+STEP_SIGMA_XY, STEP_SIGMA_YAW = 0.05, 0.02
+CLOSURE_SIGMA_XY, CLOSURE_SIGMA_YAW = 0.10, 0.03
+
+
+def _scan_to_map(scans: Sequence[RecordedScan], odometry: Sequence[Pose2D], cfg: MatchSettings) -> Correction:
+    """The front end: each scan registered on the map of the scans before it."""
     registration = require_kiss_icp()
     mapping = importlib.import_module("kiss_icp.mapping")
-    cfg = settings or MatchSettings()
     icp = registration.Registration(max_num_iterations=cfg.iterations, convergence_criterion=1e-4,
                                     max_num_threads=1)
     local_map = mapping.VoxelHashMap(voxel_size=cfg.voxel, max_distance=1e4, max_points_per_voxel=20)
@@ -165,7 +211,7 @@ def correct_poses(scans: Sequence[RecordedScan], odometry: Sequence[Pose2D],
                 pose = prior
             else:
                 pose = found
-            fit = overlap(cloud[:, :2], pose, cKDTree(np.concatenate(map_points)))
+            fit = overlap(cloud[:, :2], pose, cKDTree(np.concatenate(map_points))) if map_points else math.nan
         poses.append(pose)
         fitness.append(fit)
         if len(cloud):
@@ -173,3 +219,81 @@ def correct_poses(scans: Sequence[RecordedScan], odometry: Sequence[Pose2D],
             local_map.add_points(np.column_stack([world, np.zeros(len(world))]))
             map_points.append(world)
     return Correction(poses, fitness, refused)
+
+
+
+def register(anchor: np.ndarray, points: np.ndarray, guess: Pose2D) -> tuple[Pose2D, float]:
+    """Pose at which robot-frame ``points`` best lie on the (n, 2) ``anchor`` points, coarse to fine.
+
+    Returns the pose and the share of ``points`` within 0.2 m of the anchor's there.
+    """
+    registration = require_kiss_icp()
+    mapping = importlib.import_module("kiss_icp.mapping")
+    icp = registration.Registration(max_num_iterations=200, convergence_criterion=1e-5, max_num_threads=1)
+    pose = guess
+    cloud = np.column_stack([points, np.zeros(len(points))])
+    anchor3 = np.column_stack([anchor, np.zeros(len(anchor))])
+    # KISS-ICP looks for a point's neighbour only in the voxels next to its own, so the coarse stages
+    # need coarse voxels: with 0.1 m voxels a start 0.3 m off finds wrong neighbours and stays put
+    for distance, kernel, voxel in ((1.0, 0.3, 0.5), (0.5, 0.15, 0.25), (0.3, 0.1, 0.1)):
+        voxel_map = mapping.VoxelHashMap(voxel_size=voxel, max_distance=1e4, max_points_per_voxel=20)
+        voxel_map.add_points(anchor3)
+        out = icp.align_points_to_map(points=cloud, voxel_map=voxel_map, initial_guess=pose_matrix(pose),
+                                      max_correspondance_distance=distance, kernel=kernel)
+        pose = matrix_pose(out)
+    return pose, overlap(points, pose, cKDTree(anchor))
+
+
+def find_closures(scans: Sequence[RecordedScan], poses: Sequence[Pose2D],
+                  settings: MatchSettings | None = None) -> list[Edge]:
+    """Loop closures: late scans registered directly on the early scans beside them.
+
+    Every ``closure_step``-th scan is compared with the nearest earlier pose at least
+    ``closure_travel`` m back along the path and within ``closure_radius`` m; it is registered on
+    that scan and its ``closure_window`` neighbours either side, laid at their ``poses`` in the early
+    scan's frame, and kept when ``closure_overlap`` of its points agree and the registration moved it
+    at most ``closure_max_shift`` m.
+    """
+    cfg = settings or MatchSettings()
+    xy = np.array([(p.x, p.y) for p in poses])
+    travel = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    found: list[Edge] = []
+    for late in range(0, len(scans), max(1, cfg.closure_step)):
+        early_ok = np.nonzero(travel <= travel[late] - cfg.closure_travel)[0]
+        if not len(early_ok):
+            continue
+        dist = np.hypot(*(xy[early_ok] - xy[late]).T)
+        if dist.min() > cfg.closure_radius:
+            continue
+        early = int(early_ok[int(np.argmin(dist))])
+        window = range(max(0, early - cfg.closure_window), min(len(scans), early + cfg.closure_window + 1))
+        anchor = [scans[k].points(relative(poses[early], poses[k]))[scans[k].ranges[scans[k].usable()]
+                                                                    <= cfg.max_range] for k in window]
+        around = range(max(0, late - cfg.closure_window), min(len(scans), late + cfg.closure_window + 1))
+        points = np.concatenate([_to_world(_cloud(scans[k], cfg.max_range)[:, :2],
+                                           relative(poses[late], poses[k])) for k in around])
+        if not len(points) or not sum(len(a) for a in anchor):
+            continue
+        guess = relative(poses[early], poses[late])
+        measured, agree = register(np.concatenate(anchor), points, guess)
+        shift = relative(guess, measured)
+        if agree < cfg.closure_overlap or math.hypot(shift.x, shift.y) > cfg.closure_max_shift:
+            continue
+        if well_constrained(np.concatenate(anchor), points, measured, cfg.closure_spread):
+            found.append(Edge(early, late, measured, CLOSURE_SIGMA_XY, CLOSURE_SIGMA_YAW))
+    return found
+
+
+def well_constrained(anchor: np.ndarray, points: np.ndarray, found: Pose2D, spread: float) -> bool:
+    """Whether registrations started ``spread`` m off ``found`` on each side all come back to it.
+
+    In a corridor the scans fix the pose across the corridor but not along it: a registration started
+    further along stays there, so the match is ambiguous (a false loop closure bends the whole
+    trajectory). A match that every start returns to, within 0.1 m and 2°, is kept.
+    """
+    for dx, dy in ((spread, 0.0), (-spread, 0.0), (0.0, spread), (0.0, -spread)):
+        again, _ = register(anchor, points, compose(found, Pose2D(dx, dy, 0.0)))
+        moved = relative(found, again)
+        if math.hypot(moved.x, moved.y) > 0.1 or abs(moved.yaw) > math.radians(2):
+            return False
+    return True
