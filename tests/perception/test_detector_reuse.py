@@ -77,3 +77,16 @@ def test_detectors_on_one_model_file_share_one_session(tmp_path: Path) -> None:
     model = _model(tmp_path)
     assert YoloOnnxDetector(model)._session is YoloOnnxDetector(model)._session
     assert YoloOnnxDetector(model, threads=1)._session is not YoloOnnxDetector(model)._session
+
+
+def test_a_frame_asked_with_and_without_the_mirror_pass_runs_its_single_pass_once(tmp_path: Path) -> None:
+    """The single pass is shared by requests: mirror=False, then True, costs one more run, not two."""
+    model = _model(tmp_path)
+    detector = YoloOnnxDetector(model)
+    runs = _counting(detector)
+    image = np.zeros((32, 64, 3), dtype=np.uint8)
+    detector.detect(image, mirror=False)
+    mirrored = detector.detect(image, mirror=True)
+    assert len(runs) == 2 and detector.passes == {"single": 1, "mirror": 1}
+    fresh = YoloOnnxDetector(model, recent=0).detect(image, mirror=True)
+    assert [(d.label, d.score, d.box) for d in mirrored] == [(d.label, d.score, d.box) for d in fresh]

@@ -301,8 +301,11 @@ def test_a_caller_can_ask_for_or_skip_the_mirror_pass_on_one_frame(tmp_path: Pat
     detector = YoloOnnxDetector(model, test_time_flip=True, flip_band=(0.3, 0.7), score_threshold=0.1)
     detector.detect(_image(), mirror=True)
     assert detector.passes == {"single": 1, "mirror": 1}
-    detector.detect(_image(), mirror=False)  # not the remembered mirrored answer: another request
-    assert detector.passes == {"single": 2, "mirror": 1}
+    single = detector.detect(_image(), mirror=False)  # not the remembered mirrored answer
+    assert detector.passes == {"single": 1, "mirror": 1}  # the frame's single pass is not run again
+    fresh = YoloOnnxDetector(model, test_time_flip=True, flip_band=(0.3, 0.7), score_threshold=0.1, recent=0)
+    again = fresh.detect(_image(), mirror=False)
+    assert [(d.label, d.box) for d in single] == [(d.label, d.box) for d in again]
 
 
 def test_decoding_keeps_only_candidates_above_the_threshold_in_either_mode() -> None:
@@ -314,3 +317,18 @@ def test_decoding_keeps_only_candidates_above_the_threshold_in_either_mode() -> 
     _, ml_scores, ml_ids, _ = decode_yolo_with_scores(out, 2, 0.3, 0.45, 10, multi_label=True)
     found = sorted(zip(ml_ids.tolist(), [round(float(v), 2) for v in ml_scores], strict=True))
     assert found == [(0, 0.4), (0, 0.9), (1, 0.6)]
+
+
+@pytest.mark.parametrize("shape", [(32, 64, 3), (64, 64, 3), (31, 63, 3), (200, 90, 3), (1, 1, 3)])
+def test_the_input_tensor_is_the_letterboxed_image_divided_by_255(tmp_path: Path,
+                                                                  shape: tuple[int, ...]) -> None:
+    """The input tensor is exactly letterbox, then float conversion, then division by 255."""
+    output = yolo_output([(20, 20, 8, 8, [0.9, 0.0])], 2)
+    model = constant_yolo_model(tmp_path / "m.onnx", output, names=NAMES)
+    detector = YoloOnnxDetector(model)
+    image = np.random.default_rng(3).integers(0, 256, shape, dtype=np.uint8)
+    padded, box = letterbox(image, detector.input_height, detector.input_width)
+    expected = padded.transpose(2, 0, 1)[None].astype(np.float32) / np.float32(255.0)
+    tensor, found = detector.preprocess(image)
+    assert found == box and tensor.flags["C_CONTIGUOUS"]
+    np.testing.assert_array_equal(tensor, expected)

@@ -16,11 +16,9 @@ Python dict ``{0: 'person', ...}``) or from a labels file (one name a line, or a
 from __future__ import annotations
 
 import ast
-import hashlib
 import json
 import math
 import threading
-from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -30,6 +28,7 @@ import numpy as np
 import yaml
 
 from missiontree.errors import ModelConfigError, ModelError
+from missiontree.perception.recent_detections import RecentDetections
 from missiontree.perception.yolo_layout import (
     PAD_VALUE,
     Letterbox,
@@ -276,58 +275,6 @@ _SESSIONS: dict[tuple[str, int, int, int], Any] = {}
 _SESSIONS_LOCK = threading.Lock()
 
 
-def _copy_detection(det: Detection) -> Detection:
-    """A copy whose attributes (and their nested dicts) the caller may change freely."""
-    attributes = {k: dict(v) if isinstance(v, dict) else v for k, v in det.attributes.items()}
-    return replace(det, attributes=attributes)
-
-
-class RecentDetections:
-    """The detections of the last few images, found again by the image's content.
-
-    A frame is often asked about twice: the surveillance leaf detects in it, then the offline VLM
-    stand-in, asked about the same frame, runs its detector on it again (790 detections for 690
-    frames in the patrol). A detector is deterministic, so the second answer is the first one: it
-    is taken from here (a SHA-1 of the pixels, about 0.5 ms for 320x240, against 15-30 ms a run).
-
-    Args:
-        size: Images remembered (the oldest is forgotten first); 0 remembers none.
-    """
-
-    def __init__(self, size: int = 8) -> None:
-        self.size = max(0, int(size))
-        self._found: OrderedDict[tuple[Any, ...], list[Detection]] = OrderedDict()
-        self._lock = threading.Lock()
-        self.hits = 0
-
-    @staticmethod
-    def key(image: np.ndarray) -> tuple[Any, ...]:
-        """The image's identity by content: shape, dtype and a digest of its pixels."""
-        digest = hashlib.sha1(np.ascontiguousarray(image).data, usedforsecurity=False).digest()
-        return (image.shape, image.dtype.str, digest)
-
-    def get(self, key: tuple[Any, ...]) -> list[Detection] | None:
-        """Copies of the detections found for ``key``, or None when it is not remembered."""
-        with self._lock:
-            found = self._found.get(key)
-            if found is None:
-                return None
-            self._found.move_to_end(key)
-            self.hits += 1
-        return [_copy_detection(d) for d in found]
-
-    def put(self, key: tuple[Any, ...], found: list[Detection]) -> None:
-        """Remember ``found`` for ``key`` (copies: the caller keeps its own list)."""
-        if not self.size:
-            return
-        kept = [_copy_detection(d) for d in found]
-        with self._lock:
-            self._found[key] = kept
-            self._found.move_to_end(key)
-            while len(self._found) > self.size:
-                self._found.popitem(last=False)
-
-
 class YoloOnnxDetector:
     """A detector for any ONNX model in the YOLOv8/YOLO11 export layout, run by onnxruntime.
 
@@ -479,11 +426,28 @@ class YoloOnnxDetector:
         return list(self._labels)
 
     def preprocess(self, image: np.ndarray) -> tuple[np.ndarray, Letterbox]:
-        """Letterbox ``image`` into the model's input tensor ``[1, 3, H, W]`` scaled to [0, 1]."""
-        padded, box = letterbox(image, self.input_height, self.input_width)
-        # numpy's stubs cannot divide an array of a dtype chosen at run time; it is float16 or float32
-        tensor = padded.transpose(2, 0, 1)[None].astype(self._input_dtype) / self._input_dtype(255.0)  # type: ignore[operator]
-        return np.ascontiguousarray(tensor), box
+        """Letterbox ``image`` into the model's input tensor ``[1, 3, H, W]`` scaled to [0, 1].
+
+        The image (resized first only when it does not fit) is divided straight into its place in
+        a tensor filled with the padding's grey: one pass, no padded copy; the numbers are those of
+        padding, converting and dividing in turn (the same division in the input's dtype).
+        """
+        h, w = image.shape[:2]
+        height, width = self.input_height, self.input_width
+        if round(w * min(height / h, width / w)) != w or round(h * min(height / h, width / w)) != h:
+            padded, box = letterbox(image, height, width)  # a resize: the general path
+            image, top, left = padded, 0, 0
+        else:
+            top, left = round((height - h) / 2.0 - 0.1), round((width - w) / 2.0 - 0.1)
+            box = Letterbox(scale=min(height / h, width / w), pad_x=float(left), pad_y=float(top))
+        dtype = self._input_dtype
+        scale = dtype(255.0)
+        tensor = np.empty((1, 3, height, width), dtype=dtype)
+        tensor[...] = dtype(PAD_VALUE) / scale
+        ih, iw = image.shape[:2]
+        np.divide(image.transpose(2, 0, 1), scale, out=tensor[0, :, top : top + ih, left : left + iw],
+                  dtype=dtype, casting="unsafe")
+        return tensor, box
 
     def detect(self, image: np.ndarray, mirror: bool | None = None) -> list[Detection]:
         """Detections in ``image`` (HxWx3 uint8 RGB), boxes in its pixels, best score first.
@@ -501,8 +465,7 @@ class YoloOnnxDetector:
             if remembered is not None:
                 return remembered
         tensor, box = self.preprocess(image)
-        output = self._run(tensor)
-        self.passes["single"] += 1
+        output = self._single_pass(tensor, None if key is None else key[:-1])
         if mirror if mirror is not None else (self.test_time_flip and self._mirror_pays(output)):
             self.passes["mirror"] += 1
             mirrored = self._run(np.ascontiguousarray(tensor[..., ::-1]))
@@ -528,6 +491,23 @@ class YoloOnnxDetector:
         if key is not None:
             self.recent.put(key, kept)
         return kept
+
+    def _single_pass(self, tensor: np.ndarray, image_key: tuple[Any, ...] | None) -> np.ndarray:
+        """The model's output on ``tensor``, taken from :attr:`recent` when this image was run before.
+
+        Detections are remembered by what was asked (``mirror``), but the single pass is the same
+        whatever was asked: a frame the surveillance detected in with the single pass, then asked
+        about through the offline VLM (which may add the mirror pass), is run once, not twice.
+        """
+        if image_key is not None:
+            output = self.recent.get_output(image_key)
+            if output is not None:
+                return output
+        output = self._run(tensor)
+        self.passes["single"] += 1
+        if image_key is not None:
+            self.recent.put_output(image_key, output)
+        return output
 
     def _mirror_pays(self, output: np.ndarray) -> bool:
         """Whether the single pass ``output`` left a candidate in :attr:`flip_band` (always without one)."""
