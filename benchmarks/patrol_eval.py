@@ -889,7 +889,16 @@ def main() -> int:
     parser.add_argument("--first-seed", type=int, default=0, help="first seed of the test split's worlds")
     parser.add_argument("--quick", action="store_true",
                         help=f"a smoke run: dev seed {SEEDS[0]} only, 3 test worlds unless --test-worlds")
+    parser.add_argument("--configs", default=",".join(CONFIGS),
+                        help=f"comma-separated configurations to run (default all: {', '.join(CONFIGS)})")
     args = parser.parse_args()
+    chosen = [c.strip() for c in args.configs.split(",") if c.strip()]
+    unknown = sorted(set(chosen) - set(CONFIGS))
+    if unknown or not chosen:
+        parser.error(f"unknown configuration(s) {unknown}; known: {', '.join(CONFIGS)}")
+    for name in list(CONFIGS):  # the runs, summaries and tables below read CONFIGS
+        if name not in chosen:
+            del CONFIGS[name]
     seeds = SEEDS[:1] if args.quick else SEEDS
     splits = ["dev", "test"] if args.split == "both" else [args.split]
     started = time.perf_counter()

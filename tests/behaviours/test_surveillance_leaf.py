@@ -41,9 +41,9 @@ def step(robot: FakeRobot, leaf: Surveillance, person_bearing: float | None, dt:
 
 
 def test_detect_mode_asks_the_vlm_only_about_frames_with_people() -> None:
-    """With nobody in view the detector runs on every frame and the VLM is never asked."""
+    """With nobody in view and detect_period 0 the detector runs on every frame; the VLM is never asked."""
     robot = FakeRobot()
-    leaf, _, models = setup_leaf(robot)
+    leaf, _, models = setup_leaf(robot, detect_period=0.0)
     for _ in range(10):
         step(robot, leaf, None)
     leaf.tick_once()  # the last frame's detections are read on the tick after it was submitted
@@ -213,7 +213,7 @@ def test_alarm_cooldown_suppresses_repeats() -> None:
 def test_a_one_frame_detection_is_not_asked_about_with_min_hits_two() -> None:
     """A person (or a false detection) seen in a single frame costs no call; seen twice, it does."""
     robot = FakeRobot()
-    leaf, _, models = setup_leaf(robot, latency=0.2, min_hits=2)
+    leaf, _, models = setup_leaf(robot, latency=0.2, min_hits=2, detect_period=0.0)
     step(robot, leaf, 0.0)
     for _ in range(10):
         step(robot, leaf, None)
@@ -463,3 +463,24 @@ def test_the_detector_is_asked_for_the_single_pass_unless_told(monkeypatch: pyte
     leaf, _, _ = setup_leaf(robot, **params)
     step(robot, leaf, None)
     assert asked == [expected]
+
+
+def test_with_nobody_in_view_the_detector_looks_at_a_frame_every_detect_period() -> None:
+    """Frames every 0.2 s and the default detect_period 0.4 s: every other frame."""
+    robot = FakeRobot()
+    leaf, _, models = setup_leaf(robot)
+    for _ in range(10):
+        step(robot, leaf, None)
+    leaf.tick_once()
+    assert models["detector"].calls == 5
+
+
+def test_with_a_person_in_view_the_detector_still_looks_every_detect_period() -> None:
+    """The rate is the leaf's own: a person in view does not make it detect on every frame."""
+    robot = FakeRobot()
+    leaf, events, models = setup_leaf(robot, latency=0.2)
+    for _ in range(10):
+        step(robot, leaf, 0.1)
+    leaf.tick_once()
+    assert models["detector"].calls == 5
+    assert models["vlm"].asked == 1 and len(events.of("alarm")) == 1
