@@ -31,7 +31,6 @@ from typing import Any
 import cv2
 import numpy as np
 import yaml
-from scipy import ndimage
 
 from missiontree.backends.sim.generator import FURNITURE, SMALL
 from missiontree.backends.sim.mapimage import read_map_image
@@ -53,7 +52,6 @@ from missiontree.errors import Problem, WorldFileError
 from missiontree.mapping.clearance import clearance_metres
 from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.paths import config_dirs
-from missiontree.semantics.rooms import segment_rooms
 from missiontree.types import OccupancyGrid, Pose2D
 from missiontree.yamlio import Located, load_yaml, parse_yaml
 
@@ -313,6 +311,8 @@ def _map_pieces(grid: OccupancyGrid, inside: tuple[float, float]) -> list[tuple[
         piece,
     )
     if key not in _PIECES:
+        from missiontree.semantics.rooms import segment_rooms  # scipy.ndimage: only when a map is segmented
+
         seg = segment_rooms(grid, inside=inside)
         res = grid.resolution
         masks: list[np.ndarray] = []
@@ -352,6 +352,8 @@ def _zones(region: np.ndarray, res: float) -> list[np.ndarray]:
             sr = int(r0 + (i + 0.5) * (r1 - r0) / ny)
             sc = int(c0 + (j + 0.5) * (c1 - c0) / nx)
             seeds[sr, sc] = True
+    from scipy import ndimage  # imported on use: a mission on a shipped world never needs it
+
     _, (ir, ic) = ndimage.distance_transform_edt(~seeds, return_indices=True)
     owner = ir * region.shape[1] + ic
     zones = []

@@ -21,7 +21,6 @@ from typing import Any
 
 import cv2
 import numpy as np
-from scipy import ndimage
 
 from missiontree.backends.sim.world import World, build_world
 from missiontree.mapping.clearance import clearance_metres
@@ -330,6 +329,8 @@ class Placer:
         ``where`` is computed on the room's bounding box only: a room is a small part of a large map.
         """
         if self._boxes is None:
+            from scipy import ndimage  # imported on use: a mission on a shipped world never places objects
+
             self._boxes = ndimage.find_objects(self.s.rooms)
         bounds = self._boxes[room - 1] if 0 < room <= len(self._boxes) else None
         if bounds is None:
