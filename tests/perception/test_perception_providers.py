@@ -93,7 +93,7 @@ def test_non_finite_detector_options_are_config_errors() -> None:
     """NaN or infinite thresholds and rates are refused with the option named, not taken as numbers."""
     from missiontree.perception.providers import create_oracle, create_sim_detector
 
-    with pytest.raises(ModelConfigError, match="score_threshold: Input should be a finite number"):
+    with pytest.raises(ModelConfigError, match="score_threshold: expected a finite number"):
         create_sim_detector({"score_threshold": float("nan")})
-    with pytest.raises(ModelConfigError, match="miss_rate: Input should be a finite number"):
+    with pytest.raises(ModelConfigError, match="miss_rate: expected a finite number"):
         create_oracle({"miss_rate": float("inf")})
