@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.ndimage import binary_dilation
 
 from missiontree.backends.sim.world import load_world
 from missiontree.cli.main import main
@@ -92,3 +93,34 @@ def test_rawlog_without_the_extra_exits_2_naming_it(tmp_path: Path, monkeypatch:
         monkeypatch.setitem(sys.modules, name, None)  # None in sys.modules: the import fails
     assert main(["map", "convert", str(LOOP), "--out", str(tmp_path)]) == 2
     assert "missiontree[realdata]" in capsys.readouterr().err
+
+
+BAG = Path(__file__).resolve().parents[1] / "data" / "ros2bag" / "sim_office.mcap"
+
+
+@pytest.mark.realdata
+def test_convert_a_ros2_bag_matches_the_map_sim_ros_learned(tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """A bag's /scan at its /tf poses converts to a map with walls within 2 cells of the bag's own /map."""
+    pytest.importorskip("mcap_ros2", reason="mcap-ros2-support (the realdata extra) is not installed")
+    from missiontree.mapping.ros2bag import read_bag
+
+    assert main(["map", "convert", str(BAG), "--out", str(tmp_path)]) == 0
+    assert "119 of 119 scans at the poses of tf (map)" in capsys.readouterr().out
+    grid, reference = read_map(tmp_path / "map.yaml"), read_bag(BAG).maps[-1]
+    walls = binary_dilation(reference.data == 100, iterations=2)
+    cells = [reference.world_to_cell(*grid.cell_to_world(r, c)) for r, c in np.argwhere(grid.data == 100)]
+    inside = [walls[r, c] for r, c in cells if 0 <= r < walls.shape[0] and 0 <= c < walls.shape[1]]
+    assert len(cells) > 300 and sum(inside) / len(cells) >= 0.9
+    free = (grid.data == 0).sum() * grid.resolution ** 2
+    assert free == pytest.approx((reference.data == 0).sum() * reference.resolution ** 2, rel=0.1)
+
+
+@pytest.mark.realdata
+def test_a_bag_without_scans_on_the_namespace_exits_2(tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """A namespace the bag does not use finds no scans: exit 2 naming the topic looked for and the bag's."""
+    pytest.importorskip("mcap_ros2", reason="mcap-ros2-support (the realdata extra) is not installed")
+    assert main(["map", "convert", str(BAG), "--out", str(tmp_path / "out"), "--namespace", "/robot1"]) == 2
+    err = capsys.readouterr().err
+    assert "/robot1/scan" in err and "/scan" in err and not (tmp_path / "out").exists()
