@@ -16,12 +16,16 @@ carries a fault (:func:`mark_fault`: the reason, on the node), kept until the no
 
 from __future__ import annotations
 
+import inspect
 import os
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import py_trees
+
+from missiontree.events import EventSink
 
 Behaviour = py_trees.behaviour.Behaviour
 Status = py_trees.common.Status
@@ -79,6 +83,57 @@ def error_site(error: BaseException, own_file: str | None = None) -> ErrorSite:
     where = f"{shown_file(chosen.filename)}:{chosen.lineno}"
     listed = tuple(f"{shown_file(f.filename)}:{f.lineno} in {f.name}" for f in frames[-MAX_FRAMES:])
     return ErrorSite(f"{text} (at {where} in {chosen.name})", where, chosen.name, listed)
+
+
+def source_file(node: object) -> str | None:
+    """The file that defines ``node``'s class (None for a class made at run time): its error site."""
+    try:
+        return inspect.getsourcefile(type(node))
+    except TypeError:
+        return None
+
+
+@dataclass
+class ErrorFrames:
+    """The traceback frames of each node's last error, for the summary's ``fault``.
+
+    A non-Leaf node's error is described here (:meth:`node_error`); a leaf reports its own as an
+    ``error`` event, whose frames the sink made by :meth:`noting` keeps on its way to the log.
+    """
+
+    by_node: dict[Behaviour, tuple[str, ...]] = field(default_factory=dict)
+    by_name: dict[str, tuple[str, ...]] = field(default_factory=dict)
+
+    def node_error(self, node: Behaviour, error: BaseException) -> ErrorSite:
+        """Describe a non-Leaf node's ``error`` (where it was raised) and keep its frames."""
+        site = error_site(error, source_file(node))
+        self.by_node[node] = site.frames
+        return site
+
+    def of(self, node: Behaviour) -> tuple[str, ...]:
+        """The frames of the error behind ``node``'s fault: its own (non-Leaf) or its leaf event's."""
+        return self.by_node.get(node) or self.by_name.get(node.name, ())
+
+    def noting(self, sink: EventSink) -> EventSink:
+        """An event sink that writes to ``sink`` and keeps each ``error`` event's frames."""
+        return _NotingSink(sink, self.by_name)
+
+
+class _NotingSink:
+    """The context's event sink: ``sink``, noting each leaf ``error`` event's traceback frames."""
+
+    def __init__(self, sink: EventSink, frames: dict[str, tuple[str, ...]]) -> None:
+        self._sink = sink
+        self._frames = frames
+
+    def emit(self, event: str, /, **fields: Any) -> None:
+        """Note an error's frames, then pass the event on."""
+        if event == "error" and isinstance(fields.get("traceback"), list):
+            self._frames[str(fields.get("node"))] = tuple(str(f) for f in fields["traceback"])
+        self._sink.emit(event, **fields)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._sink, name)
 
 
 def shown_file(filename: str) -> str:

@@ -10,7 +10,6 @@ children, are trusted and ticked without a wrapper (:data:`TRUSTED_TYPES`).
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Callable, Iterator
 
 import py_trees
@@ -21,6 +20,7 @@ from missiontree.engine.faults import (
     clear_fault,
     error_site,
     mark_fault,
+    source_file,
 )
 from missiontree.engine.leaf import Leaf
 
@@ -83,14 +83,6 @@ def _guarded_tick(
             yield node
 
     return tick
-
-
-def source_file(node: Behaviour) -> str | None:
-    """The file that defines ``node``'s class (None for a class made at run time): its error site."""
-    try:
-        return inspect.getsourcefile(type(node))
-    except TypeError:
-        return None
 
 
 def _guarded_stop(

@@ -42,11 +42,22 @@ from typing import Any, TextIO
 import py_trees
 
 from missiontree.engine.context import MissionContext
-from missiontree.engine.faults import error_site, fault_of
-from missiontree.engine.guards import TRUSTED_TYPES, guard_exceptions, source_file
+from missiontree.engine.faults import ErrorFrames, fault_of
+from missiontree.engine.guards import TRUSTED_TYPES, guard_exceptions
 from missiontree.engine.node_words import node_paths
 from missiontree.engine.profile import RunProfile
 from missiontree.engine.recorder import RunRecorder
+from missiontree.engine.summary import (
+    STOPPED_BY_ERROR,
+    STOPPED_BY_LIMIT,
+    STOPPED_BY_SIGNAL,
+    STOPPED_BY_STATUS,
+    RunEnd,
+    final_pose,
+    profile_section,
+    provisional_summary,
+    run_summary,
+)
 from missiontree.engine.tick_log import TickLog, TickRecorder, plain
 from missiontree.errors import ConfigError, MissionTreeError, PluginError
 from missiontree.redact import scrub_data
@@ -54,15 +65,10 @@ from missiontree.redact import scrub_data
 Status = py_trees.common.Status
 Behaviour = py_trees.behaviour.Behaviour
 
-#: Why a run ended.
-STOPPED_BY_STATUS = "status"
-STOPPED_BY_LIMIT = "limit"
-STOPPED_BY_SIGNAL = "signal"
-STOPPED_BY_ERROR = "error"
-
 _FINAL = (Status.SUCCESS, Status.FAILURE)
 
-__all__ = ["TRUSTED_TYPES", "RunResult", "Runner", "guard_exceptions"]
+__all__ = ["STOPPED_BY_ERROR", "STOPPED_BY_LIMIT", "STOPPED_BY_SIGNAL", "STOPPED_BY_STATUS", "TRUSTED_TYPES",
+           "RunResult", "Runner", "guard_exceptions"]
 
 
 @dataclass
@@ -165,8 +171,7 @@ class Runner:
         self._reason = ""
         self._fault: tuple[Behaviour, str] | None = None
         #: Traceback frames (``file:line in function``) of each node's last error, for the summary's fault.
-        self._error_frames: dict[Behaviour, tuple[str, ...]] = {}
-        self._leaf_frames: dict[str, tuple[str, ...]] = {}  # by node name, as a leaf's error event has it
+        self.errors = ErrorFrames()
         self.log: TickLog | None = None
         self.recorder: TickRecorder | None = None
         self._set_up = False
@@ -186,11 +191,11 @@ class Runner:
         """
         if self._set_up:
             return
-        self.files.open(self._provisional_summary())
+        self.files.open(provisional_summary(self.mission, self.tick_hz, self.context.seed, self.robot.name))
         if self.run_dir is not None:
             self.context.run_dir = self.run_dir
         self.log = TickLog(self.files.stream, self.mission, self.robot.now, bool(self.robot.simulated))
-        self.context.events = _ErrorFrames(self.log, self._leaf_frames)
+        self.context.events = self.errors.noting(self.log)
         self.log.bind()
         guard_exceptions(self.root, self._on_node_error)
         paths = node_paths(self.root)
@@ -258,17 +263,12 @@ class Runner:
 
     def _on_node_error(self, node: Behaviour, error: Exception) -> None:
         """A non-Leaf node's exception: an ``error`` event as a leaf's (reason, file:line, frames)."""
-        site = error_site(error, source_file(node))
-        self._error_frames[node] = site.frames
+        site = self.errors.node_error(node, error)
         if self.log is None:
             return
         path = self.recorder.path(node) if self.recorder is not None else node.name
         self.log.emit("error", node=path, error=site.reason, where=site.where, function=site.function,
                       traceback=list(site.frames))
-
-    def _fault_frames(self, node: Behaviour) -> tuple[str, ...]:
-        """The traceback of the error behind ``node``'s fault: its own (non-Leaf) or its leaf event's."""
-        return self._error_frames.get(node) or self._leaf_frames.get(node.name, ())
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
         """First signal: stop after this tick; a second one while running: stop now.
@@ -410,24 +410,20 @@ class Runner:
             return True
         return False
 
-    def _provisional_summary(self) -> dict[str, Any]:
-        """The summary written as the run starts: valid JSON marked incomplete until the run ends."""
-        return plain({"mission": self.mission, "complete": False, "status": Status.RUNNING.name,
-                      "stopped_by": "", "signal": "", "ticks": 0, "tick_hz": self.tick_hz,
-                      "seed": self.context.seed, "robot": self.robot.name})
-
     def _finish(self, status: Status, stopped_by: str, duration: float) -> RunResult:
         """Draw pictures, write the summary and close the log (never raises: failures are kept)."""
         if self.files.dir_lost and self.log is not None:
             self.files.recover_log(self.log.redirect)
         if self.log is not None:
             self.log.flush_pending()
-        profile = self._profile_summary(duration)
+        profile = profile_section(self.profiler, self.robot.now(), self.period, duration)
         pictures = self.files.draw(self.robot, self.context.markers, self._on_draw_error)
-        summary = self._summary(status, stopped_by, duration, pictures)
+        summary = run_summary(self.mission, self._end(status, stopped_by, duration), tick_hz=self.tick_hz,
+                              seed=self.context.seed, robot=self.robot.name, log=self.log,
+                              recorder=self.recorder, pictures=pictures, outcome=self.context.outcome)
         if profile:
             summary["profile"] = profile
-        summary.update(self._final_pose())
+        summary.update(final_pose(self.robot, self.final_state))
         summary = scrub_data(plain(summary))  # kept, printed and recorded by batches: no secret in it
         if self.recorder is not None:
             self.recorder.close()
@@ -446,65 +442,14 @@ class Runner:
             self.log.emit("error", node="", error=f"drawing failed: {type(error).__name__}: {error}",
                           where="draw")
 
-    def _summary(self, status: Status, stopped_by: str, duration: float,
-                 pictures: list[str]) -> dict[str, Any]:
-        """How the run ended, what its nodes did and what its leaves reported (no profile, no pose)."""
-        summary: dict[str, Any] = {
-            "mission": self.mission,
-            "complete": True,
-            "status": status.name,
-            "stopped_by": stopped_by,
-            "signal": signal.Signals(self._signal).name if self._signal else "",
-            "ticks": self.recorder.ticks if self.recorder else 0,
-            "duration": duration,
-            "tick_hz": self.tick_hz,
-            "seed": self.context.seed,
-            "robot": self.robot.name,
-            "events": dict(sorted(self.log.event_counts.items())) if self.log else {},
-            "pictures": pictures,
-        }
-        if stopped_by == STOPPED_BY_ERROR and self._reason:
-            summary["reason"] = self._reason
-        faulted = self._fault
-        if faulted is not None:  # failed because of an error, not because a condition was false
-            node, cause = faulted
-            summary["fault"] = {"node": self.recorder.path(node) if self.recorder else node.name,
-                                "error": cause, "traceback": list(self._fault_frames(node))}
-        if self.context.outcome:  # what the mission did, in its leaves' words
-            summary["outcome"] = dict(self.context.outcome)
-        if self.recorder is not None:
-            summary.update(self.recorder.summary())
-        return summary
-
-    def _profile_summary(self, duration: float) -> dict[str, Any]:
-        """The profile of the run so far (empty when off); the wrappers are removed (never raises)."""
-        profiler = self.profiler
-        if profiler is None:
-            return {}
-        try:
-            profiler.close_active(self.robot.now(), self.period)
-            return profiler.summary(duration)
-        except Exception as error:  # noqa: BLE001 - a failed measurement must not lose the summary
-            return {"error": f"{type(error).__name__}: {error}"}
-        finally:
-            profiler.detach()
-
-    def _final_pose(self) -> dict[str, Any]:
-        """The robot's own final pose estimate, plus what ``final_state`` adds (never raises)."""
-        found: dict[str, Any] = {}
-        try:
-            stamped = self.robot.pose()
-            if stamped is not None:
-                pose = stamped.pose
-                found["final_pose"] = {"x": pose.x, "y": pose.y, "yaw": pose.yaw, "stamp": stamped.stamp}
-        except Exception as error:  # noqa: BLE001 - a pose that cannot be read must not lose the summary
-            found["final_pose_error"] = f"{type(error).__name__}: {error}"
-        if self.final_state is not None:
-            try:
-                found.update(self.final_state())
-            except Exception as error:  # noqa: BLE001 - same
-                found["final_state_error"] = f"{type(error).__name__}: {error}"
-        return found
+    def _end(self, status: Status, stopped_by: str, duration: float) -> RunEnd:
+        """How the run ended, with the fault behind a FAILURE (its node's path, error and frames)."""
+        fault = None
+        if self._fault is not None:
+            node, cause = self._fault
+            path = self.recorder.path(node) if self.recorder else node.name
+            fault = (path, cause, self.errors.of(node))
+        return RunEnd(status.name, stopped_by, self._signal, duration, self._reason, fault)
 
     def _call_hook(self, name: str, **kwargs: Any) -> None:
         if self.hook is None:
@@ -531,24 +476,3 @@ class Runner:
         for signum, handler in getattr(self, "_previous", {}).items():
             signal.signal(signum, handler)
         self._previous = {}
-
-
-class _ErrorFrames:
-    """The context's event sink: the tick log, noting each leaf ``error`` event's traceback frames.
-
-    A leaf reports its own errors (:meth:`missiontree.engine.leaf.Leaf._report_error`); the summary's
-    ``fault`` repeats the frames of the one behind the run's FAILURE.
-    """
-
-    def __init__(self, log: TickLog, frames: dict[str, tuple[str, ...]]) -> None:
-        self._log = log
-        self._frames = frames
-
-    def emit(self, event: str, /, **fields: Any) -> None:
-        """Note an error's frames, then write the event to the tick log."""
-        if event == "error" and isinstance(fields.get("traceback"), list):
-            self._frames[str(fields.get("node"))] = tuple(str(f) for f in fields["traceback"])
-        self._log.emit(event, **fields)
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._log, name)
