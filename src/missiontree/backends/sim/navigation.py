@@ -18,8 +18,12 @@ keeps from something (every arc towards its path sweeps it) first backs away fro
 scan behind allows, Nav2's BackUp recovery, and replans from there; for a while after a recovery the
 pure-pursuit line also keeps that clearance from what the map lacks (it no longer cuts the bend round it).
 
-The lidar's geometry (the arc a command sweeps, lines clear of what the map lacks, the room
-behind) is :class:`~missiontree.backends.sim.nav_scan.ScanView`'s. The navigator is built from
+The navigator holds the decisions (start, wait, replan, back up, abort) and the goal's handle; the
+parts are apart: planning -- the costmaps, the way out of an inscribed zone, the tighter costmap
+for gaps the body fits -- in :class:`~missiontree.backends.sim.nav_plan.NavPlanner`, the path in
+hand and the pure-pursuit geometry in :mod:`~missiontree.backends.sim.nav_follow`, the lidar's
+geometry (the arc a command sweeps, lines clear of what the map lacks, the room behind) in
+:class:`~missiontree.backends.sim.nav_scan.ScanView`. The navigator is built from
 what it needs -- the map, the footprint radius, the robot profile's limits and step, the
 navigation settings -- not from the robot. On a learned map
 (``allow_unknown``, as Nav2 with a SLAM map) unknown cells are traversable; :meth:`Navigator.update_map`
@@ -188,11 +192,7 @@ class Navigator:
             if stop is not None:
                 return stop
         if follow.unreachable_since is not None:
-            h._status = ActionStatus.RUNNING
-            h._feedback = NavFeedback(pose, math.hypot(h.goal.x - pose.x, h.goal.y - pose.y), now - h.sent,
-                                      self.recoveries)
-            follow.last_step = now
-            return 0.0, 0.0   # no way on the map learned so far: wait for one (people move on)
+            return self._hold(h, follow, now, pose)
         self.scan_view.pose = pose
         gap = now - follow.last_step - self.physics_dt
         if gap > 1e-6:  # drive() overrode us meanwhile: the goal's timers pause
@@ -209,32 +209,55 @@ class Navigator:
             return self._abort(ActionStatus.ABORTED, f"no progress for {_NO_PROGRESS_TIME:.0f} s "
                                f"({remaining:.2f} m from the goal)", NO_PROGRESS)
         if follow.backing_until is not None:
-            # reverse until the time is up or something comes near behind (people walk there too)
-            if now < follow.backing_until and self.scan_view.rear_room(scan) > _BACKUP_SPEED * STOP_TIME:
-                return -_BACKUP_SPEED, 0.0
-            follow.backing_until = None
-            # plan around what the lidar sees as well (as a blocked path's replan does): on the map
-            # alone the new path runs into what pinned the robot again, back and forth
-            path = self.planning.around(scan, pose, self._target_of(h), follow.tight)
-            tight = follow.tight
-            if path is None:
-                path, tight = self.planning.way(pose, self._target_of(h))
-            if path is not None:
-                follow.set_path(path)
-                follow.tight = tight
+            command, replanned = self._backing(h, follow, now, pose, scan)
+            if command is not None:
+                return command
+            if replanned:
                 remaining = self.follower.remaining(follow, pose)
         goal = h.goal
-        dist = math.hypot(goal.x - pose.x, goal.y - pose.y)
-        if dist <= h.tolerance.xy or follow.aligning:
-            follow.aligning = True
-            if h.tolerance.yaw >= math.pi:
-                return self._succeed()
-            err = wrap_angle(goal.yaw - pose.yaw)
-            if abs(err) <= h.tolerance.yaw:
-                return self._succeed()
-            lim = self.limits
-            return 0.0, float(np.clip(self.spec.heading_gain * err, -lim.max_w, lim.max_w))
+        if math.hypot(goal.x - pose.x, goal.y - pose.y) <= h.tolerance.xy or follow.aligning:
+            return self._align(h, follow, pose)
         return self._drive(follow, now, pose, scan, remaining)
+
+    def _hold(self, h: SimNavHandle, follow: Follow, now: float, pose: Pose2D) -> tuple[float, float]:
+        """No way on the map learned so far: stand still and wait for one (people move on)."""
+        h._status = ActionStatus.RUNNING
+        h._feedback = NavFeedback(pose, math.hypot(h.goal.x - pose.x, h.goal.y - pose.y), now - h.sent,
+                                  self.recoveries)
+        follow.last_step = now
+        return 0.0, 0.0
+
+    def _backing(self, h: SimNavHandle, follow: Follow, now: float, pose: Pose2D,
+                 scan: LaserScan | None) -> tuple[tuple[float, float] | None, bool]:
+        """A back-up under way: (the reverse command, False), or (None, whether it replanned) at its end."""
+        until = follow.backing_until
+        assert until is not None
+        # reverse until the time is up or something comes near behind (people walk there too)
+        if now < until and self.scan_view.rear_room(scan) > _BACKUP_SPEED * STOP_TIME:
+            return (-_BACKUP_SPEED, 0.0), False
+        follow.backing_until = None
+        # plan around what the lidar sees as well (as a blocked path's replan does): on the map
+        # alone the new path runs into what pinned the robot again, back and forth
+        path = self.planning.around(scan, pose, self._target_of(h), follow.tight)
+        tight = follow.tight
+        if path is None:
+            path, tight = self.planning.way(pose, self._target_of(h))
+        if path is None:
+            return None, False
+        follow.set_path(path)
+        follow.tight = tight
+        return None, True
+
+    def _align(self, h: SimNavHandle, follow: Follow, pose: Pose2D) -> tuple[float, float]:
+        """Within the goal's tolerance: done, or turn to the goal heading first."""
+        follow.aligning = True
+        if h.tolerance.yaw >= math.pi:
+            return self._succeed()
+        err = wrap_angle(h.goal.yaw - pose.yaw)
+        if abs(err) <= h.tolerance.yaw:
+            return self._succeed()
+        lim = self.limits
+        return 0.0, float(np.clip(self.spec.heading_gain * err, -lim.max_w, lim.max_w))
 
     # -- internals ---------------------------------------------------------------------------------
 
