@@ -327,7 +327,7 @@ def test_documented_runs_name_real_trees() -> None:
 
 
 def test_the_bag_commands_in_the_docs_run() -> None:
-    """The documented bag commands (bag info, run on a bag, map convert of one) run in CI; they are no templates."""
+    """The documented bag commands (bag info, a run on a bag, map convert of one) run in CI as written."""
     bag = [c for c in COMMANDS if c.source.startswith("docs/real-data.md") and ".mcap" in c.text]
     runnable = [c for c in bag if skip_reason(c) is None]
     assert {w for c in runnable for w in _words(c.text)} >= {"info", "run", "convert"}
