@@ -79,7 +79,7 @@ class Diagnosis:
         self.fusion = fusion
         if fusion is None:
             return
-        judge = fusion.absence  # the fusion's misses and moves (perception/absence.py)
+        judge = fusion.absence  # the fusion's misses and moves (semantics/absence.py)
         expected, judged = judge.expected_view, judge.place_seen
 
         def expected_view(frame: Any, inst: Any) -> Any:

@@ -42,7 +42,6 @@ from pydantic import BaseModel, Field
 
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Output
-from missiontree.perception.fusion import FusionParams
 from missiontree.perception.tracking import NaisFilterParams
 from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
 from missiontree.reasoning.offline_scene import measured_description, room_type_from_objects
@@ -51,6 +50,7 @@ from missiontree.reasoning.scene_prompts import SemanticRelations, expanded_crop
 from missiontree.reasoning.schemas import ObjectDescription, RoomClassification
 from missiontree.semantics.builder import BuilderParams, SceneBuilder
 from missiontree.semantics.coverage import Coverage, explored_share
+from missiontree.semantics.fusion import FusionParams
 from missiontree.semantics.rooms import RoomRegion, SegmentationParams, load_room_polygons
 from missiontree.semantics.semantic_map import Change, Instance
 

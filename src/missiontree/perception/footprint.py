@@ -1,6 +1,6 @@
 """What several views tell about one object: its footprint's centre, whether it stands out, its size.
 
-Helpers of :mod:`missiontree.perception.fusion`, pure functions of frames, boxes and numbers:
+Helpers of :mod:`missiontree.semantics.fusion`, pure functions of frames, boxes and numbers:
 
 - :func:`surface_cells` / :func:`outline_centre`: depth sees only an object's near face, so the
   centre of a large one (a sofa seen end-on places its near face a metre before its centre) comes

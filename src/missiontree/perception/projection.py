@@ -119,6 +119,22 @@ def centre_depth(
     return float(np.median(valid)) if valid.size else float("nan")
 
 
+def _box_depth(
+    frame: RGBDFrame, detection: Detection, method: DepthMethod, window: int
+) -> tuple[float, float]:
+    """The image column the depth was read at and the depth there (``nan``: none) by ``method``."""
+    u = (detection.box[0] + detection.box[2]) / 2.0
+    if method == "robust":
+        reading = box_depth(frame, detection.box, mask=detection.mask)
+        if reading.found:
+            return (reading.column if math.isfinite(reading.column) else u), reading.depth
+        # an object lower than the floor clearance (a cup): the centre's depth
+        return u, centre_depth(np.asarray(frame.depth), detection.box, window)
+    if method == "centre":
+        return u, centre_depth(np.asarray(frame.depth), detection.box, window)
+    raise ValueError(f"unknown depth method {method!r}; expected 'centre' or 'robust'")
+
+
 def project(
     frame: RGBDFrame,
     detection: Detection,
@@ -146,19 +162,7 @@ def project(
     """
     k = frame.intrinsics
     camera = pose if pose is not None else frame.camera_pose
-    u = (detection.box[0] + detection.box[2]) / 2.0
-    v = (detection.box[1] + detection.box[3]) / 2.0
-    if method == "robust":
-        reading = box_depth(frame, detection.box, mask=detection.mask)
-        z = reading.depth if reading.found else float("nan")
-        if reading.found and math.isfinite(reading.column):
-            u = reading.column
-        if not reading.found:  # an object lower than the floor clearance (a cup): the centre's depth
-            z = centre_depth(np.asarray(frame.depth), detection.box, window)
-    elif method == "centre":
-        z = centre_depth(np.asarray(frame.depth), detection.box, window)
-    else:
-        raise ValueError(f"unknown depth method {method!r}; expected 'centre' or 'robust'")
+    u, z = _box_depth(frame, detection, method, window)
     if not math.isfinite(z) or z <= 0.0:
         return None
     width = max(0.0, detection.box[2] - detection.box[0]) * z / k.fx
@@ -168,6 +172,7 @@ def project(
     ray = math.hypot(z, lateral)
     scale = (ray + offset) / ray if ray > 0 else 1.0
     x, y = camera.transform(z * scale, lateral * scale)
+    v = (detection.box[1] + detection.box[3]) / 2.0
     elevation = frame.camera_height - (v - k.cy) * z / k.fy
     return Projection(
         label=detection.label,

@@ -16,7 +16,7 @@ Each filter is here alone — :func:`confident`, :func:`is_dynamic`, :func:`with
 :class:`TemporalVoting`, :class:`DedupBuffer`, :func:`replaces` — and :class:`NaisTracker` chains
 them as the paper does, with no update once an object is confirmed (the paper's graph "does not
 update if an object moves or is removed"). It is the reference the scene-graph benchmark compares
-with; missiontree's own fusion (:mod:`missiontree.perception.fusion`) reuses the filters 1–4.
+with; missiontree's own fusion (:mod:`missiontree.semantics.fusion`) reuses the filters 1–4.
 
 How candidates are matched across frames the paper leaves open: here a candidate is a label and a
 running-mean position; a projection joins the nearest candidate of its label within

@@ -4,8 +4,8 @@
 benchmark measures. Each camera frame with its detections goes through
 :func:`~missiontree.perception.projection.project` (depth at the box centre, the camera pose of
 the frame's instant), a check of its depth support against the latest map
-(:mod:`~missiontree.perception.plausibility`: a wall boxed as a refrigerator is dropped) and
-:class:`~missiontree.perception.fusion.InstanceFusion` (the NAIS filters,
+(:mod:`~missiontree.semantics.plausibility`: a wall boxed as a refrigerator is dropped) and
+:class:`~missiontree.semantics.fusion.InstanceFusion` (the NAIS filters,
 association, removal and moves). Rooms come from segmenting the occupancy map every
 ``segment_every`` seconds (or from fixed polygons); each instance is placed in the room holding it,
 rooms are typed by an injected ``room_typer`` (the vision-language model's votes, or the offline
@@ -29,10 +29,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from missiontree.perception.fusion import FusionParams, InstanceFusion, Verifier
-from missiontree.perception.plausibility import SupportParams, plausible
 from missiontree.perception.projection import DepthMethod, project
+from missiontree.semantics.fusion import FusionParams, InstanceFusion, Verifier
 from missiontree.semantics.live import LiveScene
+from missiontree.semantics.plausibility import SupportParams, plausible
 from missiontree.semantics.relations import RelationParams, relations_of
 from missiontree.semantics.rooms import (
     RoomRegion,
@@ -60,7 +60,7 @@ class BuilderParams:
     """Parameters of the pipeline.
 
     Attributes:
-        fusion: Filters, association and removal (:class:`~missiontree.perception.fusion.FusionParams`).
+        fusion: Filters, association and removal (:class:`~missiontree.semantics.fusion.FusionParams`).
         depth_method: ``centre`` (the NAIS paper's median at the box centre) or ``robust``.
         window: Side of the centre square, pixels.
         segmentation: Room segmentation parameters.
@@ -69,7 +69,7 @@ class BuilderParams:
         refresh: Seconds between rebuilds while only positions are refined.
         support: A projection whose depth support the latest map shows thinner than its class's
             least depth (a wall boxed as a refrigerator) is dropped before fusion
-            (:mod:`~missiontree.perception.plausibility`).
+            (:mod:`~missiontree.semantics.plausibility`).
         doubtful_frames: A candidate seen in this many frames that is not an instance is a
             doubtful place (``scene.doubtful``) worth a second look.
     """

@@ -9,7 +9,7 @@ flag (it should have been seen lately and was not).
 :class:`SemanticMap` holds them and records every change as a :class:`Change` (``added``,
 ``moved``, ``removed``; ``updated`` for a new room, description or colour), which the scene-graph
 leaf turns into ``scene_graph_changed`` tick-log events. Deciding *when* an instance is added,
-moved or removed is the job of :mod:`missiontree.perception.fusion`; this module only keeps the
+moved or removed is the job of :mod:`missiontree.semantics.fusion`; this module only keeps the
 books.
 """
 

@@ -14,13 +14,13 @@
    not say the crop shows something else (a turned-down candidate starts its voting again);
    boxes cut by the image's side border count as observations but place nothing while uncut views
    exist (their centre is not the object's);
-4. judges, through its :class:`~missiontree.perception.absence.AbsenceJudge` (``absence``), every
+4. judges, through its :class:`~missiontree.semantics.absence.AbsenceJudge` (``absence``), every
    instance the frame should show and did not: misses, removals, and moves of an object of the same
    label and colour confirmed elsewhere while its old place is seen empty.
-5. joins, through its :class:`~missiontree.perception.merge.InstanceMerger` (``merger``), instances
+5. joins, through its :class:`~missiontree.semantics.merge.InstanceMerger` (``merger``), instances
    that are one object seen twice.
 
-Its parameters are :class:`~missiontree.perception.fusion_params.FusionParams` (re-exported here).
+Its parameters are :class:`~missiontree.semantics.fusion_params.FusionParams` (re-exported here).
 Every decision changes the :class:`~missiontree.semantics.semantic_map.SemanticMap`, which records
 the changes. Nothing here reads ground truth.
 """
@@ -30,27 +30,26 @@ from __future__ import annotations
 import math
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from missiontree.perception.absence import AbsenceJudge
 from missiontree.perception.colour import box_colour
 from missiontree.perception.detectors import CLASS_SCORES
 from missiontree.perception.footprint import (
     footprint_sides,
-    outline_centre,
     plausible_size,
     size_likelihood,
     stands_out,
     surface_cells,
 )
-from missiontree.perception.fusion_params import FusionParams
-from missiontree.perception.merge import InstanceMerger
 from missiontree.perception.projection import Projection, to_camera
 from missiontree.perception.tracking import Candidate, NaisTracker, TemporalVoting
+from missiontree.semantics.absence import AbsenceJudge
+from missiontree.semantics.fusion_params import FusionParams
+from missiontree.semantics.fusion_state import FusionState, Track, majority
+from missiontree.semantics.merge import InstanceMerger
 from missiontree.semantics.semantic_map import Instance, SemanticMap
-from missiontree.types import CameraIntrinsics, Detection, RGBDFrame
+from missiontree.types import Detection, RGBDFrame
 
 #: Inner share of a box whose pixels name its colour (a box holds background at its edges).
 COLOUR_INNER = 0.6
@@ -61,34 +60,7 @@ Verifier = Callable[[RGBDFrame, Detection], "bool | None"]
 __all__ = ["COLOUR_INNER", "FusionParams", "InstanceFusion", "Verifier"]
 
 
-@dataclass
-class _Track:
-    """What the fusion remembers of an instance besides the instance itself."""
-
-    colours: Counter[str] = field(default_factory=Counter)
-    xs: list[tuple[float, float, float]] = field(default_factory=list)
-    sizes: list[tuple[float, float, float]] = field(default_factory=list)
-    empty_seen: float = -math.inf
-    unexplained: int = 0
-    clipped: list[tuple[float, float, float]] = field(default_factory=list)
-    cells: Counter[tuple[int, int]] = field(default_factory=Counter)
-    checked: float = -math.inf
-    #: Each class's score summed over the boxes that refined the instance (its class evidence).
-    evidence: Counter[str] = field(default_factory=Counter)
-    #: Labels the detector gives this instance besides its own (it was relabelled from them).
-    seen_as: set[str] = field(default_factory=set)
-    #: Views that refined it judged for an instance of its label behind it in the box, and the
-    #: instances found so (:meth:`.merge.InstanceMerger.note_fronted`).
-    judged: int = 0
-    fronted: Counter[str] = field(default_factory=Counter)
-    #: Places where boxes of its label fell on something before it (a removed front instance).
-    shadows: list[tuple[float, float]] = field(default_factory=list)
-
-
-_NO_TRACK = _Track()
-
-
-class InstanceFusion:
+class InstanceFusion(FusionState):
     """Projected detections → instances of a :class:`SemanticMap` (see module docstring)."""
 
     def __init__(
@@ -97,35 +69,30 @@ class InstanceFusion:
         params: FusionParams | None = None,
         verifier: Verifier | None = None,
     ) -> None:
-        self.verifier = verifier
-        #: Candidates the verifier turned down, per label.
-        self.rejected: Counter[str] = Counter()
-        self.map = semantic_map if semantic_map is not None else SemanticMap()
-        self.params = params or FusionParams()
-        f = self.params.filters
-        self._filters = NaisTracker(f)  # only its single-frame filters and counters are used
-        self.voting = TemporalVoting(
+        params = params or FusionParams()
+        f = params.filters
+        voting = TemporalVoting(
             f.min_frames,
             f.candidate_radius,
-            max(f.candidate_timeout, self.params.candidate_memory),
+            max(f.candidate_timeout, params.candidate_memory),
             size_aware=True,
             required=self._frames_needed,
             ready=self._whole_enough,
             reach=self._small_reach,
         )
-        self.tracks: dict[str, _Track] = {}
-        self._candidate_colours: dict[int, Counter[str]] = {}
+        super().__init__(semantic_map, params, voting)
+        self.verifier = verifier
+        #: Candidates the verifier turned down, per label.
+        self.rejected: Counter[str] = Counter()
+        self._filters = NaisTracker(f)  # only its single-frame filters and counters are used
         self.frames = 0
-        self._image_width = 0
-        self._k: CameraIntrinsics | None = None
         #: Whether each voting projection's box stands out in depth (by id; see _stands_out).
         self._bounded: dict[int, bool] = {}
-        self.last_stamp = -math.inf
         #: Instance id → the detection that showed it in the latest frame (for crops to describe).
         self.observed: dict[str, Detection] = {}
-        #: Misses, removals and moves of its instances (:mod:`missiontree.perception.absence`).
+        #: Misses, removals and moves of its instances (:mod:`missiontree.semantics.absence`).
         self.absence = AbsenceJudge(self)
-        #: Joins instances that are one object (:mod:`missiontree.perception.merge`).
+        #: Joins instances that are one object (:mod:`missiontree.semantics.merge`).
         self.merger = InstanceMerger(self)
 
     @property
@@ -142,15 +109,16 @@ class InstanceFusion:
 
         Args:
             frame: The frame (pixels for colour, depth and intrinsics for visibility).
-            projections: Its detections placed in the map (:func:`~.projection.project`).
+            projections: Its detections placed in the map
+                (:func:`~missiontree.perception.projection.project`).
             detections: All its detections (boxes that explain an instance even without depth);
                 default: those of ``projections``.
         """
         if frame.stamp <= self.last_stamp:
             return  # a frame seen already (or older): its votes are counted
         self.last_stamp = frame.stamp
-        self._image_width = frame.intrinsics.width
-        self._k = frame.intrinsics
+        self.image_width = frame.intrinsics.width
+        self.intrinsics = frame.intrinsics
         self.frames += 1
         self.observed = {}
         stamp = frame.stamp
@@ -164,33 +132,9 @@ class InstanceFusion:
             colour = _colour(frame, p.detection, p.depth)
             instance = self._associate(p, seen)
             if instance is not None:
-                self._refine(instance, p, colour, frame)
-                instance = self._reconsider_label(instance, stamp)
-                seen.add(instance.id)
-                self.observed[instance.id] = p.detection
-                for other in self._held_by_box(p, instance, seen):
-                    kept_id = self.merger.merge_pair(instance, other, stamp)
-                    if kept_id != instance.id:  # the other was seen more often: it stays
-                        seen.discard(instance.id)
-                        self.observed.pop(instance.id, None)
-                        seen.add(kept_id)
-                        self.observed[kept_id] = p.detection
-                        break
-                continue
-            if self.merger.shadowed(p):
-                continue  # its depth fell on something before an instance of its label (merge.py)
-            cand = self.voting.vote(p)
-            votes = self._candidate_colours.setdefault(id(self._candidate_of(p, cand)), Counter())
-            if colour:
-                votes[colour] += 1
-            if cand is not None:
-                colours = self._candidate_colours.pop(id(cand), Counter())
-                if self.verifier is not None and self.verifier(frame, p.detection) is False:
-                    self.rejected[cand.label] += 1  # voting starts again: a later frame may convince
-                    continue
-                new = self._confirm(cand, colours, stamp)
-                seen.add(new.id)
-                self.observed[new.id] = p.detection
+                self._observe(instance, p, colour, frame, seen)
+            elif not self.merger.shadowed(p):  # else its depth fell on something before an instance
+                self._vote(p, colour, frame, seen)
         by_box = {id(p.detection): p for p in kept}
         self.merger.note_fronted({i: by_box[id(d)] for i, d in self.observed.items() if id(d) in by_box})
         boxes = detections if detections is not None else [p.detection for p in projections]
@@ -199,8 +143,41 @@ class InstanceFusion:
         if self.frames % 5 == 0:
             self.merge_overlapping(stamp)
         live = {id(c) for c in self.voting.candidates}
-        for key in [k for k in self._candidate_colours if k not in live]:
-            del self._candidate_colours[key]
+        for key in [k for k in self.candidate_colours if k not in live]:
+            del self.candidate_colours[key]
+
+    def _observe(
+        self, instance: Instance, p: Projection, colour: str | None, frame: RGBDFrame, seen: set[str]
+    ) -> None:
+        """Refine ``instance`` with ``p`` (relabelled if needed) and join what the box also holds."""
+        self._refine(instance, p, colour, frame)
+        instance = self._reconsider_label(instance, frame.stamp)
+        seen.add(instance.id)
+        self.observed[instance.id] = p.detection
+        for other in self._held_by_box(p, instance, seen):
+            kept_id = self.merger.merge_pair(instance, other, frame.stamp)
+            if kept_id != instance.id:  # the other was seen more often: it stays
+                seen.discard(instance.id)
+                self.observed.pop(instance.id, None)
+                seen.add(kept_id)
+                self.observed[kept_id] = p.detection
+                break
+
+    def _vote(self, p: Projection, colour: str | None, frame: RGBDFrame, seen: set[str]) -> None:
+        """Count ``p`` for its candidate; confirm the candidate once the votes and the verifier allow."""
+        cand = self.voting.vote(p)
+        votes = self.candidate_colours.setdefault(id(self._candidate_of(p, cand)), Counter())
+        if colour:
+            votes[colour] += 1
+        if cand is None:
+            return
+        colours = self.candidate_colours.pop(id(cand), Counter())
+        if self.verifier is not None and self.verifier(frame, p.detection) is False:
+            self.rejected[cand.label] += 1  # voting starts again: a later frame may convince
+            return
+        new = self._confirm(cand, colours, frame.stamp)
+        seen.add(new.id)
+        self.observed[new.id] = p.detection
 
     def _off_floor(self, p: Projection) -> bool:
         if p.position[2] >= self.params.min_elevation:
@@ -209,18 +186,6 @@ class InstanceFusion:
         return False
 
     # -- association and refinement --------------------------------------------------------------
-
-    def _of_label(self, label: str) -> list[Instance]:
-        """Instances a box of ``label`` may show: of that label, or relabelled from it."""
-        return [i for i in self.map if i.label == label or label in self.tracks.get(i.id, _NO_TRACK).seen_as]
-
-    def instances_labelled(self, label: str) -> list[Instance]:
-        """Instances a box of ``label`` may show (of that label, or relabelled from it)."""
-        return self._of_label(label)
-
-    def labels_of(self, inst: Instance) -> set[str]:
-        """The labels a box showing ``inst`` may carry: its own and those it was relabelled from."""
-        return {inst.label} | self.tracks.get(inst.id, _NO_TRACK).seen_as
 
     def _small_reach(self, p: Projection) -> float | None:
         """``small_radius`` for a projection at most ``small_width`` wide, else None (see FusionParams)."""
@@ -231,7 +196,7 @@ class InstanceFusion:
     def _associate(self, p: Projection, taken: set[str]) -> Instance | None:
         best, best_d = None, math.inf
         small = self._small_reach(p)
-        for inst in self._of_label(p.label):
+        for inst in self.instances_labelled(p.label):
             if inst.id in taken:
                 continue
             radius = max(self.params.associate_radius, 0.5 * max(inst.size[0], inst.size[1]))
@@ -242,7 +207,7 @@ class InstanceFusion:
                 best, best_d = inst, d
         if best is not None:
             return best
-        offsets = [(self._box_offset(p, i), i) for i in self._of_label(p.label) if i.id not in taken]
+        offsets = [(self._box_offset(p, i), i) for i in self.instances_labelled(p.label) if i.id not in taken]
         held = [(off, inst) for off, inst in offsets if off is not None]
         return min(held, key=lambda e: e[0])[1] if held else None
 
@@ -256,7 +221,7 @@ class InstanceFusion:
         by the image border) and at a depth between the box's measured surface and that surface
         plus the instance's extent.
         """
-        k = self._k
+        k = self.intrinsics
         if k is None or not self._large(p, inst):
             return None
         forward, left = to_camera(p.camera_pose, *inst.xy)
@@ -296,7 +261,7 @@ class InstanceFusion:
         return need
 
     def _stands_out(self, frame: RGBDFrame, p: Projection) -> bool:
-        """Whether the box's object stands out in depth at an uncut side (:func:`.footprint.stands_out`)."""
+        """Whether the box's object stands out in depth at an uncut side (footprint's ``stands_out``)."""
         return stands_out(frame, p.box, self.params.edge_band, self.params.edge_step)
 
     def _whole_enough(self, cand: Candidate) -> bool:
@@ -305,7 +270,7 @@ class InstanceFusion:
         The top may cut a tall object seen from close (a refrigerator), whose foot is still in view.
         """
         limit = self.params.edge_clip
-        bottom = (self._k.height if self._k is not None else math.inf) - limit
+        bottom = (self.intrinsics.height if self.intrinsics is not None else math.inf) - limit
         whole = sum(1 for q in cand.projections if q.box[3] < bottom and not self._clipped(q))
         share = self.params.min_uncut_share * len(cand.projections)
         enough = whole >= min(self.params.min_uncut, len(cand.projections)) and whole >= share
@@ -320,13 +285,13 @@ class InstanceFusion:
         See ``whole_size``; a candidate smaller than it passes.
         """
         limit, size = self.params.edge_clip, self.params.whole_size
-        if size is None or not cand.projections or self._k is None:
+        if size is None or not cand.projections or self.intrinsics is None:
             return True
         width = float(np.median([q.size[0] for q in cand.projections]))
         height = float(np.median([q.size[2] for q in cand.projections]))
         if max(width, height) < size:
             return True
-        bottom = self._k.height - limit
+        bottom = self.intrinsics.height - limit
         return any(q.box[1] > limit and q.box[3] < bottom and not self._clipped(q) for q in cand.projections)
 
     def _plausible_size(self, cand: Candidate) -> bool:
@@ -336,7 +301,7 @@ class InstanceFusion:
     def _refine(
         self, inst: Instance, p: Projection, colour: str | None, frame: RGBDFrame | None = None
     ) -> None:
-        track = self.tracks.setdefault(inst.id, _Track())
+        track = self.tracks.setdefault(inst.id, Track())
         (track.clipped if self._clipped(p) else track.xs).append(p.position)
         track.sizes.append(p.size)
         del track.xs[: -self.params.memory]
@@ -348,7 +313,7 @@ class InstanceFusion:
         position = tuple(float(v) for v in np.median(np.array(track.xs or track.clipped), axis=0))
         if frame is not None and self._large(p, inst):
             self._add_surface(track, frame, p)
-            outline = self._outline_centre(track, position, inst)
+            outline = self.outline_centre(track, position, inst)
             if outline is not None:
                 position = (outline[0], outline[1], position[2])
         elif frame is not None and not self._clipped(p) and self._runner_ups(track):
@@ -364,33 +329,15 @@ class InstanceFusion:
             last_seen=p.stamp,
             misses=0,
             doubtful=False,
-            colour=_majority(track.colours, inst.colour),
+            colour=majority(track.colours, inst.colour),
         )
         track.empty_seen = -math.inf
         track.unexplained = 0
         track.checked = p.stamp
 
-    def _add_surface(self, track: _Track, frame: RGBDFrame, p: Projection) -> None:
-        """Count the cells of the surface the box shows (:func:`.footprint.surface_cells`)."""
+    def _add_surface(self, track: Track, frame: RGBDFrame, p: Projection) -> None:
+        """Count the cells of the surface the box shows (footprint's ``surface_cells``)."""
         surface_cells(track.cells, frame, p.box, self.params.surface_cell)
-
-    def _outline_centre(
-        self, track: _Track, fused: tuple[float, ...], inst: Instance
-    ) -> tuple[float, float] | None:
-        """The centre of the footprint its surface cells outline (:func:`.footprint.outline_centre`).
-
-        Cells of smaller instances that are not large are left out (see ``explained_margin``).
-        """
-        extent = max(inst.size[0], inst.size[1])
-        margin = self.params.explained_margin
-        others = [] if margin is None else [
-            (o.position[0], o.position[1], 0.5 * max(o.size[0], o.size[1]) + margin)
-            for o in self.map
-            if o.id != inst.id and max(o.size[0], o.size[1]) < min(extent, self.params.large_size)
-        ]
-        return outline_centre(
-            track.cells, fused, extent, self.params.surface_cell, others, self.params.outline_margin
-        )
 
     def unconfirmed(self, min_frames: int = 3) -> list[Candidate]:
         """Candidates seen in at least ``min_frames`` frames that are not instances yet: worth a second look.
@@ -405,7 +352,7 @@ class InstanceFusion:
             if cand.frames < min_frames:
                 continue
             radius = self.params.associate_radius
-            if not any(i.distance_to(cand.x, cand.y) <= radius for i in self._of_label(cand.label)):
+            if not any(i.distance_to(cand.x, cand.y) <= radius for i in self.instances_labelled(cand.label)):
                 out.append(cand)
         return out
 
@@ -413,22 +360,10 @@ class InstanceFusion:
         """Instances to look at again since ``stamp`` (:meth:`.AbsenceJudge.unchecked_since`)."""
         return self.absence.unchecked_since(stamp)
 
-    def track(self, instance_id: str) -> _Track:
-        """What the fusion remembers of an instance besides the instance (made on first use)."""
-        return self.tracks.setdefault(instance_id, _Track())
-
-    def new_track(self) -> _Track:
-        """An empty track (for an instance that takes another's place)."""
-        return _Track()
-
-    def candidate_colour(self, cand: Candidate) -> str:
-        """The colour most of a candidate's boxes showed so far (``unknown`` without votes)."""
-        return _majority(self._candidate_colours.get(id(cand), Counter()), "unknown")
-
     def _clipped(self, p: Projection) -> bool:
         """Whether the box is cut by the image's left or right border."""
         limit = self.params.edge_clip
-        return p.box[0] <= limit or (self._image_width > 0 and p.box[2] >= self._image_width - limit)
+        return p.box[0] <= limit or (self.image_width > 0 and p.box[2] >= self.image_width - limit)
 
     def _placing(self, projections: list[Projection]) -> tuple[list[Projection], list[Projection]]:
         """Projections split into uncut and cut boxes."""
@@ -444,7 +379,7 @@ class InstanceFusion:
         raise RuntimeError("projection voted without a candidate")  # pragma: no cover - voting invariant
 
     def _confirm(self, cand: Candidate, colours: Counter[str], stamp: float) -> Instance:
-        colour = _majority(colours, "unknown")
+        colour = majority(colours, "unknown")
         uncut, cut = self._placing(cand.projections)
         position = (cand.x, cand.y, cand.z)
         if uncut and cut:
@@ -467,7 +402,7 @@ class InstanceFusion:
                 observations=twin.observations + cand.frames,
                 confidence=max(twin.confidence, score),
             )
-            track = self.tracks.setdefault(twin.id, _Track())
+            track = self.tracks.setdefault(twin.id, Track())
             track.xs = [q.position for q in uncut]
             track.clipped = [q.position for q in cut]
             track.empty_seen = -math.inf
@@ -487,7 +422,7 @@ class InstanceFusion:
         evidence: Counter[str] = Counter()
         for q in cand.projections:
             evidence.update(_class_scores(q))
-        self.tracks[inst.id] = _Track(
+        self.tracks[inst.id] = Track(
             colours=Counter(colours),
             xs=[q.position for q in uncut],
             clipped=[q.position for q in cut],
@@ -499,7 +434,7 @@ class InstanceFusion:
 
     # -- class evidence --------------------------------------------------------------------------
 
-    def _runner_ups(self, track: _Track) -> list[tuple[str, float]]:
+    def _runner_ups(self, track: Track) -> list[tuple[str, float]]:
         """Classes other than the evidence's best whose summed score reaches ``runner_up_share`` of it."""
         ranked = track.evidence.most_common()
         share = self.params.runner_up_share
@@ -569,7 +504,7 @@ class InstanceFusion:
 
 
 def _class_scores(p: Projection) -> dict[str, float]:
-    """The box's score per class (:data:`~.detectors.CLASS_SCORES`), or its label's score alone."""
+    """The box's score per class (the detector's ``CLASS_SCORES``), or its label's score alone."""
     scores = p.detection.attributes.get(CLASS_SCORES)
     if isinstance(scores, dict) and scores:
         return {str(k): float(v) for k, v in scores.items()}
@@ -577,11 +512,5 @@ def _class_scores(p: Projection) -> dict[str, float]:
 
 
 def _colour(frame: RGBDFrame, detection: Detection, surface: float | None = None) -> str | None:
-    """The box's colour (:func:`.colour.box_colour`: its inner part, at its surface's depth when given)."""
+    """The box's colour (colour's ``box_colour``: its inner part, at its surface's depth when given)."""
     return box_colour(frame.color, frame.depth, detection.box, detection.mask, surface, COLOUR_INNER)
-
-
-def _majority(votes: Counter[str], default: str) -> str:
-    if not votes:
-        return default
-    return sorted(votes.items(), key=lambda kv: (-kv[1], kv[0]))[0][0]

@@ -14,8 +14,8 @@ import numpy as np
 
 from missiontree.perception.detectors import CLASS_SCORES
 from missiontree.perception.footprint import footprint_sides, size_likelihood
-from missiontree.perception.fusion import FusionParams, InstanceFusion
 from missiontree.perception.projection import Projection
+from missiontree.semantics.fusion import FusionParams, InstanceFusion
 from missiontree.semantics.semantic_map import SemanticMap
 from missiontree.types import CameraIntrinsics, Detection, Pose2D, RGBDFrame
 

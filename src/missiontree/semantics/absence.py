@@ -1,7 +1,8 @@
 """Negative evidence: instances a frame should show and does not, and objects that moved.
 
-:class:`AbsenceJudge` is held by :class:`~missiontree.perception.fusion.InstanceFusion`
-(``fusion.absence``) and reads its state (the semantic map, the per-instance tracks, the parameters
+:class:`AbsenceJudge` is held by :class:`~missiontree.semantics.fusion.InstanceFusion`
+(``fusion.absence``) and is given only its :class:`~missiontree.semantics.fusion_state.FusionState`
+(the semantic map, the per-instance tracks, the parameters
 and the candidates being voted). After each frame's detections are fused it:
 
 1. judges every instance the frame *should* show — in the camera's field of view (away from the
@@ -25,16 +26,14 @@ Nothing here reads ground truth: only frames (depth, intrinsics, camera pose), d
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 import numpy as np
 
 from missiontree.perception.projection import to_camera
+from missiontree.semantics.fusion_state import FusionState
 from missiontree.semantics.semantic_map import Instance
 from missiontree.types import Detection, RGBDFrame
-
-if TYPE_CHECKING:
-    from missiontree.perception.fusion import InstanceFusion
 
 #: What the depth image shows at an instance's place (see :meth:`AbsenceJudge.place_seen`).
 Verdict = Literal["empty", "present", "occluded"]
@@ -55,7 +54,7 @@ class AbsenceJudge:
             in a frame (its depth reads as no return), metres (:data:`NEAR_LIMIT`).
     """
 
-    def __init__(self, fusion: InstanceFusion, near_limit: float = NEAR_LIMIT) -> None:
+    def __init__(self, fusion: FusionState, near_limit: float = NEAR_LIMIT) -> None:
         self.fusion = fusion
         self.near_limit = near_limit
 
@@ -65,13 +64,14 @@ class AbsenceJudge:
         """Where ``inst`` would appear in ``frame``: (u, v, forward distance), None when not expected.
 
         Expected means: in front of the camera, its near side no closer than ``near_limit``, within
-        the range filter, inside the image away from its edges, and at least ``min_pixels`` wide and
-        high.
+        the range filter and ``expect_range``, inside the image away from its edges, and at least
+        ``min_pixels`` wide and high.
         """
         params = self.fusion.params
         k = frame.intrinsics
         forward, left = to_camera(frame.camera_pose, *inst.xy)
-        if forward <= 0.2 or math.hypot(forward, left) > params.filters.max_range:
+        reach = min(params.filters.max_range, params.expect_range)
+        if forward <= 0.2 or math.hypot(forward, left) > reach:
             return None
         if forward - 0.5 * max(inst.size[0], inst.size[1]) < self.near_limit:
             return None  # too close for the depth camera: no return there says nothing

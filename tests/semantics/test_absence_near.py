@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from missiontree.perception.absence import NEAR_LIMIT
-from missiontree.perception.fusion import InstanceFusion
+from missiontree.semantics.absence import NEAR_LIMIT
+from missiontree.semantics.fusion import InstanceFusion
 from missiontree.types import CameraIntrinsics, Pose2D, RGBDFrame
 
 K = CameraIntrinsics(320, 240, 277.0, 277.0, 159.5, 119.5)

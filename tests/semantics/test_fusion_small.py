@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from missiontree.perception.fusion import FusionParams, InstanceFusion
 from missiontree.perception.projection import Projection
+from missiontree.semantics.fusion import FusionParams, InstanceFusion
 from missiontree.semantics.semantic_map import SemanticMap
 from missiontree.types import Detection, Pose2D
 

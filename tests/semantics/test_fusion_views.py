@@ -12,9 +12,10 @@ from collections import Counter
 import numpy as np
 
 from missiontree.perception.depth import surface_points
-from missiontree.perception.fusion import FusionParams, InstanceFusion, _Track
 from missiontree.perception.projection import Projection
 from missiontree.perception.tracking import TemporalVoting
+from missiontree.semantics.fusion import FusionParams, InstanceFusion
+from missiontree.semantics.fusion_state import Track
 from missiontree.semantics.semantic_map import SemanticMap
 from missiontree.types import CameraIntrinsics, Detection, Pose2D, RGBDFrame
 
@@ -176,8 +177,8 @@ def test_two_faces_outline_the_centre() -> None:
     xs = np.arange(1.05, 2.95, 0.02)
     ys = np.arange(0.55, 1.45, 0.02)
     points = [(float(x), 0.55) for x in xs] + [(1.05, float(y)) for y in ys]
-    track = _Track(cells=_cells(points))
-    centre = fusion._outline_centre(track, (1.6, 1.0, 0.4), inst)
+    track = Track(cells=_cells(points))
+    centre = fusion.outline_centre(track, (1.6, 1.0, 0.4), inst)
     assert centre is not None and math.hypot(centre[0] - 2.0, centre[1] - 1.0) < 0.08
 
 
@@ -186,7 +187,7 @@ def test_one_face_keeps_the_fused_depth_on_its_bisector() -> None:
     fusion = InstanceFusion(SemanticMap())
     inst = fusion.map.add("sofa", (1.7, 1.0, 0.4), 0.0, size=(1.9, 1.9, 0.8))
     points = [(float(x), 0.55) for x in np.arange(1.05, 2.95, 0.02)]
-    centre = fusion._outline_centre(_Track(cells=_cells(points)), (1.7, 1.0, 0.4), inst)
+    centre = fusion.outline_centre(Track(cells=_cells(points)), (1.7, 1.0, 0.4), inst)
     assert centre is not None and abs(centre[0] - 2.0) < 0.05 and abs(centre[1] - 1.0) < 0.05
 
 
@@ -286,7 +287,7 @@ def test_the_outline_leaves_out_the_surface_of_a_smaller_instance_in_front() -> 
         fusion = InstanceFusion(SemanticMap(), FusionParams(explained_margin=margin))
         table = fusion.map.add("table", (2.0, 0.9, 0.2), 0.0, size=(0.95, 0.95, 0.4))
         fusion.map.add("laptop", (2.0, 0.36, 0.1), 0.0, size=(0.34, 0.34, 0.22))
-        centres[margin] = fusion._outline_centre(_Track(cells=Counter(cells)), (2.0, 0.9, 0.2), table)
+        centres[margin] = fusion.outline_centre(Track(cells=Counter(cells)), (2.0, 0.9, 0.2), table)
     kept, off = centres[0.05], centres[None]
     assert kept is not None and math.hypot(kept[0] - 2.0, kept[1] - 1.0) < 0.06
     assert off is not None and math.hypot(off[0] - 2.0, off[1] - 1.0) > 0.15
@@ -306,14 +307,14 @@ def test_the_outline_keeps_the_cells_of_a_large_instance_at_its_place() -> None:
         fusion = InstanceFusion(SemanticMap(), FusionParams(explained_margin=margin))
         tv = fusion.map.add("tv", (7.45, 7.3, 0.3), 0.0, size=(1.13, 1.13, 0.69))
         fusion.map.add("table", (7.05, 7.25, 0.3), 0.0, size=(size, size, 0.72))
-        centres[(size, margin)] = fusion._outline_centre(_Track(cells=Counter(cells)), (7.45, 7.3, 0.3), tv)
+        centres[(size, margin)] = fusion.outline_centre(Track(cells=Counter(cells)), (7.45, 7.3, 0.3), tv)
     assert centres[(0.93, 0.05)] == centres[(0.93, None)] is not None
     assert centres[(0.4, 0.05)] != centres[(0.93, None)]
 
 
 def test_the_colour_comes_from_the_pixels_at_the_objects_depth_not_the_wall_behind() -> None:
     """A blue chair's back fills a quarter of its box, the wall behind the rest: the instance is blue."""
-    from missiontree.perception.fusion import _colour
+    from missiontree.semantics.fusion import _colour
 
     depth = np.full((K.height, K.width), 4.0, np.float32)  # the wall behind the chair
     colour = np.zeros((K.height, K.width, 3), np.uint8)

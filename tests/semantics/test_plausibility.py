@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from missiontree.perception.plausibility import (
+from missiontree.perception.projection import project
+from missiontree.semantics.builder import BuilderParams, SceneBuilder
+from missiontree.semantics.plausibility import (
     LEAST_DEPTH,
     SupportParams,
     plausible,
     surface_point,
     thin_support,
 )
-from missiontree.perception.projection import project
-from missiontree.semantics.builder import BuilderParams, SceneBuilder
 from missiontree.types import CameraIntrinsics, Detection, OccupancyGrid, Pose2D, RGBDFrame
 
 RES = 0.05

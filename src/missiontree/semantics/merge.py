@@ -1,8 +1,8 @@
 """Joining instances that are one object seen twice.
 
-:class:`InstanceMerger` is held by :class:`~missiontree.perception.fusion.InstanceFusion`
-(``fusion.merger``) and reads its state (the semantic map, the per-instance tracks and the
-parameters). Two instances are one object when:
+:class:`InstanceMerger` is held by :class:`~missiontree.semantics.fusion.InstanceFusion`
+(``fusion.merger``) and is given only its :class:`~missiontree.semantics.fusion_state.FusionState`
+(the semantic map, the per-instance tracks and the parameters). Two instances are one object when:
 
 1. one box of their label holds both centres (a sofa seen end-on from two sides places its near
    faces a metre apart: :meth:`InstanceMerger.merge_pair`, called from the fusion's frame loop);
@@ -21,15 +21,11 @@ Nothing here reads ground truth.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from missiontree.perception.projection import Projection, to_camera
+from missiontree.semantics.fusion_state import FusionState, Track
 from missiontree.semantics.semantic_map import Instance
-
-if TYPE_CHECKING:
-    from missiontree.perception.fusion import InstanceFusion, _Track
 
 
 class InstanceMerger:
@@ -39,10 +35,10 @@ class InstanceMerger:
         fusion: The fusion whose map, tracks and parameters are read.
     """
 
-    def __init__(self, fusion: InstanceFusion) -> None:
+    def __init__(self, fusion: FusionState) -> None:
         self.fusion = fusion
 
-    def _absorb(self, keep: Instance, drop: Instance) -> _Track:
+    def _absorb(self, keep: Instance, drop: Instance) -> Track:
         """``drop``'s track joined into ``keep``'s (positions, cells, colours, evidence); ``keep``'s track."""
         tracks = self.fusion.tracks
         track = self.fusion.track(keep.id)
@@ -90,7 +86,7 @@ class InstanceMerger:
         track = self._absorb(keep, drop)
         points = np.array(track.xs or track.clipped or [keep.position])
         position = tuple(float(v) for v in np.median(points, axis=0))
-        outline = fusion._outline_centre(track, position, keep)
+        outline = fusion.outline_centre(track, position, keep)
         if outline is not None:
             position = (outline[0], outline[1], position[2])
         fusion.map.update(keep.id, position=position, observations=keep.observations + drop.observations)
@@ -133,7 +129,7 @@ class InstanceMerger:
 
     def _behind(self, p: Projection, other: Instance) -> bool:
         """Whether ``other``'s centre lies in the inner part of ``p``'s box, ``front_gap`` past its depth."""
-        k, params = self.fusion._k, self.fusion.params
+        k, params = self.fusion.intrinsics, self.fusion.params
         if k is None:
             return False
         forward, left = to_camera(p.camera_pose, *other.xy)
@@ -148,7 +144,7 @@ class InstanceMerger:
 
     def _width_px(self, inst: Instance, forward: float) -> float:
         """Pixels the instance's median measured width spans at ``forward`` metres from the camera."""
-        k = self.fusion._k
+        k = self.fusion.intrinsics
         assert k is not None
         track = self.fusion.tracks.get(inst.id)
         widths = [s[0] for s in track.sizes] if track is not None and track.sizes else [inst.size[0]]

@@ -1,8 +1,8 @@
-"""Joining instances that are one object (perception/merge.py), on hand-made instances."""
+"""Joining instances that are one object (semantics/merge.py), on hand-made instances."""
 
 from __future__ import annotations
 
-from missiontree.perception.fusion import FusionParams, InstanceFusion
+from missiontree.semantics.fusion import FusionParams, InstanceFusion
 from missiontree.semantics.semantic_map import Instance, SemanticMap
 
 

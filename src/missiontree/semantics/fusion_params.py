@@ -1,4 +1,4 @@
-"""How :class:`~missiontree.perception.fusion.InstanceFusion` turns detections into instances: its parameters.
+"""How :class:`~missiontree.semantics.fusion.InstanceFusion` turns detections into instances: its parameters.
 
 The fusion's settings, apart from its logic: the builder, the ``BuildSceneGraph`` leaf and the
 benchmarks set them, and the fusion's helpers (:mod:`.absence`, :mod:`.merge`) read them.
@@ -21,6 +21,11 @@ class FusionParams:
         associate_radius: A projection refines an instance of its label this close, metres.
         memory: Observations averaged into an instance's position (older ones fade).
         miss_frames: Frames that should show an instance and do not before it is removed.
+        expect_range: An instance is expected in a frame (a frame without it counts as a miss) only
+            this close to the camera, and within the range filter (``filters.max_range``), metres.
+            Kept at the NAIS paper's 4.5 m when the range filter accepts farther detections: a
+            far small object is often missed by the detector while it is there, and those misses
+            would remove it.
         min_pixels: An instance is only expected in a frame where it would be at least this many
             pixels wide or high (and a third of it the other way: a bottle is narrow).
         edge_margin: Share of the image width kept clear at each side when judging visibility.
@@ -139,6 +144,7 @@ class FusionParams:
     associate_radius: float = 0.5
     memory: int = 30
     miss_frames: int = 6
+    expect_range: float = 4.5
     min_pixels: float = 14.0
     edge_margin: float = 0.06
     depth_tolerance: float = 0.35

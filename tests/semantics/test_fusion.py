@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from missiontree.backends.sim import create_robot
-from missiontree.perception.fusion import FusionParams, InstanceFusion
 from missiontree.perception.projection import project
+from missiontree.semantics.fusion import FusionParams, InstanceFusion
 from missiontree.semantics.semantic_map import SemanticMap
 from missiontree.types import Detection
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from missiontree.perception.fusion import FusionParams, InstanceFusion
 from missiontree.perception.projection import Projection
+from missiontree.semantics.fusion import FusionParams, InstanceFusion
 from missiontree.semantics.semantic_map import SemanticMap
 from missiontree.types import CameraIntrinsics, Detection, Pose2D, RGBDFrame
 
