@@ -36,3 +36,21 @@ def test_a_deleted_directory_gets_its_log_back(tmp_path: Path) -> None:
     files.finish({"complete": True}, log_failed=False)
     assert (out / TICKS_FILE).read_text() == "first\nsecond\n"
     assert redirected == [files.stream] and files.write_failure is None
+
+
+def test_a_summary_is_read_back_bounded_and_checked(tmp_path: Path) -> None:
+    """read_summary takes a run directory or its file; a non-object, non-JSON or missing one is refused."""
+    import pytest
+
+    from missiontree.engine.recorder import read_summary
+    from missiontree.errors import ConfigError
+
+    (tmp_path / "summary.json").write_text('{"mission": "m", "complete": true}', encoding="utf-8")
+    expected = {"mission": "m", "complete": True}
+    assert read_summary(tmp_path) == read_summary(tmp_path / "summary.json") == expected
+    (tmp_path / "list.json").write_text("[1, 2]", encoding="utf-8")
+    (tmp_path / "text.json").write_text("not json", encoding="utf-8")
+    for name, message in (("list.json", "expected a JSON object"), ("text.json", "is not JSON"),
+                          ("missing.json", "cannot read")):
+        with pytest.raises(ConfigError, match=message):
+            read_summary(tmp_path / name)

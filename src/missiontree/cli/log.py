@@ -26,6 +26,7 @@ from typing import Any
 
 from missiontree.cli import print_json
 from missiontree.engine.node_words import absorber
+from missiontree.engine.recorder import read_summary
 from missiontree.engine.tick_log import read_log
 from missiontree.errors import ConfigError
 
@@ -318,18 +319,14 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-#: Largest summary.json read for its outcome (a run's summary is kilobytes).
-_SUMMARY_LIMIT = 8 * 2**20
-
-
 def _outcome_said(path: Path) -> str:
     """What the mission said it did (summary.json's outcome text, as on the run's result line)."""
     from missiontree.cli.run import outcome_text
 
-    try:
-        if not path.is_file() or path.stat().st_size > _SUMMARY_LIMIT:
-            return ""
-        found = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):  # no summary, or not one this version wrote: the log still speaks
+    if not path.is_file():
         return ""
-    return outcome_text(found) if isinstance(found, dict) else ""
+    try:
+        found = read_summary(path)
+    except ConfigError:  # unreadable, or not one this version wrote: the log still speaks
+        return ""
+    return outcome_text(found)

@@ -10,16 +10,13 @@ factor, peak RSS), then the largest cost centres.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import Any
 
 from missiontree.cli import print_json
 from missiontree.engine.profile import cost_centres
+from missiontree.engine.recorder import SUMMARY_FILE, read_summary
 from missiontree.errors import ConfigError
-
-#: Largest summary.json read (a run's summary is kilobytes).
-SUMMARY_LIMIT = 16 * 2**20
 
 
 def add_to(actions: Any) -> None:
@@ -43,19 +40,11 @@ def read_profile(run_path: Path) -> tuple[str, dict[str, Any]]:
     Raises:
         ConfigError: No readable summary, or one without a profile (written by an older version).
     """
-    path = run_path / "summary.json" if run_path.is_dir() else run_path
-    try:
-        if path.stat().st_size > SUMMARY_LIMIT:
-            raise ConfigError(f"{path} is larger than {SUMMARY_LIMIT // 2**20} MiB; not a run's summary")
-        summary = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as error:
-        raise ConfigError(f"cannot read {path}: {error.strerror or error}; give a run directory written "
-                          f"by `missiontree run` (see its --out) or its summary.json") from error
-    except ValueError as error:
-        raise ConfigError(f"{path} is not JSON ({error}); give a run's summary.json") from error
-    profile = summary.get("profile") if isinstance(summary, dict) else None
+    path = run_path / SUMMARY_FILE if run_path.is_dir() else run_path
+    summary = read_summary(path)
+    profile = summary.get("profile")
     if not isinstance(profile, dict) or not isinstance(profile.get("run"), dict):
-        done = isinstance(summary, dict) and summary.get("complete", True)
+        done = summary.get("complete", True)
         why = "the run has not finished yet" if not done else "it was written by a version without profiles"
         raise ConfigError(f"{path} has no profile section ({why}); run the mission again to get one")
     return str(summary.get("mission", "?")), profile

@@ -40,7 +40,32 @@ TICKS_FILE = "ticks.jsonl"
 #: The summary's file name in a run directory.
 SUMMARY_FILE = "summary.json"
 
-__all__ = ["SUMMARY_FILE", "TICKS_FILE", "RunRecorder"]
+#: Largest summary.json read back (a run's summary is kilobytes).
+SUMMARY_READ_LIMIT = 16 * 2**20
+
+__all__ = ["SUMMARY_FILE", "SUMMARY_READ_LIMIT", "TICKS_FILE", "RunRecorder", "read_summary"]
+
+
+def read_summary(run_path: Path) -> dict[str, Any]:
+    """A run's ``summary.json``, from its run directory or the file itself, read bounded.
+
+    Raises:
+        ConfigError: No readable file, one over :data:`SUMMARY_READ_LIMIT`, or not a JSON object
+            (the message names the file and what to give instead).
+    """
+    path = run_path / SUMMARY_FILE if run_path.is_dir() else run_path
+    try:
+        if path.stat().st_size > SUMMARY_READ_LIMIT:
+            raise ConfigError(f"{path} is larger than {SUMMARY_READ_LIMIT // 2**20} MiB; not a run's summary")
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as error:
+        raise ConfigError(f"cannot read {path}: {error.strerror or error}; give a run directory written "
+                          f"by `missiontree run` (see its --out) or its summary.json") from error
+    except ValueError as error:
+        raise ConfigError(f"{path} is not JSON ({error}); give a run's summary.json") from error
+    if not isinstance(summary, dict):
+        raise ConfigError(f"{path}: expected a JSON object (a run's summary), found {type(summary).__name__}")
+    return summary
 
 
 class RunRecorder:
