@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import json
+import tracemalloc
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from missiontree.errors import ConfigError
-from missiontree.evaluation.batch import INFRA, RUNS_DIR, run_batch
+from missiontree.evaluation.batch import INFRA, RUNS_DIR, complete_runs, make_engine, max_jobs, run_batch
 from missiontree.evaluation.engines import SerialEngine
 from missiontree.evaluation.plan import expand_plan
-from missiontree.evaluation.worker import RECORD_FILE, RunTask
+from missiontree.evaluation.worker import MAX_RECORD_BYTES, RECORD_FILE, RunTask
 
 CALLS: list[tuple[int, int]] = []
 
@@ -84,3 +85,31 @@ def test_a_cut_record_is_set_aside_and_its_run_done_again(tmp_path: Path) -> Non
     assert CALLS == [(3, 1)]
     assert [r.status for r in records] == ["SUCCESS", "SUCCESS"]
     assert (out / RUNS_DIR / f".{plan.runs[1].run_id}.damaged" / RECORD_FILE).is_file()
+
+
+def test_an_oversized_record_is_not_read_whole_and_its_run_is_done_again(tmp_path: Path) -> None:
+    """On resume a 64 MB record.json is refused by its size (not read into memory) and its run redone."""
+    plan = expand_plan(tmp_path / "m.yaml", seeds=[0, 3])
+    out = tmp_path / "out"
+    run_batch(plan, SerialEngine(), out, fn=fake_run)
+    big = out / RUNS_DIR / plan.runs[1].run_id / RECORD_FILE
+    with big.open("r+b") as stream:
+        stream.truncate(MAX_RECORD_BYTES * 16)          # sparse: no disk used
+    tracemalloc.start()
+    try:
+        found = complete_runs(out)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert plan.runs[1].run_id not in found and plan.runs[0].run_id in found
+    assert peak < MAX_RECORD_BYTES * 2
+    CALLS.clear()
+    records = run_batch(plan, SerialEngine(), out, resume=True, fn=fake_run)
+    assert CALLS == [(3, 1)] and [r.status for r in records] == ["SUCCESS", "SUCCESS"]
+
+
+def test_jobs_beyond_four_per_core_are_refused() -> None:
+    """--jobs 10000 is a ConfigError naming the limit, not 10,000 processes."""
+    with pytest.raises(ConfigError, match=r"--jobs: expected at most \d+ workers"):
+        make_engine(None, 10_000)
+    assert make_engine(None, max_jobs()).workers == max_jobs()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import tracemalloc
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -95,3 +97,38 @@ def test_run_ids_are_safe_directory_names_and_unique() -> None:
     assert "/" not in a.run_id and " " not in a.run_id
     assert a.run_id != b.run_id
     assert RunSpec(world="office", seed=2, run_seed=2).run_id == "office_s2"
+
+
+def _peak_bytes(call: Callable[[], object]) -> int:
+    """Peak Python allocation (bytes) while ``call`` runs (the ConfigError it raises is swallowed)."""
+    tracemalloc.start()
+    try:
+        call()
+    except ConfigError:
+        pass
+    finally:
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    return peak
+
+
+def test_seed_ranges_are_counted_together_before_they_are_built() -> None:
+    """A range within the cap that takes the seeds over it is refused before it is expanded."""
+    text = "0-9,10-1000009"
+    with pytest.raises(ConfigError, match="more than 1000000 seeds in all"):
+        parse_seeds(text)
+    assert _peak_bytes(lambda: parse_seeds(text)) < 5 * 2**20
+
+
+def test_world_ranges_are_counted_together_before_they_are_built() -> None:
+    """World ranges over the cap together are refused, naming the range that crossed it."""
+    with pytest.raises(ConfigError, match="more than 1000000 worlds in all"):
+        parse_worlds("generated:0-999999,floorplan:0-999")
+
+
+def test_a_sweep_grid_is_counted_before_it_is_built() -> None:
+    """A sweep grid of 40^4 combinations is refused before its combinations are listed (small memory)."""
+    sweeps = {f"k{i}": [str(v) for v in range(40)] for i in range(4)}
+    with pytest.raises(ConfigError, match="would make 2560000 runs"):
+        expand_plan(Path("m.yaml"), seeds=[0], sweeps=sweeps)
+    assert _peak_bytes(lambda: expand_plan(Path("m.yaml"), seeds=[0], sweeps=sweeps)) < 5 * 2**20

@@ -48,8 +48,10 @@ from missiontree.evaluation.worker import (
     Probe,
     RunTask,
     execute_run,
+    load_record,
     whole_record,
 )
+from missiontree.file_limits import read_text_bounded
 from missiontree.session.rundir import pid_alive
 
 __all__ = ["BATCH_LOCK", "INFRA", "RUNS_DIR", "RunRecord", "complete_runs", "lock_batch", "run_batch"]
@@ -131,10 +133,7 @@ def complete_runs(out: Path) -> dict[str, dict[str, Any]]:
     for path in runs_dir.iterdir():
         if path.name.startswith("."):
             continue
-        try:
-            data = json.loads((path / RECORD_FILE).read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            continue  # not a run of ours (or unreadable): left alone
+        data = load_record(path / RECORD_FILE)   # bounded; unreadable or not JSON: None
         if whole_record(data, path.name):
             runs[path.name] = data
     return runs
@@ -150,8 +149,8 @@ def _set_aside_damaged(runs_dir: Path, damaged: list[str]) -> None:
 
 def _lock_holder(lock: Path) -> int | None:
     try:
-        return int(lock.read_text(encoding="utf-8").strip() or "x")
-    except (OSError, ValueError):
+        return int(read_text_bounded(lock, 64, "batch lock file").strip() or "x")
+    except (OSError, ValueError):   # too large (a pid is a few digits), unreadable, not a number
         return None
 
 
@@ -289,8 +288,21 @@ def _run_batch(
     return [records[spec.run_id] for spec in plan.runs]
 
 
+def max_jobs() -> int:
+    """Most workers a batch starts: four per core (more only queue for the cores, each a process)."""
+    return 4 * (os.cpu_count() or 1)
+
+
 def make_engine(dask: str | None, jobs: int | None) -> Engine:
-    """The engine the flags ask for: ``--dask ADDRESS|local`` (or DASK_SCHEDULER_ADDRESS), else a pool."""
+    """The engine the flags ask for: ``--dask ADDRESS|local`` (or DASK_SCHEDULER_ADDRESS), else a pool.
+
+    Raises:
+        ConfigError: ``jobs`` is more than :func:`max_jobs` (``--jobs 10000`` would start one process
+            per run).
+    """
+    if jobs is not None and jobs > max_jobs():
+        raise ConfigError(f"--jobs: expected at most {max_jobs()} workers (four per core, "
+                          f"{os.cpu_count() or 1} cores here), found {jobs}")
     address = dask or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
     if address:
         from missiontree.evaluation.dask_engine import DaskEngine  # Dask is optional: only when asked for

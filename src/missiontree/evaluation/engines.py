@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from missiontree.evaluation.worker import RECORD_FILE, RunTask, ignore_interrupts
+from missiontree.evaluation.worker import RECORD_FILE, RunTask, ignore_interrupts, load_record
 
 __all__ = ["Crash", "Engine", "PoolEngine", "SerialEngine"]
 
@@ -211,10 +211,5 @@ def _glob_escape(text: str) -> str:
 
 def final_record(task: RunTask) -> Outcome | None:
     """The record a finished attempt of this task left in its run directory, or None."""
-    import json
-
-    try:
-        path = Path(task.runs_dir) / task.spec.run_id / RECORD_FILE
-        return dict(json.loads(path.read_text(encoding="utf-8")))
-    except (OSError, ValueError):
-        return None
+    data = load_record(Path(task.runs_dir) / task.spec.run_id / RECORD_FILE)
+    return dict(data) if isinstance(data, dict) else None

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import itertools
+import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -53,6 +54,8 @@ def parse_seeds(text: str) -> list[int]:
                 raise ConfigError(f"--seeds: range {part!r} runs backwards; write {high}-{low}")
             if high - low + 1 > MAX_RUNS:
                 raise ConfigError(f"--seeds: range {part!r} has more than {MAX_RUNS} seeds")
+            if len(seeds) + high - low + 1 > MAX_RUNS:  # counted before the range is built
+                raise ConfigError(f"--seeds: more than {MAX_RUNS} seeds in all (at {part!r})")
             seeds.extend(range(low, high + 1))
         elif part.isdigit():
             seeds.append(int(part))
@@ -77,6 +80,8 @@ def parse_worlds(text: str) -> list[str]:
                 raise ConfigError(f"--worlds: range {part!r} runs backwards; write {match[1]}{high}-{low}")
             if high - low + 1 > MAX_RUNS:
                 raise ConfigError(f"--worlds: range {part!r} has more than {MAX_RUNS} worlds")
+            if len(worlds) + high - low + 1 > MAX_RUNS:  # counted before the range is built
+                raise ConfigError(f"--worlds: more than {MAX_RUNS} worlds in all (at {part!r})")
             worlds.extend(f"{match[1]}{n}" for n in range(low, high + 1))
         else:
             worlds.append(part)
@@ -209,11 +214,11 @@ def expand_plan(
     if both:
         raise ConfigError(f"{', '.join(both)}: given to both --set and --sweep; keep one")
     world_list: list[str | None] = list(worlds) if worlds else [None]
-    combos = list(itertools.product(*sweeps.values())) if sweeps else [()]
-    total = len(world_list) * len(combos) * len(seeds)
-    if total > MAX_RUNS:
+    total = len(world_list) * math.prod(len(values) for values in sweeps.values()) * len(seeds)
+    if total > MAX_RUNS:  # counted before the grid is built (a large sweep grid would fill memory)
         raise ConfigError(f"the batch would make {total} runs (more than {MAX_RUNS}); narrow --seeds, "
                           "--worlds or --sweep")
+    combos = list(itertools.product(*sweeps.values())) if sweeps else [()]
     runs = []
     for world in world_list:
         for combo in combos:

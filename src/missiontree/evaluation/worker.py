@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
+from missiontree.file_limits import read_text_bounded
+
 if TYPE_CHECKING:
     from missiontree.engine.runner import RunResult
     from missiontree.evaluation.plan import RunSpec
@@ -42,6 +44,9 @@ THREAD_ENV = {
     "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1", "NUMEXPR_NUM_THREADS": "1",
 }
 RECORD_FILE = "record.json"
+#: Largest record.json read (bytes): a record is a few hundred bytes plus its figures; a bigger file
+#: is not one of ours and is not read whole (issue 32: every file read has a limit).
+MAX_RECORD_BYTES = 4 * 2**20
 PARTIAL_SUFFIX = ".partial"
 #: The summary keys every run has; the rest are the mission's (or a plugin's) own figures.
 _RUNNER_KEYS = {"mission", "status", "stopped_by", "signal", "ticks", "duration", "tick_hz", "seed", "robot",
@@ -185,12 +190,20 @@ def whole_record(data: Any, run_id: str | None = None) -> bool:
     return run_id is None or data["run_id"] == run_id
 
 
+def load_record(path: Path) -> Any:
+    """The JSON in a record file, read within :data:`MAX_RECORD_BYTES`; None when it cannot be read.
+
+    Unreadable, too large, not UTF-8 or not JSON all read as no record (the run is done again).
+    """
+    try:
+        return json.loads(read_text_bounded(path, MAX_RECORD_BYTES, "run record"))
+    except (OSError, ValueError):   # FileTooLargeError is an OSError, UnicodeDecodeError a ValueError
+        return None
+
+
 def _read_record(run_dir: Path) -> dict[str, Any] | None:
     """The run directory's record when it is whole, else None."""
-    try:
-        data = json.loads((run_dir / RECORD_FILE).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
+    data = load_record(run_dir / RECORD_FILE)
     return data if whole_record(data, run_dir.name) else None
 
 
