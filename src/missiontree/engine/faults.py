@@ -184,16 +184,21 @@ def fault_of(node: Behaviour) -> tuple[Behaviour, str] | None:
     return None
 
 
+def kept_fault(decorator: py_trees.decorators.Decorator, undone: str) -> Status | None:
+    """FAILURE (saying what was ``undone`` and why) when the decorated child's FAILURE is a fault."""
+    found = fault_of(decorator.decorated)
+    if found is None:
+        return None
+    decorator.feedback_message = f"error, not {undone}: {found[1]}"
+    return Status.FAILURE
+
+
 class FaultKeepingInverter(py_trees.decorators.Inverter):
     """py_trees' Inverter, except that a child's FAILURE caused by an error stays FAILURE."""
 
     def update(self) -> Status:
         """Swap SUCCESS and FAILURE, unless the FAILURE is a fault."""
-        found = fault_of(self.decorated)
-        if found is not None:
-            self.feedback_message = f"error, not inverted: {found[1]}"
-            return Status.FAILURE
-        return super().update()
+        return kept_fault(self, "inverted") or super().update()
 
 
 class FaultKeepingForceSuccess(py_trees.decorators.FailureIsSuccess):
@@ -201,8 +206,4 @@ class FaultKeepingForceSuccess(py_trees.decorators.FailureIsSuccess):
 
     def update(self) -> Status:
         """Turn FAILURE into SUCCESS, unless the FAILURE is a fault."""
-        found = fault_of(self.decorated)
-        if found is not None:
-            self.feedback_message = f"error, not forced to success: {found[1]}"
-            return Status.FAILURE
-        return super().update()
+        return kept_fault(self, "forced to success") or super().update()
