@@ -9,7 +9,10 @@ scan-to-map poses and the pose graph's side by side:
 - ``loop_gap_m`` (median and max) and ``loop_rot_deg``: where the robot comes back beside its
   start, the pose of each later scan relative to an early one along the trajectory, against the
   same relative pose measured by registering the later scan on ten early scans directly (pairs with
-  at least 40 % of points agreeing within 0.2 m); the gap is the distance between the two;
+  at least 40 % of points agreeing within 0.2 m); the gap is the distance between the two. The
+  pairs are picked, and their registration seeded, by the pose graph's trajectory; ``*_b`` are the
+  same figures on the pairs picked and seeded by the scan-to-map trajectory instead (along a
+  corridor the registration can settle in either of two places, so the seed matters);
 - ``thin_share_grid``: share of the log-odds map's occupied cells on walls at most 2 cells (10 cm)
   thick (the map as the robot would use it; beams through a doubled wall erase one copy, so a
   drifted map has fewer wall cells rather than thicker walls: ``wall_cells`` says how many);
@@ -94,8 +97,9 @@ def mrpt_map_itself() -> dict[str, float]:
             "cells_endpoints_keyframes": walls.cells}
 
 
-def figures(log, poses, pairs) -> dict[str, float]:  # noqa: ANN001 - a ScanLog, poses, loop_pairs' list
+def figures(log, poses, pairs, other_pairs) -> dict[str, float]:  # noqa: ANN001 - ScanLog, poses, pairs
     gaps = [loop_gap(log.scans, poses, s, e, (pose, fit)) for s, e, pose, fit in pairs]
+    other = [loop_gap(log.scans, poses, s, e, (pose, fit)).translation for s, e, pose, fit in other_pairs]
     occupancy = build_grid(log.scans, poses).to_occupancy()
     grid = wall_thickness(occupancy)
     ends = wall_thickness(endpoint_grid(log.scans, poses))
@@ -106,6 +110,9 @@ def figures(log, poses, pairs) -> dict[str, float]:  # noqa: ANN001 - a ScanLog,
         "loop_gap_m_max": round(max(g.translation for g in gaps), 3) if gaps else math.nan,
         "loop_rot_deg_median": round(math.degrees(statistics.median(g.rotation for g in gaps)), 2)
         if gaps else math.nan,
+        "loop_gap_m_median_b": round(statistics.median(other), 3) if other else math.nan,
+        "loop_gap_m_max_b": round(max(other), 3) if other else math.nan,
+        "loop_pairs_over_30cm_b": sum(g > 0.3 for g in other),
         "thin_share_grid": round(grid.thin_share, 4),
         "wall_cells": grid.cells,
         "thin_share_endpoints": round(ends.thin_share, 4),
@@ -135,21 +142,24 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     match_cpu = time.process_time() - cpu
     pairs = loop_pairs(log.scans, log.poses, corrected.poses)
-    raw, front = figures(log, log.poses, pairs), figures(log, corrected.front_end, pairs)
-    fixed = figures(log, corrected.poses, pairs)
+    pairs_b = loop_pairs(log.scans, log.poses, corrected.front_end)
+    raw, front = figures(log, log.poses, pairs, pairs_b), figures(log, corrected.front_end, pairs, pairs_b)
+    fixed = figures(log, corrected.poses, pairs, pairs_b)
     print(f"{args.rawlog.name}: {len(log.scans)} scans, odometry path {log.path_length():.1f} m, "
           f"matching {match_cpu:.1f} s CPU, {len(corrected.refused)} matches refused, "
           f"{len(corrected.closures)} loop closures in the pose graph, "
-          f"{len(pairs)} loop pairs (overlap median {statistics.median(p[3] for p in pairs):.2f})")
+          f"{len(pairs)} loop pairs (overlap median {statistics.median(p[3] for p in pairs):.2f}), "
+          f"{len(pairs_b)} pairs b")
     print(f"{'figure':32s} {'raw odometry':>14s} {'scan-to-map':>14s} {'+ pose graph':>14s}")
     for key in raw:
         print(f"{key:32s} {raw[key]!s:>14s} {front[key]!s:>14s} {fixed[key]!s:>14s}")
-    mrpt = mrpt_map_itself()
+    mrpt = mrpt_map_itself() if args.rawlog.resolve() == LOOP.resolve() else {}  # MRPT's map is of this loop
     if mrpt:
         print(f"MRPT's own map of the loop (its {MRPT_MAP.name}, same scans at its SLAM poses): "
               f"thin_share_endpoints_keyframes {mrpt['thin_share_endpoints_keyframes']}, "
               f"cells_endpoints_keyframes {mrpt['cells_endpoints_keyframes']}")
-    print(json.dumps({"scans": len(log.scans), "loop_pairs": len(pairs), "match_cpu_s": round(match_cpu, 2),
+    print(json.dumps({"scans": len(log.scans), "loop_pairs": len(pairs), "loop_pairs_b": len(pairs_b),
+                      "match_cpu_s": round(match_cpu, 2),
                       "closures": len(corrected.closures), "raw": raw, "scan_to_map": front,
                       "corrected": fixed, "mrpt_map": mrpt}))
     return 0
