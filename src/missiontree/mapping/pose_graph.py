@@ -42,6 +42,14 @@ class Edge:
     sigma_yaw: float
 
 
+@dataclass(frozen=True)
+class _EdgeArrays:
+    i: np.ndarray
+    j: np.ndarray
+    measured: np.ndarray
+    sigma: np.ndarray
+
+
 def _wrap(angle: np.ndarray) -> np.ndarray:
     return np.arctan2(np.sin(angle), np.cos(angle))
 
@@ -55,14 +63,6 @@ def _residuals(free: np.ndarray, first: np.ndarray, edges: _EdgeArrays) -> np.nd
     err = rel - edges.measured
     err[:, 2] = _wrap(err[:, 2])
     return (err / edges.sigma).ravel()
-
-
-@dataclass(frozen=True)
-class _EdgeArrays:
-    i: np.ndarray
-    j: np.ndarray
-    measured: np.ndarray
-    sigma: np.ndarray
 
 
 def _arrays(edges: Sequence[Edge]) -> _EdgeArrays:
