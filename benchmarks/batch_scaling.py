@@ -44,6 +44,7 @@ from pathlib import Path
 from typing import Any
 
 from missiontree.evaluation import DaskEngine, Engine, PoolEngine, SerialEngine, expand_plan, run_batch
+from missiontree.evaluation.batch import max_jobs
 from missiontree.testing_runs import observe_dask_chunks
 
 MISSION = """\
@@ -156,6 +157,8 @@ def main() -> int:
                         help="add the Dask engine with one run a task (chunk=1), chunking's reference")
     parser.add_argument("--no-reference", action="store_true", help=argparse.SUPPRESS)  # the default now
     args = parser.parse_args()
+    if not 1 <= args.jobs <= max_jobs():   # the batch command's limit: one process per worker
+        parser.error(f"--jobs: expected 1 to {max_jobs()} workers, found {args.jobs}")
     load_before = os.getloadavg()
     print(f"{os.cpu_count()} cores, {args.jobs} workers; load average before: "
           f"{' '.join(f'{v:.1f}' for v in load_before)}; cpu pressure {cpu_pressure()}", flush=True)
