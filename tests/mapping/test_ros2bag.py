@@ -14,6 +14,7 @@ pytest.importorskip("mcap_ros2", reason="mcap-ros2-support missing: pip install 
 from mcap.reader import make_reader  # noqa: E402
 from mcap_ros2.writer import Writer as Ros2Writer  # noqa: E402
 
+from missiontree.mapping import ros2bag  # noqa: E402
 from missiontree.mapping.ros2bag import (  # noqa: E402
     BagError,
     BagTopics,
@@ -202,3 +203,18 @@ def test_a_namespaced_robots_topics_read_with_its_namespace(tmp_path: Path) -> N
     assert BagTopics().namespaced("robot1/").scan == "/robot1/scan"
     assert len(read_bag(path, BagTopics().namespaced("/robot1")).scans) == 5
     assert not read_bag(path).scans
+
+
+def test_a_topic_over_the_message_limit_is_refused_before_decoding(monkeypatch: pytest.MonkeyPatch) -> None:
+    """More scans than the per-topic limit (counted from the summary) is a BagError naming the topic."""
+    monkeypatch.setattr(ros2bag, "MAX_TOPIC_MESSAGES", 100)
+    monkeypatch.setattr(ros2bag, "_collect", lambda *a, **k: pytest.fail("decoded before the count check"))
+    with pytest.raises(BagError, match=r"/scan holds 119 messages, over the limit of 100"):
+        read_bag(BAG)
+
+
+def test_a_scan_with_too_many_beams_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A scan longer than the beam limit is a BagError, not a scan kept."""
+    monkeypatch.setattr(ros2bag, "MAX_BEAMS", 4)
+    with pytest.raises(BagError, match="has 5 beams; expected at most 4"):
+        read_bag(_odom_scan_bag(tmp_path / "long.mcap"))

@@ -47,6 +47,11 @@ FRAME_RATE = 5.0
 MAP_PERIOD = 1.0
 #: Largest image side read (pixels).
 MAX_SIDE = 8192
+#: Most messages read from one topic (counted from the bag's summary before any is decoded): 55 hours
+#: of scans at 10 Hz. Images and maps are thinned as they are read, so this bounds what is kept.
+MAX_TOPIC_MESSAGES = 2_000_000
+#: Most beams in one laser scan.
+MAX_BEAMS = 100_000
 #: The extra that brings the decoder.
 INSTALL_HINT = "pip install 'missiontree[realdata]' (mcap and mcap-ros2-support)"
 
@@ -344,6 +349,9 @@ def _collect(path: Path, names: BagTopics, frame_rate: float | None, map_period:
     for topic, msg in _decoded(path, {names.scan, names.odom, names.tf, names.tf_static, names.map,
                                       names.color, names.color_info, names.depth}):
         if topic == names.scan:
+            if len(msg.ranges) > MAX_BEAMS:
+                raise BagError(f"{path}: a scan on {topic} has {len(msg.ranges):,} beams; expected at most "
+                               f"{MAX_BEAMS:,}")
             got.scans.append(msg)
         elif topic in (names.tf, names.tf_static):
             for t in msg.transforms:
@@ -451,6 +459,10 @@ def read_bag(path: str | Path, names: BagTopics | None = None, *, frame_rate: fl
     counts = _topic_counts(path)
     if frame_rate is not None and frame_rate <= 0:
         raise BagError(f"frame_rate must be positive or None, found {frame_rate}")
+    for topic in (names.scan, names.odom, names.tf, names.tf_static, names.color_info):
+        if counts.get(topic, 0) > MAX_TOPIC_MESSAGES:
+            raise BagError(f"{path}: {topic} holds {counts[topic]:,} messages, over the limit of "
+                           f"{MAX_TOPIC_MESSAGES:,} a topic read whole (split the bag)")
     got = _collect(path, names, frame_rate, map_period)
     stamps, poses, source = _track(got, names)
     scans = []
