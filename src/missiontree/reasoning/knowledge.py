@@ -8,7 +8,8 @@ It holds:
 - ``need_words``: word → {need: weight}: the words of each need's WordNet senses and of the senses
   related to them (similar-to, derivations, hyponyms: "famished", "beverage", "e-mail");
 - ``label_words``: word → the label it names (a label's own WordNet words and its hyponyms': couch,
-  armchair); ``general_words``: word → the labels a more general word covers (seat, furniture);
+  armchair); ``general_words``: word → the labels a more general word covers (seat, furniture), read
+  only when the request says no need;
 - ``forms``: irregular inflections of those words (WordNet's exception lists);
 - ``compounds``: WordNet compound nouns that contain an object word without being that object (a
   "filter bed" is no bed), read whole as something unknown.
