@@ -327,7 +327,27 @@ class SimRobot:
 
     # -- stepping ----------------------------------------------------------------------------------
 
+    @property
+    def closed(self) -> bool:
+        """True once close() was called (spinning then does nothing)."""
+        return self._closed
+
     def _step(self) -> None:
+        """One physics step: move (or be refused), then record the pose and produce due sensor data."""
+        self.step_motion()
+        self.step_sensing()
+
+    def step_sensing(self) -> None:
+        """Record the pose of the step just moved and produce the sensor data due at its time."""
+        self._record_pose()
+        self._sense()
+
+    def step_motion(self) -> None:
+        """Control and motion of one physics step, with the collision check; advances the clock.
+
+        Split from :meth:`step_sensing` so a fleet (:mod:`missiontree.backends.sim.fleet`) can move
+        every robot of a step before any of them senses.
+        """
         dt = self.profile.physics_dt
         # drive() overrides navigation while commanded; the goal waits (its timers paused)
         command = self._drive
@@ -364,8 +384,6 @@ class SimRobot:
         self._odom.update(v, w, dt)
         self._steps += 1
         self._t = self._steps * dt
-        self._record_pose()
-        self._sense()
 
     def _collides(self, pose: Pose2D) -> bool:
         radius = self.profile.body.radius

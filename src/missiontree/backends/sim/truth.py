@@ -202,7 +202,7 @@ class GroundTruth:
         ids, pixels = [], []
         for inst in np.flatnonzero(counts).tolist():
             info = self.world.instances.get(inst)
-            if info is not None and info.kind in ("object", "person"):
+            if info is not None and info.kind in ("object", "person", "robot"):
                 ids.append(inst)
                 pixels.append(int(counts[inst]))
         self._visibility.append(stamp, ids, pixels)
@@ -251,7 +251,7 @@ class GroundTruth:
         return self._masks.nearest(stamp, max_gap=1e-3)
 
     def visible_at(self, stamp: float, min_pixels: int = 1) -> dict[str, Sighting]:
-        """Objects and people visible in the frame taken at ``stamp``, with their pixel counts."""
+        """Objects, people and other robots visible in the frame taken at ``stamp``, with pixel counts."""
         self._flush()
         for frame_stamp, seen in reversed(self._visibility):
             if abs(frame_stamp - stamp) <= 1e-3:
