@@ -83,6 +83,7 @@ def test_collision_between_robots_is_refused_and_counted() -> None:
     assert fleet.truth.min_separation.gap > -1e-6
     assert fleet.truth.min_separation.gap < 0.02
     assert all(robot.bump_report()["contacts"] >= 1 for robot in fleet)
+    assert all(robot.bump_report()["refused_by_robots"] >= 1 for robot in fleet)
 
 
 def test_navigation_avoids_a_robot_standing_in_its_path() -> None:
@@ -205,3 +206,21 @@ class TestFirstFleetRobotConformance(_FleetConformance):
 
 class TestSecondFleetRobotConformance(_FleetConformance):
     index = 1
+
+
+def test_unknown_map_marks_the_other_robot_and_clears_it_once_gone() -> None:
+    """Learning its map, a robot marks the other's body occupied, and free again after it drove away."""
+    fleet = create_fleet("conformance", robots=2, seed=0, starts=[WEST, Pose2D(2.6, 2.5, 0.0)],
+                         unknown_map=True)
+    fleet.spin_until(0.5)
+    grid = fleet[0].occupancy()
+    assert grid is not None
+    row, col = grid.world_to_cell(2.6 - fleet.radius, 2.5)
+    assert grid.data[row, col] == 100
+    away = fleet[1].navigate_to(Pose2D(2.6, 4.2, 0.0), Tolerance(xy=0.25, yaw=ANY))
+    _spin(fleet, 30.0, until=lambda: away.status().done)
+    assert away.status() is ActionStatus.SUCCEEDED
+    fleet.spin_until(fleet.now() + 2.0)
+    grid = fleet[0].occupancy()
+    assert grid is not None
+    assert grid.data[row, col] == 0

@@ -133,6 +133,8 @@ class FleetRobot(SimRobot):
         self.fleet = fleet
         self.index = index
         self.inst = fleet.instance_ids[index]
+        #: Physics steps whose move was refused because it pushed into another robot's body.
+        self.robot_refusals = 0
         super().__init__(world, profile, seed=seed, name=name, unknown_map=unknown_map, sensors=sensors)
 
     def spin_until(self, t: float) -> None:
@@ -143,8 +145,21 @@ class FleetRobot(SimRobot):
         """People at ``t`` and every other robot's body where it is now."""
         return self.world.crowd.primitives(t).concat(self.fleet.bodies(exclude=self.index))
 
+    def bump_report(self) -> dict[str, Any]:
+        """The single robot's contacts, plus the refused moves that pushed into another robot."""
+        report = super().bump_report()
+        report["refused_by_robots"] = self.robot_refusals
+        report["meaning"] += ("; in a fleet another robot's body counts as well (refused_by_robots: "
+                              "the physics steps refused for one)")
+        return report
+
     def _collides(self, pose: Pose2D) -> bool:
-        return super()._collides(pose) or self.fleet.blocked(self.index, self.true_pose, pose)
+        if super()._collides(pose):
+            return True
+        if self.fleet.blocked(self.index, self.true_pose, pose):
+            self.robot_refusals += 1
+            return True
+        return False
 
 
 @dataclasses.dataclass
