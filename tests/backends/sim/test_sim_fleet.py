@@ -181,6 +181,7 @@ def test_truth_reports_every_robot() -> None:
     assert report["robots"]["robot2"]["driven_m"] > 0.2
     assert report["robots"]["robot1"]["driven_m"] == 0.0
     assert report["min_separation"]["gap_m"] > -1e-6
+    assert create_fleet("office", robots=1).truth.report()["min_separation"] is None
 
 
 class _FleetConformance(RobotConformance):

@@ -336,7 +336,10 @@ class FleetTruth:
         return self._fleet.separation
 
     def report(self) -> dict[str, Any]:
-        """Per-robot figures for a summary: true pose, distance driven, odometry error, bumps."""
+        """Per-robot figures for a summary: true pose, distance driven, odometry error, bumps.
+
+        ``min_separation`` is None for a fleet of one (no pair of robots to measure).
+        """
         robots = {}
         for r in self._fleet.robots:
             true, est = r.true_pose, r.pose()
@@ -346,8 +349,9 @@ class FleetTruth:
                               "odometry_error_m": None if error is None else round(error, 3),
                               "bumps": r.bump_report()}
         sep = self._fleet.separation
-        return {"t": self._fleet.now(), "robots": robots,
-                "min_separation": {"gap_m": round(sep.gap, 3), "t": sep.t, "pair": list(sep.pair)}}
+        closest = None if math.isinf(sep.gap) else {"gap_m": round(sep.gap, 3), "t": sep.t,
+                                                    "pair": list(sep.pair)}
+        return {"t": self._fleet.now(), "robots": robots, "min_separation": closest}
 
 
 def create_fleet(world: str | World = "office", robots: int = 2, seed: int = 0, robot: str | None = None,
