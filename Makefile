@@ -27,10 +27,18 @@ setup-ros2: setup
 setup-browser:
 	command -v chromium >/dev/null || { [ "$$(id -u)" = 0 ] && apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium; } || echo "chromium missing and not root: the browser tests will fail"
 
-# Debian's mrpt-common (BSD-3) for MRPT's real grids (mrpt:uwb, mrpt:malaga worlds, the test split's
-# places 11-12, the gridmap reader's tests). Best effort: without it those tests skip with a reason.
+# Debian's mrpt-common (BSD-3) for MRPT's real data (mrpt:* worlds, the test split's places 11-12, the
+# rawlog/gridmap readers, the real-frame tests). As root with apt: apt-get install. Else (not root, or the
+# install failed): apt-get download + dpkg-deb -x into .cache/mrpt-common, where the code looks too
+# (src/missiontree/mapping/mrpt_datasets.py). Without either the tests that need it skip with a reason.
+MRPT_EXTRACT := .cache/mrpt-common
 setup-mrpt:
-	[ -d /usr/share/mrpt/datasets ] || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && apt-get update -qq && apt-get install -y -qq --no-install-recommends mrpt-common; } || echo "mrpt-common missing (not root or no apt): the MRPT map tests will skip"
+	@if [ -d /usr/share/mrpt/datasets ] || [ -d $(MRPT_EXTRACT)/usr/share/mrpt/datasets ]; then echo "mrpt-common: datasets present"; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && apt-get update -qq && apt-get install -y -qq --no-install-recommends mrpt-common; then echo "mrpt-common: installed by apt"; \
+	elif command -v apt-get >/dev/null && command -v dpkg-deb >/dev/null && rm -rf $(MRPT_EXTRACT).dl && mkdir -p $(MRPT_EXTRACT).dl \
+	  && (cd $(MRPT_EXTRACT).dl && apt-get download -qq mrpt-common) && dpkg-deb -x $(MRPT_EXTRACT).dl/mrpt-common_*.deb $(MRPT_EXTRACT).tmp \
+	  && rm -rf $(MRPT_EXTRACT) && mv $(MRPT_EXTRACT).tmp $(MRPT_EXTRACT); then rm -rf $(MRPT_EXTRACT).dl; printf '*\n' > .cache/.gitignore; echo "mrpt-common: extracted into $(MRPT_EXTRACT)"; \
+	else rm -rf $(MRPT_EXTRACT).dl $(MRPT_EXTRACT).tmp; echo "mrpt-common missing (no apt install, no apt-get download): the MRPT data tests will skip"; fi
 
 # CPU torch for the detector tools' tests (tests/tools): the train extra pins the local CPU build.
 setup-train: $(VENV)/.installed-train

@@ -45,6 +45,7 @@ from pathlib import Path
 
 from missiontree.errors import BackendUnavailableError
 from missiontree.mapping.frontiers import find_frontiers
+from missiontree.mapping.mrpt_datasets import find_dataset
 from missiontree.mapping.rawlog import read_rawlog, read_simplemap
 from missiontree.mapping.recorded_map import (
     build_grid,
@@ -57,9 +58,9 @@ from missiontree.mapping.recorded_map import (
 from missiontree.mapping.scan_matching import correct_poses, relative
 from missiontree.semantics.rooms import segment_rooms
 
-LOOP = Path("/usr/share/mrpt/datasets/2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog")
+LOOP = find_dataset(LOOP_NAME := "2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog") or Path(LOOP_NAME)
 #: MRPT's own map of the same loop (99 of its scans at the poses MRPT's SLAM gave them).
-MRPT_MAP = Path("/usr/share/mrpt/datasets/malaga-cs-fac-building.simplemap.gz")
+MRPT_MAP = find_dataset("malaga-cs-fac-building.simplemap.gz") or Path("malaga-cs-fac-building.simplemap.gz")
 
 
 def against_mrpt_map(log, poses) -> dict[str, float]:  # noqa: ANN001 - a ScanLog and its poses

@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 from missiontree.mapping import mrpt_grid
+from missiontree.mapping.mrpt_datasets import find_dataset, missing_reason
 from missiontree.mapping.mrpt_grid import GridmapError, read_gridmap
 
-DATASETS = Path("/usr/share/mrpt/datasets")
+DATASETS = (find_dataset("2006-MalagaCampus.gridmap.gz") or Path("/nonexistent/x")).parent
 NEEDS_MRPT = pytest.mark.skipif(
     not (DATASETS / "2006-MalagaCampus.gridmap.gz").is_file(),
-    reason="MRPT's datasets are not installed: apt-get install -y mrpt-common (or make setup-mrpt)",
+    reason=missing_reason("2006-MalagaCampus.gridmap.gz"),
 )
 
 

@@ -11,12 +11,13 @@ import numpy as np
 import pytest
 
 from missiontree.mapping.mrpt_archive import ArchiveError, mrpt_time_to_unix
+from missiontree.mapping.mrpt_datasets import find_dataset, missing_reason
 from missiontree.mapping.rawlog import compose, read_rawlog, read_simplemap
 from missiontree.types import Pose2D
 
-LOOP = Path("/usr/share/mrpt/datasets/2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog")
-NEEDS_LOOP = pytest.mark.skipif(not LOOP.is_file(), reason="MRPT's datasets are not installed: "
-                                "apt-get install -y mrpt-common (or make setup-mrpt)")
+LOOP_NAME = "2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog"
+LOOP = find_dataset(LOOP_NAME) or Path("/nonexistent") / LOOP_NAME
+NEEDS_LOOP = pytest.mark.skipif(not LOOP.is_file(), reason=missing_reason(LOOP_NAME))
 STAMP = 127_823_078_257_133_865  # 2006-01-21 09:03:45 UTC in MRPT's 100 ns ticks since 1601
 
 

@@ -11,6 +11,7 @@ import pytest
 
 from missiontree.errors import BackendUnavailableError
 from missiontree.mapping.frontiers import find_frontiers
+from missiontree.mapping.mrpt_datasets import find_dataset, missing_reason
 from missiontree.mapping.rawlog import RecordedScan, read_rawlog, read_simplemap
 from missiontree.mapping.recorded_map import (
     build_grid,
@@ -24,8 +25,9 @@ from missiontree.mapping.scan_matching import MatchSettings, correct_poses, rela
 from missiontree.semantics.rooms import segment_rooms
 from missiontree.types import Pose2D
 
-LOOP = Path("/usr/share/mrpt/datasets/2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog")
-MRPT_MAP = Path("/usr/share/mrpt/datasets/malaga-cs-fac-building.simplemap.gz")
+LOOP_NAME = "2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog"
+LOOP = find_dataset(LOOP_NAME) or Path("/nonexistent") / LOOP_NAME
+MRPT_MAP = find_dataset("malaga-cs-fac-building.simplemap.gz") or Path("/nonexistent/map")
 
 
 def room_scan(pose: Pose2D, half: float = 4.0, beams: int = 361) -> RecordedScan:
@@ -113,7 +115,7 @@ def test_relative_is_the_inverse_of_compose() -> None:
 def real_loop():  # noqa: ANN201 - (ScanLog, Correction)
     pytest.importorskip("kiss_icp", reason="KISS-ICP (the realdata extra) is not installed")
     if not LOOP.is_file():
-        pytest.skip("MRPT's datasets are not installed: apt-get install -y mrpt-common (or make setup-mrpt)")
+        pytest.skip(missing_reason(LOOP_NAME))
     log = read_rawlog(LOOP)
     return log, correct_poses(log.scans, log.poses)
 
@@ -137,7 +139,7 @@ def test_real_loop_closes_within_30_cm_after_loop_closure(real_loop) -> None:  #
 def test_real_loop_closure_moves_the_path_towards_mrpts_own_map(real_loop) -> None:  # noqa: ANN001
     """The loop-closed path is nearer MRPT's own SLAM map of the loop than the scan-to-map path (median)."""
     if not MRPT_MAP.is_file():
-        pytest.skip("MRPT's simplemap of the loop is not installed (Debian's mrpt-common)")
+        pytest.skip(missing_reason("malaga-cs-fac-building.simplemap.gz"))
     log, corrected = real_loop
     reference = read_simplemap(MRPT_MAP)
     index = {round(s.stamp, 4): i for i, s in enumerate(log.scans)}

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from missiontree.mapping.mrpt_archive import ArchiveError
+from missiontree.mapping.mrpt_datasets import find_dataset, missing_reason
 from missiontree.mapping.mrpt_rgbd import read_rgbd_frames
 from missiontree.perception.colour import dominant_colour
 from missiontree.perception.depth_geometry import (
@@ -22,8 +23,8 @@ from missiontree.perception.projection import project
 from missiontree.perception.stereo import StereoCalibration, disparity_to_depth, stereo_disparity
 from missiontree.types import CameraIntrinsics, Detection
 
-RGBD = Path("/usr/share/mrpt/datasets/tests_rgbd.rawlog")
-MISSING = "MRPT's datasets are not installed: apt-get install -y mrpt-common (or make setup-mrpt)"
+RGBD = find_dataset("tests_rgbd.rawlog") or Path("/nonexistent/tests_rgbd.rawlog")
+MISSING = missing_reason("tests_rgbd.rawlog")
 #: The Middlebury motorcycle pair's calibration for scikit-image's 4x down-sampled images (its docstring).
 MOTORCYCLE = StereoCalibration(focal=994.978, baseline=0.193001, cx=311.193, cy=254.877, doffs=31.086)
 #: Box (x1, y1, x2, y2) of the black briefcase on top of the bookshelf, read off the colour image by eye.

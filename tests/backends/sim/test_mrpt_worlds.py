@@ -6,6 +6,7 @@ import gzip
 import struct
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -14,6 +15,8 @@ from missiontree.backends.sim.mapimage import MAX_MAP_CELLS
 from missiontree.backends.sim.mrpt_worlds import MAPS, crop_window, datasets_dir, world_grid
 from missiontree.backends.sim.world import load_world
 from missiontree.errors import WorldFileError
+from missiontree.mapping.clearance import clearance_metres
+from missiontree.mapping.planner import plan
 from missiontree.types import OccupancyGrid, Pose2D
 
 NEEDS_MRPT = pytest.mark.skipif(
@@ -133,3 +136,45 @@ def test_map_yaml_writes_only_the_pair_and_keeps_identical_files(fake_datasets: 
     assert mrpt_worlds.map_yaml("uwb") == first
     assert sorted(p.name for p in (tmp_path / "cache").iterdir()) == ["mrpt_uwb.pgm", "mrpt_uwb.yaml"]
     assert first.stat().st_mtime_ns == stamp
+
+
+def test_full_name_keeps_a_map_the_crop_cuts(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a 60 x 50 m map `malaga` is cut to the 40 m square; `malaga-full` keeps every cell."""
+    folder = tmp_path / "datasets"
+    folder.mkdir()
+    cells = np.full((1000, 1200), 100, np.int8)  # 0.05 m cells: 60 x 50 m of free floor
+    cells[:, 600] = -100  # a wall down the middle
+    (folder / MAPS["malaga"]).write_bytes(gridmap(cells, 0.05))
+    monkeypatch.setenv(mrpt_worlds.DATASETS_ENV, str(folder))
+    assert world_grid("malaga").data.shape == (800, 800)
+    assert world_grid("malaga-full").data.shape == (1000, 1200)
+
+
+@NEEDS_MRPT
+def test_whole_malaga_campus_is_the_world_grid_within_the_loader_limit() -> None:
+    """mrpt:malaga-full's grid is the whole 1,888 x 2,738-cell campus at 8 cm, within MAX_MAP_CELLS."""
+    grid = world_grid("malaga-full")
+    assert grid.data.shape == (2738, 1888) and grid.resolution == pytest.approx(0.08)
+    assert grid.data.size <= MAX_MAP_CELLS
+
+
+@NEEDS_MRPT
+def test_planner_crosses_the_malaga_campus() -> None:
+    """Between far corners of the campus's largest drivable floor the planner finds a path on free cells."""
+    grid = world_grid("malaga-full")
+    drivable = (clearance_metres((grid.data == 0).astype(np.uint8), grid.resolution) > 0.4).astype(np.uint8)
+    _, labels = cv2.connectedComponents(drivable, connectivity=8)
+    sizes = np.bincount(labels.ravel())
+    sizes[0] = 0
+    cells = np.argwhere(labels == sizes.argmax())
+    ends = [cells[np.argmin(cells.sum(1))], cells[np.argmax(cells.sum(1))]]
+    start, goal = ((grid.origin.x + (c + 0.5) * grid.resolution, grid.origin.y + (r + 0.5) * grid.resolution)
+                   for r, c in ends)
+    straight = float(np.hypot(goal[0] - start[0], goal[1] - start[1]))
+    assert straight > 150.0
+    path = plan(grid, start, goal, footprint_radius=0.17, allow_unknown=False)
+    assert path is not None
+    assert straight <= path.length < 2 * straight
+    rows = ((path.points[:, 1] - grid.origin.y) / grid.resolution).astype(int)
+    cols = ((path.points[:, 0] - grid.origin.x) / grid.resolution).astype(int)
+    assert (grid.data[rows, cols] == 0).all()

@@ -4,8 +4,10 @@ Debian's ``mrpt-common`` package (BSD-3) ships the Mobile Robot Programming Tool
 datasets, among them two occupancy grids MRPT built from real laser scans:
 
 - ``uwb``: ``uwb_ro-localization_demo_map.gridmap.gz``, 28 x 26 m at 4 cm, loaded whole;
-- ``malaga``: ``2006-MalagaCampus.gridmap.gz``, 151 x 219 m at 8 cm (5.2 M cells, past the world
-  loader's limit). It is cropped to a :data:`CROP_METRES` square chosen from the map alone by
+- ``malaga-full``: ``2006-MalagaCampus.gridmap.gz`` whole, 151 x 219 m at 8 cm (1,888 x 2,738 =
+  5.2 M cells, within the world loader's 6 M);
+- ``malaga``: the same map cropped to a :data:`CROP_METRES` square (what the test split uses: a
+  building-sized piece, so a benchmark world costs what the others do), chosen from the map alone by
   :func:`crop_window`: the window holding the most cells of the largest piece of floor a
   TurtleBot 4 can drive (free cells farther than its radius plus :data:`PASS_MARGIN` from anything
   not free), searched at a 1 m stride, the first such window in row-major order on a tie.
@@ -17,9 +19,9 @@ The grid is written as a map_server pair (``mrpt_<name>.yaml`` and ``.pgm``) int
 a cache folder, and :func:`missiontree.backends.sim.placement.map_world` builds the world on it:
 a seeded start, rooms found by segmentation and typed, objects and decoys placed, two walkers.
 
-The datasets folder is ``$MISSIONTREE_MRPT_DATASETS`` when set, else the first of
-:data:`DATASET_DIRS` that holds the maps; when none does, loading ends in a problem naming the
-apt package.
+The datasets folder is the first of :func:`missiontree.mapping.mrpt_datasets.candidate_dirs`
+that holds the maps (``$MISSIONTREE_MRPT_DATASETS``, apt's folder, or the package ``make setup-mrpt``
+extracted); when none does, loading ends in a problem naming the apt package.
 """
 
 from __future__ import annotations
@@ -38,25 +40,26 @@ from missiontree.backends.sim.world import register_world_source
 from missiontree.errors import Problem, WorldFileError
 from missiontree.mapping.clearance import clearance_metres
 from missiontree.mapping.mapfile import write_map
+from missiontree.mapping.mrpt_datasets import APT_PACKAGE as APT_PACKAGE
+from missiontree.mapping.mrpt_datasets import DATASETS_ENV as DATASETS_ENV
+from missiontree.mapping.mrpt_datasets import INSTALL_HINT as INSTALL_HINT
+from missiontree.mapping.mrpt_datasets import SYSTEM_DIRS, candidate_dirs
 from missiontree.mapping.mrpt_grid import GridmapError, read_gridmap
 from missiontree.types import OccupancyGrid, Pose2D
 from missiontree.yamlio import Located, parse_yaml
 
 #: World names of this source start with this.
 MRPT_PREFIX = "mrpt:"
-#: Environment variable naming the folder that holds MRPT's datasets (overrides :data:`DATASET_DIRS`).
-DATASETS_ENV = "MISSIONTREE_MRPT_DATASETS"
 #: Where Debian's (and a source build's) ``mrpt-common`` puts the datasets.
-DATASET_DIRS = (Path("/usr/share/mrpt/datasets"), Path("/usr/local/share/mrpt/datasets"))
-#: The Debian package that ships them, and how to get it.
-APT_PACKAGE = "mrpt-common"
-INSTALL_HINT = (f"install Debian's {APT_PACKAGE} (apt-get install -y {APT_PACKAGE}) or set ${DATASETS_ENV} "
-                "to a folder holding its datasets")
+DATASET_DIRS = SYSTEM_DIRS
 #: World name -> gridmap file in the datasets folder.
 MAPS = {
     "uwb": "uwb_ro-localization_demo_map.gridmap.gz",
     "malaga": "2006-MalagaCampus.gridmap.gz",
+    "malaga-full": "2006-MalagaCampus.gridmap.gz",
 }
+#: World names loaded whole, however large (within the world loader's ``MAX_MAP_CELLS``).
+UNCROPPED = frozenset({"malaga-full"})
 #: Side (m) of the square a larger map is cropped to: a building-sized piece, within the loader's limit.
 CROP_METRES = 40.0
 #: Stride (m) of the crop search.
@@ -71,8 +74,7 @@ def datasets_dir() -> Path:
     Raises:
         FileNotFoundError: No such folder holds the maps (the message names the apt package).
     """
-    override = os.environ.get(DATASETS_ENV)
-    candidates = [Path(override)] if override else list(DATASET_DIRS)
+    candidates = candidate_dirs()
     for folder in candidates:
         if any((folder / name).is_file() for name in MAPS.values()):
             return folder.resolve()
@@ -135,12 +137,15 @@ def crop_window(grid: OccupancyGrid, metres: float = CROP_METRES) -> tuple[int, 
 def world_grid(name: str) -> OccupancyGrid:
     """The grid a ``mrpt:<name>`` world is drawn on: the gridmap, cropped, closed where its scans end.
 
+    Names in :data:`UNCROPPED` keep the whole map.
+
     Raises:
         KeyError, FileNotFoundError: As :func:`gridmap_path`.
         GridmapError: The file is malformed.
     """
     grid = read_gridmap(gridmap_path(name))
-    r0, c0, h, w = crop_window(grid)
+    rows, cols = grid.data.shape
+    r0, c0, h, w = (0, 0, rows, cols) if name in UNCROPPED else crop_window(grid)
     data = grid.data[r0:r0 + h, c0:c0 + w].copy()
     # the simulator has no truth for what the scans never saw: unknown cells touching free floor, and
     # free cells on the edge, become wall, so the robot drives and looks only where the map is known
