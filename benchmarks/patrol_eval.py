@@ -27,8 +27,9 @@ dev) of each figure, and a markdown table of both. The VLM answers after a laten
 - ``seed_05`` — the thesis as built: the latest frame to the VLM every 0.5 s (scenarios A-C), the
   distance read by its ±15° front cone from the *latest* scan once the answer arrives.
 - ``seed_02`` — the same every 0.2 s (scenario D).
-- ``ours`` — the detector on every frame, the VLM confirming at most every 0.5 s (≤ 2 calls/s),
-  the distance from the depth inside the person's box, fused at the frame's instant.
+- ``ours`` — the detector on a frame every 0.4 s (the leaf's ``detect_period``), the VLM
+  confirming at most every 0.5 s (≤ 2 calls/s), the distance from the depth inside the person's
+  box, fused at the frame's instant.
 
 Each run is the real mission (loader, builder, runner, leaves) on the simulator: a Parallel of
 Patrol (one lap) and Surveillance, without servoing so that every configuration drives the same
