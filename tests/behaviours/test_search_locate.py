@@ -282,3 +282,22 @@ def test_the_reports_scan_points_split_the_office_at_its_door() -> None:
     planner = leaf.make_planner()
     points = planner.candidates(world.grid, (world.start.x, world.start.y))
     assert len(points) >= 2
+
+
+def test_an_unreached_candidate_comes_back_once_the_map_reached_it_without_waiting_for_the_end() -> None:
+    """Seen in unmapped space and not reached: offered again as soon as the map around it is known."""
+    leaf = Locate("locate", Locate.Params(target="red backpack"))
+    leaf.goal = Target("red backpack", "backpack", ("red",))
+    data = np.full((80, 80), -1, np.int8)
+    data[:, :20] = 0  # known only west of x = 1 m; the backpack at (2, 2) lies in unknown space
+    leaf.last_grid = OccupancyGrid(0.0, RES, Pose2D(0.0, 0.0), data)
+    unreached = [{"id": "bag_1", "label": "backpack", "x": 2.0, "y": 2.0, "kind": "unreached"}]
+    assert ranked(leaf, unreached) == -1  # exploring on: nothing known there yet
+    data2 = data.copy()
+    data2[20:60, 20:60] = 0  # the robot mapped the place
+    leaf.last_grid = OccupancyGrid(1.0, RES, Pose2D(0.0, 0.0), data2)
+    entry = {"id": "bag_1", "label": "backpack", "colour": "red", "x": 2.0, "y": 2.0}
+    rank, _, offered = leaf._ranked(entry, unreached, (0.0, 0.0), with_mismatch=False)
+    assert rank == 0 and "grown" in offered
+    leaf._found(dict(offered, source="semantic map"))
+    assert ranked(leaf, unreached) == -1  # the map has not grown since it was offered again

@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, Field
 
 from missiontree.behaviours.intent import find_scene_graph
@@ -55,6 +56,11 @@ __all__ = ["Locate", "LookExplore", "PriorPlanner", "ResumeExplore"]
 #: An instance whose colour the semantic map's majority vote settled over this many frames is not
 #: looked at closer for another colour (when nothing else is left, ones seen in fewer frames are).
 TRUSTED_COLOUR_FRAMES = 10
+#: A candidate that could not be reached comes back (at most UNREACHED_AGAIN times) once the known map
+#: within UNREACHED_NEAR_M of it grew by UNREACHED_GROWTH_M2 since it was last offered.
+UNREACHED_NEAR_M = 1.0
+UNREACHED_GROWTH_M2 = 1.0
+UNREACHED_AGAIN = 2
 
 
 class Locate(LookExplore):
@@ -131,6 +137,8 @@ class Locate(LookExplore):
         self.prior_call: ModelCall | None = None
         self.asked = False
         self.offered_again: set[str] = set()
+        #: id of a candidate rejected as unreached -> (known m^2 near it when last offered, times again)
+        self.unreached_known: dict[str, tuple[float, int]] = {}
         self.base_replan: float | None = None
         self.first_start: float | None = None
         self.budget_spent = False
@@ -268,6 +276,9 @@ class Locate(LookExplore):
     def _found(self, found: dict[str, Any]) -> Status:
         if found.pop("again", False):
             self.offered_again.add(str(found["id"]))
+        grown = found.pop("grown", None)
+        if grown is not None:
+            self.unreached_known[str(found["id"])] = grown
         self.offered += 1
         if self.params.time_budget and self.first_start is not None:
             end = self.first_start + self.params.time_budget + self.params.approach_time
@@ -388,9 +399,13 @@ class Locate(LookExplore):
                     return -1, 0.0, entry
                 unreached = True
         if unreached:
-            if not self.exhausted or self.budget_spent or str(entry["id"]) in self.offered_again:
+            grown = self._unreached_grown(entry)
+            if grown is not None:
+                entry = {**entry, "grown": grown}
+            elif not self.exhausted or self.budget_spent or str(entry["id"]) in self.offered_again:
                 return -1, 0.0, entry
-            entry = {**entry, "again": True}
+            else:
+                entry = {**entry, "again": True}
         colour = canonical_colour(str(entry["colour"]))
         if not self.goal.colours or colour in self.goal.colours:
             rank = 0
@@ -401,6 +416,23 @@ class Locate(LookExplore):
         else:
             rank = -1
         return rank, math.hypot(entry["x"] - here[0], entry["y"] - here[1]), entry
+
+    def _unreached_grown(self, entry: dict[str, Any]) -> tuple[float, int] | None:
+        """(known m^2 near it, times offered again) when an unreached candidate's surroundings grew.
+
+        A candidate seen in space not yet mapped ("outside the known map") is unreachable only
+        until the map reaches it: on a large floor the robot mapped it moments later, a metre
+        away, and it was never offered again before the time budget ended the search.
+        """
+        grid = self.last_grid
+        if grid is None:
+            return None
+        key = str(entry["id"])
+        known = known_near(grid, float(entry["x"]), float(entry["y"]), UNREACHED_NEAR_M)
+        before, times = self.unreached_known.setdefault(key, (known, 0))
+        if times >= UNREACHED_AGAIN or known - before < UNREACHED_GROWTH_M2:
+            return None
+        return known, times + 1
 
     def _prior(self, frontier: Frontier) -> float:
         """Likelihood of the target beyond a frontier: its room's type and the objects seen near it."""
@@ -415,6 +447,20 @@ class Locate(LookExplore):
                 room_type = room.type
                 break
         return region_score((frontier.x, frontier.y), self.priors, seen, room_type)
+
+
+def known_near(grid: Any, x: float, y: float, radius: float) -> float:
+    """Known area (m^2, free or occupied) of ``grid`` within ``radius`` m of (x, y)."""
+    res = grid.resolution
+    r0, c0 = grid.world_to_cell(x, y)
+    k = int(math.ceil(radius / res))
+    h, w = grid.data.shape
+    rs, re_, cs, ce = max(0, r0 - k), min(h, r0 + k + 1), max(0, c0 - k), min(w, c0 + k + 1)
+    if rs >= re_ or cs >= ce:
+        return 0.0
+    rr, cc = np.mgrid[rs:re_, cs:ce]
+    disc = (rr - r0) ** 2 + (cc - c0) ** 2 <= k * k
+    return float(np.count_nonzero((grid.data[rs:re_, cs:ce] >= 0) & disc)) * res * res
 
 
 def _inside(polygon: Any, x: float, y: float) -> bool:
