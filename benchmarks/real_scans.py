@@ -145,15 +145,17 @@ def main(argv: list[str] | None = None) -> int:
     pairs = loop_pairs(log.scans, log.poses, corrected.poses)
     pairs_b = loop_pairs(log.scans, log.poses, corrected.front_end)
     raw, front = figures(log, log.poses, pairs, pairs_b), figures(log, corrected.front_end, pairs, pairs_b)
+    graph = figures(log, corrected.graph or corrected.poses, pairs, pairs_b)
     fixed = figures(log, corrected.poses, pairs, pairs_b)
     print(f"{args.rawlog.name}: {len(log.scans)} scans, odometry path {log.path_length():.1f} m, "
           f"matching {match_cpu:.1f} s CPU, {len(corrected.refused)} matches refused, "
           f"{len(corrected.closures)} loop closures in the pose graph, "
           f"{len(pairs)} loop pairs (overlap median {statistics.median(p[3] for p in pairs):.2f}), "
           f"{len(pairs_b)} pairs b")
-    print(f"{'figure':32s} {'raw odometry':>14s} {'scan-to-map':>14s} {'+ pose graph':>14s}")
+    head = ("figure", "raw odometry", "scan-to-map", "+ pose graph", "+ refined")
+    print(f"{head[0]:32s} " + " ".join(f"{h:>14s}" for h in head[1:]))
     for key in raw:
-        print(f"{key:32s} {raw[key]!s:>14s} {front[key]!s:>14s} {fixed[key]!s:>14s}")
+        print(f"{key:32s} {raw[key]!s:>14s} {front[key]!s:>14s} {graph[key]!s:>14s} {fixed[key]!s:>14s}")
     mrpt = mrpt_map_itself() if args.rawlog.resolve() == LOOP.resolve() else {}  # MRPT's map is of this loop
     if mrpt:
         print(f"MRPT's own map of the loop (its {MRPT_MAP.name}, same scans at its SLAM poses): "
@@ -162,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     print(json.dumps({"scans": len(log.scans), "loop_pairs": len(pairs), "loop_pairs_b": len(pairs_b),
                       "match_cpu_s": round(match_cpu, 2),
                       "closures": len(corrected.closures), "raw": raw, "scan_to_map": front,
-                      "corrected": fixed, "mrpt_map": mrpt}))
+                      "pose_graph": graph, "corrected": fixed, "mrpt_map": mrpt}))
     return 0
 
 
