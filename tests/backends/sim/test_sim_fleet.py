@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -17,6 +19,7 @@ from missiontree.backends.sim.fleet import (
     fleet_starts,
     robot_seed,
 )
+from missiontree.backends.sim.render import OTHER_ROBOT_BGR
 from missiontree.backends.sim.world import load_world
 from missiontree.errors import ConfigError
 from missiontree.robot.actions import ActionStatus
@@ -225,3 +228,19 @@ def test_unknown_map_marks_the_other_robot_and_clears_it_once_gone() -> None:
     grid = fleet[0].occupancy()
     assert grid is not None
     assert grid.data[row, col] == 0
+
+
+def test_top_down_picture_draws_the_other_robots(tmp_path: Path) -> None:
+    """A fleet robot's picture shows the other robot in its own colour; a single robot's has none of it."""
+    fleet = _pair(Pose2D(2.5, 2.5, math.pi / 2))
+    fleet[1].drive(0.2, 0.0)
+    fleet.spin_until(3.0)
+    single = create_robot({"world": "conformance"})
+
+    def other_pixels(robot: object, out: Path) -> int:
+        [path] = robot.draw(out, [])  # type: ignore[attr-defined]
+        image = cv2.imread(str(path))
+        return int(np.all(image == np.array(OTHER_ROBOT_BGR), axis=2).sum())
+
+    assert other_pixels(fleet[0], tmp_path / "fleet") > 50
+    assert other_pixels(single, tmp_path / "single") == 0

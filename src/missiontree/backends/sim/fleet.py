@@ -39,6 +39,7 @@ import cv2
 import numpy as np
 
 from missiontree.backends.sim.raycast import CYLINDER, Primitives
+from missiontree.backends.sim.render import Scene, SceneRobot
 from missiontree.backends.sim.robot import SimRobot
 from missiontree.backends.sim.robot_profiles import load_robot_profile
 from missiontree.backends.sim.schema import RobotProfile
@@ -152,6 +153,12 @@ class FleetRobot(SimRobot):
         report["meaning"] += ("; in a fleet another robot's body counts as well (refused_by_robots: "
                               "the physics steps refused for one)")
         return report
+
+    def scene(self) -> Scene:
+        """The single robot's picture, with the other robots' bodies and paths drawn beside its own."""
+        others = [SceneRobot(r.name, r.true_pose, r.profile.body.radius, list(r.trajectory))
+                  for r in self.fleet.robots if r is not self]
+        return dataclasses.replace(super().scene(), others=others)
 
     def _collides(self, pose: Pose2D) -> bool:
         if super()._collides(pose):

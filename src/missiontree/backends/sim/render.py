@@ -33,6 +33,7 @@ _ROOM_TINTS = [(235, 225, 250), (225, 245, 230), (250, 240, 220), (225, 235, 250
 # BGR; people are teal so that they never read as the robot (blue)
 ROBOT_BGR = (200, 90, 20)
 PEOPLE_BGR = (130, 130, 0)
+OTHER_ROBOT_BGR = (150, 60, 160)   # the other robots of a fleet
 GOAL_BGR = (40, 160, 40)
 _MARKER_BGR = {"goal": GOAL_BGR, "detection": (0, 140, 255), "alarm": (30, 30, 220)}
 _OTHER_BGR = (200, 0, 200)
@@ -50,6 +51,16 @@ class SceneObject:
     rgb: tuple[int, int, int]
     footprint: np.ndarray
     label_at: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class SceneRobot:
+    """Another robot of a fleet as drawn: name, true pose now, body radius and path (t, x, y) so far."""
+
+    name: str
+    pose: Pose2D
+    radius: float
+    trajectory: list[tuple[float, float, float]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -89,6 +100,7 @@ class Scene:
     trajectory: list[tuple[float, float, float]] = field(default_factory=list)  # (t, x, y)
     goals: list[Pose2D] = field(default_factory=list)
     learned: OccupancyGrid | None = None
+    others: list[SceneRobot] = field(default_factory=list)   # the other robots of a fleet
 
 
 class _Canvas:
@@ -362,7 +374,25 @@ def _draw_people(canvas: _Canvas, scene: Scene) -> None:
             canvas.label(person.id, (p[0] + max(3, int(0.22 * canvas.scale)) - 4, p[1]), PEOPLE_BGR)
 
 
+def _draw_other_robots(canvas: _Canvas, scene: Scene) -> None:
+    """The other robots of a fleet: thin paths, their bodies and headings, their names."""
+    img = canvas.image
+    for other in scene.others:
+        if len(other.trajectory) > 1:
+            pts = np.array([canvas.px(x, y) for _, x, y in other.trajectory], np.int32)
+            cv2.polylines(img, [pts], False, OTHER_ROBOT_BGR, 1, cv2.LINE_AA)
+        p = canvas.px(other.pose.x, other.pose.y)
+        r = max(3, int(other.radius * canvas.scale))
+        cv2.circle(img, p, r, OTHER_ROBOT_BGR, 2, cv2.LINE_AA)
+        yaw = other.pose.yaw
+        tip = canvas.px(other.pose.x + 0.3 * math.cos(yaw), other.pose.y + 0.3 * math.sin(yaw))
+        cv2.line(img, p, tip, OTHER_ROBOT_BGR, 2, cv2.LINE_AA)
+        canvas.block(p, r + 2)
+        canvas.label(other.name, p, OTHER_ROBOT_BGR)
+
+
 def _draw_robot(canvas: _Canvas, scene: Scene) -> None:
+    _draw_other_robots(canvas, scene)   # under the robot's own path and body
     img = canvas.image
     if len(scene.trajectory) > 1:
         pts = np.array([canvas.px(x, y) for _, x, y in scene.trajectory], np.int32)
