@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import cv2
@@ -246,7 +246,7 @@ class SimFleet:
     def __len__(self) -> int:
         return len(self.robots)
 
-    def __iter__(self):  # noqa: ANN204 - an iterator of FleetRobot
+    def __iter__(self) -> Iterator[FleetRobot]:
         return iter(self.robots)
 
     def __getitem__(self, key: int | str) -> FleetRobot:
