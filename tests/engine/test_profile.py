@@ -192,3 +192,22 @@ def test_the_environment_switches_the_profile_off(monkeypatch: pytest.MonkeyPatc
 def test_a_run_without_cpu_has_no_cost_centres() -> None:
     """A run that ended before using any CPU lists no cost centre (no share of nothing)."""
     assert cost_centres({"run": {"cpu_s": 0.0, "engine_cpu_s": 0.001}, "nodes": {}, "models": {}}) == []
+
+
+def test_a_pending_model_is_built_on_first_use_and_timed_from_then() -> None:
+    """The profile builds no pending role; a role first used mid-run is timed, one never used is not built."""
+    from missiontree.reasoning.models import Models, PendingProvider
+
+    built: list[str] = []
+
+    def make(role: str) -> Any:
+        def build() -> _Detector:
+            built.append(role)
+            return _Detector()
+        return PendingProvider(role, "fake", build)
+
+    models = Models({"detector": make("detector"), "llm": make("llm")})
+    profile = _run(_AsksDetector("ask"), models=models, tick_hz=10, max_duration=0.5)["profile"]
+    assert built == ["detector"]
+    assert profile["models"]["detector"]["calls"] == 5
+    assert "detect" not in vars(models["detector"])

@@ -12,7 +12,8 @@ The NAIS paper reports, for every node of its system, its rate (Hz), CPU share a
 - per model role: ``calls``, ``cpu_s`` and ``latency_ms_p50`` / ``latency_ms_p95``, timed around the
   provider's ``detect`` / ``ask`` / ``chat`` / ``embed`` wherever it is called (a worker thread or the
   tick thread). A provider that calls another (the offline VLM stand-in asks its detector) counts
-  the inner call under the inner role too;
+  the inner call under the inner role too. A role not built yet (a pending provider, built on its
+  first use) is wrapped when it is built: looking its methods up before would build every model;
 - for the run: ``cpu_s`` (the process's CPU from the first tick to the end, all threads), ``wall_s``,
   ``robot_s`` (the robot clock), ``realtime_factor`` (robot seconds per wall second),
   ``cpu_realtime_factor`` (robot seconds per CPU second), ``rss_peak_mb``, ``tick_cpu_s`` (the tick
@@ -39,6 +40,7 @@ from typing import Any
 import py_trees
 
 from missiontree.engine.guards import TRUSTED_TYPES
+from missiontree.engine.node_words import BASE_CLASS
 
 Behaviour = py_trees.behaviour.Behaviour
 RUNNING = py_trees.common.Status.RUNNING
@@ -124,7 +126,8 @@ class RunProfile:
                  models: dict[str, Any] | None = None) -> None:
         self.root = root
         self.path_of = path_of
-        self.models = dict(models or {})
+        # the entries as they stand (a pending provider stays pending: looking it up would build it)
+        self.models = dict(dict.items(models)) if isinstance(models, dict) else dict(models or {})
         self.node_cpu: dict[Behaviour, float] = {}
         self.ticks: Counter[Behaviour] = Counter()
         self.active_s: dict[Behaviour, float] = {}
@@ -137,6 +140,8 @@ class RunProfile:
         self._last_t: float | None = None
         self._wrapped_nodes: list[Behaviour] = []
         self._wrapped_models: list[tuple[Any, str]] = []
+        self._unlisten: list[Callable[[], None]] = []
+        self._seen_models: set[int] = set()
         self._cpu0 = 0.0
         self._wall0 = 0.0
         self._startup_cpu = 0.0
@@ -174,13 +179,18 @@ class RunProfile:
             except AttributeError:
                 pass
         self._wrapped_models.clear()
+        for remove in self._unlisten:
+            remove()
+        self._unlisten.clear()
+        self._seen_models.clear()
         self._attached = False
 
     def _wrap_node(self, node: Behaviour) -> None:
         if node in self.node_cpu:
             return
         self.node_cpu[node] = 0.0
-        if type(node) in TRUSTED_TYPES:  # py_trees' own composites: their little work is the engine's
+        # py_trees' own composites (also when switched to the tick recorder's watching subclass)
+        if getattr(type(node), BASE_CLASS, type(node)) in TRUSTED_TYPES:
             return
         cpu = self.node_cpu
         cls_of = type
@@ -200,22 +210,31 @@ class RunProfile:
         self._wrapped_nodes.append(node)
 
     def _wrap_models(self) -> None:
-        seen: dict[int, str] = {}
         for role in sorted(self.models):
             provider = self.models[role]
-            if role.startswith("_") or provider is None or id(provider) in seen:
+            if role.startswith("_") or provider is None:
                 continue
-            seen[id(provider)] = role
-            stats = self.roles.setdefault(role, _RoleStats())
-            for name in MODEL_METHODS:
-                method = getattr(provider, name, None)
-                if not callable(method):
-                    continue
-                try:
-                    setattr(provider, name, _timed_call(method, stats, self.worker))
-                except (AttributeError, TypeError):  # slots or a frozen provider: not timed
-                    continue
-                self._wrapped_models.append((provider, name))
+            when_built = getattr(provider, "when_built", None)
+            if callable(when_built):  # a pending provider: wrapped when built, on its first use
+                self._unlisten.append(when_built(lambda built, _role=role: self._wrap_model(_role, built)))
+            else:
+                self._wrap_model(role, provider)
+
+    def _wrap_model(self, role: str, provider: Any) -> None:
+        """Time ``provider``'s call methods under ``role`` (once per provider)."""
+        if provider is None or id(provider) in self._seen_models or not self._attached:
+            return
+        self._seen_models.add(id(provider))
+        stats = self.roles.setdefault(role, _RoleStats())
+        for name in MODEL_METHODS:
+            method = getattr(provider, name, None)
+            if not callable(method):
+                continue
+            try:
+                setattr(provider, name, _timed_call(method, stats, self.worker))
+            except (AttributeError, TypeError):  # slots or a frozen provider: not timed
+                continue
+            self._wrapped_models.append((provider, name))
 
     # -- per tick ------------------------------------------------------------------------------
 

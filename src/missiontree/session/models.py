@@ -33,18 +33,25 @@ that fails to *build* (a missing model file, an unset API key, a missing extra) 
 run: its role holds a :class:`BrokenProvider` that raises the reason when used, so a mission that
 needs it fails with the reason in the tick log and a mission that does not runs on.
 ``missiontree models`` shows the same reasons.
+
+Everything above is checked at once, but a role's provider is *built* on its first use: each role
+is a :class:`~missiontree.reasoning.models.PendingProvider` until a leaf (or another role's
+factory) looks it up, so a mission pays only for the models it calls (the patrol never builds the
+offline LLM and its imports). ``build_models(..., lazy=False)`` builds every role at once.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 from missiontree.errors import ConfigError, MissionTreeError, Problem, ProblemsError
 from missiontree.paths import find_config
 from missiontree.reasoning.calls import SETTINGS_KEY, BrokenProvider, CallSettings, LatencyModel
+from missiontree.reasoning.models import Models, PendingProvider, resolve
 from missiontree.session.model_files import config_base, model_file_problems
 from missiontree.yamlio import Located, load_yaml, parse_yaml
 
@@ -75,8 +82,9 @@ def build_models(
     providers: Mapping[str, Any] | None = None,
     seed: int = 0,
     strict: bool | None = None,
+    lazy: bool = True,
 ) -> dict[str, Any]:
-    """Build every role of a models config.
+    """Check a models config whole and wire every role (built on first use unless ``lazy=False``).
 
     Args:
         models: A shipped models config name, a path, or the config as data; default ``offline``.
@@ -84,9 +92,12 @@ def build_models(
         seed: Run seed, handed to factories that want the models (``wants_models``).
         strict: Whether an unknown provider name is a problem of the file (default: when ``models``
             was given); otherwise its role holds a :class:`BrokenProvider` saying so.
+        lazy: Leave each role a :class:`PendingProvider` that builds it on first use (its
+            configuration checked now); False builds them all now.
 
     Returns:
-        Role → provider, plus the :class:`CallSettings` under ``calls.SETTINGS_KEY``.
+        Role → provider (or pending provider), plus the :class:`CallSettings` under
+        ``calls.SETTINGS_KEY``.
 
     Raises:
         ProblemsError: The file is malformed, or names a model file outside its folder and the
@@ -106,11 +117,30 @@ def build_models(
         raise ProblemsError(file_problems)
     roles = {role: {**section, **resolved.get(role, {})} for role, section in roles.items()}
     built: dict[str, Any] = {}
+    view = _Resolved(built)
     for role in _build_order(roles):
         timeout = settings.timeouts.get(role, settings.default_timeout)
-        built[role] = _build_role(role, roles[role], providers, built, seed, timeout)
+        pending = PendingProvider(role, str(roles[role]["provider"]), functools.partial(
+            _build_role, role, roles[role], providers, view, seed, timeout))
+        built[role] = pending if lazy else pending.get()
     built[SETTINGS_KEY] = settings
-    return built
+    return Models(built)  # a pending role is built when looked up
+
+
+class _Resolved(Mapping[str, Any]):
+    """The roles as a factory that wants the models sees them: a role it looks up is built then."""
+
+    def __init__(self, roles: dict[str, Any]) -> None:
+        self._roles = roles
+
+    def __getitem__(self, role: str) -> Any:
+        return resolve(self._roles[role])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._roles)
+
+    def __len__(self) -> int:
+        return len(self._roles)
 
 
 def check_models_config(
