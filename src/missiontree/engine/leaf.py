@@ -31,6 +31,11 @@ from missiontree.engine.faults import clear_fault, error_site, mark_fault
 from missiontree.engine.ports import BlackboardRef, ports_of
 
 Status = py_trees.common.Status
+RUNNING = Status.RUNNING
+INVALID = Status.INVALID
+DEBUG = py_trees.logging.Level.DEBUG
+#: Every status, for py_trees' check of what ``update`` returned (a tuple: equality, like its list).
+STATUSES = tuple(Status)
 
 
 class NoParams(BaseModel):
@@ -75,31 +80,62 @@ class Leaf(py_trees.behaviour.Behaviour):
         """Connect and check; override. ``self.ctx`` is set when a context was given."""
 
     def tick(self) -> Iterator[py_trees.behaviour.Behaviour]:
-        """Tick as py_trees does, turning an exception into FAILURE of this leaf (a fault)."""
-        if self.status != Status.RUNNING:
-            clear_fault(self)
+        """Tick as py_trees does, turning an exception into FAILURE of this leaf (a fault).
+
+        py_trees' ``Behaviour.tick`` inlined (one generator frame a tick fewer), with its debug line
+        formatted only when py_trees logs at debug level and the status checked against a tuple
+        rather than a list of the enum built every tick: the same calls in the same order.
+        """
         try:
-            yield from super().tick()
+            if self.status is not RUNNING:
+                clear_fault(self)
+                if py_trees.logging.level is DEBUG:
+                    self.logger.debug(f"{self.__class__.__name__}.tick()")
+                self.initialise()
+            elif py_trees.logging.level is DEBUG:
+                self.logger.debug(f"{self.__class__.__name__}.tick()")
+            new_status = self.update()
+            if new_status not in STATUSES:
+                self.logger.error(f"A behaviour returned an invalid status, setting to INVALID "
+                                  f"[{new_status}][{self.name}]")
+                new_status = Status.INVALID
+            if new_status is not RUNNING:
+                self.stop(new_status)
+            self.status = new_status
         except Exception as error:  # noqa: BLE001 - a leaf's bug must not kill the mission
             self._fail_on_exception(error)
-            yield self
+        yield self
 
     def stop(self, new_status: Status) -> None:
         """Stop as py_trees does; when halted (INVALID), an exception in terminate() is reported, not raised.
 
         A parent halts its running children from inside its own tick; a cancel that raises must not
         escape into the parent (and from there end the run). Inside this leaf's own tick, stop()
-        keeps raising so that :meth:`tick` turns the error into FAILURE.
+        keeps raising so that :meth:`tick` turns the error into FAILURE. (py_trees' ``stop``
+        inlined: its debug line is formatted only when logged.)
         """
-        if new_status != Status.INVALID:
-            super().stop(new_status)
+        if new_status is not INVALID:
+            if py_trees.logging.level is DEBUG:
+                self._log_stop(new_status)
+            self.terminate(new_status)
+            self.status = new_status
+            self.iterator = self.tick()
             return
         try:
-            super().stop(new_status)
+            if py_trees.logging.level is DEBUG:
+                self._log_stop(new_status)
+            self.terminate(new_status)
+            self.status = new_status
+            self.iterator = self.tick()
         except Exception as error:  # noqa: BLE001 - a failed cancel must not kill the mission
             self._report_error(error)
             self.status = Status.INVALID
             self.iterator = self.tick()
+
+    def _log_stop(self, new_status: Status) -> None:
+        """py_trees' debug line of a stop."""
+        change = f"{self.status}->{new_status}" if self.status != new_status else f"{new_status}"
+        self.logger.debug(f"{self.__class__.__name__}.stop({change})")
 
     def _report_error(self, error: Exception) -> str:
         """Record ``error`` (and where it was raised) as this leaf's feedback; send an ``error`` event.
