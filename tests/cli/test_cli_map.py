@@ -13,12 +13,13 @@ from scipy.ndimage import binary_dilation
 
 from missiontree.backends.sim.world import load_world
 from missiontree.cli.main import main
+from missiontree.mapping import mrpt_datasets
 from missiontree.mapping.mapfile import read_map
 
-DATASETS = Path("/usr/share/mrpt/datasets")
-LOOP = DATASETS / "2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog"
-MALAGA = DATASETS / "2006-MalagaCampus.gridmap.gz"
-MISSING = "MRPT's datasets are not installed: apt-get install -y mrpt-common (or make setup-mrpt)"
+LOOP_FILE = "2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog"
+LOOP = mrpt_datasets.find_dataset(LOOP_FILE) or Path("missing")
+MALAGA = mrpt_datasets.find_dataset("2006-MalagaCampus.gridmap.gz") or Path("missing")
+MISSING = mrpt_datasets.missing_reason(LOOP_FILE)
 
 
 def small_gridmap(path: Path) -> Path:

@@ -9,6 +9,7 @@ import pytest
 
 from missiontree.backends.recorded import RecordedRobot, create_robot
 from missiontree.errors import BackendError, ConfigError
+from missiontree.mapping import mrpt_datasets
 from missiontree.mapping.grid import LogOddsGrid
 from missiontree.mapping.mrpt_rgbd import read_rgbd_frames
 from missiontree.mapping.rawlog import RecordedScan, ScanLog, read_rawlog
@@ -17,10 +18,10 @@ from missiontree.robot.actions import INFRASTRUCTURE, ActionStatus
 from missiontree.robot.interface import Robot
 from missiontree.types import Pose2D
 
-DATASETS = Path("/usr/share/mrpt/datasets")
-LOOP = DATASETS / "2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog"
-RGBD = DATASETS / "tests_rgbd.rawlog"
-MISSING = "MRPT's datasets are not installed: apt-get install -y mrpt-common (or make setup-mrpt)"
+LOOP_FILE = "2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog"
+LOOP = mrpt_datasets.find_dataset(LOOP_FILE) or Path("missing")
+RGBD = mrpt_datasets.find_dataset("tests_rgbd.rawlog") or Path("missing")
+MISSING = mrpt_datasets.missing_reason(LOOP_FILE)
 
 
 def small_log() -> ScanLog:
