@@ -104,14 +104,3 @@ def test_the_nearest_ring_with_a_place_wins():
     far = extent + RADIUS + STANDOFF_REACH
     assert all(math.hypot(*(np.subtract(space.grid.cell_to_world(r, c), (2.0, 2.0)))) <= far + 0.3 + 1e-6
                for r, c, _ in cells)
-
-
-def test_an_object_drawn_as_an_outline_around_an_unseen_middle_can_be_looked_at() -> None:
-    """A chair the lidar drew as an outline with an unknown middle still has places to look at it from."""
-    data = np.zeros((80, 80), dtype=np.int8)
-    data[0, :] = data[-1, :] = data[:, 0] = data[:, -1] = 100
-    data[34:46, 34:46] = 100   # the chair's outline, 0.6 m across ...
-    data[36:44, 36:44] = -1    # ... around a middle never seen
-    space = prepare_space(OccupancyGrid(0.0, RES, Pose2D(0.0, 0.0), data), RADIUS)
-    assert 0.15 <= object_extent(space, (2.0, 2.0)) <= 0.35
-    assert standoff_cells(space, (2.0, 2.0), RADIUS)

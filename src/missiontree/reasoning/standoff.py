@@ -41,8 +41,6 @@ NEAR_WEIGHT = 2.0
 CLEAR_WANTED, CLEAR_WEIGHT = 0.25, 4.0
 #: Extra distance beyond the camera's lower view limit (m): the camera sits ahead of the base's centre.
 VIEW_MARGIN = 0.12
-#: The farthest an object's footprint is taken to reach over unknown cells around its position (m).
-HIDDEN_EXTENT = 0.6
 #: An object whose cell and surroundings (this radius, m) are all unknown is outside the known map.
 KNOWN_RADIUS = 0.5
 
@@ -56,7 +54,6 @@ class Space:
     known: np.ndarray  # bool, cells that are not unknown
     clearance: np.ndarray  # float, metres from each cell to the nearest obstacle
     inside: np.ndarray  # float, metres from each obstacle cell to the nearest free cell
-    hidden: np.ndarray  # float, metres from each obstacle or unknown cell to the nearest known free cell
     costmap: Costmap  # the planner's inflated costmap (path lengths as the navigation stack drives)
 
 
@@ -87,9 +84,8 @@ def prepare_space(grid: OccupancyGrid, robot_radius: float, allow_unknown: bool 
     blocked = occupied | (~known if not allow_unknown else np.zeros_like(occupied))
     clearance = cv2.distanceTransform((~blocked).astype(np.uint8), cv2.DIST_L2, 5) * res
     inside = cv2.distanceTransform(occupied.astype(np.uint8), cv2.DIST_L2, 5) * res
-    hidden = cv2.distanceTransform((occupied | ~known).astype(np.uint8), cv2.DIST_L2, 5) * res
     costmap = Costmap(grid, robot_radius, allow_unknown=allow_unknown)
-    space = Space(grid, occupied, known, clearance, inside, hidden, costmap)
+    space = Space(grid, occupied, known, clearance, inside, costmap)
     if len(_SPACE_CACHE) > 16:
         _SPACE_CACHE.clear()
     _SPACE_CACHE[key] = space
@@ -97,21 +93,12 @@ def prepare_space(grid: OccupancyGrid, robot_radius: float, allow_unknown: bool 
 
 
 def object_extent(space: Space, xy: tuple[float, float]) -> float:
-    """How far the object's footprint reaches from its position (m): 0 when the cell is free.
-
-    On a map learned as the robot goes, a chair or a sofa is often an outline the lidar drew around a
-    middle it never saw: the object's own cell is unknown. Its footprint then reaches to the nearest
-    cell known free (up to :data:`HIDDEN_EXTENT`), so that a look across its own outline is in sight.
-    """
+    """How far the object's footprint reaches from its position (m): 0 when the cell is free."""
     row, col = space.grid.world_to_cell(*xy)
     rows, cols = space.occupied.shape
-    if not (0 <= row < rows and 0 <= col < cols):
+    if not (0 <= row < rows and 0 <= col < cols) or not space.occupied[row, col]:
         return 0.0
-    if space.occupied[row, col]:
-        return float(space.inside[row, col])
-    if not space.known[row, col]:
-        return min(float(space.hidden[row, col]), HIDDEN_EXTENT)
-    return 0.0
+    return float(space.inside[row, col])
 
 
 def standoff_cells(
