@@ -66,7 +66,7 @@ def expanded_crop(
 
 
 def crop_verifier(vlm: Any, growth: float = CROP_GROWTH) -> Callable[[RGBDFrame, Detection], bool | None]:
-    """A verifier for :class:`~missiontree.perception.fusion.InstanceFusion` backed by ``vlm``.
+    """A verifier for :class:`~missiontree.semantics.fusion.InstanceFusion` backed by ``vlm``.
 
     Args:
         vlm: A vision-language model (``ask(images, prompt, schema) -> str``).
