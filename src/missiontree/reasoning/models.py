@@ -78,6 +78,14 @@ class PendingProvider:
         """The built provider (None before it is built)."""
         return self._value
 
+    #: Binding passes through it (``bind_providers`` binds what is marked so): the provider is
+    #: bound when built if it needs the robot.
+    needs_robot = True
+
+    def bind(self, robot: Any) -> None:
+        """Bind the provider to ``robot`` when it is built (``bind_providers`` calls this)."""
+        self.bind_robot(robot)
+
     def bind_robot(self, robot: Any) -> None:
         """Bind the provider to ``robot`` when it is built (at once if it already is)."""
         with self._lock:
@@ -213,12 +221,7 @@ class Models(dict[str, Any]):
         if caller is None:
             caller = ModelCaller.for_context(context, self.settings, events=ForwardEvents(context),
                                              realtime=realtime)
-            bind_providers(self, context.robot)  # the built ones; the pending ones as they are built
-            for role, value in list(dict.items(self)):
-                if isinstance(value, PendingProvider):
-                    value.bind_robot(context.robot)
-                    if value.built:  # built already (another role's factory needed it)
-                        dict.__setitem__(self, role, value.value)
+            bind_providers(self, context.robot)  # the built ones now; the pending ones as they are built
             self[CALLER_KEY] = caller
         context.calls = caller
         return caller
