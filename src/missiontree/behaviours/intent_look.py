@@ -157,10 +157,10 @@ class ArrivalLook(Leaf):
         if found is None:
             return self._look_elsewhere(f"{why} (in {self.looks} frames)")
         wanted = look_for(self.target.label, self.wanted.split())
-        same = [d for d in detections if fold_label(d.label) == fold_label(found.label) and d.score >= 0.5]
-        # Alone of its class in view, the whole frame is asked about; with others beside it, only the
-        # region around it, so that another chair's colour cannot answer for this one.
-        image = self.frame.color if len(same) <= 1 else look_crop(self.frame.color, found.box, grow=LOOK_GROW)
+        # Only the region around the detection is asked about, even when it is the only one of its
+        # class the detector reports: a neighbour it scored below its threshold (a blue chair beside a
+        # red one) would otherwise answer for it, and a wrong object would be served as confirmed.
+        image = look_crop(self.frame.color, found.box, grow=LOOK_GROW)
         self.call = model_caller(self.context).ask(
             "vlm", [image], crop_match_prompt(wanted), CropMatch, node=self.name
         )
