@@ -157,16 +157,13 @@ class ViewCoverage:
 
         A local count (a window of the map, not the whole floor): cheap enough for every re-plan.
         """
-        res = grid.resolution
-        r0, c0 = grid.world_to_cell(*xy)
-        k = int(math.ceil(radius / res))
-        h, w = grid.data.shape
-        rs, re_, cs, ce = max(0, r0 - k), min(h, r0 + k + 1), max(0, c0 - k), min(w, c0 + k + 1)
-        if rs >= re_ or cs >= ce:
+        part = window(grid, xy, radius)
+        if part.data.size == 0:
             return 0.0
-        rr, cc = np.nonzero(free_mask(OccupancyGrid(grid.stamp, res, grid.origin, grid.data[rs:re_, cs:ce])))
-        xs = grid.origin.x + (cc + cs + 0.5) * res
-        ys = grid.origin.y + (rr + rs + 0.5) * res
+        res = part.resolution
+        rr, cc = np.nonzero(free_mask(part))
+        xs = part.origin.x + (cc + 0.5) * res
+        ys = part.origin.y + (rr + 0.5) * res
         near = (xs - xy[0]) ** 2 + (ys - xy[1]) ** 2 <= radius * radius
         if not near.any():
             return 0.0
