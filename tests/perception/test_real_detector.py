@@ -13,6 +13,7 @@ import pytest
 
 from missiontree.mapping.mrpt_datasets import find_dataset, missing_reason
 from missiontree.mapping.mrpt_rgbd import read_rgbd_frames
+from missiontree.perception.detectors import iou_matrix
 from missiontree.perception.projection import project
 from missiontree.perception.providers import create_sim_detector
 from missiontree.perception.stereo import StereoCalibration, disparity_to_depth, stereo_disparity
@@ -28,11 +29,8 @@ MOTORCYCLE = StereoCalibration(focal=994.978, baseline=0.193001, cx=311.193, cy=
 
 
 def iou(a: tuple[float, ...], b: tuple[float, ...]) -> float:
-    """Intersection over union of two (x1, y1, x2, y2) boxes."""
-    w = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
-    h = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
-    inter = w * h
-    return inter / ((a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter)
+    """Intersection over union of two (x1, y1, x2, y2) boxes (the detector's own iou_matrix)."""
+    return float(iou_matrix(np.array([a], float), np.array([b], float))[0, 0])
 
 
 def assert_boxes_in_image(found: list[Detection], width: int, height: int) -> None:
