@@ -74,11 +74,14 @@ def mark_rejected(leaf: Leaf, cand: dict[str, Any], reason: str, kind: RejectKin
         "kind": kind,
     }
     leaf.write("rejected", [*entries, entry])
-    scene = getattr(leaf.ctx, "scene", None)
-    instances = getattr(scene, "map", None)
+    ctx = leaf.ctx
+    instances = ctx.scene.map if ctx is not None and ctx.scene is not None else None
+    # the Scene protocol's map is its reading side; the live semantic map also writes (update)
+    update = getattr(instances, "update", None)
     oid = str(cand.get("id"))
-    if kind == "wrong" and instances is not None and oid in instances and leaf.ctx is not None:
-        instances.update(oid, leaf.ctx.robot.now(), announce=True, reason=reason, doubtful=True)
+    known = instances is not None and oid in instances
+    if kind == "wrong" and ctx is not None and update is not None and known:
+        update(oid, ctx.robot.now(), announce=True, reason=reason, doubtful=True)
     leaf.emit(
         "candidate_rejected",
         object=oid,

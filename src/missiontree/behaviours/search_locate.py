@@ -328,9 +328,8 @@ class Locate(LookExplore):
         stamped = self.context.robot.pose()
         here = (stamped.pose.x, stamped.pose.y) if stamped is not None else (0.0, 0.0)
         options: list[tuple[int, float, dict[str, Any]]] = []
-        scene = getattr(self.ctx, "scene", None)
-        instances = getattr(scene, "map", None)
-        for inst in list(instances) if instances is not None else []:
+        scene = self.ctx.scene if self.ctx is not None else None
+        for inst in list(scene.map) if scene is not None else []:
             if fold_label(inst.label) != fold_label(goal.label):
                 continue
             entry = {
@@ -345,7 +344,7 @@ class Locate(LookExplore):
                 "observations": inst.observations,
             }
             options.append(self._ranked(entry, rejected, here, with_mismatch))
-        for label, x, y in list(getattr(scene, "doubtful", None) or []):
+        for label, x, y in list(scene.doubtful) if scene is not None else []:
             # seen a few times, not made an object (far, oblique, brief): a closer look decides
             if fold_label(label) != fold_label(goal.label):
                 continue
@@ -438,11 +437,10 @@ class Locate(LookExplore):
         """Likelihood of the target beyond a frontier: its room's type and the objects seen near it."""
         if not self.priors:
             return 0.0
-        scene = getattr(self.ctx, "scene", None)
-        instances = getattr(scene, "map", None)
-        seen = [(i.label, i.xy) for i in instances] if instances is not None else []
+        scene = self.ctx.scene if self.ctx is not None else None
+        seen = [(i.label, i.xy) for i in scene.map] if scene is not None else []
         room_type = None
-        for room in getattr(scene, "rooms", None) or []:
+        for room in scene.rooms if scene is not None else []:
             if _inside(room.polygon, frontier.x, frontier.y):
                 room_type = room.type
                 break
