@@ -98,8 +98,25 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--watch", action="store_true",
                         help="reload the mission when its file or an included subtree changes (checked "
                         "first; the tree restarts, the blackboard is kept)")
+    parser.add_argument("--robots", type=robot_number, metavar="N",
+                        help="robots in one simulated world, the mission's tree run once per robot on one "
+                        "clock (default: --set robots=, else run.robots, else 1; docs/fleet.md)")
+    parser.add_argument("--kill-robot", dest="kill_robots", action="append", default=[],
+                        metavar="NAME@S", help="fleet fault injection: kill robot NAME at S seconds "
+                        "(its goals abort as a vanished server's; repeatable)")
     add_plugin_flag(parser)
     parser.set_defaults(func=run)
+
+
+def robot_number(text: str) -> int:
+    """``--robots``' type: a whole number from 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of robots from 1, found {text!r}")
+    return value
 
 
 def run_directory(text: str) -> Path:
@@ -120,7 +137,8 @@ def request_from_args(args: argparse.Namespace) -> MissionRequest:
         config=args.config, seed=args.seed, out=args.out, max_duration=args.max_duration,
         tick_hz=args.tick_hz,
         realtime=args.realtime, params=params, unknown_map=args.unknown_map, quiet=bool(args.quiet),
-        allow_outside=bool(args.allow_outside), plugins=plugins_from_args(args))
+        allow_outside=bool(args.allow_outside), plugins=plugins_from_args(args),
+        robots=getattr(args, "robots", None), kill_robots=list(getattr(args, "kill_robots", None) or []))
 
 
 def run_substituted(request: MissionRequest, rules: list[Rule] | None = None, *,

@@ -54,6 +54,9 @@ class MissionContext:
             once a ``BuildSceneGraph`` leaf has set it up; None before.
         outcome: What the mission did, in its own words, through :meth:`report`: summary.json's
             ``outcome`` section (which object was served and why, what the exploration left, ...).
+        fleet: In a fleet run (``run: robots: N``), what the robots share
+            (:class:`missiontree.engine.fleet.FleetView`: names, losses, one dispatcher); None for
+            a single robot.
     """
 
     robot: Robot
@@ -69,6 +72,7 @@ class MissionContext:
     markers_dropped: int = 0
     outcome: dict[str, Any] = field(default_factory=dict)
     calls: ModelCalls | None = None
+    fleet: Any = None
     _marker_keys: set[tuple[str, str, float, float]] = field(default_factory=set, repr=False)
 
     def report(self, section: str, value: Any) -> None:

@@ -43,6 +43,7 @@ import py_trees
 
 from missiontree.engine.context import MissionContext
 from missiontree.engine.faults import ErrorFrames, fault_of
+from missiontree.engine.fleet import RobotEvents
 from missiontree.engine.guards import TRUSTED_TYPES, guard_exceptions
 from missiontree.engine.node_words import node_paths
 from missiontree.engine.profile import RunProfile
@@ -130,6 +131,8 @@ class Runner:
         profile: Measure where the run's time goes (:mod:`missiontree.engine.profile`): the
             summary's ``profile`` section. None: on unless the environment sets
             ``MISSIONTREE_PROFILE=0`` (to time a mission without it).
+        scopes: A fleet's robots (:mod:`missiontree.engine.fleet`): ``(subtree, context, robot
+            name)``; the subtree's nodes are set up with that context, whose events carry the robot.
     """
 
     def __init__(
@@ -139,6 +142,7 @@ class Runner:
         blackboard: dict[str, Any] | None = None, realtime: bool = False,
         on_tick: Callable[[Runner], None] | None = None,
         final_state: Callable[[], dict[str, Any]] | None = None, profile: bool | None = None,
+        scopes: list[tuple[Behaviour, MissionContext, str]] | None = None,
     ) -> None:
         if not (tick_hz > 0 and math.isfinite(tick_hz)):
             raise ConfigError(f"tick rate must be a positive number of ticks per second, found {tick_hz!r}")
@@ -180,6 +184,7 @@ class Runner:
             profile = setting not in {"0", "false", "no", "off"}
         self.profile_enabled = profile
         self.profiler: RunProfile | None = None
+        self.scopes = list(scopes or [])
 
     # -- pieces --------------------------------------------------------------------------------
 
@@ -199,9 +204,10 @@ class Runner:
         self.log.bind()
         guard_exceptions(self.root, self._on_node_error)
         paths = node_paths(self.root)
+        contexts = self._scope_contexts()
         for node in self.root.iterate():
             try:
-                node.setup(context=self.context)
+                node.setup(context=contexts.get(id(node), self.context))
             except MissionTreeError:
                 raise
             except Exception as error:
@@ -215,6 +221,17 @@ class Runner:
         for key, value in self.blackboard.items():
             py_trees.blackboard.Blackboard.set(key if key.startswith("/") else f"/{key}", value)
         self._set_up = True
+
+    def _scope_contexts(self) -> dict[int, MissionContext]:
+        """Each fleet robot's nodes (by id) to its context, whose events now reach the tick log."""
+        contexts: dict[int, MissionContext] = {}
+        for subtree, context, robot in self.scopes:
+            context.events = RobotEvents(self.context.events, robot)
+            context.run_dir = self.context.run_dir
+            context.realtime = self.realtime
+            for node in subtree.iterate():
+                contexts[id(node)] = context
+        return contexts
 
     def tick(self) -> Status:
         """Tick the tree once, write its log line and return the root's status."""

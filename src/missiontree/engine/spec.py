@@ -44,6 +44,8 @@ class RunSection(BaseModel):
     max_duration: float | None = Field(None, gt=0, description="Stop after this many seconds (robot clock).")
     seed: int | None = Field(None, description="Random seed of the run.")
     realtime: bool | None = Field(None, description="Pace the simulator to wall time.")
+    robots: int | None = Field(None, ge=1, le=16, description="Robots in one world, the tree run once per "
+                               "robot on one clock (as --robots; docs/fleet.md).")
     map: Literal["known", "unknown"] | None = Field(
         None, description="known: the robot is given the world's map; unknown: it starts without one and "
         "learns it from its own lidar (as --unknown-map).")

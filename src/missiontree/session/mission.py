@@ -21,7 +21,7 @@ run's files; the lock goes when the session closes.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -38,6 +38,15 @@ from missiontree.paths import find_config
 from missiontree.plugins.manager import Plugins, load_plugins
 from missiontree.reasoning.models import Models
 from missiontree.robot.envelope import EnvelopedRobot, wrap_robot
+from missiontree.session.fleet import (
+    FleetWiring,
+    Kill,
+    fleet_state,
+    parse_kill,
+    register_fleet_nodes,
+    robot_count,
+    wire_fleet,
+)
 from missiontree.session.models import build_models
 from missiontree.session.preflight import check_references, resolve_mission_path
 from missiontree.session.process import run_span
@@ -80,6 +89,9 @@ class MissionRequest:
         log_stream: Write the tick log here instead of ``<out>/ticks.jsonl``.
         substitute: A substitution rules file (``--substitute``): nodes it matches run as stubs,
             recorded in the tick log and the summary (:mod:`missiontree.engine.substitute`).
+        robots: Robots in one world (``--robots``); two or more run the tree once per robot on one
+            clock (:mod:`missiontree.session.fleet`).
+        kill_robots: Fault injection in a fleet run: ``NAME@SECONDS`` kills that robot then.
     """
 
     mission: Path
@@ -103,6 +115,8 @@ class MissionRequest:
     progress_stream: TextIO | None = None
     log_stream: TextIO | None = None
     substitute: str | os.PathLike[str] | None = None
+    robots: int | None = None
+    kill_robots: Sequence[str] = ()
 
 
 def _pick(flag: Any, from_file: Any, default: Any) -> Any:
@@ -154,6 +168,7 @@ class Session:
         self.result: RunResult | None = None
         self.progress: ProgressLine | None = None
         self.run_claim: RunDirectory | None = None
+        self.fleet: FleetWiring | None = None
         self._closed = False
 
     @classmethod
@@ -178,6 +193,8 @@ class Session:
         request = self.request
         mission = Path(request.mission)
         overrides = dict(request.params or {})  # read and checked against the params' types while loading
+        robots_set = overrides.pop("robots", None)  # --set robots=N is the run setting, as --robots N
+        register_fleet_nodes(self.plugins.nodes)
         self.spec: MissionSpec = load_mission(
             mission, self.plugins.nodes, allow_outside=request.allow_outside, params=overrides)
         # what the mission references (world, robot, waypoint files, the models config and its model
@@ -201,22 +218,21 @@ class Session:
         config = load_run_config(_pick(request.config, run.config, None))
         models_config = _pick(request.models, None if run.models is None  # beside the mission, as checked
                               else resolve_mission_path(mission, run.models), None)
-        self.mission_name = mission.stem
-        self.run_dir: Path | None = None
-        if request.log_stream is None:
-            self.run_dir = Path(request.out) if request.out is not None else Path("runs") / self.mission_name
-        elif request.out is not None:
-            self.run_dir = Path(request.out)
         self.settings: dict[str, Any] = {
             "backend": backend, "seed": seed, "tick_hz": tick_hz, "max_duration": max_duration,
             "realtime": realtime, "unknown_map": unknown_map, "models": models_config, "params": overrides,
         }
-        if self.run_dir is not None:  # checked, locked and cleared before the robot starts
-            self.run_claim = RunDirectory.claim(self.run_dir)
+        robots, kills = self._fleet_size(robots_set)
+        self._claim_run_dir(mission)
 
         self.root = build_tree(self.spec, self.plugins.nodes)
         backend_config = {k: v for k, v in config.items() if k != "safety"}  # the envelope is ours
         self.options = self._robot_options(seed, backend_config, unknown_map)
+        if robots > 1:
+            if rules is not None:
+                raise ConfigError("--substitute is not built for fleet runs (robots > 1) yet")
+            self._wire_fleet(robots, backend, config, models_config, kills)
+            return
         factory = self.plugins.backend(backend)
         self.robot = wrap_robot(factory(self.options), config)  # goals and speeds pass the safety envelope
         self.models = Models(build_models(models_config, providers=self.plugins.providers, seed=seed))
@@ -226,6 +242,40 @@ class Session:
         self._make_runner()
         if rules is not None:  # stubs in place before the first tick; a rule matching nothing is exit 2
             substitute_session(self, rules)
+
+    def _claim_run_dir(self, mission: Path) -> None:
+        """The run directory (``--out``, else ``runs/<mission>``), checked, locked and cleared now."""
+        request = self.request
+        self.mission_name = mission.stem
+        self.run_dir: Path | None = None
+        if request.log_stream is None:
+            self.run_dir = Path(request.out) if request.out is not None else Path("runs") / self.mission_name
+        elif request.out is not None:
+            self.run_dir = Path(request.out)
+        if self.run_dir is not None:  # checked, locked and cleared before the robot starts
+            self.run_claim = RunDirectory.claim(self.run_dir)
+
+    def _fleet_size(self, robots_set: Any) -> tuple[int, list[Kill]]:
+        """The robot count (``--robots``, ``--set robots=``, ``run: robots:``) and the kills asked for."""
+        robots = robot_count(self.request.robots, robots_set, self.spec.run.robots)
+        kills = [parse_kill(k) for k in self.request.kill_robots]
+        if kills and robots < 2:
+            raise ConfigError("--kill-robot needs a fleet (--robots 2 or more)")
+        if robots > 1:
+            self.settings["robots"] = robots
+        return robots, kills
+
+    def _wire_fleet(self, robots: int, backend: str, config: dict[str, Any], models_config: Any,
+                    kills: list[Kill]) -> None:
+        """N robots, the tree once per robot under one root, one clock (:mod:`missiontree.session.fleet`)."""
+        self.models = Models(build_models(models_config, providers=self.plugins.providers,
+                                          seed=self.settings["seed"]))
+        self.fleet = wire_fleet(self, robots, backend, config, self.options, kills)
+        self.robot = self.fleet.clock
+        self.root = self.fleet.root
+        self._make_runner()
+        for _, context, _ in self.fleet.scopes:  # the caller the models bound, shared by every robot
+            context.calls = self.context.calls
 
     def _make_runner(self) -> None:
         """The runner over the built tree and context; then the model services bound, whole.
@@ -239,11 +289,16 @@ class Session:
         self.runner = Runner(
             self.root, self.context, tick_hz=settings["tick_hz"], max_duration=settings["max_duration"],
             run_dir=self.run_dir, mission=self.mission_name, hook=self.plugins.hook, spec=self.spec,
-            blackboard=self.spec.blackboard, realtime=settings["realtime"],
+            blackboard=self.spec.blackboard if self.fleet is None else self.fleet.blackboard,
+            realtime=settings["realtime"],
             handle_signals=request.handle_signals, log_stream=request.log_stream,
             on_tick=self._on_tick if (self.progress is not None or request.on_tick is not None) else None,
-            final_state=self._final_state)
+            final_state=self._final_state, **self._fleet_runner_options())
         self.models.bind(self.context, realtime=settings["realtime"])
+
+    def _fleet_runner_options(self) -> dict[str, Any]:
+        """The runner's per-robot scopes in a fleet run ({} for one robot)."""
+        return {} if self.fleet is None else {"scopes": self.fleet.scopes}
 
     def _robot_options(self, seed: int, config: dict[str, Any], unknown_map: bool) -> dict[str, Any]:
         """The backend factory's options: ``seed``, and ``world``, ``robot``, ``config`` when given.
@@ -285,6 +340,8 @@ class Session:
 
     def _final_state(self) -> dict[str, Any]:
         """The simulator's true final pose and contacts, for the summary (scoring only, unseen by leaves)."""
+        if self.fleet is not None:
+            return fleet_state(self.fleet)
         truth = getattr(self.robot, "truth", None)
         true_pose = getattr(truth, "robot_pose", None)
         if not callable(true_pose):

@@ -38,6 +38,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from missiontree.backends.sim.nav_handle import SimNavHandle
 from missiontree.backends.sim.raycast import CYLINDER, Primitives
 from missiontree.backends.sim.render import Scene, SceneRobot
 from missiontree.backends.sim.robot import SimRobot
@@ -47,8 +48,9 @@ from missiontree.backends.sim.truth import GroundTruth
 from missiontree.backends.sim.world import InstanceInfo, World, load_world
 from missiontree.errors import ConfigError
 from missiontree.mapping.occupancy import BLOCKED_FROM
+from missiontree.robot.actions import INFRASTRUCTURE, ActionResult, ActionStatus, NavFeedback
 from missiontree.robot.sensors import SensorKind
-from missiontree.types import Pose2D
+from missiontree.types import Pose2D, Tolerance
 
 _TIME_EPS = 1e-9
 #: Most robots one simulated world holds (each costs a lidar cast and a camera frame per period).
@@ -136,11 +138,37 @@ class FleetRobot(SimRobot):
         self.inst = fleet.instance_ids[index]
         #: Physics steps whose move was refused because it pushed into another robot's body.
         self.robot_refusals = 0
+        #: Why the robot was killed (:meth:`kill`), "" while it lives.
+        self.killed = ""
+        self.last_goal: LosableHandle | None = None
         super().__init__(world, profile, seed=seed, name=name, unknown_map=unknown_map, sensors=sensors)
 
     def spin_until(self, t: float) -> None:
         """Advance the whole fleet until the clock reaches ``t`` (the robots share one world)."""
         self.fleet.spin_until(t)
+
+    def kill(self, reason: str = "killed") -> None:
+        """Fault injection: the robot dies where it stands (an obstacle still), its machinery gone.
+
+        Its goals (the running one and any later) end ABORTED with an
+        :data:`~missiontree.robot.actions.INFRASTRUCTURE` result, and its pose is no longer
+        updated: what a robot whose navigation server vanished looks like to its leaves.
+        """
+        if self.killed:
+            return
+        self.killed = reason
+        if self.last_goal is not None:
+            self.last_goal.lose(reason)
+        self.close()
+
+    def navigate_to(self, goal: Pose2D, tolerance: Tolerance | None = None) -> LosableHandle:  # type: ignore[override]
+        """As the single robot, the handle reporting the loss once the robot is killed."""
+        if self.killed:
+            handle = LosableHandle(None)
+            handle.lose(self.killed)
+            return handle
+        self.last_goal = LosableHandle(super().navigate_to(goal, tolerance))
+        return self.last_goal
 
     def dynamic_primitives(self, t: float) -> Primitives:
         """People at ``t`` and every other robot's body where it is now."""
@@ -167,6 +195,49 @@ class FleetRobot(SimRobot):
             self.robot_refusals += 1
             return True
         return False
+
+
+class LosableHandle:
+    """A fleet robot's goal: the simulator's handle until the robot is killed, then a lost server's.
+
+    A goal still running when its robot is killed (or sent after) reads ABORTED with an
+    :data:`~missiontree.robot.actions.INFRASTRUCTURE` result; a goal that ended before keeps its end.
+    """
+
+    def __init__(self, inner: SimNavHandle | None) -> None:
+        self.inner = inner
+        self._lost: ActionResult | None = None
+
+    def lose(self, reason: str) -> None:
+        """The robot died: a goal not yet ended now reads ABORTED (INFRASTRUCTURE)."""
+        if self._lost is None and (self.inner is None or not self.inner.status().done):
+            self._lost = ActionResult(ActionStatus.ABORTED, f"robot lost: {reason}", 0, kind=INFRASTRUCTURE)
+
+    def _check(self) -> ActionResult | None:
+        return self._lost
+
+    def status(self) -> ActionStatus:
+        """The simulator's status, or ABORTED once the robot is lost mid-goal."""
+        lost = self._check()
+        if lost is not None or self.inner is None:
+            return ActionStatus.ABORTED
+        return self.inner.status()
+
+    def feedback(self) -> NavFeedback | None:
+        """The simulator's feedback (None for a goal the lost robot never took)."""
+        return None if self.inner is None else self.inner.feedback()
+
+    def result(self) -> ActionResult | None:
+        """The simulator's result, or the lost server's."""
+        lost = self._check()
+        if lost is not None or self.inner is None:
+            return lost
+        return self.inner.result()
+
+    def cancel(self) -> None:
+        """Cancel the simulator's goal (nothing to cancel once lost)."""
+        if self.inner is not None:
+            self.inner.cancel()
 
 
 @dataclasses.dataclass
@@ -279,6 +350,10 @@ class SimFleet:
             self._note_separation()
             for robot in live:
                 robot.step_sensing()
+
+    def kill(self, name: str, reason: str = "killed") -> None:
+        """Kill robot ``name`` (fault injection, :meth:`FleetRobot.kill`); the others go on."""
+        self[name].kill(reason)
 
     def close(self) -> None:
         """Close every robot."""

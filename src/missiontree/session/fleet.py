@@ -1,0 +1,211 @@
+"""A fleet run: the simulator's N robots, the mission's tree once per robot, one clock (docs/fleet.md).
+
+The session calls :func:`wire_fleet` instead of building one robot when the robot count
+(``--robots N``, ``--set robots=N`` for a mission declaring that parameter, or ``run: robots: N``)
+is two or more. It builds :func:`~missiontree.backends.sim.fleet.create_fleet`, each robot inside
+the run configuration's safety envelope, the tree once per robot (each copy's blackboard keys under
+``/<robot>/``, ``/fleet/`` shared), one :class:`~missiontree.engine.context.MissionContext` per robot
+(its own robot; the models, markers, outcome and :class:`~missiontree.engine.fleet.FleetView`
+shared), and hangs the copies under a :class:`~missiontree.engine.fleet.FleetRoot`. The runner ticks
+that root on the :class:`FleetClock`.
+
+Fault injection for tests and the benchmark: ``kills`` (``--kill-robot robot2@120``) kill a robot
+at a time on the fleet's clock (:meth:`~missiontree.backends.sim.fleet.FleetRobot.kill`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from missiontree.backends.sim.fleet import MAX_ROBOTS, SimFleet, create_fleet
+from missiontree.engine.build import build_tree
+from missiontree.engine.context import MissionContext
+from missiontree.engine.fleet import FleetRoot, FleetView, RobotScope, namespace_tree
+from missiontree.errors import ConfigError
+from missiontree.robot.envelope import EnvelopedRobot, wrap_robot
+from missiontree.types import Marker
+
+__all__ = ["FleetClock", "FleetWiring", "Kill", "parse_kill", "robot_count", "wire_fleet"]
+
+#: Fleet node types the session makes known when the plugin list does not name them yet.
+FLEET_NODE_TYPES = {"FleetPatrol": "missiontree.behaviours.fleet_patrol:FleetPatrol"}
+
+
+@dataclass(frozen=True)
+class Kill:
+    """Kill robot ``robot`` when the fleet's clock reaches ``at`` seconds (fault injection)."""
+
+    robot: str
+    at: float
+
+
+def parse_kill(text: str) -> Kill:
+    """``robot2@120`` → Kill("robot2", 120.0); ConfigError on anything else."""
+    robot, sep, at = text.partition("@")
+    try:
+        when = float(at)
+    except ValueError:
+        when = math.nan
+    if not sep or not robot.strip() or not math.isfinite(when) or when < 0:
+        raise ConfigError(f"--kill-robot expects NAME@SECONDS (e.g. robot2@120), found {text!r}")
+    return Kill(robot.strip(), when)
+
+
+def robot_count(flag: int | None, from_set: Any, from_file: int | None) -> int:
+    """The run's robot count: ``--robots``, else ``--set robots=N``, else ``run: robots:``, else 1.
+
+    ``robots`` is a run setting, not a mission parameter: ``--set robots=3`` means ``--robots 3``.
+    """
+    value: Any = flag
+    if value is None and from_set is not None:
+        value = from_set.strip() if isinstance(from_set, str) else from_set
+        if isinstance(value, str) and value.isdigit():
+            value = int(value)
+    if value is None:
+        value = from_file
+    if value is None:
+        return 1
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_ROBOTS:
+        raise ConfigError(f"robots: expected a whole number from 1 to {MAX_ROBOTS}, found {value!r}")
+    return value
+
+
+class FleetClock:
+    """What the runner drives in a fleet run: the fleet's one clock, stop, close and picture.
+
+    It is no robot for leaves (they each get their own); ``pose()`` is None so the summary's
+    ``final_pose`` stays out, and each robot's end is in the summary's ``fleet`` section.
+    """
+
+    simulated = True
+    name = "fleet"
+
+    def __init__(self, fleet: SimFleet, robots: list[Any], kills: list[Kill]) -> None:
+        self.fleet = fleet
+        self.robots = robots
+        self.truth = fleet.truth
+        names = set(fleet.names)
+        for kill in kills:
+            if kill.robot not in names:
+                raise ConfigError(f"--kill-robot {kill.robot}: no such robot; "
+                                  f"robots: {', '.join(fleet.names)}")
+        self.kills = sorted(kills, key=lambda k: k.at)
+        #: Kills done: {"robot", "t"}.
+        self.killed: list[dict[str, Any]] = []
+
+    def now(self) -> float:
+        """The fleet's simulated time (s)."""
+        return self.fleet.now()
+
+    def spin_until(self, t: float) -> None:
+        """Advance every robot to ``t``, killing robots whose time has come on the way."""
+        while self.kills and self.kills[0].at <= t:
+            kill = self.kills.pop(0)
+            self.fleet.spin_until(kill.at)
+            self.fleet.kill(kill.robot, f"killed at {kill.at:g} s (--kill-robot)")
+            self.killed.append({"robot": kill.robot, "t": self.fleet.now()})
+        self.fleet.spin_until(t)
+
+    def pose(self) -> None:
+        """No single pose: each robot's is in the summary's ``fleet`` section."""
+        return None
+
+    def stop(self) -> None:
+        """Stop every robot."""
+        for robot in self.robots:
+            robot.stop()
+
+    def close(self) -> None:
+        """Close every robot."""
+        self.fleet.close()
+
+    def draw(self, out_dir: Path, markers: list[Marker]) -> list[Path]:
+        """The first robot's top-down picture, which draws the other robots and their paths too."""
+        return list(self.fleet.robots[0].draw(out_dir, markers))
+
+
+class _LateEvents:
+    """An event sink that forwards to whatever ``context.events`` is when an event comes."""
+
+    def __init__(self, context: MissionContext) -> None:
+        self.context = context
+
+    def emit(self, event: str, /, **fields: Any) -> None:
+        """Forward to the context's current sink."""
+        self.context.events.emit(event, **fields)
+
+
+@dataclass
+class FleetWiring:
+    """What :func:`wire_fleet` built: the clock, the root, the per-robot scopes and the shared view."""
+
+    clock: FleetClock
+    root: FleetRoot
+    view: FleetView
+    scopes: list[tuple[Any, MissionContext, str]]
+    blackboard: dict[str, Any]
+
+
+def wire_fleet(session: Any, count: int, backend: str, config: dict[str, Any],
+               options: dict[str, Any], kills: list[Kill]) -> FleetWiring:
+    """Build the fleet, its trees and contexts for ``session`` (a Session; its ``root`` is the first copy).
+
+    Raises:
+        ConfigError: A backend other than the simulator, a bad count or kill, no room in the world.
+    """
+    if backend != "sim":
+        raise ConfigError(f"robots: {count} runs on the simulator only for now (backend {backend!r}); "
+                          f"ROS 2 namespaces per robot are not built yet (docs/fleet.md)")
+    fleet = create_fleet(options.get("world") or "office", robots=count, seed=options.get("seed", 0),
+                         robot=options.get("robot"), config=options.get("config"),
+                         unknown_map=bool(options.get("unknown_map")), sensors=options.get("sensors"))
+    robots = [wrap_robot(r, config) for r in fleet.robots]
+    clock = FleetClock(fleet, robots, kills)
+    view = FleetView(list(fleet.names), fleet.now)
+    markers: list[Marker] = []
+    outcome: dict[str, Any] = {}
+    seed = options.get("seed", 0)
+    session.context = MissionContext(robot=clock, models=session.models, config=config,  # type: ignore[arg-type]
+                                     seed=seed, markers=markers, outcome=outcome, fleet=view)
+    view.events = _LateEvents(session.context)
+    scopes: list[tuple[Any, MissionContext, str]] = []
+    blackboard = dict(session.spec.blackboard)
+    for i, (name, robot) in enumerate(zip(fleet.names, robots, strict=True)):
+        tree = session.root if i == 0 else build_tree(session.spec, session.plugins.nodes)
+        namespace_tree(tree, name)
+        context = MissionContext(robot=robot, models=session.models, config=config, seed=seed,
+                                 markers=markers, outcome=outcome, fleet=view)
+        if isinstance(robot, EnvelopedRobot):
+            robot.emit = _LateEvents(context).emit
+        scopes.append((RobotScope(name, tree), context, name))
+        for key, value in session.spec.blackboard.items():
+            blackboard[f"/{name}/{key.lstrip('/')}"] = value
+    by_name = dict(zip(fleet.names, robots, strict=True))
+    root = FleetRoot([scope for scope, _, _ in scopes], view, stop_robot=lambda n: by_name[n].stop())
+    return FleetWiring(clock, root, view, [(s, c, n) for s, c, n in scopes], blackboard)
+
+
+def fleet_state(wiring: FleetWiring) -> dict[str, Any]:
+    """The summary's ``fleet`` section: each robot's end, loss, events and truth; the dispatchers."""
+    truth = wiring.clock.truth.report()
+    ends = wiring.root.robot_report()
+    robots: dict[str, Any] = {}
+    for _, context, name in wiring.scopes:
+        entry = dict(ends.get(name, {}))
+        entry["events"] = dict(sorted(getattr(context.events, "counts", {}).items()))
+        entry["truth"] = truth["robots"].get(name)
+        robots[name] = entry
+    dispatchers = {key: obj.report() for key, obj in wiring.view.shared_items() if hasattr(obj, "report")}
+    return {"fleet": {"robots": robots, "count": len(robots), "lost": sorted(wiring.view.lost),
+                      "killed": list(wiring.clock.killed), "min_separation": truth["min_separation"],
+                      "dispatchers": dispatchers}}
+
+
+def register_fleet_nodes(registry: Any) -> None:
+    """Make the fleet node types known to ``registry`` when the built-in plugin does not list them."""
+    for name, target in FLEET_NODE_TYPES.items():
+        if name not in registry:
+            registry.add_lazy(name, target)
