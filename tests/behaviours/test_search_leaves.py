@@ -1,4 +1,7 @@
-"""The search leaves each alone on the simulator: full turn, colour mapper, approach, verify."""
+"""The search leaves each alone on the simulator: full turn, colour mapper, locate.
+
+The approach and the confirmation are in test_approach_confirm.py.
+"""
 
 from __future__ import annotations
 
@@ -11,7 +14,6 @@ from typing import Any
 import pytest
 import yaml
 
-from missiontree.behaviours.search_approach import view_height
 from missiontree.reasoning.search_priors import parse_target, region_score, room_priors
 from missiontree.session import MissionRequest, Session
 
@@ -132,65 +134,6 @@ def test_colour_attention_fails_when_the_colour_covers_too_little(tmp_path: Path
     assert status == "FAILURE" and not of(events, "colour_attention")
 
 
-def test_approach_ends_at_a_standoff_pose_facing_the_object(tmp_path: Path) -> None:
-    """From 3 m off and turned away, the approach ends within 1 m of the backpack and facing it."""
-    world = room(tmp_path, (1.0, 1.0, math.pi), [backpack("red_bag", "red", RED)])
-    candidate = {"id": "backpack_1", "label": "backpack", "colour": "red", "x": 3.7, "y": 2.2, "z": 0.2}
-    status, events, final = run(
-        tmp_path,
-        world,
-        {"Approach": {"name": "approach"}},
-        blackboard={"search_candidate": candidate},
-        max_duration=120,
-    )
-    assert status == "SUCCESS"
-    distance = math.hypot(RED[0] - final.x, RED[1] - final.y)
-    assert distance < 1.0
-    assert abs(math.degrees(final.bearing_to(*RED))) < 12.0
-    assert of(events, "approach_step")
-
-
-def test_verify_rejects_a_decoy_of_the_same_class_in_another_colour(tmp_path: Path) -> None:
-    """Facing a blue backpack, "red backpack" is not confirmed: FAILURE, the candidate marked rejected."""
-    world = room(tmp_path, (3.0, 2.5, 0.0), [backpack("blue_bag", "blue", RED)])
-    candidate = {
-        "id": "backpack_1",
-        "label": "backpack",
-        "colour": "unknown",
-        "x": RED[0],
-        "y": RED[1],
-        "z": 0.2,
-    }
-    status, events, _ = run(
-        tmp_path,
-        world,
-        {"Verify": {"name": "verify", "target": "red backpack"}},
-        blackboard={"search_candidate": candidate},
-        max_duration=40,
-    )
-    assert status == "FAILURE"
-    rejected = of(events, "candidate_rejected")
-    assert rejected and rejected[0]["object"] == "backpack_1" and "blue" in rejected[0]["reason"]
-    assert not of(events, "object_found")
-
-
-def test_verify_confirms_the_right_object_beside_a_decoy(tmp_path: Path) -> None:
-    """The red backpack with a blue one in the same view: confirmed on the red one's detection."""
-    world = room(
-        tmp_path, (3.0, 3.3, 0.0), [backpack("red_bag", "red", RED), backpack("blue_bag", "blue", BLUE)]
-    )
-    candidate = {"id": "backpack_1", "label": "backpack", "colour": "red", "x": RED[0], "y": RED[1], "z": 0.2}
-    status, events, _ = run(
-        tmp_path,
-        world,
-        {"Verify": {"name": "verify", "target": "red backpack"}},
-        blackboard={"search_candidate": candidate},
-        max_duration=40,
-    )
-    assert status == "SUCCESS"
-    assert of(events, "object_found")[0]["id"] == "backpack_1"
-
-
 def test_the_target_phrase_and_the_room_priors() -> None:
     """The phrase "red backpack" reads as class and colour; a cup is likelier near a refrigerator."""
     target = parse_target("the red backpack", ["backpack", "cup", "person"])
@@ -241,83 +184,3 @@ def test_locate_takes_a_candidate_from_a_loaded_scene_graph_before_exploring(tmp
     picked = of(events, "search_candidate")[0]
     assert (picked["id"], picked["source"]) == ("bp_red", "scene graph")
     assert not of(events, "explore_goal")
-
-
-def test_approach_then_verify_confirms_an_object_believed_beyond_where_it_stands(tmp_path: Path) -> None:
-    """A belief half a metre beyond the backpack (as fused over a network): still found, not rejected.
-
-    The standoff pose must let the camera see the object's lower part: chosen for its centre,
-    the robot stood so close to the real backpack that the detector saw a laptop, and Verify
-    rejected the right object (the ROS 2 search's flaky failure).
-    """
-    world = room(tmp_path, (1.0, 2.5, 0.0), [backpack("red_bag", "red", RED)])
-    candidate = {
-        "id": "backpack_1",
-        "label": "backpack",
-        "colour": "red",
-        "x": RED[0] + 0.5,
-        "y": RED[1],
-        "z": 0.2,
-        "height": 0.45,
-    }
-    root = {
-        "Sequence": {
-            "name": "approach_verify",
-            "memory": True,
-            "children": [
-                {"Approach": {"name": "approach"}},
-                {"Verify": {"name": "verify", "target": "red backpack"}},
-            ],
-        }
-    }
-    status, events, final = run(
-        tmp_path, world, root, blackboard={"search_candidate": candidate}, max_duration=120
-    )
-    assert status == "SUCCESS", [e.get("reason") for e in of(events, "candidate_rejected")]
-    assert not of(events, "candidate_rejected")
-    assert of(events, "object_found")[0]["id"] == "backpack_1"
-    assert math.hypot(RED[0] - final.x, RED[1] - final.y) > 0.6
-
-
-def test_view_height_is_the_candidates_bottom() -> None:
-    """The camera must see the lower quarter: centre less a quarter of the height, else half the centre."""
-    assert view_height({"z": 0.2, "height": 0.4}) == pytest.approx(0.1)
-    assert view_height({"z": 0.1, "height": 0.8}) == 0.0
-    assert view_height({"z": 0.8}) == pytest.approx(0.4)
-    assert view_height({"z": float("nan"), "height": 0.2}) == 0.0
-
-
-def test_a_goal_aborted_short_counts_as_reached_only_within_reach_of_the_candidate() -> None:
-    """Stopped just short of the standoff pose but beyond ``reach`` of the object: not reached.
-
-    On a half-learned map a standoff pose can turn out to hug an obstacle; the stack aborts a few
-    decimetres short. Counted as reached, the search ended 1.05 m from a bottle (past what a
-    search counts as reached); now another pose is tried.
-    """
-    from missiontree.behaviours.search_approach import Approach
-    from missiontree.types import Pose2D, PoseStamped
-
-    leaf = Approach("approach", Approach.Params(reach=1.0))
-    leaf.cand = {"id": "bottle_2", "label": "bottle", "x": 9.13, "y": 1.53}
-    assert leaf._within_reach(PoseStamped(0.0, Pose2D(8.41, 2.36, 0.0))) is False  # 1.10 m away
-    assert leaf._within_reach(PoseStamped(0.0, Pose2D(8.63, 2.12, 0.0))) is True   # 0.77 m away
-    assert leaf._within_reach(None) is False
-    report = Approach("approach", Approach.Params(mode="box_area"))
-    assert report._within_reach(PoseStamped(0.0, Pose2D(0.0, 0.0, 0.0))) is True  # the report's steps
-
-
-def test_approach_gives_a_candidate_up_when_the_searchs_time_runs_out_on_the_way(tmp_path: Path) -> None:
-    """A candidate whose deadline passes while the robot drives to it is rejected as unreached, in time."""
-    world = room(tmp_path, (1.0, 1.0, math.pi), [backpack("red_bag", "red", RED)])
-    candidate = {"id": "backpack_1", "label": "backpack", "colour": "red", "x": 3.7, "y": 2.2, "z": 0.2}
-    status, events, final = run(
-        tmp_path,
-        world,
-        {"Approach": {"name": "approach"}},
-        blackboard={"search_candidate": {**candidate, "deadline": 3.0}},
-        max_duration=120,
-    )
-    assert status == "FAILURE"
-    rejected = of(events, "candidate_rejected")
-    assert rejected and rejected[-1]["kind"] == "unreached" and "time ran out" in rejected[-1]["reason"]
-    assert max(e.get("t", 0.0) for e in events if "t" in e) < 10.0

@@ -8,6 +8,9 @@
 - :mod:`~missiontree.behaviours.commands`: ServeCommands (a child run once per user command).
 - :mod:`~missiontree.behaviours.intent`: GoToIntent (go where the user means).
 - :mod:`~missiontree.behaviours.search`: ScanRotate, ColourAttention, Locate, Approach, Verify (search).
+- :mod:`~missiontree.behaviours.approach_steps`: PlanStandoff, DriveToStandoff, FaceTarget, and
+  :mod:`~missiontree.behaviours.confirm_steps`: PlaceByDepth, LookFor, ConfirmTarget (the steps of
+  ``trees/subtrees/approach_confirm.yaml``).
 """
 
 from __future__ import annotations
@@ -20,7 +23,9 @@ if TYPE_CHECKING:
 
 def register_nodes(registry: NodeRegistry) -> None:
     """Add the behaviour leaves to ``registry`` (listed in missiontree.plugins.builtin.NODE_MODULES)."""
+    from missiontree.behaviours.approach_steps import DriveToStandoff, FaceTarget, PlanStandoff
     from missiontree.behaviours.commands import SERVE_COMMANDS
+    from missiontree.behaviours.confirm_steps import ConfirmTarget, LookFor, PlaceByDepth
     from missiontree.behaviours.explore import Explore
     from missiontree.behaviours.intent import GoToIntent
     from missiontree.behaviours.motion import NavigateTo, Rotate
@@ -46,3 +51,5 @@ def register_nodes(registry: NodeRegistry) -> None:
     registry.add(LookAgain)
     for search_leaf in (ScanRotate, ColourAttention, ResumeExplore, Locate, Approach, Verify):
         registry.add(search_leaf)
+    for step in (PlanStandoff, DriveToStandoff, FaceTarget, PlaceByDepth, LookFor, ConfirmTarget):
+        registry.add(step)

@@ -58,6 +58,12 @@ LAZY_NODE_TYPES: dict[str, str] = {
     "Locate": "missiontree.behaviours.search:Locate",
     "Approach": "missiontree.behaviours.search:Approach",
     "Verify": "missiontree.behaviours.search:Verify",
+    "PlanStandoff": "missiontree.behaviours.approach_steps:PlanStandoff",
+    "DriveToStandoff": "missiontree.behaviours.approach_steps:DriveToStandoff",
+    "FaceTarget": "missiontree.behaviours.approach_steps:FaceTarget",
+    "PlaceByDepth": "missiontree.behaviours.confirm_steps:PlaceByDepth",
+    "LookFor": "missiontree.behaviours.confirm_steps:LookFor",
+    "ConfirmTarget": "missiontree.behaviours.confirm_steps:ConfirmTarget",
 }
 
 #: Modules whose ``register_providers(providers)`` adds built-in model providers.

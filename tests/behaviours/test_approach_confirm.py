@@ -1,0 +1,146 @@
+"""The shared approach-and-confirm steps on the simulator, each a node: plan, drive, face, place, look."""
+
+from __future__ import annotations
+
+import math
+import threading
+from pathlib import Path
+from typing import Any
+
+import pytest
+from test_search_leaves import RED, backpack, of, room, run
+
+from missiontree.behaviours.approach_steps import DriveToStandoff, view_height
+from missiontree.behaviours.background import Background
+from missiontree.types import Pose2D, PoseStamped
+
+BLUE = (4.0, 4.2)
+APPROACH_CONFIRM = {"Include": {"file": "subtrees/approach_confirm.yaml",
+                                "params": {"target": "red backpack"}}}
+STEPS = ("plan_standoff", "drive", "face", "place_by_depth", "look_for", "confirm")
+
+
+def look_confirm(frames: int = 3) -> dict[str, Any]:
+    """LookFor then ConfirmTarget in a Retry of ``frames`` looks, as the subtree has them."""
+    steps = [{"LookFor": {"name": "look_for", "target": "red backpack"}},
+             {"ConfirmTarget": {"name": "confirm", "target": "red backpack"}}]
+    return {"Retry": {"name": "confirm_looks", "attempts": frames,
+                      "child": {"Sequence": {"name": "look_confirm", "memory": True, "children": steps}}}}
+
+
+def approach(max_attempts: int = 3) -> dict[str, Any]:
+    """The subtree's approach steps alone, in their Retry."""
+    steps = [{"PlanStandoff": {"name": "plan_standoff"}}, {"DriveToStandoff": {"name": "drive"}},
+             {"FaceTarget": {"name": "face"}}, {"PlaceByDepth": {"name": "place_by_depth"}}]
+    return {"Retry": {"name": "approach", "attempts": max_attempts,
+                      "child": {"Sequence": {"name": "approach_step", "memory": True, "children": steps}}}}
+
+
+def nodes_that_ran(events: list[dict[str, Any]]) -> set[str]:
+    """The last path element of every node whose status changed in the tick log."""
+    return {c["node"].rsplit("/", 1)[-1] for e in of(events, "tick") for c in e.get("changed", [])}
+
+
+def test_the_approach_steps_end_at_a_standoff_pose_facing_the_object(tmp_path: Path) -> None:
+    """From 3 m off and turned away, plan/drive/face/place end within 1 m of the backpack and facing it."""
+    world = room(tmp_path, (1.0, 1.0, math.pi), [backpack("red_bag", "red", RED)])
+    candidate = {"id": "backpack_1", "label": "backpack", "colour": "red", "x": 3.7, "y": 2.2, "z": 0.2}
+    status, events, final = run(tmp_path, world, approach(), blackboard={"search_candidate": candidate},
+                                max_duration=120)
+    assert status == "SUCCESS"
+    assert math.hypot(RED[0] - final.x, RED[1] - final.y) < 1.0
+    assert abs(math.degrees(final.bearing_to(*RED))) < 12.0
+    assert of(events, "approach_step")
+
+
+def test_a_decoy_of_the_same_class_in_another_colour_is_rejected_after_every_look(tmp_path: Path) -> None:
+    """Facing a blue backpack, "red backpack" is not confirmed in 3 looks: FAILURE, rejected once."""
+    world = room(tmp_path, (3.0, 2.5, 0.0), [backpack("blue_bag", "blue", RED)])
+    candidate = {"id": "backpack_1", "label": "backpack", "colour": "unknown", "x": RED[0], "y": RED[1],
+                 "z": 0.2}
+    board = {"search_candidate": candidate, "looks": []}
+    status, events, _ = run(tmp_path, world, look_confirm(), blackboard=board, max_duration=40)
+    assert status == "FAILURE"
+    rejected = of(events, "candidate_rejected")
+    assert len(rejected) == 1 and rejected[0]["object"] == "backpack_1" and "blue" in rejected[0]["reason"]
+    assert "in 3 frames" in rejected[0]["reason"]
+    assert not of(events, "object_found")
+
+
+def test_the_right_object_beside_a_decoy_is_confirmed_on_its_own_detection(tmp_path: Path) -> None:
+    """The red backpack with a blue one in the same view: confirmed on the red one's detection."""
+    bags = [backpack("red_bag", "red", RED), backpack("blue_bag", "blue", BLUE)]
+    world = room(tmp_path, (3.0, 3.3, 0.0), bags)
+    candidate = {"id": "backpack_1", "label": "backpack", "colour": "red", "x": RED[0], "y": RED[1], "z": 0.2}
+    board = {"search_candidate": candidate, "looks": []}
+    status, events, _ = run(tmp_path, world, look_confirm(), blackboard=board, max_duration=40)
+    assert status == "SUCCESS"
+    assert of(events, "object_found")[0]["id"] == "backpack_1"
+
+
+def test_the_subtree_confirms_an_object_believed_beyond_where_it_is_each_step_a_node(tmp_path: Path) -> None:
+    """A belief half a metre beyond the backpack: found, not rejected; every step shows in the tick log.
+
+    The standoff pose must let the camera see the object's lower part: chosen for its centre, the
+    robot stood so close to the real backpack that the detector saw a laptop and the right object
+    was rejected.
+    """
+    world = room(tmp_path, (1.0, 2.5, 0.0), [backpack("red_bag", "red", RED)])
+    candidate = {"id": "backpack_1", "label": "backpack", "colour": "red", "x": RED[0] + 0.5, "y": RED[1],
+                 "z": 0.2, "height": 0.45}
+    status, events, final = run(tmp_path, world, APPROACH_CONFIRM, blackboard={"search_candidate": candidate},
+                                max_duration=120)
+    assert status == "SUCCESS", [e.get("reason") for e in of(events, "candidate_rejected")]
+    assert not of(events, "candidate_rejected")
+    assert of(events, "object_found")[0]["id"] == "backpack_1"
+    assert math.hypot(RED[0] - final.x, RED[1] - final.y) > 0.6
+    assert set(STEPS) <= nodes_that_ran(events)
+
+
+def test_a_candidate_whose_time_runs_out_on_the_way_is_given_up_as_unreached(tmp_path: Path) -> None:
+    """A deadline passing while the robot drives: rejected once as unreached; the approach ends in time."""
+    world = room(tmp_path, (1.0, 1.0, math.pi), [backpack("red_bag", "red", RED)])
+    candidate = {"id": "backpack_1", "label": "backpack", "colour": "red", "x": 3.7, "y": 2.2, "z": 0.2,
+                 "deadline": 3.0}
+    status, events, _ = run(tmp_path, world, APPROACH_CONFIRM, blackboard={"search_candidate": candidate},
+                            max_duration=120)
+    assert status == "FAILURE"
+    rejected = of(events, "candidate_rejected")
+    assert len(rejected) == 1 and rejected[0]["kind"] == "unreached"
+    assert "time ran out" in rejected[0]["reason"]
+    assert max(e.get("t", 0.0) for e in events if "t" in e) < 10.0
+    assert "look_for" not in nodes_that_ran(events)
+
+
+def test_view_height_is_the_candidates_bottom() -> None:
+    """The camera must see the lower quarter: centre less a quarter of the height, else half the centre."""
+    assert view_height({"z": 0.2, "height": 0.4}) == pytest.approx(0.1)
+    assert view_height({"z": 0.1, "height": 0.8}) == 0.0
+    assert view_height({"z": 0.8}) == pytest.approx(0.4)
+    assert view_height({"z": float("nan"), "height": 0.2}) == 0.0
+
+
+def test_a_goal_aborted_short_counts_as_reached_only_within_reach_of_the_candidate() -> None:
+    """Stopped just short of the standoff pose but beyond ``reach`` of the object: not reached.
+
+    Counted as reached, the search once ended 1.05 m from a bottle (past what a search counts as
+    reached); now another pose is tried.
+    """
+    leaf = DriveToStandoff("drive", DriveToStandoff.Params(reach=1.0))
+    leaf.cand = {"id": "bottle_2", "label": "bottle", "x": 9.13, "y": 1.53}
+    assert leaf.within_reach(PoseStamped(0.0, Pose2D(8.41, 2.36, 0.0))) is False  # 1.10 m away
+    assert leaf.within_reach(PoseStamped(0.0, Pose2D(8.63, 2.12, 0.0))) is True   # 0.77 m away
+    assert leaf.within_reach(None) is False
+
+
+def test_a_background_job_is_awaited_only_when_asked_to() -> None:
+    """With ``wait`` the first poll returns the result; without, a poll before the job ends says not done."""
+    assert Background(lambda x: x + 1, 1, wait=True).poll() == (True, 2, "")
+    release = threading.Event()
+    job = Background(lambda: 7 if release.wait(timeout=30) else -1)
+    assert job.poll() == (False, None, "")  # the job waits for the event: a poll never blocks
+    release.set()
+    job.wait = True
+    assert job.poll() == (True, 7, "")
+    done, result, error = Background(lambda: 1 / 0, wait=True).poll()
+    assert done and result is None and "ZeroDivisionError" in error
