@@ -185,3 +185,38 @@ def test_ranking_on_the_window_offers_the_same_goals_and_measures_paths_on_the_w
         [v for c in whole for v in (c.x, c.y, *c.target)])
     assert [c.gain_m2 for c in cut] == pytest.approx([c.gain_m2 for c in whole])
     assert cut and shapes and all(s[0] * s[1] <= 80 * 80 for s in shapes)
+
+
+def long_room(pocket: bool = True, closet: bool = False) -> np.ndarray:
+    """A known walled room 30 x 3 m; a 0.7 x 0.7 m unknown pocket in its west corner, or a closet off it.
+
+    The closet (1.2 x 1.3 m, its walls seen from outside) lies north of the room's west end, behind
+    a 0.9 m doorway.
+    """
+    data = np.full((45, 300), 100, np.int8)
+    data[1:30, 1:299] = 0
+    if pocket:
+        data[1:8, 1:8] = -1                # seen by no beam (0.49 m^2)
+        data[8, 1:5] = 100                 # a cabinet's side, open towards the east
+    if closet:
+        data[31:43, 10:23] = -1            # the closet's inside, never seen
+        data[30, 12:21] = 0                # its doorway (0.9 m) in the room's north wall
+    return data
+
+
+def test_a_small_pocket_far_from_the_robot_is_left_as_a_sliver_and_counted() -> None:
+    """A 0.5 m^2 pocket 25 m away is no trip: not offered, kept as a sliver with its area."""
+    p = planner("gain", min_frontier_m=0.5, min_unknown_m2=1.0, min_gain_m2=1.0)
+    assert p.candidates(grid(long_room()), (25.0, 1.5)) == []
+    assert len(p.slivers) == 1 and p.slivers[0].unknown_m2 == pytest.approx(0.49, abs=0.01)
+    assert p.sliver_area() == pytest.approx(0.49, abs=0.01)
+    near = planner("gain", min_frontier_m=0.5, min_unknown_m2=1.0, min_gain_m2=1.0)
+    assert near.candidates(grid(long_room()), (2.0, 1.5)) and near.slivers == []  # on the robot's way
+
+
+def test_a_small_room_behind_a_doorway_far_away_is_still_worth_a_trip() -> None:
+    """A 1.6 m^2 closet behind a 0.9 m doorway 25 m away is offered: the body fits through and in."""
+    p = planner("gain", min_frontier_m=0.5, min_unknown_m2=1.0, min_gain_m2=1.0)
+    offered = p.candidates(grid(long_room(pocket=False, closet=True)), (25.0, 1.5))
+    assert offered and 1.0 < offered[0].target[0] < 2.3 and offered[0].target[1] > 2.5
+    assert p.slivers == []

@@ -25,9 +25,10 @@ given up as closed that the map opens again later is tried again (up to ``max_at
 With ``look_around`` the robot turns a full circle at each goal reached, in ``look_steps`` steps
 with a pause at each (the report's 360° scan), by ``drive`` commands.
 
-Ends SUCCESS ("explored") only when no reachable frontier (or unvisited scan point) remains and
-no frontier was given up open. When some were (the map still shows a way to a frontier the robot
-could not get to), the exploration is *partial*: FAILURE (or SUCCESS with
+Ends SUCCESS ("explored") only when no reachable frontier worth a trip (or unvisited scan point)
+remains and no frontier was given up open; the reason names the small unknown slivers left (the
+planner's ``slivers``: count and m^2). When some were given up open (the map still shows a way to
+a frontier the robot could not get to), the exploration is *partial*: FAILURE (or SUCCESS with
 ``partial_is_success``) whose reason starts with ``partial:`` and names each such frontier (its
 position and why it was left) and the unknown area left behind them (m^2). FAILURE with a reason
 also when no map arrives within ``map_timeout`` or the robot is stuck (neither the known area grew
@@ -41,11 +42,11 @@ gets ``explore_complete`` and ``unexplored`` (the frontiers left).
 Leaves built on Explore (the search's ``ResumeExplore`` and ``Locate``) use its public interface:
 :meth:`Explore.planner_options` and :meth:`Explore.make_planner` (the planner a run uses),
 :meth:`Explore.select_goal` (choose and send the next goal), the hooks :meth:`Explore.on_goal_reached`,
-:meth:`Explore.on_give_up`, :meth:`Explore.goal_still_wanted` (drop a goal in hand whose place was
-seen on the way), :meth:`Explore.wants_look` and :meth:`Explore.on_look_done` (a full turn at a goal
-and what it showed), :meth:`Explore.on_goal_failed` (a goal of the subclass's own kind that failed),
-:meth:`Explore.reset_progress` (restart the stuck timer after the robot moved under a subclass's
-control), :meth:`Explore.summary` and :func:`known_area`.
+:meth:`Explore.on_give_up`, :meth:`Explore.goal_still_wanted` (drop a goal in hand whose place was seen on
+the way), :meth:`Explore.wants_look` and :meth:`Explore.on_look_done` (a full turn at a goal and what it
+showed), :meth:`Explore.on_goal_failed` (a goal of the subclass's own kind that failed),
+:meth:`Explore.reset_progress` (restart the stuck timer after the robot moved under a subclass's control),
+:meth:`Explore.summary` and :func:`known_area`.
 """
 
 from __future__ import annotations
@@ -55,7 +56,13 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Field
 
-from missiontree.behaviours.explore_report import exploration_report, known_area, save_exploration
+from missiontree.behaviours.explore_report import (
+    exploration_report,
+    known_area,
+    partial_text,
+    save_exploration,
+    slivers_text,
+)
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Output
 from missiontree.mapping.exploration import Candidate, ExplorationPlanner, LeftOpen
@@ -106,8 +113,8 @@ class Explore(Leaf):
             "nav_padding_cells cells of the map (the simulator's navigator: 0.27 m at 5 cm, 0.23 m at 3 cm).")
         nav_body_radius: float = Field(0.17, gt=0, description="The robot body's radius (m; TurtleBot 4).")
         nav_padding_cells: float = Field(
-            2.0, ge=0, description="Cells of the map the navigation pads the body with (the default "
-            "nav_footprint_radius).")
+            1.0, ge=0, description="Cells of the map the navigation pads the body with where it must (the "
+            "default nav_footprint_radius; the simulator's navigator passes one-cell-padded gaps).")
         xy_tolerance: float = Field(0.3, gt=0, description="Distance at which a goal counts as reached (m).")
         replan_period: float = Field(
             2.0, gt=0, description="Re-evaluate the goal this often while driving (s).")
@@ -295,21 +302,15 @@ class Explore(Leaf):
                 self.left = left
         if not candidates:
             self.outcome = "explored" if self.left is None else "partial"
-            return self.succeed(f"explored: no reachable {self._what()} remains ({self.summary(grid)})")
+            what = f"no reachable {self._what()} worth a trip remains"
+            return self.succeed(f"explored: {what} ({self.summary(grid)})")
         self._send(now, candidates[0])
         return self.running(self._feedback(pose))
 
     def partial_text(self, grid: OccupancyGrid, left: list[LeftOpen]) -> str:
         """'partial: N frontiers left ... at (x, y) (why) ...; about A m^2 unknown behind them (summary)'."""
         assert self.planner is not None
-        area = self.planner.unknown_behind(grid, [o.candidate.target for o in left])
-        where = "; ".join(f"({o.candidate.target[0]:.2f}, {o.candidate.target[1]:.2f}): {o.entry.reason}"
-                          for o in left[:5])
-        more = f"; and {len(left) - 5} more" if len(left) > 5 else ""
-        n = len(left)
-        return (f"partial: {n} frontier{'s' if n > 1 else ''} left unexplored though the map shows a way "
-                f"({where}{more}); about {area:.1f} m^2 unknown behind "
-                f"{'them' if n > 1 else 'it'} ({self.summary(grid)})")
+        return partial_text(self.planner, grid, left, self.summary(grid))
 
     def on_goal_reached(self, goal: Candidate) -> None:
         """Called when the robot reached ``goal`` (before any look-around); nothing here."""
@@ -367,7 +368,7 @@ class Explore(Leaf):
             text += f", {closed} unreachable"
         if opened:
             text += f", {opened} given up open"
-        return text
+        return text + slivers_text(self.planner)
 
     # -- states ------------------------------------------------------------------------------------
 

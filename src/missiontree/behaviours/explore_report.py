@@ -38,10 +38,15 @@ def exploration_report(planner: ExplorationPlanner | None, outcome: str, goals: 
             left = [{"x": round(c.target[0], 3), "y": round(c.target[1], 3),
                      "reason": "not explored yet"} for c in offered]
             unknown_left = planner.unknown_behind(grid, [c.target for c in offered])
+    slivers = [] if planner is None else planner.slivers
     return {
         "outcome": outcome, "complete": outcome == "explored",
         "known_m2": round(known_area(grid), 3),
         "goals": goals, "frontiers_left": left, "unknown_left_m2": round(unknown_left, 2),
+        "slivers_left": [{"x": round(s.candidate.target[0], 3), "y": round(s.candidate.target[1], 3),
+                          "unknown_m2": round(s.unknown_m2, 2), "gain_m2": round(s.candidate.gain_m2, 2),
+                          "path_m": round(s.candidate.path_m, 1)} for s in slivers],
+        "slivers_m2": round(0.0 if planner is None else planner.sliver_area(), 2),
         "given_up": [] if planner is None else [
             {"x": round(b.x, 3), "y": round(b.y, 3), "reason": b.reason, "proved_closed": b.proved_closed}
             for b in planner.blacklist],
@@ -60,7 +65,8 @@ def save_exploration(leaf: Any, grid: OccupancyGrid, report: dict[str, Any]) -> 
     ctx = leaf.ctx
     if ctx is not None and report["outcome"] in ("explored", "partial"):
         ctx.report("exploration", {**{k: report[k] for k in (
-            "outcome", "complete", "known_m2", "unknown_left_m2")},
+            "outcome", "complete", "known_m2", "unknown_left_m2", "slivers_m2")},
+            "slivers_left": len(report["slivers_left"]),
             "frontiers_left": report["frontiers_left"][:20], "text": said(report)})
     run_dir = ctx.run_dir if ctx is not None else None
     if run_dir is None:
@@ -76,7 +82,11 @@ def save_exploration(leaf: Any, grid: OccupancyGrid, report: dict[str, Any]) -> 
 def said(report: dict[str, Any]) -> str:
     """How the exploration ended, in a line for the run's result (summary.json's outcome text)."""
     if report["outcome"] == "explored":
-        return f"explored: no reachable frontier left ({report['known_m2']:.0f} m^2 known)"
+        n = len(report["slivers_left"])
+        small = (f"; {n} small unknown sliver{'s' if n != 1 else ''} left as not worth a trip, "
+                 f"{report['slivers_m2']:.1f} m^2") if n else ""
+        return (f"explored: no reachable frontier worth a trip left ({report['known_m2']:.0f} m^2 "
+                f"known{small})")
     left = report["frontiers_left"]
     return (f"exploration partial: {len(left)} frontier(s) left though the map shows a way, about "
             f"{report['unknown_left_m2']:.0f} m^2 unknown behind them ({report['known_m2']:.0f} m^2 known; "
@@ -86,3 +96,27 @@ def said(report: dict[str, Any]) -> str:
 def known_area(grid: OccupancyGrid) -> float:
     """Area of the map's known cells, free or occupied (m^2)."""
     return float(np.count_nonzero(~unknown_mask(grid))) * grid.resolution ** 2
+
+
+def slivers_text(planner: ExplorationPlanner | None) -> str:
+    """', 3 small unknown slivers left (1.2 m^2)' for the slivers the planner's last ranking left; or ''.
+
+    The frontiers not worth a trip (:meth:`ExplorationPlanner._worth_trip`) are said, not dropped
+    silently: "explored" then names how much small unknown it left.
+    """
+    if planner is None or not planner.slivers:
+        return ""
+    n = len(planner.slivers)
+    return f", {n} small unknown sliver{'s' if n != 1 else ''} left ({planner.sliver_area():.1f} m^2)"
+
+
+def partial_text(planner: ExplorationPlanner, grid: OccupancyGrid, left: list[LeftOpen], summary: str) -> str:
+    """'partial: N frontiers left ... at (x, y) (why) ...; about A m^2 unknown behind them (summary)'."""
+    area = planner.unknown_behind(grid, [o.candidate.target for o in left])
+    where = "; ".join(f"({o.candidate.target[0]:.2f}, {o.candidate.target[1]:.2f}): {o.entry.reason}"
+                      for o in left[:5])
+    more = f"; and {len(left) - 5} more" if len(left) > 5 else ""
+    n = len(left)
+    return (f"partial: {n} frontier{'s' if n > 1 else ''} left unexplored though the map shows a way "
+            f"({where}{more}); about {area:.1f} m^2 unknown behind "
+            f"{'them' if n > 1 else 'it'} ({summary})")

@@ -175,6 +175,21 @@ class LeftOpen:
     candidate: Candidate
 
 
+@dataclass(frozen=True)
+class Sliver:
+    """A reachable frontier left as not worth a trip: a small enclosed unknown pocket, far for its gain.
+
+    Attributes:
+        candidate: The goal that would have been offered for it.
+        region: Label of its unknown region in the ranking's map (pockets sharing one count once).
+        unknown_m2: Area of that unknown region (m^2).
+    """
+
+    candidate: Candidate
+    region: int
+    unknown_m2: float
+
+
 @dataclass
 class ExplorationPlanner(FrontierGoals):
     """Ranks exploration goals on a learned map; keeps the blacklist and the scan points visited.
@@ -220,6 +235,14 @@ class ExplorationPlanner(FrontierGoals):
         window_margin_m: Unknown margin (m) kept round the known cells' box (:meth:`window`).
         window_step_m: The window's edges are snapped outwards to this step (m), so that it changes
             seldom (the costmap kept between calls starts over when it does).
+        room_m2: For ``gain``, a frontier onto an unknown region at least this large (m^2; or one
+            open to the unseen rest of the map) is always worth a trip: a room, or a room's part.
+        door_m: ... and so is one at least this long (m) onto a region of ``closet_m2`` or more
+            that the body fits into (a doorway onto a small room: a closet, a WC).
+        worth_m2_per_m: Other frontiers (pockets behind furniture, slivers along walls, corners) are
+            worth a trip only when they reveal this much (m^2) per metre of path; the rest are
+            left as *slivers* (:attr:`slivers`), counted and named when the exploration ends.
+        slivers: The frontiers the last ranking left as not worth a trip (:meth:`candidates`).
     """
 
     strategy: str = "gain"
@@ -249,9 +272,14 @@ class ExplorationPlanner(FrontierGoals):
     path_lengths: PathLengths = field(default_factory=KeptCostmapLengths)
     window_margin_m: float = 1.0
     window_step_m: float = 2.0
+    room_m2: float = 4.0
+    door_m: float = 0.6
+    closet_m2: float = 1.0
+    worth_m2_per_m: float = 0.2
     blacklist: list[Blacklisted] = field(default_factory=list)
     visited: list[tuple[float, float]] = field(default_factory=list)
     failures: list[Blacklisted] = field(default_factory=list)
+    slivers: list[Sliver] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
@@ -310,6 +338,7 @@ class ExplorationPlanner(FrontierGoals):
                 return self.candidates(grid, robot_xy)
             finally:
                 self.blacklist = kept
+        self.slivers = []
         out = self._ranked(grid, robot_xy)
         if out or self.strategy == "scan_points":
             return out
@@ -367,17 +396,50 @@ class ExplorationPlanner(FrontierGoals):
         if not reachable:
             return []
         xy = np.array([[p[0], p[1]] for p, _ in reachable], np.float64)
-        gains = visible_unknown_area(self.close_wall_gaps(raw, self.gain_gap_m), xy, self.sensor_range,
+        gapped = self.close_wall_gaps(raw, self.gain_gap_m)
+        gains = visible_unknown_area(gapped, xy, self.sensor_range,
                                      self.gain_beams) if kind == "frontier" else np.zeros(len(reachable))
+        regions = _Regions(gapped, self.nav_radius) if self.strategy == "gain" else None
         out = []
         for (p, length), gain in zip(reachable, gains, strict=True):
             if self.strategy == "gain" and gain < self.min_gain_m2:
                 continue
             failed = len(self.tries((p[3], p[4]))) if kind == "frontier" and self.failures else 0
-            out.append(Candidate(p[0], p[1], kind, int(p[2]), float(gain), float(length),
-                                 self._score(float(gain), float(length), int(p[2]), failed), (p[3], p[4])))
+            c = Candidate(p[0], p[1], kind, int(p[2]), float(gain), float(length),
+                          self._score(float(gain), float(length), int(p[2]), failed), (p[3], p[4]))
+            if regions is not None and not self._worth_trip(c, regions, grid.resolution):
+                continue
+            out.append(c)
         out.sort(key=lambda c: (-c.score, c.path_m, c.x, c.y))
         return out
+
+    def _worth_trip(self, c: Candidate, regions: _Regions, resolution: float) -> bool:
+        """Whether frontier ``c`` is worth a trip (``gain``); a frontier that is not is kept as a sliver.
+
+        Worth it: a frontier onto unknown open to the unseen rest of the map or at least ``room_m2``
+        large (a room or a room's part); one at least ``door_m`` long onto a region of ``closet_m2``
+        the body fits into (a doorway onto a small room); else one revealing ``worth_m2_per_m`` per
+        metre of path (a pocket behind furniture, a sliver along a wall: on the robot's way, or never).
+        """
+        label, area, fits = regions.behind(c.target)
+        if area >= self.room_m2 or (fits and area >= self.closet_m2 and c.size * resolution >= self.door_m):
+            return True
+        if c.gain_m2 >= self.worth_m2_per_m * max(c.path_m, 1.0):
+            return True
+        if not any(math.dist(s.candidate.target, c.target) < 1e-6 for s in self.slivers):
+            self.slivers.append(Sliver(c, label, area))  # the small pass meets it again
+        return False
+
+    def sliver_area(self) -> float:
+        """Unknown area (m^2) of the regions behind the slivers the last ranking left (each region once)."""
+        seen: dict[int, float] = {}
+        loose = 0.0
+        for s in self.slivers:
+            if s.region == 0:
+                loose += s.candidate.gain_m2
+            else:
+                seen[s.region] = s.unknown_m2
+        return loose + sum(seen.values())
 
     def _score(self, gain: float, path: float, size: int, failed: int = 0) -> float:
         if self.strategy == "gain":
@@ -392,13 +454,14 @@ class ExplorationPlanner(FrontierGoals):
         if self.reach_radius is not None:
             self.footprint_radius = max(kept, self.reach_radius)
         blacklist, self.blacklist = self.blacklist, []
+        slivers = self.slivers   # those of the robot's own ranking stay
         try:
             out = self.candidates(grid, robot_xy)
             if out and self.strategy != "scan_points":  # the small ones too: they may be blacklisted
                 out += self.small_candidates(grid, robot_xy)
             return out
         finally:
-            self.footprint_radius, self.blacklist = kept, blacklist
+            self.footprint_radius, self.blacklist, self.slivers = kept, blacklist, slivers
 
     def reachable(self, grid: OccupancyGrid, robot_xy: tuple[float, float],
                   target: tuple[float, float]) -> bool:
@@ -498,3 +561,38 @@ class ExplorationPlanner(FrontierGoals):
             return best.score > margin * current.score
         # nearest and scan points keep their goal until it is reached, seen or given up
         return False
+
+
+class _Regions:
+    """The unknown regions of one ranking's map: each one's area, whether it is open, whether the body fits.
+
+    ``grid`` is the map with the gain gaps closed (the holes a lidar leaves in walls do not join a
+    pocket to the outside). A region touching the map's edge is open (the unseen rest of the map).
+    """
+
+    def __init__(self, grid: OccupancyGrid, body_radius: float) -> None:
+        self.grid = grid
+        unknown = grid.data < 0
+        self.labels, n = ndimage.label(unknown, structure=ndimage.generate_binary_structure(2, 1))
+        cell = grid.resolution ** 2
+        self.area = np.bincount(self.labels.ravel(), minlength=n + 1).astype(np.float64) * cell
+        lab = self.labels
+        edge = np.unique(np.concatenate([lab[0], lab[-1], lab[:, 0], lab[:, -1]]))
+        self.area[edge[edge > 0]] = np.inf
+        occupied = occupied_mask(grid)
+        clearance = cv2.distanceTransform((~occupied).astype(np.uint8), cv2.DIST_L2, 5) * grid.resolution
+        self.fits = np.zeros(n + 1, bool)
+        if n:
+            best = ndimage.maximum(clearance, self.labels, np.arange(1, n + 1))
+            self.fits[1:] = np.asarray(best) >= body_radius
+
+    def behind(self, target: tuple[float, float], reach: int = 2) -> tuple[int, float, bool]:
+        """(label, area m^2, body fits) of the largest unknown region within ``reach`` cells of ``target``."""
+        r, c = self.grid.world_to_cell(*target)
+        h, w = self.labels.shape
+        box = self.labels[max(0, r - reach): min(h, r + reach + 1), max(0, c - reach): min(w, c + reach + 1)]
+        found = [int(v) for v in np.unique(box) if v]
+        if not found:
+            return 0, 0.0, False
+        label = max(found, key=lambda v: self.area[v])
+        return label, float(self.area[label]), bool(self.fits[found].any())
