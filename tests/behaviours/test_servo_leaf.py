@@ -159,3 +159,22 @@ def test_servo_with_a_broken_detector_gives_up_with_its_error() -> None:
     assert leaf.status == Status.FAILURE
     assert "target lost" in leaf.feedback_message and "the model file is corrupt" in leaf.feedback_message
     assert robot.drives[-1] == (0.0, 0.0)
+
+
+def test_servo_asks_the_detector_to_band_its_mirror_pass_on_people(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The servo tracks people only, so its detection jobs name 'person' for the detector's mirror band."""
+    import missiontree.behaviours.servo as servo_module
+
+    asked: list[object] = []
+    real = servo_module.detection_job
+
+    def recording(detector, frame, mirror=None, band_labels=None):  # noqa: ANN001, ANN202
+        asked.append(band_labels)
+        return real(detector, frame, mirror=mirror, band_labels=band_labels)
+
+    monkeypatch.setattr(servo_module, "detection_job", recording)
+    robot = FakeRobot()
+    post_alarm(math.radians(20))
+    leaf, _ = make(robot)
+    run(robot, leaf, (1.2 * math.cos(math.radians(20)), 1.2 * math.sin(math.radians(20))), 1.0)
+    assert asked and all(labels == ("person",) for labels in asked)

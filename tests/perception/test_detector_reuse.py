@@ -90,3 +90,15 @@ def test_a_frame_asked_with_and_without_the_mirror_pass_runs_its_single_pass_onc
     assert len(runs) == 2 and detector.passes == {"single": 1, "mirror": 1}
     fresh = YoloOnnxDetector(model, recent=0).detect(image, mirror=True)
     assert [(d.label, d.score, d.box) for d in mirrored] == [(d.label, d.score, d.box) for d in fresh]
+
+
+def test_the_offline_vlm_person_check_mirrors_only_for_a_person_in_the_band(tmp_path: Path) -> None:
+    """A cup in the band does not buy the offline VLM's person check a mirror pass; a person does."""
+    from missiontree.reasoning.offline_vlm import OfflineVisionModel
+
+    for scores, mirrored in (([0.0, 0.5], 0), ([0.5, 0.0], 1)):
+        out = yolo_output([(20, 20, 8, 8, scores)], 2)
+        model = constant_yolo_model(tmp_path / f"m{mirrored}.onnx", out, names=NAMES)
+        detector = YoloOnnxDetector(model, test_time_flip=True, flip_band=(0.3, 0.7), score_threshold=0.1)
+        OfflineVisionModel(detector).surveillance(np.zeros((32, 64, 3), dtype=np.uint8))
+        assert detector.passes == {"single": 1, "mirror": mirrored}

@@ -308,6 +308,34 @@ def test_a_caller_can_ask_for_or_skip_the_mirror_pass_on_one_frame(tmp_path: Pat
     assert [(d.label, d.box) for d in single] == [(d.label, d.box) for d in again]
 
 
+def _band_detector(tmp_path: Path, scores: list[float]) -> YoloOnnxDetector:
+    model = constant_yolo_model(tmp_path / "m.onnx", yolo_output([(20, 20, 8, 8, scores)], 2), names=NAMES)
+    return YoloOnnxDetector(model, test_time_flip=True, flip_band=(0.3, 0.7), score_threshold=0.1)
+
+
+def test_band_labels_skip_the_mirror_pass_for_a_band_candidate_of_another_class(tmp_path: Path) -> None:
+    """A cup scoring 0.5 is in the band, but a caller deciding on people gets the single pass."""
+    detector = _band_detector(tmp_path, [0.0, 0.5])
+    detector.detect(_image(), band_labels=("person",))
+    assert detector.passes == {"single": 1, "mirror": 0}
+    detector.detect(_image())  # every class: the cup pays for the mirror pass (the single pass remembered)
+    assert detector.passes == {"single": 1, "mirror": 1}
+
+
+def test_band_labels_keep_the_mirror_pass_for_a_band_candidate_of_their_class(tmp_path: Path) -> None:
+    """A person scoring 0.5 is in the band: a caller deciding on people still gets the mirror pass."""
+    detector = _band_detector(tmp_path, [0.5, 0.0])
+    detector.detect(_image(), band_labels=("person",))
+    assert detector.passes == {"single": 1, "mirror": 1}
+
+
+def test_band_labels_ask_nothing_of_an_explicit_mirror_choice(tmp_path: Path) -> None:
+    """mirror=True still mirrors, whatever the labels: the band is only consulted when mirror is None."""
+    detector = _band_detector(tmp_path, [0.0, 0.9])
+    detector.detect(_image(), mirror=True, band_labels=("person",))
+    assert detector.passes == {"single": 1, "mirror": 1}
+
+
 def test_decoding_keeps_only_candidates_above_the_threshold_in_either_mode() -> None:
     """Low candidates are dropped before the finite check; kept ones are as before, multi-label too."""
     rows_in = [(10, 10, 4, 4, [0.9, 0.2]), (30, 30, 4, 4, [0.1, 0.05]), (50, 50, 4, 4, [0.4, 0.6])]

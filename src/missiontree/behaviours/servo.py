@@ -130,9 +130,10 @@ class ServoToTarget(Leaf):
         fresh = frame is not None and now - frame.stamp <= self.params.max_frame_age
         if frame is not None and fresh and frame.stamp > self.last_frame and self.detecting is None:
             self.last_frame = frame.stamp
+            # it tracks people only: a banded mirror pass is worth running for a person candidate only
+            job = detection_job(self.context.model("detector"), frame, band_labels=("person",))
             call = model_caller(self.context).submit(  # the role's timeout; only failures are logged
-                "detector", detection_job(self.context.model("detector"), frame), node=self.name,
-                log_success=False)
+                "detector", job, node=self.name, log_success=False)
             self.detecting = (call, frame)
         if seen is not None:
             frame, person, bearing_then = seen

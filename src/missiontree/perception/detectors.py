@@ -159,13 +159,21 @@ def _unusable(det: Any, width: int, height: int) -> str:
     return ""
 
 
-def detect_checked(detector: Any, image: np.ndarray) -> list[Detection]:
+def detect_checked(
+    detector: Any, image: np.ndarray, band_labels: Sequence[str] | None = None,
+) -> list[Detection]:
     """``detector.detect(image)`` with its answer checked (:func:`checked_detections`).
 
     Dropped detections are not an error (one bad box must not hide the good ones); they are logged.
+    ``band_labels``: the classes the caller decides on, for a detector whose mirror pass is banded
+    (:class:`YoloOnnxDetector`); other detectors ignore it.
     """
     name = getattr(detector, "name", type(detector).__name__)
-    kept, dropped = checked_detections(detector.detect(image), image.shape[1], image.shape[0], str(name))
+    if band_labels is not None and isinstance(detector, YoloOnnxDetector):
+        found = detector.detect(image, band_labels=tuple(band_labels))
+    else:
+        found = detector.detect(image)
+    kept, dropped = checked_detections(found, image.shape[1], image.shape[0], str(name))
     if dropped:
         _log_dropped(dropped)
     return kept
@@ -173,6 +181,7 @@ def detect_checked(detector: Any, image: np.ndarray) -> list[Detection]:
 
 def detection_job(
     detector: Any, frame: RGBDFrame, mirror: bool | None = None,
+    band_labels: Sequence[str] | None = None,
 ) -> Callable[[], list[Detection]]:
     """The blocking work of detecting in ``frame``, to be submitted as a model call.
 
@@ -181,12 +190,15 @@ def detection_job(
     ``prepare_frame(frame)``; the returned function does the rest on a worker and checks the answer.
     ``mirror`` asks a detector with a mirror pass (:class:`YoloOnnxDetector`) for it (True) or for
     the single pass only (False); None, and other detectors, detect as configured.
+    ``band_labels`` (with ``mirror`` None) names the classes the caller decides on: the mirror
+    pass's band is tested on their candidates only (see :meth:`YoloOnnxDetector.detect`).
     """
     prepare = getattr(detector, "prepare_frame", None)
     if callable(prepare):
         work: Callable[[], Any] = prepare(frame)
-    elif mirror is not None and isinstance(detector, YoloOnnxDetector):
-        work = lambda: detector.detect(frame.color, mirror=mirror)  # noqa: E731
+    elif (mirror is not None or band_labels is not None) and isinstance(detector, YoloOnnxDetector):
+        labels = None if band_labels is None else tuple(band_labels)
+        work = lambda: detector.detect(frame.color, mirror=mirror, band_labels=labels)  # noqa: E731
     else:
         work = lambda: detector.detect(frame.color)  # noqa: E731
     name = str(getattr(detector, "name", type(detector).__name__))
@@ -449,7 +461,9 @@ class YoloOnnxDetector:
                   dtype=dtype, casting="unsafe")
         return tensor, box
 
-    def detect(self, image: np.ndarray, mirror: bool | None = None) -> list[Detection]:
+    def detect(
+        self, image: np.ndarray, mirror: bool | None = None, band_labels: Sequence[str] | None = None,
+    ) -> list[Detection]:
         """Detections in ``image`` (HxWx3 uint8 RGB), boxes in its pixels, best score first.
 
         Args:
@@ -457,16 +471,21 @@ class YoloOnnxDetector:
             mirror: Whether to add the mirror pass: None as configured (``test_time_flip`` and
                 ``flip_band``), True on this frame whatever the band says (a caller verifying),
                 False not (a caller that needs only the single pass's answer).
+            band_labels: With ``mirror`` None and a ``flip_band``, the classes the caller decides
+                on: the mirror pass runs only when a candidate whose best class is one of them
+                scores in the band (a person check is not mirrored for a tiled floor scoring 0.4 as
+                a laptop). None tests every class.
         """
         image = check_image(image, self.name)
-        key = (*self.recent.key(image), mirror) if self.recent.size else None
+        labels = None if band_labels is None else tuple(sorted(set(band_labels)))
+        key = (*self.recent.key(image), mirror, labels) if self.recent.size else None
         if key is not None:
             remembered = self.recent.get(key)
             if remembered is not None:
                 return remembered
         tensor, box = self.preprocess(image)
-        output = self._single_pass(tensor, None if key is None else key[:-1])
-        if mirror if mirror is not None else (self.test_time_flip and self._mirror_pays(output)):
+        output = self._single_pass(tensor, None if key is None else key[:-2])
+        if mirror if mirror is not None else (self.test_time_flip and self._mirror_pays(output, labels)):
             self.passes["mirror"] += 1
             mirrored = self._run(np.ascontiguousarray(tensor[..., ::-1]))
             mirrored[:, 0] = self.input_width - mirrored[:, 0]  # box centres back in the unflipped input
@@ -509,14 +528,24 @@ class YoloOnnxDetector:
             self.recent.put_output(image_key, output)
         return output
 
-    def _mirror_pays(self, output: np.ndarray) -> bool:
-        """Whether the single pass ``output`` left a candidate in :attr:`flip_band` (always without one)."""
+    def _mirror_pays(self, output: np.ndarray, labels: Sequence[str] | None = None) -> bool:
+        """Whether the single pass ``output`` left a candidate in :attr:`flip_band` (always without one).
+
+        With ``labels``, only candidates whose best class is one of them count (a label the model
+        does not know counts for none).
+        """
         if self.flip_band is None:
             return True
         scores = output[0, 4 : 4 + len(self._labels)]
-        best = scores.max(axis=0) if scores.size else scores.reshape(-1)
+        if not scores.size:
+            return False
+        best = scores.max(axis=0)
         low, high = self.flip_band
-        return bool(((best >= low) & (best < high)).any())
+        in_band = (best >= low) & (best < high)
+        if labels is not None:
+            wanted = [i for i, name in enumerate(self._labels) if name in labels]
+            in_band &= np.isin(scores.argmax(axis=0), wanted)
+        return bool(in_band.any())
 
     def _run(self, tensor: np.ndarray) -> np.ndarray:
         """The model's raw ``[1, 4 + classes, N]`` output for one input tensor, its layout checked."""

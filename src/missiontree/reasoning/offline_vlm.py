@@ -95,6 +95,7 @@ class OfflineVisionModel:
         self.colour_share = float(colour_share)
         self.room_objects = {k: tuple(v) for k, v in (room_objects or ROOM_OBJECTS).items()}
         self.person_label = person_label
+        self._people_labels: tuple[str, ...] | None = None
 
     def check(self) -> str:
         """Check the detector (its ``check()``, else a run on a blank frame); return one line."""
@@ -135,8 +136,12 @@ class OfflineVisionModel:
     # -- answers ---------------------------------------------------------------------------------
 
     def surveillance(self, image: np.ndarray) -> SurveillanceVerdict:
-        """ALARM when a person is detected, with their boxes; SAFE otherwise."""
-        seen = self._detections(image)
+        """ALARM when a person is detected, with their boxes; SAFE otherwise.
+
+        The detector's banded mirror pass is asked about people only: a candidate of another class
+        in its band cannot change this verdict.
+        """
+        seen = self._detections(image, band_labels=self._person_labels())
         people = [d for d in seen if fold_label(d.label) == fold_label(self.person_label)]
         boxes = [PersonBox(box=tuple(float(v) for v in d.box), score=round(float(d.score), 4))
                  for d in people]
@@ -220,9 +225,18 @@ class OfflineVisionModel:
 
     # -- helpers ---------------------------------------------------------------------------------
 
-    def _detections(self, image: np.ndarray) -> list[Detection]:
+    def _person_labels(self) -> tuple[str, ...]:
+        """The detector's labels that name a person (folded as the verdict folds them), found once."""
+        if self._people_labels is None:
+            wanted = fold_label(self.person_label)
+            self._people_labels = tuple(
+                label for label in getattr(self.detector, "labels", []) or [] if fold_label(label) == wanted)
+        return self._people_labels
+
+    def _detections(self, image: np.ndarray, band_labels: tuple[str, ...] | None = None) -> list[Detection]:
         # The detector is a model too: non-finite or out-of-image boxes are dropped, the rest clipped.
-        return [d for d in detect_checked(self.detector, image) if d.score >= self.min_score]
+        found = detect_checked(self.detector, image, band_labels=band_labels)
+        return [d for d in found if d.score >= self.min_score]
 
     def _description(self, prompt: str) -> str:
         description = parse_description(prompt)
