@@ -20,6 +20,8 @@ from missiontree.engine.reload import TreeWatcher
 from missiontree.engine.runner import RunResult
 from missiontree.engine.spec import MissionSpec
 from missiontree.engine.substitute import Rule, apply_rules, load_rules, substitute_session
+from missiontree.errors import ConfigError
+from missiontree.session.fleet import substitute_fleet
 from missiontree.session.mission import (
     DEFAULT_BACKEND,
     DEFAULT_SEED,
@@ -161,7 +163,12 @@ def run_substituted(request: MissionRequest, rules: list[Rule] | None = None, *,
         rules = load_rules(request.substitute)
     with Session.open(request) as session:
         if rules and not request.substitute:
-            substitute_session(session, rules)
+            if session.fleet is not None:
+                substitute_fleet(session, rules)
+            else:
+                substitute_session(session, rules)
+        if watch and session.fleet is not None:
+            raise ConfigError("--watch reloads one tree; it is not built for fleet runs (robots > 1) yet")
         if watch:
             watchers.append(TreeWatcher(session.spec, _loader(request, session), _builder(session, rules)))
         return session.run()

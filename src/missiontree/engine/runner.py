@@ -227,7 +227,8 @@ class Runner:
         contexts: dict[int, MissionContext] = {}
         for subtree, context, robot in self.scopes:
             context.events = RobotEvents(self.context.events, robot)
-            context.run_dir = self.context.run_dir
+            # each robot's files (alarms, frames) in its own folder of the run directory
+            context.run_dir = None if self.context.run_dir is None else self.context.run_dir / robot
             context.realtime = self.realtime
             for node in subtree.iterate():
                 contexts[id(node)] = context

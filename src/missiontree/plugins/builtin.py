@@ -45,6 +45,7 @@ LAZY_NODE_TYPES: dict[str, str] = {
     "NavigateTo": "missiontree.behaviours.motion:NavigateTo",
     "Rotate": "missiontree.behaviours.motion:Rotate",
     "Patrol": "missiontree.behaviours.patrol:Patrol",
+    "FleetPatrol": "missiontree.behaviours.fleet_patrol:FleetPatrol",
     "Surveillance": "missiontree.behaviours.surveillance:Surveillance",
     "ServoToTarget": "missiontree.behaviours.servo:ServoToTarget",
     "GoToIntent": "missiontree.behaviours.intent:GoToIntent",

@@ -24,15 +24,13 @@ from missiontree.backends.sim.fleet import MAX_ROBOTS, SimFleet, create_fleet
 from missiontree.engine.build import build_tree
 from missiontree.engine.context import MissionContext
 from missiontree.engine.fleet import FleetRoot, FleetView, RobotScope, namespace_tree
+from missiontree.engine.substitute import Rule, Substitution, apply_rules
 from missiontree.errors import ConfigError
 from missiontree.robot.envelope import EnvelopedRobot, wrap_robot
 from missiontree.types import Marker
 
-__all__ = ["FleetClock", "FleetWiring", "Kill", "parse_kill", "robot_count", "wire_fleet"]
-
-#: Fleet node types the session makes known when the plugin list does not name them yet.
-FLEET_NODE_TYPES = {"FleetPatrol": "missiontree.behaviours.fleet_patrol:FleetPatrol"}
-
+__all__ = ["FleetClock", "FleetWiring", "Kill", "fleet_state", "parse_kill", "robot_count",
+           "substitute_fleet", "wire_fleet"]
 
 @dataclass(frozen=True)
 class Kill:
@@ -167,6 +165,7 @@ def wire_fleet(session: Any, count: int, backend: str, config: dict[str, Any],
     view = FleetView(list(fleet.names), fleet.now)
     markers: list[Marker] = []
     outcome: dict[str, Any] = {}
+    started: set[Path] = set()  # one run directory's files: no robot truncates what another began
     seed = options.get("seed", 0)
     session.context = MissionContext(robot=clock, models=session.models, config=config,  # type: ignore[arg-type]
                                      seed=seed, markers=markers, outcome=outcome, fleet=view)
@@ -177,7 +176,7 @@ def wire_fleet(session: Any, count: int, backend: str, config: dict[str, Any],
         tree = session.root if i == 0 else build_tree(session.spec, session.plugins.nodes)
         namespace_tree(tree, name)
         context = MissionContext(robot=robot, models=session.models, config=config, seed=seed,
-                                 markers=markers, outcome=outcome, fleet=view)
+                                 markers=markers, outcome=outcome, fleet=view, started_files=started)
         if isinstance(robot, EnvelopedRobot):
             robot.emit = _LateEvents(context).emit
         scopes.append((RobotScope(name, tree), context, name))
@@ -204,8 +203,54 @@ def fleet_state(wiring: FleetWiring) -> dict[str, Any]:
                       "dispatchers": dispatchers}}
 
 
-def register_fleet_nodes(registry: Any) -> None:
-    """Make the fleet node types known to ``registry`` when the built-in plugin does not list them."""
-    for name, target in FLEET_NODE_TYPES.items():
-        if name not in registry:
-            registry.add_lazy(name, target)
+def substitute_fleet(session: Any, rules: list[Rule]) -> list[Substitution]:
+    """A fleet run's ``--substitute``: every robot's copy stubbed alike, before the first tick.
+
+    The tick log gets ``substituted`` events as the mission starts and the summary a
+    ``substitutions`` list, naming the nodes by their paths in one robot's copy.
+
+    Raises:
+        MissionFileError: A rule matches no node.
+    """
+    wiring: FleetWiring = session.fleet
+    substitutions: list[Substitution] = []
+    for scope, _, name in wiring.scopes:
+        tree, done = apply_rules(session.spec, scope.decorated, rules)
+        if tree is not scope.decorated:
+            scope.decorated = tree
+            scope.children = [tree]
+            tree.parent = scope
+        namespace_tree(tree, name)  # the stubs' keys under the robot's namespace too
+        substitutions = substitutions or done
+    _announce(session.runner, substitutions)
+    return substitutions
+
+
+def _announce(runner: Any, substitutions: list[Substitution]) -> None:
+    """``substituted`` events as the mission starts (through the runner's hook), the summary's list."""
+    described = [{**sub.rule.describe(), "node": sub.node, "type": sub.type} for sub in substitutions]
+    started = runner.hook
+
+    class _Announce:
+        def missiontree_mission_started(self, **kwargs: Any) -> None:
+            context = kwargs.get("context")
+            for sub in substitutions:
+                if context is not None:
+                    context.events.emit("substituted", node=sub.node, type=sub.type, rule=sub.rule.index,
+                                        match=sub.rule.match, status=sub.rule.status, where=sub.rule.where)
+            if started is not None:
+                started.missiontree_mission_started(**kwargs)
+
+        def missiontree_mission_finished(self, **kwargs: Any) -> None:
+            if started is not None:
+                started.missiontree_mission_finished(**kwargs)
+
+    runner.hook = _Announce()
+    earlier = runner.final_state
+
+    def final_state() -> dict[str, Any]:
+        found = dict(earlier()) if earlier is not None else {}
+        found["substitutions"] = described
+        return found
+
+    runner.final_state = final_state

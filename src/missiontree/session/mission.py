@@ -43,8 +43,8 @@ from missiontree.session.fleet import (
     Kill,
     fleet_state,
     parse_kill,
-    register_fleet_nodes,
     robot_count,
+    substitute_fleet,
     wire_fleet,
 )
 from missiontree.session.models import build_models
@@ -194,7 +194,6 @@ class Session:
         mission = Path(request.mission)
         overrides = dict(request.params or {})  # read and checked against the params' types while loading
         robots_set = overrides.pop("robots", None)  # --set robots=N is the run setting, as --robots N
-        register_fleet_nodes(self.plugins.nodes)
         self.spec: MissionSpec = load_mission(
             mission, self.plugins.nodes, allow_outside=request.allow_outside, params=overrides)
         # what the mission references (world, robot, waypoint files, the models config and its model
@@ -229,9 +228,9 @@ class Session:
         backend_config = {k: v for k, v in config.items() if k != "safety"}  # the envelope is ours
         self.options = self._robot_options(seed, backend_config, unknown_map)
         if robots > 1:
-            if rules is not None:
-                raise ConfigError("--substitute is not built for fleet runs (robots > 1) yet")
             self._wire_fleet(robots, backend, config, models_config, kills)
+            if rules is not None:
+                substitute_fleet(self, rules)
             return
         factory = self.plugins.backend(backend)
         self.robot = wrap_robot(factory(self.options), config)  # goals and speeds pass the safety envelope
