@@ -16,7 +16,7 @@ __all__ = ["CallHandle", "ModelCalls", "Scene", "SceneGraphView", "SceneMap"]
 
 
 class SceneMap(Protocol):
-    """The semantic map's reading side: object instances by id, label and place."""
+    """The semantic map as leaves use it: object instances by id, label and place; marking one."""
 
     def __iter__(self) -> Iterator[Any]:
         """Every instance."""
@@ -40,6 +40,11 @@ class SceneMap(Protocol):
 
     def near(self, x: float, y: float, radius: float, label: str | None = None) -> list[Any]:
         """The instances within ``radius`` metres of (x, y), of ``label`` when given."""
+        ...
+
+    def update(self, instance_id: str, stamp: float | None = None, *, announce: bool = False,
+               reason: str = "", **fields: Any) -> Any:
+        """Set attributes of an instance (a leaf marks one ``doubtful=True`` a look did not confirm)."""
         ...
 
 

@@ -174,6 +174,7 @@ def test_bored_goes_to_the_laptop_when_the_tv_cannot_be_reached(tmp_path: Path) 
     assert {e["object"] for e in of(log, "candidate_rejected")} >= {"tv_1"}
     assert [e["object"] for e in of(log, "goal_sent")] == ["laptop_1"]
     assert result.status.value == "SUCCESS"
+    assert {e.get("role") for e in of(log, "model_call")} == {"llm"}  # ranking is map geometry, no model
 
 
 def test_a_standoff_goal_the_stack_cannot_reach_is_tried_from_another_side() -> None:

@@ -39,9 +39,10 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, Field
 
+from missiontree.behaviours.approach_steps import camera_view
+from missiontree.behaviours.background import Background, waits
 from missiontree.behaviours.intent_files import find_scene_graph, record_outcome
 from missiontree.behaviours.intent_look import ArrivalLook, Step
-from missiontree.behaviours.intent_look import camera_view as _camera_view
 from missiontree.engine.leaf import Status
 from missiontree.engine.ports import Input, Output
 from missiontree.errors import ConfigError
@@ -132,6 +133,7 @@ class GoToIntent(ArrivalLook):
         self.text = ""
         self.scene: SceneObjects | None = None
         self.call: ModelCall | None = None
+        self.job: Background | None = None  # ranking the candidates or finding another place to stand
         self.handle: ActionHandle | None = None
         self.remaining: list[str] = []
         self.tried: list[tuple[str, str]] = []
@@ -157,8 +159,6 @@ class GoToIntent(ArrivalLook):
             from missiontree.semantics.scene_graph import SceneGraph
 
             self.file_graph = SceneGraph.load(find_scene_graph(self.params.scene_graph))
-        if self.ctx is not None:
-            model_caller(self.ctx)  # binds simulation-only providers to the robot
         # py_trees' blackboard outlives a mission in the same process (batch runs, benchmarks): doubt
         # starts empty with each mission, never inherited from another one.
         self.write("doubtful", [])
@@ -205,10 +205,13 @@ class GoToIntent(ArrivalLook):
         return handlers[self.step]()
 
     def terminate(self, new_status: Status) -> None:
-        """Cancel the model call and the goal in flight."""
+        """Cancel the model call, the planning job and the goal in flight."""
         if self.call is not None:
             self.call.cancel()
             self.call = None
+        if self.job is not None:
+            self.job.cancel()
+            self.job = None
         if self.step is Step.FACE and self.ctx is not None:
             self.ctx.robot.stop()
         if self.handle is not None:
@@ -318,8 +321,7 @@ class GoToIntent(ArrivalLook):
         stamped = robot.pose()
         if stamped is None:
             return self.fail("the robot has no pose yet; cannot rank candidates")
-        self.call = model_caller(self.context).submit(
-            "planner",
+        self.job = Background(
             plan_candidates,
             list(self.remaining),
             self.scene,
@@ -328,22 +330,21 @@ class GoToIntent(ArrivalLook):
             self.params.robot_radius,
             self._doubtful(),
             self.params.allow_unknown,
-            _camera_view(robot.rgbd()),
-            provider="intent_ranking",
-            node=self.name,
+            camera_view(robot.rgbd()),
+            wait=waits(self.context),
         )
         self.step = Step.PLAN
         return self.running(Step.PLAN.value)
 
     def _ranked(self) -> Status:
-        assert self.call is not None and self.scene is not None
-        status = self.call.status()
-        if not status.done:
+        assert self.job is not None and self.scene is not None
+        done, ranking, error = self.job.poll()
+        if not done:
             return self.running(Step.PLAN.value)
-        if status is not CallStatus.SUCCEEDED:
-            return self.fail(f"ranking the candidates failed: {self.call.error()}")
-        ranking: Ranking = self.call.result()
-        self.call = None
+        self.job = None
+        if error:
+            return self.fail(f"ranking the candidates failed: {error}")
+        assert isinstance(ranking, Ranking)
         for rejection in ranking.rejected:
             if rejection.id not in self.rejected:
                 self.rejected.append(rejection.id)
@@ -514,10 +515,9 @@ class GoToIntent(ArrivalLook):
         oid = self.target.id
         marked = self._doubtful() + [oid]
         self.write("doubtful", marked)
-        scene = getattr(self.ctx, "scene", None)
-        instances = getattr(scene, "map", None)
-        if self.file_graph is None and instances is not None and oid in instances:
-            instances.update(oid, self.context.robot.now(), announce=True, reason=reason, doubtful=True)
+        scene = self.context.scene
+        if self.file_graph is None and scene is not None and oid in scene.map:
+            scene.map.update(oid, self.context.robot.now(), announce=True, reason=reason, doubtful=True)
         self.emit("object_doubtful", command=self.text, object=oid, reason=reason)
         return self._next(f"not confirmed: {reason}")
 
@@ -562,7 +562,8 @@ class GoToIntent(ArrivalLook):
 
     def _live_graph(self) -> Any:
         """The graph a BuildSceneGraph earlier in the mission keeps (None without one)."""
-        return getattr(getattr(self.ctx, "scene", None), "graph", None)
+        scene = self.ctx.scene if self.ctx is not None else None
+        return scene.graph if scene is not None else None
 
     def _doubtful(self) -> list[str]:
         try:

@@ -16,6 +16,8 @@ import enum
 import math
 from typing import Any
 
+from missiontree.behaviours.approach_steps import camera_view
+from missiontree.behaviours.background import Background, waits
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.perception.detectors import detection_job
 from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
@@ -41,14 +43,6 @@ LOOK_FRAMES = 3
 LOOK_GROW = 1.0
 
 
-def camera_view(frame: RGBDFrame | None) -> tuple[float, float] | None:
-    """(camera height, tangent of the view below its axis) from a frame, None before the first frame."""
-    if frame is None:
-        return None
-    k = frame.intrinsics
-    return frame.camera_height, (k.height - k.cy) / k.fy
-
-
 class Step(enum.Enum):
     """The leaf's steps, each with what the robot is doing (its running message)."""
 
@@ -69,6 +63,7 @@ class ArrivalLook(Leaf):
     target: Candidate | None
     scene: SceneObjects | None
     call: ModelCall | None
+    job: Background | None
     frame: RGBDFrame | None
     step: Step
     text: str
@@ -212,9 +207,9 @@ class ArrivalLook(Leaf):
                                f"second place: {reason}")
         self.second_look = True
         self.first_miss = reason
-        self.call = model_caller(self.context).submit(
-            "planner", other_viewpoint, obj, grid, stamped.pose, self.target.goal, self.params.robot_radius,
-            self.params.allow_unknown, camera_view(self.frame), provider="intent_viewpoint", node=self.name,
+        self.job = Background(
+            other_viewpoint, obj, grid, stamped.pose, self.target.goal, self.params.robot_radius,
+            self.params.allow_unknown, camera_view(self.frame), wait=waits(self.context),
         )
         self.step = Step.VIEWPOINT
         return self.running(Step.VIEWPOINT.value)
@@ -235,20 +230,19 @@ class ArrivalLook(Leaf):
             return self._next(reason)
         self.reapproached = True
         self.approach_miss = reason
-        self.call = model_caller(self.context).submit(
-            "planner", other_viewpoint, obj, grid, stamped.pose, self.target.goal, self.params.robot_radius,
-            self.params.allow_unknown, camera_view(robot.rgbd()), provider="intent_viewpoint", node=self.name,
+        self.job = Background(
+            other_viewpoint, obj, grid, stamped.pose, self.target.goal, self.params.robot_radius,
+            self.params.allow_unknown, camera_view(robot.rgbd()), wait=waits(self.context),
         )
         self.step = Step.VIEWPOINT
         return self.running(f"finding another place to stand by {self.target.id}")
 
     def _viewpoint(self) -> Status:
-        assert self.call is not None and self.target is not None
-        status = self.call.status()
-        if not status.done:
+        assert self.job is not None and self.target is not None
+        done, pose, _ = self.job.poll()  # a failed search: no other place
+        if not done:
             return self.running(Step.VIEWPOINT.value)
-        pose = self.call.result() if status is CallStatus.SUCCEEDED else None
-        self.call = None
+        self.job = None
         if self.approach_miss:
             miss, self.approach_miss = self.approach_miss, ""
             if pose is None:
