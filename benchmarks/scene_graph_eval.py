@@ -100,6 +100,7 @@ from scene_eval_route import (  # benchmarks/scene_eval_route.py, beside this sc
     surface_viewpoints,
     viewpoints,
 )
+from scene_graph_view import PoseTrack, frames_in_view, recall_in_view  # beside this script
 from scene_rebuild import rebuild_figures  # benchmarks/scene_rebuild.py, beside this script
 from scipy.optimize import linear_sum_assignment
 
@@ -387,6 +388,7 @@ class SceneEvalProbe:
         self.last = -math.inf
         self.frames = 0
         self.wall_nais = 0.0
+        self.track = PoseTrack()
 
     def __getstate__(self) -> dict[str, Any]:
         return {"options": self.options}
@@ -400,6 +402,8 @@ class SceneEvalProbe:
             self.leaf = scene_leaf(session)
         if self.leaf is None or self.leaf.builder is None:
             return
+        true_pose = session.robot.truth.robot_pose()  # scoring only: which objects were in view
+        self.track.record(session.robot.now(), true_pose.x, true_pose.y)
         if self.nais is None:
             self.nais = NaisPipeline(session.models["vlm"])
             if self.options.diagnose:
@@ -489,6 +493,8 @@ class SceneEvalProbe:
                 "nais": 1000 * self.wall_nais / max(frames, 1),
             },
         }
+        positions = {o.id: (o.pose.x, o.pose.y) for o in first["ours"]["truths"]}
+        in_view = frames_in_view(robot.truth.visibility, self.track, positions, self.leaf.params.max_range)
         for m in ("ours", "nais"):
             s = first[m]
             out[m] = {
@@ -496,6 +502,7 @@ class SceneEvalProbe:
                 for k in ("tp", "pred", "pred_all", "truth", "in_room", "colour_ok", "rooms", "types_ok")
             }
             out[m]["reflected"] = reflected[m]
+            out[m]["tp_view"], out[m]["truth_view"] = recall_in_view(s, in_view)
         return out
 
 
@@ -664,6 +671,7 @@ def run_worlds(
     options: EvalOptions,
     on_row: Any,
     max_duration: float | None = None,
+    params: tuple[tuple[str, str], ...] = (),
 ) -> list[dict[str, Any]]:
     """Each (seed, world) on the batch runner (a pool of ``workers``, or this process for 1).
 
@@ -675,7 +683,7 @@ def run_worlds(
 
     from missiontree.evaluation import BatchPlan, PoolEngine, RunSpec, SerialEngine, run_batch
 
-    specs = [RunSpec(world=name, seed=seed, run_seed=seed) for seed, name in worlds]
+    specs = [RunSpec(world=name, seed=seed, run_seed=seed, params=params) for seed, name in worlds]
     arrived: dict[str, Any] = {}
     rows: list[dict[str, Any]] = []
     shown = 0
@@ -734,6 +742,7 @@ def run_worlds(
 RATES = {
     "object_precision": ("tp", "pred"),
     "object_recall": ("tp", "truth"),
+    "object_recall_in_view": ("tp_view", "truth_view"),
     "room_accuracy": ("in_room", "tp"),
     "room_type_accuracy": ("types_ok", "rooms"),
     "colour_accuracy": ("colour_ok", "tp"),
@@ -743,6 +752,7 @@ RATES = {
 HEADLINE = (
     "object_precision",
     "object_recall",
+    "object_recall_in_view",
     "changes_reflected",
     "room_accuracy",
     "room_type_accuracy",
@@ -766,6 +776,7 @@ def split_figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "object_precision": round(tot["tp"] / max(tot["pred"], 1), 4),
             "object_precision_strict": round(tot["tp"] / max(tot["pred_all"], 1), 4),
             "object_recall": round(tot["tp"] / max(tot["truth"], 1), 4),
+            "object_recall_in_view": round(tot["tp_view"] / max(tot["truth_view"], 1), 4),
             "room_accuracy": round(tot["in_room"] / max(tot["tp"], 1), 4),
             "room_type_accuracy": round(tot["types_ok"] / max(tot["rooms"], 1), 4),
             "colour_accuracy": round(tot["colour_ok"] / max(tot["tp"], 1), 4),
@@ -879,6 +890,8 @@ def main(argv: list[str] | None = None) -> int:
         help="stop each mission after this many robot seconds (smoke runs; default: the mission's own)",
     )
     parser.add_argument("--single-pass", action="store_true", help="skip the dynamic phase (diagnostics)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="a value for the mission's params (repeatable; comparisons on dev)")
     args = parser.parse_args(argv)
     started = time.perf_counter()
     options = EvalOptions(
@@ -913,8 +926,9 @@ def main(argv: list[str] | None = None) -> int:
                     f"{split:4s} {row['world']:22s} {row['wall_s']:5.1f} s wall, {row['sim_s']:5.0f} s sim, "
                     f"mission {mission.get('status')} after {mission.get('sim_s')} s, "
                     f"explored {mission.get('explored_share')}, "
-                    f"{row['frames']} frames | ours tp {o['tp']}/{o['pred']} of {o['truth']}, "
-                    f"rooms {o['in_room']}, colour {o['colour_ok']}, "
+                    f"{row['frames']} frames | ours tp {o['tp']}/{o['pred']} of {o['truth']} "
+                    f"({o.get('tp_view')} of {o.get('truth_view')} in view), "
+                    f"rooms {o['in_room']}, types {o['types_ok']}/{o['rooms']}, colour {o['colour_ok']}, "
                     f"changes {o['reflected']}/{row['changes']} | "
                     f"nais tp {n['tp']}/{n['pred']}, rooms {n['in_room']}, "
                     f"colour {n['colour_ok']}, changes {n['reflected']}/{row['changes']}",
@@ -922,7 +936,8 @@ def main(argv: list[str] | None = None) -> int:
                 )
 
             worlds = [(k, w) for k, (_, w) in enumerate(named)]
-            rows = run_worlds(worlds, args.models, args.workers, options, show, args.max_duration)
+            sets = tuple(tuple(kv.split("=", 1)) for kv in args.set)
+            rows = run_worlds(worlds, args.models, args.workers, options, show, args.max_duration, sets)
             failed += len(worlds) - len(rows)
             if rows:
                 result[split] = split_figures(rows)
