@@ -137,7 +137,7 @@ class LookAgain(Leaf):
         p = self.params
         places: list[Place] = [
             (label, x, y, p.min_distance, p.distance, p.max_distance)
-            for label, x, y in (list(getattr(scene, "doubtful", []) or []) if p.doubtful else [])
+            for label, x, y in (list(scene.doubtful) if p.doubtful and scene is not None else [])
         ]
         places += self._surfaces()
         return [
