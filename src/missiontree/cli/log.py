@@ -190,7 +190,36 @@ def summarize(lines: list[dict[str, Any]]) -> dict[str, Any]:
         "failures": dict(sorted(failures.items())),
         **_tally_events(lines),
         **({"fault": finished["fault"]} if isinstance(finished.get("fault"), dict) else {}),
+        **_tally_robots(lines, latest),
     }
+
+
+def _tally_robots(lines: list[dict[str, Any]], latest: _Nodes) -> dict[str, Any]:
+    """A fleet run's robots (events carrying ``robot``): each one's end, loss and events; {} otherwise.
+
+    A robot's end is the last status of its scope node (``fleet/<robot>``) in the tick lines.
+    """
+    robots: dict[str, dict[str, Any]] = {}
+    for record in lines:
+        name = record.get("robot")
+        kind = record.get("event", "?")
+        if not isinstance(name, str) or kind in _RUNNER_LINES:
+            continue
+        entry = robots.setdefault(name, {"events": {}})
+        entry["events"][kind] = entry["events"].get(kind, 0) + 1
+        if kind == "robot_lost":
+            entry["lost"] = {"t": record.get("t"), "reason": record.get("reason")}
+    if not robots:
+        return {}
+    for name, entry in robots.items():
+        scope = latest.get(f"fleet/{name}", {})
+        entry["status"] = scope.get("status", "RUNNING")
+        if scope.get("reason"):
+            entry["reason"] = scope["reason"]
+        entry["events"] = dict(sorted(entry["events"].items()))
+    rebalanced = [{"t": r.get("t"), "lost": r.get("lost"), "assignment": r.get("assignment")}
+                  for r in lines if r.get("event") == "fleet_rebalanced"]
+    return {"robots": dict(sorted(robots.items())), "rebalanced": rebalanced}
 
 
 _Nodes = dict[str, dict[str, Any]]
@@ -299,7 +328,25 @@ def format_summary(summary: dict[str, Any]) -> str:
                 for e in summary["errors"]]
     if summary["events"]:
         out.append("events: " + ", ".join(f"{k} {v}" for k, v in summary["events"].items()))
+    out += _format_robots(summary)
     return "\n".join(out)
+
+
+def _format_robots(summary: dict[str, Any]) -> list[str]:
+    """A fleet run's lines: each robot's end (and loss) and events, the re-balancings."""
+    robots = summary.get("robots") or {}
+    if not robots:
+        return []
+    out = [f"robots ({len(robots)}):"]
+    for name, entry in robots.items():
+        lost = entry.get("lost")
+        end = f"{entry['status']}" + (f" — lost at {lost['t']:.1f} s: {lost['reason']}" if lost else "")
+        out.append(f"  {name}: {end}")
+        out.append("    events: " + ", ".join(f"{k} {v}" for k, v in entry["events"].items()))
+    for r in summary.get("rebalanced") or []:
+        shares = "; ".join(f"{n}: {', '.join(ws)}" for n, ws in (r.get("assignment") or {}).items())
+        out.append(f"  re-balanced at {r['t']:.1f} s after losing {r['lost']}: {shares}")
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
