@@ -360,3 +360,23 @@ def test_the_input_tensor_is_the_letterboxed_image_divided_by_255(tmp_path: Path
     tensor, found = detector.preprocess(image)
     assert found == box and tensor.flags["C_CONTIGUOUS"]
     np.testing.assert_array_equal(tensor, expected)
+
+
+def test_nms_over_the_whole_overlap_matrix_keeps_what_the_box_by_box_pass_keeps(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Random boxes with tied scores and duplicates: the matrix pass and the box-by-box pass agree."""
+    from missiontree.perception import yolo_layout
+
+    rng = np.random.default_rng(3)
+    for trial in range(200):
+        n = int(rng.integers(1, 60))
+        centres, sizes = rng.uniform(0, 100, (n, 2)), rng.uniform(2, 40, (n, 2))
+        boxes = np.round(np.concatenate([centres - sizes / 2, centres + sizes / 2], axis=1) / 5) * 5
+        scores = np.round(rng.uniform(0, 1, n), 1).astype(np.float32)
+        ids = rng.integers(0, 3, n)
+        matrix = nms(boxes, scores, ids, 0.45)
+        monkeypatch.setattr(yolo_layout, "_NMS_MATRIX_MAX", 0)
+        box_by_box = nms(boxes, scores, ids, 0.45)
+        monkeypatch.undo()
+        assert matrix.tolist() == box_by_box.tolist(), trial

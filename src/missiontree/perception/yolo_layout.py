@@ -15,6 +15,9 @@ import numpy as np
 #: Grey used for letterbox padding, as in Ultralytics' LetterBox.
 PAD_VALUE = 114
 
+#: Most candidates :func:`nms` compares all at once (an N x N matrix); more go box by box.
+_NMS_MATRIX_MAX = 400
+
 
 @dataclass(frozen=True, slots=True)
 class Letterbox:
@@ -100,6 +103,18 @@ def nms(boxes: np.ndarray, scores: np.ndarray, class_ids: np.ndarray, iou_thresh
     # Shift each class into its own region of the plane, so one pass never mixes classes.
     offset = class_ids.astype(np.float32)[:, None] * (float(np.abs(boxes).max()) + 1.0) * 2.0
     shifted = boxes.astype(np.float32) + offset
+    if len(order) <= _NMS_MATRIX_MAX:
+        # Every pair's overlap at once (the same numbers box by box), then the greedy pass over it:
+        # a frame's few tens of candidates cost one matrix, not one numpy round per kept box.
+        ranked = shifted[order]
+        suppresses = iou_matrix(ranked, ranked) > iou_threshold
+        alive = np.ones(len(order), dtype=bool)
+        kept: list[int] = []
+        for i in range(len(order)):
+            if alive[i]:
+                kept.append(i)
+                alive &= ~suppresses[i]
+        return order[np.asarray(kept, dtype=np.int64)].astype(np.int64)
     keep: list[int] = []
     while len(order):
         best = order[0]
