@@ -332,10 +332,10 @@ def test_a_flickering_frontier_is_gone_to_instead_of_being_sent_again_and_again(
     assert len(robot.goals) == 3
 
 
-@pytest.mark.parametrize(("res", "expected"), [(0.05, 0.22), (0.03, 0.20)])
+@pytest.mark.parametrize(("res", "expected"), [(0.05, 0.27), (0.03, 0.23)])
 def test_reachability_is_judged_with_the_navigators_footprint_on_the_maps_resolution(res: float,
                                                                                      expected: float) -> None:
-    """The body padded by one cell, as the navigator passes gaps: 0.44-0.54 m at 5 cm count as open."""
+    """The body padded by two cells of the map: on a 3 cm map gaps of 0.46-0.54 m count as open."""
 
     class FineRobot(MapRobot):
         def occupancy(self) -> OccupancyGrid | None:  # type: ignore[override]

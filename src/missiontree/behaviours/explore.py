@@ -113,8 +113,8 @@ class Explore(Leaf):
             "nav_padding_cells cells of the map (the simulator's navigator: 0.27 m at 5 cm, 0.23 m at 3 cm).")
         nav_body_radius: float = Field(0.17, gt=0, description="The robot body's radius (m; TurtleBot 4).")
         nav_padding_cells: float = Field(
-            1.0, ge=0, description="Cells of the map the navigation pads the body with where it must (the "
-            "default nav_footprint_radius; the simulator's navigator passes one-cell-padded gaps).")
+            2.0, ge=0, description="Cells of the map the navigation pads the body with (the default "
+            "nav_footprint_radius; 1 offered frontiers behind gaps the navigator then refused).")
         xy_tolerance: float = Field(0.3, gt=0, description="Distance at which a goal counts as reached (m).")
         replan_period: float = Field(
             2.0, gt=0, description="Re-evaluate the goal this often while driving (s).")
