@@ -2,13 +2,13 @@
 
 As BehaviorTree.CPP 4's ``SubstitutionRules`` / ``TestNodeConfig`` (and py_trees_ros' mocks), a
 rules file names nodes by a glob on their path (as the tick log writes it:
-``find_object/search/next_candidate/locate_approach_verify/verify``) or on their type
-(``BuildSceneGraph``), and says what stands in for each::
+``find_object/search/next_candidate/locate_approach_verify/approach_confirm/confirm_looks``) or on
+their type (``BuildSceneGraph``), and says what stands in for each::
 
     rules:
       - match: BuildSceneGraph          # every node of this type
         status: RUNNING                 # never ends, as the real one
-      - match: "*/verify"               # a path glob (* also crosses /)
+      - match: "*/confirm_looks"        # a path glob (* also crosses /)
         status: SUCCESS
         after: 2.0                      # seconds on the robot's clock of RUNNING first
         writes: {verified: true}        # blackboard values written when it returns
