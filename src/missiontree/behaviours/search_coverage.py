@@ -300,3 +300,72 @@ def known_path_lengths(
     from missiontree.mapping.planner import path_lengths
 
     return path_lengths(grid, start, list(goals), footprint_radius=radius, allow_unknown=False)
+
+
+def unseen_bearings(
+    coverage: ViewCoverage, grid: OccupancyGrid, pose: Pose2D, radius: float | None = None
+) -> np.ndarray:
+    """Bearings (rad, relative to ``pose``'s heading) of the unseen floor within ``radius`` in sight.
+
+    ``radius`` defaults to the view range. A cell counts when the straight line to it crosses no
+    occupied cell of ``grid`` (floor behind a wall cannot be looked at from here, turning or not).
+    """
+    reach = coverage.view_range if radius is None else radius
+    cells = coverage.unseen(grid, (pose.x, pose.y), radius=reach + coverage.cell)
+    if not cells:
+        return np.zeros(0)
+    keys = np.array(sorted(cells), dtype=float)
+    xs, ys = (keys[:, 0] + 0.5) * coverage.cell, (keys[:, 1] + 0.5) * coverage.cell
+    dist = np.hypot(xs - pose.x, ys - pose.y)
+    near = (dist <= reach) & (dist > 1e-6)
+    xs, ys, dist = xs[near], ys[near], dist[near]
+    if not len(xs):
+        return np.zeros(0)
+    res = grid.resolution
+    steps = max(1, int(math.ceil(reach / (res / 2.0))))
+    frac = (np.arange(1, steps) / steps)[None, :]
+    px = pose.x + (xs - pose.x)[:, None] * frac
+    py = pose.y + (ys - pose.y)[:, None] * frac
+    rows = np.floor((py - grid.origin.y) / res).astype(int)
+    cols = np.floor((px - grid.origin.x) / res).astype(int)
+    h, w = grid.data.shape
+    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    blocked = np.zeros_like(inside)
+    blocked[inside] = grid.data[rows[inside], cols[inside]] >= OCCUPIED_FROM
+    # the cell's own square may hold the obstacle it is floor beside: only the way there counts
+    short = np.hypot(px - pose.x, py - pose.y) < (dist[:, None] - coverage.cell)
+    clear = ~(blocked & short).any(axis=1)
+    angles = np.arctan2(ys[clear] - pose.y, xs[clear] - pose.x) - pose.yaw
+    return np.asarray((angles + math.pi) % (2.0 * math.pi) - math.pi)
+
+
+def look_arc(bearings: np.ndarray, half_fov: float) -> tuple[float, float] | None:
+    """The turn that brings every bearing within ``half_fov`` of the camera: (first, then) signed rad.
+
+    ``bearings`` are relative to the heading now. None: all are in view already (no turn). The
+    camera turned by a sweeps [-half_fov, a + half_fov], so the floor around the robot is covered
+    by the interval of bearings outside their largest gap, reached at its nearer end and swept to
+    the other; a full circle is never needed (2 pi - 2 half_fov covers it).
+    """
+    if not len(bearings) or bool(np.all(np.abs(bearings) <= half_fov)):
+        return None
+    b = np.sort(np.asarray(bearings, dtype=float))
+    gaps = np.diff(np.concatenate([b, [b[0] + 2.0 * math.pi]]))
+    i = int(np.argmax(gaps))
+    lo = float(b[(i + 1) % len(b)])
+    span = 2.0 * math.pi - float(gaps[i])
+    if span >= 2.0 * math.pi - 2.0 * half_fov:  # all around: one sweep of the rest of the circle
+        return 2.0 * math.pi - 2.0 * half_fov, 0.0
+    start, end = lo + half_fov, lo + span - half_fov
+    if start >= end:  # one heading shows them all
+        mid = lo + span / 2.0
+        return _wrap(mid), 0.0
+    a, z = _wrap(start), _wrap(end)
+    sweep = end - start
+    if abs(a) + sweep <= abs(z) + sweep:
+        return a, sweep
+    return z, -sweep
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi

@@ -22,11 +22,20 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, Field
 
-from missiontree.behaviours.search_coverage import ViewCoverage, ViewGoal, known_path_lengths, view_goals
+from missiontree.behaviours.search_coverage import (
+    ViewCoverage,
+    ViewGoal,
+    known_path_lengths,
+    look_arc,
+    unseen_bearings,
+    view_goals,
+)
 from missiontree.behaviours.search_resume import PriorPlanner, ResumeExplore
 from missiontree.engine.leaf import Status
 from missiontree.mapping.exploration import Candidate as Frontier
@@ -35,6 +44,50 @@ from missiontree.types import OccupancyGrid, Pose2D, Tolerance, wrap_angle
 
 #: Times the search goes back from looking at the floor to exploring frontiers that appeared meanwhile.
 MAX_FRONTIER_ROUNDS = 5
+#: The arc look keeps the floor it turns to this share of the half field of view inside the image's edge.
+ARC_MARGIN = 0.8
+#: Camera frames a second the dwell after each part of an arc look counts on (the simulator's 5).
+FRAME_RATE = 5.0
+
+
+@dataclass
+class ArcLook:
+    """A turn in place through signed parts (rad), with a dwell after each for the camera's frames."""
+
+    turns: list[float]
+    yaw: float
+    started: float
+    dwell: float
+    limit: float
+    turned: float = 0.0
+    paused_at: float | None = None
+    parts: list[float] = field(default_factory=list)
+
+    def step(self, yaw: float, now: float, speed: float) -> float | None:
+        """The turn rate to drive now (rad/s), or None once the look is over (or timed out)."""
+        if now - self.started > self.limit:
+            return None
+        if self.paused_at is not None:
+            if now - self.paused_at < self.dwell:
+                return 0.0
+            self.paused_at = None
+            if not self.turns:
+                return None
+        if not self.turns:
+            self.paused_at = now
+            return 0.0
+        self.turned += wrap_angle(yaw - self.yaw)
+        self.yaw = yaw
+        left = self.turns[0] - self.turned
+        if abs(left) <= 0.05 or left * self.turns[0] <= 0:
+            self.parts.append(self.turned)
+            self.turns.pop(0)
+            self.turned = 0.0
+            self.paused_at = now
+            return 0.0
+        return math.copysign(min(speed, max(0.3, 2.0 * abs(left))), left)
+
+
 #: After a full turn at a view goal, floor still unseen within this share of the view range is hidden
 #: from there (behind furniture) and given up; farther floor is left for a later goal.
 HIDDEN_WITHIN = 0.8
@@ -98,6 +151,11 @@ class LookExplore(ResumeExplore):
             2.0, ge=0,
             description="Unseen floor (m^2) a place to look from must bring into view while exploring.",
         )
+        look: Literal["arc", "full"] = Field(
+            "arc",
+            description="At a place to look from: turn only through the arc holding the floor in sight "
+            "the camera has not looked at (none: no turn), or a full circle.",
+        )
 
     params: Params
 
@@ -119,6 +177,9 @@ class LookExplore(ResumeExplore):
         self.frontier_rounds = 0
         self.explore_end = ""
         self.frontiers_left: list[tuple[float, float]] = []
+        self.hfov = math.radians(60.0)
+        self.arc: ArcLook | None = None
+        self.arc_goal: Frontier | None = None
 
     def on_setup(self) -> None:
         """A fresh record of what the camera has looked at."""
@@ -134,9 +195,10 @@ class LookExplore(ResumeExplore):
         if self.cover_handle is not None:
             self.cover_handle.cancel()
             self.cover_handle = None
-        if self.cover_state == "look" and self.ctx is not None:
+        if (self.cover_state == "look" or self.arc is not None) and self.ctx is not None:
             self.ctx.robot.drive(0.0, 0.0)
         self.cover_state = "select"
+        self.arc, self.arc_goal = None, None
 
     def explore_step(self) -> Status:
         """One step of exploration; a goal being driven to is kept until the camera has looked there."""
@@ -157,7 +219,10 @@ class LookExplore(ResumeExplore):
         try:
             return super().explore_step()
         finally:
+            # detached between steps: the report an ending round writes (exploration.json, the
+            # frontiers left) lists frontiers only and need not place view goals on the whole map
             planner.hold_active, planner.driving = False, None
+            planner.camera_unseen, planner.views = None, None
 
     def _camera_waits(self, grid: OccupancyGrid, x: float, y: float) -> bool:
         """Whether the camera has yet to look at ``hold_area`` of the floor near a frontier place."""
@@ -201,8 +266,52 @@ class LookExplore(ResumeExplore):
         return super().goal_still_wanted(grid, goal)
 
     def wants_look(self, goal: Frontier) -> bool:
-        """A full turn where a place to look from was reached (the camera sees ahead only)."""
-        return goal.kind == "view" or super().wants_look(goal)
+        """A full turn where a place to look from was reached (``look: full``; the arc look is ours)."""
+        return (goal.kind == "view" and self.params.look == "full") or super().wants_look(goal)
+
+    def on_goal_reached(self, goal: Frontier) -> None:
+        """At a place to look from (``look: arc``), turn to the floor in sight not yet seen."""
+        super().on_goal_reached(goal)
+        if goal.kind == "view" and self.params.look == "arc" and self.coverage is not None:
+            self.arc_goal = goal
+
+    def select_goal(self, now: float, grid: OccupancyGrid, pose: Pose2D) -> Status:
+        """The arc look at a place to look from just reached comes first; then the next goal."""
+        goal = self.arc_goal
+        if goal is not None:
+            if self.arc is None:
+                self.arc = self._arc_for(grid, pose, now)
+            if self._arc_step(pose, now):
+                return self.running("looking at the floor not yet seen")
+            self.arc_goal = None
+            self._skip_hidden(grid, pose, goal.target)
+        return super().select_goal(now, grid, pose)
+
+    def _arc_for(self, grid: OccupancyGrid, pose: Pose2D, now: float) -> ArcLook:
+        """The arc look from ``pose``: the turns that bring the unseen floor in sight into view."""
+        assert self.coverage is not None
+        half = ARC_MARGIN * self.hfov / 2.0
+        if self.params.look == "full":
+            turns = [2.0 * math.pi]
+        else:
+            plan = look_arc(unseen_bearings(self.coverage, grid, pose), half)
+            turns = [t for t in plan if abs(t) > 0.05] if plan is not None else []
+        dwell = self.params.view_frames / FRAME_RATE
+        total = sum(abs(t) for t in turns)
+        limit = 2.0 * total / self.params.look_speed + (len(turns) + 1) * dwell + 5.0
+        self.emit("search_look", turns_deg=[round(math.degrees(t)) for t in turns])
+        return ArcLook(turns, pose.yaw, now, dwell, limit)
+
+    def _arc_step(self, pose: Pose2D, now: float) -> bool:
+        """Drive the arc look on; False (and the robot stopped) once it is over."""
+        assert self.arc is not None
+        rate = self.arc.step(pose.yaw, now, self.params.look_speed)
+        if rate is None:
+            self.context.robot.drive(0.0, 0.0)
+            self.arc = None
+            return False
+        self.context.robot.drive(0.0, rate)
+        return True
 
     def on_look_done(self, goal: Frontier, grid: OccupancyGrid, pose: Pose2D) -> None:
         """After the turn at a place to look from, the floor still unseen near it is hidden from there."""
@@ -291,6 +400,7 @@ class LookExplore(ResumeExplore):
         if grid is None:
             return
         self.last_view = frame.stamp
+        self.hfov = frame.intrinsics.hfov
         self.coverage.add_view(grid, frame.camera_pose, frame.intrinsics.hfov)
 
     def _cover(self) -> Status:
@@ -375,20 +485,15 @@ class LookExplore(ResumeExplore):
 
     def _start_cover_look(self, pose: Pose2D, now: float) -> Status:
         self.cover_state = "look"
-        self.look_turned, self.look_yaw, self.look_started = 0.0, pose.yaw, now
         return self.running("looking around")
 
     def _cover_look(self, grid: OccupancyGrid, pose: Pose2D, now: float) -> Status:
-        """A full turn where the goal was reached; then what stayed unseen near it is given up."""
+        """The look where the goal was reached (``look``); then what stayed unseen near it is given up."""
         assert self.coverage is not None and self.cover_goal is not None
-        robot = self.context.robot
-        self.look_turned += abs(wrap_angle(pose.yaw - self.look_yaw))
-        self.look_yaw = pose.yaw
-        limit = 2.0 * (2.0 * math.pi / self.params.look_speed) + 5.0
-        if self.look_turned < 2.0 * math.pi - 0.05 and now - self.look_started < limit:
-            robot.drive(0.0, self.params.look_speed)
-            return self.running(f"looking around: {math.degrees(self.look_turned):.0f} deg")
-        robot.drive(0.0, 0.0)
+        if self.arc is None:
+            self.arc = self._arc_for(grid, pose, now)
+        if self._arc_step(pose, now):
+            return self.running("looking at the floor not yet seen")
         self.cover_state = "select"
         # what the camera still has not seen within reach of here is hidden from the floor: given up
         self._skip_hidden(grid, pose, self.cover_goal.target)
