@@ -55,6 +55,9 @@ class FleetPatrol(Leaf):
             None, gt=0, description="Skip a waypoint not reached within this many seconds.")
         max_pose_age: float = Field(
             10.0, gt=0, description="Fail (the robot is lost) when its pose is older than this (s).")
+        revisit_after: float = Field(
+            10.0, ge=0, description="A robot whose next waypoint is the one it just reached (a stretch of "
+            "one) waits this long before counting it again (s).")
         waypoint: Annotated[str, Output("the waypoint being driven to", type="dict")] = "patrol_waypoint"
 
         @model_validator(mode="after")
@@ -76,6 +79,8 @@ class FleetPatrol(Leaf):
         self.goal_started = 0.0
         self.reached = 0
         self.skipped = 0
+        self.last_index = -1
+        self.last_reached = 0.0
 
     def on_setup(self) -> None:
         """Load the route and join the fleet's dispatcher for it (one per fleet and route)."""
@@ -129,6 +134,9 @@ class FleetPatrol(Leaf):
                 return status
         if self.handle is None:
             index = self.dispatcher.next_for(robot.name)
+            if index is not None and index == self.last_index and \
+                    robot.now() - self.last_reached < self.params.revisit_after:
+                return self.running(f"guarding {self.dispatcher.waypoints[index].name}")
             if index is None:
                 if self.dispatcher.done():
                     return self.succeed(f"fleet done: {self.reached} reached, {self.skipped} skipped here")
@@ -153,6 +161,7 @@ class FleetPatrol(Leaf):
             self.emit("waypoint_reached", waypoint=waypoint.name, index=self.target,
                       x=waypoint.pose.x, y=waypoint.pose.y)
             self.dispatcher.visited(self.context.robot.name, self.target)
+            self.last_index, self.last_reached = self.target, self.context.robot.now()
             return None
         result = self.handle.result()
         reason = result.reason if result is not None and result.reason else status.value
