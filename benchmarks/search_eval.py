@@ -66,6 +66,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -94,6 +95,8 @@ REACH = 1.0
 FACING_DEG = 30.0
 #: A "found" with the target farther than this or outside the half field of view is of another object.
 VIEW_RANGE, HALF_FOV_DEG = 3.0, 35.0
+#: Robot seconds between the true poses the probe keeps for the report's why.
+TRACE_S = 0.5
 
 
 #: Size and shape of a target class, for a small object made into one (the generator's).
@@ -148,6 +151,8 @@ class Trial:
     false_found: bool = False
     wrong_object: bool = False
     absent_correct: bool = False
+    why: dict[str, Any] | None = None
+    phases: dict[str, float] | None = None
 
 
 def small_objects(objects: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -294,17 +299,30 @@ def held_out_cases(
 class SearchProbe:
     """Reads, inside the batch worker, what scoring needs: the true final pose and the search's verdict.
 
-    The true pose is the simulator's ground truth (scoring only; the leaves never see it).
+    Also the true pose every :data:`TRACE_S` robot seconds and the tick log's phases and candidates,
+    for the report's why (:mod:`search_why`). The true pose is the simulator's ground truth (scoring
+    and diagnosis only; the leaves never see it).
     """
 
+    def __init__(self) -> None:
+        self.trace: list[list[float]] = []
+
     def on_tick(self, session: Any) -> None:
-        """Nothing per tick."""
+        """The true pose, once every TRACE_S robot seconds."""
+        now = float(session.robot.now())
+        if self.trace and now - self.trace[-1][0] < TRACE_S:
+            return
+        pose = session.robot.truth.robot_pose()
+        self.trace.append([round(now, 2), round(pose.x, 3), round(pose.y, 3), round(pose.yaw, 3)])
 
     def finish(self, session: Any, result: Any) -> dict[str, Any]:
-        """The robot's true final pose and the search's last found / not-found message."""
+        """The true final pose, the search's last found / not-found message, the trace, phases, candidates."""
+        from search_why import phases, search_events
+
         pose = session.robot.truth.robot_pose()
         log = (session.run_dir / "ticks.jsonl").read_text(encoding="utf-8")
-        return {"final_pose": [pose.x, pose.y, pose.yaw], "search_reason": _reason(log)}
+        return {"final_pose": [pose.x, pose.y, pose.yaw], "search_reason": _reason(log),
+                "trace": self.trace, "phases": phases(log), "search_events": search_events(log)}
 
 
 def score(trial: Trial, case: Case, world: Any, record: Any) -> Trial:
@@ -333,6 +351,13 @@ def score(trial: Trial, case: Case, world: Any, record: Any) -> Trial:
     trial.absent_correct = (
         case.absent and not claimed and trial.stopped_by == "status" and "not found" in trial.reason
     )
+    trial.phases = record.figures.get("phases")
+    trace = record.figures.get("trace")
+    if trace is not None and not case.absent:
+        from search_why import diagnose
+
+        events = record.figures.get("search_events") or []
+        trial.why = diagnose(trace, world, obj, events, trial.found)
     return trial
 
 
@@ -438,6 +463,7 @@ def summarise(trials: list[Trial], method: str) -> dict[str, Any]:
         "final_distance_error_m_median": med([t.distance_m for t in claimed]),
         "final_bearing_error_deg_median": med([t.bearing_deg for t in claimed]),
         "timeouts": sum(t.stopped_by != "status" for t in mine),
+        "misses_by_cause": dict(Counter(t.why["cause"] for t in present if t.why and not t.found)),
         "wall_s_median": med([t.wall_s for t in mine]),
     }
 
@@ -672,6 +698,9 @@ def run_split(
                 f"{t.reason[:90]}",
                 flush=True,
             )
+            if t.why is not None or t.phases:
+                print(f"{split:4s} {t.method:6s} case {t.case:3d} why: {json.dumps(t.why)} "
+                      f"phases: {json.dumps(t.phases)}", flush=True)
 
     size = 2 * max(1, workers)
     engines = {m: PoolEngine(workers) if workers > 1 else SerialEngine() for m in methods}

@@ -509,7 +509,7 @@ def test_the_floor_near_the_robot_is_labelled_in_a_window_and_the_whole_floor_ke
     whole = cov.floor(grid, (1.0, 1.0))
     assert len(whole) > len(near)
     calls = []
-    cov._floor_cells = lambda g, xy: calls.append(1) or set()  # type: ignore[method-assign]
+    cov._floor_cells = lambda g, xy: calls.append(1) or set()  # type: ignore[method-assign,assignment,func-returns-value]
     assert cov.floor(grid, (1.0, 1.0)) is whole and not calls
 
 
