@@ -104,3 +104,35 @@ def test_an_endless_patrol_is_never_done() -> None:
         assert index is not None
         d.visited("robot1", index)
     assert not d.done()
+
+
+def _three() -> tuple[PatrolDispatcher, Events]:
+    d, events = _dispatcher(6, ["robot1", "robot2", "robot3"])
+    for name, x in (("robot1", 0.0), ("robot2", 2.0), ("robot3", 5.0)):
+        d.join(name, Pose2D(x, 0.0, 0.0))
+    return d, events
+
+
+def test_an_alarm_sends_the_nearest_free_other_robot() -> None:
+    """robot1 raises an alarm at x=4.5: robot3 (0.5 m away) is sent, not robot1 itself nor robot2."""
+    d, events = _three()
+    assert d.alarm("robot1", 4.5, 0.0, 7) == "robot3"
+    assert events[-1][0] == "alarm_dispatched" and events[-1][1]["robot"] == "robot3"
+    assert d.response_for("robot3") is not None
+
+
+def test_the_same_person_is_answered_once_and_a_busy_robot_is_not_sent_again() -> None:
+    """A second alarm 1 m from the first sends nobody; one elsewhere goes to the next free robot."""
+    d, _ = _three()
+    d.alarm("robot1", 4.5, 0.0, 1)
+    assert d.alarm("robot2", 5.5, 0.0, 2) is None
+    assert d.alarm("robot1", 1.5, 10.0, 3) == "robot2"
+
+
+def test_an_answered_alarm_frees_the_robot_and_records_the_outcome() -> None:
+    """After responded(), robot3 is free again and the report says it reached the alarm."""
+    d, _ = _three()
+    d.alarm("robot1", 4.5, 0.0, 1)
+    d.responded("robot3", "reached")
+    assert d.response_for("robot3") is None
+    assert d.report()["alarms_dispatched"][0]["outcome"] == "reached"

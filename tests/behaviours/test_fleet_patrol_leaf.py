@@ -105,3 +105,16 @@ def test_a_goal_aborted_by_a_vanished_server_fails_as_lost() -> None:
     leaf, events = _leaf(robot, 1, [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
     assert _tick(leaf, robot, 2) is Status.FAILURE  # sent on the first tick, polled on the second
     assert "patrol_lost" in events.seen and "waypoint_skipped" not in events.seen
+
+
+def test_a_robot_sent_to_an_alarm_drives_there_and_resumes() -> None:
+    """A dispatched alarm preempts the patrol: alarm_look_started, alarm_looked (reached), then waypoints."""
+    robot = _Robot()
+    leaf, events = _leaf(robot, 0, [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    _tick(leaf, robot, 1)
+    assert leaf.dispatcher is not None
+    leaf.dispatcher.responses["robot1"] = {"x": 3.0, "y": 0.0, "alarm": 1, "raised_by": "robot2", "t": 0.0}
+    _tick(leaf, robot, 3)
+    assert events.seen.index("alarm_look_started") < events.seen.index("alarm_looked")
+    assert leaf.dispatcher.response_for("robot1") is None
+    assert events.seen[-1] in ("goal_sent", "waypoint_reached")

@@ -16,6 +16,12 @@ beyond). A robot starts at its stretch's waypoint nearest to it and loops the st
 robots still live (from where they are now), and waypoints a finite patrol still owes visits go to
 their new owners. ``fleet_rebalanced`` says who has what.
 
+**Alarm dispatch** (the patrol-robot thesis §5.3.4). An alarm a robot raises with a position is
+handed to the nearest free robot other than the one that raised it (straight-line distance from
+its pose estimate; free: live and not already answering an alarm); that robot leaves its stretch,
+drives to look and comes back (``alarm_dispatched``, ``alarm_looked``). An alarm within
+``SAME_ALARM`` m of one being answered is the same person: nobody more is sent.
+
 **Done.** With ``laps`` > 0 the fleet is done when every waypoint has had ``laps`` visits (by any
 robot) or was skipped as unreachable by the robot it was given to; ``laps: 0`` patrols until stopped.
 """
@@ -32,6 +38,8 @@ from missiontree.types import Pose2D
 
 #: Up to this many robots every assignment of stretches to robots is tried; beyond, greedily.
 EXACT_ASSIGNMENT = 7
+#: An alarm this close (m) to one being answered is taken for the same person.
+SAME_ALARM = 2.0
 
 __all__ = ["EXACT_ASSIGNMENT", "PatrolDispatcher", "distinct_waypoints", "partition_tour"]
 
@@ -144,6 +152,9 @@ class PatrolDispatcher:
         self.visits = [0] * len(self.waypoints)
         self.skipped: dict[int, str] = {}
         self.rebalances: list[dict[str, Any]] = []
+        #: Alarms being answered: robot -> {"x", "y", "alarm", "raised_by", "t"}.
+        self.responses: dict[str, dict[str, Any]] = {}
+        self.dispatched: list[dict[str, Any]] = []
 
     @property
     def started(self) -> bool:
@@ -218,11 +229,46 @@ class PatrolDispatcher:
         if name not in self.live:
             return bool(self.live)
         self.live.remove(name)
+        self.responded(name, "lost")
         if not self.live:
             return False
         if self.started:
             self._cut("fleet_rebalanced", lost=name)
         return True
+
+    def alarm(self, raised_by: str, x: float, y: float, alarm_id: Any) -> str | None:
+        """An alarm at (x, y) raised by ``raised_by``: the robot sent to look, or None.
+
+        None when it is the person an answer is already on its way to, or no other robot is free.
+        """
+        for task in self.responses.values():
+            if math.hypot(task["x"] - x, task["y"] - y) < SAME_ALARM:
+                return None
+        free = [n for n in self.live if n != raised_by and n not in self.responses and n in self.poses]
+        if not free:
+            return None
+        chosen = min(free, key=lambda n: (math.hypot(self.poses[n].x - x, self.poses[n].y - y), n))
+        distance = math.hypot(self.poses[chosen].x - x, self.poses[chosen].y - y)
+        task = {"x": x, "y": y, "alarm": alarm_id, "raised_by": raised_by, "t": self.clock()}
+        self.responses[chosen] = task
+        self.dispatched.append({**task, "robot": chosen, "distance_m": round(distance, 2)})
+        self.emit("alarm_dispatched", robot=chosen, raised_by=raised_by, alarm=alarm_id, x=x, y=y,
+                  distance_m=round(distance, 2))
+        return chosen
+
+    def response_for(self, name: str) -> dict[str, Any] | None:
+        """The alarm robot ``name`` has been sent to look at, if any."""
+        return self.responses.get(name)
+
+    def responded(self, name: str, outcome: str) -> None:
+        """Robot ``name`` is done looking (``outcome``: reached, unreachable, timeout, lost)."""
+        task = self.responses.pop(name, None)
+        if task is not None:
+            for entry in reversed(self.dispatched):
+                if entry["robot"] == name and "outcome" not in entry:
+                    entry["outcome"] = outcome
+                    entry["answered_s"] = round(self.clock() - task["t"], 2)
+                    break
 
     def done(self) -> bool:
         """Whether a finite patrol owes no waypoint a visit (never for ``laps: 0``)."""
@@ -237,4 +283,5 @@ class PatrolDispatcher:
             "visits": {w.name: self.visits[i] for i, w in enumerate(self.waypoints)},
             "skipped": {self.waypoints[i].name: r for i, r in sorted(self.skipped.items())},
             "rebalances": list(self.rebalances), "live": list(self.live), "laps": self.laps,
+            "alarms_dispatched": list(self.dispatched),
         }

@@ -12,10 +12,16 @@ skipped with the reason (``waypoint_skipped``); a goal that ended because the ma
 (:class:`~missiontree.engine.fleet.FleetRoot`) records it and the dispatcher gives its waypoints to
 the others. A robot with nothing owed waits (RUNNING) until the fleet is done, so a later loss can
 still hand it work. Without a fleet (a single-robot run) the leaf is a fleet of one.
+
+Alarm dispatch (``respond``, the patrol-robot thesis §5.3.4): a new alarm on this robot's ``alarm``
+port (its Surveillance's) goes to the dispatcher, which sends the nearest free other robot; a
+robot sent leaves its patrol goal (its place kept), drives to within ``look_tolerance`` of the
+alarm's position, then resumes.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -25,9 +31,9 @@ from missiontree.behaviours.fleet_dispatch import PatrolDispatcher
 from missiontree.behaviours.motion import ANY_HEADING
 from missiontree.behaviours.waypoints import Waypoint, load_waypoints, parse_waypoints
 from missiontree.engine.leaf import Leaf, Status
-from missiontree.engine.ports import Output
+from missiontree.engine.ports import Input, Output
 from missiontree.robot.actions import INFRASTRUCTURE, ActionHandle, ActionStatus
-from missiontree.types import Tolerance
+from missiontree.types import Pose2D, Tolerance
 
 __all__ = ["FleetPatrol"]
 
@@ -36,9 +42,10 @@ class FleetPatrol(Leaf):
     """Patrol this robot's stretch of a route the fleet shares; re-balanced when a robot is lost.
 
     Emits ``goal_sent``, ``waypoint_reached`` and ``waypoint_skipped`` (each with ``robot``),
-    ``patrol_lost`` when its robot is gone; the dispatcher emits ``fleet_assigned`` and
-    ``fleet_rebalanced``. Writes the waypoint it is heading for to its ``waypoint`` port (under
-    the robot's blackboard namespace).
+    ``patrol_lost`` when its robot is gone, ``alarm_look_started`` and ``alarm_looked`` when sent
+    to look at another robot's alarm; the dispatcher emits ``fleet_assigned``,
+    ``fleet_rebalanced`` and ``alarm_dispatched``. Writes the waypoint it is heading for to its
+    ``waypoint`` port (under the robot's blackboard namespace).
     """
 
     class Params(BaseModel):
@@ -58,7 +65,14 @@ class FleetPatrol(Leaf):
         revisit_after: float = Field(
             10.0, ge=0, description="A robot whose next waypoint is the one it just reached (a stretch of "
             "one) waits this long before counting it again (s).")
+        respond: bool = Field(True, description="Answer alarms: this robot's alarms send the nearest free "
+                              "robot to look, and this robot goes when sent (the patrol-robot thesis "
+                              "§5.3.4).")
+        look_tolerance: float = Field(1.5, gt=0, description="How near to an alarm's position counts as "
+                                      "having looked (m): people stand there.")
+        look_timeout: float = Field(90.0, gt=0, description="Give up looking after this many seconds.")
         waypoint: Annotated[str, Output("the waypoint being driven to", type="dict")] = "patrol_waypoint"
+        alarm: Annotated[str, Input("the alarm this robot's surveillance raised", type="dict")] = "alarm"
 
         @model_validator(mode="after")
         def _one_source(self) -> FleetPatrol.Params:
@@ -81,6 +95,9 @@ class FleetPatrol(Leaf):
         self.skipped = 0
         self.last_index = -1
         self.last_reached = 0.0
+        self.look: ActionHandle | None = None
+        self.look_started = 0.0
+        self.alarms_seen: set[Any] = set()
 
     def on_setup(self) -> None:
         """Load the route and join the fleet's dispatcher for it (one per fleet and route)."""
@@ -128,6 +145,11 @@ class FleetPatrol(Leaf):
             return self._lost(lost)
         stamped = robot.pose()
         self.dispatcher.join(robot.name, stamped.pose if stamped is not None else None)
+        if self.params.respond:
+            self._notice_alarm()
+            task = self.dispatcher.response_for(robot.name)
+            if task is not None:
+                return self._answer(task)
         if self.handle is not None:
             status = self._poll()
             if status is not None:
@@ -171,14 +193,69 @@ class FleetPatrol(Leaf):
         return None
 
     def terminate(self, new_status: Status) -> None:
-        """Halted or ended: cancel a goal still running (the dispatcher keeps the place)."""
-        if self.handle is not None:
-            handle, self.handle = self.handle, None
+        """Halted or ended: cancel a goal still running (the dispatcher keeps the place and the task)."""
+        for handle in (self.handle, self.look):
+            if handle is None:
+                continue
             try:
                 if not handle.status().done:
                     handle.cancel()
             except Exception:  # noqa: BLE001 - a halt must go on whatever the backend does
                 pass
+        self.handle = self.look = None
+
+    # -- alarms ----------------------------------------------------------------------------------
+
+    def _notice_alarm(self) -> None:
+        """A new alarm of this robot's with a position: ask the dispatcher to send someone to look."""
+        assert self.dispatcher is not None
+        alarm = self.read("alarm")
+        if not isinstance(alarm, dict):
+            return
+        key = (alarm.get("id"), alarm.get("raised_at"))
+        position = alarm.get("position")
+        if key in self.alarms_seen or not isinstance(position, list | tuple) or len(position) < 2:
+            return
+        self.alarms_seen.add(key)
+        x, y = float(position[0]), float(position[1])
+        if math.isfinite(x) and math.isfinite(y):
+            self.dispatcher.alarm(self.context.robot.name, x, y, alarm.get("id"))
+
+    def _answer(self, task: dict[str, Any]) -> Status:
+        """Drive to look at the alarm this robot was sent to; back to the patrol when done."""
+        assert self.dispatcher is not None
+        robot = self.context.robot
+        if self.look is None:
+            if self.handle is not None:  # the patrol's goal gives way; its place is kept
+                self.handle.cancel()
+                self.handle = None
+            self.look_started = robot.now()
+            self.look = robot.navigate_to(Pose2D(task["x"], task["y"], 0.0),
+                                          Tolerance(self.params.look_tolerance, ANY_HEADING))
+            self.emit("alarm_look_started", x=task["x"], y=task["y"], alarm=task["alarm"],
+                      raised_by=task["raised_by"])
+        status = self.look.status()
+        if not status.done:
+            if robot.now() - self.look_started <= self.params.look_timeout:
+                return self.running(f"looking at the alarm of {task['raised_by']} ({task['x']:.1f}, "
+                                    f"{task['y']:.1f})")
+            self.look.cancel()
+            return self._looked(task, "timeout")
+        if status is ActionStatus.SUCCEEDED:
+            return self._looked(task, "reached")
+        result = self.look.result()
+        if result is not None and getattr(result, "kind", "") == INFRASTRUCTURE:
+            self.look = None
+            return self._lost(f"{status.value}: {result.reason}")
+        return self._looked(task, "unreachable: " + (result.reason if result is not None else status.value))
+
+    def _looked(self, task: dict[str, Any], outcome: str) -> Status:
+        assert self.dispatcher is not None
+        self.look = None
+        self.emit("alarm_looked", outcome=outcome, alarm=task["alarm"], raised_by=task["raised_by"],
+                  x=task["x"], y=task["y"], took_s=round(self.context.robot.now() - self.look_started, 2))
+        self.dispatcher.responded(self.context.robot.name, outcome.split(":")[0])
+        return self.running("back to the patrol")
 
     # -- helpers ---------------------------------------------------------------------------------
 
