@@ -163,3 +163,46 @@ def test_the_look_region_keeps_the_object_in_place_and_paints_the_rest() -> None
     assert out.shape == image.shape
     assert (out[100:140, 150:170] == (255, 0, 0)).all()
     assert (out[10:30, 10:30] == 128).all()
+
+
+def _frame_with(objects: list[tuple[float, float, float]]) -> tuple[object, list]:
+    """A frame from (0, 0) facing +x, with a 0.5 m wide block per (x, y, score), and their detections."""
+    from missiontree.types import CameraIntrinsics, Detection, RGBDFrame
+
+    k = CameraIntrinsics(320, 240, 200.0, 200.0, 160.0, 120.0)
+    depth = np.full((240, 320), 6.0, np.float32)
+    dets = []
+    for x, y, score in sorted(objects, key=lambda o: -o[0]):   # the far ones first: the near ones hide them
+        near = x - 0.25
+        u1, u2 = 160.0 - 200.0 * (y + 0.25) / near, 160.0 - 200.0 * (y - 0.25) / near
+        depth[50:115, int(u1):int(u2)] = near
+        dets.append(Detection("chair", score, (u1, 50.0, u2, 115.0)))
+    frame = RGBDFrame(0.0, np.zeros((240, 320, 3), np.uint8), depth, k, Pose2D(0.0, 0.0, 0.0))
+    return frame, dets
+
+
+def test_a_neighbour_behind_the_object_does_not_answer_for_it() -> None:
+    """A chair 1.3 m behind where the graph puts one, on nearly the same bearing, is not that chair."""
+    from missiontree.reasoning.intent import match_detection
+
+    frame, dets = _frame_with([(3.3, 0.2, 0.9)])
+    found, why = match_detection(dets, "chair", frame, (2.0, 0.0))
+    assert found is None and "from where the graph puts it" in why
+
+
+def test_the_detection_nearest_the_graph_place_is_taken_not_the_highest_scoring() -> None:
+    """Of two chairs in view, the one at the graph's place is matched though its neighbour scores higher."""
+    from missiontree.reasoning.intent import match_detection
+
+    frame, dets = _frame_with([(2.0, 0.0, 0.6), (2.0, 0.6, 0.9)])
+    found, _ = match_detection(dets, "chair", frame, (2.0, 0.0))
+    assert found is not None and found.score == 0.6
+
+
+def test_the_object_at_the_graph_place_is_matched() -> None:
+    """A chair where the graph puts it is matched, also with the graph's place 0.3 m off."""
+    from missiontree.reasoning.intent import match_detection
+
+    frame, dets = _frame_with([(2.0, 0.0, 0.7)])
+    assert match_detection(dets, "chair", frame, (2.0, 0.0))[0] is not None
+    assert match_detection(dets, "chair", frame, (2.2, 0.25))[0] is not None

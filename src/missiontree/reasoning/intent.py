@@ -35,6 +35,7 @@ import numpy as np
 
 from missiontree.mapping.planner import path_lengths
 from missiontree.perception.colour import ALIASES, COLOUR_NAMES, canonical_colour
+from missiontree.perception.projection import project
 from missiontree.reasoning.phrases import colour_words, fold_label, size_words, split_relation
 from missiontree.reasoning.standoff import (
     MAX_REACH,
@@ -52,6 +53,13 @@ CONTAINS = "contains"
 OTHER_SIDE = math.radians(60.0)
 #: ... or, when the object is seen from one side only, this much nearer or farther (m).
 OTHER_RANGE = 0.3
+#: A detection is the object when it lies this near the graph's place (m), beyond the object's own
+#: half-width: the live graph's position error and the robot's localisation error ...
+POSITION_SLACK = 0.35
+#: ... plus this much per metre of distance, for the heading error (m/m).
+RANGE_SLACK = 0.05
+#: The object's own half-width counts at most this (m): the box of a long sofa seen close says little.
+MAX_HALF_WIDTH = 0.5
 
 
 @dataclass(frozen=True)
@@ -481,15 +489,19 @@ def match_detection(
     label: str,
     frame: RGBDFrame,
     xy: tuple[float, float],
-    bearing_slack: float = math.radians(12.0),
-    depth_slack: float = 0.8,
     min_score: float = 0.5,
+    position_slack: float = POSITION_SLACK,
 ) -> tuple[Detection | None, str]:
-    """The detection of ``label`` where the graph puts the object, and a reason when there is none.
+    """The detection of ``label`` that is the object the graph puts at ``xy``, and a reason when none is.
 
-    It must score at least ``min_score``, lie within the object's angular half-width plus
-    ``bearing_slack`` of the bearing of ``xy`` from the camera, and where the depth image has a
-    reading at its centre, that depth must be within ``depth_slack`` of the object's distance.
+    A detection is that object only where it shows something at the graph's place: the bearing of
+    ``xy`` must fall within the box's bearings, widened by the slack (``position_slack`` plus
+    :data:`RANGE_SLACK` a metre of distance: the graph's error and the robot's pose error), and
+    the detection placed in the map by its depth must lie within the object's own half-width (as
+    measured, at most :data:`MAX_HALF_WIDTH`) plus that slack of ``xy``. A neighbour of the same
+    class beside, before or behind the object fails one of the two. Of those that fit, the one
+    placed nearest ``xy`` is taken, not the highest-scoring: a neighbour in view must not answer
+    for the object. A box with no depth reading is judged by its bearing alone, after any placed.
     """
     want = fold_label(label)
     detections = [d for d in detections if d.score >= min_score]
@@ -498,37 +510,37 @@ def match_detection(
         seen = sorted({d.label for d in detections})
         return None, f"the detector sees no {label} (it sees {', '.join(seen) or 'nothing'})"
     cam = frame.camera_pose
-    bearing = cam.bearing_to(*xy)
     distance = math.hypot(xy[0] - cam.x, xy[1] - cam.y)
-    best: tuple[float, Detection] | None = None
+    slack = position_slack + RANGE_SLACK * distance
+    fits: list[tuple[int, float, Detection]] = []
     why = ""
     for d in same:
-        u, v = d.center
-        off = abs(wrap_angle(frame.intrinsics.pixel_bearing(u) - bearing))
-        half = abs(frame.intrinsics.pixel_bearing(d.box[0]) - frame.intrinsics.pixel_bearing(d.box[2])) / 2.0
-        if off > half + bearing_slack:
-            why = f"a {d.label} {math.degrees(off):.0f} deg off where the graph puts it"
+        side = _beside_box(frame, d, xy, distance)
+        if side > slack:
+            why = f"a {d.label} {side:.1f} m to the side of where the graph puts it"
             continue
-        depth = _depth_at(frame, d)
-        if depth is not None and abs(depth - distance) > depth_slack + 0.3:
-            why = f"a {d.label} at {depth:.1f} m, the graph puts it at {distance:.1f} m"
+        placed = project(frame, d, method="robust")
+        if placed is None:
+            fits.append((1, side, d))
             continue
-        if best is None or d.score > best[1].score:
-            best = (off, d)
-    if best is None:
+        off = math.hypot(placed.xy[0] - xy[0], placed.xy[1] - xy[1])
+        if off > min(placed.size[0] / 2.0, MAX_HALF_WIDTH) + slack:
+            where = f"({placed.xy[0]:.1f}, {placed.xy[1]:.1f})"
+            why = f"a {d.label} at {where}, {off:.1f} m from where the graph puts it"
+            continue
+        fits.append((0, off, d))
+    if not fits:
         return None, f"the detector sees no {label} where the graph puts it ({why})"
-    return best[1], ""
+    return min(fits, key=lambda f: (f[0], f[1]))[2], ""
 
 
-def _depth_at(frame: RGBDFrame, det: Detection) -> float | None:
-    depth = np.asarray(frame.depth)
-    h, w = depth.shape[:2]
-    x1, y1, x2, y2 = (int(round(v)) for v in det.box)
-    cx, cy = (x1 + x2) // 2, (y1 + y2) // 2
-    rx, ry = max(1, (x2 - x1) // 6), max(1, (y2 - y1) // 6)
-    patch = depth[max(0, cy - ry) : min(h, cy + ry + 1), max(0, cx - rx) : min(w, cx + rx + 1)]
-    valid = patch[np.isfinite(patch) & (patch > 0)]
-    return float(np.median(valid)) if valid.size else None
+def _beside_box(frame: RGBDFrame, det: Detection, xy: tuple[float, float], distance: float) -> float:
+    """How far (m) the point ``xy``, ``distance`` from the camera, lies to the side of the box's bearings."""
+    bearing = frame.camera_pose.bearing_to(*xy)
+    left = frame.intrinsics.pixel_bearing(det.box[0])
+    right = frame.intrinsics.pixel_bearing(det.box[2])
+    outside = max(0.0, wrap_angle(bearing - left), wrap_angle(right - bearing))
+    return distance * math.sin(min(outside, math.pi / 2.0))
 
 
 def look_crop(
