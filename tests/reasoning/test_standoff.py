@@ -104,3 +104,29 @@ def test_the_nearest_ring_with_a_place_wins():
     far = extent + RADIUS + STANDOFF_REACH
     assert all(math.hypot(*(np.subtract(space.grid.cell_to_world(r, c), (2.0, 2.0)))) <= far + 0.3 + 1e-6
                for r, c, _ in cells)
+
+
+def _outline(middle_known: bool = False, unexplored_beyond: bool = False) -> OccupancyGrid:
+    """A free room with a 0.5 m chair drawn as an outline round an unknown middle at (2, 2)."""
+    data = np.zeros((80, 80), dtype=np.int8)
+    data[0, :] = data[-1, :] = data[:, 0] = data[:, -1] = 100
+    data[35:46, 35:46] = 100
+    data[36:45, 36:45] = 0 if middle_known else -1
+    if unexplored_beyond:   # the outline open on one side to unexplored space
+        data[38:43, 45] = -1
+        data[:, 46:79] = -1
+    return OccupancyGrid(0.0, RES, Pose2D(0.0, 0.0), data)
+
+
+def test_an_outline_round_an_unknown_middle_has_a_place_to_stand():
+    """A chair the lidar drew as an outline round an unseen middle gets standoff cells across its outline."""
+    space = prepare_space(_outline(), RADIUS)
+    assert 0.2 <= object_extent(space, (2.0, 2.0)) <= 0.4
+    assert standoff_cells(space, (2.0, 2.0), RADIUS)
+
+
+def test_an_object_in_unexplored_space_gets_no_outline_footprint():
+    """An object whose unknown cell runs on into unexplored space keeps no footprint and no place in sight."""
+    space = prepare_space(_outline(unexplored_beyond=True), RADIUS)
+    assert object_extent(space, (2.0, 2.0)) == 0.0
+    assert not standoff_cells(space, (2.0, 2.0), RADIUS)

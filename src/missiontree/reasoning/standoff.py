@@ -41,6 +41,9 @@ NEAR_WEIGHT = 2.0
 CLEAR_WANTED, CLEAR_WEIGHT = 0.25, 4.0
 #: Extra distance beyond the camera's lower view limit (m): the camera sits ahead of the base's centre.
 VIEW_MARGIN = 0.12
+#: An object whose own cell is unknown is drawn as an outline round an unseen middle when that middle
+#: is closed (by obstacles or known cells) within this radius (m); past it, it is unexplored space.
+OUTLINE_RADIUS = 1.0
 #: An object whose cell and surroundings (this radius, m) are all unknown is outside the known map.
 KNOWN_RADIUS = 0.5
 
@@ -93,12 +96,37 @@ def prepare_space(grid: OccupancyGrid, robot_radius: float, allow_unknown: bool 
 
 
 def object_extent(space: Space, xy: tuple[float, float]) -> float:
-    """How far the object's footprint reaches from its position (m): 0 when the cell is free."""
+    """How far the object's footprint reaches from its position (m): 0 when the cell is free.
+
+    On a map learned as the robot goes, the lidar draws a chair or a sofa as an outline round a
+    middle it never saw: the object's own cell is unknown. When that unknown middle is closed within
+    :data:`OUTLINE_RADIUS` (:func:`_closed_middle`), the footprint reaches to its far edge, so a look
+    across the outline is in sight. An object in unexplored space has no closed middle (the unknown
+    runs on), and keeps no footprint: no place to stand is found in sight of it.
+    """
     row, col = space.grid.world_to_cell(*xy)
     rows, cols = space.occupied.shape
-    if not (0 <= row < rows and 0 <= col < cols) or not space.occupied[row, col]:
+    if not (0 <= row < rows and 0 <= col < cols):
         return 0.0
-    return float(space.inside[row, col])
+    if space.occupied[row, col]:
+        return float(space.inside[row, col])
+    if not space.known[row, col]:
+        return _closed_middle(space, row, col)
+    return 0.0
+
+
+def _closed_middle(space: Space, row: int, col: int) -> float:
+    """How far (m) the unknown cells joined to (row, col) reach from it, if they close near it; else 0."""
+    res = space.grid.resolution
+    reach = int(math.ceil(OUTLINE_RADIUS / res))
+    r0, c0 = max(0, row - reach), max(0, col - reach)
+    window = ~space.known[r0 : row + reach + 1, c0 : col + reach + 1]
+    _, labels = cv2.connectedComponents(window.astype(np.uint8), connectivity=8)
+    mine = labels == labels[row - r0, col - c0]
+    if mine[0, :].any() or mine[-1, :].any() or mine[:, 0].any() or mine[:, -1].any():
+        return 0.0  # the unknown runs on to the window's edge (or the map's): unexplored space
+    rr, cc = np.nonzero(mine)
+    return float(np.hypot(rr + r0 - row, cc + c0 - col).max() * res + res)
 
 
 def standoff_cells(
