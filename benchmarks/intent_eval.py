@@ -68,6 +68,7 @@ Last line: one JSON object.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -887,6 +888,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="also run Table II end to end from a perceived graph from this many starts "
                              "(trees/map_and_go_to_intent.yaml; slow: one exploration of the office each)")
     parser.add_argument("--perceived-max-duration", type=float, default=1500.0)
+    parser.add_argument("--keep", type=Path, default=None, metavar="DIR",
+                        help="write the worlds and run directories under DIR and keep them (default: a "
+                             "temporary directory, removed at the end)")
     args = parser.parse_args(argv)
     n_table = args.starts or (3 if args.quick else 10)
     n_written = args.written_starts or (1 if args.quick else 2)
@@ -896,7 +900,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     figures: dict[str, dict[str, Any]] = {}
     out: dict[str, Any] = {}
     dev_trials: list[Trial] = []
-    with tempfile.TemporaryDirectory(prefix="intent_eval_") as tmp:
+    if args.keep is not None:
+        args.keep.mkdir(parents=True, exist_ok=True)
+    with (contextlib.nullcontext(str(args.keep)) if args.keep is not None
+          else tempfile.TemporaryDirectory(prefix="intent_eval_")) as tmp:
         bench = Bench(Path(tmp))
         if args.split in ("dev", "both"):
             trials = dev_trials = run_dev(bench, n_table, n_written, args.seed, jobs)
