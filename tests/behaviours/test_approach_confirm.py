@@ -20,10 +20,10 @@ APPROACH_CONFIRM = {"Include": {"file": "subtrees/approach_confirm.yaml",
 STEPS = ("plan_standoff", "drive", "face", "place_by_depth", "look_for", "confirm")
 
 
-def look_confirm(frames: int = 3) -> dict[str, Any]:
+def look_confirm(frames: int = 3, max_distance: float = 0.0) -> dict[str, Any]:
     """LookFor then ConfirmTarget in a Retry of ``frames`` looks, as the subtree has them."""
     steps = [{"LookFor": {"name": "look_for", "target": "red backpack"}},
-             {"ConfirmTarget": {"name": "confirm", "target": "red backpack"}}]
+             {"ConfirmTarget": {"name": "confirm", "target": "red backpack", "max_distance": max_distance}}]
     return {"Retry": {"name": "confirm_looks", "attempts": frames,
                       "child": {"Sequence": {"name": "look_confirm", "memory": True, "children": steps}}}}
 
@@ -76,6 +76,18 @@ def test_the_right_object_beside_a_decoy_is_confirmed_on_its_own_detection(tmp_p
     status, events, _ = run(tmp_path, world, look_confirm(), blackboard=board, max_duration=40)
     assert status == "SUCCESS"
     assert of(events, "object_found")[0]["id"] == "backpack_1"
+
+
+def test_a_confirmed_object_farther_than_max_distance_is_rejected_at_once(tmp_path: Path) -> None:
+    """The red backpack confirmed 1 m away with ``max_distance`` 0.5: rejected after that one look."""
+    world = room(tmp_path, (3.0, 2.5, 0.0), [backpack("red_bag", "red", RED)])
+    candidate = {"id": "backpack_1", "label": "backpack", "colour": "red", "x": RED[0], "y": RED[1], "z": 0.2}
+    board = {"search_candidate": candidate, "looks": []}
+    root = look_confirm(max_distance=0.5)
+    status, events, _ = run(tmp_path, world, root, blackboard=board, max_duration=40)
+    assert status == "FAILURE" and not of(events, "object_found")
+    [rejected] = of(events, "candidate_rejected")
+    assert "more than 0.5 m" in rejected["reason"] and "(in 1 frames)" in rejected["reason"]
 
 
 def test_the_subtree_confirms_an_object_believed_beyond_where_it_is_each_step_a_node(tmp_path: Path) -> None:

@@ -32,7 +32,7 @@ from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Input, Output
 from missiontree.reasoning.intent import GraphObject, SceneObjects, other_viewpoint, plan_candidates
 from missiontree.robot.actions import ActionHandle, ActionStatus
-from missiontree.types import OccupancyGrid, Pose2D, RGBDFrame, Tolerance
+from missiontree.types import OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
 
 #: A goal aborted with the robot this close to it (m) counts as reached (the stack stopped just short).
 NEAR_ENOUGH = 0.4
@@ -288,8 +288,8 @@ class DriveToStandoff(ApproachStep):
         self.emit("goal_result", status=status.value, reason=reason, x=self.goal.x, y=self.goal.y)
         return self._ended(ok, f"{status.value}: {reason}")
 
-    def within_reach(self, stamped: Any) -> bool:
-        """Whether the robot (a PoseStamped, or None) stands within ``reach`` of the candidate."""
+    def within_reach(self, stamped: PoseStamped | None) -> bool:
+        """Whether the robot stands within ``reach`` of the candidate (never without a pose)."""
         if self.cand is None or stamped is None:
             return False
         away = math.hypot(stamped.pose.x - self.cand["x"], stamped.pose.y - self.cand["y"])

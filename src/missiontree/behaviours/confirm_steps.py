@@ -174,10 +174,10 @@ class LookStep(Leaf):
             return self.fail(str(looks[-1]["stop"]))
         return None
 
-    def again(self, why: str, stamp: float) -> Status:
-        """A look that did not confirm the candidate: another look, or after the last one it is rejected."""
+    def again(self, why: str, stamp: float, last: bool = False) -> Status:
+        """A look that did not confirm it: another look, or after the last one (or ``last``) a rejection."""
         looks = [*self.looks(), {"stamp": stamp, "why": why}]
-        if len(looks) < self.params.frames:
+        if len(looks) < self.params.frames and not last:
             self.write("looks", looks)
             return self.fail(f"look {len(looks)} of {self.params.frames}: {why}")
         reason = f"{why} (in {len(looks)} frames)"
@@ -300,8 +300,8 @@ class ConfirmTarget(LookStep):
             bearing = stamped.pose.bearing_to(cand["x"], cand["y"])
         if self.params.max_distance and distance > self.params.max_distance:
             limit = self.params.max_distance
-            self.write("looks", [{"stamp": self.stamp, "why": "too far"}] * (self.params.frames - 1))
-            return self.again(f"confirmed, but {distance:.2f} m away (more than {limit:g} m)", self.stamp)
+            why = f"confirmed, but {distance:.2f} m away (more than {limit:g} m)"
+            return self.again(why, self.stamp, last=True)
         found = {
             "id": cand.get("id", ""),
             "label": self.goal.label,
