@@ -2,9 +2,10 @@
 
 Reads MRPT's ``2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog`` (Debian's ``mrpt-common``:
 225 SICK scans of 361 beams over 180°, with wheel odometry, a 76 m loop through a faculty hall),
-corrects the odometry by scan-to-map matching (KISS-ICP, the ``realdata`` extra) and then a pose
-graph with loop closures (:mod:`missiontree.mapping.pose_graph`), and prints raw odometry, the
-scan-to-map poses and the pose graph's side by side:
+corrects the odometry by scan-to-map matching (KISS-ICP, the ``realdata`` extra), then a pose
+graph with loop closures (:mod:`missiontree.mapping.pose_graph`), then the same graph with every
+overlapping scan pair registered directly (``refine_poses``), and prints raw odometry, the
+scan-to-map poses, the pose graph's and the refined ones side by side:
 
 - ``loop_gap_m`` (median and max) and ``loop_rot_deg``: where the robot comes back beside its
   start, the pose of each later scan relative to an early one along the trajectory, against the
@@ -117,6 +118,7 @@ def figures(log, poses, pairs, other_pairs) -> dict[str, float]:  # noqa: ANN001
         "thin_share_grid": round(grid.thin_share, 4),
         "wall_cells": grid.cells,
         "thin_share_endpoints": round(ends.thin_share, 4),
+        "cells_endpoints": ends.cells,
         "p90_thickness_endpoints": ends.p90,
         "second_pass_within_10cm": round(agree, 4),
         "second_pass_returns": counted,

@@ -195,16 +195,21 @@ def test_real_loop_closure_lays_the_second_pass_on_the_first(real_loop) -> None:
 
 @pytest.mark.realdata
 def test_real_loop_refinement_thins_the_walls_the_pose_graph_doubled(real_loop) -> None:  # noqa: ANN001
-    """Refined on their loop-closed neighbours, the returns draw thinner walls than at the pose graph's poses.
+    """With each overlapping scan pair in the graph, walls are <= 2 cells over 90 % of their cells.
 
-    The two passes stay laid on each other (second pass within 10 cm no lower); the loop stays closed.
+    The pose graph alone spreads the loop's correction evenly and blurs each pass's walls; the pair
+    graph keeps scans that see the same wall consistent, so the two passes also lie within 10 cm of
+    each other over 90 % of the returns seen twice (the raw odometry's figures stay far below).
     """
     log, corrected = real_loop
     assert corrected.graph and corrected.graph != corrected.poses
     refined = wall_thickness(endpoint_grid(log.scans, corrected.poses)).thin_share
     graph = wall_thickness(endpoint_grid(log.scans, corrected.graph)).thin_share
-    assert refined >= graph + 0.03
-    assert pass_agreement(log.scans, corrected.poses)[0] >= pass_agreement(log.scans, corrected.graph)[0]
+    raw = wall_thickness(endpoint_grid(log.scans, log.poses)).thin_share
+    assert refined >= 0.9 > graph and raw < 0.8
+    closed, _ = pass_agreement(log.scans, corrected.poses)
+    graph_only, _ = pass_agreement(log.scans, corrected.graph)
+    assert closed >= 0.9 > graph_only
 
 
 @pytest.mark.realdata

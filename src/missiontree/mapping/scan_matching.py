@@ -5,8 +5,10 @@ about a metre apart when the scans are laid down at their odometry poses. :func:
 registers each scan against a map of all the scans before it (scan-to-map ICP), seeded with the
 previous corrected pose composed with the odometry increment since then, so odometry is the motion
 prior and the scans decide the rest. When the robot comes back to a place, its scan meets the
-map's points from the first visit, which pulls the trajectory back (no pose graph, no explicit
-loop closure: :func:`loop_gap` measures how far the loop still is from closed).
+map's points from the first visit, which pulls the trajectory back only part of the way; loop
+closures (:func:`find_closures`) and a pose graph (:mod:`missiontree.mapping.pose_graph`) close
+it, and :func:`refine_poses` solves the graph again with every overlapping pair of scans
+registered directly, so scans that see the same wall agree with each other.
 
 The ICP is KISS-ICP's (PRBonn, MIT; ``kiss-icp`` on PyPI, in the ``realdata`` extra): a voxel
 hash map and a robust point-to-point ICP in C++, 0.5 MB with no heavy dependency (Open3D's ICP
@@ -59,8 +61,10 @@ class MatchSettings:
         closure_spread: ... and registrations started this far (m) to either side of the match
             all return to it (see :func:`well_constrained`).
         refine_rounds: After the pose graph, rounds of :func:`refine_poses` (0: none).
-        refine_radius: A scan is refined on the scans whose poses lie within this (m) of its own.
-        refine_max_shift: A refinement moving a pose further than this (m) or 2° is refused.
+        refine_radius: Scans whose poses lie within this (m) of each other are registered as a pair.
+        refine_max_shift: A pair whose registration moved it further than this (m) or 2° is dropped.
+        refine_overlap: A pair is kept when this share of one scan's points lies within 0.1 m of
+            the other's after registration.
     """
 
     voxel: float = 0.10
@@ -77,9 +81,10 @@ class MatchSettings:
     closure_overlap: float = 0.5
     closure_max_shift: float = 1.0
     closure_spread: float = 0.3
-    refine_rounds: int = 3
+    refine_rounds: int = 2
     refine_radius: float = 4.0
     refine_max_shift: float = 0.15
+    refine_overlap: float = 0.5
 
 
 @dataclass
@@ -181,14 +186,14 @@ def correct_poses(scans: Sequence[RecordedScan], odometry: Sequence[Pose2D],
     if not cfg.loop_closure or len(scans) < 3:
         return front
     closures = find_closures(scans, front.poses, cfg)
+    steps = [Edge(k, k + 1, relative(front.poses[k], front.poses[k + 1]), STEP_SIGMA_XY, STEP_SIGMA_YAW)
+             for k in range(len(scans) - 1)]
     if closures:
-        steps = [Edge(k, k + 1, relative(front.poses[k], front.poses[k + 1]), STEP_SIGMA_XY, STEP_SIGMA_YAW)
-                 for k in range(len(scans) - 1)]
         front.poses = optimise(front.poses, steps + closures)
         front.closures = closures
     front.graph = list(front.poses)
     if cfg.refine_rounds > 0:
-        front.poses = refine_poses(scans, front.poses, cfg)
+        front.poses = refine_poses(scans, front.poses, cfg, steps + closures)
     return front
 
 
@@ -313,38 +318,62 @@ def well_constrained(anchor: np.ndarray, points: np.ndarray, found: Pose2D, spre
 
 
 def refine_poses(scans: Sequence[RecordedScan], poses: Sequence[Pose2D],
-                 settings: MatchSettings | None = None) -> list[Pose2D]:
-    """Each scan re-registered on the loop-closed map of its neighbours in time and space.
+                 settings: MatchSettings | None = None, kept: Sequence[Edge] = ()) -> list[Pose2D]:
+    """The pose graph solved again with every pair of overlapping scans registered directly.
 
-    The pose graph moves whole stretches of the path, so where the loop's two passes meet they agree
-    only to a few centimetres: one wall drawn twice, side by side. Here every scan is registered
-    (fine ICP: 0.2 m correspondences, 5 cm kernel and voxels) on the scans whose poses lie within
-    ``refine_radius`` of its own, laid at ``poses``; all scans of a round are registered on the same
-    poses (a Jacobi sweep, so the order of the scans does not matter), for ``refine_rounds`` rounds.
-    A move beyond ``refine_max_shift`` or 2° is refused (the pose kept): this only polishes.
+    The pose graph's step edges only tie consecutive scans, so it spreads the loop's correction
+    evenly along the path: scans far apart in time that see the same wall then disagree by the
+    correction accumulated between them (on the faculty loop each pass's returns scatter 2 cm across
+    their walls instead of the scan-to-map poses' 1 cm, and the two passes meet a few centimetres
+    apart). Here each scan is registered on each scan whose pose lies within ``refine_radius`` of its
+    own (:func:`scan_pairs`), and the graph of those pairs plus the ``kept`` edges (steps and loop
+    closures) is solved; ``refine_rounds`` times, the pairs measured again from the new poses. The
+    correction then goes where the scans do not overlap (turns, doorways) and the poses of scans that
+    see the same walls stay consistent with each other.
     """
     cfg = settings or MatchSettings()
-    registration = require_kiss_icp()
-    mapping = importlib.import_module("kiss_icp.mapping")
-    icp = registration.Registration(max_num_iterations=100, convergence_criterion=1e-5, max_num_threads=1)
     clouds = [_cloud(scan, cfg.max_range) for scan in scans]
     current = list(poses)
     for _ in range(cfg.refine_rounds):
-        placed = [_to_world(c[:, :2], p) for c, p in zip(clouds, current, strict=True)]
-        xy = np.array([(p.x, p.y) for p in current])
-        moved = list(current)
-        for i, cloud in enumerate(clouds):
-            near = np.nonzero(np.hypot(*(xy - xy[i]).T) <= cfg.refine_radius)[0]
-            anchor = np.concatenate([placed[k] for k in near if k != i] or [np.zeros((0, 2))])
-            if not len(cloud) or not len(anchor):
-                continue
-            voxel_map = mapping.VoxelHashMap(voxel_size=0.05, max_distance=1e4, max_points_per_voxel=20)
-            voxel_map.add_points(np.column_stack([anchor, np.zeros(len(anchor))]))
-            found = matrix_pose(icp.align_points_to_map(
-                points=cloud, voxel_map=voxel_map, initial_guess=pose_matrix(current[i]),
-                max_correspondance_distance=0.2, kernel=0.05))
-            shift = relative(current[i], found)
-            if math.hypot(shift.x, shift.y) <= cfg.refine_max_shift and abs(shift.yaw) <= math.radians(2):
-                moved[i] = found
-        current = moved
+        pairs = scan_pairs(clouds, current, cfg)
+        if not pairs:
+            break
+        current = optimise(current, [*kept, *pairs])
     return current
+
+
+#: Standard deviations (m, rad) of a scan-to-scan pair's relative pose in the refinement's graph.
+PAIR_SIGMA_XY, PAIR_SIGMA_YAW = 0.02, 0.005
+
+
+def scan_pairs(clouds: Sequence[np.ndarray], poses: Sequence[Pose2D], cfg: MatchSettings) -> list[Edge]:
+    """Relative poses of the scan pairs within ``refine_radius`` of each other, measured by registration.
+
+    Fine ICP (0.2 m correspondences, 5 cm kernel and voxels) seeded by ``poses``; a pair is kept when
+    the registration moved it at most ``refine_max_shift`` m and 2° (this only polishes) and
+    ``refine_overlap`` of the later scan's points then lie within 0.1 m of the earlier scan's.
+    """
+    registration = require_kiss_icp()
+    mapping = importlib.import_module("kiss_icp.mapping")
+    icp = registration.Registration(max_num_iterations=100, convergence_criterion=1e-5, max_num_threads=1)
+    xy = np.array([(p.x, p.y) for p in poses])
+    pairs: list[Edge] = []
+    for i, anchor in enumerate(clouds):
+        if not len(anchor):
+            continue
+        voxel_map = mapping.VoxelHashMap(voxel_size=0.05, max_distance=1e4, max_points_per_voxel=20)
+        voxel_map.add_points(anchor)
+        tree = cKDTree(anchor[:, :2])
+        for j in (np.nonzero(np.hypot(*(xy[i + 1:] - xy[i]).T) <= cfg.refine_radius)[0] + i + 1).tolist():
+            if not len(clouds[j]):
+                continue
+            guess = relative(poses[i], poses[j])
+            found = matrix_pose(icp.align_points_to_map(
+                points=clouds[j], voxel_map=voxel_map, initial_guess=pose_matrix(guess),
+                max_correspondance_distance=0.2, kernel=0.05))
+            shift = relative(guess, found)
+            if math.hypot(shift.x, shift.y) > cfg.refine_max_shift or abs(shift.yaw) > math.radians(2):
+                continue
+            if overlap(clouds[j][:, :2], found, tree, 0.1) >= cfg.refine_overlap:
+                pairs.append(Edge(i, j, found, PAIR_SIGMA_XY, PAIR_SIGMA_YAW))
+    return pairs
