@@ -174,3 +174,23 @@ roles:
     captured = capsys.readouterr()
     assert secret not in captured.out + captured.err and "operator" not in captured.out + captured.err
     assert "***@127.0.0.1" in captured.out
+
+
+def test_no_check_builds_no_provider(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+) -> None:
+    """--no-check lists the shipped config's roles without building any of them (no model loaded)."""
+    from missiontree.reasoning.models import PendingProvider
+
+    built: list[object] = []
+    real_get = PendingProvider.get
+
+    def counting_get(self: PendingProvider) -> object:
+        built.append(self)
+        return real_get(self)
+
+    monkeypatch.setattr(PendingProvider, "get", counting_get)
+    assert main(["models", "--no-plugins", "--no-check"]) == 0
+    out = capsys.readouterr().out
+    assert "detector" in out and "embedder" in out and "unchecked" in out
+    assert built == []

@@ -2,7 +2,8 @@
 
 For every role of a models config (config/models/*.yaml, default ``offline``) it builds the
 provider and checks it — loads the model, pings the server (the provider's ``check()``; a detector
-without one is run on a blank frame) — and prints one line per role. Exit code 0 when every role is
+without one is run on a blank frame) — and prints one line per role. With ``--no-check`` it builds
+none: the config is still checked whole, and the roles are listed from it. Exit code 0 when every role is
 usable, 1 when one is not (its line says why and how to fix it), 2 when the config itself is broken.
 """
 
@@ -89,9 +90,7 @@ def run(args: argparse.Namespace) -> int:
     models = Models(build_models(name, plugins.providers, strict=False))  # unknown providers become rows
     settings = models.settings
     rows: list[dict[str, Any]] = []
-    providers = models.roles()
     for role, section in document.data["roles"].items():
-        provider = providers[role]
         latency = settings.latency.get(role)
         row: dict[str, Any] = {
             "role": role,
@@ -104,8 +103,8 @@ def run(args: argparse.Namespace) -> int:
             row["status"] = "unchecked"
         else:
             start = time.perf_counter()
-            try:
-                row["detail"] = check_provider(provider)
+            try:  # the role is built here, as part of its check (--no-check builds none)
+                row["detail"] = check_provider(models[role])
                 row["status"] = "ok"
             except Exception as exc:  # noqa: BLE001 - any failure is this provider's verdict, shown in full
                 row["status"] = "unusable"
