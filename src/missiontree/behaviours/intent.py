@@ -126,6 +126,7 @@ class GoToIntent(ArrivalLook):
     def __init__(self, name: str, params: BaseModel | None = None) -> None:
         super().__init__(name, params)
         self.file_graph: Any = None
+        self._read_cache: tuple[str, Reading] | None = None  # the command read by the knowledge, once
         self._reset()
 
     def _reset(self) -> None:
@@ -488,7 +489,7 @@ class GoToIntent(ArrivalLook):
         Whatever model chose the object, the knowledge vouches for it; a command none of whose words
         the knowledge lists is read by the embedder role's clear match, when the models have one.
         """
-        cached = getattr(self, "_read_cache", None)
+        cached = self._read_cache
         if cached is not None and cached[0] == self.text:
             return cached[1]
         kb = knowledge()

@@ -9,7 +9,10 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from missiontree.engine.context import MissionContext
 
 #: The run-directory file listing each command's outcome: served object, why, confirmed (or why not).
 SERVED_FILE = "intent_served.json"
@@ -39,7 +42,7 @@ def find_scene_graph(name: str) -> Path:
     )
 
 
-def record_outcome(ctx: Any, record: dict[str, Any]) -> dict[str, str]:
+def record_outcome(ctx: MissionContext | None, record: dict[str, Any]) -> dict[str, str]:
     """Add one command's outcome to summary.json's ``outcome.intent`` and ``intent_served.json``.
 
     The ``intent`` section lists every command of the run (``commands``) with counts, so that a user
@@ -56,10 +59,9 @@ def record_outcome(ctx: Any, record: dict[str, Any]) -> dict[str, str]:
         "commands": commands,
         "text": said(record),
     })
-    run_dir = getattr(ctx, "run_dir", None)
-    if run_dir is None:
+    if ctx.run_dir is None:
         return {}
-    path = Path(run_dir) / SERVED_FILE
+    path = Path(ctx.run_dir) / SERVED_FILE
     try:
         fresh = ctx.starts(path) or not path.is_file()
         entries = [] if fresh else json.loads(path.read_text(encoding="utf-8"))
