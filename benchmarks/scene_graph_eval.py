@@ -38,7 +38,11 @@ frames the mission's camera produced on the mission's own route:
 
 After the first pass: **object precision / recall** (same class — the simulator draws desks and
 dining tables as tables, so those count as ``table`` — and planar position within 0.5 m, greedy
-nearest matching; truth = every object of the detector's classes), **room_accuracy** (matched
+nearest matching; truth = every object of the detector's classes), **object_recall_in_view**
+(recall over the true objects the camera showed with at least 100 pixels within the leaf's
+``max_range`` in some frame, from the simulator's visibility log: misses split into objects the
+route never showed and objects shown but not put in the graph, :mod:`scene_graph_view`),
+**room_accuracy** (matched
 objects whose room node is the one paired with their true room; graph rooms and true rooms paired
 one to one to agree on the most objects), **room_type_accuracy** (true rooms whose paired node
 names their type), **colour_accuracy** (matched objects with the true colour name), and
@@ -60,6 +64,7 @@ mission left it) with the mission's detector, and to the NAIS reference. **rebui
 times rebuilding relations and graph for 300 objects (min / median / max over repetitions),
 beside the NAIS reference's rebuild, which is a GPT-4 round trip not timed here.
 
+``--set KEY=VALUE`` (repeatable) gives the mission's params (comparisons on dev).
 ``--diagnose`` prints each false and missed object of ours with its cause and each change of the
 dynamic phase with what the fusion judged at its places (``scene_graph_diagnosis.py``).
 
@@ -493,8 +498,8 @@ class SceneEvalProbe:
                 "nais": 1000 * self.wall_nais / max(frames, 1),
             },
         }
-        positions = {o.id: (o.pose.x, o.pose.y) for o in first["ours"]["truths"]}
-        in_view = frames_in_view(robot.truth.visibility, self.track, positions, self.leaf.params.max_range)
+        in_view = frames_in_view(robot.truth.visibility, self.track, first["ours"]["truths"],
+                                 self.leaf.params.max_range)
         for m in ("ours", "nais"):
             s = first[m]
             out[m] = {

@@ -45,17 +45,18 @@ class PoseTrack:
         return self.xy[best]
 
 
-def frames_in_view(visibility: Any, track: PoseTrack, positions: dict[str, tuple[float, float]],
+def frames_in_view(visibility: Any, track: PoseTrack, truths: list[Any],
                    max_range: float, min_pixels: int = SHOWN_PIXELS) -> Counter[str]:
     """Per object id, the camera frames that showed it (``min_pixels``) within ``max_range``.
 
     Args:
         visibility: The simulator's visibility log: a sequence of (stamp, {name: sighting}).
         track: The robot's true positions by stamp.
-        positions: Object id -> true planar position.
+        truths: The true objects (``id`` and ``pose``).
         max_range: Farthest distance (m) at which a shown object counts as in view.
         min_pixels: Least pixels an object must show in the frame.
     """
+    positions = {t.id: (t.pose.x, t.pose.y) for t in truths}
     counts: Counter[str] = Counter()
     for stamp, seen in visibility:
         here = track.at(stamp)

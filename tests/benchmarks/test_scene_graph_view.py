@@ -23,8 +23,9 @@ def test_only_frames_close_and_large_enough_count() -> None:
         (0.0, {"near": sighting(500), "far": sighting(500), "tiny": sighting(20)}),
         (1.0, {"far": sighting(500)}),
     ]
-    positions = {"near": (2.0, 0.0), "far": (12.0, 0.0), "tiny": (1.0, 0.0)}
-    counts = frames_in_view(visibility, track, positions, max_range=6.0)
+    truths = [SimpleNamespace(id=n, pose=SimpleNamespace(x=x, y=0.0))
+              for n, x in (("near", 2.0), ("far", 12.0), ("tiny", 1.0))]
+    counts = frames_in_view(visibility, track, truths, max_range=6.0)
     assert counts == {"near": 1, "far": 1}
 
 
