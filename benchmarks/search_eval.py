@@ -18,7 +18,7 @@ TurtleBot 4's warehouse and depot maps, the maze, Nav2's sandbox and (when insta
 the absent cases follow in the same order. The test figures are printed with 95 % Wilson intervals,
 beside dev's, with the dev - test gap.
 
-Worlds are edited here for the search (benchmark-side editing; the generators are untouched), the
+Worlds are edited for the search (``search_cases.py``; the generators are untouched), the
 same way on both splits: a target (class and colour, e.g. "red backpack") is chosen per world among
 the small objects (those the generator describes, or any object under 0.6 m across and 1 m high);
 when no small object is of a target class, one is made into one. Decoys of both kinds are made sure
@@ -73,24 +73,28 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # search_cases, search_why beside it
+from search_cases import (  # noqa: E402  (the cases, importable from here as before)
+    CLASS_SHAPES,
+    PALETTE,
+    TARGETS,
+    Case,
+    edit_world,
+    held_out_cases,
+    held_out_seeds,
+    make_case,
+    small_objects,
+)
+
+__all__ = ["CLASS_SHAPES", "PALETTE", "TARGETS", "Case", "edit_world", "held_out_cases", "held_out_seeds",
+           "make_case", "small_objects"]
 
 REPO = Path(__file__).resolve().parents[1]
 MISSIONS = {
     "ours": REPO / "trees" / "find_object.yaml",
     "report": REPO / "trees" / "examples" / "report_search.yaml",
 }
-#: Targets drawn from the generator's small objects: (class, colour).
-TARGETS = [
-    ("backpack", "red"),
-    ("backpack", "blue"),
-    ("bottle", "green"),
-    ("backpack", "green"),
-    ("umbrella", "red"),
-    ("bottle", "blue"),
-]
-#: Colours a decoy may be painted in.
-PALETTE = ["red", "blue", "green", "grey", "white", "pink", "black", "yellow"]
 REACH = 1.0
 FACING_DEG = 30.0
 #: A "found" with the target farther than this or outside the half field of view is of another object.
@@ -99,34 +103,7 @@ VIEW_RANGE, HALF_FOV_DEG = 3.0, 35.0
 TRACE_S = 0.5
 
 
-#: Size and shape of a target class, for a small object made into one (the generator's).
-CLASS_SHAPES = {
-    "backpack": ([0.32, 0.22, 0.45], "box"),
-    "bottle": ([0.08, 0.08, 0.3], "cylinder"),
-    "umbrella": ([0.1, 0.1, 0.9], "cylinder"),
-}
-#: An object this small across (m) and this low (m) may be a target or a decoy.
-SMALL_ACROSS, SMALL_HEIGHT = 0.6, 1.0
 SPLITS = ("dev", "test")
-
-
-@dataclass
-class Case:
-    """One world and what is searched in it."""
-
-    index: int
-    seed: int
-    label: str
-    colour: str
-    absent: bool
-    target_id: str = ""
-    split: str = "dev"
-    world: str = ""
-
-    @property
-    def target(self) -> str:
-        """The phrase searched for ("red backpack")."""
-        return f"{self.colour} {self.label}"
 
 
 @dataclass
@@ -153,147 +130,6 @@ class Trial:
     absent_correct: bool = False
     why: dict[str, Any] | None = None
     phases: dict[str, float] | None = None
-
-
-def small_objects(objects: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The objects a target or decoy may be: described by the generator, or small and movable."""
-    out = []
-    for o in objects:
-        size = [float(v) for v in o.get("size", [1.0, 1.0, 1.0])]
-        small = max(size[:2]) <= SMALL_ACROSS and size[2] <= SMALL_HEIGHT and o.get("movable", True)
-        if "description" in o or small:
-            out.append(o)
-    return out
-
-
-def edit_world(data: dict[str, Any], seed: int, absent: bool) -> tuple[str, str, str]:
-    """Edit a world's objects for one search (in place); return (label, colour, target id).
-
-    Works on any world of the generator's format (dev apartments, the test split's placed objects).
-
-    Raises:
-        ValueError: The world has no small object to search for.
-    """
-    objects = data.setdefault("objects", [])
-    small = small_objects(objects)
-    if not small:
-        raise ValueError(f"{data.get('name', '?')}: no small object to search for")
-    rng = np.random.default_rng(seed + 7919)
-    options = [t for t in TARGETS if any(o["label"] == t[0] for o in small)]
-    if not options:  # no object of a target class: one small object becomes one
-        label, colour = TARGETS[int(rng.integers(len(TARGETS)))]
-        _relabel(small[int(rng.integers(len(small)))], label, colour)
-        options = [(label, colour)]
-    label, colour = options[int(rng.integers(len(options)))]
-    same_class = [o for o in small if o["label"] == label]
-    target = next((o for o in same_class if o.get("color") == colour), same_class[0])
-    target["color"] = colour
-    for o in same_class:  # exactly one right object
-        if o is not target and o.get("color") == colour:
-            o["color"] = next(c for c in PALETTE if c != colour)
-    others = [o for o in small if o["label"] != label]
-    if len(same_class) < 2 and others:  # a same-class decoy: another small object becomes one
-        decoy = others.pop(int(rng.integers(len(others))))
-        _relabel(decoy, label, next(c for c in PALETTE if c != colour), like=target)
-    if not any(o.get("color") == colour for o in others) and others:  # same colour, another class
-        others[int(rng.integers(len(others)))]["color"] = colour
-    # any object outside the small ones that matches the target is recoloured too
-    for o in objects:
-        if o is not target and o["label"] == label and o.get("color") == colour:
-            o["color"] = next(c for c in PALETTE if c != colour)
-    if absent:  # another colour, one no object of the class has when there is one
-        unused = [c for c in PALETTE if c != colour and not any(o.get("color") == c for o in same_class)]
-        target["color"] = unused[0] if unused else next(c for c in PALETTE if c != colour)
-    for o in small:
-        o["description"] = f"a {o.get('color', '')} {o['label']}".replace("  ", " ")
-    return label, colour, str(target["id"])
-
-
-def _relabel(obj: dict[str, Any], label: str, colour: str, like: dict[str, Any] | None = None) -> None:
-    """Make ``obj`` an object of ``label`` in ``colour``, sized like ``like`` or the class's usual size."""
-    size, shape = CLASS_SHAPES.get(label, ([0.3, 0.3, 0.4], "box"))
-    if like is not None:
-        size, shape = list(like["size"]), like.get("shape", shape)
-    obj.update(label=label, color=colour, size=list(size), shape=shape)
-
-
-def make_case(
-    index: int, seed: int, absent: bool, folder: Path, rooms: int = 4, size: tuple[float, float] | None = None
-) -> tuple[Case, Path]:
-    """A dev case: generate, edit and write the apartment of ``seed``; return the case and its file.
-
-    ``rooms`` and ``size`` (m) give larger apartments of the same generator (``--dev-rooms``,
-    ``--dev-size``): tuning for large floors without looking at the test split's.
-    """
-    from missiontree.backends.sim.generator import generate_world
-
-    data = generate_world(seed, rooms=rooms, people=0, size=size)
-    label, colour, target_id = edit_world(data, seed, absent)
-    case = Case(index, seed, label, colour, absent, target_id, "dev", f"generated:{seed}")
-    path = folder / f"dev_{index:03d}.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
-    return case, path
-
-
-def held_out_seeds(count: int, first_seed: int, order: str = "maps-first") -> list[int]:
-    """The test split's seeds of a sample of ``count``: whole rounds of the cycle, real maps first.
-
-    Round ``r`` holds each of the cycle's ``n`` places once (seeds ``first_seed + r n`` to
-    ``first_seed + r n + n - 1``). With ``maps-first`` each round gives its real maps (the SLAM maps,
-    MRPT's grids) before its generated floorplans, so a sample smaller than the cycle still holds
-    the large real maps (TurtleBot 4's warehouse and depot); ``cycle``: the seeds in order.
-    """
-    from missiontree.evaluation.splits import current_test_cycle
-
-    cycle = current_test_cycle()
-    n = len(cycle)
-    if order == "cycle":
-        return list(range(first_seed, first_seed + count))
-    places = [p for p in range(n) if cycle[p][0] != "floorplan"] + [
-        p for p in range(n) if cycle[p][0] == "floorplan"
-    ]
-    seeds: list[int] = []
-    r = 0
-    while len(seeds) < count:
-        seeds += [first_seed + r * n + (p - first_seed) % n for p in places]
-        r += 1
-    return seeds[:count]
-
-
-def held_out_cases(
-    n_present: int, n_absent: int, first_seed: int, folder: Path, order: str = "maps-first"
-) -> tuple[list[tuple[Case, Path]], list[str]]:
-    """The test split's cases (the splits API's held-out worlds, edited) and the worlds skipped.
-
-    The seeds come from :func:`held_out_seeds`: the cases with the target first, then the absent
-    ones (the next places of the same order, so they too start with the real maps).
-    """
-    import copy
-    from dataclasses import replace
-
-    from missiontree.evaluation.splits import split_worlds, write_split_world
-
-    n = n_present + n_absent
-    seeds = held_out_seeds(n + 4, first_seed, order)
-    cases: list[tuple[Case, Path]] = []
-    skipped: list[str] = []
-    for seed in seeds:
-        if len(cases) >= n:
-            break
-        world = split_worlds("test", 1, first_seed=seed, people=False, min_objects=3)[0]
-        index = len(cases)
-        absent = index >= n_present
-        data = copy.deepcopy(world.data)
-        try:
-            label, colour, target_id = edit_world(data, seed, absent)
-        except ValueError as error:
-            skipped.append(f"{world.name}: {error}")
-            continue
-        sub = folder / f"test_{index:03d}"
-        sub.mkdir(parents=True, exist_ok=True)
-        path = write_split_world(replace(world, data=data), sub)
-        cases.append((Case(index, seed, label, colour, absent, target_id, "test", world.name), path))
-    return cases, skipped
 
 
 class SearchProbe:
@@ -535,9 +371,7 @@ def markdown_table(results: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
-    from missiontree.backends.sim import load_world
-
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--split", choices=["dev", "test", "both"], default="both")
     parser.add_argument("--quick", action="store_true", help="6 worlds with the target + 2 without, a split")
@@ -565,9 +399,24 @@ def main(argv: list[str] | None = None) -> int:
         help="splits the report's method runs on (dev: the test floors take it most of the limit)",
     )
     parser.add_argument("--keep", default="", help="keep the worlds and runs (tick logs) in this directory")
-    args = parser.parse_args(argv)
-    splits = list(SPLITS) if args.split == "both" else [args.split]
-    counts = {
+    return parser
+
+
+def _cases(split: str, args: argparse.Namespace, folder: Path) -> tuple[list[tuple[Case, Path]], list[str]]:
+    """One split's cases (written into ``folder``) and the worlds skipped."""
+    n_present, n_absent = _counts(args)[split]
+    if split == "dev":
+        size = _size(args.dev_size)
+        n = n_present + n_absent
+        return [
+            make_case(i, args.first_seed + i, i >= n_present, folder, args.dev_rooms, size) for i in range(n)
+        ], []
+    return held_out_cases(n_present, n_absent, args.test_first_seed, folder, args.test_order)
+
+
+def _counts(args: argparse.Namespace) -> dict[str, tuple[int, int]]:
+    """(worlds with the target, worlds without) per split, from the options."""
+    return {
         "dev": (
             args.worlds if args.worlds is not None else (6 if args.quick else 50),
             args.absent if args.absent is not None else (2 if args.quick else 10),
@@ -577,59 +426,57 @@ def main(argv: list[str] | None = None) -> int:
             args.test_absent if args.test_absent is not None else (2 if args.quick else 5),
         ),
     }
+
+
+def _split_results(
+    split: str, cases: list[tuple[Case, Path]], skipped: list[str], methods: list[str], mine: list[Trial],
+    limit: float,
+) -> dict[str, Any]:
+    """One split's figures per method (printed as a line each), and the paired time ratio."""
+    out: dict[str, Any] = {
+        "worlds": sum(not c.absent for c, _ in cases),
+        "absent_cases": sum(c.absent for c, _ in cases),
+        "skipped": len(skipped),
+        "max_duration_s": limit,
+        "families": sorted({c.world.split(":")[0] for c, _ in cases}),
+    }
+    for method in methods:
+        out[method] = s = summarise(mine, method)
+        print(
+            f"{split} {method}: success {s['success_rate']} {s['success_ci95']}, false found "
+            f"{s['false_found']}, absent correct {s['absent_correct_rate']} "
+            f"{s['absent_correct_ci95']}, time to find median {s['time_to_find_s_median']} s "
+            f"(p90 {s['time_to_find_s_p90']}), path {s['path_length_m_median']} m, final "
+            f"distance {s['final_distance_error_m_median']} m, bearing "
+            f"{s['final_bearing_error_deg_median']} deg",
+            flush=True,
+        )
+    if "report" in methods:
+        ours, ref = s_get(out, "ours"), s_get(out, "report")
+        out["time_ratio_ours_vs_report"] = round(ours / ref, 3) if ours and ref else None
+        out["time_ratio_paired"] = paired_ratios(mine)
+        print(f"{split}: time to find, ours / report on the cases both found: {out['time_ratio_paired']}")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    from missiontree.backends.sim import load_world
+
+    args = _parser().parse_args(argv)
+    splits = list(SPLITS) if args.split == "both" else [args.split]
     limits = {"dev": args.max_duration or 600.0, "test": args.test_max_duration}
-    trials: list[Trial] = []
     results: dict[str, Any] = {}
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() if not args.keep else _kept(args.keep) as tmp:
         for split in splits:
             folder = Path(tmp) / split
             folder.mkdir()
-            n_present, n_absent = counts[split]
-            skipped: list[str] = []
-            if split == "dev":
-                n = n_present + n_absent
-                size = _size(args.dev_size)
-                cases = [
-                    make_case(i, args.first_seed + i, i >= n_present, folder, args.dev_rooms, size)
-                    for i in range(n)
-                ]
-            else:
-                cases, skipped = held_out_cases(
-                    n_present, n_absent, args.test_first_seed, folder, args.test_order
-                )
+            cases, skipped = _cases(split, args, folder)
             for line in skipped:
                 print(f"{split}: skipped {line}", flush=True)
             methods = ["ours"] + (["report"] if args.reference in (split, "both") else [])
             mine = run_split(split, cases, methods, args.workers, folder, limits[split], load_world)
-            trials += mine
-            results[split] = {
-                "worlds": sum(not c.absent for c, _ in cases),
-                "absent_cases": sum(c.absent for c, _ in cases),
-                "skipped": len(skipped),
-                "max_duration_s": limits[split],
-                "families": sorted({c.world.split(":")[0] for c, _ in cases}),
-            }
-            for method in methods:
-                results[split][method] = summarise(mine, method)
-                s = results[split][method]
-                print(
-                    f"{split} {method}: success {s['success_rate']} {s['success_ci95']}, false found "
-                    f"{s['false_found']}, absent correct {s['absent_correct_rate']} "
-                    f"{s['absent_correct_ci95']}, time to find median {s['time_to_find_s_median']} s "
-                    f"(p90 {s['time_to_find_s_p90']}), path {s['path_length_m_median']} m, final "
-                    f"distance {s['final_distance_error_m_median']} m, bearing "
-                    f"{s['final_bearing_error_deg_median']} deg",
-                    flush=True,
-                )
-            if "report" in methods:
-                ours, ref = s_get(results[split], "ours"), s_get(results[split], "report")
-                results[split]["time_ratio_ours_vs_report"] = round(ours / ref, 3) if ours and ref else None
-                results[split]["time_ratio_paired"] = paired_ratios(mine)
-                print(
-                    f"{split}: time to find, ours / report on the cases both found: "
-                    f"{results[split]['time_ratio_paired']}"
-                )
+            results[split] = _split_results(split, cases, skipped, methods, mine, limits[split])
     results["wall_s"] = round(time.perf_counter() - started, 1)
     if "dev" in results and "test" in results:
         results["gap"] = gaps(results["dev"], results["test"])
