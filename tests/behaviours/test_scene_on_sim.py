@@ -128,3 +128,32 @@ root:
     outcome = result.summary["outcome"]["scene_graph"]  # and in summary.json, with a line for the terminal
     assert outcome["explored_share"] == reported["explored_share"]
     assert "of the place explored" in outcome["text"]
+
+
+def _still_scene(tmp_path: Path, gate: str) -> tuple[int, int]:
+    """(frames looked at, frames skipped) by BuildSceneGraph on a robot standing still for 4 s."""
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    mission = tmp_path / "still.yaml"
+    mission.write_text(f"""version: 1
+run: {{backend: sim, world: office, tick_hz: 10, seed: 4}}
+root:
+  Parallel:
+    name: stand_and_map
+    policy: success_on_one
+    children:
+      - Wait: {{name: stand, seconds: 4}}
+      - BuildSceneGraph: {{name: scene{gate}}}
+""")
+    with Session.open(MissionRequest(mission=mission, out=tmp_path / "run", quiet=True)) as session:
+        result = session.run()
+        leaf = next(n for n in session.root.iterate() if n.name == "scene")
+    assert result.status.name == "SUCCESS"
+    return leaf.frames, leaf.skipped
+
+
+def test_a_still_camera_is_not_detected_on_every_frame(tmp_path: Path) -> None:
+    """With view_move/view_turn set, a still robot's frames go to the detector once a still_period."""
+    every, skipped_none = _still_scene(tmp_path / "every", "")
+    gated, skipped = _still_scene(tmp_path / "gated", ", view_move: 0.2, view_turn: 10, still_period: 1.0")
+    assert skipped_none == 0 and every >= 15
+    assert gated <= 6 and skipped >= every - gated - 1

@@ -1,7 +1,9 @@
 """BuildSceneGraph: build the scene graph while the robot explores or patrols, and keep it true.
 
-Runs beside exploration or a patrol (a Parallel) and never finishes by itself. On every new camera
-frame it runs the detector and the :class:`~missiontree.semantics.builder.SceneBuilder` (NAIS
+Runs beside exploration or a patrol (a Parallel) and never finishes by itself. On each new camera
+frame that is a new view (``detect_period``, ``view_move``, ``view_turn``:
+:class:`~missiontree.semantics.view_gate.ViewGate`) it runs the detector as a model call off the tick
+thread, and on its answer the :class:`~missiontree.semantics.builder.SceneBuilder` (NAIS
 filters, projection from depth at the frame's instant, fusion that removes what has gone and
 moves what has moved); it segments the occupancy map into rooms (or takes the user's polygons),
 types the rooms and describes the objects, and rebuilds the graph when it changes.
@@ -27,7 +29,8 @@ Where it shows:
 Room types and descriptions come from the vision-language model (``room_types: vlm``,
 ``describe: vlm``: frames taken in the room with the NAIS room prompt; crops 20 % larger than the
 box with the description prompt, both as JSON schemas, never blocking the tick) or from the offline
-stand-ins (``objects``: the room type the objects seen in it point to; ``measure``: colour from the
+stand-ins (``objects``: the most probable room type for the objects seen in it and its shape,
+:mod:`~missiontree.semantics.room_types`; ``measure``: colour from the
 pixels, size from depth), which use only what the robot saw.
 """
 
@@ -42,17 +45,20 @@ from pydantic import BaseModel, Field
 
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Output
+from missiontree.perception.detectors import detection_job
 from missiontree.perception.tracking import NaisFilterParams
 from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
-from missiontree.reasoning.offline_scene import measured_description, room_type_from_objects
+from missiontree.reasoning.offline_scene import measured_description
 from missiontree.reasoning.prompts import object_description_prompt, room_prompt
 from missiontree.reasoning.scene_prompts import SemanticRelations, expanded_crop, semantic_relations_messages
 from missiontree.reasoning.schemas import ObjectDescription, RoomClassification
 from missiontree.semantics.builder import BuilderParams, SceneBuilder
 from missiontree.semantics.coverage import Coverage, explored_share
 from missiontree.semantics.fusion import FusionParams
+from missiontree.semantics.room_types import classify_room
 from missiontree.semantics.rooms import RoomRegion, SegmentationParams, load_room_polygons
 from missiontree.semantics.semantic_map import Change, Instance
+from missiontree.semantics.view_gate import ViewGate
 
 SCENE_GRAPH_FILE = "scene_graph.json"
 SCENE_PICTURE_FILE = "scene_graph.png"
@@ -60,6 +66,8 @@ SCENE_PICTURE_FILE = "scene_graph.png"
 SCENE_COVERAGE_FILE = "scene_coverage.json"
 #: Least seconds between two ``scene_graph`` events after changes (a burst of changes sends one graph).
 PUBLISH_GAP = 1.0
+#: Detector calls failing in a row before the leaf fails (a dead detector cannot build a graph).
+DETECTOR_FAILURES = 5
 
 
 class BuildSceneGraph(Leaf):
@@ -110,6 +118,16 @@ class BuildSceneGraph(Leaf):
         vlm: str = Field("vlm", description="Model role of the vision-language model.")
         llm: str = Field("llm", description="Model role of the language model.")
         timeout: float = Field(20.0, gt=0, description="Seconds to wait for a model answer.")
+        detect_period: float = Field(
+            0.0, ge=0, description="Least seconds between two frames the detector looks at "
+            "(0: every new frame).")
+        view_move: float = Field(
+            0.0, ge=0, description="A frame is a new view once the camera moved this far (m) since the last "
+            "one looked at, or turned view_turn; others are skipped (0 and 0: every frame).")
+        view_turn: float = Field(0.0, ge=0, description="Degrees the camera must turn for a new view.")
+        still_period: float = Field(
+            1.0, gt=0, description="With view_move/view_turn: most seconds between two frames looked at "
+            "while the camera stays still (a still robot still sees what changes).")
         objects: Annotated[str, Output("number of objects in the scene graph", type="int")] = "scene_objects"
 
     params: Params
@@ -121,6 +139,11 @@ class BuildSceneGraph(Leaf):
         self.last_publish = -math.inf
         self.changes = 0
         self.frames = 0
+        self.skipped = 0
+        self.gate = ViewGate()
+        #: The detector's call in flight and the frame it looks at (read on a later tick).
+        self.detecting: tuple[ModelCall, Any] | None = None
+        self.detector_failures = 0
         self.pending: list[tuple[str, str, ModelCall]] = []
         self.room_votes: dict[str, dict[str, float]] = {}
         self.described: set[str] = set()
@@ -175,8 +198,9 @@ class BuildSceneGraph(Leaf):
         self.last_input = None
         self.coverage = None
         self.last_coverage = -math.inf
-        if p.room_types == "vlm" or p.describe == "vlm" or p.semantic_relations:
-            model_caller(self.context)
+        self.gate = ViewGate(p.detect_period, p.view_move, p.view_turn, p.still_period)
+        self.detecting = None
+        self.detector_failures = 0
 
     def update(self) -> Status:
         """Take the newest frame, refresh rooms, rebuild and record what changed."""
@@ -184,16 +208,11 @@ class BuildSceneGraph(Leaf):
         robot = self.context.robot
         now = robot.now()
         self._settle(now)
-        frame = robot.rgbd()
+        self._look(robot.rgbd())
         started = time.perf_counter()
-        if frame is not None and frame.stamp > self.last_frame:
-            self.last_frame = frame.stamp
-            self.frames += 1
-            detections = self.context.model(self.params.detector).detect(frame.color)
-            started = time.perf_counter()
-            self.builder.add_frame(frame, detections)
-            self.last_input = (frame, list(detections))
-            self._ask_about(frame, now)
+        failed = self._collect(now)
+        if failed is not None:
+            return self.fail(failed)
         pose = robot.pose()
         inside = (pose.pose.x, pose.pose.y) if pose is not None else None
         grid = robot.occupancy()
@@ -212,7 +231,7 @@ class BuildSceneGraph(Leaf):
         explored = f", {self.coverage.share:.0%} explored" if self.coverage is not None else ""
         return self.running(
             f"{len(scene.map)} objects in {len(scene.rooms)} rooms, {self.changes} changes, "
-            f"{self.frames} frames{explored}"
+            f"{self.frames} frames ({self.skipped} skipped as no new view){explored}"
         )
 
     def terminate(self, new_status: Status) -> None:
@@ -220,6 +239,9 @@ class BuildSceneGraph(Leaf):
         for _, _, call in self.pending:
             call.cancel()
         self.pending.clear()
+        if self.detecting is not None:
+            self.detecting[0].cancel()
+            self.detecting = None
         if self.builder is None or self.ctx is None:
             return
         self.builder.rebuild(self.context.robot.now())
@@ -236,6 +258,49 @@ class BuildSceneGraph(Leaf):
             from missiontree.semantics.draw import draw_scene
 
             draw_scene(grid, self.builder.scene, Path(run_dir) / SCENE_PICTURE_FILE)
+
+    # -- frames ----------------------------------------------------------------------------------
+
+    def _look(self, frame: Any) -> None:
+        """Send a new frame that is a new view to the detector, off the tick thread (one at a time)."""
+        if frame is None or frame.stamp <= self.last_frame or self.detecting is not None:
+            return
+        self.last_frame = frame.stamp
+        if not self.gate.due(frame.stamp, frame.camera_pose):
+            self.skipped += 1
+            return
+        self.gate.take(frame.stamp, frame.camera_pose)
+        detector = self.context.model(self.params.detector)
+        call = model_caller(self.context).submit(
+            self.params.detector, detection_job(detector, frame), node=self.name, log_success=False
+        )
+        self.detecting = (call, frame)
+
+    def _collect(self, now: float) -> str | None:
+        """Fuse the detector's answer once it is there; the reason to fail after repeated failures."""
+        if self.detecting is None:
+            return None
+        call, frame = self.detecting
+        status = call.status()
+        if not status.done:
+            return None
+        self.detecting = None
+        if status is CallStatus.CANCELLED:
+            return None
+        if status is not CallStatus.SUCCEEDED:
+            self.detector_failures += 1
+            self.emit("scene_question_failed", question="detect", subject="", error=call.error())
+            if self.detector_failures >= DETECTOR_FAILURES:
+                return f"the detector failed {self.detector_failures} times in a row: {call.error()}"
+            return None
+        self.detector_failures = 0
+        detections = list(call.result())
+        assert self.builder is not None
+        self.frames += 1
+        self.builder.add_frame(frame, detections)
+        self.last_input = (frame, detections)
+        self._ask_about(frame, now)
+        return None
 
     # -- outputs ---------------------------------------------------------------------------------
 
@@ -323,7 +388,8 @@ class BuildSceneGraph(Leaf):
             best = max(sorted(votes), key=lambda t: votes[t])
             total = sum(votes.values())
             return best, votes[best] / total, [f"the VLM ({votes[best]:.1f} of {total:.1f} votes)"]
-        answer = room_type_from_objects(labels)
+        known = getattr(self.context.model(self.params.detector), "labels", None)
+        answer = classify_room(labels, room.polygon, known)
         return answer.room_type, answer.confidence, answer.evidence
 
     def _describe(self, inst: Instance) -> tuple[str, str, str] | None:
