@@ -16,9 +16,11 @@ the run. ``idleness_avg_s`` is its average over waypoints and time; ``idleness_w
 largest value (the longest any waypoint waited, the open wait at the end included). A run in which
 some waypoint was never visited has no idleness (``null``, counted in ``unvisited_runs``).
 
-**Reassignment**: a one-lap patrol (``laps: 1``) with 3 robots, robot2 killed at ``KILL_AT`` s (its
-goals abort as a vanished server's, ``--kill-robot``). It is OK when the run ends SUCCESS, robot2
-is recorded lost, and every waypoint the fleet could reach was visited (skipped ones are counted).
+**Reassignment**: a one-lap patrol (``laps: 1``) with 3 robots, robot2 killed mid-lap (its goals
+abort as a vanished server's, ``--kill-robot``): at half the time the 3-robot idleness run took to
+visit every waypoint once (``KILL_AT`` s when it never did), so the kill falls inside the lap on
+small maps too. It is OK when the run ends SUCCESS, robot2 is recorded lost, and every waypoint
+the fleet could reach was visited (skipped ones are listed).
 
 Printed: per split and robot count, the idleness (mean over worlds, min-max), the worst-idleness
 ratio of N robots to one (per world, then min/median/max), the reassignment rate with its 95 %
@@ -57,7 +59,7 @@ CLEARANCE = 0.5
 PASSAGE = 0.25
 #: Least distance between two waypoints (m).
 MIN_SPACING = 1.0
-#: When robot2 is killed in the reassignment run (s).
+#: When robot2 is killed in the reassignment run (s) when the 3-robot run never visited every waypoint.
 KILL_AT = 30.0
 COUNTS = (1, 2, 3)
 
@@ -179,6 +181,7 @@ def world_rows(split: str, count: int, first_seed: int, waypoints: int, duration
         route.write_text(yaml.safe_dump({"waypoints": [{"name": n, "x": x, "y": y, "yaw": 0.0}
                                                        for n, (x, y) in zip(names, spots, strict=True)]}))
         row: dict[str, Any] = {"world": sw.name, "waypoints": len(spots), "idleness": {}, "cpu_s": 0.0}
+        first_all: float | None = None
         for robots in COUNTS:
             run = one_run(path, route, robots, seed, duration, 0,
                           work / sw.name.replace(":", "_") / f"r{robots}")
@@ -187,21 +190,28 @@ def world_rows(split: str, count: int, first_seed: int, waypoints: int, duration
             print(f"  {split} {sw.name} robots={robots}: {_fmt(row['idleness'][robots])} "
                   f"({sum(len(v) for v in run['visits'].values())} visits, cpu {run['cpu_s']:.0f} s)",
                   file=sys.stderr)
-        row["reassign"] = reassign(path, route, names, seed, work / sw.name.replace(":", "_") / "kill")
+            if robots == 3:
+                visits = run["visits"]
+                first_all = max(min(visits[n]) for n in names) if all(visits.get(n) for n in names) else None
+        kill_at = round(first_all / 2.0, 1) if first_all else KILL_AT
+        folder = work / sw.name.replace(":", "_") / "kill"
+        row["reassign"] = reassign(path, route, names, seed, folder, kill_at)
         rows.append(row)
     return rows
 
 
-def reassign(world: Path, route: Path, names: list[str], seed: int, out: Path) -> dict[str, Any]:
-    """One lap with 3 robots, robot2 killed at KILL_AT: does the fleet still visit everything?"""
-    run = one_run(world, route, 3, seed, 900.0, 1, out, kill=f"robot2@{KILL_AT:g}")
+def reassign(world: Path, route: Path, names: list[str], seed: int, out: Path,
+             kill_at: float) -> dict[str, Any]:
+    """One lap with 3 robots, robot2 killed at ``kill_at``: does the fleet still visit everything?"""
+    run = one_run(world, route, 3, seed, 900.0, 1, out, kill=f"robot2@{kill_at:g}")
     fleet = run["fleet"] or {}
     dispatch: dict[str, Any] = next(iter((fleet.get("dispatchers") or {}).values()), {})
     skipped = dispatch.get("skipped") or {}
     missing = [n for n in names if n not in run["visits"] and n not in skipped]
     ok = run["status"] == "SUCCESS" and fleet.get("lost") == ["robot2"] and not missing
-    return {"ok": ok, "status": run["status"], "lost": fleet.get("lost"), "missing": missing,
-            "skipped": sorted(skipped), "rebalances": len(dispatch.get("rebalances") or [])}
+    return {"ok": ok, "kill_at": kill_at, "status": run["status"], "lost": fleet.get("lost"),
+            "missing": missing, "skipped": sorted(skipped),
+            "rebalances": len(dispatch.get("rebalances") or [])}
 
 
 def _fmt(found: dict[str, float] | None) -> str:
@@ -290,7 +300,7 @@ def main(argv: list[str] | None = None) -> int:
         "not_measured": {"search_time_ratio_2v1": "fleet search (frontier and room auction) is not built",
                          "explore_time_ratio_2v1": "fleet exploration is not built"},
         "settings": {"worlds": args.worlds, "first_seed": args.first_seed, "waypoints": args.waypoints,
-                     "duration_s": args.duration, "kill_at_s": KILL_AT},
+                     "duration_s": args.duration, "kill_at": "half the 3-robot first full visit"},
     }
     print(json.dumps(final, sort_keys=True))
     return 0

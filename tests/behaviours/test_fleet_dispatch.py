@@ -136,3 +136,11 @@ def test_an_answered_alarm_frees_the_robot_and_records_the_outcome() -> None:
     d.responded("robot3", "reached")
     assert d.response_for("robot3") is None
     assert d.report()["alarms_dispatched"][0]["outcome"] == "reached"
+
+
+def test_the_alarm_a_robot_raises_where_it_was_sent_sends_nobody_back() -> None:
+    """robot3 answered an alarm at x=4.5 and raises its own there: no robot is sent (no ping-pong)."""
+    d, _ = _three()
+    d.alarm("robot1", 4.5, 0.0, 1)
+    d.responded("robot3", "reached")
+    assert d.alarm("robot3", 4.6, 0.2, 9) is None

@@ -122,3 +122,20 @@ def test_a_kill_without_a_fleet_is_refused(tmp_path: Path) -> None:
     """--kill-robot on a single robot is a ConfigError."""
     with pytest.raises(ConfigError):
         run_mission(MissionRequest(mission=_mission(tmp_path), out=tmp_path / "r", kill_robots=["robot1@1"]))
+
+
+def test_a_killed_robots_clock_goes_on_with_the_fleets() -> None:
+    """After a kill, the dead robot's now() follows the fleet's clock while its pose stamp stays put."""
+    from missiontree.backends.sim.fleet import create_fleet
+
+    fleet = create_fleet("office", robots=2, seed=1)
+    try:
+        fleet.spin_until(1.0)
+        fleet.kill("robot2")
+        fleet.spin_until(5.0)
+        dead = fleet["robot2"]
+        stamped = dead.pose()
+        assert dead.now() == pytest.approx(5.0)
+        assert stamped is not None and stamped.stamp == pytest.approx(1.0)
+    finally:
+        fleet.close()

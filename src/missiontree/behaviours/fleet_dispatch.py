@@ -20,7 +20,8 @@ their new owners. ``fleet_rebalanced`` says who has what.
 handed to the nearest free robot other than the one that raised it (straight-line distance from
 its pose estimate; free: live and not already answering an alarm); that robot leaves its stretch,
 drives to look and comes back (``alarm_dispatched``, ``alarm_looked``). An alarm within
-``SAME_ALARM`` m of one being answered is the same person: nobody more is sent.
+``SAME_ALARM`` m of one being answered, or answered in the last ``ALARM_MEMORY`` s, is the same
+person: nobody more is sent (the robot that went to look raises its own alarm on arriving).
 
 **Done.** With ``laps`` > 0 the fleet is done when every waypoint has had ``laps`` visits (by any
 robot) or was skipped as unreachable by the robot it was given to; ``laps: 0`` patrols until stopped.
@@ -38,8 +39,11 @@ from missiontree.types import Pose2D
 
 #: Up to this many robots every assignment of stretches to robots is tried; beyond, greedily.
 EXACT_ASSIGNMENT = 7
-#: An alarm this close (m) to one being answered is taken for the same person.
+#: An alarm this close (m) to one being answered, or answered recently, is taken for the same person.
 SAME_ALARM = 2.0
+#: How long (s) an answered alarm's spot is remembered: the robot sent there sees the person and
+#: raises its own alarm, which must not send another robot back (a ping-pong between robots).
+ALARM_MEMORY = 60.0
 
 __all__ = ["EXACT_ASSIGNMENT", "PatrolDispatcher", "distinct_waypoints", "partition_tour"]
 
@@ -155,6 +159,8 @@ class PatrolDispatcher:
         #: Alarms being answered: robot -> {"x", "y", "alarm", "raised_by", "t"}.
         self.responses: dict[str, dict[str, Any]] = {}
         self.dispatched: list[dict[str, Any]] = []
+        #: Spots of alarms answered lately: (x, y, when answered).
+        self.answered: list[tuple[float, float, float]] = []
 
     @property
     def started(self) -> bool:
@@ -241,9 +247,11 @@ class PatrolDispatcher:
 
         None when it is the person an answer is already on its way to, or no other robot is free.
         """
-        for task in self.responses.values():
-            if math.hypot(task["x"] - x, task["y"] - y) < SAME_ALARM:
-                return None
+        now = self.clock()
+        self.answered = [a for a in self.answered if now - a[2] <= ALARM_MEMORY]
+        near = [(t["x"], t["y"]) for t in self.responses.values()] + [(a[0], a[1]) for a in self.answered]
+        if any(math.hypot(px - x, py - y) < SAME_ALARM for px, py in near):
+            return None
         free = [n for n in self.live if n != raised_by and n not in self.responses and n in self.poses]
         if not free:
             return None
@@ -264,6 +272,7 @@ class PatrolDispatcher:
         """Robot ``name`` is done looking (``outcome``: reached, unreachable, timeout, lost)."""
         task = self.responses.pop(name, None)
         if task is not None:
+            self.answered.append((task["x"], task["y"], self.clock()))
             for entry in reversed(self.dispatched):
                 if entry["robot"] == name and "outcome" not in entry:
                     entry["outcome"] = outcome

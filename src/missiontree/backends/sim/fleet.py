@@ -147,6 +147,14 @@ class FleetRobot(SimRobot):
         """Advance the whole fleet until the clock reaches ``t`` (the robots share one world)."""
         self.fleet.spin_until(t)
 
+    def now(self) -> float:
+        """Simulated time: the robot's own while it lives, the fleet's after it was killed.
+
+        A dead robot's clock goes on with the world's (its leaves' timeouts still run out and its
+        pose grows stale), though the robot itself no longer steps.
+        """
+        return self.fleet.now() if self.killed else super().now()
+
     def kill(self, reason: str = "killed") -> None:
         """Fault injection: the robot dies where it stands (an obstacle still), its machinery gone.
 
