@@ -102,3 +102,18 @@ def test_namespace_tree_stores_each_copys_keys_under_its_robot_and_keeps_fleet_k
     assert storage["/robot2/patrol_waypoint"] == "robot2"
     assert storage["/fleet/alarm"] == "robot2"
     assert copies[0].get("patrol_waypoint") == "robot1"
+
+
+def test_the_loss_reason_is_the_failure_that_ended_the_robots_tree() -> None:
+    """A Selector whose guard failed (absorbed) and whose patrol then failed: the patrol's reason."""
+    guard = _Ends("guard", Status.FAILURE)
+    patrol = _Ends("patrol", Status.FAILURE)
+    patrol.result = Status.FAILURE
+    selector = py_trees.composites.Selector("respond_or_patrol", memory=False, children=[guard, patrol])
+    guard.fail = lambda reason: Leaf.fail(guard, "no new alarm")  # type: ignore[method-assign]
+    patrol.fail = lambda reason: Leaf.fail(patrol, "robot lost")  # type: ignore[method-assign]
+    view = FleetView(["robot1", "robot2"], lambda: 1.0)
+    view.on_loss(lambda name, reason: True)
+    root = FleetRoot([RobotScope("robot1", Running("leaf")), RobotScope("robot2", selector)], view)
+    _tick(root)
+    assert view.lost["robot2"]["reason"] == "robot lost"

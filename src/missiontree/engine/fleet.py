@@ -189,14 +189,17 @@ class FleetRoot(py_trees.composites.Composite):
 
 
 def _reason_below(node: Behaviour) -> str:
-    """The deepest failure reason under ``node`` (a leaf's feedback), else its own."""
-    best = ""
-    for child in node.iterate():
-        if child.status is Status.FAILURE and child.feedback_message:
-            best = str(child.feedback_message)
-            if not child.children:
-                return best
-    return best
+    """Why ``node`` failed: down the chain of failed children, the last failed child each time.
+
+    The last one is the child whose failure ended its parent (a Selector's last try, a Sequence's
+    failed step), not an earlier one a parent absorbed (a guard that failed as it does every tick).
+    """
+    while node.children:
+        failed = [child for child in node.children if child.status is Status.FAILURE]
+        if not failed:
+            break
+        node = failed[-1]
+    return str(node.feedback_message or "")
 
 
 def namespace_tree(root: Behaviour, robot: str) -> list[str]:
