@@ -102,3 +102,18 @@ def test_the_offline_vlm_person_check_mirrors_only_for_a_person_in_the_band(tmp_
         detector = YoloOnnxDetector(model, test_time_flip=True, flip_band=(0.3, 0.7), score_threshold=0.1)
         OfflineVisionModel(detector).surveillance(np.zeros((32, 64, 3), dtype=np.uint8))
         assert detector.passes == {"single": 1, "mirror": mirrored}
+
+
+def test_the_reused_input_tensor_holds_what_a_fresh_one_would_across_image_shapes(tmp_path: Path) -> None:
+    """Images of changing shapes (a resize among them) fill the reused tensor as preprocess does a new one."""
+    detector = YoloOnnxDetector(_model(tmp_path), input_size=(64, 64))
+    rng = np.random.default_rng(0)
+    first = None
+    for shape in ((32, 64), (64, 64), (32, 64), (20, 40), (100, 64), (32, 64)):
+        image = rng.integers(0, 256, size=(*shape, 3), dtype=np.uint8)
+        reused, box = detector._preprocess_reused(image)
+        fresh, fresh_box = detector.preprocess(image)
+        assert np.array_equal(reused, fresh) and box == fresh_box, shape
+        if shape == (32, 64):
+            first = reused if first is None else first
+            assert reused is first  # the same buffer, not a new 1 MB tensor a call

@@ -15,8 +15,6 @@ Python dict ``{0: 'person', ...}``) or from a labels file (one name a line, or a
 
 from __future__ import annotations
 
-import ast
-import json
 import math
 import threading
 from collections.abc import Callable, Sequence
@@ -25,9 +23,9 @@ from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-import yaml
 
 from missiontree.errors import ModelConfigError, ModelError
+from missiontree.perception.detector_labels import parse_names, read_labels_file
 from missiontree.perception.recent_detections import RecentDetections
 from missiontree.perception.yolo_layout import (
     PAD_VALUE,
@@ -235,51 +233,6 @@ def _log_dropped(dropped: list[str]) -> None:
         "detections_dropped", count=len(dropped), first=dropped[0])
 
 
-def parse_names(text: str) -> list[str]:
-    """Class names from a model's ``names`` metadata: a dict ``{0: 'person'}`` or list, as text.
-
-    Raises:
-        ValueError: The text is neither.
-    """
-    value = ast.literal_eval(text)
-    if isinstance(value, dict):
-        return [str(value[k]) for k in sorted(value, key=int)]
-    if isinstance(value, list | tuple):
-        return [str(v) for v in value]
-    raise ValueError(f"expected a dict or list of class names, found {type(value).__name__}")
-
-
-def read_labels_file(path: Path, provider: str) -> list[str]:
-    """Class names from a labels file: one a line (.txt), or ``names`` in a YAML/JSON file.
-
-    Raises:
-        ModelConfigError: The file is missing or holds no names.
-    """
-    if not path.is_file():
-        raise ModelConfigError(
-            f"detector {provider!r}: labels file {str(path)!r} does not exist; "
-            f"give a text file with one class name a line, in the model's class order"
-        )
-    text = path.read_text(encoding="utf-8")
-    if path.suffix.lower() in {".yaml", ".yml", ".json"}:
-        data = json.loads(text) if path.suffix.lower() == ".json" else yaml.safe_load(text)
-        names = data.get("names") if isinstance(data, dict) else data
-        if isinstance(names, dict):
-            labels = [str(names[k]) for k in sorted(names, key=int)]
-        elif isinstance(names, list):
-            labels = [str(n) for n in names]
-        else:
-            labels = []
-    else:
-        labels = [line.strip() for line in text.splitlines() if line.strip() and not line.startswith("#")]
-    if not labels:
-        raise ModelConfigError(
-            f"detector {provider!r}: labels file {str(path)!r} holds no class names; "
-            f"expected one name a line, or a 'names' list or mapping"
-        )
-    return labels
-
-
 #: Open onnxruntime sessions by (model file, its size and modification time, threads): a model is
 #: opened once per process and shared by every detector on it (the runs of a batch, the offline
 #: VLM's detector). onnxruntime's ``run`` may be called from several threads at once.
@@ -342,6 +295,7 @@ class YoloOnnxDetector:
         #: Model runs on images (``single``) and mirror passes among them (``mirror``).
         self.passes = {"single": 0, "mirror": 0}
         self.recent = RecentDetections(recent)
+        self._buffers = threading.local()  # each thread's input tensors, reused (see _input_tensors)
         self._session = self._open_session(int(threads))
         self._input = self._session.get_inputs()[0]
         self.input_height, self.input_width = self._input_size(input_size)
@@ -461,6 +415,41 @@ class YoloOnnxDetector:
                   dtype=dtype, casting="unsafe")
         return tensor, box
 
+    def _input_tensors(self) -> tuple[np.ndarray, np.ndarray, list[Any]]:
+        """This thread's input tensor, its mirror's, and what the first holds outside its image slot.
+
+        Reused from call to call: a fresh 1 MB tensor a call is mapped and faulted in page by page
+        (the runner pins glibc's mmap threshold at 128 KiB), 241 page faults a pass.
+        """
+        buffers = getattr(self._buffers, "tensors", None)
+        if buffers is None:
+            shape = (1, 3, self.input_height, self.input_width)
+            buffers = (np.empty(shape, self._input_dtype), np.empty(shape, self._input_dtype), [None])
+            self._buffers.tensors = buffers
+        return buffers
+
+    def _preprocess_reused(self, image: np.ndarray) -> tuple[np.ndarray, Letterbox]:
+        """:meth:`preprocess` into this thread's reused tensor: the same numbers.
+
+        The result is overwritten by this thread's next call, so it is used at once and never kept.
+        """
+        h, w = image.shape[:2]
+        height, width = self.input_height, self.input_width
+        if round(w * min(height / h, width / w)) != w or round(h * min(height / h, width / w)) != h:
+            tensor, box = self.preprocess(image)  # a resize: the general path
+            return tensor, box
+        top, left = round((height - h) / 2.0 - 0.1), round((width - w) / 2.0 - 0.1)
+        box = Letterbox(scale=min(height / h, width / w), pad_x=float(left), pad_y=float(top))
+        tensor, _, slot = self._input_tensors()
+        dtype = self._input_dtype
+        scale = dtype(255.0)
+        if slot[0] != (top, left, h, w):  # the padding around this image's slot is laid once
+            tensor[...] = dtype(PAD_VALUE) / scale
+            slot[0] = (top, left, h, w)
+        np.divide(image.transpose(2, 0, 1), scale, out=tensor[0, :, top : top + h, left : left + w],
+                  dtype=dtype, casting="unsafe")
+        return tensor, box
+
     def detect(
         self, image: np.ndarray, mirror: bool | None = None, band_labels: Sequence[str] | None = None,
     ) -> list[Detection]:
@@ -483,11 +472,13 @@ class YoloOnnxDetector:
             remembered = self.recent.get(key)
             if remembered is not None:
                 return remembered
-        tensor, box = self.preprocess(image)
+        tensor, box = self._preprocess_reused(image)
         output = self._single_pass(tensor, None if key is None else key[:-2])
         if mirror if mirror is not None else (self.test_time_flip and self._mirror_pays(output, labels)):
             self.passes["mirror"] += 1
-            mirrored = self._run(np.ascontiguousarray(tensor[..., ::-1]))
+            flipped = self._input_tensors()[1]
+            np.copyto(flipped, tensor[..., ::-1])
+            mirrored = self._run(flipped)
             mirrored[:, 0] = self.input_width - mirrored[:, 0]  # box centres back in the unflipped input
             output = np.concatenate([output, mirrored], axis=2)
         boxes, scores, class_ids, rows = decode_yolo_with_scores(
