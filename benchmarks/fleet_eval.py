@@ -20,7 +20,8 @@ some waypoint was never visited has no idleness (``null``, counted in ``unvisite
 abort as a vanished server's, ``--kill-robot``): at half the time the 3-robot idleness run took to
 visit every waypoint once (``KILL_AT`` s when it never did), so the kill falls inside the lap on
 small maps too. It is OK when the run ends SUCCESS, robot2 is recorded lost, and every waypoint
-the fleet could reach was visited (skipped ones are listed).
+the fleet could reach was visited (skipped ones are listed); ``reassign_all_visited`` counts the
+runs in which every waypoint was visited (none skipped: a dead robot can block a passage).
 
 Printed: per split and robot count, the idleness (mean over worlds, min-max), the worst-idleness
 ratio of N robots to one (per world, then min/median/max), the reassignment rate with its 95 %
@@ -209,7 +210,9 @@ def reassign(world: Path, route: Path, names: list[str], seed: int, out: Path,
     skipped = dispatch.get("skipped") or {}
     missing = [n for n in names if n not in run["visits"] and n not in skipped]
     ok = run["status"] == "SUCCESS" and fleet.get("lost") == ["robot2"] and not missing
-    return {"ok": ok, "kill_at": kill_at, "status": run["status"], "lost": fleet.get("lost"),
+    all_visited = ok and all(n in run["visits"] for n in names)
+    return {"ok": ok, "all_visited": all_visited, "kill_at": kill_at, "status": run["status"],
+            "lost": fleet.get("lost"),
             "missing": missing, "skipped": sorted(skipped),
             "rebalances": len(dispatch.get("rebalances") or [])}
 
@@ -237,8 +240,11 @@ def aggregate(rows: list[dict[str, Any]]) -> dict[str, Any]:
     low, high = wilson(ok, len(rows)) if rows else (0.0, 0.0)
     out["reassign_ok"] = {"ok": ok, "of": len(rows), "rate": round(ok / len(rows), 3) if rows else None,
                           "wilson95": [round(low, 3), round(high, 3)]}
+    every = sum(1 for r in rows if r["reassign"]["all_visited"])
+    low, high = wilson(every, len(rows)) if rows else (0.0, 0.0)
+    out["reassign_all_visited"] = {"ok": every, "of": len(rows), "wilson95": [round(low, 3), round(high, 3)]}
     out["reassign_failures"] = [{"world": r["world"], **r["reassign"]} for r in rows
-                                if not r["reassign"]["ok"]]
+                                if not r["reassign"]["all_visited"]]
     return out
 
 
@@ -256,14 +262,15 @@ def gap(dev: dict[str, Any], test: dict[str, Any]) -> dict[str, Any]:
 def table(results: dict[str, dict[str, Any]]) -> str:
     """The markdown table of both splits."""
     lines = ["| split | worlds | robots | idleness avg (s) | idleness worst (s) | worst / 1 robot (median) "
-             "| reassign OK |", "|---|---|---|---|---|---|---|"]
+             "| reassign OK | all visited after the loss |", "|---|---|---|---|---|---|---|---|"]
     for split, agg in results.items():
         for n in COUNTS:
             ratio = agg["worst_ratio_to_1"][n]
             r = agg["reassign_ok"]
             lines.append(f"| {split} | {agg['worlds']} | {n} | {agg['idleness_avg_s'][n]} | "
                          f"{agg['idleness_worst_s'][n]} | {ratio['median'] if ratio else None} | "
-                         f"{r['ok']}/{r['of']} [{r['wilson95'][0]}, {r['wilson95'][1]}] |")
+                         f"{r['ok']}/{r['of']} [{r['wilson95'][0]}, {r['wilson95'][1]}] | "
+                         f"{agg['reassign_all_visited']['ok']}/{r['of']} |")
     return "\n".join(lines)
 
 
@@ -296,6 +303,7 @@ def main(argv: list[str] | None = None) -> int:
         "idleness_worst_s": headline.get("idleness_worst_s"),
         "worst_ratio_3v1": ratio["median"] if ratio else None,
         "reassign_ok": (headline.get("reassign_ok") or {}).get("rate"),
+        "reassign_all_visited": headline.get("reassign_all_visited"),
         "search_time_ratio_2v1": None, "explore_time_ratio_2v1": None,
         "not_measured": {"search_time_ratio_2v1": "fleet search (frontier and room auction) is not built",
                          "explore_time_ratio_2v1": "fleet exploration is not built"},
