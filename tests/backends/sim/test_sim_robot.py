@@ -234,3 +234,32 @@ def test_picture_legend_shows_only_what_is_drawn(tmp_path):
         return bool((np.abs(band - red).sum(axis=2) < 30).any())
 
     assert not legend_has_red(plain) and legend_has_red(alarmed)
+
+
+def _frames_read(every: int, ask_truth: bool = False):
+    """A noisy drive reading the camera after every ``every``-th frame; (robot, {stamp: (colour, depth)})."""
+    robot = create_robot({"world": "combined", "seed": 5, "config": NOISY})
+    robot.drive(0.2, 0.4)
+    frames, step = {}, 0
+    while robot.now() < 4.0:
+        robot.spin_until(robot.now() + 0.2)   # one frame a step at 5 Hz
+        step += 1
+        if ask_truth:
+            robot.truth.visible_at(robot.now())   # the ground truth asks before the camera is read
+        if step % every == 0:
+            frame = robot.rgbd()
+            frames[frame.stamp] = (frame.color.copy(), frame.depth.copy())
+    return robot, frames
+
+
+def test_frames_nobody_reads_are_not_rendered_and_change_nothing():
+    """Unread frames are not drawn, yet the frames read and the ground truth's sightings are the same."""
+    every, every_other = _frames_read(1), _frames_read(2)
+    asked = _frames_read(2, ask_truth=True)
+    for robot, frames in (every_other, asked):
+        assert frames and robot.timings["camera"].count == len(frames) < len(every[1])
+        for stamp, (color, depth) in frames.items():
+            assert np.array_equal(color, every[1][stamp][0])
+            assert np.array_equal(depth, every[1][stamp][1], equal_nan=True)
+        assert [(s, sorted(seen)) for s, seen in robot.truth.visibility] == \
+            [(s, sorted(seen)) for s, seen in every[0].truth.visibility]

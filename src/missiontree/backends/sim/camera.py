@@ -98,8 +98,14 @@ class Camera:
         """Render from camera pose ``cam`` (optical axis along its yaw) at ``height`` above the floor."""
         return self.add_noise(self.render_exact(cam, height, prims, floor))
 
-    def render_exact(self, cam: Pose2D, height: float, prims: Primitives, floor: Floor) -> Rendering:
-        """The noise-free image; pure (no random draws), so it may run on a worker thread."""
+    def render_exact(self, cam: Pose2D, height: float, prims: Primitives, floor: Floor,
+                     patterns: bool = True) -> Rendering:
+        """The noise-free image; pure (no random draws), so it may run on a worker thread.
+
+        Without ``patterns`` the objects' surface patterns are left unpainted: the instance mask and
+        depth are final, the colour is not until :meth:`paint_patterns` (for the ground truth of a
+        frame nobody reads).
+        """
         k = self.intrinsics
         spec = self.spec
         t_in, t_out, idx, shade = column_hits(cam.x, cam.y, cam.yaw, self._a, k.fx, k.cx, prims,
@@ -110,8 +116,16 @@ class Camera:
                 floor.resolution, floor.ceiling, spec.depth_min, spec.depth_max,
                 int(prims.inst.max(initial=1)) + 1, k.fy, k.cy)
         color, depth, inst, counts = (_fill_jit if self.accelerate else _fill_numpy)(*args)
-        paint(color, depth, inst, (cam.x, cam.y, height), args[3], args[4], self._b, prims, self.accelerate)
-        return Rendering(color, depth, inst, counts)
+        image = Rendering(color, depth, inst, counts)
+        if patterns:
+            self.paint_patterns(image, cam, height, prims)
+        return image
+
+    def paint_patterns(self, image: Rendering, cam: Pose2D, height: float, prims: Primitives) -> None:
+        """Paint the surface patterns into a frame rendered without them (its colour changes in place)."""
+        c, s = math.cos(cam.yaw), math.sin(cam.yaw)
+        paint(image.color, image.depth, image.instances, (cam.x, cam.y, height), c - self._a * s,
+              s + self._a * c, self._b, prims, self.accelerate)
 
     def add_noise(self, image: Rendering) -> Rendering:
         """Depth and colour noise as configured, drawn from the camera's generator (in frame order)."""
@@ -126,6 +140,14 @@ class Camera:
             noisy = color + self.rng.normal(0.0, spec.color_noise, color.shape)
             color = np.clip(noisy, 0, 255).astype(np.uint8)
         return Rendering(color, depth, image.instances, image.counts)
+
+    def skip_noise(self) -> None:
+        """Draw (and drop) a frame's noise as :meth:`add_noise` would: later frames get the same noise."""
+        spec = self.spec
+        if spec.depth_noise > 0:
+            self.rng.normal(0.0, 1.0, (spec.height, spec.width))
+        if spec.color_noise > 0:
+            self.rng.normal(0.0, spec.color_noise, (spec.height, spec.width, 3))
 
 
 def _fill_numpy(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,  # noqa: ANN001, ANN202

@@ -21,13 +21,13 @@ from __future__ import annotations
 
 import math
 import time
-from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from missiontree.backends.sim.camera import Camera, Floor, Rendering
+from missiontree.backends.sim.camera import Camera, Floor
+from missiontree.backends.sim.frames import FrameFeed
 from missiontree.backends.sim.kinematics import DiffDrive, Odometry
 from missiontree.backends.sim.lidar import Lidar
 from missiontree.backends.sim.navigation import Navigator, SimNavHandle
@@ -51,15 +51,6 @@ _TRAJECTORY_STEP = 0.05     # ...and only once the robot moved this far (m) or t
 _CONTACT_GAP = 1.0          # s without a refused move before the next one is a new contact
 _CONTACTS_KEPT = 50         # contacts listed with their place in the summary (all are counted)
 _TRAJECTORY_MAX = 5_000     # points kept; past it every other point goes and the spacing doubles
-_render_pool: ThreadPoolExecutor | None = None
-
-
-def _pool() -> ThreadPoolExecutor:
-    """One worker thread shared by every SimRobot for camera frames (numba kernels drop the GIL)."""
-    global _render_pool
-    if _render_pool is None:
-        _render_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="sim-camera")
-    return _render_pool
 
 
 class SimRobot:
@@ -105,14 +96,16 @@ class SimRobot:
         self.contacts: list[tuple[float, float, float]] = []
         self.contact_count = 0
         self._last_refused = -math.inf
-        self._pending: tuple[Future[tuple[Rendering, float]], float, Pose2D] | None = None
-        self._background = accel and profile.camera_thread
-        self.truth = GroundTruth(world, lambda: self._base.pose, profile.history_horizon, self._finish_frame)
+        self.timings: dict[str, TimingLog] = {"lidar": TimingLog(), "camera": TimingLog(),
+                                              "planner": self._nav.plan_ms, "mapping": TimingLog()}
+        #: Camera frames, rendered when read (see missiontree.backends.sim.frames).
+        self.frames = FrameFeed(self.camera, lambda: self._floor, profile.camera.mount.z, lambda: self.truth,
+                                self.timings["camera"], accel and profile.camera_thread)
+        self.truth = GroundTruth(world, lambda: self._base.pose, profile.history_horizon,
+                                 self.frames.flush_truth)
         self.trajectory: list[tuple[float, float, float]] = []
         self._trajectory_step = _TRAJECTORY_STEP
         self._last_yaw = world.start.yaw
-        self.timings: dict[str, TimingLog] = {"lidar": TimingLog(), "camera": TimingLog(),
-                                              "planner": self._nav.plan_ms, "mapping": TimingLog()}
         self._closed = False
         #: The command channel: lines on stdin (read only once a mission asks); tests may replace it.
         self.command_input = LineCommands()
@@ -139,7 +132,6 @@ class SimRobot:
         self._t = 0.0
         self._drive: tuple[float, float] | None = None
         self._scan: LaserScan | None = None
-        self._frame: RGBDFrame | None = None
         self._poses: StampedHistory[Pose2D] = StampedHistory(profile.history_horizon, maxlen=100_000)
         self._scans: StampedHistory[LaserScan] = StampedHistory(profile.history_horizon)
         self._next_scan = 0.0
@@ -166,9 +158,8 @@ class SimRobot:
         return self._scan
 
     def rgbd(self) -> RGBDFrame | None:
-        """The latest colour + depth frame."""
-        self._finish_frame()
-        return self._frame
+        """The latest colour + depth frame (rendered now: frames nobody reads are not drawn)."""
+        return self.frames.latest()
 
     def occupancy(self) -> OccupancyGrid | None:
         """The map: the static one (what map_server would serve), or the one learned so far.
@@ -243,7 +234,7 @@ class SimRobot:
     def close(self) -> None:
         """Stop; further spinning does nothing."""
         self.stop()
-        self._finish_frame()
+        self.frames.finish()
         self._closed = True
 
     # -- command channel (missiontree.robot.commands.CommandChannel) -------------------------------
@@ -448,43 +439,10 @@ class SimRobot:
         return nxt
 
     def _start_frame(self, t: float, dynamic: Primitives) -> None:
-        """Render the frame of time ``t``: on the worker thread when accelerated, else at once.
-
-        The inputs are snapshots (true camera pose, prisms at ``t``) and the noise is added in
-        frame order on this thread, so the result is the same whichever thread renders.
-        """
-        self._finish_frame()
-        spec = self.profile.camera
-        mount_yaw = math.radians(spec.mount.yaw_deg)
-        true_cam = self._camera_pose(self._base.pose, mount_yaw)
-        prims = self.world.static.concat(dynamic)
-        estimate = self._camera_pose(self._odom.pose, mount_yaw)
-
-        def job() -> tuple[Rendering, float]:
-            t0 = time.perf_counter()
-            image = self.camera.render_exact(true_cam, spec.mount.z, prims, self._floor)
-            return image, (time.perf_counter() - t0) * 1000.0
-
-        if self._background:
-            self._pending = (_pool().submit(job), t, estimate)
-        else:
-            done: Future[tuple[Rendering, float]] = Future()
-            done.set_result(job())
-            self._pending = (done, t, estimate)
-            self._finish_frame()
-
-    def _finish_frame(self) -> None:
-        """Publish the frame being rendered, if any (wait for it)."""
-        if self._pending is None:
-            return
-        future, t, estimate = self._pending
-        self._pending = None
-        exact, ms = future.result()
-        self.timings["camera"].append(ms)
-        image = self.camera.add_noise(exact)
-        self.truth.record_frame(t, image.instances, image.counts)
-        self._frame = RGBDFrame(t, image.color, image.depth, self.camera.intrinsics, estimate,
-                                self.profile.camera.mount.z)
+        """The frame of time ``t`` falls due: its inputs are snapshots (true camera pose, prisms at ``t``)."""
+        mount_yaw = math.radians(self.profile.camera.mount.yaw_deg)
+        self.frames.fall_due(t, self._camera_pose(self._base.pose, mount_yaw),
+                             self.world.static.concat(dynamic), self._camera_pose(self._odom.pose, mount_yaw))
 
     def _learn(self, scan: LaserScan, pose: Pose2D) -> None:
         """Integrate a scan into the learned map at ``pose`` and tell the navigator what changed."""
