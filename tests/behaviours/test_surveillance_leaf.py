@@ -484,3 +484,17 @@ def test_with_a_person_in_view_the_detector_still_looks_every_detect_period() ->
     leaf.tick_once()
     assert models["detector"].calls == 5
     assert models["vlm"].asked == 1 and len(events.of("alarm")) == 1
+
+
+def test_the_camera_is_not_read_on_ticks_no_detection_can_be_due() -> None:
+    """Between detections (detect_period 0.4 s, frames every 0.2 s) the leaf leaves the camera unread."""
+    robot = FakeRobot()
+    leaf, _, models = setup_leaf(robot)
+    reads = []
+    original = robot.rgbd
+    robot.rgbd = lambda: reads.append(robot.time) or original()  # type: ignore[method-assign]
+    for _ in range(10):
+        step(robot, leaf, None)
+    leaf.tick_once()
+    assert models["detector"].calls == 5
+    assert len(reads) < 10 and leaf.status == Status.RUNNING

@@ -156,6 +156,7 @@ class Surveillance(Leaf):
         self.budget = CallBudget(1.0 / self.params.period)
         self.detecting: tuple[ModelCall, RGBDFrame] | None = None
         self.last_fresh = 0.0
+        self.last_seen_stamp = float("-inf")  # the newest frame's stamp read so far
         self.failed_in_row: dict[str, int] = {}  # per role: a working detector does not hide a broken VLM
         self.last_error = ""
         self.stale_frames = 0
@@ -188,7 +189,13 @@ class Surveillance(Leaf):
             return self.fail(f"{worst[1]} {worst[0]} calls in a row failed; the last: {self.last_error}")
         robot = self.context.robot
         now = robot.now()
+        if self._frame_unused(now):
+            self.last_fresh = now
+            return self.running(f"{self.checks} frames checked, {len(self.pending)} waiting, "
+                                f"{self.alarm_count} alarms")
         frame = robot.rgbd()
+        if frame is not None:
+            self.last_seen_stamp = max(self.last_seen_stamp, frame.stamp)
         if frame is None or now - frame.stamp > self.params.max_frame_age:
             self.stale_frames += 1
             quiet = now - self.last_fresh
@@ -228,6 +235,17 @@ class Surveillance(Leaf):
             measurement = measure(self.context.robot, frame, None, self.params.method, fuse_at="frame",
                                   surface_offset=self.params.surface_offset)
         self._submit(frame, [_Sighting(None, measurement)])
+
+    def _frame_unused(self, now: float) -> bool:
+        """Whether this tick would neither look at the newest frame nor find it stale, whatever it is.
+
+        Frames come in stamp order, so the newest is at least as young as the last one read, and
+        no younger than ``now``: while no detection can be due the camera is not read at all (the
+        simulator renders a frame only when it is read).
+        """
+        if self.params.mode == "poll" or now - self.last_seen_stamp > self.params.max_frame_age:
+            return False
+        return self.detecting is not None or not self._frame_due(now)
 
     def _frame_due(self, stamp: float) -> bool:
         """Whether ``detect_period`` has passed since the last frame the detector looked at."""
