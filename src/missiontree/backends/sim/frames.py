@@ -15,6 +15,7 @@ as it falls due, as before: the wall-time option, which pays for the frames nobo
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -62,9 +63,16 @@ class FrameFeed:
         self._due: _Due | None = None
         self._pending: tuple[Future[tuple[Rendering, float]], float, Pose2D] | None = None
         self.frame: RGBDFrame | None = None
+        # The ground truth may be asked from a model's worker thread (the oracle detector reads the
+        # instance mask of its frame) while the tick thread reads the camera: one at a time.
+        self._lock = threading.RLock()
 
     def fall_due(self, stamp: float, cam: Pose2D, prims: Primitives, estimate: Pose2D) -> None:
         """A frame is due at ``stamp``: keep its inputs (or start rendering it, in the background)."""
+        with self._lock:
+            self._fall_due(stamp, cam, prims, estimate)
+
+    def _fall_due(self, stamp: float, cam: Pose2D, prims: Primitives, estimate: Pose2D) -> None:
         self._drop_due()
         if not self._background:
             self._due = _Due(stamp, cam, prims, estimate)
@@ -80,6 +88,10 @@ class FrameFeed:
 
     def latest(self) -> RGBDFrame | None:
         """The latest frame, rendered now if it was not yet."""
+        with self._lock:
+            return self._latest()
+
+    def _latest(self) -> RGBDFrame | None:
         due = self._due
         if due is not None:
             self._due = None
@@ -97,17 +109,25 @@ class FrameFeed:
 
     def finish(self) -> None:
         """Publish the frame being rendered in the background, if any (wait for it)."""
-        if self._pending is None:
-            return
-        future, stamp, estimate = self._pending
-        self._pending = None
-        exact, ms = future.result()
+        with self._lock:
+            if self._pending is None:
+                return
+            future, stamp, estimate = self._pending
+            self._pending = None
+            exact, ms = future.result()
+            self._publish_exact(exact, ms, stamp, estimate)
+
+    def _publish_exact(self, exact: Rendering, ms: float, stamp: float, estimate: Pose2D) -> None:
         self._timing.append(ms)
         self._truth().record_frame(stamp, exact.instances, exact.counts)
         self._publish(exact, stamp, estimate)
 
     def flush_truth(self) -> None:
         """Give the ground truth every frame due so far (it reads them all, read or not)."""
+        with self._lock:
+            self._flush_truth()
+
+    def _flush_truth(self) -> None:
         self.finish()
         due = self._due
         if due is not None and due.plain is None:
@@ -119,7 +139,7 @@ class FrameFeed:
         """The due frame nobody read: its mask to the ground truth, its noise drawn and dropped."""
         if self._due is None:
             return
-        self.flush_truth()
+        self._flush_truth()
         self._due = None
         self.camera.skip_noise()
 
