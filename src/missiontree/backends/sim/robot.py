@@ -2,8 +2,9 @@
 
 ``spin_until(t)`` steps the physics at a fixed ``physics_dt`` (control, motion with collision
 checks, odometry) and produces the sensors at their own rates (lidar 10 Hz, RGB-D 5 Hz by
-default). Everything random comes from generators seeded by the run seed, so the same seed
-gives the same scans, images and trajectory. ``pose()`` is the robot's *estimate* (odometry,
+default; a camera frame is drawn when it is read, :mod:`missiontree.backends.sim.frames`).
+Everything random comes from generators seeded by the run seed, so the same seed gives the same
+scans, images and trajectory. ``pose()`` is the robot's *estimate* (odometry,
 noisy when configured), never the truth; ground truth lives in ``truth`` for evaluation only.
 
 With ``unknown_map`` the robot starts knowing nothing: ``occupancy()`` is the log-odds map
