@@ -178,3 +178,17 @@ def test_servo_asks_the_detector_to_band_its_mirror_pass_on_people(monkeypatch: 
     leaf, _ = make(robot)
     run(robot, leaf, (1.2 * math.cos(math.radians(20)), 1.2 * math.sin(math.radians(20))), 1.0)
     assert asked and all(labels == ("person",) for labels in asked)
+
+
+@pytest.mark.parametrize("period", [0.0, 0.4])
+def test_servo_detect_period_spaces_the_detectors_frames(period: float) -> None:
+    """With detect_period 0 the detector looks at every new frame; with 0.4 s at most one frame in 0.4 s."""
+    robot = FakeRobot()
+    post_alarm(math.radians(-30))
+    events = Events()
+    detector = ThreadNotingDetector()
+    leaf = ServoToTarget("servo", ServoToTarget.Params(method="seed", detect_period=period))
+    leaf.setup(context=MissionContext(robot=robot, models={"detector": detector}, events=events))
+    run(robot, leaf, None, 2.0)   # nobody there: it keeps looking for 2 s of new frames every tick
+    submitted = 20 if period == 0.0 else 5   # frames at 0.0, 0.1, ... 1.9 s; or 0.0, 0.4, ... 1.6 s
+    assert len(detector.threads) in (submitted - 1, submitted)   # the last may still be in flight

@@ -64,6 +64,9 @@ class ServoToTarget(Leaf):
         ignore_for: float = Field(20.0, ge=0, description="Seconds a served person is not served again.")
         max_frame_age: float = Field(
             1.0, gt=0, description="A frame older than this (s, robot clock) is not looked at.")
+        detect_period: float = Field(
+            0.0, ge=0, description="Seconds between the frames the detector looks at while servoing "
+            "(0: every new frame).")
         alarm: Annotated[str, Input("the alarm to serve", type="dict")] = "alarm"
         result: Annotated[str, Output("the servoed alarm record", type="dict")] = "servo_result"
 
@@ -128,7 +131,8 @@ class ServoToTarget(Leaf):
         seen = self._collect(pose)
         frame = robot.rgbd()
         fresh = frame is not None and now - frame.stamp <= self.params.max_frame_age
-        if frame is not None and fresh and frame.stamp > self.last_frame and self.detecting is None:
+        if (frame is not None and fresh and self.detecting is None
+                and frame.stamp - self.last_frame >= max(self.params.detect_period - 1e-6, 1e-9)):
             self.last_frame = frame.stamp
             # it tracks people only: a banded mirror pass is worth running for a person candidate only
             job = detection_job(self.context.model("detector"), frame, band_labels=("person",))
