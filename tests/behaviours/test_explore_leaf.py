@@ -348,3 +348,62 @@ def test_reachability_is_judged_with_the_navigators_footprint_on_the_maps_resolu
     fixed, _ = make(FineRobot(corridor_map()), nav_footprint_radius=0.3)
     fixed.tick_once()
     assert fixed.planner is not None and fixed.planner.reach_radius == pytest.approx(0.3)
+
+
+def test_a_spent_time_budget_cancels_the_goal_and_ends_partial_naming_what_is_left(tmp_path: Path) -> None:
+    """Frontiers still open when the robot-time budget is spent: goal cancelled, FAILURE, json partial."""
+    robot = MapRobot(corridor_map(), polls=1000)  # goals never arrive: the budget ends the run
+    leaf, _ = make(robot, run_dir=tmp_path, time_budget=1.0)
+    ticks = run(leaf, robot)
+    assert leaf.status == Status.FAILURE
+    assert leaf.feedback_message.startswith("partial: the time budget of 1 s was spent: 2 frontiers left")
+    assert "m^2 unknown behind them" in leaf.feedback_message and "m^2 known" in leaf.feedback_message
+    assert 10 <= ticks <= 12  # 1 s of robot time at 0.1 s a tick
+    assert robot.goals and all(g.cancelled for g in robot.goals)
+    report = json.loads((tmp_path / "exploration.json").read_text())
+    assert report["outcome"] == "partial" and report["complete"] is False and report["time_budget_s"] == 1.0
+    assert len(report["frontiers_left"]) == 2 and report["unknown_left_m2"] > 0
+    assert leaf.ctx is not None and "time budget of 1 s was spent" in leaf.ctx.outcome["exploration"]["text"]
+
+
+def test_no_time_budget_by_default_explores_to_the_end() -> None:
+    """Without a time_budget a run longer than any small budget still ends 'explored'."""
+    data = corridor_map()
+    data[:, :30] = 100
+    robot = MapRobot(data, polls=50)
+    leaf, _ = make(robot)
+
+    def watch() -> None:
+        if any(g.goal.x > 4.0 and g.polls <= 1 for g in robot.goals):
+            robot.reveal_east()
+
+    run(leaf, robot, on_tick=watch)
+    assert leaf.status == Status.SUCCESS and robot.time > 4.0, leaf.feedback_message
+
+
+def test_a_small_sim_world_ends_partial_when_its_time_budget_is_spent(tmp_path: Path) -> None:
+    """On the simulator from no map, a 3 s budget ends FAILURE 'time budget'; exploration.json: partial."""
+    from missiontree.session import MissionRequest, Session
+
+    pytest.importorskip("missiontree.backends.sim")
+    world = tmp_path / "two_rooms.yaml"
+    world.write_text(json.dumps({
+        "name": "two_rooms", "robot": {"profile": "turtlebot4", "start": {"x": 1.0, "y": 2.0, "yaw": 0.0}},
+        "walls": {"polygons": [[[0.0, 0.0], [8.0, 0.0], [8.0, 4.0], [0.0, 4.0]]],
+                  "segments": [[[4.0, 1.2], [4.0, 4.0]], [[4.0, 0.0], [4.0, 0.1]]]}}))
+    mission = tmp_path / "explore.yaml"
+    mission.write_text(json.dumps({
+        "version": 1, "run": {"backend": "sim", "map": "unknown", "tick_hz": 10},
+        "root": {"Explore": {"name": "explore", "time_budget": 3.0}}}))
+    request = MissionRequest(mission=mission, world=str(world), seed=1, unknown_map=True, max_duration=60,
+                             out=tmp_path / "run", handle_signals=False, quiet=True,
+                             config={"camera": {"rate": 0.5, "width": 64, "height": 48}})
+    with Session.open(request) as session:
+        result = session.run()
+        elapsed = session.robot.now()
+    assert result.status.name == "FAILURE", result.summary
+    assert elapsed < 10.0  # robot seconds: ended by the budget, not the run's limit
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert "time budget" in json.dumps(summary)
+    report = json.loads((tmp_path / "run" / "exploration.json").read_text())
+    assert report["outcome"] == "partial" and report["time_budget_s"] == 3.0 and report["frontiers_left"]

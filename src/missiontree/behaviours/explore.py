@@ -32,7 +32,9 @@ a frontier the robot could not get to), the exploration is *partial*: FAILURE (o
 ``partial_is_success``) whose reason starts with ``partial:`` and names each such frontier (its
 position and why it was left) and the unknown area left behind them (m^2). FAILURE with a reason
 also when no map arrives within ``map_timeout`` or the robot is stuck (neither the known area grew
-nor the robot moved for ``stuck_timeout`` seconds). The reason is the node's failure reason in the
+nor the robot moved for ``stuck_timeout`` seconds); FAILURE "partial: the time budget of N s was
+spent: ..." (what is left, as a partial end says it) once a run of the leaf took ``time_budget``
+robot seconds. The reason is the node's failure reason in the
 run's summary.json. On every end, halts included, the learned map is written into the run
 directory as ``map.pgm`` + ``map.yaml`` (Nav2 map_server format) beside ``exploration.json``: how
 it ended (``explored``, ``partial``, ``failed`` or ``halted``), ``complete``, the frontiers left
@@ -57,10 +59,10 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, Field
 
 from missiontree.behaviours.explore_report import (
-    exploration_report,
+    budget_text,
     known_area,
     partial_text,
-    save_exploration,
+    save_leaf,
     slivers_text,
 )
 from missiontree.engine.leaf import Leaf, Status
@@ -129,6 +131,9 @@ class Explore(Leaf):
             "given up while the map showed a way to them; default FAILURE.")
         stuck_timeout: float = Field(
             60.0, gt=0, description="Fail when neither the map grew nor the robot moved for this long (s).")
+        time_budget: float | None = Field(
+            None, gt=0, description="End FAILURE 'partial: the time budget ...' (exploration.json: partial) "
+            "after this many robot seconds of a run of the leaf, naming what is left; default: no limit.")
         map_timeout: float = Field(
             10.0, gt=0, description="Fail when no map with free space arrives in time (s).")
         map_name: str = Field("map", pattern=r"^[A-Za-z0-9_.-]+$",
@@ -157,6 +162,8 @@ class Explore(Leaf):
         self.dropped: list[tuple[float, float]] = []  # frontier places left before they were reached
         #: explored | partial | failed | stopped (halted, or ended by a subclass's own rule)
         self.outcome = "stopped"
+        self.time_budget_spent = False
+        self.map_written: tuple[Any, ...] | None = None  # what the map files last written hold
         self._reset_timers(0.0)
 
     def _reset_timers(self, now: float) -> None:
@@ -188,7 +195,7 @@ class Explore(Leaf):
         self.last_grid = None
         self.left = None
         self.dropped = []
-        self.outcome = "stopped"
+        self.outcome, self.time_budget_spent = "stopped", False
         self.started = self.context.robot.now()
         self._reset_timers(self.started)
 
@@ -208,6 +215,8 @@ class Explore(Leaf):
         assert self.planner is not None
         self.planner.reach_radius = self.nav_radius(grid.resolution)
         pose = stamped.pose
+        if self.params.time_budget and now - self.started >= self.params.time_budget:  # 0: none, as Locate
+            return self._explore_time_up(grid, pose)
         if self._stuck(now, grid, pose):
             return self.fail(f"stuck: the map did not grow and the robot did not move for "
                              f"{self.params.stuck_timeout:g} s ({self.summary(grid)})")
@@ -235,6 +244,16 @@ class Explore(Leaf):
             return self.succeed(text)
         return self.fail(text)
 
+    def _explore_time_up(self, grid: OccupancyGrid, pose: Pose2D) -> Status:
+        """The time budget is spent: stop the goal in hand, end FAILURE 'partial: ...' with what is left."""
+        assert self.planner is not None and self.params.time_budget
+        if self.handle is not None:
+            self.handle.cancel()
+            self.handle = None
+        self.outcome, self.left, self.time_budget_spent = "partial", None, True
+        return self.fail(budget_text(self.planner, grid, (pose.x, pose.y), self.params.time_budget,
+                                     self.summary(grid)))
+
     def terminate(self, new_status: Status) -> None:
         """Cancel the goal, stop turning and write the learned map into the run directory."""
         robot = self.ctx.robot if self.ctx is not None else None
@@ -244,7 +263,7 @@ class Explore(Leaf):
         if robot is not None and self.state == _LOOK:
             robot.drive(0.0, 0.0)
         self.state = _SELECT
-        self._save_map()
+        save_leaf(self)
 
     # -- public interface for leaves built on Explore ------------------------------------------------
 
@@ -568,21 +587,6 @@ class Explore(Leaf):
             return "choosing a goal"
         d = math.hypot(self.target.x - pose.x, self.target.y - pose.y)
         return f"to {self.target.kind} ({self.target.x:.2f}, {self.target.y:.2f}): {d:.1f} m"
-
-    def _save_map(self) -> None:
-        grid = self.last_grid
-        if grid is None and self.ctx is not None:
-            grid = self.ctx.robot.occupancy()
-        if grid is not None:
-            save_exploration(self, grid, self._report(grid))
-
-    def _report(self, grid: OccupancyGrid) -> dict[str, Any]:
-        """exploration.json's content (:func:`exploration_report`)."""
-        robot_xy = None
-        if self.outcome in ("stopped", "failed") and self.ctx is not None:
-            stamped = self.ctx.robot.pose()
-            robot_xy = None if stamped is None else (stamped.pose.x, stamped.pose.y)
-        return exploration_report(self.planner, self.outcome, self.goals, grid, self.left, robot_xy)
 
 
 def _matching(candidates: list[Candidate], target: Candidate, radius: float) -> Candidate | None:
