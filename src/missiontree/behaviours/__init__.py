@@ -2,6 +2,7 @@
 
 - :mod:`~missiontree.behaviours.motion`: NavigateTo, Rotate.
 - :mod:`~missiontree.behaviours.patrol`: Patrol (waypoint loops, skip-on-failure, resume).
+- :mod:`~missiontree.behaviours.fleet_patrol`: FleetPatrol (a robot's stretch of a fleet's route).
 - :mod:`~missiontree.behaviours.surveillance`: Surveillance (people, alarms with positions).
 - :mod:`~missiontree.behaviours.servo`: ServoToTarget (visual servoing on an alarm).
 - :mod:`~missiontree.behaviours.explore`: Explore (frontiers or scan points on a learned map).
@@ -27,6 +28,7 @@ def register_nodes(registry: NodeRegistry) -> None:
     from missiontree.behaviours.commands import SERVE_COMMANDS
     from missiontree.behaviours.confirm_steps import ConfirmTarget, LookFor, PlaceByDepth
     from missiontree.behaviours.explore import Explore
+    from missiontree.behaviours.fleet_patrol import FleetPatrol
     from missiontree.behaviours.intent import GoToIntent
     from missiontree.behaviours.motion import NavigateTo, Rotate
     from missiontree.behaviours.patrol import Patrol
@@ -45,6 +47,7 @@ def register_nodes(registry: NodeRegistry) -> None:
 
     for leaf in (NavigateTo, Rotate, Patrol, Surveillance, ServoToTarget, GoToIntent):
         registry.add(leaf)
+    registry.add(FleetPatrol)
     registry.add(SERVE_COMMANDS)
     registry.add(Explore)
     registry.add(BuildSceneGraph)
