@@ -10,7 +10,7 @@ import pytest
 from patrol_doubles import Events, FakeHandle, FakeRobot
 from pydantic import BaseModel
 
-from missiontree.behaviours.search_approach import SAME_PLACE, standoff_goal
+from missiontree.behaviours.approach_steps import SAME_PLACE, standoff_goal
 from missiontree.behaviours.search_locate import Locate
 from missiontree.behaviours.search_resume import NUDGE_M, ResumeExplore, _with_room, clearance_map
 from missiontree.engine.context import MissionContext

@@ -17,7 +17,6 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, Field
 
-from missiontree.behaviours.approach_steps import SAME_PLACE, standoff_goal  # noqa: F401 - see below
 from missiontree.behaviours.confirm_steps import detect
 from missiontree.behaviours.search_common import await_frame, read_target
 from missiontree.engine.leaf import Leaf, Status
@@ -27,9 +26,6 @@ from missiontree.reasoning.phrases import fold_label
 from missiontree.reasoning.search_priors import Target
 from missiontree.robot.actions import ActionHandle
 from missiontree.types import Detection, Pose2D, RGBDFrame, Tolerance
-
-# SAME_PLACE and standoff_goal live in approach_steps; tests/behaviours/test_search_locate.py still
-# imports them from here (the search work's file): drop this import once it imports them from there.
 
 
 class _Step(enum.Enum):
