@@ -127,13 +127,14 @@ class ClockRobot:
 class ScriptedLeaf(Leaf):
     """Returns the scripted statuses in turn (last one repeats); records its lifecycle.
 
-    Script letters: ``S`` success, ``F`` failure, ``R`` running, ``X`` raise an error. The
+    Script letters: ``S`` success, ``F`` failure, ``V`` failure that is a verdict (see
+    :mod:`missiontree.engine.faults`), ``R`` running, ``X`` raise an error. The
     script restarts each time the leaf is initialised, unless ``restart`` is False (then it
     goes on across runs: ``FS`` fails on the first tick and succeeds on every later one).
     """
 
     class Params(BaseModel):
-        script: str = Field("S", description="statuses to return, one letter a tick: S, F, R or X")
+        script: str = Field("S", description="statuses to return, one letter a tick: S, F, V, R or X")
         reason: str = Field("scripted failure", description="failure reason given on F")
         restart: bool = Field(True, description="start the script again at each initialise")
 
@@ -158,8 +159,8 @@ class ScriptedLeaf(Leaf):
         self._step += 1
         if letter == "X":
             raise RuntimeError(f"{self.name}: scripted error")
-        if letter == "F":
-            return self.fail(self.params.reason)  # type: ignore[attr-defined]
+        if letter in "FV":
+            return self.fail(self.params.reason, verdict=letter == "V")  # type: ignore[attr-defined]
         if letter == "R":
             return self.running(f"step {self._step}")
         return self.succeed()

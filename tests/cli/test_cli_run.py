@@ -271,3 +271,16 @@ def test_the_result_line_says_why_a_mission_failed_in_its_own_words() -> None:
     assert outcome_text({"status": "SUCCESS"}) == ""
     long = {"status": "FAILURE", "failures": {"m": {"decided": 1, "reasons": ["x" * 5000]}}}
     assert len(outcome_text(long)) <= 400
+
+
+def test_a_retry_stopped_by_a_verdict_quotes_the_verdict_alone() -> None:
+    """A Retry stopped by a verdict is the reason; an older attempt's deeper failure is not appended."""
+    from missiontree.cli.run import outcome_text
+    from missiontree.engine.faults import VERDICT_WORDS
+
+    verdict = f"{VERDICT_WORDS}: not found: no red backpack"
+    summary = {"status": "FAILURE",
+               "failures": {"m/retry": {"decided": 1, "reasons": [verdict]}},
+               "failure_reasons": {"m/retry": [verdict],
+                                   "m/retry/seq/approach/confirm": ["not the red backpack: blue"]}}
+    assert outcome_text(summary) == f"why: {verdict}"

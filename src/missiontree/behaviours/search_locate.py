@@ -312,9 +312,10 @@ class Locate(LookExplore):
         ):
             seen, floor = self.coverage.seen_share(now_grid, (stamped.pose.x, stamped.pose.y))
             known += f"; the camera looked at {seen:.0f} of {floor:.0f} m^2 of reachable floor"
-        return self.fail(
+        return self.fail(  # a verdict: running the search again only repeats it
             f"not found: no {self.goal.text} in the reachable space explored{known}"
-            + (f" ({len(tried)} candidates rejected: {shown})" if tried else "")
+            + (f" ({len(tried)} candidates rejected: {shown})" if tried else ""),
+            verdict=True,
         )
 
     # -- candidates -------------------------------------------------------------------------------

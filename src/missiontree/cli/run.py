@@ -15,6 +15,7 @@ from typing import Any
 
 from missiontree.cli import add_plugin_flag, plugins_from_args
 from missiontree.engine.build import build_tree
+from missiontree.engine.faults import VERDICT_WORDS
 from missiontree.engine.loader import load_mission
 from missiontree.engine.reload import TreeWatcher
 from missiontree.engine.runner import RunResult
@@ -281,7 +282,7 @@ def _deciding_reason(summary: dict[str, Any]) -> str:
     reason = str(failures[node]["reasons"][-1])
     below = [(path.count("/"), order, path) for order, path in enumerate(summary.get("failure_reasons") or {})
              if path.startswith(node + "/")]
-    if below and "; child " not in reason:
+    if below and "; child " not in reason and not reason.startswith(VERDICT_WORDS):
         deepest = max(below)[2]
         reason = f"{reason}; below it: {summary['failure_reasons'][deepest][-1]}"
     return reason

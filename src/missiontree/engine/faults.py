@@ -12,6 +12,10 @@ carries a fault (:func:`mark_fault`: the reason, on the node), kept until the no
   :class:`FaultKeepingForceSuccess`) pass a faulted child's FAILURE up unchanged.
 - The runner reports a FAILURE whose subtree holds a fault as a fault (``summary.json``'s
   ``fault``), and the run exits 1.
+
+A leaf's FAILURE may also be a *verdict* (:func:`mark_verdict`): an answer, not a fault, that running
+the leaf again cannot change (a search's "not found" once the reachable space is looked at). A Retry
+above it stops at once and fails with the verdict's reason instead of spending its attempts.
 """
 
 from __future__ import annotations
@@ -31,6 +35,9 @@ Behaviour = py_trees.behaviour.Behaviour
 Status = py_trees.common.Status
 
 _ATTRIBUTE = "missiontree_fault"
+_VERDICT = "missiontree_verdict"
+#: How a Retry stopped by a verdict begins its reason (the run's reason then quotes no older attempt).
+VERDICT_WORDS = "Retry: stopped by a verdict below it"
 
 #: Longest exception message kept in a reason (a message may carry a model's or a peer's text).
 MAX_MESSAGE = 300
@@ -179,6 +186,31 @@ def fault_of(node: Behaviour) -> tuple[Behaviour, str] | None:
         return node, reason
     for child in node.children:
         found = fault_of(child)
+        if found is not None:
+            return found
+    return None
+
+
+def mark_verdict(node: Behaviour, reason: str) -> None:
+    """Record that ``node``'s FAILURE is a verdict (``reason``): an answer running it again cannot change."""
+    setattr(node, _VERDICT, reason or "verdict")
+
+
+def clear_verdict(node: Behaviour) -> None:
+    """Forget ``node``'s verdict (it is being ticked afresh)."""
+    if getattr(node, _VERDICT, ""):
+        setattr(node, _VERDICT, "")
+
+
+def verdict_of(node: Behaviour) -> tuple[Behaviour, str] | None:
+    """The node (and its reason) whose verdict is behind ``node``'s FAILURE: itself or a failed descendant."""
+    if node.status != Status.FAILURE:
+        return None
+    reason = getattr(node, _VERDICT, "")
+    if reason:
+        return node, reason
+    for child in node.children:
+        found = verdict_of(child)
         if found is not None:
             return found
     return None

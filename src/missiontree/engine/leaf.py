@@ -27,7 +27,7 @@ import py_trees
 from pydantic import BaseModel, TypeAdapter
 
 from missiontree.engine.context import MissionContext
-from missiontree.engine.faults import clear_fault, error_site, mark_fault
+from missiontree.engine.faults import clear_fault, clear_verdict, error_site, mark_fault, mark_verdict
 from missiontree.engine.ports import BlackboardRef, ports_of
 
 Status = py_trees.common.Status
@@ -89,6 +89,7 @@ class Leaf(py_trees.behaviour.Behaviour):
         try:
             if self.status is not RUNNING:
                 clear_fault(self)
+                clear_verdict(self)
                 if py_trees.logging.level is DEBUG:
                     self.logger.debug(f"{self.__class__.__name__}.tick()")
                 self.initialise()
@@ -174,10 +175,18 @@ class Leaf(py_trees.behaviour.Behaviour):
             raise RuntimeError(f"{self.name}: no mission context; call tree.setup(context=...) first")
         return self.ctx
 
-    def fail(self, reason: str) -> Status:
-        """Record ``reason`` as this leaf's failure reason and return FAILURE."""
+    def fail(self, reason: str, verdict: bool = False) -> Status:
+        """Record ``reason`` as this leaf's failure reason and return FAILURE.
+
+        Args:
+            reason: Why, in the mission's words.
+            verdict: The FAILURE is an answer that running the leaf again cannot change ("not
+                found" after the whole reachable space was looked at): a Retry above stops at once.
+        """
         self.failure_reason = reason
         self.feedback_message = reason
+        if verdict:
+            mark_verdict(self, reason)
         return Status.FAILURE
 
     def fault(self, reason: str) -> Status:

@@ -86,11 +86,21 @@ _FEEDBACK_WORDS: dict[type, Callable[[str], str | None]] = {
 }
 
 
+_WORDS_OF_CLASS: dict[type, Callable[[str], str | None] | None] = {}
+
+
+def _words_of(cls: type) -> Callable[[str], str | None] | None:
+    """The rewrite for ``cls`` or the nearest of its bases that has one (a subclass keeps its words)."""
+    if cls not in _WORDS_OF_CLASS:
+        _WORDS_OF_CLASS[cls] = next((_FEEDBACK_WORDS[k] for k in cls.__mro__ if k in _FEEDBACK_WORDS), None)
+    return _WORDS_OF_CLASS[cls]
+
+
 def feedback_of(node: Behaviour) -> str:
     """The node's feedback message, py_trees' own phrases put in the mission file's words."""
     message = node.feedback_message
     if message:
-        rewrite = _FEEDBACK_WORDS.get(node_class(node))
+        rewrite = _words_of(node_class(node))
         if rewrite is not None:
             return rewrite(message) or message
     return message

@@ -52,6 +52,28 @@ def test_retry_runs_child_up_to_attempts(build: Callable[[str], Nodes]) -> None:
     assert nodes["root"].status == Status.FAILURE
 
 
+def test_retry_stops_at_a_verdict(build: Callable[[str], Nodes]) -> None:
+    """A verdict below a Retry (an answer a new attempt cannot change) fails it at once, quoting it."""
+    nodes = build("root:\n  Retry:\n    attempts: 5\n    child:\n"
+                  "      ScriptedLeaf: {name: search, script: V, reason: 'not found: nothing left'}\n")
+    nodes["root"].tick_once()
+    assert nodes["root"].status == Status.FAILURE
+    assert nodes["search"].calls.count("initialise") == 1
+    assert nodes["root"].feedback_message.endswith("not found: nothing left")
+
+
+def test_retry_after_a_verdict_forgets_it(build: Callable[[str], Nodes]) -> None:
+    """A leaf's verdict lasts until it runs afresh: its next plain failure is retried."""
+    nodes = build("root:\n  Retry:\n    attempts: 3\n    child:\n"
+                  "      ScriptedLeaf: {name: search, script: VFS, restart: false}\n")
+    nodes["root"].tick_once()
+    assert nodes["root"].status == Status.FAILURE
+    nodes["root"].tick_once()  # a fresh run of the Retry: the leaf fails plainly -> retried
+    assert nodes["root"].status == Status.RUNNING
+    nodes["root"].tick_once()
+    assert nodes["root"].status == Status.SUCCESS
+
+
 def test_repeat_needs_times_successes(build: Callable[[str], Nodes]) -> None:
     """Repeat succeeds after the child succeeded `times` times."""
     nodes = build("root:\n  Repeat:\n    times: 2\n    child: Succeed\n")

@@ -13,7 +13,12 @@ from typing import Any, Literal
 import py_trees
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from missiontree.engine.faults import FaultKeepingForceSuccess, FaultKeepingInverter
+from missiontree.engine.faults import (
+    VERDICT_WORDS,
+    FaultKeepingForceSuccess,
+    FaultKeepingInverter,
+    verdict_of,
+)
 from missiontree.engine.nodes.clock import Clock, clock_of
 from missiontree.engine.nodes.conditions import ConditionFields, evaluate, read_key
 from missiontree.engine.ports import BlackboardRef
@@ -153,6 +158,23 @@ class RateLimit(_Clocked, py_trees.decorators.Decorator):
         return self.decorated.status
 
 
+class VerdictRetry(py_trees.decorators.Retry):
+    """py_trees' Retry, except that a child's FAILURE that is a verdict ends it at once.
+
+    Running a search again after it answered "not found" only repeats the answer (and its cost);
+    the Retry fails with the verdict's reason, so the run's reason is the answer, not an older
+    attempt's failure.
+    """
+
+    def update(self) -> Status:
+        """Run the child again after a failure, unless the failure is a verdict."""
+        found = verdict_of(self.decorated)
+        if found is not None:
+            self.feedback_message = f"{VERDICT_WORDS}: {found[1]}"
+            return Status.FAILURE
+        return super().update()
+
+
 class Guard(py_trees.decorators.EternalGuard):
     """Re-check a blackboard condition before every tick of the child; halt it and fail when false."""
 
@@ -190,8 +212,9 @@ def _oneshot(name: str, p: OneShotParams, children: list[Behaviour]) -> Behaviou
 
 DECORATORS = [
     NodeType("Retry", "decorator", RetryParams,
-             lambda n, p, c: py_trees.decorators.Retry(n, _one(c), num_failures=p.attempts),  # type: ignore
-             "Run the child again after a failure, up to `attempts` runs."),
+             lambda n, p, c: VerdictRetry(n, _one(c), num_failures=p.attempts),  # type: ignore
+             "Run the child again after a failure, up to `attempts` runs; a verdict below (a leaf's "
+             "answer that running it again cannot change) ends it at once."),
     NodeType("Repeat", "decorator", RepeatParams,
              lambda n, p, c: py_trees.decorators.Repeat(n, _one(c), num_success=p.times),  # type: ignore
              "Run the child again after each success, `times` successes in all (-1: forever)."),
