@@ -25,11 +25,11 @@ import math
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field
 
 from missiontree.behaviours.fleet_dispatch import PatrolDispatcher
 from missiontree.behaviours.motion import ANY_HEADING
-from missiontree.behaviours.waypoints import Waypoint, load_waypoints, parse_waypoints
+from missiontree.behaviours.waypoints import RouteSource, Waypoint
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Input, Output
 from missiontree.robot.actions import INFRASTRUCTURE, ActionHandle, ActionStatus
@@ -48,12 +48,7 @@ class FleetPatrol(Leaf):
     ``waypoint`` port (under the robot's blackboard namespace).
     """
 
-    class Params(BaseModel):
-        waypoints: list[Any] | None = Field(
-            None, description="The route: [[x, y, yaw], ...] or [{x, y, yaw, name}, ...].")
-        waypoints_file: str | None = Field(
-            None, description="A waypoint file: a path or a name under config/waypoints/ (Nav2 format too).")
-        route: str | None = Field(None, description="Route name when the file holds several under `routes:`.")
+    class Params(RouteSource):
         laps: int = Field(1, ge=0, description="Visits owed to each waypoint; 0 patrols until stopped.")
         xy_tolerance: float = Field(0.3, gt=0, description="Distance that counts as reached (m).")
         yaw_tolerance: float = Field(ANY_HEADING, gt=0, le=ANY_HEADING,
@@ -73,14 +68,6 @@ class FleetPatrol(Leaf):
         look_timeout: float = Field(90.0, gt=0, description="Give up looking after this many seconds.")
         waypoint: Annotated[str, Output("the waypoint being driven to", type="dict")] = "patrol_waypoint"
         alarm: Annotated[str, Input("the alarm this robot's surveillance raised", type="dict")] = "alarm"
-
-        @model_validator(mode="after")
-        def _one_source(self) -> FleetPatrol.Params:
-            if (self.waypoints is None) == (self.waypoints_file is None):
-                raise ValueError("give exactly one of `waypoints` (inline) or `waypoints_file`")
-            if self.waypoints is not None:
-                parse_waypoints(self.waypoints, "waypoints")
-            return self
 
     params: Params
 
@@ -102,11 +89,7 @@ class FleetPatrol(Leaf):
     def on_setup(self) -> None:
         """Load the route and join the fleet's dispatcher for it (one per fleet and route)."""
         p = self.params
-        if p.waypoints is not None:
-            self.route = parse_waypoints(p.waypoints, f"{self.name}.waypoints")
-        else:
-            assert p.waypoints_file is not None
-            self.route = load_waypoints(p.waypoints_file, p.route)
+        self.route = p.load_route(f"{self.name}.waypoints")
         if self.ctx is None:
             return
         fleet = self.ctx.fleet

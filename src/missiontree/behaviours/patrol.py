@@ -22,12 +22,12 @@ repeat the visit, or lose it when the person who raised the alarm stands on it.
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field
 
 from missiontree.behaviours.motion import ANY_HEADING
-from missiontree.behaviours.waypoints import Waypoint, load_waypoints, parse_waypoints
+from missiontree.behaviours.waypoints import RouteSource, Waypoint
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Output
 from missiontree.robot.actions import INFRASTRUCTURE, ActionHandle, ActionResult, ActionStatus
@@ -42,12 +42,7 @@ class Patrol(Leaf):
     waypoint it is heading for to its ``waypoint`` port.
     """
 
-    class Params(BaseModel):
-        waypoints: list[Any] | None = Field(
-            None, description="The route: [[x, y, yaw], ...] or [{x, y, yaw, name}, ...].")
-        waypoints_file: str | None = Field(
-            None, description="A waypoint file: a path or a name under config/waypoints/ (Nav2 format too).")
-        route: str | None = Field(None, description="Route name when the file holds several under `routes:`.")
+    class Params(RouteSource):
         laps: int = Field(1, ge=0, description="Laps to drive; 0 patrols forever.")
         xy_tolerance: float = Field(0.3, gt=0, description="Distance that counts as reached (m).")
         yaw_tolerance: float = Field(
@@ -62,14 +57,6 @@ class Patrol(Leaf):
             10.0, gt=0, description="Fail when the robot's pose is older than this (s): the robot is lost "
             "(generous: a loaded machine delays pose messages by seconds).")
         waypoint: Annotated[str, Output("the waypoint being driven to", type="dict")] = "patrol_waypoint"
-
-        @model_validator(mode="after")
-        def _one_source(self) -> Patrol.Params:
-            if (self.waypoints is None) == (self.waypoints_file is None):
-                raise ValueError("give exactly one of `waypoints` (inline) or `waypoints_file`")
-            if self.waypoints is not None:
-                parse_waypoints(self.waypoints, "waypoints")
-            return self
 
     params: Params
 
@@ -88,11 +75,7 @@ class Patrol(Leaf):
     def on_setup(self) -> None:
         """Load the route (a missing or malformed file fails here, before the first tick)."""
         p = self.params
-        if p.waypoints is not None:
-            self.route = parse_waypoints(p.waypoints, f"{self.name}.waypoints")
-        else:
-            assert p.waypoints_file is not None
-            self.route = load_waypoints(p.waypoints_file, p.route)
+        self.route = p.load_route(f"{self.name}.waypoints")
 
     # -- lifecycle -------------------------------------------------------------------------------
 

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pydantic import BaseModel, Field, model_validator
+
 from missiontree.errors import ConfigError, ProblemsError
 from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.paths import find_config
@@ -45,6 +47,31 @@ class Waypoint:
 
 _FORMS = ("[x, y, yaw], {x, y, yaw}, {pose: {position: {x, y}, orientation: {z, w}}} "
           "or the Nav2 panel's {pose: [x, y, z], orientation: [x, y, z, w]}")
+
+
+class RouteSource(BaseModel):
+    """A leaf's route parameters: inline waypoints or a waypoint file (and a route in it), exactly one."""
+
+    waypoints: list[Any] | None = Field(
+        None, description="The route: [[x, y, yaw], ...] or [{x, y, yaw, name}, ...].")
+    waypoints_file: str | None = Field(
+        None, description="A waypoint file: a path or a name under config/waypoints/ (Nav2 format too).")
+    route: str | None = Field(None, description="Route name when the file holds several under `routes:`.")
+
+    @model_validator(mode="after")
+    def _one_source(self) -> RouteSource:
+        if (self.waypoints is None) == (self.waypoints_file is None):
+            raise ValueError("give exactly one of `waypoints` (inline) or `waypoints_file`")
+        if self.waypoints is not None:
+            parse_waypoints(self.waypoints, "waypoints")
+        return self
+
+    def load_route(self, where: str) -> list[Waypoint]:
+        """The route: the inline waypoints (``where`` names them in errors) or the file's route."""
+        if self.waypoints is not None:
+            return parse_waypoints(self.waypoints, where)
+        assert self.waypoints_file is not None
+        return load_waypoints(self.waypoints_file, self.route)
 
 
 def parse_waypoints(raw: Any, where: str = "waypoints") -> list[Waypoint]:
