@@ -18,6 +18,9 @@ from pathlib import Path
 import pytest
 from test_search_mission import MISSION, TARGET, corner_world
 
+from missiontree.backends.sim.schema import NavigationSpec
+from missiontree.behaviours.confirm_steps import PlaceByDepth
+
 pytest.importorskip("rclpy", reason="ROS 2 extra not installed: pip install -e .[ros2]; setup-ros2.sh")
 pytest.importorskip("nav2_msgs.action", reason="nav2_msgs not built: run scripts/setup-ros2.sh")
 pytestmark = [pytest.mark.ros2, pytest.mark.slow]
@@ -112,4 +115,9 @@ def test_find_object_over_ros2_finds_the_red_backpack(tmp_path: Path) -> None:
     assert run.returncode == 0, why
     assert found, why
     assert abs(found[-1]["x"] - TARGET[0]) < 0.5 and abs(found[-1]["y"] - TARGET[1]) < 0.5, why
-    assert found[-1]["distance"] < 1.0, why
+    # Nav2 (and sim-ros, as it) ends a goal within its own goal checker's 0.25 m, whatever tolerance
+    # the caller asked for; the approach's last step confirms from where the robot stands, so the
+    # robot ends within reach of the candidate plus that tolerance (the simulator's runs: within reach).
+    reach = PlaceByDepth.Params.model_fields["reach"].default
+    nav2_tolerance = NavigationSpec.model_fields["default_xy_tolerance"].default
+    assert found[-1]["distance"] < reach + nav2_tolerance, why
