@@ -100,10 +100,14 @@ def test_mission_events_reach_ros_topics_on_the_ros2_backend(domain_id: int, lis
     context.events.emit("object_confirmed", id="chair_red", label="chair", x=3.0, y=3.6)
     context.events.emit("object_confirmed", id="cup_1", label="cup", x=1.0, y=1.0)
     context.events.emit("object_confirmed", id="chair_red", label="chair", x=3.1, y=3.6)  # moved, not added
-    wait_until(lambda: listener.markers and len(listener.markers[-1].markers) == 5, 10.0,
-               "two cubes and their labels")
-    cubes = [m for m in listener.markers[-1].markers if m.type == Marker.CUBE]
-    assert sorted(round(c.pose.position.x, 1) for c in cubes) == [1.0, 3.1]
+
+    def cube_xs() -> list[float]:
+        latest = listener.markers[-1].markers if listener.markers else []
+        return sorted(round(m.pose.position.x, 1) for m in latest if m.type == Marker.CUBE)
+
+    # the array published after the second object already holds two cubes: wait for the moved chair
+    wait_until(lambda: cube_xs() == [1.0, 3.1], 10.0, "the moved chair's cube")
+    assert len(listener.markers[-1].markers) == 5  # two cubes, their labels: moved, not added
     context.events.emit("scene_graph", graph={"building": {"rooms": [{"name": "kitchen"}]}})
     wait_until(lambda: listener.graphs, 10.0, "the scene graph on /scene_graph")
     assert listener.graphs[-1]["building"]["rooms"][0]["name"] == "kitchen"
