@@ -28,7 +28,7 @@ from typing import Annotated, Any
 from pydantic import BaseModel, Field
 
 from missiontree.behaviours.fleet_dispatch import PatrolDispatcher
-from missiontree.behaviours.motion import ANY_HEADING
+from missiontree.behaviours.motion import ANY_HEADING, robot_lost
 from missiontree.behaviours.waypoints import RouteSource, Waypoint
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Input, Output
@@ -267,14 +267,7 @@ class FleetPatrol(Leaf):
 
     def _robot_lost(self) -> str:
         """Why this robot counts as lost now ("" when it does not): no pose, or a pose gone stale."""
-        robot = self.context.robot
-        stamped = robot.pose()
-        if stamped is None:
-            return "the robot reports no pose"
-        age = robot.now() - stamped.stamp
-        if age > self.params.max_pose_age:
-            return f"the robot's pose was last updated {age:.1f} s ago (limit {self.params.max_pose_age:g} s)"
-        return ""
+        return robot_lost(self.context.robot, self.params.max_pose_age)
 
     def _lost(self, reason: str) -> Status:
         """Fail this robot's patrol: the machinery that drives it is gone (the fleet re-balances)."""

@@ -9,7 +9,7 @@ the robot by an angle with ``drive`` and a proportional controller on the remain
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from typing import Annotated, Any
 
 from pydantic import BaseModel, Field
 
@@ -20,6 +20,17 @@ from missiontree.types import Pose2D, Tolerance, wrap_angle
 
 #: A yaw tolerance that accepts any final heading (the patrol-robot thesis §3.6.3).
 ANY_HEADING = 2.0 * math.pi
+
+
+def robot_lost(robot: Any, max_pose_age: float) -> str:
+    """Why ``robot`` counts as lost now ("" when not): no pose, or one older than ``max_pose_age`` s."""
+    stamped = robot.pose()
+    if stamped is None:
+        return "the robot reports no pose"
+    age = robot.now() - stamped.stamp
+    if age > max_pose_age:
+        return f"the robot's pose was last updated {age:.1f} s ago (limit {max_pose_age:g} s)"
+    return ""
 
 
 class NavigateTo(Leaf):

@@ -26,7 +26,7 @@ from typing import Annotated
 
 from pydantic import BaseModel, Field
 
-from missiontree.behaviours.motion import ANY_HEADING
+from missiontree.behaviours.motion import ANY_HEADING, robot_lost
 from missiontree.behaviours.waypoints import RouteSource, Waypoint
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Output
@@ -158,14 +158,7 @@ class Patrol(Leaf):
 
     def _robot_lost(self) -> str:
         """Why the robot counts as lost now ("" when it does not): no pose, or a pose gone stale."""
-        robot = self.context.robot
-        stamped = robot.pose()
-        if stamped is None:
-            return "the robot reports no pose"
-        age = robot.now() - stamped.stamp
-        if age > self.params.max_pose_age:
-            return f"the robot's pose was last updated {age:.1f} s ago (limit {self.params.max_pose_age:g} s)"
-        return ""
+        return robot_lost(self.context.robot, self.params.max_pose_age)
 
     def _lost(self, waypoint: Waypoint, reason: str) -> Status:
         """Fail the patrol: the machinery that drives the robot is gone (not a waypoint to skip)."""

@@ -179,16 +179,7 @@ def fault_of(node: Behaviour) -> tuple[Behaviour, str] | None:
 
     None when ``node`` did not fail, or failed only because conditions did not hold.
     """
-    if node.status != Status.FAILURE:
-        return None
-    reason = getattr(node, _ATTRIBUTE, "")
-    if reason:
-        return node, reason
-    for child in node.children:
-        found = fault_of(child)
-        if found is not None:
-            return found
-    return None
+    return _failed_with(node, _ATTRIBUTE)
 
 
 def mark_verdict(node: Behaviour, reason: str) -> None:
@@ -204,13 +195,18 @@ def clear_verdict(node: Behaviour) -> None:
 
 def verdict_of(node: Behaviour) -> tuple[Behaviour, str] | None:
     """The node (and its reason) whose verdict is behind ``node``'s FAILURE: itself or a failed descendant."""
+    return _failed_with(node, _VERDICT)
+
+
+def _failed_with(node: Behaviour, attribute: str) -> tuple[Behaviour, str] | None:
+    """The first failed node at or below ``node`` (through failed nodes only) carrying ``attribute``."""
     if node.status != Status.FAILURE:
         return None
-    reason = getattr(node, _VERDICT, "")
+    reason = getattr(node, attribute, "")
     if reason:
         return node, reason
     for child in node.children:
-        found = verdict_of(child)
+        found = _failed_with(child, attribute)
         if found is not None:
             return found
     return None
