@@ -67,6 +67,15 @@ def test_unknown_ids_rooms_and_doubtful_are_rejected_with_a_reason() -> None:
     assert "doubtful" in reasons["cup_far"]
 
 
+def test_the_graph_checks_need_no_map_and_keep_the_model_order_once() -> None:
+    """The graph's checks stand alone (no map): duplicates dropped, the model's order kept."""
+    from missiontree.reasoning.intent import _graph_checked
+
+    wanted, rejected = _graph_checked(["cup_far", "box", "cup_far", "room_1"], graph_objects(graph()), ())
+    assert [o.id for o in wanted] == ["cup_far", "box"]
+    assert [r.id for r in rejected] == ["room_1"]
+
+
 def test_an_object_outside_the_map_is_rejected() -> None:
     """Coordinates beyond the grid are outside the known map."""
     scene = graph_objects(

@@ -39,6 +39,7 @@ from missiontree.perception.projection import project
 from missiontree.reasoning.phrases import colour_words, fold_label, size_words, split_relation
 from missiontree.reasoning.standoff import (
     MAX_REACH,
+    Space,
     cell_path_lengths,
     outside_known_map,
     prepare_space,
@@ -327,6 +328,26 @@ def plan_candidates(
     to stand near them and objects the robot has no path to. Duplicates are dropped. Ties in path
     length keep the model's order.
     """
+    wanted, rejected = _graph_checked(ids, scene, doubtful)
+    if not wanted:
+        return Ranking([], rejected)
+    if grid is None:
+        return Ranking([], rejected + [Rejection(o.id, "no map to plan on") for o in wanted])
+    space = prepare_space(grid, robot_radius, allow_unknown)
+    places = _standoff_places(space, wanted, robot_radius, camera, rejected)
+    if not places:
+        return Ranking([], rejected)
+    return _rank_by_path(space, grid, robot, places, rejected)
+
+
+#: Objects that passed the checks, each with its standoff cells (row, column, penalty).
+_Places = list[tuple[GraphObject, list[tuple[int, int, float]]]]
+
+
+def _graph_checked(
+    ids: Sequence[str], scene: SceneObjects, doubtful: Iterable[str]
+) -> tuple[list[GraphObject], list[Rejection]]:
+    """The graph's checks: the named objects of the graph, not doubted, with coordinates; the rest, why."""
     rejected: list[Rejection] = []
     doubtful_ids = set(doubtful)
     seen: set[str] = set()
@@ -347,13 +368,19 @@ def plan_candidates(
             rejected.append(Rejection(oid, "has no coordinates in the scene graph"))
         else:
             wanted.append(obj)
-    if not wanted:
-        return Ranking([], rejected)
-    if grid is None:
-        return Ranking([], rejected + [Rejection(o.id, "no map to plan on") for o in wanted])
-    space = prepare_space(grid, robot_radius, allow_unknown)
-    places: list[tuple[int, GraphObject, list[tuple[int, int, float]]]] = []
-    for order, obj in enumerate(wanted):
+    return wanted, rejected
+
+
+def _standoff_places(
+    space: Space,
+    wanted: Sequence[GraphObject],
+    robot_radius: float,
+    camera: tuple[float, float] | None,
+    rejected: list[Rejection],
+) -> _Places:
+    """The map's checks: each object inside the known map with free cells to stand by it (else rejected)."""
+    places: _Places = []
+    for obj in wanted:
         assert obj.xy is not None
         where = outside_known_map(space, obj.xy)
         if where:
@@ -369,16 +396,25 @@ def plan_candidates(
                 )
             )
             continue
-        places.append((order, obj, cells))
-    if not places:
-        return Ranking([], rejected)
-    lengths = cell_path_lengths(space, robot, [c for _, _, cells in places for c in cells])
+        places.append((obj, cells))
+    return places
+
+
+def _rank_by_path(
+    space: Space, grid: OccupancyGrid, robot: Pose2D, places: _Places, rejected: list[Rejection]
+) -> Ranking:
+    """The objects ordered by path length to their best standoff cell (ties keep the given order).
+
+    Each object's goal is its cell of least path length plus penalty, facing the object; an object
+    with no path to any of its cells is rejected.
+    """
+    lengths = cell_path_lengths(space, robot, [c for _, cells in places for c in cells])
     if lengths is None:
         why = "the robot is outside the map or boxed in: no path"
-        return Ranking([], rejected + [Rejection(obj.id, why) for _, obj, _ in places])
+        return Ranking([], rejected + [Rejection(obj.id, why) for obj, _ in places])
     ranked: list[tuple[float, int, Candidate]] = []
     at = 0
-    for order, obj, cells in places:
+    for order, (obj, cells) in enumerate(places):
         assert obj.xy is not None
         mine = lengths[at : at + len(cells)]
         at += len(cells)
