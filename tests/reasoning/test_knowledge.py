@@ -151,3 +151,14 @@ def test_wordnet_state_adjectives_and_servings_of_drink_are_read(request_: str, 
 def test_adverbs_and_comparatives_are_read_through_their_adjective(word: str, need: str) -> None:
     """An adverb (-ily) or a comparative (-ier, -iest) is read as the adjective it comes from."""
     assert need in knowledge().read(f"I look at the fridge {word}").needs
+
+
+@pytest.mark.parametrize("request_", ["I'm rested", "I'm so rested now", "I feel fed up", "I feel pooped"])
+def test_a_participle_of_a_needs_own_verb_said_of_oneself_is_no_need(request_: str) -> None:
+    """'I'm rested' says the rest is behind: the participle of a need's own verb is not read as the need."""
+    assert knowledge().read(request_).needs == {}
+
+
+def test_a_participle_of_a_verb_that_causes_the_state_still_says_it() -> None:
+    """'I'm tuckered out' (tucker: to tire someone) still says tiredness; 'I have eaten' is no copula."""
+    assert "rest" in knowledge().read("I'm tuckered out").needs

@@ -142,3 +142,16 @@ def test_heads_are_each_needs_own_words() -> None:
     heads = need_heads(knowledge())
     assert "thirsty" in heads["drink"] and NEED_MATCH < 1.0
     assert not by_embedding(Reading(needs={"drink": (1.0, "thirsty")}))
+
+
+def test_a_need_word_that_names_another_object_is_no_head() -> None:
+    """'stool' names a seat as well as the toilet's word: an unknown word near it says no need."""
+    heads = need_heads(knowledge())
+    assert "stool" not in heads["toilet"] and "toilet" in heads["toilet"]
+
+
+def test_pooped_is_not_read_as_the_toilet(minilm: MiniLMEmbedder) -> None:
+    """'I feel pooped' (tired; WordNet lacks it) is not matched to the toilet by its nearness to 'stool'."""
+    kb, request = knowledge(), "I feel pooped after today."
+    reading = embedded_reading(minilm, request, kb.read(request), kb)
+    assert "toilet" not in reading.needs

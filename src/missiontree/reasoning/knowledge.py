@@ -61,6 +61,14 @@ SUFFIXES = (("ies", "y"), ("es", "e"), ("es", ""), ("s", ""), ("ed", "e"), ("ed"
             ("ing", ""), ("ier", "y"), ("iest", "y"), ("er", ""), ("est", ""), ("men", "man"),
             # adverbs read as their adjectives ("sleepily" is said of the sleepy)
             ("ily", "y"), ("ly", ""))
+#: Words after which a participle says a state one is in ("I'm rested", "I feel fed up"); the adverbs
+#: of degree between them are skipped ("I'm so rested").
+COPULAS = frozenset("am im is are was were be been being feel feels feeling felt get gets getting got"
+                    .split())
+DEGREE = frozenset("so very really quite totally completely fully well all just".split())
+#: A need word read at this weight or more is the need's own activity or state ("rest", "feed",
+#: "poop"); its participle said of oneself tells the need was met, not that one has it.
+ACTIVITY = 0.85
 
 
 
@@ -157,6 +165,8 @@ class Knowledge:
                     key = None
                 else:
                     key = self.lemma(phrase) if n == 1 else (phrase if self._known(phrase) else None)
+                if key is not None and n == 1 and self._met(words, i, key):
+                    key = None  # "I'm rested", "I'm fed up", "I feel pooped": the activity is done
                 if key is None:
                     if n == 1 and phrase not in FUNCTION_WORDS and len(phrase) > 2:
                         unknown.append(phrase)
@@ -184,6 +194,25 @@ class Knowledge:
             # any seat, but in "in any case, I'm thirsty" the case is no suitcase to be brought to
             named = {**general, **named}
         return Reading(needs, named, tuple(unknown), tuple(compounds))
+
+    def _met(self, words: list[str], i: int, key: str) -> bool:
+        """Whether ``words[i]`` is a participle of a need's own verb said of oneself: the need was met.
+
+        "I'm rested" is not tired and "I'm fed up" is not hungry: a word read only through its
+        inflection (-ed, or an irregular past such as "fed") to a need's own activity or state
+        (weight :data:`ACTIVITY` or more), right after a copula (:data:`COPULAS`, adverbs of degree
+        skipped), says the need is behind. A weaker, causing verb still says it ("I'm tuckered out":
+        tucker, to tire someone).
+        """
+        word = words[i]
+        if key == word or not (word.endswith("ed") or self.forms.get(word) == key):
+            return False
+        if max(self.need_words.get(key, {}).values(), default=0.0) < ACTIVITY:
+            return False
+        j = i - 1
+        while j >= 0 and words[j] in DEGREE:
+            j -= 1
+        return j >= 0 and words[j] in COPULAS
 
     def score(self, label: str, reading: Reading) -> tuple[float, str]:
         """How well ``label`` serves the reading, and why ("drink (thirsty)").

@@ -36,11 +36,19 @@ BY_EMBEDDING = "similarity"
 
 @lru_cache(maxsize=4)
 def need_heads(kb: Knowledge) -> dict[str, tuple[str, ...]]:
-    """Each need's own words (weight 1.0 for that need alone): what an unknown word is compared with."""
+    """Each need's own words (weight 1.0 for that need alone): what an unknown word is compared with.
+
+    A word that also names an object class not serving the need strongly is left out: near it an
+    unknown word may be near the object ("pooped" is near "stool", a seat as much as a toilet's word).
+    """
     heads: dict[str, list[str]] = {}
     for word, needs in kb.need_words.items():
         if len(needs) == 1 and max(needs.values()) >= 1.0:
-            heads.setdefault(next(iter(needs)), []).append(word)
+            need = next(iter(needs))
+            label = kb.label_words.get(word)
+            if label is not None and kb.serves.get(label, {}).get(need, 0.0) < STRONG:
+                continue
+            heads.setdefault(need, []).append(word)
     return {need: tuple(words) for need, words in heads.items()}
 
 
