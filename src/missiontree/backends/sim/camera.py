@@ -233,76 +233,87 @@ def _fill_loops(ox, oy, hc, dx, dy, b, t_in, t_out, idx, shade, pz, prgb, pinst,
     """Pixel loops (compiled by numba): the nearest prism face each pixel's ray meets, else floor/ceiling.
 
     The rows a column's nearest prism covers with its front face are one run of constant colour
-    and depth (found first, per column: :func:`_front_runs`), written without testing; the other
-    pixels test the column's hits in order. The per-pixel test stays inline: as a compiled helper
-    (inlined by numba or called) it made a frame about four times slower, measured on the combined
-    world.
+    and depth (found first, per column: :func:`_front_runs`); each row is then filled by
+    :func:`_fill_row`.
     """
     h, w = len(b), len(dx)
     color = np.empty((h, w, 3), np.uint8)
     depth = np.empty((h, w), np.float32)
     inst = np.zeros((h, w), np.int32)
     counts = np.zeros(ninst, np.int64)
-    nrows, ncols = floor_rgb.shape[0], floor_rgb.shape[1]
-    inv_res = 1.0 / fres
-    va, vb, c0, d0, i0 = _front_runs(h, cy, fy, hc, idx, t_in, shade, pz, prgb, pinst, ceiling, dmin, dmax,
-                                     counts)
+    runs = _front_runs(h, cy, fy, hc, idx, t_in, shade, pz, prgb, pinst, ceiling, dmin, dmax, counts)
+    out = (color, depth, inst, counts)
+    hits = (idx, t_in, t_out, shade, pz, prgb, pinst)
+    ray = (ox, oy, hc, dx, dy, ceiling, dmin, dmax)
+    floor = (floor_rgb, fox, foy, 1.0 / fres)
     for v in range(h):
-        bv = b[v]
-        t_plane = -hc / bv if bv < 0.0 else ((ceiling - hc) / bv if bv > 0.0 else np.inf)
-        for u in range(w):
-            if va[u] <= v <= vb[u]:
-                color[v, u, 0] = c0[u, 0]
-                color[v, u, 1] = c0[u, 1]
-                color[v, u, 2] = c0[u, 2]
-                depth[v, u] = d0[u]
-                inst[v, u] = i0[u]
-                continue
-            t = -1.0  # the first prism face (front, top or bottom) the ray meets, else floor/ceiling
-            f = 0.0
-            p = -1
-            for k in range(idx.shape[1]):
-                q = idx[u, k]
-                tin = t_in[u, k]
-                if q < 0 or tin > t_plane:  # hits are sorted: the floor or ceiling comes first
-                    break
-                z0, z1 = pz[q, 0], pz[q, 1]
-                zin = hc + tin * bv
-                if z0 <= zin <= z1:
-                    t = tin
-                    f = _FACE_SHADE[0] + _FACE_SHADE[1] * shade[u, k]
-                elif bv < 0.0 and zin > z1:
-                    tt = (z1 - hc) / bv
-                    if tt <= t_out[u, k]:
-                        t = tt
-                        f = _TOP_SHADE
-                elif bv > 0.0 and zin < z0:
-                    tb = (z0 - hc) / bv
-                    if tb <= t_out[u, k]:
-                        t = tb
-                        f = _BOTTOM_SHADE
-                if t >= 0.0:
-                    p = q
-                    break
-            if p >= 0:
-                for ch in range(3):
-                    color[v, u, ch] = min(255.0, prgb[p, ch] * f)
-                inst[v, u] = pinst[p]
-                counts[pinst[p]] += 1
-            elif bv < 0.0:
-                t = t_plane
-                r = min(max(int((oy + t * dy[u] - foy) * inv_res), 0), nrows - 1)
-                c = min(max(int((ox + t * dx[u] - fox) * inv_res), 0), ncols - 1)
-                for ch in range(3):
-                    color[v, u, ch] = floor_rgb[r, c, ch]
-            else:
-                t = t_plane
-                for ch in range(3):
-                    color[v, u, ch] = CEILING_RGB[ch]
-            depth[v, u] = t if dmin <= t <= dmax else np.nan
+        _fill_row(v, b[v], out, runs, hits, ray, floor)
     return color, depth, inst, counts
 
 
-if HAVE_NUMBA:  # called once a frame: a compiled call costs nothing next to the pixel loops
+def _fill_row(v, bv, out, runs, hits, ray, floor):  # noqa: ANN001, ANN202
+    """Fill row ``v`` (ray slope ``bv``); a column's front-face run is written without testing.
+
+    The other pixels test the column's hits inline: as a compiled helper it made a frame about four
+    times slower (measured on the combined world); a call per row costs nothing next to it.
+    """
+    color, depth, inst, counts = out
+    va, vb, c0, d0, i0 = runs
+    idx, t_in, t_out, shade, pz, prgb, pinst = hits
+    ox, oy, hc, dx, dy, ceiling, dmin, dmax = ray
+    floor_rgb, fox, foy, inv_res = floor
+    nrows, ncols = floor_rgb.shape[0], floor_rgb.shape[1]
+    t_plane = -hc / bv if bv < 0.0 else ((ceiling - hc) / bv if bv > 0.0 else np.inf)
+    for u in range(len(dx)):
+        if va[u] <= v <= vb[u]:
+            for ch in range(3):
+                color[v, u, ch] = c0[u, ch]
+            depth[v, u] = d0[u]
+            inst[v, u] = i0[u]
+            continue
+        t = -1.0  # the first prism face (front, top or bottom) the ray meets, else floor/ceiling
+        f, p = 0.0, -1
+        for k in range(idx.shape[1]):
+            q = idx[u, k]
+            tin = t_in[u, k]
+            if q < 0 or tin > t_plane:  # hits are sorted: the floor or ceiling comes first
+                break
+            z0, z1 = pz[q, 0], pz[q, 1]
+            zin = hc + tin * bv
+            if z0 <= zin <= z1:
+                t = tin
+                f = _FACE_SHADE[0] + _FACE_SHADE[1] * shade[u, k]
+            elif bv < 0.0 and zin > z1:
+                tt = (z1 - hc) / bv
+                if tt <= t_out[u, k]:
+                    t = tt
+                    f = _TOP_SHADE
+            elif bv > 0.0 and zin < z0:
+                tb = (z0 - hc) / bv
+                if tb <= t_out[u, k]:
+                    t = tb
+                    f = _BOTTOM_SHADE
+            if t >= 0.0:
+                p = q
+                break
+        if p >= 0:
+            for ch in range(3):
+                color[v, u, ch] = min(255.0, prgb[p, ch] * f)
+            inst[v, u] = pinst[p]
+            counts[pinst[p]] += 1
+        elif bv < 0.0:
+            r = min(max(int((oy + t_plane * dy[u] - foy) * inv_res), 0), nrows - 1)
+            c = min(max(int((ox + t_plane * dx[u] - fox) * inv_res), 0), ncols - 1)
+            for ch in range(3):
+                color[v, u, ch] = floor_rgb[r, c, ch]
+        else:
+            for ch in range(3):
+                color[v, u, ch] = CEILING_RGB[ch]
+        t = t if p >= 0 else t_plane
+        depth[v, u] = t if dmin <= t <= dmax else np.nan
+
+
+if HAVE_NUMBA:  # called once a frame or row: a compiled call costs nothing next to the pixel loops
     _front_runs = numba.njit(cache=True, nogil=True)(_front_runs)
+    _fill_row = numba.njit(cache=True, nogil=True)(_fill_row)
 _fill_jit = numba.njit(cache=True, nogil=True)(_fill_loops) if HAVE_NUMBA else _fill_loops
