@@ -28,7 +28,10 @@ def register_nodes(registry: NodeRegistry) -> None:
     from missiontree.behaviours.commands import SERVE_COMMANDS
     from missiontree.behaviours.confirm_steps import ConfirmTarget, LookFor, PlaceByDepth
     from missiontree.behaviours.explore import Explore
+    from missiontree.behaviours.fleet_explore import FleetExplore
     from missiontree.behaviours.fleet_patrol import FleetPatrol
+    from missiontree.behaviours.fleet_scene import FleetBuildSceneGraph
+    from missiontree.behaviours.fleet_search import FleetFound, FleetLocate, FleetSearchWatch
     from missiontree.behaviours.intent import GoToIntent
     from missiontree.behaviours.motion import NavigateTo, Rotate
     from missiontree.behaviours.patrol import Patrol
@@ -48,6 +51,8 @@ def register_nodes(registry: NodeRegistry) -> None:
     for leaf in (NavigateTo, Rotate, Patrol, Surveillance, ServoToTarget, GoToIntent):
         registry.add(leaf)
     registry.add(FleetPatrol)
+    for fleet_leaf in (FleetExplore, FleetLocate, FleetFound, FleetSearchWatch, FleetBuildSceneGraph):
+        registry.add(fleet_leaf)
     registry.add(SERVE_COMMANDS)
     registry.add(Explore)
     registry.add(BuildSceneGraph)
