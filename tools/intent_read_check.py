@@ -3,10 +3,11 @@
     python tools/intent_read_check.py                 # every dev word on generated:100..105
     python tools/intent_read_check.py --worlds 3 -v   # fewer flats, print each miss
 
-Every dev need paraphrase and object name (``benchmarks/data/intent_dev_words.json``) and every dev
-referential command is put to the offline language model over each generated dev flat's ground-truth
-graph (the benchmark's own graph builder and judges). A reading is *right* when it names candidates
-and every one satisfies the command, *wrong* when one of them does not (a possible wrong object
+The team's written dev commands, and every dev need paraphrase and object name
+(``benchmarks/data/intent_dev_words.json``) and every dev referential command on each generated dev
+flat, are put to the offline language model over the world's ground-truth graph (the benchmark's own
+graph builder and judges). A reading is *right* when it names candidates and every one satisfies the
+command (or names none when nothing does), *wrong* when one of them does not (a possible wrong object
 served), *abstained* when it names none though something satisfies it. Dev only: this tool never
 reads the test split's words.
 """
@@ -44,13 +45,16 @@ def main(argv: list[str] | None = None) -> int:
     names = ie.dev_world_names(args.worlds, args.first_seed, folder / "worlds")
     words = json.loads(ie.DEV_WORDS.read_text(encoding="utf-8"))
     tally: Counter[tuple[str, str]] = Counter()
+    batches = [[c for c in [*ie.TABLE2, *ie.WRITTEN] if c.world == w] for w in ("office", "generated:3")]
     for name in names:
         world = bench.world(name)
         cases = ie._dealt_words(words, world, name, 0, 1, "dev")  # every word on every flat
         cases += ie.referential_cases(world, name, templates=ie.DEV_TEMPLATES, group="dev_referential")
-        scene = graph_objects(bench.graph(cases[0]).read_text(encoding="utf-8"))
-        objects = prompt_objects(scene)
+        batches.append(cases)
+    for cases in batches:
         for case in cases:
+            scene = graph_objects(bench.graph(case).read_text(encoding="utf-8"))
+            objects = prompt_objects(scene)
             answer = chat_checked(bench.models["llm"], intent_messages(case.command, objects),
                                   IntentResolution).value
             truth = {o.id for o in bench.truth(case)}

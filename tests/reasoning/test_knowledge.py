@@ -162,3 +162,28 @@ def test_a_participle_of_a_needs_own_verb_said_of_oneself_is_no_need(request_: s
 def test_a_participle_of_a_verb_that_causes_the_state_still_says_it() -> None:
     """'I'm tuckered out' (tucker: to tire someone) still says tiredness; 'I have eaten' is no copula."""
     assert "rest" in knowledge().read("I'm tuckered out").needs
+
+
+def test_a_word_saying_two_needs_equally_chooses_nothing(model: OfflineLanguageModel) -> None:
+    """'A documentary' is to watch or to print: with a TV and a printer and nothing serving both, no guess."""
+    objects = [{"id": "tv_1", "label": "tv"}, {"id": "printer_1", "label": "printer"}]
+    answer = model.resolve("a documentary please", objects)
+    assert answer.candidates == [] and "equally" in answer.reason
+
+
+def test_a_weaker_second_need_adds_no_class_beside_the_stated_one(model: OfflineLanguageModel) -> None:
+    """'Watch a documentary': the TV, not the printer (print is only the documentary's other sense)."""
+    objects = [{"id": "tv_1", "label": "tv"}, {"id": "printer_1", "label": "printer"}]
+    assert model.resolve("I'd like to watch a documentary", objects).candidates == ["tv_1"]
+
+
+def test_a_word_saying_two_needs_keeps_the_class_serving_both(model: OfflineLanguageModel) -> None:
+    """'Swallow' is to eat or to drink: the refrigerator serves both strongly, the bottle only drink."""
+    objects = [{"id": "bottle_1", "label": "bottle"}, {"id": "fridge_1", "label": "refrigerator"}]
+    assert model.resolve("I want to swallow something", objects).candidates == ["fridge_1"]
+
+
+def test_two_needs_said_by_two_words_are_both_served(model: OfflineLanguageModel) -> None:
+    """'I'm thirsty and bored' says both: the bottle and the TV are both candidates."""
+    objects = [{"id": "bottle_1", "label": "bottle"}, {"id": "tv_1", "label": "tv"}]
+    assert set(model.resolve("I'm thirsty and bored", objects).candidates) == {"bottle_1", "tv_1"}

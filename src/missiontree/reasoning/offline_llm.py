@@ -202,6 +202,11 @@ class OfflineLanguageModel:
         # every class that serves it strongly, best first: when the best one cannot be reached (no
         # place to stand by the TV), the next tier (the laptop for boredom) is still on offer
         chosen = [label for label in order if scores[label][0] >= STRONG]
+        chosen, split = _one_reading(chosen, scores, reading, kb)
+        if split:
+            return IntentResolution(candidates=[], reason=(
+                f"no object chosen for {request!r}: {split}, and nothing present serves both strongly "
+                "(an ambiguous request is not guessed at)"))
         ids = [str(o["id"]) for label in chosen for o in objects if o["label"] == label]
         ranked = ", ".join(f"{label} {scores[label][0]:.2f}" for label in order[:4])
         serve = "serves" if len(chosen) == 1 else "serve"
@@ -252,6 +257,51 @@ class OfflineLanguageModel:
         return IntentResolution(candidates=[str(o["id"]) for _, o in scored], reference=ref, reason=(
             f"{len(scored)} {what} {relation} a {ref.anchor}" if scored
             else f"no {what} {relation} a {ref.anchor} ({len(anchors)} {ref.anchor} in the scene)"))
+
+
+#: A class serving another need than the best class's is offered beside it only when the request says
+#: that need this nearly as strongly ("I'm thirsty and bored": both; "watch a documentary": not the
+#: printer, which serves the documentary's other sense, print, read at 0.85 beside watching at 1.0).
+NEED_MARGIN = 0.05
+
+
+def _need_of(why: str) -> str:
+    """The need (or ``named``) a score's reason gives first: "drink (thirsty)" -> "drink"."""
+    return why.split(" (", 1)[0]
+
+
+def _one_reading(chosen: list[str], scores: Mapping[str, tuple[float, str]],
+                 reading: Reading, kb: Knowledge) -> tuple[list[str], str]:
+    """The chosen classes that serve what the request says most surely, or why it says two things at once.
+
+    A class kept beside the best one serves the same need (the laptop beside the TV for boredom), or
+    another need the request says within :data:`NEED_MARGIN` as strongly by another word ("I'm
+    thirsty and bored"). When one word alone says two needs equally ("a documentary": watching, or
+    printing; "muddy": washing, or rain) and different classes serve each, only the classes serving
+    both strongly are kept ("swallow": the refrigerator); when there is none the request is
+    ambiguous: the second item says so, and nothing is chosen (an abstention, not a guess).
+    """
+    if not chosen or not reading.needs:
+        return chosen, ""
+    top = _need_of(scores[chosen[0]][1])
+    if top not in reading.needs:
+        return chosen, ""
+    strength, word = reading.needs[top]
+    kept = [chosen[0]]
+    for label in chosen[1:]:
+        need = _need_of(scores[label][1])
+        if need == top or need not in reading.needs:
+            kept.append(label)
+            continue
+        other, other_word = reading.needs[need]
+        if other < strength - NEED_MARGIN:
+            continue  # a weaker echo of another need: not offered
+        if other_word == word:
+            both = [c for c in chosen if min(kb.serves.get(fold_label(c), kb.serves.get(c, {})).get(n, 0.0)
+                                             for n in (top, need)) >= STRONG]
+            return both, "" if both else f"'{word}' says {top} or {need} equally ({chosen[0]} or {label})"
+        kept.append(label)
+    return kept, ""
 
 
 def _of_label(objects: Sequence[Mapping[str, Any]], label: str) -> list[Mapping[str, Any]]:
