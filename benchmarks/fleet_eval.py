@@ -23,12 +23,18 @@ small maps too. It is OK when the run ends SUCCESS, robot2 is recorded lost, and
 the fleet could reach was visited (skipped ones are listed); ``reassign_all_visited`` counts the
 runs in which every waypoint was visited (none skipped: a dead robot can block a passage).
 
+**Exploration and search** (:mod:`fleet_explore_search`, ``--parts``): time to 90 % coverage of
+``trees/fleet_explore.yaml`` with 1-3 robots on ``--explore-worlds`` worlds a split, and time to a
+confirmed find of ``trees/fleet_find_object.yaml`` with 1 and 2 robots on ``--search-cases`` cases
+with the target (plus ``--absent-cases`` without); the 2-to-1 ratios per world, min/median/max.
+
 Printed: per split and robot count, the idleness (mean over worlds, min-max), the worst-idleness
 ratio of N robots to one (per world, then min/median/max), the reassignment rate with its 95 %
-Wilson interval, the dev-test gap (test minus dev) and a markdown table. Last line: one JSON object
-with ``dev``, ``test``, ``gap``, ``idleness_avg_s`` and ``idleness_worst_s`` (per robot count, test
-split when run, else dev), ``worst_ratio_3v1``, ``reassign_ok``; ``search_time_ratio_2v1`` and
-``explore_time_ratio_2v1`` are null with the reason (fleet search and exploration are not built).
+Wilson interval, the exploration and search figures, the dev-test gap (test minus dev) and markdown
+tables. Last line: one JSON object with ``dev``, ``test``, ``gap``, ``idleness_avg_s`` and
+``idleness_worst_s`` (per robot count, test split when run, else dev), ``worst_ratio_3v1``,
+``reassign_ok``, ``explore_time_ratio_2v1`` and ``search_time_ratio_2v1`` (medians of the per-world
+ratios; null with the reason when that part was not run or no world gave a ratio).
 """
 
 from __future__ import annotations
@@ -274,44 +280,134 @@ def table(results: dict[str, dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the benchmark; print per-world lines, the table and the JSON line."""
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--split", choices=("dev", "test", "both"), default="both")
-    parser.add_argument("--worlds", type=int, default=3, help="worlds per split")
+    parser.add_argument("--parts", default="patrol,explore,search",
+                        help="comma-separated: patrol, explore, search")
+    parser.add_argument("--worlds", type=int, default=3, help="patrol worlds per split")
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--waypoints", type=int, default=8)
     parser.add_argument("--duration", type=float, default=480.0, help="simulated seconds per idleness run")
+    parser.add_argument("--explore-worlds", type=int, default=3, help="exploration worlds per split")
+    parser.add_argument("--explore-robots", default="1,2,3", help="robot counts explored with")
+    parser.add_argument("--explore-duration", type=float, default=600.0, help="robot s per exploration")
+    parser.add_argument("--search-cases", type=int, default=3, help="search cases with the target a split")
+    parser.add_argument("--absent-cases", type=int, default=1, help="search cases without the target")
+    parser.add_argument("--search-robots", default="1,2", help="robot counts searched with")
+    parser.add_argument("--search-duration", type=float, default=600.0, help="robot s per search")
     parser.add_argument("--out", type=Path, default=None, help="work folder (default: a temporary one)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def _run_split(split: str, args: argparse.Namespace, parts: set[str], work: Path) -> dict[str, Any]:
+    """One split's patrol, exploration and search figures (the parts asked for)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from fleet_explore_search import explore_rows, explore_summary, search_rows, search_summary, write_rows
+
+    found: dict[str, Any] = {}
+    if "patrol" in parts:
+        rows = world_rows(split, args.worlds, args.first_seed, args.waypoints, args.duration, work / "patrol")
+        found = aggregate(rows)
+        found["cpu_s"] = round(sum(r["cpu_s"] for r in rows), 1)
+    if "explore" in parts:
+        counts = tuple(int(n) for n in args.explore_robots.split(","))
+        xrows = explore_rows(split, args.explore_worlds, args.first_seed, counts, args.explore_duration,
+                             work / "explore")
+        write_rows(work / "explore_rows.yaml", xrows)
+        found["explore"] = {**explore_summary(xrows, counts), "rows": xrows}
+    if "search" in parts:
+        counts = tuple(int(n) for n in args.search_robots.split(","))
+        srows, skipped = search_rows(split, args.search_cases, args.absent_cases, args.first_seed, counts,
+                                     args.search_duration, work / "search")
+        write_rows(work / "search_rows.yaml", srows)
+        found["search"] = {**search_summary(srows, counts), "skipped": skipped, "rows": srows}
+    return found
+
+
+def _ratio(split: dict[str, Any] | None, part: str) -> float | None:
+    spread = (((split or {}).get(part) or {}).get("ratio_to_1") or {}).get(2)
+    return spread["median"] if spread else None
+
+
+def _why_null(results: dict[str, Any], part: str, split: str) -> str | None:
+    if split not in results:
+        return None
+    if part not in results[split]:
+        return f"the {part} part was not run (--parts)"
+    if _ratio(results[split], part) is None:
+        return f"no {split} world gave both a 1- and a 2-robot time ({part})"
+    return None
+
+
+def table_parts(results: dict[str, dict[str, Any]]) -> str:
+    """The markdown table of exploration and search per split and robot count."""
+    lines = ["| split | part | robots | n | done | time (s), median (min-max) | 2 v 1, median (min-max) |",
+             "|---|---|---|---|---|---|---|"]
+    for split, found in results.items():
+        for part, done_key, time_key in (("explore", "reached_90", "t90_s"),
+                                         ("search", "found", "t_found_s")):
+            if part not in found:
+                continue
+            agg = found[part]
+            for n, spread in agg[time_key].items():
+                done = agg[done_key][n]
+                done_text = (f"{done['ok']}/{done['of']} [{done['wilson95'][0]}, {done['wilson95'][1]}]"
+                             if isinstance(done, dict) else done)
+                ratio = agg["ratio_to_1"][n]
+                size = agg.get("worlds", agg.get("cases"))
+                lines.append(f"| {split} | {part} | {n} | {size} | {done_text} | "
+                             f"{_fmt_spread(spread)} | {_fmt_spread(ratio)} |")
+    return "\n".join(lines)
+
+
+def _fmt_spread(spread: dict[str, Any] | None) -> str:
+    return "-" if spread is None else f"{spread['median']} ({spread['min']}-{spread['max']}, n={spread['n']})"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark; print per-world lines, the tables and the JSON line."""
+    args = _parser().parse_args(argv)
+    parts = set(args.parts.split(","))
     splits = ("dev", "test") if args.split == "both" else (args.split,)
     results: dict[str, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory(prefix="fleet_eval_") as tmp:
         work = args.out or Path(tmp)
         for split in splits:
-            rows = world_rows(split, args.worlds, args.first_seed, args.waypoints, args.duration,
-                              work / split)
-            results[split] = aggregate(rows)
-            results[split]["cpu_s"] = round(sum(r["cpu_s"] for r in rows), 1)
-    print(table(results))
-    headline = results.get("test") or results.get("dev") or {}
+            results[split] = _run_split(split, args, parts, work / split)
+    if "patrol" in parts:
+        print(table(results))
+    print(table_parts(results))
+    headline_split = "test" if "test" in results else "dev"
+    headline = results.get(headline_split) or {}
     ratio = (headline.get("worst_ratio_to_1") or {}).get(3)
     final = {
         "dev": results.get("dev"), "test": results.get("test"),
-        "gap": gap(results["dev"], results["test"]) if len(results) == 2 else None,
+        "gap": _gaps(results) if len(results) == 2 else None,
         "idleness_avg_s": headline.get("idleness_avg_s"),
         "idleness_worst_s": headline.get("idleness_worst_s"),
         "worst_ratio_3v1": ratio["median"] if ratio else None,
         "reassign_ok": (headline.get("reassign_ok") or {}).get("rate"),
         "reassign_all_visited": headline.get("reassign_all_visited"),
-        "search_time_ratio_2v1": None, "explore_time_ratio_2v1": None,
-        "not_measured": {"search_time_ratio_2v1": "fleet search (frontier and room auction) is not built",
-                         "explore_time_ratio_2v1": "fleet exploration is not built"},
-        "settings": {"worlds": args.worlds, "first_seed": args.first_seed, "waypoints": args.waypoints,
-                     "duration_s": args.duration, "kill_at": "half the 3-robot first full visit"},
+        "explore_time_ratio_2v1": _ratio(headline, "explore"),
+        "search_time_ratio_2v1": _ratio(headline, "search"),
+        "not_measured": {k: v for k, v in (
+            ("explore_time_ratio_2v1", _why_null(results, "explore", headline_split)),
+            ("search_time_ratio_2v1", _why_null(results, "search", headline_split))) if v},
+        "settings": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
     }
-    print(json.dumps(final, sort_keys=True))
+    print(json.dumps(final, sort_keys=True, default=str))
     return 0
+
+
+def _gaps(results: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """Test minus dev: the patrol's figures (when run) and the 2-to-1 ratios."""
+    dev, test = results["dev"], results["test"]
+    found = gap(dev, test) if "idleness_avg_s" in dev and "idleness_avg_s" in test else {}
+    for part in ("explore", "search"):
+        a, b = _ratio(dev, part), _ratio(test, part)
+        found[f"{part}_time_ratio_2v1"] = None if a is None or b is None else round(b - a, 3)
+    return found
 
 
 if __name__ == "__main__":

@@ -22,7 +22,8 @@ TWO_ROOMS = {
 }
 
 
-def _run(tmp: Path, robots: int, kills: list[str] | None = None, max_duration: float = 300) -> tuple[Any, dict]:
+def _run(tmp: Path, robots: int, kills: list[str] | None = None,
+         max_duration: float = 300) -> tuple[Any, dict]:
     clean_state()
     world = tmp / "two_rooms.yaml"
     world.write_text(yaml.safe_dump(TWO_ROOMS, sort_keys=False))
@@ -59,7 +60,7 @@ def test_two_robots_explore_both_rooms_on_one_map_and_end_explored(tmp_path: Pat
 
 
 def test_a_killed_robot_is_lost_its_claim_released_and_the_others_finish(tmp_path: Path) -> None:
-    """robot2 killed at 3 s: recorded lost (taken over), its frontier released, the fleet still explores all."""
+    """robot2 killed at 3 s: recorded lost (taken over), its frontier released, the others explore all."""
     result, summary = _run(tmp_path, robots=2, kills=["robot2@3"])
     assert result.status.name == "SUCCESS", summary.get("reason")
     fleet = summary["fleet"]
