@@ -155,3 +155,9 @@ def test_pooped_is_not_read_as_the_toilet(minilm: MiniLMEmbedder) -> None:
     kb, request = knowledge(), "I feel pooped after today."
     reading = embedded_reading(minilm, request, kb.read(request), kb)
     assert "toilet" not in reading.needs
+
+
+def test_a_need_said_met_is_not_read_back_by_embedding(minilm: MiniLMEmbedder) -> None:
+    """'I'm rested' is not matched to rest by its nearness to 'rest': the embedding reads no need into it."""
+    kb, request = knowledge(), "I'm rested"
+    assert embedded_reading(minilm, request, kb.read(request), kb).needs == {}

@@ -88,12 +88,15 @@ class Reading:
         needs: need → (strength, the word that expresses it).
         named: label → (strength, the word that names it): its own words, or a general word covering it.
         unknown: Content words the knowledge does not know (left to the embedding fallback).
+        compounds: Compounds naming something else than the object word inside them ("filter bed").
+        met: Participles saying a need was met ("rested"): no fallback reads a need into them.
     """
 
     needs: dict[str, tuple[float, str]] = field(default_factory=dict)
     named: dict[str, tuple[float, str]] = field(default_factory=dict)
     unknown: tuple[str, ...] = ()
     compounds: tuple[str, ...] = ()
+    met: tuple[str, ...] = ()
 
     @property
     def empty(self) -> bool:
@@ -152,6 +155,7 @@ class Knowledge:
         general: dict[str, tuple[float, str]] = {}   # labels a more general word covers (seat, device)
         unknown: list[str] = []
         compounds: list[str] = []
+        met: list[str] = []
         i = 0
         while i < len(words):
             for n in range(min(self._longest, len(words) - i), 0, -1):
@@ -166,7 +170,8 @@ class Knowledge:
                 else:
                     key = self.lemma(phrase) if n == 1 else (phrase if self._known(phrase) else None)
                 if key is not None and n == 1 and self._met(words, i, key):
-                    key = None  # "I'm rested", "I'm fed up", "I feel pooped": the activity is done
+                    met.append(phrase)  # "I'm rested", "I'm fed up", "I feel pooped": the activity is done
+                    continue
                 if key is None:
                     if n == 1 and phrase not in FUNCTION_WORDS and len(phrase) > 2:
                         unknown.append(phrase)
@@ -193,7 +198,7 @@ class Knowledge:
             # a general word names what is under it only when the request says no need: "a seat" is
             # any seat, but in "in any case, I'm thirsty" the case is no suitcase to be brought to
             named = {**general, **named}
-        return Reading(needs, named, tuple(unknown), tuple(compounds))
+        return Reading(needs, named, tuple(unknown), tuple(compounds), tuple(met))
 
     def _met(self, words: list[str], i: int, key: str) -> bool:
         """Whether ``words[i]`` is a participle of a need's own verb said of oneself: the need was met.

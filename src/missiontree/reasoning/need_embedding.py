@@ -95,8 +95,8 @@ def embedded_reading(embedder: Embedder, request: str, known: Reading, kb: Knowl
 
     The embedded need is read at its strength, with ``why`` starting with :data:`BY_EMBEDDING`.
     """
-    if not known.empty:
-        return known
+    if not known.empty or known.met:
+        return known  # a request saying a need was met ("I'm rested") is not read as having it
     found = embedded_need(embedder, request, known.unknown, kb.needs, need_heads(kb), margin)
     if found is None:
         return known

@@ -178,6 +178,8 @@ class OfflineLanguageModel:
             reading, how = self._embedded_reading(request, reading), "embedding"
         if reading.empty:
             unknown = f" (words it does not know: {', '.join(reading.unknown)})" if reading.unknown else ""
+            if reading.met:
+                unknown += f" ({', '.join(reading.met)}: a need said to be met, not had)"
             return IntentResolution(candidates=[], reason=(
                 f"no object in the scene serves {request!r}: it expresses no need and names no object "
                 f"this reasoner knows{unknown}"))
