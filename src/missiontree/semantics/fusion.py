@@ -248,8 +248,26 @@ class InstanceFusion(FusionState):
         return [
             other
             for other in self.map.by_label(p.label)
-            if other.id != inst.id and other.id not in taken and self._box_offset(p, other) is not None
+            if other.id != inst.id
+            and other.id not in taken
+            and self._box_offset(p, other) is not None
+            and not self._side_by_side(inst, other)
         ]
+
+    def _median_width(self, inst: Instance) -> float:
+        """The instance's median measured width over its boxes (its largest, without a track)."""
+        track = self.tracks.get(inst.id)
+        if track is None or not track.sizes:
+            return max(inst.size[0], inst.size[1])
+        return float(np.median([s[0] for s in track.sizes]))
+
+    def _side_by_side(self, a: Instance, b: Instance) -> bool:
+        """Whether two instances of a label are two small objects standing apart (see ``apart_share``)."""
+        share, large = self.params.apart_share, self.params.large_size
+        if share is None:
+            return False
+        wa, wb = self._median_width(a), self._median_width(b)
+        return max(wa, wb) < large and a.distance_to(*b.xy) > share * (wa + wb)
 
     def _frames_needed(self, cand: Candidate) -> int:
         """Frames a candidate needs: fewer for a small one (see ``small_min_frames``)."""
@@ -258,7 +276,23 @@ class InstanceFusion(FusionState):
             sizes = np.median(np.array([max(q.size[0], q.size[2]) for q in cand.projections]))
             if float(sizes) <= self.params.small_size:
                 need = min(need, self.params.small_min_frames)
+        if self._views_agree(cand):
+            need = max(self.params.view_min_frames, math.ceil(self.params.view_share * need))
         return need
+
+    def _views_agree(self, cand: Candidate) -> bool:
+        """Whether its uncut boxes came from places ``view_spread`` apart and placed it in one spot."""
+        spread = self.params.view_spread
+        uncut = [q for q in cand.projections if not self._clipped(q)]
+        if spread is None or len(uncut) < 2:
+            return False
+        cams = np.array([(q.camera_pose.x, q.camera_pose.y) for q in uncut])
+        if float(np.max(np.linalg.norm(cams[:, None, :] - cams[None, :, :], axis=2))) < spread:
+            return False
+        xy = np.array([q.xy for q in uncut])
+        off = np.linalg.norm(xy - np.median(xy, axis=0), axis=1)
+        width = float(np.median([q.size[0] for q in uncut]))
+        return float(np.median(off)) <= max(self.params.view_agree, 0.25 * width)
 
     def _stands_out(self, frame: RGBDFrame, p: Projection) -> bool:
         """Whether the box's object stands out in depth at an uncut side (footprint's ``stands_out``)."""

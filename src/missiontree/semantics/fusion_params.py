@@ -134,6 +134,20 @@ class FusionParams:
             was never confirmed), metres; None turns the rule off.
         small_width: Width (metres) up to which a projection or an instance counts for ``small_radius``
             (a cup, a bottle, an umbrella; a backpack's centre depth scatters more).
+        view_spread: A candidate whose uncut boxes were taken from camera places at least this far
+            apart, and that all placed it in one spot (see ``view_agree``), needs only
+            ``view_share`` of its frames: two places agreeing in depth is evidence a run of frames
+            from one place is not (a plant seen 7 times from three places 3.4 m away, a cup 4 times
+            from two, were left candidates); None turns the rule off, metres.
+        view_agree: Most median distance of such a candidate's uncut placements from their
+            median, or a quarter of its median measured width if larger, metres.
+        view_share: Share of the frames otherwise needed that such a candidate needs.
+        view_min_frames: Fewest frames it needs all the same.
+        apart_share: Two instances of a label one box holds are two objects side by side (a box
+            round both), not one, when both measure less than ``large_size`` wide (median of their
+            boxes) and their centres lie farther apart than this share of their median widths
+            summed (two 0.45 m plants 0.8 m apart were merged into one between them); None
+            turns the rule off.
         cut_share: Two large instances of a label whose footprints overlap (centres closer than
             their half widths summed) are one object when at least this share of the less often
             seen one's placements came from boxes the image's left or right border cut (their
@@ -185,3 +199,8 @@ class FusionParams:
     cut_share: float | None = 0.5
     small_radius: float | None = 0.3
     small_width: float = 0.2
+    view_spread: float | None = 0.5
+    view_agree: float = 0.1
+    view_share: float = 0.5
+    view_min_frames: int = 3
+    apart_share: float | None = 0.5
