@@ -635,13 +635,6 @@ MAX_FUNCTION_LINES = 60
 #: Known oversize modules and functions (``module`` or ``module:function``), each with its owner and
 #: reason; an entry that is no longer over the limit fails the test, so the list only shrinks.
 SIZE_ALLOWED: dict[str, Allowed] = {
-    "missiontree.backends.sim.camera:_fill_loops": Allowed(
-        _SIM, "the numba pixel loop: its per-pixel test as a compiled helper (called or inlined) made a "
-        "frame about four times slower (measured on the combined world); it stays inline", 31),
-    "missiontree.reasoning.intent:plan_candidates": Allowed(
-        "intent", "geometry that moves to mapping (issue 31, deliverable 4)", 31),
-    "missiontree.behaviours.search_coverage:view_goals": Allowed("search", "to split", 31),
-    "missiontree.behaviours.search_look:_cover": Allowed("search", "to split", 31),
 }
 
 

@@ -1,19 +1,23 @@
-"""GoToIntent and ServeCommands as leaves: what the model says is checked; the channel is served in turn."""
+"""The intent tree and ServeCommands: what the model says is checked; the channel is served in turn."""
 
 from __future__ import annotations
 
 import io
 import json
+import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import py_trees
 from pydantic import BaseModel
 
 from missiontree.backends.sim import create_robot
 from missiontree.behaviours.commands import ServeCommands, ServeCommandsParams
-from missiontree.behaviours.intent import GoToIntent
+from missiontree.behaviours.intent import ReadIntent
+from missiontree.engine.build import build_tree
 from missiontree.engine.context import MissionContext
+from missiontree.engine.loader import load_mission
 from missiontree.reasoning.protocols import Message
 from missiontree.reasoning.schemas import IntentResolution
 from missiontree.robot.commands import LineCommands
@@ -22,6 +26,7 @@ from missiontree.testing import ClockRobot, capture_tick_log, fresh_plugins
 
 REPO = Path(__file__).resolve().parents[2]
 OFFICE_GRAPH = str(REPO / "config" / "scene_graphs" / "office.json")
+MISSION = REPO / "trees" / "go_to_intent.yaml"
 
 
 class ScriptedLanguageModel:
@@ -41,18 +46,23 @@ class ScriptedLanguageModel:
         return "scripted"
 
 
-def run_leaf(ids: list[str], command: str = "I am thirsty", look: bool = False) -> tuple[str, list[dict]]:
-    models = build_models("offline", providers=fresh_plugins().providers)
-    models["llm"] = ScriptedLanguageModel(ids)
-    robot = create_robot({"world": "office", "seed": 1})
-    context = MissionContext(robot=robot, models=models)
-    leaf = GoToIntent("go", GoToIntent.Params(scene_graph=OFFICE_GRAPH, look=look))
-    root = ServeCommands("serve", leaf, ServeCommandsParams(command=command))
+def run_tree(command: str, models: dict, robot: Any, scene_graph: str = OFFICE_GRAPH) -> tuple[str, list]:
+    """trees/go_to_intent.yaml (its steps as nodes) with these models on this robot."""
+    plugins = fresh_plugins()
+    spec = load_mission(MISSION, plugins.nodes, params={"command": command, "scene_graph": scene_graph})
+    root = build_tree(spec, plugins.nodes)
     try:
-        result, log = capture_tick_log(root, context, max_duration=300.0)
+        result, log = capture_tick_log(root, MissionContext(robot=robot, models=models), max_duration=300.0)
     finally:
         robot.close()
     return result.status.value, log
+
+
+def run_leaf(ids: list[str], command: str = "I am thirsty") -> tuple[str, list[dict]]:
+    """The tree with a language model that names ``ids`` for any command."""
+    models = build_models("offline", providers=fresh_plugins().providers)
+    models["llm"] = ScriptedLanguageModel(ids)
+    return run_tree(command, models, create_robot({"world": "office", "seed": 1}))
 
 
 def of(log: list[dict], kind: str) -> list[dict]:
@@ -120,7 +130,7 @@ def test_serve_commands_takes_stdin_lines_in_turn_and_ends_with_the_stream() -> 
 
 def test_a_weak_choice_is_never_driven_to_or_served() -> None:
     """The model sends "I'm parched" to the printer: rejected as a weak choice, no goal, FAILURE with why."""
-    status, log = run_leaf(["printer_1"], command="I'm parched", look=True)
+    status, log = run_leaf(["printer_1"], command="I'm parched")
     assert status == "FAILURE" and not of(log, "intent_served") and not of(log, "goal_sent")
     [rejected] = of(log, "candidate_rejected")
     assert "weak choice" in rejected["reason"] and "printer" in rejected["reason"]
@@ -136,7 +146,7 @@ def test_a_stronger_tier_is_driven_to_before_a_nearer_weaker_one() -> None:
 
 def test_a_strong_choice_nothing_can_confirm_is_served_and_says_so() -> None:
     """A printer to print a document is served unconfirmed: the record names it, why, and confirmed false."""
-    status, log = run_leaf(["printer_1"], command="I need to print a document", look=True)
+    status, log = run_leaf(["printer_1"], command="I need to print a document")
     [served] = of(log, "intent_served")
     assert status == "SUCCESS" and served["object"] == "printer_1" and served["confirmed"] is False
     assert served["chosen_because"] == "scripted" and "serves print (" in served["note"]
@@ -149,7 +159,7 @@ def test_a_choice_read_only_by_embedding_is_driven_to_but_never_served_unconfirm
     'I want my essay on paper' (no listed word) is read as printing: the printer is driven to, but
     nothing can confirm it, so it is doubted.
     """
-    status, log = run_leaf(["printer_1"], command="I want my essay on paper", look=True)
+    status, log = run_leaf(["printer_1"], command="I want my essay on paper")
     assert [e["object"] for e in of(log, "goal_sent")] == ["printer_1"]
     assert status == "FAILURE" and not of(log, "intent_served")
     assert "only by embedding" in of(log, "command_served")[0]["reason"]
@@ -165,16 +175,12 @@ def test_bored_goes_to_the_laptop_when_the_tv_cannot_be_reached(tmp_path: Path) 
     path.write_text(json.dumps(graph), encoding="utf-8")
     models = build_models("offline", providers=fresh_plugins().providers)
     robot = create_robot({"world": "office", "seed": 1})
-    leaf = GoToIntent("go", GoToIntent.Params(scene_graph=str(path), look=False))
-    root = ServeCommands("serve", leaf, ServeCommandsParams(command="I am bored"))
-    try:
-        result, log = capture_tick_log(root, MissionContext(robot=robot, models=models), max_duration=300.0)
-    finally:
-        robot.close()
+    status, log = run_tree("I am bored", models, robot, scene_graph=str(path))
     assert {e["object"] for e in of(log, "candidate_rejected")} >= {"tv_1"}
     assert [e["object"] for e in of(log, "goal_sent")] == ["laptop_1"]
-    assert result.status.value == "SUCCESS"
-    assert {e.get("role") for e in of(log, "model_call")} == {"llm"}  # ranking is map geometry, no model
+    assert status == "SUCCESS"
+    roles = {e.get("role") for e in of(log, "model_call")}
+    assert "planner" not in roles and roles <= {"llm", "detector", "vlm"}  # ranking is map geometry
 
 
 def test_a_standoff_goal_the_stack_cannot_reach_is_tried_from_another_side() -> None:
@@ -192,16 +198,12 @@ def test_a_standoff_goal_the_stack_cannot_reach_is_tried_from_another_side() -> 
         return real(goal, tolerance)
 
     robot.navigate_to = first_fails  # type: ignore[method-assign]
-    leaf = GoToIntent("go", GoToIntent.Params(scene_graph=OFFICE_GRAPH, look=False))
-    root = ServeCommands("serve", leaf, ServeCommandsParams(command="I am thirsty"))
-    try:
-        result, log = capture_tick_log(root, MissionContext(robot=robot, models=models), max_duration=300.0)
-    finally:
-        robot.close()
-    [again] = of(log, "approach_again")
+    status, log = run_tree("I am thirsty", models, robot)
+    steps = [e["attempt"] for e in of(log, "approach_step") if e["object"] == "bottle_green"]
     goals = of(log, "goal_sent")
-    assert again["object"] == "bottle_green" and [g["object"] for g in goals] == ["bottle_green"] * 2
-    assert result.status.value == "SUCCESS"
+    assert steps == [1, 2] and [g["object"] for g in goals] == ["bottle_green"] * 2
+    assert math.hypot(goals[0]["x"] - goals[1]["x"], goals[0]["y"] - goals[1]["y"]) > 0.2
+    assert status == "SUCCESS"
 
 
 def test_on_a_live_graph_a_colour_no_object_has_sends_the_robot_to_look_at_each() -> None:
@@ -210,35 +212,40 @@ def test_on_a_live_graph_a_colour_no_object_has_sends_the_robot_to_look_at_each(
     from missiontree.reasoning.schemas import ReferenceParse
     from missiontree.semantics.scene_graph import SceneGraph
 
-    leaf = GoToIntent("go", GoToIntent.Params(scene_graph=""))
-    leaf._reset()
-    leaf.scene = graph_objects(SceneGraph.load(Path(OFFICE_GRAPH)))
+    leaf = ReadIntent("read", ReadIntent.Params(scene_graph=""))
+    leaf.emit = lambda *a, **k: None  # type: ignore[method-assign]
+    leaf.read = lambda *a, **k: []  # type: ignore[method-assign]
+    state = {"text": "the purple chair", "file": False,
+             "scene": graph_objects(SceneGraph.load(Path(OFFICE_GRAPH)))}
     answer = IntentResolution(candidates=[], reason="no purple chair in the scene",
                               reference=ReferenceParse(label="chair", attributes=["purple"]))
-    ids = leaf._look_at_all(answer)
-    assert ids and all(leaf.scene.objects[i].label == "chair" for i in ids) and leaf.confirm_only
-    leaf.file_graph, leaf.confirm_only = object(), False  # a graph file is the user's word
-    assert leaf._look_at_all(answer) == [] and not leaf.confirm_only
+    ids = leaf._look_at_all(state, answer)
+    assert ids and all(state["scene"].objects[i].label == "chair" for i in ids) and state["confirm_only"]
+    state = {**state, "file": True, "confirm_only": False}  # a graph file is the user's word
+    assert leaf._look_at_all(state, answer) == [] and not state["confirm_only"]
 
 
 def test_a_live_graph_that_grew_while_candidates_failed_is_read_again() -> None:
     """The blue chair seen while looking at other chairs: the command is read again over the grown graph."""
     from types import SimpleNamespace
 
-    from missiontree.reasoning.intent import Candidate, graph_objects
-    from missiontree.types import Pose2D
+    from missiontree.reasoning.intent import graph_objects
 
     full = json.loads(Path(OFFICE_GRAPH).read_text(encoding="utf-8"))
     before = {**full, "nodes": [n for n in full["nodes"] if n.get("id") != "chair_blue"]}
-    leaf = GoToIntent("go", GoToIntent.Params(scene_graph=""))
-    leaf._reset()
-    leaf.text = "the blue chair"
-    leaf.scene = graph_objects(before)
-    leaf.target = Candidate("chair_red", "chair", (1.3, 1.8), Pose2D(1.3, 1.0, 1.57), 3.0, 3.0)
-    leaf.ctx = SimpleNamespace(scene=SimpleNamespace(graph=full),  # type: ignore[assignment]
-                               events=SimpleNamespace(emit=lambda *a, **k: None))
+    board = {"intent_state": {"text": "the blue chair", "file": False, "scene": graph_objects(before),
+                              "tried": [], "seen": 0, "rereads": 0, "ids": []},
+             "intent_rejected": [{"id": "chair_red", "reason": "not confirmed: red, not blue",
+                                  "kind": "wrong"}]}
+    written: dict[str, object] = {}
+    leaf = ReadIntent("read", ReadIntent.Params(scene_graph=""))
+    leaf.read = lambda port, default=None: board.get(getattr(leaf.params, port), default)  # type: ignore
+    leaf.write = lambda port, value: written.__setitem__(port, value)  # type: ignore[method-assign]
+    leaf.emit = lambda *a, **k: None  # type: ignore[method-assign]
+    leaf.ctx = SimpleNamespace(scene=SimpleNamespace(graph=full))  # type: ignore[assignment]
     asked: list[object] = []
     leaf._ask = asked.append  # type: ignore[method-assign]
-    status = leaf._next("not confirmed: a chair, but red, not blue")
-    assert status == py_trees.common.Status.RUNNING and asked == [full] and leaf.rereads == 1
-    assert leaf.tried == [("chair_red", "not confirmed: a chair, but red, not blue")]
+    leaf.initialise()
+    assert asked == [full] and leaf.asked["rereads"] == 1
+    assert leaf.asked["tried"] == [["chair_red", "not confirmed: red, not blue"]]
+    assert written["doubtful"] == ["chair_red"]

@@ -36,8 +36,8 @@ def test_an_intuitive_command_ends_at_a_confirmed_drink() -> None:
     """"I'm thirsty": the nearest drink by path is driven to, seen and confirmed; the robot stands by it."""
     status, events, final = run({"command": "I'm thirsty"})
     assert status == "SUCCESS"
-    verified = of(events, "object_verified")
-    assert verified and verified[0]["object"] in {"bottle_pink", "cup_white"}
+    verified = of(events, "object_found")
+    assert verified and verified[0]["id"] in {"bottle_pink", "cup_white"}
     goal = of(events, "goal_sent")[0]
     assert math.hypot(final.x - goal["object_x"], final.y - goal["object_y"]) < 1.0
 
@@ -65,10 +65,10 @@ def test_an_object_not_seen_on_arrival_is_doubted_and_the_next_candidate_tried(t
     path = tmp_path / "moved.json"
     path.write_text(json.dumps(graph))
     status, events, _ = run({"command": "I'm thirsty", "scene_graph": str(path)})
-    doubted = of(events, "object_doubtful")
+    doubted = [e for e in of(events, "candidate_rejected") if e.get("kind") == "wrong"]
     assert doubted and doubted[0]["object"] == "bottle_pink"
-    again = of(events, "look_again")
-    assert [e["object"] for e in again] == ["bottle_pink"] and "second place" in doubted[0]["reason"]
+    places = [e["attempt"] for e in of(events, "approach_step") if e["object"] == "bottle_pink"]
+    assert places == [1, 2] and "second place" in doubted[0]["reason"]
     sent = of(events, "goal_sent")
     goals = [e["object"] for e in sent]
     assert goals[:2] == ["bottle_pink", "bottle_pink"] and len(goals) >= 3 and goals[2] != "bottle_pink"
@@ -102,7 +102,7 @@ def test_an_object_no_model_can_see_is_reached_and_reported_unverifiable() -> No
     status, events, final = run({"command": "I need to print a document"})
     [unverifiable] = of(events, "object_unverifiable")
     assert unverifiable["object"] == "printer_1" and "knows no printer" in unverifiable["reason"]
-    assert not of(events, "object_doubtful") and status == "SUCCESS"
+    assert not of(events, "candidate_rejected") and status == "SUCCESS"
     assert math.hypot(final.x - 10.2, final.y - 0.4) < 1.3
 
 

@@ -7,7 +7,8 @@
 - :mod:`~missiontree.behaviours.servo`: ServoToTarget (visual servoing on an alarm).
 - :mod:`~missiontree.behaviours.explore`: Explore (frontiers or scan points on a learned map).
 - :mod:`~missiontree.behaviours.commands`: ServeCommands (a child run once per user command).
-- :mod:`~missiontree.behaviours.intent`: GoToIntent (go where the user means).
+- :mod:`~missiontree.behaviours.intent`: ReadIntent and
+  :mod:`~missiontree.behaviours.intent_choose`: ChooseIntentTarget, ServeIntent (go where the user means).
 - :mod:`~missiontree.behaviours.search`: ScanRotate, ColourAttention, Locate, Approach, Verify (search).
 - :mod:`~missiontree.behaviours.approach_steps`: PlanStandoff, DriveToStandoff, FaceTarget, and
   :mod:`~missiontree.behaviours.confirm_steps`: PlaceByDepth, LookFor, ConfirmTarget (the steps of
@@ -32,7 +33,8 @@ def register_nodes(registry: NodeRegistry) -> None:
     from missiontree.behaviours.fleet_patrol import FleetPatrol
     from missiontree.behaviours.fleet_scene import FleetBuildSceneGraph
     from missiontree.behaviours.fleet_search import FleetFound, FleetLocate, FleetSearchWatch
-    from missiontree.behaviours.intent import GoToIntent
+    from missiontree.behaviours.intent import ReadIntent
+    from missiontree.behaviours.intent_choose import ChooseIntentTarget, ServeIntent
     from missiontree.behaviours.motion import NavigateTo, Rotate
     from missiontree.behaviours.patrol import Patrol
     from missiontree.behaviours.scene import BuildSceneGraph
@@ -48,7 +50,8 @@ def register_nodes(registry: NodeRegistry) -> None:
     from missiontree.behaviours.servo import ServoToTarget
     from missiontree.behaviours.surveillance import Surveillance
 
-    for leaf in (NavigateTo, Rotate, Patrol, Surveillance, ServoToTarget, GoToIntent):
+    for leaf in (NavigateTo, Rotate, Patrol, Surveillance, ServoToTarget, ReadIntent, ChooseIntentTarget,
+                 ServeIntent):
         registry.add(leaf)
     registry.add(FleetPatrol)
     for fleet_leaf in (FleetExplore, FleetLocate, FleetFound, FleetSearchWatch, FleetBuildSceneGraph):

@@ -5,24 +5,26 @@ its own in the tick log and the viewer:
 
 - :class:`PlanStandoff`: a reachable standoff pose facing the object, far enough for the camera to
   see its lower part (:func:`standoff_goal`, over the intent helpers' standoff search), away from the
-  poses that failed; every failed pose asks for ``clearance_step`` more room around the robot.
-- :class:`DriveToStandoff`: the navigation goal; a goal the stack aborted just short of counts as
-  reached only within ``reach`` of the object.
+  poses that failed; every failed pose asks for ``clearance_step`` more room around the robot. A
+  candidate that carries its ``goal`` (the intent's ranking planned one) is driven to that first.
+- :class:`DriveToStandoff`: the navigation goal (``goal_sent``); a goal the stack aborted just short
+  of counts as reached only within ``reach`` of the object.
 - :class:`FaceTarget`: turn in place until the object is straight ahead.
 
 The attempts of one approach are the blackboard list ``tries`` (the subtree empties it first): one
-entry per standoff pose tried (``x``, ``y``, ``yaw``, ``reached``, ``why``), and an entry with
+entry per standoff pose tried (``x``, ``y``, ``yaw``, ``reached``, ``why``; ``looked``: a place looked
+from without confirming it, see :mod:`~missiontree.behaviours.confirm_steps`), and an entry with
 ``stop`` when the approach is over whatever the ``Retry`` has left (no pose, the time ran out): the
 steps then fail at once with that reason. A candidate given up is marked ``unreached`` in
 ``search_rejected`` (the search's :func:`~missiontree.behaviours.search_common.mark_rejected`).
 
-Tick-log events: ``approach_step``, ``goal_result``, ``candidate_rejected``.
+Tick-log events: ``approach_step``, ``goal_sent``, ``goal_result``, ``candidate_rejected``.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Field
 
@@ -121,6 +123,10 @@ class ApproachStep(Leaf):
         value = self.read("tries")
         return [t for t in value if isinstance(t, dict)] if isinstance(value, list) else []
 
+    def drives(self) -> int:
+        """Standoff poses driven to so far (places looked from are counted by the looks, not here)."""
+        return sum(1 for t in self.tries() if "x" in t and not t.get("looked"))
+
     def stopped(self) -> str:
         """Why this approach is over ("" while it goes on)."""
         tries = self.tries()
@@ -164,6 +170,9 @@ class PlanStandoff(ApproachStep):
         clearance_step: float = Field(
             0.1, ge=0, description="After a standoff pose was not reached, the next asks for this much more "
             "room around the robot (m), and another place.")
+        view: Literal["lower_quarter", "centre"] = Field(
+            "lower_quarter", description="What the camera must see from the pose: the candidate's lower "
+            "quarter (a detection placed it), or its centre `z` (a scene graph's object).")
         standoff: Annotated[str, Output("the standoff pose to drive to: x, y, yaw, attempt", type="dict")] = (
             "standoff")
 
@@ -171,7 +180,7 @@ class PlanStandoff(ApproachStep):
 
     def __init__(self, name: str, params: BaseModel | None = None) -> None:
         super().__init__(name, params)
-        self.job: Background | None = None
+        self.job: Background | bool | None = None  # True: the candidate's own goal, no search
 
     def initialise(self) -> None:
         """Take the candidate; the job starts at the first tick with a pose."""
@@ -186,7 +195,7 @@ class PlanStandoff(ApproachStep):
         assert self.cand is not None
         if self.job is None:
             return self._start()
-        done, result, error = self.job.poll()
+        done, result, error = (True, self._ranked(), "") if self.job is True else self._poll()
         if not done:
             return self.running("finding a standoff pose")
         self.job = None
@@ -197,7 +206,7 @@ class PlanStandoff(ApproachStep):
         if goal is None:
             last = next((t["why"] for t in reversed(tries) if t.get("why")), "")
             return self.give_up(f"cannot be approached: {why}" + (f" ({last})" if last else ""))
-        attempt = len(tries) + 1
+        attempt = self.drives() + 1
         self.write("standoff", {"x": goal.x, "y": goal.y, "yaw": goal.yaw, "attempt": attempt})
         self.emit("approach_step", mode="standoff", attempt=attempt, object=self.cand["id"],
                   x=round(goal.x, 3), y=round(goal.y, 3), yaw=round(goal.yaw, 3),
@@ -212,18 +221,32 @@ class PlanStandoff(ApproachStep):
         if stamped is None:
             return self.running("waiting for a pose")
         c = self.cand
-        obj = GraphObject(str(c["id"]), str(c["label"]), xy=(c["x"], c["y"]), z=view_height(c))
         failed = [Pose2D(t["x"], t["y"], t["yaw"]) for t in self.tries() if not t.get("reached", True)]
+        if isinstance(c.get("goal"), dict) and not self.tries():
+            self.job = True  # ranked with the other candidates: its pose is planned already
+            return self.update()
+        z = view_height(c) if self.params.view == "lower_quarter" else float(c.get("z", 0.0) or 0.0)
+        obj = GraphObject(str(c["id"]), str(c["label"]), xy=(c["x"], c["y"]), z=z)
         radius = self.params.robot_radius + self.params.clearance_step * len(failed)
         self.job = Background(standoff_goal, obj, robot.occupancy(), stamped.pose, radius,
                               camera_view(robot.rgbd()), failed, wait=waits(self.context))
         return self.update()
 
+    def _poll(self) -> tuple[bool, Any, str]:
+        assert isinstance(self.job, Background)
+        return self.job.poll()
+
+    def _ranked(self) -> tuple[Pose2D, str]:
+        """The candidate's own ``goal`` (planned when the candidates were ranked)."""
+        assert self.cand is not None
+        goal = self.cand["goal"]
+        return Pose2D(float(goal["x"]), float(goal["y"]), float(goal["yaw"])), ""
+
     def terminate(self, new_status: Status) -> None:
         """Drop a search in flight."""
-        if self.job is not None:
+        if isinstance(self.job, Background):
             self.job.cancel()
-            self.job = None
+        self.job = None
 
 
 class DriveToStandoff(ApproachStep):
@@ -262,6 +285,11 @@ class DriveToStandoff(ApproachStep):
         self.started = robot.now()
         tolerance = Tolerance(self.params.xy_tolerance, self.params.yaw_tolerance)
         self.handle = robot.navigate_to(self.goal, tolerance)
+        c, goal = self.cand, self.goal
+        said = {k: c[k] for k in ("command", "path_length", "straight_line") if k in c}
+        self.emit("goal_sent", object=c["id"], label=c.get("label"), x=round(goal.x, 3), y=round(goal.y, 3),
+                  yaw=round(goal.yaw, 3), object_x=c["x"], object_y=c["y"], xy_tolerance=tolerance.xy,
+                  yaw_tolerance=tolerance.yaw, **said)
 
     def update(self) -> Status:
         """Poll the goal."""
@@ -285,7 +313,8 @@ class DriveToStandoff(ApproachStep):
         off = stamped.pose.distance_to(self.goal) if stamped is not None else math.inf
         ok = status is ActionStatus.SUCCEEDED or (off <= NEAR_ENOUGH and self.within_reach(stamped))
         reason = result.reason if result is not None and result.reason else "no reason given"
-        self.emit("goal_result", status=status.value, reason=reason, x=self.goal.x, y=self.goal.y)
+        self.emit("goal_result", status=status.value, reason=reason, x=self.goal.x, y=self.goal.y,
+                  object=self.cand["id"] if self.cand is not None else None)
         return self._ended(ok, f"{status.value}: {reason}")
 
     def within_reach(self, stamped: PoseStamped | None) -> bool:
@@ -303,7 +332,7 @@ class DriveToStandoff(ApproachStep):
         self.write("tries", [*tries, entry])
         if ok:
             return self.succeed(f"at the standoff pose ({self.goal.x:.2f}, {self.goal.y:.2f})")
-        attempts = len(tries) + 1
+        attempts = self.drives()
         if attempts >= self.params.max_attempts:
             return self.give_up(f"not reached in {attempts} attempts ({why})")
         return self.fail(f"standoff pose not reached ({why}); trying another with more room")

@@ -18,7 +18,9 @@ from typing import Annotated, Any
 import py_trees
 from pydantic import BaseModel, ConfigDict, Field
 
+from missiontree.engine.faults import fault_of, verdict_of
 from missiontree.engine.leaf import Status
+from missiontree.engine.node_words import failure_reason
 from missiontree.engine.ports import Output, ports_of
 from missiontree.engine.registry import NodeType
 
@@ -85,11 +87,7 @@ class ServeCommands(py_trees.decorators.Decorator):
             yield from self.decorated.tick()
             child = self.decorated.status
             if child in (Status.SUCCESS, Status.FAILURE):
-                reason = (
-                    getattr(self.decorated, "failure_reason", "") or self.decorated.feedback_message
-                    if child == Status.FAILURE
-                    else self.decorated.feedback_message
-                )
+                reason = said_by(self.decorated)
                 self.served.append((self.current, child == Status.SUCCESS, reason))
                 self._emit("command_served", command=self.current, status=child.value.lower(), reason=reason)
                 self.current = None
@@ -175,6 +173,26 @@ class ServeCommands(py_trees.decorators.Decorator):
     def _emit(self, event: str, **fields: Any) -> None:
         if self.ctx is not None:
             self.ctx.events.emit(event, node=self.name, **fields)
+
+
+def said_by(node: Behaviour) -> str:
+    """What a finished child says of its outcome: a verdict or fault below it, else the last leaf's words.
+
+    A subtree's composites and decorators say little themselves ("succeeded [status: ...]"): the leaf
+    that ran last (down the running child of each) is asked first, then the nodes above it.
+    """
+    if node.status == Status.FAILURE:
+        found = verdict_of(node) or fault_of(node)
+        if found is not None:
+            return found[1]
+    chain = [node]
+    while (below := getattr(chain[-1], "decorated", None) or getattr(chain[-1], "current_child", None)):
+        chain.append(below)
+    for step in reversed(chain):
+        words = failure_reason(step) if step.status == Status.FAILURE else step.feedback_message
+        if words:
+            return str(words)
+    return ""
 
 
 def _serve_commands(name: str, params: BaseModel, children: list[Behaviour]) -> Behaviour:
