@@ -156,3 +156,17 @@ def test_a_background_job_is_awaited_only_when_asked_to() -> None:
     assert job.poll() == (True, 7, "")
     done, result, error = Background(lambda: 1 / 0, wait=True).poll()
     assert done and result is None and "ZeroDivisionError" in error
+
+
+@pytest.mark.parametrize("mission", ["find_object", "go_to_intent", "map_and_go_to_intent"])
+def test_every_mission_that_approaches_an_object_has_each_step_as_a_node(mission: str) -> None:
+    """The shipped trees that approach an object build the shared steps as nodes of their own."""
+    from missiontree.engine.build import build_tree
+    from missiontree.engine.loader import load_mission
+    from missiontree.testing import fresh_plugins
+
+    plugins = fresh_plugins()
+    tree = Path(__file__).resolve().parents[2] / "trees" / f"{mission}.yaml"
+    root = build_tree(load_mission(tree, plugins.nodes), plugins.nodes)
+    names = {node.name for node in root.iterate()}
+    assert set(STEPS) <= names
