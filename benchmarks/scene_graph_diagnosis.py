@@ -37,11 +37,43 @@ from missiontree.semantics.semantic_map import Change
 SHOWN_PIXELS = 100
 #: Print every occluded verdict (debugging one world).
 DETAIL = bool(__import__("os").environ.get("SCENE_DIAG_DETAIL"))
+#: Farthest detection the shipped mission places (``max_range`` in trees/map_scene.yaml), metres.
+RANGE = 6.0
 #: Border, pixels, within which a box counts as cut by the image's edge.
 EDGE = 2.0
 #: Directory to pickle, per world and phase, the fusion's instances and tracks beside the truth (for
 #: studying merging and centring rules offline on what a run saw); unset: no dump.
 DUMP = __import__("os").environ.get("SCENE_DIAG_DUMP")
+
+
+def miss_cause(
+    shown: int,
+    seen: list[tuple[str, int]],
+    ranges: list[float],
+    changes: list[str],
+    near: list[str],
+) -> str:
+    """One word for why a true object is not in the graph, in the order the pipeline loses it.
+
+    ``never shown`` (no frame held 100 of its pixels), ``no box`` (shown, never boxed confidently),
+    ``confused`` (boxed only as other classes), ``beyond range`` (its boxes all farther than the
+    mission's 6 m), ``merged`` (an instance of it was joined into another), ``mislocated`` (an
+    instance of its label stands within 1.5 m), else ``under min_frames`` (a candidate that never
+    passed the votes and the whole-view checks).
+    """
+    if shown == 0 and not seen:
+        return "never shown"
+    if not seen:
+        return "no box"
+    if not ranges:
+        return "confused"
+    if min(ranges) > RANGE:
+        return "beyond range"
+    if any(c.startswith("removed") and "same" in c for c in changes):
+        return "merged"
+    if near:
+        return "mislocated"
+    return "under min_frames"
 
 
 @dataclass
@@ -164,7 +196,8 @@ class Diagnosis:
         lines: list[str] = []
         preds, truths, pairs = scored["preds"], scored["truths"], scored["pairs"]
         if DUMP:
-            self.dump(f"{DUMP}/{world_name.replace(':', '_')}_{phase}.pkl", scored, world)
+            self.dump(f"{DUMP}/{world_name.replace(':', '_').replace('/', '_')}_{phase}.pkl", scored, world)
+        causes: Counter[str] = Counter()
         matched_p = {i for i, _ in pairs}
         matched_t = {j for _, j in pairs}
         for i, p in enumerate(preds):
@@ -242,12 +275,17 @@ class Diagnosis:
                 (math.hypot(0.25 * cx - t.pose.x, 0.25 * cy - t.pose.y) for cx, cy in self.cameras),
                 default=math.inf,
             )
+            cause = miss_cause(self.shown[t.id], seen, ranges, near_changes, near_preds)
+            causes[cause] += 1
             lines.append(
                 f"{world_name} {phase} FN {t.id} {t.label} ({t.pose.x:.2f}, {t.pose.y:.2f}) size "
-                f"{[round(v, 2) for v in t.size]} elev {t.elevation}: nearest camera {nearest:.1f} m; "
+                f"{[round(v, 2) for v in t.size]} elev {t.elevation}: {cause}; "
+                f"nearest camera {nearest:.1f} m; "
                 f"shown in {self.shown[t.id]} frames; "
                 f"detected as {seen}; {spread}; graph near {near_preds}; map changes {near_changes[-4:]}"
             )
+        if causes:
+            lines.append(f"{world_name} {phase} FN causes {dict(causes.most_common())}")
         return lines
 
     def _candidates(self, t: Any, truth_label: Any) -> str:
