@@ -102,7 +102,8 @@ def register(subparsers: Any) -> None:
                         help="reload the mission when its file or an included subtree changes (checked "
                         "first; the tree restarts, the blackboard is kept)")
     parser.add_argument("--robots", type=robot_number, metavar="N",
-                        help="robots in one simulated world, the mission's tree run once per robot on one "
+                        help="robots in one simulated world (or, with --backend ros2, one ROS 2 robot per "
+                        "namespace /robot1 ... /robotN), the mission's tree run once per robot on one "
                         "clock (default: --set robots=, else run.robots, else 1; docs/fleet.md)")
     parser.add_argument("--kill-robot", dest="kill_robots", action="append", default=[],
                         metavar="NAME@S", help="fleet fault injection: kill robot NAME at S seconds "

@@ -50,6 +50,13 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--unknown-map", action="store_true",
                         help="start knowing nothing: /map is the map the robot learns from its lidar, "
                         "republished as it grows (as slam_toolbox does), and NavigateToPose plans on it")
+    parser.add_argument("--robots", type=int, default=1, metavar="N",
+                        help="serve N robots in one world, each under its own namespace (/robot1/scan, "
+                        "/robot1/tf, /robot1/navigate_to_pose, ...); default 1: one robot, no namespace")
+    parser.add_argument("--kill-robot", action="append", default=[], metavar="NAME@S",
+                        help="with --robots: robot NAME's NavigateToPose server vanishes at S simulated "
+                        "seconds, as when its Nav2 crashes (it stops where it stands; its sensors and TF go "
+                        "on); repeatable")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S wall seconds")
     parser.add_argument("--domain-id", type=int, metavar="N",
                         help="ROS_DOMAIN_ID to serve on (default: the environment's)")
@@ -60,14 +67,18 @@ def register(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     """Serve the simulator over ROS 2 until SIGINT/SIGTERM (or ``--duration``)."""
     from missiontree.errors import ConfigError
+    from missiontree.session.fleet import parse_kill, robot_count
     from missiontree.session.worlds import sim_ros_bridge
 
     if args.rate <= 0:
         raise ConfigError(f"--rate must be positive, found {args.rate}")
+    robots = robot_count(args.robots, None, None)
+    kills = [(kill.robot, kill.at) for kill in map(parse_kill, args.kill_robot)]
     options = {"world": args.world, "seed": args.seed, "robot": args.robot, "unknown_map": args.unknown_map,
                "sensors": list(plugins_from_args(args).sensors.values())}
     bridge, profile = sim_ros_bridge(options, {"profile": args.profile, "domain_id": args.domain_id},
-                                     rate=args.rate, sim_time=args.sim_time, paused=args.paused)
+                                     rate=args.rate, sim_time=args.sim_time, paused=args.paused,
+                                     robots=robots, kills=kills)
     stop_signal: list[int] = []
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -80,9 +91,12 @@ def run(args: argparse.Namespace) -> int:
             previous[sig] = signal.signal(sig, on_signal)
     domain = profile.domain_id if profile.domain_id is not None else os.environ.get("ROS_DOMAIN_ID", "0")
     mapping = "; learning /map from the lidar (unknown map)" if args.unknown_map else ""
+    first = profile.namespace
+    served = (f"{robots} robots under /robot1 ... /robot{robots} (scan {first}/{profile.topics.scan}, "
+              f"action {first}/{profile.navigation.action})" if robots > 1 else
+              f"scan {profile.topics.scan}, action {profile.navigation.action}")
     print(f"missiontree sim-ros: serving world {args.world!r} (seed {args.seed}){mapping} as {profile.name} "
-          f"on ROS_DOMAIN_ID={domain}; scan {profile.topics.scan}, action {profile.navigation.action}; "
-          "Ctrl-C to stop", flush=True)
+          f"on ROS_DOMAIN_ID={domain}; {served}; Ctrl-C to stop", flush=True)
     try:
         bridge.run(duration=args.duration)
     finally:
@@ -91,5 +105,6 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(sig, handler)
     why = signal.Signals(stop_signal[0]).name if stop_signal else "duration reached"
     print(f"missiontree sim-ros: stopped ({why}) after {bridge.sim.now():.1f} s simulated, "
-          f"{bridge.goals_served} goals served, {bridge.resets} resets", file=sys.stderr, flush=True)
+          f"{sum(b.goals_served for b in [bridge, *bridge.peers])} goals served, {bridge.resets} resets",
+          file=sys.stderr, flush=True)
     return 0

@@ -11,6 +11,11 @@ that root on the :class:`FleetClock`.
 
 Fault injection for tests and the benchmark: ``kills`` (``--kill-robot robot2@120``) kill a robot
 at a time on the fleet's clock (:meth:`~missiontree.backends.sim.fleet.FleetRobot.kill`).
+
+Over ROS 2 (``--backend ros2``) the fleet is one ROS 2 robot per member, robot ``robotN`` under the
+namespace ``/robotN`` (``missiontree sim-ros --robots N`` serves such a fleet), on one clock: the ROS
+time they share (:class:`Ros2FleetClock`). A robot whose NavigateToPose server vanishes sees its goal
+aborted as an infrastructure fault, which is how its leaves lose it (docs/ros2.md).
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from missiontree.backends.sim.fleet import MAX_ROBOTS, SimFleet, create_fleet
+from missiontree.backends.sim.fleet import MAX_ROBOTS, SimFleet, create_fleet, robot_names
 from missiontree.engine.build import build_tree
 from missiontree.engine.context import MissionContext
 from missiontree.engine.fleet import FleetRoot, FleetView, RobotScope, namespace_tree
@@ -29,7 +34,7 @@ from missiontree.errors import ConfigError
 from missiontree.robot.envelope import EnvelopedRobot, wrap_robot
 from missiontree.types import Marker
 
-__all__ = ["FleetClock", "FleetWiring", "Kill", "fleet_state", "parse_kill", "robot_count",
+__all__ = ["FleetClock", "FleetWiring", "Kill", "Ros2FleetClock", "fleet_state", "parse_kill", "robot_count",
            "substitute_fleet", "wire_fleet"]
 
 @dataclass(frozen=True)
@@ -125,6 +130,45 @@ class FleetClock:
         return list(self.fleet.robots[0].draw(out_dir, markers))
 
 
+class Ros2FleetClock:
+    """What the runner drives in a fleet run over ROS 2: the ROS time the robots share, stop, close.
+
+    Every robot follows one clock (wall time, or sim-ros's /clock with ``use_sim_time``), read from
+    the first robot's node. There is no ground truth and no picture over ROS 2.
+    """
+
+    simulated = False
+    name = "fleet"
+    truth = None
+
+    def __init__(self, robots: list[Any]) -> None:
+        self.robots = robots
+        #: Kills done (none: over ROS 2 a robot is killed where it runs, e.g. ``sim-ros --kill-robot``).
+        self.killed: list[dict[str, Any]] = []
+
+    def now(self) -> float:
+        """ROS time (s)."""
+        return float(self.robots[0].now())
+
+    def spin_until(self, t: float) -> None:
+        """Wait until ROS time reaches ``t`` (each robot's executor keeps spinning meanwhile)."""
+        self.robots[0].spin_until(t)
+
+    def pose(self) -> None:
+        """No single pose: each robot's is in the summary's ``fleet`` section."""
+        return None
+
+    def stop(self) -> None:
+        """Stop every robot."""
+        for robot in self.robots:
+            robot.stop()
+
+    def close(self) -> None:
+        """Close every robot."""
+        for robot in self.robots:
+            robot.close()
+
+
 class _LateEvents:
     """An event sink that forwards to whatever ``context.events`` is when an event comes."""
 
@@ -140,7 +184,7 @@ class _LateEvents:
 class FleetWiring:
     """What :func:`wire_fleet` built: the clock, the root, the per-robot scopes and the shared view."""
 
-    clock: FleetClock
+    clock: FleetClock | Ros2FleetClock
     root: FleetRoot
     view: FleetView
     scopes: list[tuple[Any, MissionContext, str]]
@@ -152,17 +196,11 @@ def wire_fleet(session: Any, count: int, backend: str, config: dict[str, Any],
     """Build the fleet, its trees and contexts for ``session`` (a Session; its ``root`` is the first copy).
 
     Raises:
-        ConfigError: A backend other than the simulator, a bad count or kill, no room in the world.
+        ConfigError: A backend other than the simulator and ROS 2, a bad count or kill, no room in the
+            world.
     """
-    if backend != "sim":
-        raise ConfigError(f"robots: {count} runs on the simulator only for now (backend {backend!r}); "
-                          f"ROS 2 namespaces per robot are not built yet (docs/fleet.md)")
-    fleet = create_fleet(options.get("world") or "office", robots=count, seed=options.get("seed", 0),
-                         robot=options.get("robot"), config=options.get("config"),
-                         unknown_map=bool(options.get("unknown_map")), sensors=options.get("sensors"))
-    robots = [wrap_robot(r, config) for r in fleet.robots]
-    clock = FleetClock(fleet, robots, kills)
-    view = FleetView(list(fleet.names), fleet.now)
+    names, robots, clock = _fleet_robots(session, count, backend, config, options, kills)
+    view = FleetView(names, clock.now)
     markers: list[Marker] = []
     outcome: dict[str, Any] = {}
     started: set[Path] = set()  # one run directory's files: no robot truncates what another began
@@ -172,7 +210,7 @@ def wire_fleet(session: Any, count: int, backend: str, config: dict[str, Any],
     view.events = _LateEvents(session.context)
     scopes: list[tuple[Any, MissionContext, str]] = []
     blackboard = dict(session.spec.blackboard)
-    for i, (name, robot) in enumerate(zip(fleet.names, robots, strict=True)):
+    for i, (name, robot) in enumerate(zip(names, robots, strict=True)):
         tree = session.root if i == 0 else build_tree(session.spec, session.plugins.nodes)
         namespace_tree(tree, name)
         context = MissionContext(robot=robot, models=session.models, config=config, seed=seed,
@@ -182,14 +220,49 @@ def wire_fleet(session: Any, count: int, backend: str, config: dict[str, Any],
         scopes.append((RobotScope(name, tree), context, name))
         for key, value in session.spec.blackboard.items():
             blackboard[f"/{name}/{key.lstrip('/')}"] = value
-    by_name = dict(zip(fleet.names, robots, strict=True))
+    by_name = dict(zip(names, robots, strict=True))
     root = FleetRoot([scope for scope, _, _ in scopes], view, stop_robot=lambda n: by_name[n].stop())
     return FleetWiring(clock, root, view, [(s, c, n) for s, c, n in scopes], blackboard)
 
 
+def _fleet_robots(session: Any, count: int, backend: str, config: dict[str, Any], options: dict[str, Any],
+                  kills: list[Kill]) -> tuple[list[str], list[Any], FleetClock | Ros2FleetClock]:
+    """The fleet's names, its robots (inside the safety envelope) and the clock the runner drives."""
+    if backend == "sim":
+        fleet = create_fleet(options.get("world") or "office", robots=count, seed=options.get("seed", 0),
+                             robot=options.get("robot"), config=options.get("config"),
+                             unknown_map=bool(options.get("unknown_map")), sensors=options.get("sensors"))
+        robots = [wrap_robot(r, config) for r in fleet.robots]
+        return list(fleet.names), robots, FleetClock(fleet, robots, kills)
+    if backend != "ros2":
+        raise ConfigError(f"robots: {count} runs on the simulator and on ROS 2 (backend {backend!r}); "
+                          f"see docs/fleet.md")
+    if kills:
+        raise ConfigError("--kill-robot kills simulated robots in this process; over ROS 2 kill the robot "
+                          "where it runs (missiontree sim-ros --robots N --kill-robot NAME@S)")
+    names, robots = robot_names(count), []
+    factory = session.plugins.backend(backend)
+    try:
+        for name in names:
+            robots.append(wrap_robot(factory(ros2_member_options(options, name)), config))
+    except BaseException:
+        for robot in robots:
+            robot.close()
+        raise
+    return names, robots, Ros2FleetClock(robots)
+
+
+def ros2_member_options(options: dict[str, Any], name: str) -> dict[str, Any]:
+    """The ROS 2 backend's options for fleet member ``name``: its namespace ``/<name>``, its name."""
+    config = dict(options.get("config") or {})
+    config["ros2"] = {**dict(config.get("ros2") or {}), "namespace": f"/{name}", "name": name}
+    return {**options, "config": config}
+
+
 def fleet_state(wiring: FleetWiring) -> dict[str, Any]:
     """The summary's ``fleet`` section: each robot's end, loss, events and truth; the dispatchers."""
-    truth = wiring.clock.truth.report()
+    truth = (wiring.clock.truth.report() if wiring.clock.truth is not None
+             else {"robots": {}, "min_separation": None})
     ends = wiring.root.robot_report()
     robots: dict[str, Any] = {}
     for _, context, name in wiring.scopes:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from missiontree.errors import BackendUnavailableError, Problem, ProblemsError, WorldFileError
+from missiontree.errors import BackendUnavailableError, ConfigError, Problem, ProblemsError, WorldFileError
 from missiontree.yamlio import load_yaml
 
 
@@ -108,7 +108,8 @@ def draw_world(name: str, out: Path | None = None, *, waypoints: str | None = No
 
 
 def sim_ros_bridge(options: dict[str, Any], profile_options: dict[str, Any], *, rate: float,
-                   sim_time: bool, paused: bool) -> tuple[Any, Any]:
+                   sim_time: bool, paused: bool, robots: int = 1,
+                   kills: list[tuple[str, float]] | None = None) -> tuple[Any, Any]:
     """The simulator served over ROS 2: (bridge, ROS 2 profile), not yet running.
 
     Args:
@@ -118,9 +119,13 @@ def sim_ros_bridge(options: dict[str, Any], profile_options: dict[str, Any], *, 
         rate: Simulated seconds per wall second.
         sim_time: Stamp with simulated time and publish /clock.
         paused: Hold the clock until the first goal or command.
+        robots: Two or more: a fleet in one world, each robot under ``/robotN`` (the returned bridge
+            leads and serves them all; the profile returned is robot 1's).
+        kills: In a fleet, ``(robot, simulated seconds)``: that robot's NavigateToPose server vanishes then.
 
     Raises:
         BackendUnavailableError: rclpy or the NavigateToPose interface package does not import.
+        ConfigError: Kills without a fleet, or naming no robot of it.
     """
     from missiontree.backends.ros2 import INSTALL_HINT, profile_from_options, require_rclpy
     from missiontree.backends.sim import create_robot as create_sim
@@ -133,5 +138,18 @@ def sim_ros_bridge(options: dict[str, Any], profile_options: dict[str, Any], *, 
         raise BackendUnavailableError(f"missiontree sim-ros needs the ros2 extra with its NavigateToPose "
                                       f"interface package, which does not import ({error}); "
                                       f"{INSTALL_HINT}") from None
+    if robots > 1:
+        from missiontree.backends.ros2.fleet_bridge import serve_fleet
+        from missiontree.backends.sim.fleet import create_fleet
+
+        fleet = create_fleet(options.get("world") or "office", robots=robots, seed=options.get("seed", 0),
+                             robot=options.get("robot"), unknown_map=bool(options.get("unknown_map")),
+                             sensors=options.get("sensors"))
+        lead = serve_fleet(fleet, profile_options.get("profile") or "turtlebot4",
+                           domain_id=profile.domain_id, rate=rate, sim_time=sim_time, paused=paused,
+                           kills=kills or [])
+        return lead, lead.profile
+    if kills:
+        raise ConfigError("--kill-robot needs a fleet (--robots 2 or more)")
     bridge = SimBridge(lambda: create_sim(options), profile, rate=rate, sim_time=sim_time, paused=paused)
     return bridge, profile

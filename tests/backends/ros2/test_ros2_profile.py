@@ -86,3 +86,20 @@ def test_a_bad_override_names_the_key() -> None:
     """An option given over the file with an unknown key is a ConfigError naming the key."""
     with pytest.raises(ConfigError, match=r"topics\.scann"):
         load_profile("turtlebot4", {"topics": {"scann": "/x"}})
+
+
+def test_a_namespace_puts_every_topic_and_the_action_inside_it() -> None:
+    """``namespace: robot1`` alone resolves every topic (TF too) and the action under /robot1."""
+    p = load_profile("turtlebot4", {"namespace": "robot1/"})
+    assert p.namespace == "/robot1"
+    topics = p.topics
+    assert (topics.scan, topics.tf, topics.tf_static, topics.map) == ("scan", "tf", "tf_static", "map")
+    assert p.topics.color == "oakd/rgb/preview/image_raw"
+    assert p.navigation.action == "navigate_to_pose"
+    assert (p.frames.map, p.frames.odom, p.frames.base) == ("map", "odom", "base_link")  # per-namespace TF
+
+
+def test_without_a_namespace_the_names_stay_absolute() -> None:
+    """An empty namespace leaves the TurtleBot 4's absolute names as they are."""
+    p = load_profile("turtlebot4", {"namespace": " "})
+    assert (p.namespace, p.topics.scan, p.navigation.action) == ("", "/scan", "/navigate_to_pose")

@@ -11,6 +11,11 @@ tools then run against it as against the robot.
 
 Threads: the pacing loop (``run``) owns the simulator's stepping; the executor's threads serve
 callbacks and the action server. Every simulator call holds ``_sim_lock``.
+
+A fleet (``sim-ros --robots N``, :func:`serve_fleet`) is one bridge per robot, each on a node of its
+own under the robot's namespace (``/robot1/scan``, ``/robot1/tf``, ``/robot1/navigate_to_pose``), all
+sharing one lock; the first robot's bridge leads: its loop steps the whole fleet (one clock), publishes
+every robot's data and /clock, and takes robots' navigation away on schedule (:meth:`SimBridge.vanish`).
 """
 
 from __future__ import annotations
@@ -89,7 +94,8 @@ class SimBridge:
     """
 
     def __init__(self, make_sim: Callable[[], Any], profile: Ros2Profile, rate: float = 1.0,
-                 odom_hz: float = 20.0, sim_time: bool = False, paused: bool = False) -> None:
+                 odom_hz: float = 20.0, sim_time: bool = False, paused: bool = False,
+                 lock: threading.RLock | None = None) -> None:
         self.make_sim = make_sim
         self.sim_time = sim_time
         self.paused = paused
@@ -97,7 +103,17 @@ class SimBridge:
         self.profile = profile
         self.rate = rate
         self.odom_period = 1.0 / odom_hz
-        self._sim_lock = threading.RLock()
+        self._sim_lock = lock or threading.RLock()
+        #: In a fleet: the bridge whose loop steps the world (itself when alone), and the others it serves.
+        self.lead: SimBridge = self
+        self.peers: list[SimBridge] = []
+        #: Scheduled kills the lead applies as its clock passes them: (simulated time, robot's bridge).
+        self.kills: list[tuple[float, SimBridge]] = []
+        #: Why this robot's servers vanished (:meth:`vanish`), "" while they serve.
+        self.vanished = ""
+        inside = profile.namespace != ""  # a fleet's robot: its controls under its namespace too
+        self._control_topic = CONTROL_TOPIC.lstrip("/") if inside else CONTROL_TOPIC
+        self._status_topic = STATUS_TOPIC.lstrip("/") if inside else STATUS_TOPIC
         self._stop = threading.Event()  # ends the pacing loop and running goals
         self._spin_stop = threading.Event()  # then ends the executor's spinning
         self._context = rclpy.Context()
@@ -152,8 +168,8 @@ class SimBridge:
                                          callback_group=group)
         node.create_subscription(PoseStampedMsg, t.goal_pose, self._on_goal_pose, reliable_qos(),
                                  callback_group=group)
-        node.create_subscription(String, CONTROL_TOPIC, self._on_control, reliable_qos())
-        self._status_pub = node.create_publisher(String, STATUS_TOPIC, latched_qos())
+        node.create_subscription(String, self._control_topic, self._on_control, reliable_qos())
+        self._status_pub = node.create_publisher(String, self._status_topic, latched_qos())
         self._clock_pub = node.create_publisher(Clock, "/clock", reliable_qos(10))
         # plugin sensors the simulator produces and can publish (missiontree.robot.sensors)
         self._sensor_pubs: dict[str, tuple[Any, Any]] = {}
@@ -177,6 +193,9 @@ class SimBridge:
 
     def resume(self) -> None:
         """Let a paused clock run (from now on, in step with wall time at the bridge's rate)."""
+        if self.lead is not self:  # a fleet has one clock: its lead's
+            self.lead.resume()
+            return
         with self._sim_lock:
             if self.paused:
                 self.paused = False
@@ -194,7 +213,7 @@ class SimBridge:
         v, w = conv.twist_from_msg(msg)
         with self._sim_lock:
             self._last_command = (v, w, time.monotonic())
-            if self._executing:
+            if self._executing and not self.vanished:
                 # As with Nav2, the goal's controller owns the base while a goal runs: a stray command
                 # (a client's last repeat crossing its new goal on the wire) must not stall the goal.
                 # Clients that mean to take over cancel the goal first (Ros2Robot.drive does).
@@ -206,8 +225,10 @@ class SimBridge:
     def _on_control(self, msg: String) -> None:
         words = msg.data.split()
         with self._sim_lock:
-            if words == ["reset"]:
+            if words == ["reset"] and self.lead is self and not self.peers:
                 self.reset()
+            elif words == ["kill"] and (self.peers or self.lead is not self):
+                self.vanish("killed by a 'kill' control")
             elif words == ["resume"]:
                 self.resume()
             elif len(words) == 2 and words[0] in ("silence", "resume") and (
@@ -215,8 +236,8 @@ class SimBridge:
                 self.sim.silence(words[1], quiet=words[0] == "silence")
             else:
                 self.node.get_logger().warning(
-                    f"unknown simulator control {msg.data!r}; expected 'reset', 'resume', "
-                    "'silence lidar|camera' or 'resume lidar|camera'")
+                    f"unknown simulator control {msg.data!r}; expected 'reset' (one robot only), "
+                    "'kill' (a fleet's robot), 'resume', 'silence lidar|camera' or 'resume lidar|camera'")
                 return
             self.controls += 1
         self._publish_status()
@@ -240,6 +261,8 @@ class SimBridge:
         self._status_pub.publish(String(data=json.dumps(status)))
 
     def _on_goal_pose(self, msg: PoseStampedMsg) -> None:
+        if self.vanished:  # bt_navigator died with the server
+            return
         goal = NavigateToPose.Goal()
         goal.pose = msg
         self._self_client.send_goal_async(goal)
@@ -269,7 +292,8 @@ class SimBridge:
         result = NavigateToPose.Result()
         while True:
             with self._sim_lock:
-                if sim is not self.sim:  # reset under the goal
+                gone = bool(self.vanished)
+                if not gone and sim is not self.sim:  # reset under the goal
                     result.error_code, result.error_msg = NAV2_UNKNOWN, "the simulator was reset"
                     goal_handle.abort()
                     return result
@@ -279,6 +303,9 @@ class SimBridge:
                     self._cancel_navigation()
                     status = handle.status()
                 now = sim.now()
+            if gone:  # the server vanished: the goal is never answered, as by a crashed Nav2
+                self._stop.wait()
+                return result
             if not goal_handle.is_active:
                 return result
             if status.done or self._stop.is_set():
@@ -411,14 +438,20 @@ class SimBridge:
     # ------------------------------------------------------------------------------ the loop
 
     def run(self, duration: float | None = None) -> None:
-        """Serve until :meth:`shutdown` (or for ``duration`` wall seconds), paced in real time."""
+        """Serve until :meth:`shutdown` (or for ``duration`` wall seconds), paced in real time.
+
+        In a fleet the lead runs this for every robot: one world, one clock.
+        """
+        served = [self, *self.peers]
         with self._sim_lock:
-            self._epoch = self._ros_now() - self.sim.now()
-            self._wall0, self._sim0 = time.monotonic(), self.sim.now()
-            self.publish_static()
-            self.publish_sensors()
-        self._spinner.start()
-        self._publish_status()
+            for bridge in served:
+                bridge._epoch = bridge._ros_now() - bridge.sim.now()
+                bridge._wall0, bridge._sim0 = time.monotonic(), bridge.sim.now()
+                bridge.publish_static()
+                bridge.publish_sensors()
+        for bridge in served:
+            bridge._spinner.start()
+            bridge._publish_status()
         started = time.monotonic()
         while not self._stop.is_set():
             if duration is not None and time.monotonic() - started >= duration:
@@ -426,20 +459,47 @@ class SimBridge:
             if self.paused:
                 with self._sim_lock:
                     self._publish_clock()
-                    self.republish()
+                    for bridge in served:
+                        bridge.republish()
                 self._stop.wait(PAUSED_PERIOD)
                 continue
             with self._sim_lock:
                 dt = self.sim.profile.physics_dt
                 wall_elapsed = time.monotonic() - self._wall0
                 stride = next_stride(self.sim.now(), self._sim0, wall_elapsed, self.rate, dt)
-                self.sim.spin_until(stride.target)
-                if stride.slipped:  # the machine cannot keep up: the world's clock slows, never leaps
-                    self._anchor()
-                self.publish_sensors()  # before the clock: no client sees a time its data has not reached
+                self._spin_to(stride.target)
+                for bridge in served:
+                    if stride.slipped:  # the machine cannot keep up: the world's clock slows, never leaps
+                        bridge._anchor()
+                    bridge.publish_sensors()  # before the clock: no client sees a time before its data
                 self._publish_clock()
                 next_wall = self._wall0 + (self.sim.now() - self._sim0 + dt) / self.rate
             self._stop.wait(max(0.0, next_wall - time.monotonic()))
+
+    def _spin_to(self, target: float) -> None:
+        """Step the simulator (a fleet: the whole fleet) to ``target``, killing robots due on the way."""
+        while self.kills and self.kills[0][0] <= target:
+            at, bridge = self.kills.pop(0)
+            self.sim.spin_until(at)
+            bridge.vanish(f"killed at {at:g} s (--kill-robot)")
+        self.sim.spin_until(target)
+
+    def vanish(self, reason: str) -> None:
+        """A fleet robot's Nav2 crashes: its NavigateToPose server leaves the ROS graph for good.
+
+        The robot stops where it stands (an obstacle to the others); a running goal is never
+        answered, as by a crashed server; its sensors, odometry, TF and /cmd_vel go on, as the
+        drivers of a robot whose navigation died would. The other robots are not touched.
+        """
+        with self._sim_lock:
+            if self.vanished:
+                return
+            self.vanished = reason
+            self.sim.stop()
+        self._server.destroy()
+        self._self_client.destroy()
+        where = self.profile.namespace or "robot"
+        self.node.get_logger().warning(f"{where}: NavigateToPose server gone ({reason})")
 
     def _publish_clock(self) -> None:
         if self.sim_time:
@@ -455,13 +515,23 @@ class SimBridge:
         self._stop.set()
 
     def close(self) -> None:
-        """Stop serving, end running goals, leave the ROS graph and close the simulator."""
-        self._stop.set()
+        """Stop serving, end running goals, leave the ROS graph and close the simulator (a fleet: all)."""
+        for bridge in [self, *self.peers]:
+            bridge._stop.set()
         time.sleep(0.2)  # let running goals publish their end while the executor still spins
+        for peer in self.peers:
+            peer._close_node()
+        self._close_node()
+        with self._sim_lock:
+            for bridge in [self, *self.peers]:
+                bridge.sim.close()
+
+    def _close_node(self) -> None:
+        """End the executor and leave the ROS graph (the server first, unless it vanished already)."""
+        self._stop.set()
         stop_spinning(self._spin_stop, self._spinner, self._executor)
-        self._server.destroy()
+        if not self.vanished:
+            self._server.destroy()
         self.node.destroy_node()
         if self._context.ok():
             self._context.try_shutdown()
-        with self._sim_lock:
-            self.sim.close()

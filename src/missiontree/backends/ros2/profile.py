@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
 from missiontree.errors import ConfigError, ProblemsError
 from missiontree.paths import find_config
@@ -128,6 +128,23 @@ class Ros2Profile(_Section):
     navigation: Navigation = Navigation()
     camera: Camera = Camera()
     lidar: Lidar = Lidar()
+
+    @model_validator(mode="after")
+    def _in_namespace(self) -> Ros2Profile:
+        """With a namespace, every topic and the action resolve inside it, as a namespaced TurtleBot 4.
+
+        ``namespace: /robot1`` alone gives ``/robot1/scan``, ``/robot1/tf`` (per-namespace TF, frame
+        names unchanged, as Nav2's multi-robot bringup and TurtleBot 4 do) and
+        ``/robot1/navigate_to_pose``: absolute names are made relative. ``/clock`` stays global.
+        """
+        name = self.namespace.strip().strip("/")
+        self.namespace = f"/{name}" if name else ""
+        if name:
+            names = self.topics.model_dump()
+            self.topics = Topics(**{key: value.lstrip("/") for key, value in names.items()})
+            self.navigation = self.navigation.model_copy(
+                update={"action": self.navigation.action.lstrip("/")})
+        return self
 
     @property
     def nav_status_topic(self) -> str:
