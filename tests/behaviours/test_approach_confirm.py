@@ -170,3 +170,22 @@ def test_every_mission_that_approaches_an_object_has_each_step_as_a_node(mission
     root = build_tree(load_mission(tree, plugins.nodes), plugins.nodes)
     names = {node.name for node in root.iterate()}
     assert set(STEPS) <= names
+
+
+def test_a_place_looked_from_may_give_way_to_one_nearby_but_a_pose_not_reached_may_not(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """After a look, another range on the same side will do; after a pose not reached, it is too near."""
+    from types import SimpleNamespace
+
+    from missiontree.behaviours import approach_steps
+    from missiontree.reasoning.intent import GraphObject
+
+    goal, nearer = Pose2D(1.0, 1.0, 0.0), Pose2D(1.2, 1.0, 0.0)
+    ranking = SimpleNamespace(candidates=[SimpleNamespace(goal=goal)], rejected=[])
+    monkeypatch.setattr(approach_steps, "plan_candidates", lambda *a, **k: ranking)
+    monkeypatch.setattr(approach_steps, "other_viewpoint", lambda *a, **k: nearer)
+    obj = GraphObject("cup_1", "cup", xy=(2.0, 1.0))
+    grid: Any = object()
+    assert approach_steps.standoff_goal(obj, grid, goal, 0.17, None, [], (goal,)) == (nearer, "")
+    assert approach_steps.standoff_goal(obj, grid, goal, 0.17, None, [goal])[0] is None

@@ -73,12 +73,15 @@ def standoff_goal(
     robot_radius: float,
     camera: tuple[float, float] | None,
     failed: list[Pose2D],
+    looked: tuple[Pose2D, ...] = (),
 ) -> tuple[Pose2D | None, str]:
     """A standoff pose facing ``obj`` (or None and why), away from the poses in ``failed``.
 
     The nearest reachable standoff pose by path (:func:`missiontree.reasoning.intent.plan_candidates`
-    for a robot of ``robot_radius``); when it is one that failed, the reachable pose on another side of
-    the object or at another range (:func:`missiontree.reasoning.intent.other_viewpoint`).
+    for a robot of ``robot_radius``); when it is one that failed (not reached, or ``looked`` from
+    without confirming the object), the reachable pose on another side of the object or at another
+    range (:func:`missiontree.reasoning.intent.other_viewpoint`), which must be away from the poses
+    not reached (a place looked from may be looked from again at another range).
     """
     ranking = plan_candidates(
         [obj.id], SceneObjects({obj.id: obj}), grid, robot, robot_radius, (), False, camera
@@ -86,7 +89,7 @@ def standoff_goal(
     if not ranking.candidates:
         return None, ranking.rejected[0].reason if ranking.rejected else "no standoff pose"
     goal = ranking.candidates[0].goal
-    tried = [f for f in failed if math.hypot(f.x - goal.x, f.y - goal.y) < SAME_PLACE]
+    tried = [f for f in [*failed, *looked] if math.hypot(f.x - goal.x, f.y - goal.y) < SAME_PLACE]
     if not tried or grid is None:
         return goal, ""
     other = other_viewpoint(obj, grid, robot, tried[-1], robot_radius, False, camera)
@@ -221,7 +224,9 @@ class PlanStandoff(ApproachStep):
         if stamped is None:
             return self.running("waiting for a pose")
         c = self.cand
-        failed = [Pose2D(t["x"], t["y"], t["yaw"]) for t in self.tries() if not t.get("reached", True)]
+        failed = [Pose2D(t["x"], t["y"], t["yaw"]) for t in self.tries()
+                  if not t.get("reached", True) and not t.get("looked")]
+        looked = tuple(Pose2D(t["x"], t["y"], t["yaw"]) for t in self.tries() if t.get("looked"))
         if isinstance(c.get("goal"), dict) and not self.tries():
             self.job = True  # ranked with the other candidates: its pose is planned already
             return self.update()
@@ -229,7 +234,7 @@ class PlanStandoff(ApproachStep):
         obj = GraphObject(str(c["id"]), str(c["label"]), xy=(c["x"], c["y"]), z=z)
         radius = self.params.robot_radius + self.params.clearance_step * len(failed)
         self.job = Background(standoff_goal, obj, robot.occupancy(), stamped.pose, radius,
-                              camera_view(robot.rgbd()), failed, wait=waits(self.context))
+                              camera_view(robot.rgbd()), failed, looked, wait=waits(self.context))
         return self.update()
 
     def _poll(self) -> tuple[bool, Any, str]:
