@@ -317,7 +317,8 @@ def _reveal_east(data: np.ndarray) -> None:
 def test_a_frontier_goal_the_lidar_mapped_is_kept_until_the_camera_looked_there() -> None:
     """The lidar maps the east end while the robot drives there: the goal stays until the camera saw it."""
     robot = SlowRobot(_east_open_corridor(), Pose2D(1.5, 0.8, 0.0))
-    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none"))
+    # no places to look from in the running: the tour would first look at the floor where it stands
+    leaf = Locate("locate", Locate.Params(target="red backpack", priors="none", view_window=0.0))
     leaf.setup(context=MissionContext(robot=robot, events=Events(), models={"detector": Detector()}))  # type: ignore[arg-type]
     for _ in range(5):
         leaf.tick_once()
@@ -526,3 +527,14 @@ def test_exploration_json_lists_frontiers_left_not_places_to_look_from() -> None
     assert grid is not None
     report = exploration_report(leaf.planner, "stopped", 1, grid, None, (1.0, 1.0))
     assert report["frontiers_left"] == []
+
+
+def test_view_goals_are_toured_near_corner_first_not_far_side_first() -> None:
+    """The tour takes the near pair of places before the far one that scores best one step ahead."""
+    from missiontree.behaviours.search_coverage import ViewGoal, tour_view_goals
+
+    g = OccupancyGrid(0.0, 0.1, Pose2D(0.0, 0.0), np.zeros((100, 100), np.int8))
+    far = ViewGoal(2.0, 5.0, (2.0, 5.0), 6.0, 3.0, 6.0 / 1.45)
+    a = ViewGoal(8.0, 5.0, (8.0, 5.0), 5.0, 3.0, 5.0 / 1.45)
+    b = ViewGoal(8.0, 6.0, (8.0, 6.0), 5.0, 3.2, 5.0 / 1.48)
+    assert tour_view_goals(g, [far, a, b]) == [a, b, far]

@@ -31,14 +31,22 @@ def planner(strategy: str, **kw: object) -> ExplorationPlanner:
 
 
 def test_gain_prefers_the_frontier_that_reveals_more_and_nearest_the_closer_one() -> None:
-    """Nearer the small west pocket: nearest goes west, gain goes east to the large unknown."""
+    """Nearer the small west pocket: nearest goes west, gain's best score east to the large unknown."""
     g = grid(two_openings())
     robot = (3.5, 1.0)
-    best_gain = planner("gain").candidates(g, robot)[0]
+    best_gain = planner("gain", order="score").candidates(g, robot)[0]
     best_near = planner("nearest").candidates(g, robot)[0]
     assert best_gain.target[0] > 4.5 and best_gain.gain_m2 > 3.0
     assert best_near.target[0] < 3.5
     assert best_near.path_m < best_gain.path_m
+
+
+def test_the_tour_takes_the_pocket_beside_the_robot_before_the_large_unknown() -> None:
+    """With order tour the pocket 0.25 m away comes first: putting it off costs the trip back."""
+    g = grid(two_openings())
+    first, second = planner("gain", order="tour").candidates(g, (3.5, 1.0))[:2]
+    assert first.target[0] < 3.5 and second.target[0] > 4.5
+    assert first.score < second.score       # the one-step ranking would have gone east first
 
 
 def test_walls_stop_the_gain_rays() -> None:

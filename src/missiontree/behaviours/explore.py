@@ -1,11 +1,10 @@
 """Explore: drive to frontiers (or scan points) until no reachable unexplored place is left.
 
-The leaf reads only the robot: its map (``occupancy()``, the map learned from the lidar in an
-unknown-map run, ``/map`` from SLAM on ROS 2), its pose, and ``navigate_to`` handles. Where to go
-next is decided by :class:`missiontree.mapping.exploration.ExplorationPlanner` with one of three
-strategies: ``gain`` (unknown area a frontier would reveal against the path to it), ``nearest``
-(the nearest frontier, as explore_lite), ``scan_points`` (the vision-language object-search
-report's scan points, largest region first).
+The leaf reads only the robot: its map (``occupancy()``, the lidar's learned map, ``/map`` from
+SLAM on ROS 2), its pose, and ``navigate_to`` handles. Where to go next is decided by
+:class:`missiontree.mapping.exploration.ExplorationPlanner`: ``gain`` (unknown area a frontier
+reveals against the path; with ``order: tour`` the first stop of the tour revealing the most
+soonest), ``nearest`` (as explore_lite), ``scan_points`` (the search report's, largest first).
 
 While driving it re-plans every ``replan_period`` seconds: a goal whose frontier has been seen
 meanwhile is dropped for the next one (the lidar reaches far ahead of the robot), and the
@@ -34,12 +33,12 @@ position and why it was left) and the unknown area left behind them (m^2). FAILU
 also when no map arrives within ``map_timeout`` or the robot is stuck (neither the known area grew
 nor the robot moved for ``stuck_timeout`` seconds); FAILURE "partial: the time budget of N s was
 spent: ..." (what is left, as a partial end says it) once a run of the leaf took ``time_budget``
-robot seconds. The reason is the node's failure reason in the
-run's summary.json. On every end, halts included, the learned map is written into the run
-directory as ``map.pgm`` + ``map.yaml`` (Nav2 map_server format) beside ``exploration.json``: how
-it ended (``explored``, ``partial``, ``failed`` or ``halted``), ``complete``, the frontiers left
-(positions, why) and the unknown area behind them, the frontiers given up and why; the blackboard
-gets ``explore_complete`` and ``unexplored`` (the frontiers left).
+robot seconds. The reason is the node's failure reason in the run's summary.json. On every end,
+halts included, the learned map is written into the run directory as ``map.pgm`` + ``map.yaml``
+(Nav2 map_server format) beside ``exploration.json``: how it ended (``explored``, ``partial``,
+``failed`` or ``halted``), ``complete``, the frontiers left (positions, why) and the unknown area
+behind them, the frontiers given up and why; the blackboard gets ``explore_complete`` and
+``unexplored`` (the frontiers left).
 
 Leaves built on Explore (the search's ``ResumeExplore`` and ``Locate``) use its public interface:
 :meth:`Explore.planner_options` and :meth:`Explore.make_planner` (the planner a run uses),
@@ -47,8 +46,7 @@ Leaves built on Explore (the search's ``ResumeExplore`` and ``Locate``) use its 
 :meth:`Explore.on_give_up`, :meth:`Explore.goal_still_wanted` (drop a goal in hand whose place was seen on
 the way), :meth:`Explore.wants_look` and :meth:`Explore.on_look_done` (a full turn at a goal and what it
 showed), :meth:`Explore.on_goal_failed` (a goal of the subclass's own kind that failed),
-:meth:`Explore.reset_progress` (restart the stuck timer after the robot moved under a subclass's control),
-:meth:`Explore.summary` and :func:`known_area`.
+:meth:`Explore.reset_progress` (restart the stuck timer), :meth:`Explore.summary`, :func:`known_area`.
 """
 
 from __future__ import annotations
@@ -94,6 +92,8 @@ class Explore(Leaf):
         strategy: Literal["gain", "nearest", "scan_points"] = Field(
             "gain", description="gain: unknown area revealed against path cost; nearest: nearest frontier "
             "(explore_lite); scan_points: the report's scan points, largest region first.")
+        order: Literal["tour", "score"] = Field("tour", description="strategy gain: go first to the first "
+            "stop of the tour revealing the most soonest (tour) or to the best gain against path (score).")
         look_around: bool = Field(False, description="Turn a full circle at each goal reached.")
         look_steps: int = Field(4, ge=1, le=36, description="Steps of the full turn (pause after each).")
         look_pause: float = Field(0.5, ge=0, description="Pause after each step of the turn (s).")
@@ -273,7 +273,8 @@ class Explore(Leaf):
         return {"strategy": p.strategy, "footprint_radius": p.footprint_radius,
                 "reach_radius": self.nav_radius(0.05),
                 "sensor_range": p.sensor_range, "min_frontier_m": p.min_frontier_size,
-                "cost_rate": p.cost_rate, "erosion_m": p.scan_point_erosion, "min_gain_m2": p.min_gain}
+                "cost_rate": p.cost_rate, "erosion_m": p.scan_point_erosion, "min_gain_m2": p.min_gain,
+                "order": p.order}
 
     def nav_radius(self, resolution: float) -> float:
         """The footprint the navigation plans with on a map of ``resolution`` (m per cell).

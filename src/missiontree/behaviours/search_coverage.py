@@ -8,9 +8,10 @@ does not move them) that a camera frame had in its field of view within ``view_r
 stopped by occupied cells. Once no frontier is left, :func:`view_goals` gives places from which
 the unseen reachable floor can be looked at: for each unseen patch, a place beside its cell
 nearest the robot (the floor is swept from where the robot is, not crossed back and forth), ranked
-by the unseen floor within ``view_range`` of it per metre of path. A cell counts as looked at once
-``min_views`` frames had it in view (the semantic map wants a few frames of an object before it
-believes in it). A target is reported absent only when the camera has looked at all of the
+by the unseen floor within ``view_range`` of it per metre of path, and gone to in the order of the
+tour that brings the most of it into view soonest (:func:`tour_view_goals`). A cell counts as
+looked at once ``min_views`` frames had it in view (the semantic map wants a few frames of an
+object before it believes in it). A target is reported absent only when the camera has looked at all of the
 reachable floor (or what is left could not be reached, or is hidden from every place reached).
 """
 
@@ -24,6 +25,7 @@ import cv2
 import numpy as np
 
 from missiontree.mapping.grid import OCCUPIED_FROM, free_mask, occupied_mask
+from missiontree.mapping.tour import between_lengths, latency_order
 from missiontree.types import OccupancyGrid, Pose2D
 
 #: path_lengths(grid, start, goals, radius) -> metres or None per goal (the exploration planner's).
@@ -245,16 +247,38 @@ def view_goals(
     if not patches:
         return [], []
     near = grid if radius is None else window(grid, robot_xy, radius + coverage.view_range)
+    goals, placed, unplaced = _place_goals(coverage, near, patches, robot_xy, room)
+    lengths = path_lengths(grid, robot_xy, [g[0] for g in goals], robot_radius) if goals else []
+    out: list[ViewGoal] = []
+    for (xy, target, gain), patch, length in zip(goals, placed, lengths, strict=True):
+        if length is None:
+            unplaced.append(patch)
+            continue
+        out.append(ViewGoal(xy[0], xy[1], target, gain, float(length), gain / (1.0 + cost_rate * length)))
+    return sorted(out, key=lambda g: -g.score), unplaced
+
+
+#: A place to look from, before its path is measured: (goal xy, the patch's anchor xy, unseen m^2 in view).
+_Placed = tuple[tuple[float, float], tuple[float, float], float]
+
+
+def _place_goals(
+    coverage: ViewCoverage,
+    near: OccupancyGrid,
+    patches: list[set[tuple[int, int]]],
+    robot_xy: tuple[float, float],
+    room: float,
+) -> tuple[list[_Placed], list[set[tuple[int, int]]], list[set[tuple[int, int]]]]:
+    """A place for each patch (the roomy free cell nearest its cell nearest the robot); placed, unplaced."""
     res = near.resolution
     occupied = occupied_mask(near)
     clear = cv2.distanceTransform((~occupied).astype(np.uint8), cv2.DIST_L2, 5) * res
-    ok = free_mask(near) & (clear >= room)
-    rr, cc = np.nonzero(ok)
+    rr, cc = np.nonzero(free_mask(near) & (clear >= room))
     if not len(rr):
-        return [], patches
+        return [], [], list(patches)
     wx = near.origin.x + (cc + 0.5) * res
     wy = near.origin.y + (rr + 0.5) * res
-    goals: list[tuple[tuple[float, float], tuple[float, float], float]] = []
+    goals: list[_Placed] = []
     placed: list[set[tuple[int, int]]] = []
     unplaced: list[set[tuple[int, int]]] = []
     reach = coverage.view_range / 2.0
@@ -269,16 +293,24 @@ def view_goals(
             continue
         goal = np.array([wx[j], wy[j]])
         within = float(np.count_nonzero(((pts - goal) ** 2).sum(axis=1) <= coverage.view_range**2))
-        goals.append(((float(goal[0]), float(goal[1])), (float(anchor[0]), float(anchor[1])), within * per))
+        goals.append(((float(goal[0]), float(goal[1])), (float(anchor[0]), float(anchor[1])),
+                      within * coverage.cell * coverage.cell))
         placed.append(patch)
-    lengths = path_lengths(grid, robot_xy, [g[0] for g in goals], robot_radius) if goals else []
-    out: list[ViewGoal] = []
-    for (xy, target, gain), patch, length in zip(goals, placed, lengths, strict=True):
-        if length is None:
-            unplaced.append(patch)
-            continue
-        out.append(ViewGoal(xy[0], xy[1], target, gain, float(length), gain / (1.0 + cost_rate * length)))
-    return sorted(out, key=lambda g: -g.score), unplaced
+    return goals, placed, unplaced
+
+
+def tour_view_goals(grid: OccupancyGrid, goals: list[ViewGoal]) -> list[ViewGoal]:
+    """``goals`` in the order of the tour that brings the most unseen floor into view soonest.
+
+    One step ahead (unseen floor per metre) the robot swept a room's far side and came back for
+    the near corner; the tour (:mod:`missiontree.mapping.tour`) weighs the whole sweep.
+    """
+    if len(goals) < 2:
+        return goals
+    start = np.array([g.path_m for g in goals], float)
+    between = between_lengths(grid, [(g.x, g.y) for g in goals], start)
+    order = latency_order(np.array([g.area_m2 for g in goals], float), start, between)
+    return [goals[i] for i in order]
 
 
 def straight_lengths(

@@ -33,6 +33,7 @@ from missiontree.behaviours.search_coverage import (
     ViewGoal,
     known_path_lengths,
     look_arc,
+    tour_view_goals,
     unseen_bearings,
     view_goals,
 )
@@ -415,29 +416,10 @@ class LookExplore(ResumeExplore):
             return self._cover_drive(grid, pose, now)
         if self.cover_state == "look":
             return self._cover_look(grid, pose, now)
-        if self.planner is not None and self.frontier_rounds < MAX_FRONTIER_ROUNDS:
-            # the map grew while looking (a room seen through a door): its frontiers come first
-            if self._frontier_places(self.frontiers_left):
-                self.frontier_rounds += 1
-                self.frontiers_done = False
-                # the stuck timer restarts: the robot moved and looked meanwhile, unseen by Explore;
-                # kept from before the looks, it ended the new round "stuck" at once where it stopped
-                self.reset_progress(now, pose)
-                self.emit("search_frontiers_again", round=self.frontier_rounds)
-                return self.running("new frontiers on the map: exploring on")
-        goals: list[ViewGoal] = []
-        unplaced: list[set[tuple[int, int]]] = []
-        if self.params.view_window > 0:  # the floor near the robot first: labelled in a window only
-            goals, _ = view_goals(self.coverage, grid, (pose.x, pose.y), known_path_lengths,
-                                  self.params.footprint_radius, min_area_m2=self.params.view_min_area,
-                                  cost_rate=self.params.cost_rate, radius=self.params.view_window)
-        if not goals:
-            goals, unplaced = view_goals(self.coverage, grid, (pose.x, pose.y), known_path_lengths,
-                                         self.params.footprint_radius, min_area_m2=self.params.view_min_area,
-                                         cost_rate=self.params.cost_rate)
-        for patch in unplaced:
-            self.coverage.skip(patch)
-            self.cover_skipped += 1
+        again = self._frontiers_again(pose, now)
+        if again is not None:
+            return again
+        goals = self._next_view_goals(grid, pose)
         if not goals:
             seen, floor = self.coverage.seen_share(grid, (pose.x, pose.y))
             self.emit(
@@ -448,11 +430,51 @@ class LookExplore(ResumeExplore):
                 given_up=self.cover_skipped,
             )
             return self.succeed("looked at the reachable floor")
-        goal = goals[0]
+        return self._send_view_goal(goals[0], now)
+
+    def _frontiers_again(self, pose: Pose2D, now: float) -> Status | None:
+        """RUNNING when the map grew while looking (a room seen through a door): its frontiers come first."""
+        if self.planner is None or self.frontier_rounds >= MAX_FRONTIER_ROUNDS:
+            return None
+        if not self._frontier_places(self.frontiers_left):
+            return None
+        self.frontier_rounds += 1
+        self.frontiers_done = False
+        # the stuck timer restarts: the robot moved and looked meanwhile, unseen by Explore;
+        # kept from before the looks, it ended the new round "stuck" at once where it stopped
+        self.reset_progress(now, pose)
+        self.emit("search_frontiers_again", round=self.frontier_rounds)
+        return self.running("new frontiers on the map: exploring on")
+
+    def _next_view_goals(self, grid: OccupancyGrid, pose: Pose2D) -> list[ViewGoal]:
+        """Places to look at unseen floor from, in tour order: near the robot first, else on the whole floor.
+
+        Patches no place was found for are given up (counted in ``cover_skipped``).
+        """
+        assert self.coverage is not None
+        p = self.params
+        goals: list[ViewGoal] = []
+        unplaced: list[set[tuple[int, int]]] = []
+        if p.view_window > 0:  # the floor near the robot first: labelled in a window only
+            goals, _ = view_goals(self.coverage, grid, (pose.x, pose.y), known_path_lengths,
+                                  p.footprint_radius, min_area_m2=p.view_min_area,
+                                  cost_rate=p.cost_rate, radius=p.view_window)
+        if not goals:
+            goals, unplaced = view_goals(self.coverage, grid, (pose.x, pose.y), known_path_lengths,
+                                         p.footprint_radius, min_area_m2=p.view_min_area,
+                                         cost_rate=p.cost_rate)
+        for patch in unplaced:
+            self.coverage.skip(patch)
+            self.cover_skipped += 1
+        return tour_view_goals(grid, goals) if p.order == "tour" else goals
+
+    def _send_view_goal(self, goal: ViewGoal, now: float) -> Status:
+        """Drive to a place to look at unseen floor from, facing that floor."""
         yaw = math.atan2(goal.target[1] - goal.y, goal.target[0] - goal.x)
         self.cover_goal = goal
         self.cover_goals += 1
-        self.cover_handle = robot.navigate_to(Pose2D(goal.x, goal.y, yaw), Tolerance(0.3, 2.0 * math.pi))
+        self.cover_handle = self.context.robot.navigate_to(Pose2D(goal.x, goal.y, yaw),
+                                                           Tolerance(0.3, 2.0 * math.pi))
         self.cover_best, self.cover_best_at = math.inf, now
         self.cover_state = "drive"
         self.emit(

@@ -51,7 +51,7 @@ exploration benchmark uses it the same way.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import cv2
@@ -61,80 +61,16 @@ from scipy import ndimage
 from missiontree.mapping.frontier_goals import Blacklisted, FrontierGoals
 from missiontree.mapping.frontiers import find_frontiers, visible_unknown_area
 from missiontree.mapping.grid import occupied_mask
-from missiontree.mapping.planner import Costmap
+from missiontree.mapping.path_lengths import KeptCostmapLengths as KeptCostmapLengths
+from missiontree.mapping.path_lengths import PathLengths as PathLengths
+from missiontree.mapping.path_lengths import known_window as known_window
+from missiontree.mapping.path_lengths import planner_path_lengths as planner_path_lengths
+from missiontree.mapping.path_lengths import straight_line_lengths as straight_line_lengths
 from missiontree.mapping.scan_points import scan_points
-from missiontree.types import OccupancyGrid, Pose2D
+from missiontree.mapping.tour import between_lengths, latency_order
+from missiontree.types import OccupancyGrid
 
 STRATEGIES = ("gain", "nearest", "scan_points")
-
-#: path_lengths(grid, start xy, goals xy, footprint_radius) -> metres or None per goal
-PathLengths = Callable[[OccupancyGrid, tuple[float, float], Sequence[tuple[float, float]], float],
-                       list[float | None]]
-
-
-def planner_path_lengths(grid: OccupancyGrid, start: tuple[float, float],
-                         goals: Sequence[tuple[float, float]], footprint_radius: float) -> list[float | None]:
-    """Path lengths on the inflated costmap (mapping.planner); straight lines if it is not installed."""
-    try:
-        from missiontree.mapping.planner import path_lengths
-    except ImportError:  # pragma: no cover - the planner ships with the package
-        return straight_line_lengths(grid, start, goals, footprint_radius)
-    return path_lengths(grid, start, list(goals), footprint_radius=footprint_radius, allow_unknown=True)
-
-
-class KeptCostmapLengths:
-    """Path lengths on an inflated costmap kept between calls (one per exploration planner).
-
-    Each call takes the grid it is given as a new version of the map: only the costmap tiles near
-    cells that changed are computed again (:meth:`Costmap.update_changed`), where a new costmap
-    per call recomputed every tile the search reached -- the whole floor of a large map, every
-    replan.
-    """
-
-    def __init__(self) -> None:
-        self.costmaps: dict[float, Costmap] = {}   # one per footprint radius asked for
-
-    def __call__(self, grid: OccupancyGrid, start: tuple[float, float],
-                 goals: Sequence[tuple[float, float]], footprint_radius: float) -> list[float | None]:
-        """Length (m) of the best path from ``start`` to each goal; None where unreachable (unknown: free)."""
-        costmap = self.costmaps.get(footprint_radius)
-        if costmap is None:
-            costmap = self.costmaps[footprint_radius] = Costmap(grid, footprint_radius, allow_unknown=True)
-        else:
-            costmap.update_changed(grid)
-        return costmap.path_lengths(start, list(goals))
-
-
-def straight_line_lengths(grid: OccupancyGrid, start: tuple[float, float],
-                          goals: Sequence[tuple[float, float]],
-                          footprint_radius: float) -> list[float | None]:
-    """Euclidean distances (every goal counts as reachable)."""
-    return [math.hypot(g[0] - start[0], g[1] - start[1]) for g in goals]
-
-
-def known_window(grid: OccupancyGrid, margin_m: float, step_m: float) -> OccupancyGrid:
-    """``grid`` cut to the box of its known cells padded by ``margin_m``, edges snapped out to ``step_m``.
-
-    The cut keeps the grid's cells (its origin moves by whole cells); the whole grid when nothing
-    is known or the box reaches every border.
-    """
-    known = grid.data >= 0
-    rows, cols = np.flatnonzero(known.any(axis=1)), np.flatnonzero(known.any(axis=0))
-    if not len(rows):
-        return grid
-    res = grid.resolution
-    h, w = grid.data.shape
-    m = int(math.ceil(margin_m / res))
-    step = max(1, int(math.ceil(step_m / res)))
-    r0 = max(0, (int(rows[0]) - m) // step * step)
-    c0 = max(0, (int(cols[0]) - m) // step * step)
-    r1 = min(h, -(-(int(rows[-1]) + 1 + m) // step) * step)
-    c1 = min(w, -(-(int(cols[-1]) + 1 + m) // step) * step)
-    if (r0, c0, r1, c1) == (0, 0, h, w):
-        return grid
-    origin = Pose2D(grid.origin.x + c0 * res, grid.origin.y + r0 * res, grid.origin.yaw)
-    return OccupancyGrid(grid.stamp, res, origin, grid.data[r0:r1, c0:c1])
-
 
 @dataclass(frozen=True)
 class Candidate:
@@ -243,6 +179,10 @@ class ExplorationPlanner(FrontierGoals):
             worth a trip only when they reveal this much (m^2) per metre of path; the rest are
             left as *slivers* (:attr:`slivers`), counted and named when the exploration ends.
         slivers: The frontiers the last ranking left as not worth a trip (:meth:`candidates`).
+        order: For ``gain``, the order the candidates are offered in: ``tour`` (the first stop of
+            the tour reaching the most value soonest, :mod:`missiontree.mapping.tour`) or ``score``
+            (the best gain against path, one step ahead).
+        tour_stops: The tour is planned over this many candidates (the best and the nearest).
     """
 
     strategy: str = "gain"
@@ -276,6 +216,8 @@ class ExplorationPlanner(FrontierGoals):
     door_m: float = 0.6
     closet_m2: float = 1.0
     worth_m2_per_m: float = 0.2
+    order: str = "tour"
+    tour_stops: int = 8
     blacklist: list[Blacklisted] = field(default_factory=list)
     visited: list[tuple[float, float]] = field(default_factory=list)
     failures: list[Blacklisted] = field(default_factory=list)
@@ -327,10 +269,11 @@ class ExplorationPlanner(FrontierGoals):
     # -- ranking -----------------------------------------------------------------------------------
 
     def candidates(self, grid: OccupancyGrid, robot_xy: tuple[float, float],
-                   ignore_blacklist: bool = False) -> list[Candidate]:
+                   ignore_blacklist: bool = False, ordered: bool = True) -> list[Candidate]:
         """Reachable, not blacklisted goals, best first (empty: nothing reachable is left to explore).
 
         ``ignore_blacklist``: offer blacklisted places too (what :meth:`left_open` checks).
+        ``ordered``: in :attr:`order` (else by score; a subclass re-scoring them orders them itself).
         """
         if ignore_blacklist:
             kept, self.blacklist = self.blacklist, []
@@ -340,9 +283,27 @@ class ExplorationPlanner(FrontierGoals):
                 self.blacklist = kept
         self.slivers = []
         out = self._ranked(grid, robot_xy)
-        if out or self.strategy == "scan_points":
-            return out
-        return self.small_candidates(grid, robot_xy)
+        if not out and self.strategy != "scan_points":
+            out = self.small_candidates(grid, robot_xy)
+        return self.in_order(grid, robot_xy, out) if ordered else out
+
+    def in_order(self, grid: OccupancyGrid, robot_xy: tuple[float, float],
+                 found: list[Candidate]) -> list[Candidate]:
+        """``found`` (best score first) in :attr:`order`: for ``tour``, the tour's first stop first.
+
+        The tour runs over the ``tour_stops`` best candidates and the three nearest; each one's
+        value is its score without the path's discount (gain, prior, retry discount), so the tour
+        weighs the same things the score does, over the whole trip instead of one step.
+        """
+        if self.order != "tour" or self.strategy != "gain" or len(found) < 2:
+            return found
+        head = found[: self.tour_stops]
+        head += sorted(found[self.tour_stops:], key=lambda c: c.path_m)[:3]
+        values = np.array([max(c.score, 0.0) * math.exp(min(self.cost_rate * c.path_m, 50.0)) for c in head])
+        start = np.array([c.path_m for c in head], float)
+        between = between_lengths(self.window(grid), [(c.x, c.y) for c in head], start)
+        order = [head[i] for i in latency_order(values, start, between)]
+        return order + [c for c in found if all(c is not h for h in head)]
 
     def small_candidates(self, grid: OccupancyGrid, robot_xy: tuple[float, float]) -> list[Candidate]:
         """The candidates the size thresholds left out (``small_*``): the last things to explore.
