@@ -20,7 +20,7 @@ from missiontree.backends.sim.placement import (
     small_kinds,
     unreachable_rooms,
 )
-from missiontree.backends.sim.placer import build
+from missiontree.backends.sim.placer import box, build
 from missiontree.backends.sim.world import World
 from missiontree.paths import REPO_ROOT
 
@@ -188,3 +188,50 @@ def test_a_turned_chair_whose_corner_reaches_into_a_wall_cell_is_not_kept(tmp_pa
     kept = keep_fitting(data, [turned, _chair(7.0, 4.0, "free")])
     assert [o["id"] for o in kept["objects"]] == ["free"]
     build(kept)  # the loader checks every object against the map's walls
+
+
+def test_a_footprint_drawn_in_its_window_covers_the_cells_of_the_whole_map_mask() -> None:
+    """footprint_window's mask, put back in its window, is footprint_mask's (outlines off the edge too)."""
+    from missiontree.backends.sim.placer import footprint_mask, footprint_window
+
+    world = build(TWO_ROOMS)
+    grid, shape = world.grid, world.grid.data.shape
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        x, y = rng.uniform(-1.0, 9.0), rng.uniform(-1.0, 5.0)
+        poly = box(x, y, rng.uniform(-3, 3), rng.uniform(0.05, 3.0), rng.uniform(0.05, 3.0))
+        mask, window = footprint_window(shape, grid, poly)
+        whole = np.zeros(shape, bool)
+        whole[window] = mask
+        assert np.array_equal(whole, footprint_mask(shape, grid, poly)), (x, y)
+
+
+def test_an_outline_traced_in_a_window_is_the_outline_on_the_whole_map() -> None:
+    """A room's outline from its bounding box with the margin is the one traced on a map-sized mask."""
+    from missiontree.backends.sim.placement import _MARGIN, _outline
+
+    grid = build(TWO_ROOMS).grid
+    mask = np.zeros(grid.data.shape, bool)
+    mask[10:50, 12:40] = True
+    mask[30:45, 40:70] = True
+    mask[20, 5] = True
+    rows, cols = np.nonzero(mask)
+    r0, c0 = max(rows.min() - _MARGIN, 0), max(cols.min() - _MARGIN, 0)
+    window = mask[r0 : rows.max() + 1 + _MARGIN, c0 : cols.max() + 1 + _MARGIN]
+    assert _outline(window, grid, (r0, c0)) == _outline(mask, grid)
+
+
+def test_an_obstacle_whose_window_splits_the_reach_is_judged_as_on_the_whole_map(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The grown windows decide chairs in, beside and near the door as the whole map's labelling does."""
+    from missiontree.backends.sim import placer as placer_module
+
+    chairs = [_chair(x, y, f"c{i}") for i, (x, y) in enumerate(
+        [(4.2, 2.0), (3.7, 2.0), (4.5, 1.2), (4.5, 2.8), (3.6, 0.6), (4.4, 3.4), (6.0, 3.0), (2.0, 2.0)])]
+    # by the dividing wall, 1 m from the door: its own window holds both rooms' reach, unjoined
+    chairs.insert(0, _chair(3.65, 1.0, "by_wall"))
+    kept = keep_fitting(TWO_ROOMS, chairs)
+    assert "by_wall" in [o["id"] for o in kept["objects"]]
+    monkeypatch.setattr(placer_module, "_REACH_WINDOWS", (0,))
+    assert keep_fitting(TWO_ROOMS, chairs) == kept

@@ -42,7 +42,7 @@ from missiontree.backends.sim.placer import (
     Placer,
     box,
     build,
-    footprint_mask,
+    footprint_window,
     reachable,
     scene_of,
 )
@@ -311,19 +311,25 @@ def _map_pieces(grid: OccupancyGrid, inside: tuple[float, float]) -> list[tuple[
         piece,
     )
     if key not in _PIECES:
-        from missiontree.semantics.rooms import segment_rooms  # scipy.ndimage: only when a map is segmented
+        from scipy import ndimage  # imported on use, as the segmentation: only when a map is segmented
+
+        from missiontree.semantics.rooms import segment_rooms
 
         seg = segment_rooms(grid, inside=inside)
         res = grid.resolution
-        masks: list[np.ndarray] = []
-        for label in range(1, int(seg.labels.max()) + 1):
-            region = seg.labels == label
+        # each room in its bounding box with a margin (no map-sized mask per room or zone)
+        masks: list[tuple[np.ndarray, tuple[int, int]]] = []
+        for n, bbox in enumerate(ndimage.find_objects(seg.labels), start=1):
+            if bbox is None:
+                continue
+            r0, c0 = max(bbox[0].start - _MARGIN, 0), max(bbox[1].start - _MARGIN, 0)
+            region = seg.labels[r0 : bbox[0].stop + _MARGIN, c0 : bbox[1].stop + _MARGIN] == n
             area = float(region.sum()) * res * res
-            masks += _zones(region, res) if area > 2 * ZONE_AREA else [region]
-        masks.sort(key=lambda m: -int(m.sum()))
+            masks += [(m, (r0, c0)) for m in (_zones(region, res) if area > 2 * ZONE_AREA else [region])]
+        masks.sort(key=lambda m: -int(m[0].sum()))
         found = []
-        for mask in masks:
-            poly = _outline(mask, grid)
+        for mask, corner in masks:
+            poly = _outline(mask, grid, corner)
             if poly is not None:
                 found.append((poly, float(mask.sum()) * res * res))
         if len(_PIECES) > 32:
@@ -334,6 +340,8 @@ def _map_pieces(grid: OccupancyGrid, inside: tuple[float, float]) -> list[tuple[
 
 #: Open floors (a segmented room over twice this, m²) are cut into zones of about this area.
 ZONE_AREA = 60.0
+#: Cells kept round a room's bounding box: its outline's closing (5 x 5) sees what it would on the map.
+_MARGIN = 6
 
 
 def _zones(region: np.ndarray, res: float) -> list[np.ndarray]:
@@ -364,11 +372,16 @@ def _zones(region: np.ndarray, res: float) -> list[np.ndarray]:
     return zones
 
 
-def _outline(mask: np.ndarray, grid: OccupancyGrid) -> list[list[float]] | None:
-    """The outline of a mask's largest piece as a polygon simplified to 10 cm (None if too small)."""
+def _outline(mask: np.ndarray, grid: OccupancyGrid, corner: tuple[int, int] = (0, 0)
+             ) -> list[list[float]] | None:
+    """The outline of a mask's largest piece as a polygon simplified to 10 cm (None if too small).
+
+    ``mask`` covers the grid's cells from ``corner`` (row, column) on.
+    """
     res = grid.resolution
     closed = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
-    contours, _ = cv2.findContours(closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    contours, _ = cv2.findContours(closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE,
+                                   offset=(corner[1], corner[0]))
     if not contours:
         return None
     outline = max(contours, key=cv2.contourArea).reshape(-1, 1, 2).astype(np.float32)
@@ -396,12 +409,14 @@ def unreachable_rooms(world: World) -> list[str]:
     missing: list[str] = []
     shape = world.grid.data.shape
     for room in world.rooms:
-        inside = footprint_mask(shape, world.grid, room.polygon) & reach
+        mask, (rows, cols) = footprint_window(shape, world.grid, room.polygon)  # the room's box only
+        inside = mask & reach[rows, cols]
         if not inside.any():
             missing.append(room.name)
             continue
-        score = np.where(inside, clear, -1.0)
-        row, col = np.unravel_index(int(np.argmax(score)), shape)
+        score = np.where(inside, clear[rows, cols], -1.0)  # the first best cell, as on the whole map
+        row, col = np.unravel_index(int(np.argmax(score)), inside.shape)
+        row, col = row + rows.start, col + cols.start
         gx, gy = world.grid.cell_to_world(int(row), int(col))
         if plan(costmap, costmap.cost, world.start, Pose2D(gx, gy)) is None:
             missing.append(room.name)
@@ -471,7 +486,8 @@ def map_world(
     missing = set(unreachable_rooms(world))
     if missing:  # a piece of floor the segmentation kept but the robot cannot drive to
         data["rooms"] = [r for r in data["rooms"] if r["name"] not in missing]
-        world = build(data)
+        # the walkers read the rooms only, not the floor colours a second build would repaint
+        world = dataclasses.replace(world, rooms=[r for r in world.rooms if r.name not in missing])
     if people:
         data["people"] = walkers(world, rng, people)
     return data

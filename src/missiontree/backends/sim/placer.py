@@ -120,6 +120,23 @@ def footprint_mask(shape: tuple[int, int], grid: OccupancyGrid, poly: np.ndarray
     return mask.astype(bool)
 
 
+def footprint_window(shape: tuple[int, int], grid: OccupancyGrid, poly: np.ndarray
+                     ) -> tuple[np.ndarray, tuple[slice, slice]]:
+    """:func:`footprint_mask` drawn in the outline's bounding box only: (mask, window of the grid).
+
+    The same cells: the outline's fixed-point corners are those of :func:`footprint_mask`, moved by
+    whole cells. The window is empty when the outline misses the grid.
+    """
+    pts = np.round(((poly - [grid.origin.x, grid.origin.y]) / grid.resolution - 0.5) * 16).astype(np.int32)
+    c0, r0 = (max(int(v) // 16 - 1, 0) for v in pts.min(axis=0))
+    c1, r1 = (int(v) // 16 + 2 for v in pts.max(axis=0))
+    c1, r1 = max(min(c1, shape[1]), c0), max(min(r1, shape[0]), r0)
+    mask = np.zeros((r1 - r0, c1 - c0), np.uint8)
+    if mask.size:
+        cv2.fillPoly(mask, [pts - np.array([c0 * 16, r0 * 16], np.int32)], 1, cv2.LINE_8, shift=4)
+    return mask.astype(bool), (slice(r0, r1), slice(c0, c1))
+
+
 def box(x: float, y: float, yaw: float, sx: float, sy: float, grow: float = 0.0) -> np.ndarray:
     """The four corners of a ``sx`` by ``sy`` box at (x, y) turned by ``yaw``, grown by ``grow`` a side."""
     c, s = math.cos(yaw), math.sin(yaw)
@@ -202,6 +219,10 @@ def _near(mask: np.ndarray, metres: float, res: float) -> np.ndarray:
     return clearance_metres(~mask, res) <= metres
 
 
+#: Cells an obstacle's window is grown by, in turn, to show locally that it keeps the robot's reach
+#: before the whole map is labelled (a window spanning a wall between rooms needs the door).
+_REACH_WINDOWS = (0, 60, 200)
+
 #: A window of the grid: (rows, cols) slices.
 Window = tuple[slice, slice]
 
@@ -283,8 +304,9 @@ class Placer:
     def _keeps_reach(self, foot: _Footprint) -> bool:
         """Whether every cell the robot reached, but those beside the footprint, is still reached.
 
-        Sufficient locally: the reached cells of the window around the footprint still form one
-        piece inside it. Otherwise (a window spanning a wall between two rooms) the whole map decides.
+        Sufficient locally: the reached cells of the window around the footprint (or of that window
+        grown by :data:`_REACH_WINDOWS`, in turn) still form one piece inside it. Otherwise the
+        whole map decides.
         """
         lost = foot.lost if foot.lost is not None else np.zeros_like(foot.mask)
         start = self.s.grid.world_to_cell(self.s.world.start.x, self.s.world.start.y)
@@ -292,19 +314,35 @@ class Placer:
         if rs.start <= start[0] < rs.stop and cs.start <= start[1] < cs.stop:
             if lost[start[0] - rs.start, start[1] - cs.start]:
                 return False
-        free = self.s.robot_free[foot.window] & ~lost
-        before = self.s.reach[foot.window] & ~lost
-        if not before.any():
+        if not (self.s.reach[foot.window] & ~lost).any():
             return True
-        _, comp = cv2.connectedComponents(free.astype(np.uint8), connectivity=8)
-        if len(np.unique(comp[before])) == 1:
-            return True
+        for grow in _REACH_WINDOWS:
+            if self._one_piece(foot.window, lost, grow):
+                return True
         robot_free = self.s.robot_free.copy()
         robot_free[foot.window] &= ~lost
         after = reachable(robot_free, start)
         kept = self.s.reach.copy()
         kept[foot.window] &= ~lost
         return not (kept & ~after).any()
+
+    def _one_piece(self, window: Window, lost: np.ndarray, grow: int) -> bool:
+        """Whether the reached cells of ``window`` grown by ``grow`` cells, but ``lost``, are one piece in it.
+
+        Sufficient for the reach to hold: a path to a reached cell outside the window enters and
+        leaves it through reached cells of its edge, which ``lost`` (inside the footprint's own
+        window, by its padding) never touches, and those the piece joins.
+        """
+        (rs, cs), (h, w) = window, self.s.reach.shape
+        r0, r1 = max(rs.start - grow, 0), min(rs.stop + grow, h)
+        c0, c1 = max(cs.start - grow, 0), min(cs.stop + grow, w)
+        big = (slice(r0, r1), slice(c0, c1))
+        keep = np.ones((r1 - r0, c1 - c0), bool)
+        keep[rs.start - r0 : rs.stop - r0, cs.start - c0 : cs.stop - c0] = ~lost
+        free = self.s.robot_free[big] & keep
+        before = self.s.reach[big] & keep
+        _, comp = cv2.connectedComponents(free.astype(np.uint8), connectivity=8)
+        return len(np.unique(comp[before])) == 1
 
     def commit(self, foot: _Footprint) -> None:
         """Mark the footprint taken (and, an obstacle, the places beside it no longer reached)."""

@@ -454,8 +454,9 @@ _ROOM_FLOORS = {
 
 def _check_objects(doc: Located, objects: list[WorldObject], segs: np.ndarray, walls_grid: np.ndarray,
                    grid: OccupancyGrid, problems: list[Problem], object_at: list[int]) -> None:
+    boxes = _segment_boxes(segs) if len(segs) else None  # once for all objects, not once each
     for i, obj in enumerate(objects):
-        hit = _footprint_hits_walls(obj, segs) if len(segs) else False
+        hit = _footprint_hits_walls(obj, segs, boxes) if len(segs) else False
         if not hit and walls_grid.any():
             hit = _footprint_hits_grid(obj, walls_grid, grid) and not len(segs)
         if hit:
@@ -504,22 +505,24 @@ def _crosses_any(a: tuple[float, float], b: tuple[float, float], segs: np.ndarra
     return bool(np.any((d1 * d2 < -1e-12) & (d3 * d4 < -1e-12)))
 
 
-def _footprint_hits_walls(obj: WorldObject, segs: np.ndarray) -> bool:
+def _segment_boxes(segs: np.ndarray) -> np.ndarray:
+    """Each segment's bounding box (n x 4: x min, x max, y min, y max)."""
+    xs, ys = segs[:, 0::2], segs[:, 1::2]
+    return np.stack([xs.min(1), xs.max(1), ys.min(1), ys.max(1)], 1)
+
+
+def _footprint_hits_walls(obj: WorldObject, segs: np.ndarray, boxes: np.ndarray | None = None) -> bool:
     """Whether a wall segment passes through the object's outline shrunk by a contact slack."""
-    if obj.shape == "cylinder":
-        r = obj.size[0] / 2 - _CONTACT_SLACK
-        return bool(np.any(_point_segment_distance(obj.pose.x, obj.pose.y, segs) < r))
-    c, s = math.cos(obj.pose.yaw), math.sin(obj.pose.yaw)
+    b = _segment_boxes(segs) if boxes is None else boxes
+    x, y, c, s = obj.pose.x, obj.pose.y, math.cos(obj.pose.yaw), math.sin(obj.pose.yaw)
     hx, hy = obj.size[0] / 2 - _CONTACT_SLACK, obj.size[1] / 2 - _CONTACT_SLACK
+    reach = hx if obj.shape == "cylinder" else math.hypot(hx, hy)
+    # only segments whose box meets the square round the outline can reach it (few of a real map's)
+    near = (b[:, 0] <= x + reach) & (b[:, 1] >= x - reach) & (b[:, 2] <= y + reach) & (b[:, 3] >= y - reach)
+    if obj.shape == "cylinder":
+        return bool(np.any(_point_segment_distance(x, y, segs[near]) < reach))
     if hx <= 0 or hy <= 0:
         return False
-    # only segments whose bounding box meets the outline's circumscribed square can cross it: on a
-    # real map's thousands of contour segments this keeps a check per object to a handful
-    reach = math.hypot(hx, hy)
-    near = ((np.minimum(segs[:, 0], segs[:, 2]) <= obj.pose.x + reach)
-            & (np.maximum(segs[:, 0], segs[:, 2]) >= obj.pose.x - reach)
-            & (np.minimum(segs[:, 1], segs[:, 3]) <= obj.pose.y + reach)
-            & (np.maximum(segs[:, 1], segs[:, 3]) >= obj.pose.y - reach))
     # segment endpoints in the box frame; Liang-Barsky clip against the box
     for x1, y1, x2, y2 in segs[near].tolist():
         ax, ay = c * (x1 - obj.pose.x) + s * (y1 - obj.pose.y), -s * (x1 - obj.pose.x) + c * (y1 - obj.pose.y)
