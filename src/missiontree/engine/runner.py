@@ -226,7 +226,9 @@ class Runner:
         """Each fleet robot's nodes (by id) to its context, whose events now reach the tick log."""
         contexts: dict[int, MissionContext] = {}
         for subtree, context, robot in self.scopes:
-            context.events = RobotEvents(self.context.events, robot)
+            # through the run's sink as it is when each event comes: a mission-started hook may wrap
+            # it after setup (the ROS 2 backend mirrors each robot's alarms to its namespace)
+            context.events = RobotEvents(_RunEvents(self.context), robot)
             # each robot's files (alarms, frames) in its own folder of the run directory
             context.run_dir = None if self.context.run_dir is None else self.context.run_dir / robot
             context.realtime = self.realtime
@@ -494,3 +496,14 @@ class Runner:
         for signum, handler in getattr(self, "_previous", {}).items():
             signal.signal(signum, handler)
         self._previous = {}
+
+
+class _RunEvents:
+    """An event sink forwarding to ``context.events`` as it is when an event comes, not at setup."""
+
+    def __init__(self, context: MissionContext) -> None:
+        self.context = context
+
+    def emit(self, event: str, /, **fields: Any) -> None:
+        """Forward to the run context's current sink."""
+        self.context.events.emit(event, **fields)

@@ -190,3 +190,37 @@ class RosEvents:
             self.world.detections(self.objects.values())
         elif event == "scene_graph" and isinstance(fields.get("graph"), Mapping):
             self.world.scene_graph(fields["graph"])
+
+
+class FleetRosEvents:
+    """A fleet's event sink: records as before, mirrors each robot's events to that robot's namespace.
+
+    An event with ``robot: robot2`` (every event of a fleet robot's leaves carries it) goes to
+    ``/robot2/missiontree/alarms``, robot2's markers and its scene graph topic; fleet-level events
+    (no robot, or one not in ``worlds``) are only recorded.
+
+    Args:
+        inner: The sink being wrapped (the runner's tick log).
+        worlds: Each robot's publisher, by robot name.
+    """
+
+    def __init__(self, inner: Any, worlds: Mapping[str, WorldPublisher]) -> None:
+        self.inner = inner
+        self.mirrors = {name: RosEvents(_Discard(), world) for name, world in worlds.items()}
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+    def emit(self, event: str, **fields: Any) -> None:
+        """Record the event, then mirror it on its robot's topics."""
+        self.inner.emit(event, **fields)
+        mirror = self.mirrors.get(str(fields.get("robot", "")))
+        if mirror is not None:
+            mirror.emit(event, **fields)
+
+
+class _Discard:
+    """A sink that records nothing (the fleet's tick log already has the event)."""
+
+    def emit(self, event: str, **fields: Any) -> None:
+        """Drop the event."""
