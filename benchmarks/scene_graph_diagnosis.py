@@ -250,10 +250,13 @@ class Diagnosis:
             right = [s for s in mine if s.label == truth_label(t.label) and s.xy is not None]
             dists = sorted(math.hypot(s.xy[0] - t.pose.x, s.xy[1] - t.pose.y) for s in right)  # type: ignore[index]
             views = len({(round(s.camera[0] / 0.5), round(s.camera[1] / 0.5)) for s in right})
+            apart = max(
+                (math.dist(a.camera, b.camera) for a in right for b in right), default=0.0
+            )  # cells on a 0.5 m grid split one place standing on a cell edge: say how far apart too
             ranges = sorted(math.hypot(s.camera[0] - t.pose.x, s.camera[1] - t.pose.y) for s in right)
             spread = (
-                f"proj dist median {dists[len(dists) // 2]:.2f} min {dists[0]:.2f}, {views} viewpoints, "
-                f"range min {ranges[0]:.1f} median {ranges[len(ranges) // 2]:.1f} m; "
+                f"proj dist median {dists[len(dists) // 2]:.2f} min {dists[0]:.2f}, {views} viewpoints "
+                f"({apart:.2f} m apart), range min {ranges[0]:.1f} median {ranges[len(ranges) // 2]:.1f} m; "
                 f"{self._candidates(t, truth_label)}"
                 if dists
                 else "no projection"
