@@ -325,7 +325,8 @@ def _map_pieces(grid: OccupancyGrid, inside: tuple[float, float]) -> list[tuple[
             r0, c0 = max(bbox[0].start - _MARGIN, 0), max(bbox[1].start - _MARGIN, 0)
             region = seg.labels[r0 : bbox[0].stop + _MARGIN, c0 : bbox[1].stop + _MARGIN] == n
             area = float(region.sum()) * res * res
-            masks += [(m, (r0, c0)) for m in (_zones(region, res) if area > 2 * ZONE_AREA else [region])]
+            parts = _zones(region, res) if area > 2 * ZONE_AREA else [(region, (0, 0))]
+            masks += [(m, (r0 + dr, c0 + dc)) for m, (dr, dc) in parts]
         masks.sort(key=lambda m: -int(m[0].sum()))
         found = []
         for mask, corner in masks:
@@ -344,8 +345,12 @@ ZONE_AREA = 60.0
 _MARGIN = 6
 
 
-def _zones(region: np.ndarray, res: float) -> list[np.ndarray]:
-    """``region`` cut into zones of about :data:`ZONE_AREA`: cells to the nearest of seeds on a grid."""
+def _zones(region: np.ndarray, res: float) -> list[tuple[np.ndarray, tuple[int, int]]]:
+    """``region`` cut into zones of about :data:`ZONE_AREA`: cells to the nearest of seeds on a grid.
+
+    Each zone is a mask of its bounding box with :data:`_MARGIN` and that box's corner (row,
+    column) in ``region``.
+    """
     rows, cols = np.nonzero(region)
     r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
     h, w = (r1 - r0) * res, (c1 - c0) * res
@@ -364,11 +369,18 @@ def _zones(region: np.ndarray, res: float) -> list[np.ndarray]:
 
     _, (ir, ic) = ndimage.distance_transform_edt(~seeds, return_indices=True)
     owner = ir * region.shape[1] + ic
+    # zone k + 1 per cell, zones in the order of their seeds' keys; each cut out in its own box
+    keys, index = np.unique(owner[region], return_inverse=True)
+    labels = np.zeros(region.shape, np.int32)
+    labels[region] = index.ravel() + 1
     zones = []
-    for key in np.unique(owner[region]):
-        zone = region & (owner == key)
+    for k, bbox in enumerate(ndimage.find_objects(labels, max_label=len(keys)), start=1):
+        if bbox is None:
+            continue
+        r0, c0 = max(bbox[0].start - _MARGIN, 0), max(bbox[1].start - _MARGIN, 0)
+        zone = labels[r0 : bbox[0].stop + _MARGIN, c0 : bbox[1].stop + _MARGIN] == k
         if float(zone.sum()) * res * res >= 3.0:
-            zones.append(zone)
+            zones.append((zone, (r0, c0)))
     return zones
 
 
