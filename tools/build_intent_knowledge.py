@@ -295,6 +295,10 @@ LABELS: dict[str, tuple[str, dict[str, float]]] = {
     "dog": ("dog.n.1", {"pet": 1.0}),
 }
 
+#: Labels whose objects WordNet files under a second sense too: the bookshelf of a room is WordNet's
+#: bookcase (a piece of furniture with shelves), beside its bookshelf (a shelf on which to keep books).
+MORE_SENSES: dict[str, tuple[str, ...]] = {"bookshelf": ("bookcase.n.1",)}
+
 #: Colour words are attributes, never the name of a class.
 COLOURS = frozenset(COLOUR_NAMES) | frozenset(ALIASES)
 #: Weight of a word by how it was reached from a need's sense.
@@ -543,22 +547,27 @@ def label_words(wn: WordNet) -> tuple[dict[str, str], dict[str, list[str]]]:
     nearest above it ("escritoire", a kind of desk, names the desk although a desk is a kind of
     table). Every hypernym of a label down from :data:`MIN_GENERAL_DEPTH` names all the labels under it
     (seat: chair, sofa, bench, stool; personal computer: laptop), when that is among the two most
-    frequent senses of the word ("set" is a group before it is a television set).
+    frequent senses of the word ("set" is a group before it is a television set). A word naming two
+    classes in senses a rank apart or less names neither (:func:`_frequent_label`).
     """
     names: dict[str, str] = {}
     general: dict[str, set[str]] = {}
+    senses = [(label, sense(wn, spec)) for label, (spec, _) in LABELS.items()]
+    senses += [(label, sense(wn, spec)) for label, specs in MORE_SENSES.items() for spec in specs]
     synsets = {label: sense(wn, spec) for label, (spec, _) in LABELS.items()}
     for label in synsets:
         names.setdefault(label, label)
-    for label, synset in synsets.items():  # a label's own words first, then hyponyms' words
+    for label, synset in senses:  # a label's own words first, then hyponyms' words
         for lemma in synset.lemmas:
             if lemma not in GENERAL:
                 names.setdefault(lemma, label)
     nearest: dict[str, tuple[int, str]] = {}
-    own = {synset.key for synset in synsets.values()}
-    for label, synset in synsets.items():
+    own = {synset.key for _, synset in senses}
+    below: dict[str, set[str]] = {synset.key: {label} for label, synset in senses}   # sense -> labels
+    for label, synset in senses:
         # kinds of people are roles, not what a camera sees ("red" is a kind of radical)
         for hyponym, level in wn.hyponyms(synset, 0 if label == "person" else 2):
+            below.setdefault(hyponym.key, set()).add(label)
             if hyponym.key in own:
                 continue
             for lemma in hyponym.lemmas:
@@ -566,10 +575,19 @@ def label_words(wn: WordNet) -> tuple[dict[str, str], dict[str, list[str]]]:
                     if lemma not in nearest or level < nearest[lemma][0]:
                         nearest[lemma] = (level, label)
     names.update({lemma: label for lemma, (_, label) in nearest.items()})
+    # label -> the labels that are kinds of it (a desk is a kind of table)
+    kinds = {label: {other for other, key in ((o, sy.key) for o, sy in senses) if other != label
+                     and label in below.get(key, set())} for label in synsets}
+    for lemma in [w for w in names if w not in synsets]:
+        named = _frequent_label(wn, lemma, below, kinds)
+        if named is None:
+            del names[lemma]  # "davenport": a sofa, then a desk
+        else:
+            names[lemma] = named  # "couch": a sofa first, a psychiatrist's bed only in its third sense
+    closures_of = [(label, wn.hypernym_closure(synset)) for label, synset in senses]
     memo: dict[str, int] = {}
-    closures = {label: wn.hypernym_closure(synset) for label, synset in synsets.items()}
     accepted: set[tuple[str, str]] = set()   # (word, hypernym) pairs that name what is under them
-    for closure in closures.values():
+    for _, closure in closures_of:
         for level, hypernym in enumerate(closure):
             if _depth(wn, hypernym, memo) < MIN_GENERAL_DEPTH:
                 continue
@@ -580,12 +598,35 @@ def label_words(wn: WordNet) -> tuple[dict[str, str], dict[str, list[str]]]:
                 # frequent sense of the word
                 if level < 2 or _frequent(wn, lemma, hypernym):
                     accepted.add((lemma, hypernym.key))
-    for label, closure in closures.items():
+    for label, closure in closures_of:
         keys = {hypernym.key for hypernym in closure}
         for lemma, key in accepted:
             if key in keys:
                 general.setdefault(lemma, set()).add(label)
     return names, {w: sorted(ls) for w, ls in general.items()}
+
+
+def _frequent_label(wn: WordNet, word: str, below: dict[str, set[str]],
+                    kinds: dict[str, set[str]]) -> str | None:
+    """The label ``word`` names in its most frequent sense that names one; None when two are as frequent.
+
+    A sense names a label when it is the label's own sense or a kind of it (two levels down), the
+    nearest label only (a writing desk is a desk, though a desk is a kind of table). A word naming a
+    class in one sense and another class only in a sense two or more ranks rarer names the first
+    ("couch": a sofa, a psychiatrist's bed third); one whose senses name two classes a rank apart or
+    less ("davenport": a sofa, then a desk; "throne": a chair of state, then a toilet) names neither:
+    it is not guessed at.
+    """
+    ranked: list[tuple[int, str]] = []
+    for rank, synset in enumerate(wn.synsets(word.replace(" ", "_"), "n")):
+        labels = below.get(synset.key, set())
+        ranked += [(rank, label) for label in labels if not any(o in kinds[label] for o in labels)]
+    if not ranked:
+        return None
+    first_rank, first = ranked[0]
+    if any(label != first and rank <= first_rank + 1 for rank, label in ranked):
+        return None
+    return first
 
 
 def irregular_forms(wn: WordNet, words: set[str]) -> dict[str, str]:

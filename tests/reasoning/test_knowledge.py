@@ -187,3 +187,19 @@ def test_two_needs_said_by_two_words_are_both_served(model: OfflineLanguageModel
     """'I'm thirsty and bored' says both: the bottle and the TV are both candidates."""
     objects = [{"id": "bottle_1", "label": "bottle"}, {"id": "tv_1", "label": "tv"}]
     assert set(model.resolve("I'm thirsty and bored", objects).candidates) == {"bottle_1", "tv_1"}
+
+
+def test_a_bookcase_names_the_bookshelf() -> None:
+    """A room's bookshelf is WordNet's bookcase (furniture with shelves): that word names it."""
+    assert knowledge().read("the bookcase").named.get("bookshelf", (0.0, ""))[0] >= 0.9
+
+
+@pytest.mark.parametrize("word", ["settee", "davenport", "daybed", "throne"])
+def test_a_word_whose_near_senses_name_two_classes_names_neither(word: str) -> None:
+    """'Davenport' is a sofa, then a desk; 'throne' a chair of state, then a toilet: neither is guessed."""
+    assert knowledge().read(f"the {word}").named == {}
+
+
+def test_a_word_naming_another_class_only_in_a_rare_sense_names_its_first() -> None:
+    """'Couch' is a sofa first (a psychiatrist's bed only third): it names the sofa."""
+    assert set(knowledge().read("the couch").named) == {"sofa"}

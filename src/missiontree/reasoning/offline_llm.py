@@ -11,7 +11,10 @@ network and no GPU:
   request none of whose words the knowledge knows is matched to a need's
   description by MiniLM embedding, and only a clear match counts (``NEED_MATCH``), at a weaker
   strength. A request that expresses no need and names no known object ("bring me a unicorn") is
-  served by nothing; so is one whose need only a class the scene lacks serves ("take a shower").
+  served by nothing; so is one whose need only a class the scene lacks serves ("take a shower"). A
+  class serving a weaker second need is not offered beside the stated one, and a word saying two
+  needs equally ("a documentary": to watch or to print) keeps only the classes serving both, or
+  chooses nothing: an ambiguous request is not guessed at.
 - A **reference** ("the grey backpack in front of the sofa") is parsed into label + attributes +
   spatial relation (:mod:`missiontree.reasoning.phrases`) and the objects are filtered by label,
   by colour/size attribute and by the relation to an anchor object or room.
