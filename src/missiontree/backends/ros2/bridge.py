@@ -48,7 +48,7 @@ from tf2_msgs.msg import TFMessage
 from missiontree.backends.ros2 import conversions as conv
 from missiontree.backends.ros2.pacing import next_stride
 from missiontree.backends.ros2.profile import Ros2Profile
-from missiontree.backends.ros2.robot import latched_qos, reliable_qos
+from missiontree.backends.ros2.qos import latched_qos, reliable_qos
 from missiontree.backends.ros2.spin import spin_until, stop_spinning
 from missiontree.robot.actions import ActionStatus
 from missiontree.types import Pose2D

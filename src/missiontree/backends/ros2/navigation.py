@@ -139,6 +139,35 @@ class NavGoal:
         return time.monotonic() - self._started > self.server_timeout
 
 
+class ServerWatch:
+    """When a robot last saw its NavigateToPose server: across goals, not one goal's own view.
+
+    A goal sent long after the server vanished must not wait ``server_timeout`` again from its own
+    start (a tree that keeps replacing its goals, such as a servo preempting a patrol, would never
+    see the loss): it aborts at once when the server, once seen, has been gone that long. A server
+    never seen keeps the old rule (each goal waits ``server_timeout``: the robot may be starting).
+
+    Args:
+        client: The action client (``server_is_ready()``).
+    """
+
+    def __init__(self, client: Any) -> None:
+        self._client = client
+        #: Monotonic time the server was last seen ready; None until it first was.
+        self.last_seen: float | None = None
+
+    def ready(self) -> bool:
+        """Whether the server is there now (remembering when it was)."""
+        if self._client.server_is_ready():
+            self.last_seen = time.monotonic()
+            return True
+        return False
+
+    def gone_for(self) -> float:
+        """Seconds since the server was last seen (0 while it never was)."""
+        return 0.0 if self.last_seen is None else time.monotonic() - self.last_seen
+
+
 class ActionGoal(NavGoal):
     """A goal sent through the NavigateToPose action client.
 
@@ -149,13 +178,16 @@ class ActionGoal(NavGoal):
         server_timeout: Seconds to wait for the server.
         pose_now: Latest robot pose.
         action_name: Shown in reasons.
+        watch: The robot's :class:`ServerWatch` (default: one of the goal's own).
     """
 
     def __init__(self, client: Any, goal_msg: Any, goal: Pose2D, server_timeout: float,
                  pose_now: Callable[[], Pose2D | None], action_name: str,
-                 in_executor: Callable[[Callable[[], None]], Any] | None = None) -> None:
+                 in_executor: Callable[[Callable[[], None]], Any] | None = None,
+                 watch: ServerWatch | None = None) -> None:
         super().__init__(goal, server_timeout, pose_now, in_executor)
         self._client = client
+        self._watch = watch or ServerWatch(client)
         self._goal_msg = goal_msg
         self._action_name = action_name
         self._sent = False
@@ -167,7 +199,7 @@ class ActionGoal(NavGoal):
         with self._lock:
             if self._status.done:
                 return
-            ready = self._client.server_is_ready()
+            ready = self._watch.ready()
             now = time.monotonic()
             if ready:
                 self._last_seen_server = now
@@ -175,6 +207,11 @@ class ActionGoal(NavGoal):
                 if ready:
                     self._sent = True
                     self._in_executor(self._send)
+                elif self._watch.gone_for() > self.server_timeout:
+                    self._finish(ActionStatus.ABORTED,
+                                 f"the NavigateToPose server on {self._action_name} went away "
+                                 f"{self._watch.gone_for():.0f} s ago (more than {self.server_timeout:g} s)",
+                                 kind=INFRASTRUCTURE)
                 elif self._timed_out():
                     self._finish(ActionStatus.ABORTED,
                                  f"no NavigateToPose action server on {self._action_name} after "

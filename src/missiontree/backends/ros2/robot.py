@@ -33,16 +33,16 @@ from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import CameraInfo, Image
 from sensor_msgs.msg import LaserScan as LaserScanMsg
 
 from missiontree.backends.ros2 import conversions as conv
 from missiontree.backends.ros2.commands import TopicCommands
-from missiontree.backends.ros2.navigation import ActionGoal, NavGoal, TopicGoal
+from missiontree.backends.ros2.navigation import ActionGoal, NavGoal, ServerWatch, TopicGoal
 from missiontree.backends.ros2.profile import Ros2Profile
 from missiontree.backends.ros2.publish import WorldPublisher
+from missiontree.backends.ros2.qos import latched_qos, qos_named, reliable_qos, sensor_qos
 from missiontree.backends.ros2.spin import spin_until, stop_spinning
 from missiontree.backends.ros2.tf_buffer import TransformBuffer, compose, history_at, invert
 from missiontree.robot.actions import ActionHandle
@@ -68,31 +68,8 @@ SIM_CLOCK_POLL = 0.002
 SCAN_MATCH_GAP = 0.5
 
 
-def sensor_qos(depth: int) -> QoSProfile:
-    """Best effort, volatile: matches both best-effort and reliable sensor publishers."""
-    return QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE,
-                      history=HistoryPolicy.KEEP_LAST, depth=depth)
-
-
-def latched_qos(depth: int = 1) -> QoSProfile:
-    """Reliable, transient local: /map, /tf_static, /amcl_pose and action status topics."""
-    return QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-                      history=HistoryPolicy.KEEP_LAST, depth=depth)
-
-
-def reliable_qos(depth: int = 10) -> QoSProfile:
-    """Reliable, volatile: commands and /tf."""
-    return QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
-                      history=HistoryPolicy.KEEP_LAST, depth=depth)
-
-
-def qos_named(name: str, profile: Ros2Profile) -> QoSProfile:
-    """The QoS of a plugin sensor's :class:`~missiontree.robot.sensors.Ros2Source` (``sensor``...)."""
-    if name == "latched":
-        return latched_qos()
-    if name == "reliable":
-        return reliable_qos()
-    return sensor_qos(profile.sensor_qos_depth)
+#: The QoS helpers live in .qos; imported here as before.
+__all__ = ["Ros2Robot", "latched_qos", "qos_named", "reliable_qos", "sensor_qos"]
 
 
 class Ros2Robot:
@@ -187,6 +164,7 @@ class Ros2Robot:
         self._cmd_vel = node.create_publisher(TwistStamped if p.cmd_vel_stamped else Twist, t.cmd_vel,
                                               reliable_qos())
         self.nav_interface = p.navigation.interface
+        self._server_watch: ServerWatch | None = None
         if self.nav_interface == "auto":
             self.nav_interface = "action" if NavigateToPose is not None else "topic"
         if self.nav_interface == "action":
@@ -200,6 +178,7 @@ class Ros2Robot:
             from rclpy.action import ActionClient
 
             self._nav_client = ActionClient(node, NavigateToPose, p.navigation.action)
+            self._server_watch = ServerWatch(self._nav_client)
         else:
             self._goal_pub = node.create_publisher(PoseStampedMsg, t.goal_pose, reliable_qos())
             self._cancel_client = node.create_client(CancelGoal, p.nav_cancel_service)
@@ -300,6 +279,8 @@ class Ros2Robot:
             command = self._drive_command
             if command is not None:  # bases stop when commands stop coming (Create 3's cmd_vel timeout)
                 self._publish_velocity(*command)
+        if self._server_watch is not None:
+            self._server_watch.ready()  # the server's presence followed between goals too
         goal = self._goal
         if goal is not None:
             goal.advance()
@@ -462,7 +443,7 @@ class Ros2Robot:
             msg.pose = conv.pose_stamped_to_msg(goal, stamp, self.profile.frames.map)
             msg.behavior_tree = nav.behavior_tree
             handle: NavGoal = ActionGoal(self._nav_client, msg, goal, nav.server_timeout, pose_now,
-                                         nav.action, in_executor=self._in_executor)
+                                         nav.action, in_executor=self._in_executor, watch=self._server_watch)
         else:
             goal_msg = conv.pose_stamped_to_msg(goal, stamp, self.profile.frames.map)
             handle = TopicGoal(lambda: self._goal_pub.publish(goal_msg),
