@@ -189,3 +189,25 @@ def test_a_place_looked_from_may_give_way_to_one_nearby_but_a_pose_not_reached_m
     grid: Any = object()
     assert approach_steps.standoff_goal(obj, grid, goal, 0.17, None, [], (goal,)) == (nearer, "")
     assert approach_steps.standoff_goal(obj, grid, goal, 0.17, None, [goal])[0] is None
+
+
+def test_a_candidate_looked_at_with_no_other_place_to_look_from_is_wrong_not_unreached(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Looked at without confirming it and no second place: rejected as wrong (doubted), saying why."""
+    from missiontree.behaviours import approach_steps
+
+    marked: list[tuple[str, str]] = []
+    monkeypatch.setattr(approach_steps, "mark_rejected",
+                        lambda leaf, cand, reason, kind="wrong": marked.append((kind, reason)))
+    leaf = approach_steps.PlanStandoff("plan_standoff", approach_steps.PlanStandoff.Params())
+    tries = [{"x": 1.0, "y": 1.0, "yaw": 0.0, "reached": True, "why": ""},
+             {"x": 1.0, "y": 1.0, "yaw": 0.0, "reached": False, "why": "the detector sees no chair",
+              "looked": True}]
+    leaf.cand = {"id": "chair_3", "label": "chair", "x": 2.0, "y": 2.0}
+    leaf.read = lambda port, default=None: tries if port == "tries" else default  # type: ignore[method-assign]
+    leaf.write = lambda port, value: None  # type: ignore[method-assign]
+    job = Background(lambda: (None, "no standoff pose"), wait=True)  # the search found no place
+    leaf.job = job
+    assert leaf.update().name == "FAILURE"
+    assert marked == [("wrong", "the detector sees no chair; no other place to look at it from")]

@@ -29,7 +29,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, Field
 
 from missiontree.behaviours.background import Background, waits
-from missiontree.behaviours.search_common import mark_rejected
+from missiontree.behaviours.search_common import RejectKind, mark_rejected
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Input, Output
 from missiontree.reasoning.intent import GraphObject, SceneObjects, other_viewpoint, plan_candidates
@@ -135,10 +135,10 @@ class ApproachStep(Leaf):
         tries = self.tries()
         return str(tries[-1].get("stop", "")) if tries else ""
 
-    def give_up(self, reason: str) -> Status:
-        """End the approach: the candidate marked unreached, the remaining attempts failing at once."""
+    def give_up(self, reason: str, kind: RejectKind = "unreached") -> Status:
+        """End the approach: the candidate marked ``kind``, the remaining attempts failing at once."""
         if self.cand is not None:
-            mark_rejected(self, self.cand, reason, kind="unreached")
+            mark_rejected(self, self.cand, reason, kind=kind)
         why = f"{self.cand['id'] if self.cand else 'candidate'}: {reason}"
         self.write("tries", [*self.tries(), {"stop": why}])
         return self.fail(why)
@@ -206,6 +206,9 @@ class PlanStandoff(ApproachStep):
             return self.give_up(f"finding a standoff pose failed: {error}")
         goal, why = result
         tries = self.tries()
+        looked = [t for t in tries if t.get("looked")]
+        if goal is None and looked:  # looked at and not confirmed, and no other place to look from
+            return self.give_up(f"{looked[0]['why']}; no other place to look at it from", kind="wrong")
         if goal is None:
             last = next((t["why"] for t in reversed(tries) if t.get("why")), "")
             return self.give_up(f"cannot be approached: {why}" + (f" ({last})" if last else ""))
