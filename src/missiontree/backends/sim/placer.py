@@ -175,12 +175,14 @@ def scene_of(world: World) -> Scene:
     shape = grid.data.shape
     walls = (grid.data >= BLOCKED_FROM) | (grid.data < 0)
     blocked = walls.copy()
-    for obj in world.objects:
-        blocked |= footprint_mask(shape, grid, obj.footprint())
+    for obj in world.objects:  # each outline drawn in its own box (a real map holds hundreds)
+        mask, window = footprint_window(shape, grid, obj.footprint())
+        blocked[window] |= mask
     wall_dist = clearance_metres(~walls, grid.resolution)
     rooms = np.zeros(shape, np.int32)
     for i in range(len(world.rooms) - 1, -1, -1):  # the first room wins, as World.room_at
-        rooms[footprint_mask(shape, grid, world.rooms[i].polygon)] = i + 1
+        mask, window = footprint_window(shape, grid, world.rooms[i].polygon)
+        rooms[window][mask] = i + 1
     rooms[walls] = 0
     robot_free = _robot_free(blocked, grid.resolution)
     reach = reachable(robot_free, grid.world_to_cell(world.start.x, world.start.y))
