@@ -103,3 +103,10 @@ def test_without_a_namespace_the_names_stay_absolute() -> None:
     """An empty namespace leaves the TurtleBot 4's absolute names as they are."""
     p = load_profile("turtlebot4", {"namespace": " "})
     assert (p.namespace, p.topics.scan, p.navigation.action) == ("", "/scan", "/navigate_to_pose")
+
+
+def test_a_plugin_topic_follows_the_namespace_rule() -> None:
+    """A plugin's /battery_state resolves under a namespace (/robot1/battery_state), as is without one."""
+    namespaced = load_profile("turtlebot4", {"namespace": "/robot1"})
+    assert namespaced.in_namespace("/battery_state") == "battery_state"
+    assert load_profile("turtlebot4").in_namespace("/battery_state") == "/battery_state"

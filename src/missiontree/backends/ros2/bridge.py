@@ -178,7 +178,8 @@ class SimBridge:
             if kind.ros2 is None or kind.ros2.to_msg is None or kind.sim is None:
                 continue
             qos = latched_qos() if kind.ros2.qos == "latched" else reliable_qos(10)
-            self._sensor_pubs[name] = (node.create_publisher(kind.ros2.message_type(), kind.ros2.topic, qos),
+            topic = self.profile.in_namespace(kind.ros2.topic)
+            self._sensor_pubs[name] = (node.create_publisher(kind.ros2.message_type(), topic, qos),
                                        kind.ros2.to_msg)
 
     def _spin(self) -> None:

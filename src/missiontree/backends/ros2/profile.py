@@ -146,6 +146,14 @@ class Ros2Profile(_Section):
                 update={"action": self.navigation.action.lstrip("/")})
         return self
 
+    def in_namespace(self, topic: str) -> str:
+        """A topic name as this robot uses it: inside its namespace when it has one (``/x`` → ``x``).
+
+        For names that do not come from the profile (a plugin sensor's topic, such as
+        ``/battery_state``), so that they follow the same rule as the profile's own.
+        """
+        return topic.lstrip("/") if self.namespace else topic
+
     @property
     def nav_status_topic(self) -> str:
         """The NavigateToPose action's status topic."""

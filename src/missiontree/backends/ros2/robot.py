@@ -155,7 +155,7 @@ class Ros2Robot:
         for kind in self._sensors.kinds.values():
             if kind.ros2 is not None:
                 # mypy cannot infer a lambda with a default argument (binding this loop's kind)
-                node.create_subscription(kind.ros2.message_type(), kind.ros2.topic,
+                node.create_subscription(kind.ros2.message_type(), p.in_namespace(kind.ros2.topic),
                                          lambda m, k=kind: self._on_sensor(k, m),  # type: ignore[misc]
                                          qos_named(kind.ros2.qos, p))
 
