@@ -208,7 +208,7 @@ def test_a_footprint_drawn_in_its_window_covers_the_cells_of_the_whole_map_mask(
 
 def test_an_outline_traced_in_a_window_is_the_outline_on_the_whole_map() -> None:
     """A room's outline from its bounding box with the margin is the one traced on a map-sized mask."""
-    from missiontree.backends.sim.placement import _MARGIN, _outline
+    from missiontree.backends.sim.map_rooms import _MARGIN, _outline
 
     grid = build(TWO_ROOMS).grid
     mask = np.zeros(grid.data.shape, bool)
@@ -235,3 +235,18 @@ def test_an_obstacle_whose_window_splits_the_reach_is_judged_as_on_the_whole_map
     assert "by_wall" in [o["id"] for o in kept["objects"]]
     monkeypatch.setattr(placer_module, "_REACH_WINDOWS", (0,))
     assert keep_fitting(TWO_ROOMS, chairs) == kept
+
+
+def test_a_map_world_is_built_once_and_handed_out_as_copies() -> None:
+    """The same map and arguments give the document again without a build; a caller's edits stay its own."""
+    from missiontree.backends.sim import placement as placement_module
+
+    first = map_world(MAZE, 11)
+    first["objects"].clear()
+    built = placement_module._map_world
+    try:
+        placement_module._map_world = None  # type: ignore[assignment]  # a second build would fail
+        second = map_world(MAZE, 11)
+    finally:
+        placement_module._map_world = built
+    assert second["objects"] and second == map_world(MAZE, 11)

@@ -33,6 +33,8 @@ import numpy as np
 import yaml
 
 from missiontree.backends.sim.generator import FURNITURE, SMALL
+from missiontree.backends.sim.map_rooms import SEGMENTED_TYPES as SEGMENTED_TYPES
+from missiontree.backends.sim.map_rooms import rooms_from_map
 from missiontree.backends.sim.mapimage import read_map_image
 from missiontree.backends.sim.navigation import INSCRIBED, Costmap, plan
 from missiontree.backends.sim.navmap import map_cells
@@ -50,13 +52,9 @@ from missiontree.backends.sim.schema import NavMapYaml
 from missiontree.backends.sim.world import Room, World, load_robot_profile, register_world_source
 from missiontree.errors import Problem, WorldFileError
 from missiontree.mapping.clearance import clearance_metres
-from missiontree.mapping.occupancy import BLOCKED_FROM
 from missiontree.paths import config_dirs
-from missiontree.types import OccupancyGrid, Pose2D
+from missiontree.types import Pose2D
 from missiontree.yamlio import Located, load_yaml, parse_yaml
-
-#: Room types handed to rooms that have none (rooms found on a real map), after the largest.
-SEGMENTED_TYPES = ["kitchen", "office", "bedroom", "bathroom", "storage", "living room", "hall"]
 
 #: Furniture for room types the apartment generator does not furnish (same classes as its).
 EXTRA_FURNITURE: dict[str, list[tuple[str, str, tuple[float, float, float]]]] = {
@@ -264,148 +262,6 @@ def _decoys(
     return found
 
 
-def rooms_from_map(world: World, rng: np.random.Generator) -> list[dict[str, Any]]:
-    """Rooms for a world without any: its free space segmented at doors, each given a type.
-
-    A segmented room larger than :data:`ZONE_AREA` twice over (an open hall or warehouse floor
-    with no doors to split it) is cut into zones of about that size, as a person would name the
-    parts of an open floor. The largest room is a hall; the others take :data:`SEGMENTED_TYPES`
-    in a seeded order (rooms under 6 m² a bathroom or storage). Polygons are simplified to 10 cm.
-    """
-    order = [SEGMENTED_TYPES[int(k)] for k in rng.permutation(len(SEGMENTED_TYPES))]
-    rooms: list[dict[str, Any]] = []
-    counts: dict[str, int] = {}
-    for n, (poly, area) in enumerate(_map_pieces(world.grid, (world.start.x, world.start.y))):
-        if n == 0:
-            kind = "hall"
-        elif area < 6.0:
-            kind = "bathroom" if n % 2 else "storage"
-        else:
-            kind = order[(n - 1) % len(order)]
-            if kind == "bathroom" and area > 25.0:  # no bathroom of an open floor's size
-                kind = "storage"
-        counts[kind] = counts.get(kind, 0) + 1
-        rooms.append({"name": f"{kind} {counts[kind]}", "type": kind, "polygon": poly})
-    return rooms
-
-
-_PIECES: dict[tuple[Any, ...], list[tuple[list[list[float]], float]]] = {}
-
-
-def _map_pieces(grid: OccupancyGrid, inside: tuple[float, float]) -> list[tuple[list[list[float]], float]]:
-    """The rooms and zones of a map (outline, area), largest first; kept per map and piece of floor.
-
-    Segmenting a large map takes seconds and gives the same rooms for every start in one piece of
-    floor, so the result is kept for the process (keyed by the grid's content and that piece).
-    """
-    data = np.ascontiguousarray(grid.data)
-    _, comp = cv2.connectedComponents(((data >= 0) & (data < BLOCKED_FROM)).astype(np.uint8), connectivity=4)
-    row, col = grid.world_to_cell(*inside)
-    piece = int(comp[row, col]) if 0 <= row < data.shape[0] and 0 <= col < data.shape[1] else -1
-    key = (
-        data.shape,
-        grid.resolution,
-        grid.origin.x,
-        grid.origin.y,
-        hashlib.sha1(data.tobytes()).hexdigest(),
-        piece,
-    )
-    if key not in _PIECES:
-        from scipy import ndimage  # imported on use, as the segmentation: only when a map is segmented
-
-        from missiontree.semantics.rooms import segment_rooms
-
-        seg = segment_rooms(grid, inside=inside)
-        res = grid.resolution
-        # each room in its bounding box with a margin (no map-sized mask per room or zone)
-        masks: list[tuple[np.ndarray, tuple[int, int]]] = []
-        for n, bbox in enumerate(ndimage.find_objects(seg.labels), start=1):
-            if bbox is None:
-                continue
-            r0, c0 = max(bbox[0].start - _MARGIN, 0), max(bbox[1].start - _MARGIN, 0)
-            region = seg.labels[r0 : bbox[0].stop + _MARGIN, c0 : bbox[1].stop + _MARGIN] == n
-            area = float(region.sum()) * res * res
-            parts = _zones(region, res) if area > 2 * ZONE_AREA else [(region, (0, 0))]
-            masks += [(m, (r0 + dr, c0 + dc)) for m, (dr, dc) in parts]
-        masks.sort(key=lambda m: -int(m[0].sum()))
-        found = []
-        for mask, corner in masks:
-            poly = _outline(mask, grid, corner)
-            if poly is not None:
-                found.append((poly, float(mask.sum()) * res * res))
-        if len(_PIECES) > 32:
-            _PIECES.clear()
-        _PIECES[key] = found
-    return copy.deepcopy(_PIECES[key])
-
-
-#: Open floors (a segmented room over twice this, m²) are cut into zones of about this area.
-ZONE_AREA = 60.0
-#: Cells kept round a room's bounding box: its outline's closing (5 x 5) sees what it would on the map.
-_MARGIN = 6
-
-
-def _zones(region: np.ndarray, res: float) -> list[tuple[np.ndarray, tuple[int, int]]]:
-    """``region`` cut into zones of about :data:`ZONE_AREA`: cells to the nearest of seeds on a grid.
-
-    Each zone is a mask of its bounding box with :data:`_MARGIN` and that box's corner (row,
-    column) in ``region``.
-    """
-    rows, cols = np.nonzero(region)
-    r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
-    h, w = (r1 - r0) * res, (c1 - c0) * res
-    area = float(region.sum()) * res * res
-    count = max(2, int(round(area / ZONE_AREA)))
-    # a grid of ny x nx seeds with about square zones
-    nx = max(1, int(round(math.sqrt(count * w / max(h, 1e-6)))))
-    ny = max(1, int(math.ceil(count / nx)))
-    seeds = np.zeros(region.shape, bool)
-    for i in range(ny):
-        for j in range(nx):
-            sr = int(r0 + (i + 0.5) * (r1 - r0) / ny)
-            sc = int(c0 + (j + 0.5) * (c1 - c0) / nx)
-            seeds[sr, sc] = True
-    from scipy import ndimage  # imported on use: a mission on a shipped world never needs it
-
-    _, (ir, ic) = ndimage.distance_transform_edt(~seeds, return_indices=True)
-    owner = ir * region.shape[1] + ic
-    # zone k + 1 per cell, zones in the order of their seeds' keys; each cut out in its own box
-    keys, index = np.unique(owner[region], return_inverse=True)
-    labels = np.zeros(region.shape, np.int32)
-    labels[region] = index.ravel() + 1
-    zones = []
-    for k, bbox in enumerate(ndimage.find_objects(labels, max_label=len(keys)), start=1):
-        if bbox is None:
-            continue
-        r0, c0 = max(bbox[0].start - _MARGIN, 0), max(bbox[1].start - _MARGIN, 0)
-        zone = labels[r0 : bbox[0].stop + _MARGIN, c0 : bbox[1].stop + _MARGIN] == k
-        if float(zone.sum()) * res * res >= 3.0:
-            zones.append((zone, (r0, c0)))
-    return zones
-
-
-def _outline(mask: np.ndarray, grid: OccupancyGrid, corner: tuple[int, int] = (0, 0)
-             ) -> list[list[float]] | None:
-    """The outline of a mask's largest piece as a polygon simplified to 10 cm (None if too small).
-
-    ``mask`` covers the grid's cells from ``corner`` (row, column) on.
-    """
-    res = grid.resolution
-    closed = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
-    contours, _ = cv2.findContours(closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE,
-                                   offset=(corner[1], corner[0]))
-    if not contours:
-        return None
-    outline = max(contours, key=cv2.contourArea).reshape(-1, 1, 2).astype(np.float32)
-    pts = cv2.approxPolyDP(outline, 0.1 / res, True).reshape(-1, 2)
-    if len(pts) < 3:
-        return None
-    return [
-        [round(float(grid.origin.x + (x + 0.5) * res), 3), round(float(grid.origin.y + (y + 0.5) * res), 3)]
-        for x, y in pts
-    ]
-
-
 def unreachable_rooms(world: World) -> list[str]:
     """Names of the rooms the robot cannot reach from its start, judged by the planner's costmap.
 
@@ -464,15 +320,35 @@ def map_start(map_yaml: Path, rng: np.random.Generator, clearance: float = 0.5) 
     return float(ox + (cols[k] + 0.5) * res), float(oy + (rows[k] + 0.5) * res), area
 
 
+_WORLDS: dict[tuple[Any, ...], dict[str, Any]] = {}
+
+
 def map_world(
     map_yaml: Path, seed: int, *, name: str | None = None, small: int = 0, people: int = 0
 ) -> dict[str, Any]:
     """A world on a Nav2 map (absolute path kept): seeded start, rooms found and typed, objects placed.
 
+    Kept for the process, keyed by the map files' bytes and the arguments: a run's preflight check
+    and its robot load the same world (about 20 s of CPU each on MRPT's whole Malaga campus).
+
     Raises:
         WorldFileError: The map cannot be read as a world.
     """
     map_yaml = Path(map_yaml).resolve()
+    meta = NavMapYaml.model_validate(load_yaml(map_yaml, error=WorldFileError).data)
+    try:
+        digest = hashlib.sha1(map_yaml.read_bytes() + (map_yaml.parent / meta.image).resolve().read_bytes())
+    except OSError:  # the build says what is wrong with the map
+        return _map_world(map_yaml, seed, name, small, people)
+    key = (str(map_yaml), digest.hexdigest(), seed, name, small, people)
+    if key not in _WORLDS:
+        if len(_WORLDS) > 8:
+            _WORLDS.clear()
+        _WORLDS[key] = _map_world(map_yaml, seed, name, small, people)
+    return copy.deepcopy(_WORLDS[key])
+
+
+def _map_world(map_yaml: Path, seed: int, name: str | None, small: int, people: int) -> dict[str, Any]:
     rng = np.random.default_rng(seed)
     x, y, area = map_start(map_yaml, rng)
     label = name or f"{map_yaml.stem}_{seed}"
