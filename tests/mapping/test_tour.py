@@ -57,3 +57,20 @@ def test_the_planner_offers_the_tour_s_first_stop_first() -> None:
     ordered = p.in_order(g, robot, [lone, a, b])
     assert ordered[0] is a and ordered[-1] is lone
     assert ExplorationPlanner(strategy="gain", order="score").in_order(g, robot, [lone, a, b])[0] is lone
+
+
+def test_a_stop_costs_time_so_a_small_place_beside_the_robot_waits() -> None:
+    """With tour_stop_m 3 the large goal goes first; free stops took the 2 m^2 place 0.2 m off first."""
+    g = OccupancyGrid(0.0, 0.1, Pose2D(0.0, 0.0), np.zeros((100, 100), np.int8))
+    robot = (5.0, 5.0)
+
+    def goal(p: ExplorationPlanner, x: float, gain: float) -> Candidate:
+        path = abs(x - robot[0])
+        score = gain * float(np.exp(-p.cost_rate * path))
+        return Candidate(x, 5.0, "frontier", 10, gain, path, score, (x, 5.0))
+
+    free = ExplorationPlanner(strategy="gain", order="tour", tour_stop_m=0.0)
+    costly = ExplorationPlanner(strategy="gain", order="tour", tour_stop_m=3.0)
+    near, far = goal(free, 4.8, 2.0), goal(free, 9.0, 10.0)
+    assert free.in_order(g, robot, [far, near])[0] is near
+    assert costly.in_order(g, robot, [far, near])[0] is far

@@ -4,7 +4,7 @@ The leaf reads only the robot: its map (``occupancy()``, the lidar's learned map
 SLAM on ROS 2), its pose, and ``navigate_to`` handles. Where to go next is decided by
 :class:`missiontree.mapping.exploration.ExplorationPlanner`: ``gain`` (unknown area a frontier
 reveals against the path; with ``order: tour`` the first stop of the tour revealing the most
-soonest), ``nearest`` (as explore_lite), ``scan_points`` (the search report's, largest first).
+soonest, an option), ``nearest`` (as explore_lite), ``scan_points`` (the search report's, largest first).
 
 While driving it re-plans every ``replan_period`` seconds: a goal whose frontier has been seen
 meanwhile is dropped for the next one (the lidar reaches far ahead of the robot), and the
@@ -92,8 +92,8 @@ class Explore(Leaf):
         strategy: Literal["gain", "nearest", "scan_points"] = Field(
             "gain", description="gain: unknown area revealed against path cost; nearest: nearest frontier "
             "(explore_lite); scan_points: the report's scan points, largest region first.")
-        order: Literal["tour", "score"] = Field("tour", description="strategy gain: go first to the first "
-            "stop of the tour revealing the most soonest (tour) or to the best gain against path (score).")
+        order: Literal["score", "tour"] = Field("score", description="strategy gain: go first to the best "
+            "gain against path (score) or to the first stop of the tour revealing the most soonest (tour).")
         look_around: bool = Field(False, description="Turn a full circle at each goal reached.")
         look_steps: int = Field(4, ge=1, le=36, description="Steps of the full turn (pause after each).")
         look_pause: float = Field(0.5, ge=0, description="Pause after each step of the turn (s).")

@@ -299,16 +299,17 @@ def _place_goals(
     return goals, placed, unplaced
 
 
-def tour_view_goals(grid: OccupancyGrid, goals: list[ViewGoal]) -> list[ViewGoal]:
+def tour_view_goals(grid: OccupancyGrid, goals: list[ViewGoal], stop_m: float = 3.0) -> list[ViewGoal]:
     """``goals`` in the order of the tour that brings the most unseen floor into view soonest.
 
     One step ahead (unseen floor per metre) the robot swept a room's far side and came back for
-    the near corner; the tour (:mod:`missiontree.mapping.tour`) weighs the whole sweep.
+    the near corner; the tour (:mod:`missiontree.mapping.tour`) weighs the whole sweep, each stop
+    (and its look) costing ``stop_m`` beside its path.
     """
     if len(goals) < 2:
         return goals
     start = np.array([g.path_m for g in goals], float)
-    between = between_lengths(grid, [(g.x, g.y) for g in goals], start)
+    between = between_lengths(grid, [(g.x, g.y) for g in goals], start) + stop_m
     order = latency_order(np.array([g.area_m2 for g in goals], float), start, between)
     return [goals[i] for i in order]
 

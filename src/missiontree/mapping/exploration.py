@@ -179,10 +179,13 @@ class ExplorationPlanner(FrontierGoals):
             worth a trip only when they reveal this much (m^2) per metre of path; the rest are
             left as *slivers* (:attr:`slivers`), counted and named when the exploration ends.
         slivers: The frontiers the last ranking left as not worth a trip (:meth:`candidates`).
-        order: For ``gain``, the order the candidates are offered in: ``tour`` (the first stop of
-            the tour reaching the most value soonest, :mod:`missiontree.mapping.tour`) or ``score``
-            (the best gain against path, one step ahead).
+        order: For ``gain``, the order the candidates are offered in: ``score`` (the best gain
+            against path, one step ahead) or ``tour`` (the first stop of the tour reaching the most
+            value soonest, :mod:`missiontree.mapping.tour`; slower on large dev apartments, so not
+            the default: see docs/search.md).
         tour_stops: The tour is planned over this many candidates (the best and the nearest).
+        tour_stop_m: What each stop costs the tour beside its path (m): stopping, re-planning and
+            looking take time, so a small place beside the way is not a free stop.
     """
 
     strategy: str = "gain"
@@ -216,8 +219,9 @@ class ExplorationPlanner(FrontierGoals):
     door_m: float = 0.6
     closet_m2: float = 1.0
     worth_m2_per_m: float = 0.2
-    order: str = "tour"
+    order: str = "score"
     tour_stops: int = 8
+    tour_stop_m: float = 3.0
     blacklist: list[Blacklisted] = field(default_factory=list)
     visited: list[tuple[float, float]] = field(default_factory=list)
     failures: list[Blacklisted] = field(default_factory=list)
@@ -301,7 +305,7 @@ class ExplorationPlanner(FrontierGoals):
         head += sorted(found[self.tour_stops:], key=lambda c: c.path_m)[:3]
         values = np.array([max(c.score, 0.0) * math.exp(min(self.cost_rate * c.path_m, 50.0)) for c in head])
         start = np.array([c.path_m for c in head], float)
-        between = between_lengths(self.window(grid), [(c.x, c.y) for c in head], start)
+        between = between_lengths(self.window(grid), [(c.x, c.y) for c in head], start) + self.tour_stop_m
         order = [head[i] for i in latency_order(values, start, between)]
         return order + [c for c in found if all(c is not h for h in head)]
 
