@@ -75,18 +75,12 @@ def _read(name: str, given: Any) -> Any:
         raise OverrideError(f"--set {name}: cannot read {given!r} ({problem}); quote text values") from None
 
 
+#: Each kind a parameter's default may have, as the messages name it: bool before int (a bool is an int).
+KINDS: tuple[tuple[type, str], ...] = (
+    (bool, "true/false"), (int, "whole number"), (float, "number"), (str, "text"), (list, "list"),
+    (dict, "mapping"))
+
+
 def kind_of(value: Any) -> str:
     """The kind of a parameter's default, as the messages name it."""
-    if isinstance(value, bool):
-        return "true/false"
-    if isinstance(value, int):
-        return "whole number"
-    if isinstance(value, float):
-        return "number"
-    if isinstance(value, str):
-        return "text"
-    if isinstance(value, list):
-        return "list"
-    if isinstance(value, dict):
-        return "mapping"
-    return "any value"
+    return next((name for kind, name in KINDS if isinstance(value, kind)), "any value")
