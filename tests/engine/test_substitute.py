@@ -120,3 +120,17 @@ def test_a_stub_counts_its_delay_on_the_robot_clock(tmp_path: Path) -> None:
     robot.time = 5.0
     stub.tick_once()
     assert stub.status is Status.FAILURE and "substituted Fail" in stub.feedback_message
+
+
+def test_add_to_final_state_keeps_what_the_runner_said_before() -> None:
+    """A key added to a runner's final state comes after, and beside, what its earlier callback said."""
+    from types import SimpleNamespace
+
+    from missiontree.engine.substitute import add_to_final_state
+
+    runner = SimpleNamespace(final_state=lambda: {"a": 1})
+    add_to_final_state(runner, "b", [2])
+    assert runner.final_state() == {"a": 1, "b": [2]}
+    bare = SimpleNamespace(final_state=None)
+    add_to_final_state(bare, "b", 3)
+    assert bare.final_state() == {"b": 3}

@@ -267,15 +267,23 @@ def substitute_session(session: Any, rules: Iterable[Rule]) -> list[Substitution
     runner.root = root
     runner.hook = _Announce(runner.hook, done)
     described = [{**sub.rule.describe(), "node": sub.node, "type": sub.type} for sub in done]
+    add_to_final_state(runner, "substitutions", described)
+    return done
+
+
+def add_to_final_state(runner: Any, key: str, value: Any) -> None:
+    """Have the summary's final state say ``key: value`` too, after what ``runner.final_state`` said before.
+
+    The one way to chain onto a runner's ``final_state`` (the summary's extra keys), keeping what is there.
+    """
     earlier = runner.final_state
 
     def final_state() -> dict[str, Any]:
         found = dict(earlier()) if earlier is not None else {}
-        found["substitutions"] = described
+        found[key] = value
         return found
 
     runner.final_state = final_state
-    return done
 
 
 class _Announce:
@@ -305,5 +313,5 @@ def _nothing(**kwargs: Any) -> None:
     """A hook with nothing behind it."""
 
 
-__all__ = ["STATUSES", "Rule", "Substitution", "apply_rules", "load_rules", "parse_rules",
-           "substitute_session"]
+__all__ = ["STATUSES", "Rule", "Substitution", "add_to_final_state", "apply_rules", "load_rules",
+           "parse_rules", "substitute_session"]
