@@ -41,7 +41,7 @@ import cv2
 import numpy as np
 import yaml
 
-from missiontree.backends.sim.generator import MAX_SEED
+from missiontree.backends.sim.generator import MAX_SEED, object_entry
 from missiontree.backends.sim.placement import keep_fitting, place_objects, unreachable_rooms
 from missiontree.backends.sim.placer import build
 from missiontree.backends.sim.world import register_world_source
@@ -457,15 +457,8 @@ def _clutter_objects(plan: _Plan, rng: np.random.Generator) -> list[dict[str, An
                 if axis == "x"
                 else (dx + side * along, dy + off * normal)
             )
-            obj: dict[str, Any] = {
-                "id": f"{label.replace(' ', '_')}_door_{n + 1}_{int(side > 0)}",
-                "label": label,
-                "color": colour,
-                "shape": shape,
-                "size": [sx, sy, sz],
-                "pose": {"x": round(x, 3), "y": round(y, 3)},
-                "description": f"a {colour} {label} beside a door",
-            }
+            obj = object_entry(f"door_{n + 1}_{int(side > 0)}", label, colour, shape, (sx, sy, sz), (x, y),
+                               f"a {colour} {label} beside a door")
             if label in ("chair",):
                 obj["movable"] = True
             objects.append(obj)

@@ -351,18 +351,26 @@ def _furnish(
     for label, colour, (sx, sy, sz), shape in SMALL[kind]:
         x, y = _free_point(rect, placed, doors, rng, clearance=0.25, door_gap=1.2)
         placed.append((x - sx / 2, y - sy / 2, x + sx / 2, y + sy / 2))
-        objects.append(
-            {
-                "id": f"{label.replace(' ', '_')}_{count + len(objects) + 1}",
-                "label": label,
-                "color": colour,
-                "shape": shape,
-                "size": [sx, sy, sz],
-                "pose": {"x": round(x, 3), "y": round(y, 3)},
-                "description": f"a {colour} {label} on the floor of the {kind}",
-            }
-        )
+        objects.append(object_entry(f"{count + len(objects) + 1}", label, colour, shape, (sx, sy, sz), (x, y),
+                                    f"a {colour} {label} on the floor of the {kind}"))
     return objects
+
+
+def object_entry(suffix: str, label: str, colour: str, shape: str, size: tuple[float, float, float],
+                 xy: tuple[float, float], description: str) -> dict[str, Any]:
+    """A world file's object standing on the floor at ``xy`` (rounded to mm), id ``<label>_<suffix>``.
+
+    The one shape of entry the generated apartments and the floorplans write for a loose object.
+    """
+    return {
+        "id": f"{label.replace(' ', '_')}_{suffix}",
+        "label": label,
+        "color": colour,
+        "shape": shape,
+        "size": list(size),
+        "pose": {"x": round(xy[0], 3), "y": round(xy[1], 3)},
+        "description": description,
+    }
 
 
 def _free_point(
