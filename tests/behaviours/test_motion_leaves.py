@@ -169,3 +169,26 @@ def test_navigate_to_non_finite_goal_from_blackboard_fails_without_sending() -> 
         assert leaf.status == Status.FAILURE
         assert "x=" in leaf.feedback_message and "not finite" in leaf.feedback_message
         assert robot.goals == [] and events.of("goal_sent") == []
+
+
+def test_drive_to_standoff_gives_a_goal_up_after_its_timeout() -> None:
+    """A standoff goal past ``goal_timeout`` is cancelled, recorded as a try not reached, and fails."""
+    from missiontree.behaviours.approach_steps import DriveToStandoff
+
+    robot = FakeRobot()
+    robot.polls_per_goal = 100
+    writer = py_trees.blackboard.Client(name="writer")
+    for key in ("standoff", "search_candidate", "approach_tries"):
+        writer.register_key(key, access=py_trees.common.Access.WRITE)
+    writer.standoff = {"x": 1.0, "y": 0.0, "yaw": 0.0}
+    writer.search_candidate = {"id": "cup_1", "label": "cup", "x": 1.5, "y": 0.0}
+    writer.approach_tries = []
+    leaf = DriveToStandoff("drive", DriveToStandoff.Params(goal_timeout=2.0))
+    leaf.setup(context=MissionContext(robot=robot))
+    leaf.tick_once()
+    assert leaf.status == Status.RUNNING
+    robot.advance(3.0)
+    leaf.tick_once()
+    assert leaf.status == Status.FAILURE and "within 2 s" in leaf.feedback_message
+    assert robot.goals[0].cancelled and leaf.handle is None
+    assert writer.approach_tries[-1]["reached"] is False

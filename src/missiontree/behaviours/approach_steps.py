@@ -29,11 +29,12 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, Field
 
 from missiontree.behaviours.background import Background, waits
+from missiontree.behaviours.motion import GoalLeaf
 from missiontree.behaviours.search_common import RejectKind, mark_rejected
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.ports import Input, Output
 from missiontree.reasoning.intent import GraphObject, SceneObjects, other_viewpoint, plan_candidates
-from missiontree.robot.actions import ActionHandle, ActionStatus
+from missiontree.robot.actions import ActionStatus
 from missiontree.types import OccupancyGrid, Pose2D, PoseStamped, RGBDFrame, Tolerance
 
 #: A goal aborted with the robot this close to it (m) counts as reached (the stack stopped just short).
@@ -257,7 +258,7 @@ class PlanStandoff(ApproachStep):
         self.job = None
 
 
-class DriveToStandoff(ApproachStep):
+class DriveToStandoff(ApproachStep, GoalLeaf):
     """Drive to the ``standoff`` pose; not reached: recorded in ``tries``, given up after the last attempt.
 
     SUCCEEDED, or ABORTED within :data:`NEAR_ENOUGH` of the pose and within ``reach`` of the object,
@@ -275,12 +276,6 @@ class DriveToStandoff(ApproachStep):
 
     params: Params
 
-    def __init__(self, name: str, params: BaseModel | None = None) -> None:
-        super().__init__(name, params)
-        self.handle: ActionHandle | None = None
-        self.goal: Pose2D | None = None
-        self.started = 0.0
-
     def initialise(self) -> None:
         """Send the goal."""
         super().initialise()
@@ -289,10 +284,8 @@ class DriveToStandoff(ApproachStep):
         self.goal = Pose2D(pose["x"], pose["y"], pose["yaw"]) if isinstance(pose, dict) else None
         if self.goal is None or self.cand is None or self.stopped():
             return
-        robot = self.context.robot
-        self.started = robot.now()
         tolerance = Tolerance(self.params.xy_tolerance, self.params.yaw_tolerance)
-        self.handle = robot.navigate_to(self.goal, tolerance)
+        self.send_goal(self.goal, tolerance)
         c, goal = self.cand, self.goal
         said = {k: c[k] for k in ("command", "path_length", "straight_line") if k in c}
         self.emit("goal_sent", object=c["id"], label=c.get("label"), x=round(goal.x, 3), y=round(goal.y, 3),
@@ -309,8 +302,7 @@ class DriveToStandoff(ApproachStep):
         robot = self.context.robot
         status = self.handle.status()
         if not status.done:
-            if robot.now() - self.started > self.params.goal_timeout:
-                self._cancel()
+            if self.overdue(self.params.goal_timeout):
                 return self._ended(False, f"not reached within {self.params.goal_timeout:g} s")
             feedback = self.handle.feedback()
             left = f"{feedback.distance_remaining:.1f} m to go" if feedback is not None else status.value

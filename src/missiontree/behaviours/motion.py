@@ -33,7 +33,36 @@ def robot_lost(robot: Any, max_pose_age: float) -> str:
     return ""
 
 
-class NavigateTo(Leaf):
+class GoalLeaf(Leaf):
+    """A leaf that sends one navigation goal and polls it, never blocking the tick.
+
+    It keeps the goal's ``handle``, its pose ``goal`` and when it went out (``started``, robot s):
+    :class:`NavigateTo` and the approach's DriveToStandoff drive this one way.
+    """
+
+    def __init__(self, name: str, params: BaseModel | None = None) -> None:
+        super().__init__(name, params)
+        self.handle: ActionHandle | None = None
+        self.goal: Pose2D | None = None
+        self.started = 0.0
+
+    def send_goal(self, goal: Pose2D, tolerance: Tolerance) -> None:
+        """Send ``goal`` to the navigation stack now."""
+        robot = self.context.robot
+        self.goal = goal
+        self.started = robot.now()
+        self.handle = robot.navigate_to(goal, tolerance)
+
+    def overdue(self, timeout: float | None) -> bool:
+        """Whether the goal ran over ``timeout`` s of robot time (None: never); cancelled and dropped then."""
+        if timeout is None or self.handle is None or self.context.robot.now() - self.started <= timeout:
+            return False
+        self.handle.cancel()
+        self.handle = None
+        return True
+
+
+class NavigateTo(GoalLeaf):
     """Drive to a map pose with the navigation stack; fails with the planner's reason.
 
     Emits ``goal_sent`` when the goal goes out and ``goal_result`` when it ends. A yaw tolerance
@@ -54,9 +83,6 @@ class NavigateTo(Leaf):
 
     def __init__(self, name: str, params: BaseModel | None = None) -> None:
         super().__init__(name, params)
-        self.handle: ActionHandle | None = None
-        self.goal: Pose2D | None = None
-        self.started = 0.0
         self.invalid = ""
 
     def initialise(self) -> None:
@@ -68,11 +94,9 @@ class NavigateTo(Leaf):
         if self.invalid:
             self.goal = None
             return
-        self.goal = Pose2D(float(values["x"]), float(values["y"]), float(values["yaw"]))
         tolerance = Tolerance(self.params.xy_tolerance, self.params.yaw_tolerance)
-        robot = self.context.robot
-        self.started = robot.now()
-        self.handle = robot.navigate_to(self.goal, tolerance)
+        self.send_goal(Pose2D(float(values["x"]), float(values["y"]), float(values["yaw"])), tolerance)
+        assert self.goal is not None
         self.emit("goal_sent", x=self.goal.x, y=self.goal.y, yaw=self.goal.yaw,
                   xy_tolerance=tolerance.xy, yaw_tolerance=tolerance.yaw)
 
@@ -83,10 +107,8 @@ class NavigateTo(Leaf):
         assert self.handle is not None and self.goal is not None
         status = self.handle.status()
         if not status.done:
-            timeout = self.params.timeout
-            if timeout is not None and self.context.robot.now() - self.started > timeout:
-                self.handle.cancel()
-                return self._ended(ActionStatus.ABORTED, f"not reached within {timeout:g} s")
+            if self.overdue(self.params.timeout):
+                return self._ended(ActionStatus.ABORTED, f"not reached within {self.params.timeout:g} s")
             feedback = self.handle.feedback()
             remaining = f"{feedback.distance_remaining:.2f} m to go" if feedback else status.value
             return self.running(f"to ({self.goal.x:.2f}, {self.goal.y:.2f}): {remaining}")
