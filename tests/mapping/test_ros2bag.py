@@ -218,3 +218,16 @@ def test_a_scan_with_too_many_beams_is_refused(tmp_path: Path, monkeypatch: pyte
     monkeypatch.setattr(ros2bag, "MAX_BEAMS", 4)
     with pytest.raises(BagError, match="has 5 beams; expected at most 4"):
         read_bag(_odom_scan_bag(tmp_path / "long.mcap"))
+
+
+def test_grid_from_msg_rows_the_cells_and_names_a_short_map() -> None:
+    """A map message's cells become rows (row 0 = lowest y); too few cells raise the given error."""
+    header = SimpleNamespace(frame_id="map", stamp=SimpleNamespace(sec=2, nanosec=500_000_000))
+    origin = SimpleNamespace(position=SimpleNamespace(x=1.0, y=-1.0),
+                             orientation=SimpleNamespace(x=0.0, y=0.0, z=0.0, w=1.0))
+    info = SimpleNamespace(width=3, height=2, resolution=0.05, origin=origin)
+    grid = ros2bag.grid_from_msg(SimpleNamespace(header=header, info=info, data=[0, 100, -1, 0, 0, 50]))
+    assert grid.data.tolist() == [[0, 100, -1], [0, 0, 50]] and grid.stamp == 2.5
+    assert (grid.origin.x, grid.origin.y, grid.resolution) == (1.0, -1.0, 0.05)
+    with pytest.raises(KeyError, match="5 cells for 3 x 2"):
+        ros2bag.grid_from_msg(SimpleNamespace(header=header, info=info, data=[0] * 5), KeyError)

@@ -56,7 +56,7 @@ MAX_BEAMS = 100_000
 INSTALL_HINT = "pip install 'missiontree[realdata]' (mcap and mcap-ros2-support)"
 
 __all__ = ["BagError", "BagFrame", "BagRecording", "BagTopics", "color_from_image", "depth_from_image",
-           "image_pixels", "read_bag"]
+           "grid_from_msg", "image_pixels", "read_bag"]
 
 
 class BagError(ValueError):
@@ -290,12 +290,17 @@ def depth_from_image(msg: Any, error: ErrorMaker = BagError) -> np.ndarray:
                 "(expected 16UC1 millimetres or 32FC1 metres)")
 
 
-def _grid(msg: Any) -> OccupancyGrid:
+def grid_from_msg(msg: Any, error: ErrorMaker = BagError) -> OccupancyGrid:
+    """An :class:`OccupancyGrid` (row 0 = lowest y, as in ROS) from a ``nav_msgs/OccupancyGrid``.
+
+    Decoded from a bag or received live; raises ``error`` naming the frame when the cells do not
+    fill width x height.
+    """
     info = msg.info
     data = np.asarray(msg.data, dtype=np.int8)
     if data.size != info.width * info.height:
-        raise BagError(f"map on frame {msg.header.frame_id!r}: {data.size} cells for "
-                       f"{info.width} x {info.height}")
+        raise error(f"map on frame {msg.header.frame_id!r}: {data.size} cells for "
+                    f"{info.width} x {info.height}")
     return OccupancyGrid(_stamp(msg.header), float(info.resolution), _pose_msg(info.origin),
                          data.reshape(info.height, info.width).copy())
 
@@ -374,7 +379,7 @@ def _collect(path: Path, names: BagTopics, frame_rate: float | None, map_period:
                                           float(k[2]), float(k[5]))
             got.infos.append((_stamp(msg.header), intrinsics))
         elif topic == names.map:
-            _add_map(got.maps, _grid(msg), map_period)
+            _add_map(got.maps, grid_from_msg(msg), map_period)
     return got
 
 
