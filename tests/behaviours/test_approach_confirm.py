@@ -211,3 +211,26 @@ def test_a_candidate_looked_at_with_no_other_place_to_look_from_is_wrong_not_unr
     leaf.job = job
     assert leaf.update().name == "FAILURE"
     assert marked == [("wrong", "the detector sees no chair; no other place to look at it from")]
+
+
+def test_a_step_waits_for_a_fresh_frame_then_fails_late_recording_the_stop() -> None:
+    """No frame yet: RUNNING; none past the frame timeout: FAILURE with the stop appended under the key."""
+    from types import SimpleNamespace
+
+    from missiontree.behaviours.confirm_steps import frame_or_wait
+    from missiontree.behaviours.search_common import FRAME_TIMEOUT
+    from missiontree.engine.leaf import Status
+
+    clock = {"now": 1.0, "frame": None}
+    written: dict[str, Any] = {}
+    robot = SimpleNamespace(now=lambda: clock["now"], rgbd=lambda: clock["frame"])
+    leaf = SimpleNamespace(context=SimpleNamespace(robot=robot), running=lambda _m: Status.RUNNING,
+                           fail=lambda _m: Status.FAILURE, write=written.__setitem__)
+    earlier = [{"why": "first look"}]
+    assert frame_or_wait(leaf, 0.5, "looks", lambda: earlier) is Status.RUNNING  # type: ignore[arg-type]
+    assert not written
+    clock["now"] = 0.5 + FRAME_TIMEOUT + 0.1
+    assert frame_or_wait(leaf, 0.5, "looks", lambda: earlier) is Status.FAILURE  # type: ignore[arg-type]
+    assert written["looks"][0] == earlier[0] and "no camera frame" in written["looks"][1]["stop"]
+    clock["frame"] = frame = SimpleNamespace(stamp=0.6)
+    assert frame_or_wait(leaf, 0.5, "looks", lambda: earlier) is frame  # type: ignore[arg-type]

@@ -29,6 +29,7 @@ Tick-log events: ``object_found``, ``object_unverifiable``, ``candidate_rejected
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Annotated, Any
 
 from pydantic import BaseModel, Field
@@ -68,6 +69,21 @@ def detect(leaf: Leaf, frame: RGBDFrame) -> ModelCall:
     return model_caller(leaf.context).submit(
         "detector", detection_job(leaf.context.model("detector"), frame), node=leaf.name, log_success=False
     )
+
+
+def frame_or_wait(leaf: Leaf, after: float, key: str, entries: Callable[[], list[Any]]) -> RGBDFrame | Status:
+    """A camera frame newer than ``after``, or what the step returns while there is none.
+
+    RUNNING while one may still come; FAILURE once it is late, the stop appended to ``entries()``
+    and written under the leaf's ``key`` (its tries or its looks), so the next step fails too.
+    """
+    frame, late = await_frame(leaf.context.robot, after)
+    if frame is not None:
+        return frame
+    if not late:
+        return leaf.running("waiting for a fresh frame")
+    leaf.write(key, [*entries(), {"stop": late}])
+    return leaf.fail(late)
 
 
 class PlaceByDepth(ApproachStep):
@@ -114,12 +130,9 @@ class PlaceByDepth(ApproachStep):
         if not self.params.refine:
             return self.succeed(f"facing {self.cand['id']} (its place taken as it is: refine is off)")
         if self.call is None:
-            frame, late = await_frame(self.context.robot, self.started)
-            if frame is None:
-                if not late:
-                    return self.running("waiting for a fresh frame")
-                self.write("tries", [*self.tries(), {"stop": late}])
-                return self.fail(late)
+            frame = frame_or_wait(self, self.started, "tries", self.tries)
+            if isinstance(frame, Status):
+                return frame
             self.frame = frame
             self.call = detect(self, frame)
         status = self.call.status()
@@ -288,12 +301,9 @@ class LookFor(LookStep):
         if early is not None:
             return early
         if self.call is None:
-            frame, late = await_frame(self.context.robot, self.after)
-            if frame is None:
-                if not late:
-                    return self.running("waiting for a fresh frame")
-                self.write("looks", [*self.looks(), {"stop": late}])
-                return self.fail(late)
+            frame = frame_or_wait(self, self.after, "looks", self.looks)
+            if isinstance(frame, Status):
+                return frame
             self.frame = frame
             unseen = self._unverifiable(frame)
             if unseen:
