@@ -49,3 +49,14 @@ def test_output_port_writes_bound_key() -> None:
     leaf.setup()
     leaf.tick_once()
     assert py_trees.blackboard.Blackboard.get("/ticks") == 1
+
+
+def test_read_entries_keeps_the_mapping_entries_of_a_list() -> None:
+    """A port's list gives its dict entries only; an unset key or a non-list gives none."""
+    leaf = Counter("counter", Counter.Params(out="entries_here"))
+    leaf.setup()
+    assert leaf.read_entries("out") == []
+    leaf.write("out", [{"a": 1}, "junk", 3, {"b": 2}])
+    assert leaf.read_entries("out") == [{"a": 1}, {"b": 2}]
+    leaf.write("out", {"a": 1})
+    assert leaf.read_entries("out") == []

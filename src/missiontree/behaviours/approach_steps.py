@@ -124,8 +124,7 @@ class ApproachStep(Leaf):
 
     def tries(self) -> list[dict[str, Any]]:
         """The standoff poses tried so far in this approach."""
-        value = self.read("tries")
-        return [t for t in value if isinstance(t, dict)] if isinstance(value, list) else []
+        return self.read_entries("tries")
 
     def drives(self) -> int:
         """Standoff poses driven to so far (places looked from are counted by the looks, not here)."""

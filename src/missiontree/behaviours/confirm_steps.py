@@ -216,8 +216,7 @@ class LookStep(Leaf):
 
     def looks(self) -> list[dict[str, Any]]:
         """The looks at this candidate that did not confirm it."""
-        value = self.read("looks")
-        return [x for x in value if isinstance(x, dict)] if isinstance(value, list) else []
+        return self.read_entries("looks")
 
     def early_exit(self) -> Status | None:
         """FAILURE when there is nothing (more) to look at."""
@@ -240,7 +239,7 @@ class LookStep(Leaf):
             self.write("looks", looks)
             return self.fail(f"look {len(looks)} of {self.params.frames}: {why}")
         reason = f"{why} (in {len(looks)} frames)"
-        tries = self._tries()
+        tries = self.read_entries("tries")
         looked = [t for t in tries if t.get("looked")]
         standoff = self.read("standoff")
         if len(looked) + 1 < self.params.viewpoints and not last and isinstance(standoff, dict):
@@ -256,10 +255,6 @@ class LookStep(Leaf):
         self.write("looks", [*looks, {"stop": why}])
         self.write("tries", [*tries, {"stop": why}])
         return self.fail(why)
-
-    def _tries(self) -> list[dict[str, Any]]:
-        value = self.read("tries")
-        return [t for t in value if isinstance(t, dict)] if isinstance(value, list) else []
 
     def terminate(self, new_status: Status) -> None:
         """Cancel the call in flight."""

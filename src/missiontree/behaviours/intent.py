@@ -185,8 +185,7 @@ class ReadIntent(IntentLeaf):
         """``state`` with the candidates rejected since it was written added to ``tried`` (and doubt)."""
         if not state:
             return state
-        value = self.read("rejected")
-        entries = [e for e in value if isinstance(e, dict)] if isinstance(value, list) else []
+        entries = self.read_entries("rejected")
         fresh = entries[int(state.get("seen", 0)):]
         if not fresh:
             return {**state, "failed": False}

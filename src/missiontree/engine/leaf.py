@@ -227,6 +227,14 @@ class Leaf(py_trees.behaviour.Behaviour):
         except KeyError:
             return default
 
+    def read_entries(self, port: str) -> list[dict[str, Any]]:
+        """The mapping entries of the list on input port ``port`` (unset or not a list: none).
+
+        The one reading of a record list a step appends to (tries, looks, rejected candidates).
+        """
+        value = self.read(port)
+        return [e for e in value if isinstance(e, dict)] if isinstance(value, list) else []
+
     def write(self, port: str, value: Any) -> None:
         """Write ``value`` to the blackboard key bound to output port ``port``."""
         self.bb.set(getattr(self.params, port), value, overwrite=True)
