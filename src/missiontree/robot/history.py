@@ -32,6 +32,12 @@ class StampedHistory(Generic[T]):
             self._stamps.popleft()
             self._values.popleft()
 
+    def span(self) -> tuple[float, float] | None:
+        """The oldest and newest stamps held, or None when empty."""
+        if not self._stamps:
+            return None
+        return self._stamps[0], self._stamps[-1]
+
     def latest(self) -> tuple[float, T] | None:
         """The newest (stamp, value), or None when empty."""
         if not self._stamps:

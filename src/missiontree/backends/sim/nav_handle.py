@@ -37,7 +37,13 @@ class SimNavHandle:
         if not self._status.done:
             self.cancel_requested = True
 
-    def _finish(self, status: ActionStatus, reason: str = "", code: int = 0) -> None:
+    def report(self, feedback: NavFeedback) -> None:
+        """The navigator's progress: the goal is running, ``feedback`` its latest distance and time."""
+        self._status = ActionStatus.RUNNING
+        self._feedback = feedback
+
+    def finish(self, status: ActionStatus, reason: str = "", code: int = 0) -> None:
+        """End the goal with ``status`` (the first end wins; later calls are ignored)."""
         if not self._status.done:
             self._status = status
             # every abort of the in-process navigator is about the goal (no server to lose)

@@ -156,7 +156,7 @@ class Navigator:
     def send(self, goal: Pose2D, tolerance: Tolerance | None, now: float) -> SimNavHandle:
         """Accept a new goal, preempting the running one."""
         if self.handle is not None:
-            self.handle._finish(ActionStatus.CANCELED, "preempted by a new goal")
+            self.handle.finish(ActionStatus.CANCELED, "preempted by a new goal")
         tol = tolerance or Tolerance(self.spec.default_xy_tolerance, self.spec.default_yaw_tolerance)
         self.handle = SimNavHandle(goal, tol, now)
         self._follow = None
@@ -166,7 +166,7 @@ class Navigator:
     def cancel(self) -> None:
         """Cancel the running goal at once."""
         if self.handle is not None:
-            self.handle._finish(ActionStatus.CANCELED, "canceled")
+            self.handle.finish(ActionStatus.CANCELED, "canceled")
         self.handle, self._follow = None, None
 
     def step(self, now: float, pose: Pose2D, scan: LaserScan | None) -> tuple[float, float] | None:
@@ -200,9 +200,8 @@ class Navigator:
             if follow.blocked_since is not None:
                 follow.blocked_since += gap
         follow.last_step = now
-        h._status = ActionStatus.RUNNING
         remaining = self.follower.remaining(follow, pose)
-        h._feedback = NavFeedback(pose, remaining, now - h.sent, self.recoveries)
+        h.report(NavFeedback(pose, remaining, now - h.sent, self.recoveries))
         if remaining + 0.05 < follow.best_remaining:
             follow.best_remaining, follow.best_time = remaining, now
         elif now - follow.best_time > _NO_PROGRESS_TIME and follow.blocked_since is None:
@@ -221,9 +220,8 @@ class Navigator:
 
     def _hold(self, h: SimNavHandle, follow: Follow, now: float, pose: Pose2D) -> tuple[float, float]:
         """No way on the map learned so far: stand still and wait for one (people move on)."""
-        h._status = ActionStatus.RUNNING
-        h._feedback = NavFeedback(pose, math.hypot(h.goal.x - pose.x, h.goal.y - pose.y), now - h.sent,
-                                  self.recoveries)
+        h.report(NavFeedback(pose, math.hypot(h.goal.x - pose.x, h.goal.y - pose.y), now - h.sent,
+                             self.recoveries))
         follow.last_step = now
         return 0.0, 0.0
 
@@ -294,7 +292,7 @@ class Navigator:
         if problem is not None:
             what, code = problem
             learned = " on the learned map" if self.allow_unknown else ""
-            h._finish(ActionStatus.ABORTED,
+            h.finish(ActionStatus.ABORTED,
                       f"goal ({goal.x:.2f}, {goal.y:.2f}) is {what}{learned}: unreachable",
                       code)
             return False
@@ -302,7 +300,7 @@ class Navigator:
         if path is None and self.allow_unknown:
             return self._wait_for_way(now, pose, ("no path to it on the map learned so far", NO_VALID_PATH))
         if path is None:
-            h._finish(ActionStatus.ABORTED, f"no valid path to ({goal.x:.2f}, {goal.y:.2f})", NO_VALID_PATH)
+            h.finish(ActionStatus.ABORTED, f"no valid path to ({goal.x:.2f}, {goal.y:.2f})", NO_VALID_PATH)
             return False
         self._follow = Follow(path, best_time=now, last_step=now - self.physics_dt, tight=tight)
         return True
@@ -456,12 +454,12 @@ class Navigator:
 
     def _succeed(self) -> tuple[float, float]:
         assert self.handle is not None
-        self.handle._finish(ActionStatus.SUCCEEDED)
+        self.handle.finish(ActionStatus.SUCCEEDED)
         self.handle, self._follow = None, None
         return 0.0, 0.0
 
     def _abort(self, status: ActionStatus, reason: str, code: int) -> tuple[float, float]:
         assert self.handle is not None
-        self.handle._finish(status, reason, code)
+        self.handle.finish(status, reason, code)
         self.handle, self._follow = None, None
         return 0.0, 0.0

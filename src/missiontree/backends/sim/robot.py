@@ -194,9 +194,10 @@ class SimRobot:
 
     def scan_at(self, stamp: float) -> LaserScan | None:
         """The scan taken closest to ``stamp`` within the recent history."""
-        if not len(self._scans):
+        span = self._scans.span()
+        if span is None:
             return None
-        first, last = self._scans._stamps[0], self._scans._stamps[-1]
+        first, last = span
         period = 1.0 / self.profile.lidar.rate
         if stamp < first - period or stamp > last + period:
             return None
