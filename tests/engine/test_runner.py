@@ -5,11 +5,13 @@ from __future__ import annotations
 import json
 import os
 import signal
+import sys
 from pathlib import Path
 
 import py_trees
 import pytest
 
+from missiontree import startup
 from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.engine.recorder import RunRecorder
@@ -96,6 +98,64 @@ def test_signal_stops_after_the_tick_and_halts(signum: int) -> None:
     assert leaf.halted_with == Status.INVALID
     assert robot.stop_calls == 1
     assert signal.getsignal(signum) is before
+
+
+def test_a_ctrl_c_swallowed_during_set_up_stops_the_run_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A Ctrl-C the start-up guard recorded before the run took over stops it as a signal, exit 130."""
+    before = signal.getsignal(signal.SIGINT)
+    startup.guard()
+    monkeypatch.setattr(startup, "_pending", True)  # an import swallowed its KeyboardInterrupt
+    monkeypatch.setattr("sys.unraisablehook", sys.__unraisablehook__)
+    try:
+        robot = ClockRobot()
+        result = Runner(ScriptedLeaf("on", script="R" * 50), MissionContext(robot=robot),
+                        handle_signals=True, max_duration=5.0).run()
+    finally:
+        signal.signal(signal.SIGINT, before)
+    assert (result.stopped_by, result.exit_code, result.ticks) == ("signal", 130, 0)
+    assert robot.stop_calls == 1
+
+
+def test_a_recorded_ctrl_c_outside_the_guard_does_not_stop_a_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Only the command's own guard hands a recorded Ctrl-C over: a run under another handler goes on."""
+    monkeypatch.setattr(startup, "_pending", True)
+    result = Runner(ScriptedLeaf("on", script="RS"), MissionContext(robot=ClockRobot()),
+                    handle_signals=True).run()
+    assert (result.stopped_by, result.exit_code) == ("status", 0)
+
+
+class _SignalInFinaliser(Leaf):
+    """Ctrl-C on its second tick and, in the same tick, a second one inside an object's ``__del__``."""
+
+    def initialise(self) -> None:
+        self.n = 0
+
+    def update(self) -> Status:
+        self.n += 1
+        if self.n == 2:
+            os.kill(os.getpid(), signal.SIGINT)
+
+            class Finalised:
+                def __del__(self) -> None:
+                    os.kill(os.getpid(), signal.SIGINT)  # its handler runs inside this finaliser
+            Finalised()
+        return Status.RUNNING
+
+
+def test_a_second_ctrl_c_inside_a_finaliser_is_kept_quiet(monkeypatch: pytest.MonkeyPatch,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """The run's "stop now" swallowed by a ``__del__`` prints no traceback, and the run still stops."""
+    before = signal.getsignal(signal.SIGINT)
+    monkeypatch.setattr(startup, "_pending", False)
+    monkeypatch.setattr("sys.unraisablehook", sys.unraisablehook)
+    startup.guard()
+    try:
+        result = Runner(_SignalInFinaliser("leaf"), MissionContext(robot=ClockRobot()), handle_signals=True,
+                        max_duration=5.0).run()
+    finally:
+        signal.signal(signal.SIGINT, before)
+    assert (result.stopped_by, result.exit_code) == ("signal", 130)
+    assert "Traceback" not in capsys.readouterr().err
 
 
 def test_leaf_exception_becomes_failure_and_the_run_goes_on() -> None:

@@ -41,6 +41,7 @@ from typing import Any, TextIO
 
 import py_trees
 
+from missiontree import startup
 from missiontree.engine.context import MissionContext
 from missiontree.engine.faults import ErrorFrames, fault_of
 from missiontree.engine.fleet import RobotEvents
@@ -302,7 +303,7 @@ class Runner:
             return
         if self._phase == "running":
             self._interrupted = True
-            raise KeyboardInterrupt
+            startup.raise_interrupt()
 
     # -- the loop ------------------------------------------------------------------------------
 
@@ -490,6 +491,9 @@ class Runner:
             return self._previous
         for signum in (signal.SIGINT, signal.SIGTERM):
             self._previous[signum] = signal.signal(signum, self._on_signal)
+        if startup.guarding(self._previous[signal.SIGINT]) and startup.interrupted():
+            # a Ctrl-C the session's set-up swallowed (an import or extension cleared it): stop now
+            self._signal = signal.SIGINT
         return self._previous
 
     def _restore_signal_handlers(self) -> None:
