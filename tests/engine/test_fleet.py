@@ -8,6 +8,7 @@ import pytest
 from missiontree.engine.fleet import FleetRoot, FleetView, RobotEvents, RobotScope, namespace_tree
 from missiontree.engine.leaf import Leaf
 from missiontree.engine.nodes.basic import Running
+from missiontree.engine.nodes.stub import Stub
 from missiontree.testing import clean_state
 
 Status = py_trees.common.Status
@@ -117,3 +118,16 @@ def test_the_loss_reason_is_the_failure_that_ended_the_robots_tree() -> None:
     root = FleetRoot([RobotScope("robot1", Running("leaf")), RobotScope("robot2", selector)], view)
     _tick(root)
     assert view.lost["robot2"]["reason"] == "robot lost"
+
+
+def test_a_substituted_nodes_writes_follow_its_robots_namespace() -> None:
+    """A stub's blackboard writes land under its copy's /robotN/ like the replaced node's would."""
+    for name in ("robot1", "robot2"):
+        stub = Stub("locate", status=Status.SUCCESS, writes={"search_candidate": {"label": name}})
+        namespace_tree(stub, name)
+        stub.tick_once()
+        assert stub.status == Status.SUCCESS
+    storage = py_trees.blackboard.Blackboard.storage
+    assert storage["/robot1/search_candidate"] == {"label": "robot1"}
+    assert storage["/robot2/search_candidate"] == {"label": "robot2"}
+    assert "/search_candidate" not in storage

@@ -38,6 +38,11 @@ class Stub(Leaf):
         self.replaced = replaced
         self._started = 0.0
         self._written = False
+        # through a client that registers its keys, so a fleet's namespacing moves them as it does
+        # the replaced node's (each robot's stub writes its own /robotN/ key)
+        self._board = self.attach_blackboard_client(name=f"{name} (substituted)")
+        for key in self.writes:
+            self._board.register_key(key=key, access=py_trees.common.Access.WRITE)
 
     def initialise(self) -> None:
         """Start the delay on the robot's clock."""
@@ -52,7 +57,7 @@ class Stub(Leaf):
             return self.running(f"{said}: {self.result.name} in {self.after - waited:.1f} s")
         if not self._written:
             for key, value in self.writes.items():
-                py_trees.blackboard.Blackboard.set(key if key.startswith("/") else f"/{key}", value)
+                self._board.set(key, value, overwrite=True)
             self._written = True
         if self.result == Status.FAILURE:
             return self.fail(f"{said}: FAILURE")
