@@ -158,6 +158,26 @@ def test_a_second_ctrl_c_inside_a_finaliser_is_kept_quiet(monkeypatch: pytest.Mo
     assert "Traceback" not in capsys.readouterr().err
 
 
+class _TwoSignals(Leaf):
+    """Two Ctrl-Cs in one tick: the second is the run's "stop now"."""
+
+    def update(self) -> Status:
+        os.kill(os.getpid(), signal.SIGINT)
+        os.kill(os.getpid(), signal.SIGINT)
+        return Status.RUNNING
+
+
+def test_a_run_outside_the_command_leaves_the_start_up_record_alone() -> None:
+    """A run under another SIGINT handler (a test, a library caller) stops now without recording a Ctrl-C.
+
+    The record is the command's: a later ``main()`` in the same process would read it as its own.
+    """
+    assert not startup.interrupted()
+    result = Runner(_TwoSignals("two"), MissionContext(robot=ClockRobot()), handle_signals=True).run()
+    assert (result.stopped_by, result.exit_code) == ("signal", 130)
+    assert not startup.interrupted()
+
+
 def test_leaf_exception_becomes_failure_and_the_run_goes_on() -> None:
     """A raising leaf fails with an error event; the selector then tries its next child and succeeds."""
     root = py_trees.composites.Selector("root", memory=False, children=[

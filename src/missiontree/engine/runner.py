@@ -303,7 +303,9 @@ class Runner:
             return
         if self._phase == "running":
             self._interrupted = True
-            startup.raise_interrupt()
+            if startup.guarding(self._previous.get(signal.SIGINT)):  # the command's run: recorded
+                startup.raise_interrupt()
+            raise KeyboardInterrupt
 
     # -- the loop ------------------------------------------------------------------------------
 
