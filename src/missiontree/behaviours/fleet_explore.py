@@ -27,7 +27,7 @@ import math
 from pydantic import BaseModel, Field
 
 from missiontree.behaviours.explore import Explore
-from missiontree.behaviours.fleet_map import claims_for, fleet_context, lost_reason
+from missiontree.behaviours.fleet_map import claim_place, claims_for, fleet_context, lost_reason
 from missiontree.engine.leaf import Status
 from missiontree.mapping.exploration import ExplorationPlanner
 
@@ -101,10 +101,4 @@ class FleetExplore(Explore):
         super().terminate(new_status)
 
     def _claim(self, place: tuple[float, float] | None) -> None:
-        if self.ctx is None:
-            return
-        claims = claims_for(self.ctx, self.params.sensor_range)
-        if claims is not None:
-            if place is not None and math.isnan(place[0]) and self.target is not None:
-                place = (self.target.x, self.target.y)
-            claims.claim(self.ctx.robot.name, place)
+        claim_place(self.ctx, self.params.sensor_range, place, self.target)

@@ -258,6 +258,23 @@ def claims_for(context: MissionContext, sensor_range: float) -> FrontierClaims |
     return made
 
 
+def claim_place(context: MissionContext | None, sensor_range: float, place: tuple[float, float] | None,
+                target: Candidate | None) -> None:
+    """Claim ``place`` for the context's robot (None hands its claim back; no fleet: nothing).
+
+    A place whose x is NaN (a goal without a frontier of its own) is claimed at ``target``, where
+    the robot is heading.
+    """
+    if context is None:
+        return
+    claims = claims_for(context, sensor_range)
+    if claims is None:
+        return
+    if place is not None and math.isnan(place[0]) and target is not None:
+        place = (target.x, target.y)
+    claims.claim(context.robot.name, place)
+
+
 def lost_reason(robot: Any, handle: ActionHandle | None, max_pose_age: float) -> str:
     """Why a fleet robot counts as lost now ("" when not).
 

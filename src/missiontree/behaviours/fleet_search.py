@@ -26,7 +26,7 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, Field
 
-from missiontree.behaviours.fleet_map import claims_for, fleet_context, lost_reason
+from missiontree.behaviours.fleet_map import claim_place, claims_for, fleet_context, lost_reason
 from missiontree.behaviours.search_common import rejected_entries
 from missiontree.behaviours.search_locate import Locate
 from missiontree.engine.context import MissionContext
@@ -220,13 +220,7 @@ class FleetLocate(Locate):
         super().terminate(new_status)
 
     def _claim(self, place: tuple[float, float] | None) -> None:
-        if self.ctx is None:
-            return
-        claims = claims_for(self.ctx, self.params.sensor_range)
-        if claims is not None:
-            if place is not None and math.isnan(place[0]) and self.target is not None:
-                place = (self.target.x, self.target.y)
-            claims.claim(self.ctx.robot.name, place)
+        claim_place(self.ctx, self.params.sensor_range, place, self.target)
 
 
 class FleetFound(Leaf):
