@@ -263,12 +263,16 @@ def substitute_session(session: Any, rules: Iterable[Rule]) -> list[Substitution
     """
     root, done = apply_rules(session.spec, session.root, rules)
     session.root = root
-    runner = session.runner
-    runner.root = root
+    session.runner.root = root
+    announce(session.runner, done)
+    return done
+
+
+def announce(runner: Any, done: list[Substitution]) -> None:
+    """Have ``runner`` log a ``substituted`` event per node at the start and list them in its summary."""
     runner.hook = _Announce(runner.hook, done)
     described = [{**sub.rule.describe(), "node": sub.node, "type": sub.type} for sub in done]
     add_to_final_state(runner, "substitutions", described)
-    return done
 
 
 def add_to_final_state(runner: Any, key: str, value: Any) -> None:
@@ -313,5 +317,5 @@ def _nothing(**kwargs: Any) -> None:
     """A hook with nothing behind it."""
 
 
-__all__ = ["STATUSES", "Rule", "Substitution", "add_to_final_state", "apply_rules", "load_rules",
+__all__ = ["STATUSES", "Rule", "Substitution", "add_to_final_state", "announce", "apply_rules", "load_rules",
            "parse_rules", "substitute_session"]

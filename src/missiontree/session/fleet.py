@@ -29,7 +29,7 @@ from missiontree.backends.sim.fleet import MAX_ROBOTS, SimFleet, create_fleet, r
 from missiontree.engine.build import build_tree
 from missiontree.engine.context import MissionContext
 from missiontree.engine.fleet import FleetRoot, FleetView, RobotScope, namespace_tree
-from missiontree.engine.substitute import Rule, Substitution, apply_rules
+from missiontree.engine.substitute import Rule, Substitution, announce, apply_rules
 from missiontree.errors import ConfigError
 from missiontree.robot.envelope import EnvelopedRobot, wrap_robot
 from missiontree.types import Marker
@@ -76,7 +76,23 @@ def robot_count(flag: int | None, from_set: Any, from_file: int | None) -> int:
     return value
 
 
-class FleetClock:
+class _FleetDriven:
+    """What every fleet clock answers the runner alike: no single pose, and stop means every robot."""
+
+    name = "fleet"
+    robots: list[Any]
+
+    def pose(self) -> None:
+        """No single pose: each robot's is in the summary's ``fleet`` section."""
+        return None
+
+    def stop(self) -> None:
+        """Stop every robot."""
+        for robot in self.robots:
+            robot.stop()
+
+
+class FleetClock(_FleetDriven):
     """What the runner drives in a fleet run: the fleet's one clock, stop, close and picture.
 
     It is no robot for leaves (they each get their own); ``pose()`` is None so the summary's
@@ -84,7 +100,6 @@ class FleetClock:
     """
 
     simulated = True
-    name = "fleet"
 
     def __init__(self, fleet: SimFleet, robots: list[Any], kills: list[Kill]) -> None:
         self.fleet = fleet
@@ -112,15 +127,6 @@ class FleetClock:
             self.killed.append({"robot": kill.robot, "t": self.fleet.now()})
         self.fleet.spin_until(t)
 
-    def pose(self) -> None:
-        """No single pose: each robot's is in the summary's ``fleet`` section."""
-        return None
-
-    def stop(self) -> None:
-        """Stop every robot."""
-        for robot in self.robots:
-            robot.stop()
-
     def close(self) -> None:
         """Close every robot."""
         self.fleet.close()
@@ -130,7 +136,7 @@ class FleetClock:
         return list(self.fleet.robots[0].draw(out_dir, markers))
 
 
-class Ros2FleetClock:
+class Ros2FleetClock(_FleetDriven):
     """What the runner drives in a fleet run over ROS 2: the ROS time the robots share, stop, close.
 
     Every robot follows one clock (wall time, or sim-ros's /clock with ``use_sim_time``), read from
@@ -138,7 +144,6 @@ class Ros2FleetClock:
     """
 
     simulated = False
-    name = "fleet"
     truth = None
 
     def __init__(self, robots: list[Any]) -> None:
@@ -153,15 +158,6 @@ class Ros2FleetClock:
     def spin_until(self, t: float) -> None:
         """Wait until ROS time reaches ``t`` (each robot's executor keeps spinning meanwhile)."""
         self.robots[0].spin_until(t)
-
-    def pose(self) -> None:
-        """No single pose: each robot's is in the summary's ``fleet`` section."""
-        return None
-
-    def stop(self) -> None:
-        """Stop every robot."""
-        for robot in self.robots:
-            robot.stop()
 
     def close(self) -> None:
         """Close every robot."""
@@ -295,35 +291,5 @@ def substitute_fleet(session: Any, rules: list[Rule]) -> list[Substitution]:
             tree.parent = scope
         namespace_tree(tree, name)  # the stubs' keys under the robot's namespace too
         substitutions = substitutions or done
-    _announce(session.runner, substitutions)
+    announce(session.runner, substitutions)
     return substitutions
-
-
-def _announce(runner: Any, substitutions: list[Substitution]) -> None:
-    """``substituted`` events as the mission starts (through the runner's hook), the summary's list."""
-    described = [{**sub.rule.describe(), "node": sub.node, "type": sub.type} for sub in substitutions]
-    started = runner.hook
-
-    class _Announce:
-        def missiontree_mission_started(self, **kwargs: Any) -> None:
-            context = kwargs.get("context")
-            for sub in substitutions:
-                if context is not None:
-                    context.events.emit("substituted", node=sub.node, type=sub.type, rule=sub.rule.index,
-                                        match=sub.rule.match, status=sub.rule.status, where=sub.rule.where)
-            if started is not None:
-                started.missiontree_mission_started(**kwargs)
-
-        def missiontree_mission_finished(self, **kwargs: Any) -> None:
-            if started is not None:
-                started.missiontree_mission_finished(**kwargs)
-
-    runner.hook = _Announce()
-    earlier = runner.final_state
-
-    def final_state() -> dict[str, Any]:
-        found = dict(earlier()) if earlier is not None else {}
-        found["substitutions"] = described
-        return found
-
-    runner.final_state = final_state
