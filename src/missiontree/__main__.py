@@ -22,10 +22,10 @@ def main() -> int:
     except KeyboardInterrupt:
         print("missiontree: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except Exception:
+    except Exception as error:
         # a Ctrl-C inside a class body of an imported module comes out as another error (a
-        # RuntimeError from __set_name__): with one recorded, it is the interrupt
-        if _interrupted():
+        # RuntimeError from __set_name__): with one recorded, or one behind it, it is the interrupt
+        if _interrupted() or _behind(error):
             print("missiontree: interrupted", file=sys.stderr)
             return EXIT_INTERRUPTED
         raise
@@ -36,6 +36,18 @@ def _interrupted() -> bool:
     """Whether start-up recorded a Ctrl-C (False when the recorder itself was not imported yet)."""
     startup = sys.modules.get("missiontree.startup")
     return startup is not None and bool(startup.interrupted())
+
+
+def _behind(error: BaseException) -> bool:
+    """Whether a KeyboardInterrupt caused ``error`` (one arriving before the guard was in place)."""
+    seen: set[int] = set()
+    cause: BaseException | None = error
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            return True
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return False
 
 
 if __name__ == "__main__":

@@ -22,8 +22,11 @@ from __future__ import annotations
 import signal
 import sys
 import threading
-from types import FrameType
-from typing import Any, NoReturn
+
+TYPE_CHECKING = False  # not typing's: importing typing builds classes, where a Ctrl-C precedes the guard
+if TYPE_CHECKING:
+    from types import FrameType
+    from typing import Any, NoReturn
 
 _pending = False
 

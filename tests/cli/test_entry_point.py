@@ -37,3 +37,23 @@ def test_an_import_error_without_a_ctrl_c_is_raised(monkeypatch: pytest.MonkeyPa
     monkeypatch.setattr(startup, "_pending", False)
     with pytest.raises(ImportError):
         entry.main()
+
+
+class _InterruptedImport:
+    """A module whose ``main`` fails as a class body hit by Ctrl-C does: a RuntimeError from it."""
+
+    def __getattr__(self, name: str) -> object:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as interrupt:
+            raise RuntimeError("Error calling __set_name__") from interrupt
+
+
+@pytest.mark.usefixtures("guarded")
+def test_an_error_caused_by_a_ctrl_c_before_the_guard_is_the_interrupt(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """A Ctrl-C the guard never saw, behind an import's error: exit 130 and one line, no traceback."""
+    monkeypatch.setattr(startup, "_pending", False)
+    monkeypatch.setitem(sys.modules, "missiontree.cli.main", _InterruptedImport())
+    assert entry.main() == entry.EXIT_INTERRUPTED
+    assert capsys.readouterr().err == "missiontree: interrupted\n"
