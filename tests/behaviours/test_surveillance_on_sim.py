@@ -17,7 +17,7 @@ from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Status
 from missiontree.perception.oracle import OracleDetector
 from missiontree.reasoning.calls import SETTINGS_KEY, CallSettings, LatencyModel
-from missiontree.reasoning.offline_vlm import OfflineVisionModel
+from missiontree.reasoning.providers.offline_vlm import OfflineVisionModel
 
 
 def hall(tmp_path: Path, people: list[dict]) -> Path:

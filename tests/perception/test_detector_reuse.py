@@ -94,7 +94,7 @@ def test_a_frame_asked_with_and_without_the_mirror_pass_runs_its_single_pass_onc
 
 def test_the_offline_vlm_person_check_mirrors_only_for_a_person_in_the_band(tmp_path: Path) -> None:
     """A cup in the band does not buy the offline VLM's person check a mirror pass; a person does."""
-    from missiontree.reasoning.offline_vlm import OfflineVisionModel
+    from missiontree.reasoning.providers.offline_vlm import OfflineVisionModel
 
     for scores, mirrored in (([0.0, 0.5], 0), ([0.5, 0.0], 1)):
         out = yolo_output([(20, 20, 8, 8, scores)], 2)

@@ -9,7 +9,7 @@ import pytest
 
 from missiontree.reasoning.embedder import MiniLMEmbedder
 from missiontree.reasoning.knowledge import STRONG, Knowledge, knowledge
-from missiontree.reasoning.offline_llm import OfflineLanguageModel
+from missiontree.reasoning.providers.offline_llm import OfflineLanguageModel
 
 WORDNET = Path("/usr/share/wordnet")
 REPO = Path(__file__).resolve().parents[2]

@@ -6,7 +6,7 @@ import pytest
 
 from missiontree.reasoning.embedder import MiniLMEmbedder
 from missiontree.reasoning.knowledge import STRONG, knowledge
-from missiontree.reasoning.offline_llm import OfflineLanguageModel
+from missiontree.reasoning.providers.offline_llm import OfflineLanguageModel
 
 LABELS = ["bottle", "cup", "sofa", "chair", "bed", "tv", "laptop", "backpack", "umbrella", "sink", "book"]
 

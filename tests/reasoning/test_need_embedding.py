@@ -14,7 +14,7 @@ from missiontree.reasoning.need_embedding import (
     embedded_reading,
     need_heads,
 )
-from missiontree.reasoning.offline_llm import OfflineLanguageModel
+from missiontree.reasoning.providers.offline_llm import OfflineLanguageModel
 
 
 class TableEmbedder:

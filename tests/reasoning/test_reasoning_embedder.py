@@ -9,7 +9,7 @@ import pytest
 
 from missiontree.errors import ModelConfigError
 from missiontree.reasoning.embedder import MiniLMEmbedder, default_tokenizer_path, similarity
-from missiontree.reasoning.offline_llm import AFFORDANCES
+from missiontree.reasoning.providers.offline_llm import AFFORDANCES
 
 
 @pytest.fixture(scope="module")

@@ -9,10 +9,10 @@ import pytest
 from missiontree.errors import ModelError
 from missiontree.reasoning.checks import chat_checked
 from missiontree.reasoning.embedder import MiniLMEmbedder
-from missiontree.reasoning.offline_llm import OfflineLanguageModel
 from missiontree.reasoning.phrases import parse_reference, split_relation
 from missiontree.reasoning.prompts import intent_messages
 from missiontree.reasoning.protocols import Message
+from missiontree.reasoning.providers.offline_llm import OfflineLanguageModel
 from missiontree.reasoning.schemas import IntentResolution, ReferenceParse
 
 LABELS = ["bottle", "cup", "sofa", "chair", "backpack", "laptop", "sink", "tv", "book"]

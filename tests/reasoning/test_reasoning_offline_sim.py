@@ -11,8 +11,8 @@ from missiontree.perception.oracle import OracleDetector
 from missiontree.plugins.manager import load_plugins
 from missiontree.reasoning.calls import CallStatus, model_caller
 from missiontree.reasoning.checks import ask_checked
-from missiontree.reasoning.offline_vlm import OfflineVisionModel
 from missiontree.reasoning.prompts import crop_match_prompt, room_prompt, surveillance_prompt
+from missiontree.reasoning.providers.offline_vlm import OfflineVisionModel
 from missiontree.reasoning.schemas import CropMatch, RoomClassification, SurveillanceVerdict
 from missiontree.session.models import build_models
 from missiontree.testing import capture_tick_log

@@ -7,13 +7,13 @@ import pytest
 
 from missiontree.errors import ModelError
 from missiontree.reasoning.checks import ask_checked
-from missiontree.reasoning.offline_vlm import OfflineVisionModel
 from missiontree.reasoning.prompts import (
     crop_match_prompt,
     object_description_prompt,
     room_prompt,
     surveillance_prompt,
 )
+from missiontree.reasoning.providers.offline_vlm import OfflineVisionModel
 from missiontree.reasoning.schemas import (
     CropMatch,
     ObjectDescription,

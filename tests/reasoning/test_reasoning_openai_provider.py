@@ -18,8 +18,8 @@ from fake_openai_server import Reply
 
 from missiontree.errors import ModelConfigError, ModelError, ModelTimeoutError
 from missiontree.reasoning.checks import RejectedAnswerError, ask_checked, chat_checked
-from missiontree.reasoning.openai_provider import OpenAIChatModel
 from missiontree.reasoning.prompts import intent_messages, surveillance_prompt
+from missiontree.reasoning.providers.openai import OpenAIChatModel
 from missiontree.reasoning.schemas import IntentResolution, SurveillanceVerdict
 from missiontree.redact import forget_secrets
 

@@ -13,9 +13,9 @@ from missiontree.engine.context import MissionContext
 from missiontree.engine.leaf import Leaf, Status
 from missiontree.errors import ModelConfigError, ModelError, ProblemsError
 from missiontree.reasoning.calls import SETTINGS_KEY, CallStatus, LatencyModel, ModelCall, model_caller
-from missiontree.reasoning.offline_vlm import OfflineVisionModel
 from missiontree.reasoning.prompts import surveillance_prompt
 from missiontree.reasoning.providers import register_providers
+from missiontree.reasoning.providers.offline_vlm import OfflineVisionModel
 from missiontree.reasoning.schemas import SurveillanceVerdict
 from missiontree.session.models import BrokenProvider, build_models
 from missiontree.testing import ClockRobot, capture_tick_log

@@ -48,8 +48,8 @@ from missiontree.engine.ports import Output
 from missiontree.perception.detectors import detection_job
 from missiontree.perception.tracking import NaisFilterParams
 from missiontree.reasoning.calls import CallStatus, ModelCall, model_caller
-from missiontree.reasoning.offline_scene import measured_description
 from missiontree.reasoning.prompts import object_description_prompt, room_prompt
+from missiontree.reasoning.providers.offline_scene import measured_description
 from missiontree.reasoning.scene_prompts import SemanticRelations, expanded_crop, semantic_relations_messages
 from missiontree.reasoning.schemas import ObjectDescription, RoomClassification
 from missiontree.semantics.builder import BuilderParams, SceneBuilder

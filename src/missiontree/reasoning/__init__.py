@@ -7,7 +7,8 @@
 - :mod:`~missiontree.reasoning.schemas` — pydantic answer schemas missions use.
 - :mod:`~missiontree.reasoning.checks` — validation, retry-once, grounding of object ids.
 - :mod:`~missiontree.reasoning.prompts` — the prompts missions send.
-- providers: :mod:`~missiontree.reasoning.openai_provider`, :mod:`~missiontree.reasoning.offline_vlm`,
-  :mod:`~missiontree.reasoning.offline_llm`, :mod:`~missiontree.reasoning.embedder`, registered by
-  :mod:`~missiontree.reasoning.providers`; :mod:`missiontree.session.models` builds them from config.
+- :mod:`~missiontree.reasoning.providers` — the providers, one module each (``openai``,
+  ``offline_vlm``, ``offline_llm``, ``offline_scene``; the embedder is
+  :mod:`~missiontree.reasoning.embedder`), and their one registry;
+  :mod:`missiontree.session.models` builds them from config.
 """

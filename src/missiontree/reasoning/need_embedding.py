@@ -1,7 +1,8 @@
 """Reading a need the knowledge's words do not cover, by MiniLM embeddings (no network).
 
-Shared by the offline language-model stand-in (:mod:`missiontree.reasoning.offline_llm`), which names
-candidates by it, and the intent leaf, which asks how surely a chosen object serves the command
+Shared by the offline language-model stand-in
+(:mod:`missiontree.reasoning.providers.offline_llm`), which names candidates by it, and the intent
+leaf, which asks how surely a chosen object serves the command
 whatever model chose it. The knowledge (:mod:`missiontree.reasoning.knowledge`) reads words it lists;
 a request none of whose words it lists ("I'd enjoy a photoplay tonight") is compared, by cosine
 similarity of all-MiniLM-L6-v2 vectors, with each need's description and, word by word, with each

@@ -28,9 +28,9 @@ from dataclasses import dataclass
 from pydantic import BaseModel, Field
 
 from missiontree.errors import ConfigError
-from missiontree.reasoning.offline_vlm import ROOM_OBJECTS
 from missiontree.reasoning.phrases import colour_words, find_label, fold_label
 from missiontree.reasoning.protocols import Message
+from missiontree.reasoning.providers.offline_vlm import ROOM_OBJECTS
 
 #: Places people leave things the room-typing table does not list (backpacks, umbrellas, ...).
 CARRIED_PLACES: dict[str, dict[str, float]] = {

@@ -19,7 +19,7 @@ old region it overlaps most).
 world-file ``rooms:`` format; a mapping with a ``rooms:`` key is accepted).
 
 A :class:`RoomRegion` carries a type (``unknown`` until a classifier gives one; see
-``missiontree.reasoning.offline_scene`` for the offline one) and answers which room a point is in.
+``missiontree.reasoning.providers.offline_scene`` for the offline one) and answers which room a point is in.
 """
 
 from __future__ import annotations

@@ -2,11 +2,11 @@
 
 :func:`register_providers` adds, by name (the ``provider:`` of a models config):
 
-- ``openai`` — :class:`~missiontree.reasoning.openai_provider.OpenAIChatModel` (extra ``openai``):
+- ``openai`` — :class:`~missiontree.reasoning.providers.openai.OpenAIChatModel` (extra ``openai``):
   any OpenAI-compatible server (OpenAI, vLLM, Ollama, llama.cpp), as VLM or LLM.
-- ``offline_vlm`` — :class:`~missiontree.reasoning.offline_vlm.OfflineVisionModel`, on the detector
+- ``offline_vlm`` — :class:`~missiontree.reasoning.providers.offline_vlm.OfflineVisionModel`, on the detector
   of the role named by its ``detector`` option (default ``detector``).
-- ``offline_llm`` — :class:`~missiontree.reasoning.offline_llm.OfflineLanguageModel`, on the
+- ``offline_llm`` — :class:`~missiontree.reasoning.providers.offline_llm.OfflineLanguageModel`, on the
   embedder of the role named by its ``embedder`` option (default ``embedder``).
 - ``minilm`` — :class:`~missiontree.reasoning.embedder.MiniLMEmbedder`.
 
@@ -64,7 +64,7 @@ def _role(models: Mapping[str, Any], role: str, provider: str, what: str) -> Any
 
 def create_openai(options: Mapping[str, Any], timeout: float | None = None) -> Any:
     """Build an ``openai`` provider; ``timeout`` is the role's (its HTTP timeout)."""
-    from missiontree.reasoning.openai_provider import OpenAIChatModel
+    from missiontree.reasoning.providers.openai import OpenAIChatModel
 
     return OpenAIChatModel.from_options(options, timeout=timeout)
 
@@ -74,7 +74,7 @@ create_openai.wants_timeout = True  # type: ignore[attr-defined]  # the wiring h
 
 def create_offline_vlm(options: Mapping[str, Any], models: Mapping[str, Any], seed: int = 0) -> Any:
     """Build ``offline_vlm`` on the detector role its options name."""
-    from missiontree.reasoning.offline_vlm import OfflineVisionModel
+    from missiontree.reasoning.providers.offline_vlm import OfflineVisionModel
 
     parsed = parse_provider_options(OfflineVisionOptions, options, "offline_vlm")
     detector = _role(models, parsed.detector, parsed.name, "detector")
@@ -85,7 +85,7 @@ def create_offline_vlm(options: Mapping[str, Any], models: Mapping[str, Any], se
 
 def create_offline_llm(options: Mapping[str, Any], models: Mapping[str, Any], seed: int = 0) -> Any:
     """Build ``offline_llm`` on the embedder role its options name."""
-    from missiontree.reasoning.offline_llm import OfflineLanguageModel
+    from missiontree.reasoning.providers.offline_llm import OfflineLanguageModel
 
     parsed = parse_provider_options(OfflineLanguageOptions, options, "offline_llm")
     embedder = _role(models, parsed.embedder, parsed.name, "embedder")
